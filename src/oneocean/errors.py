@@ -1,0 +1,22 @@
+"""One exception type for bad input: a one-line message naming the file or key and the problem."""
+
+from __future__ import annotations
+
+
+class OneOceanError(ValueError):
+    """Bad input or configuration. ``str(err)`` is a single line meant for the user."""
+
+    def __init__(self, message: str):
+        super().__init__(" ".join(str(message).split()))
+
+
+class DataError(OneOceanError):
+    """A data file is missing, malformed, or does not cover what was asked."""
+
+
+class ConfigError(OneOceanError):
+    """A configuration key is unknown, ill-typed, or out of range."""
+
+
+class CredentialsError(OneOceanError):
+    """Credentials for a remote data service are missing."""

@@ -1,0 +1,140 @@
+"""Atomic, deterministic file I/O and hashing shared by every stage."""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import io
+import json
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Iterator, Mapping
+
+import numpy as np
+
+_CHUNK = 1 << 20
+
+
+def sha256_file(path: str | os.PathLike) -> str:
+    """Hex sha256 of a file's bytes, read in 1 MiB chunks."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(_CHUNK), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; rename it onto ``path`` only on success.
+
+    On any exception the temporary file is removed, so no partial artifact is left behind.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix or ".tmp",
+                               dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+
+
+def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> None:
+    write_bytes_atomic(path, text.encode("utf-8"))
+
+
+def canonical_json(obj) -> str:
+    """JSON with sorted keys and fixed separators: equal objects give equal bytes."""
+    return json.dumps(obj, sort_keys=True, indent=2, default=_json_default) + "\n"
+
+
+def _json_default(o):
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.floating,)):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def write_json_atomic(path: str | os.PathLike, obj) -> None:
+    write_text_atomic(path, canonical_json(obj))
+
+
+def config_hash(obj) -> str:
+    """sha256 of the canonical JSON of a config snapshot."""
+    return hashlib.sha256(canonical_json(obj).encode()).hexdigest()
+
+
+_ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
+
+
+def write_npz_atomic(path: str | os.PathLike, arrays: Mapping[str, np.ndarray]) -> None:
+    """Write an ``.npz`` readable by :func:`numpy.load` whose bytes depend only on the arrays.
+
+    ``numpy.savez`` stamps the current time into every zip member; here members are written
+    in sorted order with a fixed timestamp, uncompressed, so identical inputs give identical bytes.
+    """
+    with atomic_path(path, suffix=".npz") as tmp:
+        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED) as zf:
+            for name in sorted(arrays):
+                buf = io.BytesIO()
+                np.lib.format.write_array(buf, np.asanyarray(arrays[name]), allow_pickle=False)
+                info = zipfile.ZipInfo(f"{name}.npy", date_time=_ZIP_EPOCH)
+                info.external_attr = 0o644 << 16
+                zf.writestr(info, buf.getvalue())
+
+
+def array_digest(h: "hashlib._Hash", name: str, arr: np.ndarray) -> None:
+    arr = np.ascontiguousarray(np.asarray(arr))
+    h.update(name.encode())
+    h.update(str(arr.dtype).encode())
+    h.update(repr(arr.shape).encode())
+    if arr.dtype.kind in "OUS":
+        h.update("\x1f".join(map(str, arr.ravel().tolist())).encode())
+    else:
+        h.update(arr.tobytes())
+
+
+def dataset_content_hash(ds) -> str:
+    """Stable sha256 of an xarray Dataset's decoded content (variables, coords, attributes).
+
+    Used for formats (NetCDF/HDF5) whose bytes may embed write-time metadata. Variables are
+    streamed chunk by chunk along their first dimension so large products never load whole.
+    """
+    h = hashlib.sha256()
+    h.update(canonical_json({k: _attr(v) for k, v in ds.attrs.items()}).encode())
+    for name in sorted(map(str, ds.variables)):
+        var = ds.variables[name]
+        h.update(canonical_json({"name": name, "dims": list(var.dims),
+                                 "attrs": {k: _attr(v) for k, v in var.attrs.items()}}).encode())
+        if var.ndim == 0 or var.shape[0] == 0:
+            array_digest(h, name, var.values)
+            continue
+        for i in range(var.shape[0]):
+            array_digest(h, f"{name}[{i}]", var[i].values)
+    return h.hexdigest()
+
+
+def _attr(v):
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, (np.integer, np.floating)):
+        return v.item()
+    return v
