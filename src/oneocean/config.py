@@ -1,0 +1,130 @@
+"""Load and validate the workflow configuration against its JSON schema.
+
+The schema (``workflow/schemas/config.schema.yaml``) documents every key and its default; this
+module fills the defaults and turns the first violation into a one-line
+:class:`~oneocean.errors.ConfigError` that names the offending key.
+"""
+
+from __future__ import annotations
+
+import copy
+from datetime import datetime
+from pathlib import Path
+
+import jsonschema
+import yaml
+
+from .errors import ConfigError
+
+#: Schema shipped with the workflow (the single source of truth for keys and defaults).
+SCHEMA_PATH = Path(__file__).resolve().parents[2] / "workflow" / "schemas" / "config.schema.yaml"
+
+
+def load_schema(path: str | Path | None = None) -> dict:
+    with open(path or SCHEMA_PATH) as fh:
+        return yaml.safe_load(fh)
+
+
+def _with_defaults(validator_cls):
+    """A jsonschema validator class that fills ``default`` values while validating."""
+    validate_props = validator_cls.VALIDATORS["properties"]
+
+    def set_defaults(validator, properties, instance, schema):
+        if isinstance(instance, dict):
+            for key, sub in properties.items():
+                if "default" in sub and key not in instance:
+                    instance[key] = copy.deepcopy(sub["default"])
+                elif "$ref" in sub and key not in instance and "default" in sub:
+                    instance[key] = copy.deepcopy(sub["default"])
+        yield from validate_props(validator, properties, instance, schema)
+
+    return jsonschema.validators.extend(validator_cls, {"properties": set_defaults})
+
+
+_Filling = _with_defaults(jsonschema.Draft202012Validator)
+
+
+def _key(error: jsonschema.ValidationError) -> str:
+    path = ".".join(str(p) for p in error.absolute_path)
+    if error.validator == "additionalProperties":
+        extra = sorted(set(error.instance) - set(error.schema.get("properties", {})))
+        known = ", ".join(sorted(error.schema.get("properties", {})))
+        where = f"{path}." if path else ""
+        return f"unknown key '{where}{extra[0]}' (known keys here: {known})"
+    return f"key '{path or '<root>'}': {error.message}"
+
+
+def validate_config(config: dict, schema: dict | None = None) -> dict:
+    """Validate ``config`` in place, fill defaults, and return it.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the first bad key: unknown, ill-typed, out of range, or inconsistent.
+    """
+    schema = schema or load_schema()
+    validator = _Filling(schema, format_checker=jsonschema.FormatChecker())
+    errors = sorted(validator.iter_errors(config), key=lambda e: list(map(str, e.absolute_path)))
+    if errors:
+        raise ConfigError(f"config {_key(errors[0])}")
+    _check_semantics(config)
+    return config
+
+
+def _check_semantics(cfg: dict) -> None:
+    bbox = cfg["region"]["bbox"]
+    if not bbox["west"] < bbox["east"]:
+        raise ConfigError("config key 'region.bbox': west must be less than east "
+                          f"(got west={bbox['west']}, east={bbox['east']}; "
+                          "longitudes are -180..180)")
+    if not bbox["south"] < bbox["north"]:
+        raise ConfigError("config key 'region.bbox': south must be less than north "
+                          f"(got south={bbox['south']}, north={bbox['north']})")
+    t0, t1 = (datetime.fromisoformat(cfg["region"]["time"][k]) for k in ("start", "end"))
+    if not t0 < t1:
+        raise ConfigError("config key 'region.time': start must be before end "
+                          f"(got {cfg['region']['time']['start']} .. {cfg['region']['time']['end']})")
+    src = cfg["sources"]
+    needs = {
+        ("currents", "files"): ("files", "currents"),
+        ("bathymetry", "files"): ("files", "bathymetry"),
+        ("bathymetry", "etopo"): ("etopo", "path"),
+    }
+    for (layer, kind), (sec, key) in needs.items():
+        if src[layer] == kind and not cfg[sec][key]:
+            raise ConfigError(f"config key '{sec}.{key}' is required when sources.{layer} is "
+                              f"'{kind}'")
+    if src["bathymetry"] == "gebco" and not (cfg["gebco"]["path"] or cfg["gebco"]["url"]):
+        raise ConfigError("config key 'gebco.path' or 'gebco.url' is required when "
+                          "sources.bathymetry is 'gebco'")
+    if src["tides"] and src["currents"] == "files" and not cfg["files"]["tides"]:
+        raise ConfigError("config key 'files.tides' is required when sources.tides is true and "
+                          "sources.currents is 'files' (or set sources.tides: false)")
+
+
+def load_config(*paths: str | Path, overrides: dict | None = None) -> dict:
+    """Deep-merge YAML files (later wins) and ``overrides``, then validate."""
+    merged: dict = {}
+    for p in paths:
+        try:
+            with open(p) as fh:
+                data = yaml.safe_load(fh) or {}
+        except FileNotFoundError:
+            raise ConfigError(f"config file {p}: not found") from None
+        except yaml.YAMLError as exc:
+            raise ConfigError(f"config file {p}: not valid YAML ({exc.__class__.__name__})") from None
+        if not isinstance(data, dict):
+            raise ConfigError(f"config file {p}: top level must be a mapping")
+        deep_update(merged, data)
+    if overrides:
+        deep_update(merged, overrides)
+    return validate_config(merged)
+
+
+def deep_update(base: dict, new: dict) -> dict:
+    for k, v in new.items():
+        if isinstance(v, dict) and isinstance(base.get(k), dict):
+            deep_update(base[k], v)
+        else:
+            base[k] = copy.deepcopy(v)
+    return base

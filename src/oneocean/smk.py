@@ -1,0 +1,57 @@
+"""The thin adapter every ``workflow/scripts/*.py`` uses: log, run one function, record provenance."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import sys
+import traceback
+from pathlib import Path
+
+from .manifest import write_job_provenance
+
+
+def _plain(obj):
+    """Snakemake Namedlists/params → plain JSON-able values."""
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, (str, int, float, bool)) or obj is None:
+        return obj
+    return str(obj)
+
+
+def run(snakemake, func) -> None:
+    """Run ``func(snakemake)`` with logging to the job log, then write the job's provenance.
+
+    The output named ``prov`` receives the provenance of every other output. A
+    :class:`~oneocean.errors.OneOceanError` is reported as its one-line message (no traceback)
+    and the job fails; Snakemake then removes the job's outputs.
+    """
+    log_path = snakemake.log[0] if len(snakemake.log) else None
+    handlers = [logging.StreamHandler(sys.stderr)]
+    if log_path:
+        Path(log_path).parent.mkdir(parents=True, exist_ok=True)
+        handlers.append(logging.FileHandler(log_path, mode="w"))
+    logging.basicConfig(level=logging.INFO, handlers=handlers, force=True,
+                        format="%(levelname)s %(name)s: %(message)s")
+    log = logging.getLogger(f"oneocean.{snakemake.rule}")
+    from .errors import OneOceanError
+
+    try:
+        func(snakemake)
+    except OneOceanError as err:
+        log.error("%s", err)
+        sys.exit(1)
+    except Exception:
+        log.error("%s", traceback.format_exc())
+        raise
+    outputs = dict(snakemake.output.items())
+    prov = outputs.pop("prov")
+    params = {k: _plain(v) for k, v in snakemake.params.items()}
+    write_job_provenance(prov, snakemake.rule, _plain(dict(snakemake.wildcards.items())),
+                         [str(o) for o in outputs.values()],
+                         [str(i) for i in snakemake.input], params)
+    with contextlib.suppress(Exception):
+        log.info("wrote %s", ", ".join(map(str, outputs.values())))

@@ -1,0 +1,85 @@
+# Config validation, vocabularies, input functions and code hashes (no numerics here).
+import hashlib
+import importlib.util
+from pathlib import Path
+
+from oneocean.config import load_schema, validate_config
+from oneocean.errors import ConfigError
+from oneocean.vocab import VARIANTS
+
+try:
+    validate_config(config, load_schema(workflow.source_path("../schemas/config.schema.yaml")))
+except ConfigError as _err:
+    raise WorkflowError(str(_err)) from None
+
+REGION = config["region"]["name"]
+
+
+wildcard_constraints:
+    region=r"[A-Za-z0-9_-]+",
+    variant="|".join(VARIANTS),
+
+
+def code_version(*modules):
+    """sha256 of the source of oneocean modules/packages a rule depends on (a params value,
+    so that editing the code reruns the rule)."""
+    h = hashlib.sha256()
+    for mod in modules:
+        spec = importlib.util.find_spec(mod)
+        if spec is None:
+            raise WorkflowError(f"code_version: module {mod} not found")
+        if spec.submodule_search_locations:
+            files = sorted(f for d in spec.submodule_search_locations for f in Path(d).rglob("*.py"))
+        else:
+            files = [Path(spec.origin)]
+        for f in files:
+            h.update(f.name.encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def config_section(*keys):
+    return {k: config[k] for k in keys}
+
+
+def product_targets():
+    return expand(
+        "results/product/{region}/{variant}/{name}",
+        region=REGION,
+        variant=VARIANTS,
+        name=["product.nc", "metadata.json"],
+    )
+
+
+def export_targets():
+    return expand(
+        "results/exports/{region}/{variant}/{name}.npz",
+        region=REGION,
+        variant=VARIANTS,
+        name=["grid", "temporal"],
+    )
+
+
+def figure_targets():
+    return expand(
+        "results/figures/{region}/{variant}/current_field.png",
+        region=REGION,
+        variant=VARIANTS,
+    )
+
+
+def provenance_targets():
+    """Every job's provenance file in the paper DAG (collected into results/manifest.json)."""
+    stages = [
+        f"results/provenance/fetch/{REGION}/currents.json",
+        f"results/provenance/fetch/{REGION}/bathymetry.json",
+    ]
+    for v in VARIANTS:
+        stages += [
+            f"results/provenance/product/{REGION}/{v}.json",
+            f"results/provenance/exports/{REGION}/{v}/grid.json",
+            f"results/provenance/exports/{REGION}/{v}/temporal.json",
+            f"results/provenance/figures/{REGION}/{v}/current_field.json",
+        ]
+    stages.append("results/provenance/tables/dataset_variants.json")
+    return stages

@@ -1,0 +1,37 @@
+# Stage 3: backend exports of each variant (grid for the core backend, a point time series
+# for the scene backend).
+
+
+rule export_grid:
+    input:
+        product=rules.merge_variant.output.nc,
+    output:
+        npz="results/exports/{region}/{variant}/grid.npz",
+        prov="results/provenance/exports/{region}/{variant}/grid.json",
+    log:
+        "logs/exports/{region}/{variant}/grid.log",
+    benchmark:
+        "results/benchmarks/exports/{region}/{variant}/grid.tsv"
+    params:
+        code=code_version("oneocean.exports"),
+    threads: 1
+    script:
+        "../scripts/export_grid.py"
+
+
+rule export_temporal:
+    input:
+        product=rules.merge_variant.output.nc,
+    output:
+        npz="results/exports/{region}/{variant}/temporal.npz",
+        prov="results/provenance/exports/{region}/{variant}/temporal.json",
+    log:
+        "logs/exports/{region}/{variant}/temporal.log",
+    benchmark:
+        "results/benchmarks/exports/{region}/{variant}/temporal.tsv"
+    params:
+        point=lambda wc: config["temporal_export"],
+        code=code_version("oneocean.exports"),
+    threads: 1
+    script:
+        "../scripts/export_temporal.py"

@@ -1,0 +1,8 @@
+from oneocean import smk
+from oneocean.exports import export_grid
+
+smk.run(
+    snakemake,
+    lambda s: export_grid(s.input.product, s.output.npz,
+                          {"region": s.wildcards.region, "variant": s.wildcards.variant}),
+)
