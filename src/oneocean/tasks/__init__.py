@@ -1,0 +1,85 @@
+"""The canonical 10-task ladder (G2G, SK, RF, DPT, AS, PI, FT, SPC, UPL, FH).
+
+Each task is one module (see ``docs/tasks_design.md``) exposing ``TASK_ID``, ``METRICS``
+(``METRICS[0]`` is the primary metric), ``reset(...)`` and ``rollout(...)``; its tier table is
+data in ``oneocean/data/tasks/<ID>.yaml``. :func:`run_cell` runs one
+(task, tier, method) cell of episodes on a grid export and returns one row per episode.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import numpy as np
+import pandas as pd
+
+from ..errors import ConfigError
+from ..vocab import TASK_IDS, validate_choice
+from .common import STANDARD, load_task_table, method_id, tier_params
+
+#: Task id -> module name inside this package.
+MODULES = {"G2G": "g2g", "SK": "sk", "RF": "rf", "DPT": "dpt", "AS": "as_", "PI": "pi",
+           "FT": "ft", "SPC": "spc", "UPL": "upl", "FH": "fh"}
+
+
+def task_module(task_id: str):
+    validate_choice(task_id, TASK_IDS, "task")
+    return importlib.import_module(f"{__name__}.{MODULES[task_id]}")
+
+
+def n_agents_for(task_id: str, n_agents: int | None) -> int:
+    """The team size: the table's default, or ``n_agents`` checked against its allowed range."""
+    agents = load_task_table(task_id)["agents"]
+    if n_agents is None:
+        return int(agents["default"])
+    lo, hi = agents["range"]
+    if not lo <= n_agents <= hi:
+        raise ConfigError(f"task {task_id}: n_agents={n_agents} outside its allowed range "
+                          f"[{lo}, {hi}]")
+    return int(n_agents)
+
+
+def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: int = 50,
+             seed: int = 0, dynamics: str = "6dof", currents: bool = True,
+             n_agents: int | None = None, vehicle=None) -> pd.DataFrame:
+    """Run ``episodes`` episodes of one (task, tier, method) cell, batched in one kernel call.
+
+    Parameters
+    ----------
+    grid : Grid
+        A loaded grid export (:func:`oneocean.engine.load_grid`); the tier's ``current_gain``
+        is applied here (``currents=False`` sets it to 0 and drops tides: the ablation).
+    Returns
+    -------
+    DataFrame, one row per episode: ``episode, seed, success, T_s, E, coll_ratio,
+    violations, primary`` and the task's metric columns.
+    """
+    from ..engine import load_vehicle
+    from ..engine.grid import with_forcing
+
+    mod = task_module(task)
+    method_id(method)
+    params = tier_params(task, int(tier))
+    table = load_task_table(task)
+    n = n_agents_for(task, n_agents)
+    gain = float(params.get("current_gain", 1.0)) if currents else 0.0
+    g = with_forcing(grid, current_gain=gain)
+    if not currents:
+        g = g._replace(tide_layers=0, tide_amp=0.0)
+    veh = vehicle if vehicle is not None else load_vehicle()
+    params = {**params, "dt_s": float(table["dt_s"])}
+    init = mod.reset(g, params, n, int(episodes), int(seed))
+    res = mod.rollout(g, params, init, method, dynamics, veh, int(seed))
+    missing = [k for k in STANDARD + tuple(mod.METRICS) if k not in res]
+    if missing:
+        raise RuntimeError(f"task {task}: rollout did not return {missing}")
+    df = pd.DataFrame({"episode": np.arange(episodes, dtype=np.int64),
+                       "seed": np.full(episodes, seed, dtype=np.int64)})
+    for k in STANDARD:
+        df[k] = res[k]
+    df["primary"] = res[mod.METRICS[0]]
+    for k in mod.METRICS:
+        df[k] = res[k]
+    df.attrs.update(task=task, tier=int(tier), method=method, n_agents=n, dynamics=dynamics,
+                    currents=bool(currents), primary=mod.METRICS[0])
+    return df
