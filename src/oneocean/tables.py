@@ -67,3 +67,41 @@ def dataset_variants_table(metadata_files, out_tex) -> None:
                 "the last speed column adds the tidal currents.",
         label="tab:dataset_variants", precision=3, column_format="llllllrrrrl")
     write_text_atomic(out_tex, tex)
+
+
+#: Row order and families of the paper's Table V.
+TASK_FAMILIES = (("Navigation / Tracking", ("G2G", "SK", "RF", "DPT")),
+                 ("Sensing / Inspection", ("AS", "PI")),
+                 ("Coordination / Pollution", ("FT", "SPC", "UPL", "FH")))
+
+
+def task_success_frame(cell_files) -> pd.DataFrame:
+    """Per-task success rate (%) by method and tier from per-episode rollout tables, plus a
+    macro (unweighted mean over tasks) row."""
+    cells = pd.concat([pd.read_parquet(f) for f in cell_files], ignore_index=True)
+    sr = (cells.groupby(["task", "method", "tier"])["success"].mean() * 100.0).unstack(
+        ["method", "tier"]).sort_index(axis=1)
+    n = cells.groupby("task")["n_agents"].first()
+    order = [t for _, tasks in TASK_FAMILIES for t in tasks if t in sr.index]
+    sr = sr.loc[order]
+    names = {"heuristic": "Heur", "oracle": "Oracle"}
+    sr.columns = [f"{names.get(m, m)} T{t}" for m, t in sr.columns]
+    family = {t: fam for fam, tasks in TASK_FAMILIES for t in tasks}
+    out = sr.reset_index().rename(columns={"task": "Task"})
+    out.insert(0, "Family", out["Task"].map(family))
+    out.insert(2, "N", out["Task"].map(n).astype(int))
+    macro = {"Family": "", "Task": "Macro", "N": pd.NA, **sr.mean(axis=0).to_dict()}
+    return pd.concat([out, pd.DataFrame([macro])], ignore_index=True)
+
+
+def task_success_table(cell_files, out_tex) -> None:
+    df = task_success_frame(cell_files)
+    sr_cols = [c for c in df.columns if c not in ("Family", "Task", "N")]
+    body = df.copy()
+    body["N"] = body["N"].map(lambda v: "" if pd.isna(v) else str(int(v)))
+    tex = to_booktabs(
+        body, caption="Per-task success rate (\\%) by tier on the default region (core "
+        "backend, 50 episodes per cell unless stated in the manifest). Macro is the "
+        "unweighted mean over tasks.", label="tab:task_success", precision=1,
+        column_format="llr" + "r" * len(sr_cols))
+    write_text_atomic(out_tex, tex)

@@ -14,7 +14,9 @@ SourceKind = Literal["synthetic", "cmems", "gebco", "etopo", "files"]
 Dynamics = Literal["kinematic", "3dof", "4dof", "6dof"]
 TaskId = Literal["G2G", "SK", "RF", "DPT", "AS", "PI", "FT", "SPC", "UPL", "FH"]
 Tier = Literal[1, 2, 3]
-Method = Literal["heuristic", "bc", "llm"]
+#: Implemented rollout methods: the paper's heuristic baseline and a privileged oracle
+#: (solvability check). BC and the LLM planner are not implemented yet.
+Method = Literal["heuristic", "oracle"]
 
 VARIANTS: tuple[str, ...] = get_args(Variant)
 SOURCE_KINDS: tuple[str, ...] = get_args(SourceKind)

@@ -5,7 +5,7 @@ from pathlib import Path
 
 from oneocean.config import load_schema, validate_config
 from oneocean.errors import ConfigError
-from oneocean.vocab import VARIANTS
+from oneocean.vocab import METHODS, TASK_IDS, TIERS, VARIANTS
 
 try:
     validate_config(config, load_schema(workflow.source_path("../schemas/config.schema.yaml")))
@@ -18,6 +18,9 @@ REGION = config["region"]["name"]
 wildcard_constraints:
     region=r"[A-Za-z0-9_-]+",
     variant="|".join(VARIANTS),
+    task="|".join(TASK_IDS),
+    tier="|".join(map(str, TIERS)),
+    method="|".join(METHODS),
 
 
 def code_version(*modules):
@@ -68,6 +71,18 @@ def figure_targets():
     )
 
 
+def rollout_targets():
+    r = config["rollouts"]
+    return expand(
+        "results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}.parquet",
+        region=REGION,
+        variant=r["variant"],
+        task=r["tasks"],
+        tier=r["tiers"],
+        method=r["methods"],
+    )
+
+
 def provenance_targets():
     """Every job's provenance file in the paper DAG (collected into results/manifest.json)."""
     stages = [
@@ -82,4 +97,11 @@ def provenance_targets():
             f"results/provenance/figures/{REGION}/{v}/current_field.json",
         ]
     stages.append("results/provenance/tables/dataset_variants.json")
+    stages += [
+        p.replace("results/rollouts/", "results/provenance/rollouts/").replace(
+            ".parquet", ".json"
+        )
+        for p in rollout_targets()
+    ]
+    stages.append("results/provenance/tables/task_success_by_tier.json")
     return stages

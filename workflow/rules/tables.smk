@@ -24,6 +24,7 @@ rule table_dataset_variants:
 rule paper_tables:
     input:
         "results/tables/dataset_variants.tex",
+        "results/tables/task_success_by_tier.tex",
         figure_targets(),
         export_targets(),
         "results/manifest.json",

@@ -73,7 +73,10 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     missing = [k for k in STANDARD + tuple(mod.METRICS) if k not in res]
     if missing:
         raise RuntimeError(f"task {task}: rollout did not return {missing}")
-    df = pd.DataFrame({"episode": np.arange(episodes, dtype=np.int64),
+    df = pd.DataFrame({"task": task, "tier": np.full(episodes, int(tier), dtype=np.int64),
+                       "method": method, "n_agents": np.full(episodes, n, dtype=np.int64),
+                       "dynamics": dynamics, "currents": bool(currents),
+                       "episode": np.arange(episodes, dtype=np.int64),
                        "seed": np.full(episodes, seed, dtype=np.int64)})
     for k in STANDARD:
         df[k] = res[k]
@@ -83,3 +86,22 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     df.attrs.update(task=task, tier=int(tier), method=method, n_agents=n, dynamics=dynamics,
                     currents=bool(currents), primary=mod.METRICS[0])
     return df
+
+
+def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, episodes: int,
+                    seed: int, dynamics: str, threads: int = 1, currents: bool = True) -> dict:
+    """Run one cell on a grid export file and write its per-episode Parquet table atomically.
+
+    Returns the manifest entry of :func:`oneocean.engine.write_metrics`.
+    """
+    import numba
+
+    from ..engine import load_grid, load_vehicle, write_metrics
+
+    numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    grid = load_grid(grid_path)
+    vehicle = load_vehicle()
+    df = run_cell(grid, task, tier, method, episodes, seed, dynamics, currents=currents,
+                  vehicle=vehicle)
+    return write_metrics(df, out_path, meta={"dynamics": dynamics, "vehicle": vehicle.name,
+                                             "tier_params": tier_params(task, int(tier))})

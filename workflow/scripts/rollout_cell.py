@@ -1,0 +1,11 @@
+from oneocean import smk
+from oneocean.tasks import rollout_to_file
+
+smk.run(
+    snakemake,
+    lambda s: rollout_to_file(
+        s.input.grid, s.output.parquet, s.wildcards.task, int(s.wildcards.tier),
+        s.wildcards.method, s.params.run["episodes"], s.params.run["seed"],
+        s.params.run["dynamics"], threads=s.threads,
+    ),
+)
