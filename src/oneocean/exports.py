@@ -1,0 +1,284 @@
+"""Backend exports of a product: the grid export (contracts §3) and the temporal export (§4).
+
+Both are ``.npz`` files written with :func:`oneocean.io.write_npz_atomic` (byte-deterministic)
+and record the product's path, sha256 and the indices used for the extraction.
+
+Metres mapping: an equirectangular local tangent plane at the centre of the product grid,
+``x = (lon - origin_lon) * m_per_deg_lon`` (east), ``z = (lat - origin_lat) * m_per_deg_lat``
+(north), with a spherical Earth of radius :data:`EARTH_RADIUS_M`.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import xarray as xr
+
+from .errors import DataError
+from .io import sha256_file, write_npz_atomic
+
+__all__ = ["export_grid", "export_temporal", "metres_per_degree", "default_point",
+           "point_weights", "EARTH_RADIUS_M"]
+
+#: Mean Earth radius (IUGG), m.
+EARTH_RADIUS_M = 6371008.8
+
+
+def metres_per_degree(lat0_deg: float) -> tuple[float, float]:
+    """Metres per degree of latitude and of longitude at latitude ``lat0_deg`` (equirectangular,
+    spherical Earth)."""
+    m_lat = np.pi * EARTH_RADIUS_M / 180.0
+    return float(m_lat), float(m_lat * np.cos(np.deg2rad(lat0_deg)))
+
+
+def _spacing(axis: np.ndarray, fallback: float) -> float:
+    return float((axis[-1] - axis[0]) / (axis.size - 1)) if axis.size > 1 else float(fallback)
+
+
+def _time_axis(times: np.ndarray) -> tuple[float, np.ndarray]:
+    ns = times.astype("datetime64[ns]").astype(np.int64)
+    return float(ns[0]) * 1e-9, (ns - ns[0]).astype(np.float64) * 1e-9
+
+
+def _source_meta(product_path, ds: xr.Dataset, meta: dict | None) -> dict:
+    return {**(meta or {}), "source_path": str(product_path),
+            "source_sha256": sha256_file(product_path),
+            "region": str(ds.attrs.get("region", (meta or {}).get("region", ""))),
+            "variant": str(ds.attrs.get("variant", (meta or {}).get("variant", ""))),
+            "source_kind": str(ds.attrs.get("source", "")),
+            "config_hash": str(ds.attrs.get("config_hash", ""))}
+
+
+def _open(product_path) -> xr.Dataset:
+    """Open a product lazily with a small HDF5 chunk cache (it is read once, step by step)."""
+    from .product import netcdf_chunk_cache
+
+    try:
+        with netcdf_chunk_cache():
+            return xr.open_dataset(product_path, cache=False)
+    except (OSError, ValueError) as err:
+        raise DataError(f"{product_path}: cannot open the product ({err})") from None
+
+
+def export_grid(product_path, out_path, meta: dict | None = None) -> None:
+    """Write the core backend's grid export (contracts §3): every time and depth of the product.
+
+    Parameters
+    ----------
+    product_path : path
+        A product NetCDF (contracts §2).
+    out_path : path
+        Output ``.npz``; ``u, v`` (nt, nz, ny, nx) float32 m s-1, zero where ``valid_mask == 0``;
+        ``u_tide, v_tide`` (nt, ny, nx) float32, zero on land or without tide; axes, masks, the
+        lat/lon <-> metres mapping and ``meta_json`` (see contracts §3).
+    meta : dict, optional
+        Extra fields for ``meta_json`` (e.g. region, variant).
+    """
+    with _open(product_path) as ds:
+        lat = ds["latitude"].values.astype(np.float64)
+        lon = ds["longitude"].values.astype(np.float64)
+        depth = ds["depth"].values.astype(np.float64)
+        times = ds["time"].values
+        valid = ds["valid_mask"].values.astype(np.uint8)
+        land = ds["land_mask"].values.astype(np.float32)
+        elev = ds["elevation"].values.astype(np.float32)
+        nt, nz, ny, nx = times.size, depth.size, lat.size, lon.size
+        u = np.zeros((nt, nz, ny, nx), np.float32)
+        v = np.zeros_like(u)
+        ut = np.zeros((nt, ny, nx), np.float32)
+        vt = np.zeros_like(ut)
+        has_tide = int(ds.attrs.get("has_tide", 0)) == 1 and "u_tide" in ds
+        keep = valid.astype(bool)
+        for k in range(nt):                       # one time step in memory at a time
+            u[k] = np.where(keep, np.nan_to_num(ds["u"][k].values), 0.0)
+            v[k] = np.where(keep, np.nan_to_num(ds["v"][k].values), 0.0)
+            if has_tide:
+                ut[k] = np.nan_to_num(ds["u_tide"][k].values)
+                vt[k] = np.nan_to_num(ds["v_tide"][k].values)
+        res = float(ds.attrs.get("resolution_deg", np.nan))
+        info = _source_meta(product_path, ds, meta)
+    origin_lat, origin_lon = 0.5 * (lat[0] + lat[-1]), 0.5 * (lon[0] + lon[-1])
+    m_lat, m_lon = metres_per_degree(origin_lat)
+    t0, time_s = _time_axis(times)
+    info["extraction"] = {"time_index": [0, nt], "depth_index": [0, nz],
+                          "latitude_index": [0, ny], "longitude_index": [0, nx],
+                          "time_first": str(times[0])[:19], "time_last": str(times[-1])[:19],
+                          "depth_m": depth.tolist()}
+    arrays = {
+        "u": u, "v": v, "u_tide": ut, "v_tide": vt,
+        "has_tide": np.array(1 if has_tide else 0, np.int8),
+        "time_s": time_s, "time0_unix_s": np.array(t0, np.float64),
+        "depth": depth, "lat": lat, "lon": lon,
+        "x0_m": np.array((lon[0] - origin_lon) * m_lon),
+        "dx_m": np.array(_spacing(lon, res) * m_lon),
+        "z0_m": np.array((lat[0] - origin_lat) * m_lat),
+        "dz_m": np.array(_spacing(lat, res) * m_lat),
+        "origin_lat": np.array(origin_lat), "origin_lon": np.array(origin_lon),
+        "m_per_deg_lat": np.array(m_lat), "m_per_deg_lon": np.array(m_lon),
+        "elevation": elev, "land_mask": land, "valid_mask": valid,
+        "meta_json": np.array(json.dumps(info, sort_keys=True)),
+    }
+    write_npz_atomic(out_path, arrays)
+
+
+def default_point(ds: xr.Dataset) -> tuple[float, float]:
+    """A default point in water: the node of a wettest column (most valid depth levels) closest
+    to the domain centre (in metres; ties go to the lowest flat index). Returns (lat, lon)."""
+    lat, lon = ds["latitude"].values, ds["longitude"].values
+    count = ds["valid_mask"].values.astype(np.int64).sum(axis=0)
+    if count.max() == 0:
+        raise DataError("product has no valid water column")
+    lat0, lon0 = 0.5 * (lat[0] + lat[-1]), 0.5 * (lon[0] + lon[-1])
+    m_lat, m_lon = metres_per_degree(lat0)
+    d2 = ((lat[:, None] - lat0) * m_lat) ** 2 + ((lon[None, :] - lon0) * m_lon) ** 2
+    d2 = np.where(count == count.max(), d2, np.inf)
+    j, i = np.unravel_index(int(np.argmin(d2)), d2.shape)
+    return float(lat[j]), float(lon[i])
+
+
+def _bracket(axis: np.ndarray, x: float) -> tuple[int, int, float]:
+    """Bracketing indices and weight of ``x`` on an ascending axis (clamped to its ends)."""
+    if axis.size == 1:
+        return 0, 0, 0.0
+    i0 = int(np.clip(np.searchsorted(axis, x, side="right") - 1, 0, axis.size - 2))
+    w = float(np.clip((x - axis[i0]) / (axis[i0 + 1] - axis[i0]), 0.0, 1.0))
+    return i0, i0 + 1, w
+
+
+def point_weights(glat: np.ndarray, glon: np.ndarray, depth: np.ndarray, land: np.ndarray,
+                  valid: np.ndarray, lat: float, lon: float, depth_m: float,
+                  where: str = "product") -> dict:
+    """Interpolation indices and weights of a point on a product grid.
+
+    Bilinear in space with the product's NaN rule (only valid corners, renormalised; at least
+    half of the bilinear weight must be valid), linear in depth between the bracketing levels
+    (a depth shallower than the first level takes the first level).
+
+    Parameters
+    ----------
+    glat, glon : (ny,), (nx,) float64, ascending grid axes (degrees)
+    depth : (nz,) float64, ascending levels (m, positive down)
+    land : (ny, nx) int, 1 = land
+    valid : (nz, ny, nx) int, 1 = valid current
+    lat, lon, depth_m : float
+        The point (degrees, degrees, m).
+    where : str
+        Names the product in error messages.
+
+    Returns
+    -------
+    dict
+        ``latitude_index``/``longitude_index``/``depth_index`` [lo, hi] and their ``*_weight``
+        (of hi); ``depth_weights`` {k: w}; ``corner_weights`` {k: [(j, i, w)]} per used level
+        (summing to 1); ``tide_weights`` [(j, i, w)] over water corners.
+
+    Raises
+    ------
+    DataError
+        Outside the grid or below the deepest level, on land (more than half of the bilinear
+        weight on land nodes), or without a valid current (below the seafloor).
+    """
+    eps = 1e-9
+    if not (glat[0] - eps <= lat <= glat[-1] + eps and glon[0] - eps <= lon <= glon[-1] + eps):
+        raise DataError(f"{where}: point ({lat}, {lon}) is outside the product grid "
+                        f"lat [{glat[0]}, {glat[-1]}], lon [{glon[0]}, {glon[-1]}]")
+    if depth_m > depth[-1] + eps:
+        raise DataError(f"{where}: depth {depth_m} m is below the deepest level {depth[-1]} m")
+    j0, j1, wy = _bracket(glat, lat)
+    i0, i1, wx = _bracket(glon, lon)
+    k0, k1, wz = _bracket(depth, max(depth_m, depth[0]))
+    corners = [(j0, i0, (1 - wy) * (1 - wx)), (j0, i1, (1 - wy) * wx),
+               (j1, i0, wy * (1 - wx)), (j1, i1, wy * wx)]
+    water = [(j, i, w) for j, i, w in corners if land[j, i] == 0]
+    water_weight = sum(w for _, _, w in water)
+    if water_weight < 0.5:
+        raise DataError(f"{where}: point ({lat}, {lon}) is on land")
+    zw = {k0: 1.0 - wz, k1: wz} if k1 != k0 else {k0: 1.0}
+    zw = {k: w for k, w in zw.items() if w > 0.0}
+    per_level = {}
+    for k in sorted(zw):
+        ok = [(j, i, w) for j, i, w in corners if valid[k, j, i] == 1]
+        total = sum(w for _, _, w in ok)
+        if total < 0.5 - 1e-12:
+            raise DataError(f"{where}: no valid current at ({lat}, {lon}) and {depth[k]} m "
+                            "(below the seafloor or next to land)")
+        per_level[k] = [(j, i, w / total) for j, i, w in ok]
+    return {"latitude_index": [j0, j1], "latitude_weight": wy,
+            "longitude_index": [i0, i1], "longitude_weight": wx,
+            "depth_index": [k0, k1], "depth_weight": wz, "depth_weights": zw,
+            "corner_weights": per_level,
+            "tide_weights": [(j, i, w / water_weight) for j, i, w in water]}
+
+
+def export_temporal(product_path, out_path, lat: float | None, lon: float | None,
+                    depth_m: float, meta: dict | None = None) -> None:
+    """Write the scene backend's temporal export (contracts §4): a current time series at a point.
+
+    Interpolation as in :func:`point_weights`.
+
+    Parameters
+    ----------
+    product_path : path
+        A product NetCDF (contracts §2).
+    out_path : path
+        Output ``.npz`` with ``time`` datetime64[s] (nt,), ``time_s``, ``u, v, u_tide, v_tide``
+        float64 (nt,) m s-1, ``lat, lon, depth`` float64 (), ``indices_json``, ``meta_json``.
+    lat, lon : float or None
+        Point (degrees); None for :func:`default_point`.
+    depth_m : float
+        Depth (m, positive down).
+    meta : dict, optional
+        Extra fields for ``meta_json``.
+
+    Raises
+    ------
+    DataError
+        The point lies outside the grid or below the deepest level, on land, or where the
+        currents are not defined (below the seafloor).
+    """
+    with _open(product_path) as ds:
+        glat, glon = ds["latitude"].values, ds["longitude"].values
+        depth = ds["depth"].values.astype(float)
+        if lat is None or lon is None:
+            lat, lon = default_point(ds)
+        lat, lon, depth_m = float(lat), float(lon), float(depth_m)
+        pw = point_weights(glat, glon, depth, ds["land_mask"].values, ds["valid_mask"].values,
+                           lat, lon, depth_m, str(product_path))
+        zw, weights = pw["depth_weights"], pw["corner_weights"]
+        j0, i0 = pw["latitude_index"][0], pw["longitude_index"][0]
+        j1, i1 = pw["latitude_index"][1], pw["longitude_index"][1]
+        times = ds["time"].values
+        nt = times.size
+        klo, khi = min(zw), max(zw)
+        box = {"depth": slice(klo, khi + 1), "latitude": slice(j0, j1 + 1),
+               "longitude": slice(i0, i1 + 1)}
+        ub = ds["u"].isel(box).values.astype(np.float64)      # (nt, <=2, <=2, <=2)
+        vb = ds["v"].isel(box).values.astype(np.float64)
+        u, v = np.zeros(nt), np.zeros(nt)
+        for k, wk in zw.items():
+            for j, i, w in weights[k]:
+                u += wk * w * ub[:, k - klo, j - j0, i - i0]
+                v += wk * w * vb[:, k - klo, j - j0, i - i0]
+        ut, vt = np.zeros(nt), np.zeros(nt)
+        has_tide = int(ds.attrs.get("has_tide", 0)) == 1 and "u_tide" in ds
+        if has_tide:
+            tbox = {"latitude": box["latitude"], "longitude": box["longitude"]}
+            utb = np.nan_to_num(ds["u_tide"].isel(tbox).values.astype(np.float64))
+            vtb = np.nan_to_num(ds["v_tide"].isel(tbox).values.astype(np.float64))
+            for j, i, w in pw["tide_weights"]:
+                ut += w * utb[:, j - j0, i - i0]
+                vt += w * vtb[:, j - j0, i - i0]
+        info = _source_meta(product_path, ds, meta)
+    _, time_s = _time_axis(times)
+    indices = {**pw, "time_index": [0, nt], "has_tide": has_tide}
+    arrays = {
+        "time": times.astype("datetime64[s]"), "time_s": time_s,
+        "u": u, "v": v, "u_tide": ut, "v_tide": vt,
+        "lat": np.array(lat), "lon": np.array(lon), "depth": np.array(depth_m),
+        "indices_json": np.array(json.dumps(indices, sort_keys=True)),
+        "meta_json": np.array(json.dumps({**info, "point": {"lat": lat, "lon": lon,
+                                                             "depth_m": depth_m}},
+                                         sort_keys=True)),
+    }
+    write_npz_atomic(out_path, arrays)

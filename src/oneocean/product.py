@@ -1,0 +1,655 @@
+"""Merge canonical currents, tides and bathymetry onto one regular grid per dataset variant.
+
+The product (contracts §2) is a CF-1.11 NetCDF with ``u, v`` (time, depth, latitude,
+longitude), optional ``u_tide, v_tide`` (time, latitude, longitude), ``elevation``,
+``land_mask`` and ``valid_mask``, written atomically, chunk by chunk (one time step at a time),
+with no write-time attributes so two runs give byte-identical files.
+
+Regridding rule (NaN-aware bilinear, "normalised convolution")
+-----------------------------------------------------------------
+For each target node the four surrounding source nodes get their bilinear weights ``w_k``
+(summing to 1). A source node is *valid* when its value is finite at every time step of the
+variant window (the all-time mask, so the product's validity does not change with time). The
+interpolated value is ``sum(w_k * valid_k * f_k) / sum(w_k * valid_k)`` when the valid weight
+``sum(w_k * valid_k) >= 0.5`` and NaN otherwise. Where all four nodes are valid this is exact
+bilinear interpolation (it reproduces linear fields); next to land it extends the wet field by at
+most half a source cell instead of smearing NaN one cell into the water. Currents are then
+masked (NaN) where the product's bathymetry says land (``elevation >= 0``) or the depth level is
+deeper than the local water depth, so no current is invented on land or below the seafloor.
+Target nodes may lie up to half a source cell outside the outermost source nodes (the area
+covered by cell-centred grids); they take the edge values.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import warnings
+from functools import partial
+
+import dask
+import dask.array as da
+import numpy as np
+import xarray as xr
+
+from . import __version__
+from .errors import ConfigError, DataError
+from .io import atomic_path, canonical_json, config_hash, dataset_content_hash, sha256_file
+from .io import write_json_atomic
+from .sources import open_bathymetry, open_currents
+from .sources.base import validate
+from .vocab import CF
+
+__all__ = ["build_product", "summarise_product", "variant_grid", "bilinear_plan",
+           "regrid_bilinear", "bilinear_weight", "netcdf_encoding", "write_netcdf_atomic",
+           "product_config", "netcdf_chunk_cache"]
+
+_DIMS4 = ("time", "depth", "latitude", "longitude")
+_DIMS3 = ("time", "latitude", "longitude")
+_DIMS2 = ("latitude", "longitude")
+_MIN_WEIGHT = 0.5
+_TIME_UNITS = "seconds since 1970-01-01 00:00:00"
+_MAX_CHUNK_ELEMENTS = 4 * 1024 * 1024      # ~16 MB float32 per HDF5 chunk
+_CHUNK_CACHE_BYTES = 4 * 1024 * 1024       # per-variable HDF5 chunk cache while streaming
+
+
+@contextlib.contextmanager
+def netcdf_chunk_cache(size_bytes: int = _CHUNK_CACHE_BYTES):
+    """Set netCDF4's default per-variable HDF5 chunk cache for files opened inside the block.
+
+    The library default (64 MiB per variable) fills up when a product is streamed one time step
+    at a time and adds ~0.5 GB of resident memory across inputs and outputs; every stage here
+    reads or writes each chunk once, so a small cache costs nothing. Restored on exit.
+    """
+    import netCDF4
+
+    old = netCDF4.get_chunk_cache()
+    netCDF4.set_chunk_cache(int(size_bytes), old[1], old[2])
+    try:
+        yield
+    finally:
+        netCDF4.set_chunk_cache(*old)
+
+
+# --- grid and interpolation (pure functions) ------------------------------------------------
+
+def _axis(lo: float, hi: float, res: float) -> np.ndarray:
+    """Regular nodes at spacing ``res`` centred in [lo, hi] (float64, ascending)."""
+    n = int(np.floor((hi - lo) / res + 1e-9)) + 1
+    start = lo + 0.5 * ((hi - lo) - (n - 1) * res)
+    return np.round(start + res * np.arange(n), 10)
+
+
+def variant_grid(bbox: dict, variant_cfg: dict) -> dict:
+    """Extent and grid nodes of a variant.
+
+    Parameters
+    ----------
+    bbox : dict
+        Region ``west, east, south, north`` (degrees, −180..180, west < east).
+    variant_cfg : dict
+        ``extent_fraction`` (0 < f <= 1, centred) and ``resolution_deg``.
+
+    Returns
+    -------
+    dict
+        ``west, east, south, north`` (float, the kept extent), ``resolution_deg``,
+        ``longitude`` (nx,) and ``latitude`` (ny,) float64 ascending nodes, centred in the extent.
+    """
+    f, res = float(variant_cfg["extent_fraction"]), float(variant_cfg["resolution_deg"])
+    if not 0.0 < f <= 1.0:
+        raise ConfigError(f"variants.extent_fraction: must be in (0, 1], got {f}")
+    if res <= 0.0:
+        raise ConfigError(f"variants.resolution_deg: must be > 0, got {res}")
+    west, east, south, north = (float(bbox[k]) for k in ("west", "east", "south", "north"))
+    cx, cy = 0.5 * (west + east), 0.5 * (south + north)
+    hw, hh = 0.5 * f * (east - west), 0.5 * f * (north - south)
+    ext = {"west": round(cx - hw, 10), "east": round(cx + hw, 10),
+           "south": round(cy - hh, 10), "north": round(cy + hh, 10)}
+    return {**ext, "resolution_deg": res,
+            "longitude": _axis(ext["west"], ext["east"], res),
+            "latitude": _axis(ext["south"], ext["north"], res)}
+
+
+def bilinear_plan(src: np.ndarray, dst: np.ndarray, what: str = "axis") -> tuple:
+    """Bracketing indices and weights of ``dst`` nodes on an ascending ``src`` axis.
+
+    Parameters
+    ----------
+    src : (n,) float64, ascending
+    dst : (m,) float64
+    what : str
+        Names the file/axis in the error message.
+
+    Returns
+    -------
+    i0, i1 : (m,) int64
+        Left/right source indices (equal when ``n == 1``).
+    w : (m,) float64
+        Weight of ``i1`` in [0, 1] (``1 - w`` for ``i0``).
+
+    Raises
+    ------
+    DataError
+        If a target lies more than half a source cell outside ``src``.
+    """
+    src, dst = np.asarray(src, float), np.asarray(dst, float)
+    n = src.size
+    if n == 1:
+        if np.any(np.abs(dst - src[0]) > 1e-9):
+            raise DataError(f"{what}: a single source node at {src[0]} cannot cover "
+                            f"[{dst.min()}, {dst.max()}]")
+        z = np.zeros(dst.size, np.int64)
+        return z, z, np.zeros(dst.size)
+    lo = src[0] - 0.5 * (src[1] - src[0]) - 1e-9
+    hi = src[-1] + 0.5 * (src[-1] - src[-2]) + 1e-9
+    if dst.min() < lo or dst.max() > hi:
+        raise DataError(f"{what}: requested [{dst.min():.6g}, {dst.max():.6g}] lies outside the "
+                        f"data [{src[0]:.6g}, {src[-1]:.6g}]")
+    i0 = np.clip(np.searchsorted(src, dst, side="right") - 1, 0, n - 2)
+    w = np.clip((dst - src[i0]) / (src[i0 + 1] - src[i0]), 0.0, 1.0)
+    return i0.astype(np.int64), (i0 + 1).astype(np.int64), w
+
+
+def _lerp(a: np.ndarray, plan_y: tuple, plan_x: tuple) -> np.ndarray:
+    """Separable bilinear interpolation of the last two axes of ``a`` (no NaN handling)."""
+    j0, j1, wy = plan_y
+    i0, i1, wx = plan_x
+    ax = a[..., i0] * (1.0 - wx) + a[..., i1] * wx
+    return ax[..., j0, :] * (1.0 - wy)[:, None] + ax[..., j1, :] * wy[:, None]
+
+
+def bilinear_weight(valid: np.ndarray, plan_y: tuple, plan_x: tuple) -> np.ndarray:
+    """Bilinear weight carried by valid source nodes, (..., ny, nx) float64 in [0, 1]."""
+    return _lerp(np.asarray(valid, np.float64), plan_y, plan_x)
+
+
+def regrid_bilinear(field: np.ndarray, valid: np.ndarray, plan_y: tuple, plan_x: tuple,
+                    min_weight: float = _MIN_WEIGHT, weight: np.ndarray | None = None
+                    ) -> np.ndarray:
+    """NaN-aware bilinear regridding of the last two axes (see the module docstring).
+
+    Parameters
+    ----------
+    field : (..., ny_src, nx_src) float
+        Source values; entries where ``valid`` is False are ignored (may be NaN).
+    valid : (..., ny_src, nx_src) bool, broadcastable to ``field``
+    plan_y, plan_x : tuple
+        :func:`bilinear_plan` results for the latitude and longitude axes.
+    min_weight : float
+        Minimum valid bilinear weight for a defined result.
+    weight : (..., ny, nx) float64, optional
+        Precomputed :func:`bilinear_weight` of ``valid`` (saves work when ``valid`` is reused).
+
+    Returns
+    -------
+    (..., ny, nx) float64
+        Interpolated values, NaN where the valid weight is below ``min_weight``.
+    """
+    f = np.where(valid, field, 0.0).astype(np.float64, copy=False)
+    num = _lerp(f, plan_y, plan_x)
+    den = bilinear_weight(valid, plan_y, plan_x) if weight is None else weight
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den >= min_weight - 1e-12, num / den, np.nan)
+
+
+def _regrid_block(block, *, valid, weight, plan_y, plan_x, keep):
+    """dask block: regrid (nt, [nz,] ny_src, nx_src) → float32, NaN where not ``keep``."""
+    out = regrid_bilinear(block, valid, plan_y, plan_x, weight=weight)
+    return np.where(keep, out, np.nan).astype(np.float32)
+
+
+# --- NetCDF writing --------------------------------------------------------------------------
+
+def netcdf_encoding(ds: xr.Dataset, zlib: bool = True, complevel: int = 1) -> dict:
+    """Deterministic NetCDF4 encoding for :func:`write_netcdf_atomic`.
+
+    Floating data variables become float32 with a NaN fill, integer ones keep their dtype with no
+    fill, coordinates float64 with no fill, time float64 seconds since 1970; data chunks hold one
+    time step (capped at ~16 MB by splitting latitude).
+    """
+    enc: dict = {}
+    for name, var in ds.variables.items():
+        if name in ds.coords:
+            enc[name] = {"dtype": "float64", "fill_value": False, "zlib": False,
+                         "chunksizes": None}
+            continue
+        chunks = list(var.shape)
+        if "time" in var.dims:
+            chunks[var.dims.index("time")] = 1
+        if "latitude" in var.dims:
+            j = var.dims.index("latitude")
+            per_row = max(1, int(np.prod(chunks)) // max(chunks[j], 1))
+            chunks[j] = max(1, min(chunks[j], _MAX_CHUNK_ELEMENTS // per_row))
+        integer = np.issubdtype(var.dtype, np.integer)
+        enc[name] = {"dtype": str(var.dtype) if integer else "float32",
+                     "fill_value": False if integer else np.float32(np.nan),
+                     "zlib": bool(zlib), "complevel": int(complevel), "shuffle": bool(zlib),
+                     "chunksizes": tuple(max(c, 1) for c in chunks) if var.ndim else None}
+    return enc
+
+
+def _nc_values(var: xr.Variable) -> np.ndarray:
+    """Values to store: datetime64 as float64 seconds since 1970-01-01."""
+    vals = np.asarray(var.values)
+    if np.issubdtype(vals.dtype, np.datetime64):
+        ns = vals.astype("datetime64[ns]").astype(np.int64)
+        return ns.astype(np.float64) * 1e-9
+    return vals
+
+
+def write_netcdf_atomic(ds: xr.Dataset, path, encoding: dict) -> None:
+    """Write ``ds`` (numpy- or dask-backed) to NetCDF4 deterministically and atomically.
+
+    Variables are defined in the dataset's order; time-dependent variables are computed and
+    written one dask time chunk at a time (dask threads within a chunk, a fixed write order
+    across chunks), so memory stays at ~one time chunk of every variable and the HDF5 layout,
+    hence the file's bytes, do not depend on thread scheduling. ``datetime64`` coordinates are
+    written as float64 seconds since 1970-01-01. Nothing time-of-writing is recorded.
+    """
+    import netCDF4
+
+    names = list(ds.coords) + list(ds.data_vars)
+    with atomic_path(path, suffix=".nc") as tmp:
+        with netCDF4.Dataset(tmp, "w", format="NETCDF4") as nc:
+            for dim, size in ds.sizes.items():
+                nc.createDimension(dim, size)
+            stepped = []
+            for name in names:
+                var, enc = ds[name].variable, encoding[name]
+                kw = {"zlib": enc["zlib"], "fill_value": enc["fill_value"]}
+                if enc.get("zlib"):
+                    kw.update(complevel=enc["complevel"], shuffle=enc["shuffle"])
+                if enc.get("chunksizes"):
+                    kw["chunksizes"] = enc["chunksizes"]
+                ncv = nc.createVariable(name, np.dtype(enc["dtype"]), var.dims, **kw)
+                if enc.get("chunksizes"):      # whole chunks are written once: no big cache
+                    ncv.set_var_chunk_cache(size=_CHUNK_CACHE_BYTES)
+                attrs = dict(var.attrs)
+                if np.issubdtype(var.dtype, np.datetime64):
+                    attrs.update(units=_TIME_UNITS, calendar="proleptic_gregorian")
+                ncv.setncatts(attrs)
+                if var.dims[:1] == ("time",) and name not in ds.coords:
+                    stepped.append(name)
+                else:
+                    ncv[...] = _nc_values(var).astype(enc["dtype"], copy=False)
+            nc.setncatts(dict(ds.attrs))
+            for k0, k1 in _time_blocks(ds, stepped):
+                vals = dask.compute(*[ds[n].data[k0:k1] for n in stepped])
+                for n, val in zip(stepped, vals):
+                    nc[n][k0:k1] = np.asarray(val).astype(encoding[n]["dtype"], copy=False)
+
+
+def _time_blocks(ds: xr.Dataset, names: list) -> list:
+    """[(k0, k1)] slabs along time: the dask time chunks of the first variable (else steps)."""
+    if not names:
+        return []
+    data = ds[names[0]].data
+    sizes = data.chunks[0] if hasattr(data, "chunks") and data.chunks else (1,) * data.shape[0]
+    edges = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
+    return list(zip(edges[:-1].tolist(), edges[1:].tolist()))
+
+
+# --- inputs --------------------------------------------------------------------------------
+
+def _open_input(path, kind: str) -> xr.Dataset:
+    """Open a canonical input lazily, one time step per dask chunk.
+
+    The readers validate the file first (a DataError naming it otherwise). A file already in the
+    canonical layout (the fetch stage's output) is then read directly with whole
+    (depth, latitude, longitude) chunks, about twice as fast as the readers' per-level chunks;
+    anything else goes through the readers' normalisation.
+    """
+    ds = open_currents(path) if kind == "currents" else open_bathymetry(path)
+    whole = {"depth": -1, "latitude": -1, "longitude": -1}
+    try:
+        with warnings.catch_warnings():   # "chunks separate the stored chunks": intended
+            warnings.simplefilter("ignore", UserWarning)
+            raw = xr.open_dataset(path, engine="netcdf4", cache=False,
+                                  chunks={"time": 1, **whole} if kind == "currents" else {})
+        validate(raw, str(path), kind)
+    except (DataError, OSError, ValueError):
+        return ds
+    if any(raw[n].dtype != ds[n].dtype for n in ds.data_vars if n in raw):
+        return ds
+    raw.attrs = dict(ds.attrs)
+    return raw
+
+
+def _source_files(ds: xr.Dataset, path) -> list:
+    raw = ds.attrs.get("source_files", "[]")
+    try:
+        files = json.loads(raw) if isinstance(raw, str) else list(raw)
+    except json.JSONDecodeError:
+        raise DataError(f"{path}: attribute source_files is not JSON") from None
+    return [{"path": str(f["path"]), "sha256": str(f["sha256"])} for f in files]
+
+
+def product_config(cfg: dict, variant: str) -> dict:
+    """The part of the config a variant's product depends on (hashed into ``config_hash``)."""
+    keys = ("region", "sources", "synthetic", "cmems", "gebco", "etopo", "files")
+    snap = {k: cfg[k] for k in keys if k in cfg}
+    snap["variant"] = {"name": variant, **cfg["variants"][variant]}
+    return snap
+
+
+def _parse_time(value) -> np.datetime64:
+    return np.datetime64(str(value).replace("Z", ""), "ns")
+
+
+def _select(cur: xr.Dataset, cfg: dict, vcfg: dict, path) -> dict:
+    """Time steps in [region start, start + hours] and depth levels <= the variant's max depth.
+
+    Returns ``{"time": index array, "depth": index array, "window": (start, end)}``; raises
+    DataError if either selection is empty.
+    """
+    start = _parse_time(cfg["region"]["time"]["start"])
+    end = start + np.timedelta64(int(round(float(vcfg["hours"]) * 3600e9)), "ns")
+    times = cur["time"].values.astype("datetime64[ns]")
+    keep_t = np.flatnonzero((times >= start) & (times <= end))
+    if keep_t.size == 0:
+        raise DataError(f"{path}: no time step in the variant window [{start}, {end}] "
+                        f"(data cover {times.min()} .. {times.max()})")
+    max_depth = min(float(vcfg["max_depth_m"]), float(cfg["region"].get("max_depth_m", np.inf)))
+    depth = np.asarray(cur["depth"].values, float)
+    keep_z = np.flatnonzero(depth <= max_depth + 1e-9)
+    if keep_z.size == 0:
+        raise DataError(f"{path}: no depth level <= {max_depth} m (levels {depth.tolist()})")
+    return {"time": keep_t, "depth": keep_z, "window": (start, end)}
+
+
+def _crop_slices(plan_y, plan_x):
+    """Source index slices covering two plans, and the plans shifted into the crop."""
+    ys = slice(int(min(plan_y[0].min(), plan_y[1].min())),
+               int(max(plan_y[0].max(), plan_y[1].max())) + 1)
+    xs = slice(int(min(plan_x[0].min(), plan_x[1].min())),
+               int(max(plan_x[0].max(), plan_x[1].max())) + 1)
+    shift = lambda p, o: (p[0] - o, p[1] - o, p[2])   # noqa: E731
+    return ys, xs, shift(plan_y, ys.start), shift(plan_x, xs.start)
+
+
+def _plans(ds: xr.Dataset, lat: np.ndarray, lon: np.ndarray, path) -> tuple:
+    """Crop slices and bilinear plans of the product grid on ``ds`` (DataError if outside)."""
+    py = bilinear_plan(ds["latitude"].values, lat, f"{path}: latitude")
+    px = bilinear_plan(ds["longitude"].values, lon, f"{path}: longitude")
+    return _crop_slices(py, px)
+
+
+def _elevation(bat: xr.Dataset, lat: np.ndarray, lon: np.ndarray, path) -> np.ndarray:
+    """Bathymetry regridded onto the product grid, (ny, nx) float64 m, positive up."""
+    ys, xs, py, px = _plans(bat, lat, lon, path)
+    src = np.asarray(bat["elevation"].isel(latitude=ys, longitude=xs).values, float)
+    elev = regrid_bilinear(src, np.isfinite(src), py, px)
+    if np.isnan(elev).any():
+        raise DataError(f"{path}: elevation has no data over part of the variant extent")
+    return elev
+
+
+def _all_time_valid(src: dict, has_tide: bool) -> tuple:
+    """Pass 1: source nodes finite at every time, (nz, ny_s, nx_s) and (ny_s, nx_s) bool."""
+    ok_uv = da.all(da.isfinite(src["u"]) & da.isfinite(src["v"]), axis=0)
+    ok_tide = (da.all(da.isfinite(src["u_tide"]) & da.isfinite(src["v_tide"]), axis=0)
+               if has_tide else None)
+    return dask.compute(ok_uv, ok_tide)
+
+
+# --- the product ---------------------------------------------------------------------------
+
+def _var_attrs(name: str) -> dict:
+    if name in ("u", "v", "u_tide", "v_tide"):
+        what = "eastward" if name.startswith("u") else "northward"
+        tide = " due to tides" if name.endswith("_tide") else " (ocean circulation, no tide)"
+        return {"standard_name": CF[name], "long_name": f"{what} sea water velocity{tide}",
+                "units": "m s-1"}
+    if name == "elevation":
+        return {"standard_name": CF[name], "long_name": "height above mean sea level "
+                "(negative = water depth)", "units": "m", "positive": "up"}
+    if name == "land_mask":
+        return {"standard_name": CF[name], "long_name": "land (elevation >= 0 or no surface "
+                "currents)", "units": "1", "flag_values": np.array([0, 1], np.int8),
+                "flag_meanings": "water land"}
+    return {"standard_name": CF[name], "long_name": "water with currents defined at all times",
+            "units": "1", "flag_values": np.array([0, 1], np.int8),
+            "flag_meanings": "invalid valid"}
+
+
+_COORD_ATTRS = {
+    "time": {"standard_name": "time", "long_name": "time", "axis": "T"},
+    "depth": {"standard_name": "depth", "long_name": "depth below sea surface", "units": "m",
+              "positive": "down", "axis": "Z"},
+    "latitude": {"standard_name": "latitude", "long_name": "latitude",
+                 "units": "degrees_north", "axis": "Y"},
+    "longitude": {"standard_name": "longitude", "long_name": "longitude",
+                  "units": "degrees_east", "axis": "X"},
+}
+
+
+def _provenance(cfg: dict, variant: str, cur: xr.Dataset, bat: xr.Dataset, paths: tuple,
+                has_tide: bool) -> dict:
+    """Global attributes naming the sources, their files and hashes, config and version."""
+    kinds = {"currents": str(cur.attrs.get("source", cfg["sources"]["currents"])),
+             "bathymetry": str(bat.attrs.get("source", cfg["sources"]["bathymetry"]))}
+    kinds["tides"] = kinds["currents"] if has_tide else "none"
+    files, seen = [], set()
+    for path, ds in zip(paths, (cur, bat)):
+        for f in _source_files(ds, path):
+            if f["path"] not in seen:
+                seen.add(f["path"])
+                files.append(f)
+    snap = product_config(cfg, variant)
+    synthetic = " (SYNTHETIC data, not real observations)" if "synthetic" in kinds.values() \
+        else ""
+    attrs = {
+        "Conventions": "CF-1.11",
+        "title": f"OneOcean environment product, region {cfg['region']['name']}, variant "
+                 f"{variant}{synthetic}",
+        "institution": "OneOcean",
+        "source": kinds["currents"],
+        "source_currents": kinds["currents"],
+        "source_bathymetry": kinds["bathymetry"],
+        "source_tides": kinds["tides"],
+        "region": str(cfg["region"]["name"]),
+        "variant": variant,
+        "oneocean_version": __version__,
+        "config_hash": config_hash(snap),
+        "config": canonical_json(snap).strip(),
+        "source_files": json.dumps(files, sort_keys=True),
+        "input_files": json.dumps([str(p) for p in paths]),
+        "has_tide": np.int8(1 if has_tide else 0),
+        "regridding": "NaN-aware bilinear (normalised by the valid weight, >= 0.5); currents "
+                      "masked on land and below the seafloor",
+    }
+    for key, ds in (("currents", cur), ("bathymetry", bat)):
+        if "request" in ds.attrs:
+            attrs[f"request_{key}"] = str(ds.attrs["request"])
+        for name in ("synthetic_seed", "synthetic_config_hash"):
+            if name in ds.attrs:
+                attrs[name] = ds.attrs[name]
+    return attrs
+
+
+def _extent_attrs(grid: dict, times: np.ndarray, depth: np.ndarray, window: tuple) -> dict:
+    lat, lon = grid["latitude"], grid["longitude"]
+    return {
+        "resolution_deg": grid["resolution_deg"],
+        "geospatial_lat_min": float(lat[0]), "geospatial_lat_max": float(lat[-1]),
+        "geospatial_lon_min": float(lon[0]), "geospatial_lon_max": float(lon[-1]),
+        "geospatial_vertical_min": float(depth[0]), "geospatial_vertical_max": float(depth[-1]),
+        "geospatial_vertical_positive": "down",
+        "time_coverage_start": _iso(times[0]), "time_coverage_end": _iso(times[-1]),
+        "time_window_requested": f"{_iso(window[0])}/{_iso(window[1])}",
+    }
+
+
+def build_product(currents_path, bathymetry_path, cfg: dict, variant: str, out_path,
+                  metadata_path) -> None:
+    """Merge the canonical inputs onto one regular grid for ``variant`` (contracts §2).
+
+    Parameters
+    ----------
+    currents_path : path
+        Canonical currents NetCDF: ``u, v`` (time, depth, latitude, longitude) m s-1, optional
+        ``u_tide, v_tide`` (time, latitude, longitude); attrs ``source``, ``source_files``.
+    bathymetry_path : path
+        Canonical bathymetry NetCDF: ``elevation`` (latitude, longitude), m, positive up.
+    cfg : dict
+        Validated config: ``region`` (name, bbox, time.start, max_depth_m), ``sources.tides``
+        and ``variants[variant]`` (extent_fraction, resolution_deg, hours, max_depth_m).
+    variant : str
+        A key of ``cfg["variants"]``.
+    out_path : path
+        The product NetCDF (written atomically, one time step at a time; byte-identical reruns).
+    metadata_path : path
+        Per-variant metadata JSON: settings, grid, realised time coverage, depth levels,
+        statistics (:func:`summarise_product`), source kinds and the content hash.
+
+    Raises
+    ------
+    DataError
+        The variant's extent, time window or depth range lies outside the inputs, or no valid
+        current remains; no file is written.
+    """
+    with netcdf_chunk_cache():
+        _build(currents_path, bathymetry_path, cfg, variant, out_path, metadata_path)
+
+
+def _build(currents_path, bathymetry_path, cfg, variant, out_path, metadata_path) -> None:
+    if variant not in cfg.get("variants", {}):
+        raise ConfigError(f"variants.{variant}: not defined in the config")
+    vcfg = cfg["variants"][variant]
+    grid = variant_grid(cfg["region"]["bbox"], vcfg)
+    lat, lon = grid["latitude"], grid["longitude"]
+    cur = _open_input(currents_path, "currents")
+    bat = _open_input(bathymetry_path, "bathymetry")
+    sel = _select(cur, cfg, vcfg, currents_path)
+    ys, xs, py, px = _plans(cur, lat, lon, currents_path)
+    elev = _elevation(bat, lat, lon, bathymetry_path)
+
+    has_tide = (bool(cfg.get("sources", {}).get("tides", True))
+                and "u_tide" in cur.data_vars and "v_tide" in cur.data_vars)
+    names = ["u", "v"] + (["u_tide", "v_tide"] if has_tide else [])
+    sub = cur[names].isel(time=sel["time"], depth=sel["depth"], latitude=ys, longitude=xs)
+    times = sub["time"].values.astype("datetime64[ns]")
+    depth = np.asarray(sub["depth"].values, float)
+    src = {n: sub[n].chunk({d: (1 if d == "time" else -1) for d in sub[n].dims}).data
+           for n in names}
+
+    with dask.config.set(scheduler="threads"):
+        ok_uv, ok_tide = _all_time_valid(src, has_tide)
+    w_uv = bilinear_weight(ok_uv, py, px)
+    valid = ((w_uv >= _MIN_WEIGHT - 1e-12) & (elev < 0.0)[None]
+             & (depth[:, None, None] <= -elev[None] + 1e-9))
+    if not valid.any():
+        raise DataError(f"{currents_path}: no valid (finite, wet) current in the variant "
+                        "extent and window")
+    land = (elev >= 0.0) | ~valid[0]
+
+    data = {}
+    for n in names:
+        uv = n in ("u", "v")
+        fn = partial(_regrid_block, valid=ok_uv if uv else ok_tide,
+                     weight=w_uv if uv else bilinear_weight(ok_tide, py, px), plan_y=py,
+                     plan_x=px, keep=valid if uv else ~land)
+        plane = ((depth.size,) if uv else ()) + (lat.size, lon.size)
+        chunks = ((1,) * times.size,) + tuple((s,) for s in plane)
+        data[n] = (_DIMS4 if uv else _DIMS3,
+                   da.map_blocks(fn, src[n], dtype=np.float32, chunks=chunks), _var_attrs(n))
+    data["elevation"] = (_DIMS2, elev.astype(np.float32), _var_attrs("elevation"))
+    data["land_mask"] = (_DIMS2, land.astype(np.int8), _var_attrs("land_mask"))
+    data["valid_mask"] = (("depth",) + _DIMS2, valid.astype(np.int8), _var_attrs("valid_mask"))
+    coords = {"time": times, "depth": depth, "latitude": lat, "longitude": lon}
+    attrs = {**_provenance(cfg, variant, cur, bat, (currents_path, bathymetry_path), has_tide),
+             **_extent_attrs(grid, times, depth, sel["window"])}
+    product = xr.Dataset(data, coords={k: (k, v, _COORD_ATTRS[k]) for k, v in coords.items()},
+                         attrs=attrs)
+
+    with atomic_path(out_path, suffix=".nc") as tmp:
+        with dask.config.set(scheduler="threads"):
+            write_netcdf_atomic(product, tmp, netcdf_encoding(product))
+        with xr.open_dataset(tmp) as written:
+            content = dataset_content_hash(written)
+        meta = {
+            "region": attrs["region"], "variant": variant,
+            "product": {"path": str(out_path), "sha256": sha256_file(tmp),
+                        "content_hash": content},
+            "settings": {"variant": dict(vcfg), "region": cfg["region"],
+                         "sources": cfg.get("sources", {})},
+            "config_hash": attrs["config_hash"],
+            "grid": {"nt": int(times.size), "nz": int(depth.size), "ny": int(lat.size),
+                     "nx": int(lon.size), "resolution_deg": grid["resolution_deg"],
+                     "extent": {k: grid[k] for k in ("west", "east", "south", "north")}},
+            "time_coverage": {"start": _iso(times[0]), "end": _iso(times[-1]),
+                              "count": int(times.size),
+                              "requested": [_iso(t) for t in sel["window"]]},
+            "depth_levels_m": depth.tolist(),
+            "source_kinds": {"currents": attrs["source_currents"],
+                             "bathymetry": attrs["source_bathymetry"],
+                             "tides": attrs["source_tides"]},
+            "source_files": json.loads(attrs["source_files"]),
+            "oneocean_version": __version__,
+            "summary": summarise_product(tmp),
+        }
+        write_json_atomic(metadata_path, meta)
+
+
+def _iso(t) -> str:
+    return str(np.datetime_as_string(np.datetime64(t, "s"), unit="s"))
+
+
+def summarise_product(path) -> dict:
+    """Headline numbers of a product, streamed one time step at a time.
+
+    Returns
+    -------
+    dict
+        ``region``, ``variant``, ``source`` (+ ``source_currents``, ``source_bathymetry``),
+        ``has_tide``; ``extent`` {west, east, south, north} (outer grid nodes, degrees);
+        ``ny, nx, nt, nz``; ``resolution_deg``; ``time_start``, ``time_end`` (ISO, UTC),
+        ``n_times``; ``depths_m``, ``n_depths``; at the surface level (depth index 0), over valid
+        water and all times: ``mean_speed_ms``, ``max_speed_ms`` (ocean currents, no tide),
+        ``max_tide_speed_ms`` and ``max_total_speed_ms`` (currents + tide; equals
+        ``max_speed_ms`` without tide); ``ocean_fraction`` (share of nodes with
+        ``land_mask == 0``).
+    """
+    with netcdf_chunk_cache(), xr.open_dataset(path) as ds:
+        lat, lon = ds["latitude"].values, ds["longitude"].values
+        times = ds["time"].values
+        has_tide = int(ds.attrs.get("has_tide", 0)) == 1
+        ssum, scount, smax, tmax, totmax = 0.0, 0, 0.0, 0.0, 0.0
+        for k in range(times.size):
+            u = ds["u"][k, 0].values.astype(float)
+            v = ds["v"][k, 0].values.astype(float)
+            sp = np.hypot(u, v)
+            ok = np.isfinite(sp)
+            ssum += float(sp[ok].sum())
+            scount += int(ok.sum())
+            smax = max(smax, float(sp[ok].max(initial=0.0)))
+            if has_tide:
+                ut = ds["u_tide"][k].values.astype(float)
+                vt = ds["v_tide"][k].values.astype(float)
+                tmax = max(tmax, float(np.nanmax(np.hypot(ut, vt), initial=0.0)))
+                tot = np.hypot(u + ut, v + vt)
+                totmax = max(totmax, float(tot[np.isfinite(tot)].max(initial=0.0)))
+        if not has_tide:
+            totmax = smax
+        land = ds["land_mask"].values
+        res = float(ds.attrs.get("resolution_deg",
+                                 lon[1] - lon[0] if lon.size > 1 else np.nan))
+        return {
+            "region": str(ds.attrs.get("region", "")), "variant": str(ds.attrs.get("variant", "")),
+            "source": str(ds.attrs.get("source", "")),
+            "source_currents": str(ds.attrs.get("source_currents", "")),
+            "source_bathymetry": str(ds.attrs.get("source_bathymetry", "")),
+            "has_tide": has_tide,
+            "extent": {"west": float(lon[0]), "east": float(lon[-1]),
+                       "south": float(lat[0]), "north": float(lat[-1])},
+            "ny": int(lat.size), "nx": int(lon.size), "nt": int(times.size),
+            "nz": int(ds.sizes["depth"]), "resolution_deg": res,
+            "time_start": _iso(times[0]), "time_end": _iso(times[-1]),
+            "n_times": int(times.size),
+            "depths_m": [float(d) for d in ds["depth"].values],
+            "n_depths": int(ds.sizes["depth"]),
+            "mean_speed_ms": ssum / scount if scount else None,
+            "max_speed_ms": smax, "max_tide_speed_ms": tmax, "max_total_speed_ms": totmax,
+            "ocean_fraction": float(np.mean(land == 0)),
+        }
