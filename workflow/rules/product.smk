@@ -14,7 +14,9 @@ rule merge_variant:
     benchmark:
         "results/benchmarks/product/{region}/{variant}.tsv"
     params:
-        cfg=lambda wc: config,
+        cfg=lambda wc: config_section(
+            "region", "sources", "synthetic", "cmems", "gebco", "etopo", "files", "variants"
+        ),
         code=code_version("oneocean.product", "oneocean.sources", "oneocean.io"),
     threads: 1
     script:

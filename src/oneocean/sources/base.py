@@ -30,7 +30,7 @@ import xarray as xr
 
 from .. import __version__
 from ..errors import DataError, OneOceanError
-from ..io import atomic_path, canonical_json, sha256_file
+from ..io import canonical_json, sha256_file
 from ..vocab import CF, SOURCE_KINDS
 
 log = logging.getLogger(__name__)
@@ -786,21 +786,12 @@ def write_canonical(ds: xr.Dataset, out_path: str | os.PathLike, kind: str) -> N
     validate(ds, str(out_path), kind)
     ds = ds.copy()
     ds.attrs = {"Conventions": "CF-1.11", "oneocean_version": __version__, **ds.attrs}
-    encoding: dict[str, dict] = {
-        str(name): {"dtype": "float32", "zlib": True, "complevel": 4,
-                    "_FillValue": np.float32("nan"), "chunksizes": _disk_chunks(var.shape)}
-        for name, var in ds.data_vars.items()
-    }
-    for dim in ("longitude", "latitude", "depth"):
-        if dim in ds.coords:
-            encoding[dim] = {"dtype": "float64", "_FillValue": None}
-    if "time" in ds.coords:
-        encoding["time"] = {"units": "seconds since 1970-01-01 00:00:00",
-                            "calendar": "proleptic_gregorian", "dtype": "float64",
-                            "_FillValue": None}
+    from ..ncio import netcdf_encoding, write_netcdf_atomic
+
     try:
-        with atomic_path(out_path, suffix=".nc") as tmp:
-            ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=encoding)
+        # Streamed one time block at a time in a fixed order: the file's bytes do not depend
+        # on dask's thread scheduling.
+        write_netcdf_atomic(ds, out_path, netcdf_encoding(ds, zlib=True, complevel=4))
     except (OSError, RuntimeError) as err:
         sources = ", ".join(r["path"] for r in json.loads(ds.attrs.get("source_files", "[]")))
         raise DataError(f"{sources or out_path}: failed while writing {out_path}: "
