@@ -1,0 +1,643 @@
+"""The grid export (contracts §3) as a numba-friendly :class:`Grid`, and its sampling kernels.
+
+World frame: x east, y depth (positive down), z north, all in metres; time ``t`` in seconds
+since ``time0_unix_s`` (the export's ``time_s`` axis). Currents are sampled bilinearly in
+(x, z) and linearly in depth and time with O(1) index arithmetic: the horizontal axes are
+regular; depth and time may be irregular and are located through a precomputed lookup table
+whose bins are no wider than the smallest spacing (at most one correction step). Outside an
+axis the sample is clamped to the edge value.
+
+The disturbance of the task contract is::
+
+    c(x, y, z, t) = g * ([u, 0, v] + [u_tide, 0, v_tide]) + A [sin(w t + phi), 0, cos(w t + phi)]
+
+with the product's real tide layers included only when the export has them (``has_tide``) and
+the synthetic tide term (amplitude ``A``, angular frequency ``w``, phase ``phi``) only when
+asked for (robustness ablations).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Mapping, NamedTuple
+
+import numpy as np
+
+from ..errors import ConfigError, DataError
+from ._jit import hot_kernel
+
+#: Keys of the grid export, contracts §3 (order = documentation order).
+REQUIRED_KEYS = (
+    "u", "v", "u_tide", "v_tide", "has_tide", "time_s", "time0_unix_s", "depth", "lat", "lon",
+    "x0_m", "dx_m", "z0_m", "dz_m", "origin_lat", "origin_lon", "m_per_deg_lat",
+    "m_per_deg_lon", "elevation", "land_mask", "valid_mask", "meta_json",
+)
+
+_LUT_MAX = 1 << 16
+
+
+class Grid(NamedTuple):
+    """A loaded grid export: arrays and scalars only, passable to ``@njit`` functions.
+
+    Attributes
+    ----------
+    uv : (nt, nz, ny, nx, 2) float32, m s-1
+        Eastward / northward current (u, v interleaved for cache locality), 0 off water.
+    uv_tide : (nt, ny, nx, 2) float32, m s-1
+        Tidal current (zeros when the export has none).
+    elevation : (ny, nx) float32, m, positive up.
+    land : (ny, nx) float32, 1 = land, 0 = water.
+    valid : (nz, ny, nx) uint8, 1 = water with defined currents.
+    time_s, time_inv : (nt,) float64
+        Time axis (s since ``time0_unix_s``) and inverse spacings (1 / s, last entry 0).
+    time_lut : (nlut,) int64 ; time_lut_inv_h : float
+        Lookup table locating a time in O(1): ``lut[int((t - time_s[0]) * inv_h)]``.
+    depth, depth_inv, depth_lut, depth_lut_inv_h
+        Same for the depth axis (m, positive down).
+    x0, dx, inv_dx, x_max, nx ; z0, dz, inv_dz, z_max, ny
+        Regular horizontal axes: ``x = x0 + i dx`` (east), ``z = z0 + j dz`` (north), metres.
+    gain : float
+        Current gain g applied to the data currents (and real tide layers).
+    tide_layers : int
+        1 if the real tide layers are added.
+    tide_amp, tide_omega, tide_phase : float
+        Synthetic tide term A (m s-1), w (rad s-1), phi (rad); A = 0 disables it.
+    time0_unix_s, origin_lat, origin_lon, m_per_deg_lat, m_per_deg_lon : float
+        Georeference of the world frame (contracts §3).
+    """
+
+    uv: np.ndarray
+    uv_tide: np.ndarray
+    elevation: np.ndarray
+    land: np.ndarray
+    valid: np.ndarray
+    time_s: np.ndarray
+    time_inv: np.ndarray
+    time_lut: np.ndarray
+    time_lut_inv_h: float
+    depth: np.ndarray
+    depth_inv: np.ndarray
+    depth_lut: np.ndarray
+    depth_lut_inv_h: float
+    x0: float
+    dx: float
+    inv_dx: float
+    x_max: float
+    nx: int
+    z0: float
+    dz: float
+    inv_dz: float
+    z_max: float
+    ny: int
+    gain: float
+    tide_layers: int
+    tide_amp: float
+    tide_omega: float
+    tide_phase: float
+    time0_unix_s: float
+    origin_lat: float
+    origin_lon: float
+    m_per_deg_lat: float
+    m_per_deg_lon: float
+
+
+# ----------------------------------------------------------------------------- loading
+
+
+def _axis_lut(ax: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Inverse spacings, lookup table and its inverse bin width for an ascending axis."""
+    n = ax.shape[0]
+    inv = np.zeros(n, dtype=np.float64)
+    if n == 1:
+        return inv, np.zeros(1, dtype=np.int64), 0.0
+    d = np.diff(ax)
+    inv[:-1] = 1.0 / d
+    span = float(ax[-1] - ax[0])
+    nb = int(min(np.ceil(span / float(d.min())), _LUT_MAX)) + 1
+    h = span / (nb - 1) if nb > 1 else span
+    edges = ax[0] + h * np.arange(nb)
+    lut = np.clip(np.searchsorted(ax, edges, side="right") - 1, 0, n - 2).astype(np.int64)
+    return inv, lut, 1.0 / h
+
+
+def _as_mapping(src) -> tuple[Mapping, str]:
+    if isinstance(src, Mapping):
+        return src, "grid export (in-memory)"
+    path = Path(os.fspath(src))
+    if not path.is_file():
+        raise DataError(f"{path}: grid export not found")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}, str(path)
+    except (OSError, ValueError) as exc:  # zip errors are ValueError subclasses / OSError
+        raise DataError(f"{path}: not a readable .npz grid export ({exc})") from exc
+
+
+def _parse_tide(tide) -> tuple[float, float, float]:
+    """Synthetic tide spec -> (A m s-1, w rad s-1, phi rad)."""
+    if tide is None:
+        return 0.0, 0.0, 0.0
+    if isinstance(tide, Mapping):
+        unknown = set(tide) - {"amplitude_ms", "period_s", "omega_rad_s", "phase_rad"}
+        if unknown:
+            raise ConfigError(f"tide: unknown keys {sorted(unknown)}; expected amplitude_ms, "
+                              "period_s or omega_rad_s, phase_rad")
+        if "amplitude_ms" not in tide:
+            raise ConfigError("tide: missing key 'amplitude_ms'")
+        amp = float(tide["amplitude_ms"])
+        if ("period_s" in tide) == ("omega_rad_s" in tide):
+            raise ConfigError("tide: give exactly one of 'period_s' or 'omega_rad_s'")
+        if "period_s" in tide:
+            period = float(tide["period_s"])
+            if not period > 0:
+                raise ConfigError(f"tide.period_s: must be > 0, got {period}")
+            omega = 2.0 * np.pi / period
+        else:
+            omega = float(tide["omega_rad_s"])
+        phase = float(tide.get("phase_rad", 0.0))
+    else:
+        try:
+            amp, omega, phase = (float(v) for v in tide)
+        except (TypeError, ValueError) as exc:
+            raise ConfigError("tide: expected None, a mapping or (amplitude_ms, omega_rad_s, "
+                              f"phase_rad), got {tide!r}") from exc
+    if not (np.isfinite(amp) and np.isfinite(omega) and np.isfinite(phase)) or amp < 0:
+        raise ConfigError(f"tide: amplitude must be finite and >= 0, omega/phase finite; "
+                          f"got A={amp}, omega={omega}, phase={phase}")
+    return amp, omega, phase
+
+
+def load_grid(src, current_gain: float = 1.0, tide=None, use_tide_layers: bool = True) -> Grid:
+    """Load and validate a grid export (contracts §3).
+
+    Parameters
+    ----------
+    src : path-like or mapping
+        A ``grid.npz`` written by the export stage, or an in-memory mapping with the same keys
+        (e.g. :func:`make_test_grid`).
+    current_gain : float
+        Gain g on the data currents (and the real tide layers), dimensionless.
+    tide : None, mapping or (A, w, phi)
+        Optional synthetic tide term: ``{"amplitude_ms": A, "period_s": P | "omega_rad_s": w,
+        "phase_rad": phi}``.
+    use_tide_layers : bool
+        Add the export's tide layers when it has them (``has_tide == 1``).
+
+    Returns
+    -------
+    Grid
+
+    Raises
+    ------
+    DataError
+        Missing fields (all named), inconsistent shapes, irregular lat/lon, non-ascending axes,
+        NaN currents inside valid water, NaN elevation or land mask.
+    ConfigError
+        Bad ``current_gain`` or ``tide``.
+    """
+    d, name = _as_mapping(src)
+    missing = [k for k in REQUIRED_KEYS if k not in d]
+    if missing:
+        raise DataError(f"{name}: missing fields: {', '.join(missing)}")
+    g = float(current_gain)
+    if not np.isfinite(g):
+        raise ConfigError(f"current_gain: must be finite, got {current_gain!r}")
+    amp, omega, phase = _parse_tide(tide)
+
+    def arr(key, ndim, dtype):
+        a = np.asarray(d[key])
+        if a.ndim != ndim:
+            raise DataError(f"{name}: field '{key}' must be {ndim}-D, got shape {a.shape}")
+        if a.dtype.kind not in "fiub":
+            raise DataError(f"{name}: field '{key}' must be numeric, got dtype {a.dtype}")
+        return np.ascontiguousarray(a, dtype=dtype)
+
+    def scalar(key):
+        a = np.asarray(d[key])
+        if a.size != 1 or a.dtype.kind not in "fiub":
+            raise DataError(f"{name}: field '{key}' must be a numeric scalar, got {a!r}")
+        v = float(a.reshape(()))
+        if not np.isfinite(v):
+            raise DataError(f"{name}: field '{key}' is not finite ({v})")
+        return v
+
+    u = arr("u", 4, np.float32)
+    v = arr("v", 4, np.float32)
+    nt, nz, ny, nx = u.shape
+    if v.shape != u.shape:
+        raise DataError(f"{name}: 'v' shape {v.shape} != 'u' shape {u.shape}")
+    expect = {"u_tide": (nt, ny, nx), "v_tide": (nt, ny, nx), "time_s": (nt,), "depth": (nz,),
+              "lat": (ny,), "lon": (nx,), "elevation": (ny, nx), "land_mask": (ny, nx),
+              "valid_mask": (nz, ny, nx)}
+    shapes = {k: np.shape(d[k]) for k in expect}
+    bad = [f"'{k}' {shapes[k]} (expected {s})" for k, s in expect.items() if shapes[k] != s]
+    if bad:
+        raise DataError(f"{name}: inconsistent shapes with u {u.shape}: {'; '.join(bad)}")
+    if nx < 2 or ny < 2:
+        raise DataError(f"{name}: need at least 2 x 2 horizontal grid nodes, got ny={ny}, nx={nx}")
+    u_t = arr("u_tide", 3, np.float32)
+    v_t = arr("v_tide", 3, np.float32)
+    time_s = arr("time_s", 1, np.float64)
+    depth = arr("depth", 1, np.float64)
+    lat = arr("lat", 1, np.float64)
+    lon = arr("lon", 1, np.float64)
+    elev = arr("elevation", 2, np.float32)
+    land = arr("land_mask", 2, np.float32)
+    valid = arr("valid_mask", 3, np.uint8)
+    has_tide = int(scalar("has_tide"))
+    sc = {k: scalar(k) for k in ("time0_unix_s", "x0_m", "dx_m", "z0_m", "dz_m", "origin_lat",
+                                 "origin_lon", "m_per_deg_lat", "m_per_deg_lon")}
+
+    for key, ax in (("time_s", time_s), ("depth", depth), ("lat", lat), ("lon", lon)):
+        if not np.all(np.isfinite(ax)):
+            raise DataError(f"{name}: field '{key}' has non-finite values")
+        if ax.size > 1 and not np.all(np.diff(ax) > 0):
+            raise DataError(f"{name}: field '{key}' must be strictly ascending")
+    if depth[0] < 0:
+        raise DataError(f"{name}: field 'depth' must be >= 0 (positive down), got {depth[0]}")
+    for key, ax in (("lat", lat), ("lon", lon)):
+        dd = np.diff(ax)
+        if np.max(np.abs(dd - dd.mean())) > 1e-6 * abs(dd.mean()) + 1e-12:
+            raise DataError(f"{name}: field '{key}' must have regular spacing")
+    for key in ("dx_m", "dz_m", "m_per_deg_lat", "m_per_deg_lon"):
+        if not sc[key] > 0:
+            raise DataError(f"{name}: field '{key}' must be > 0, got {sc[key]}")
+    # georeference consistency: lon/lat of the nodes vs the world axes
+    x_nodes = sc["x0_m"] + sc["dx_m"] * np.arange(nx)
+    z_nodes = sc["z0_m"] + sc["dz_m"] * np.arange(ny)
+    lon_w = sc["origin_lon"] + x_nodes / sc["m_per_deg_lon"]
+    lat_w = sc["origin_lat"] + z_nodes / sc["m_per_deg_lat"]
+    if np.max(np.abs(lon_w - lon)) > 0.01 * abs(lon[1] - lon[0]):
+        raise DataError(f"{name}: 'lon' disagrees with origin_lon + (x0_m + i*dx_m)/m_per_deg_lon")
+    if np.max(np.abs(lat_w - lat)) > 0.01 * abs(lat[1] - lat[0]):
+        raise DataError(f"{name}: 'lat' disagrees with origin_lat + (z0_m + j*dz_m)/m_per_deg_lat")
+
+    # NaN policy: currents must be finite in valid water (an error names where), and the
+    # contract says 0 elsewhere; bathymetry and land mask must be finite everywhere.
+    for key, a in (("u", u), ("v", v)):
+        bad = ~np.isfinite(a)
+        if bad.any():
+            in_water = bad & (valid[None] == 1)
+            if in_water.any():
+                idx = tuple(int(i) for i in np.argwhere(in_water)[0])
+                raise DataError(f"{name}: NaN currents inside valid water: '{key}' has "
+                                f"{int(in_water.sum())} non-finite values where valid_mask == 1 "
+                                f"(first at (t, depth, lat, lon) index {idx})")
+            raise DataError(f"{name}: '{key}' has {int(bad.sum())} non-finite values where "
+                            "valid_mask == 0 (contracts §3: must be 0 there)")
+    for key, a in (("u_tide", u_t), ("v_tide", v_t), ("elevation", elev), ("land_mask", land)):
+        nbad = int((~np.isfinite(a)).sum())
+        if nbad:
+            raise DataError(f"{name}: field '{key}' has {nbad} non-finite values")
+    if np.any((land < 0) | (land > 1)):
+        raise DataError(f"{name}: field 'land_mask' must be in [0, 1]")
+    if has_tide not in (0, 1):
+        raise DataError(f"{name}: field 'has_tide' must be 0 or 1, got {has_tide}")
+
+    uv = np.empty((nt, nz, ny, nx, 2), dtype=np.float32)
+    uv[..., 0] = u
+    uv[..., 1] = v
+    tide_on = int(has_tide == 1 and use_tide_layers)
+    uv_tide = np.zeros((nt, ny, nx, 2), dtype=np.float32)
+    if tide_on:
+        uv_tide[..., 0] = u_t
+        uv_tide[..., 1] = v_t
+    t_inv, t_lut, t_lut_h = _axis_lut(time_s)
+    d_inv, d_lut, d_lut_h = _axis_lut(depth)
+    dx, dz = sc["dx_m"], sc["dz_m"]
+    return Grid(
+        uv=uv, uv_tide=uv_tide, elevation=elev, land=land, valid=valid,
+        time_s=time_s, time_inv=t_inv, time_lut=t_lut, time_lut_inv_h=float(t_lut_h),
+        depth=depth, depth_inv=d_inv, depth_lut=d_lut, depth_lut_inv_h=float(d_lut_h),
+        x0=sc["x0_m"], dx=dx, inv_dx=1.0 / dx, x_max=sc["x0_m"] + (nx - 1) * dx, nx=int(nx),
+        z0=sc["z0_m"], dz=dz, inv_dz=1.0 / dz, z_max=sc["z0_m"] + (ny - 1) * dz, ny=int(ny),
+        gain=g, tide_layers=tide_on, tide_amp=amp, tide_omega=omega, tide_phase=phase,
+        time0_unix_s=sc["time0_unix_s"], origin_lat=sc["origin_lat"],
+        origin_lon=sc["origin_lon"], m_per_deg_lat=sc["m_per_deg_lat"],
+        m_per_deg_lon=sc["m_per_deg_lon"],
+    )
+
+
+def grid_metadata(src) -> dict:
+    """The export's ``meta_json`` as a dict (source path/sha256, variant, region, ...)."""
+    d, name = _as_mapping(src)
+    if "meta_json" not in d:
+        raise DataError(f"{name}: missing fields: meta_json")
+    try:
+        return json.loads(str(np.asarray(d["meta_json"]).reshape(())))
+    except json.JSONDecodeError as exc:
+        raise DataError(f"{name}: field 'meta_json' is not valid JSON ({exc})") from exc
+
+
+def with_forcing(grid: Grid, current_gain: float | None = None, tide=None) -> Grid:
+    """A copy of ``grid`` sharing its arrays with a different gain and/or synthetic tide."""
+    amp, omega, phase = _parse_tide(tide)
+    g = grid.gain if current_gain is None else float(current_gain)
+    if not np.isfinite(g):
+        raise ConfigError(f"current_gain: must be finite, got {current_gain!r}")
+    return grid._replace(gain=g, tide_amp=amp, tide_omega=omega, tide_phase=phase)
+
+
+def world_to_lonlat(grid: Grid, x, z):
+    """World metres (x east, z north) -> (lon, lat) degrees (equirectangular, contracts §3)."""
+    return (grid.origin_lon + np.asarray(x) / grid.m_per_deg_lon,
+            grid.origin_lat + np.asarray(z) / grid.m_per_deg_lat)
+
+
+def lonlat_to_world(grid: Grid, lon, lat):
+    """(lon, lat) degrees -> world metres (x east, z north)."""
+    return ((np.asarray(lon) - grid.origin_lon) * grid.m_per_deg_lon,
+            (np.asarray(lat) - grid.origin_lat) * grid.m_per_deg_lat)
+
+
+def grid_extent(grid: Grid) -> tuple[float, float, float, float]:
+    """(x_min, x_max, z_min, z_max) of the grid nodes, metres."""
+    return grid.x0, grid.x_max, grid.z0, grid.z_max
+
+
+# ----------------------------------------------------------------------------- kernels
+
+
+@hot_kernel(inline="always")
+def _locate(ax, inv, lut, lut_inv_h, v):
+    """(i0, i1, w) with ``v ~ (1 - w) ax[i0] + w ax[i1]``; clamped outside the axis."""
+    n = ax.shape[0]
+    if n == 1:
+        return 0, 0, 0.0
+    if v <= ax[0]:
+        return 0, 1, 0.0
+    if v >= ax[n - 1]:
+        return n - 2, n - 1, 1.0
+    b = int((v - ax[0]) * lut_inv_h)
+    if b >= lut.shape[0]:
+        b = lut.shape[0] - 1
+    i = lut[b]
+    while i < n - 2 and ax[i + 1] <= v:
+        i += 1
+    return i, i + 1, (v - ax[i]) * inv[i]
+
+
+@hot_kernel(inline="always")
+def _hcell(grid, x, z):
+    """Horizontal cell (i, j) and weights (wx, wz) for world (x, z); clamped at the edges."""
+    fx = (x - grid.x0) * grid.inv_dx
+    fz = (z - grid.z0) * grid.inv_dz
+    nx1 = grid.nx - 1
+    ny1 = grid.ny - 1
+    if fx < 0.0:
+        fx = 0.0
+    elif fx > nx1:
+        fx = float(nx1)
+    if fz < 0.0:
+        fz = 0.0
+    elif fz > ny1:
+        fz = float(ny1)
+    i = int(fx)
+    j = int(fz)
+    if i > nx1 - 1:
+        i = nx1 - 1
+    if j > ny1 - 1:
+        j = ny1 - 1
+    return i, j, fx - i, fz - j
+
+
+@hot_kernel(inline="always")
+def locate_time(grid, t):
+    """(i0, i1, w) of time ``t`` (s since time0) on the grid's time axis (clamped)."""
+    return _locate(grid.time_s, grid.time_inv, grid.time_lut, grid.time_lut_inv_h, t)
+
+
+@hot_kernel(inline="always")
+def sample_current_data(grid, x, y, z, t):
+    """Data part of the current, ``g * (u + u_tide, v + v_tide)`` (m s-1), without the synthetic
+    tide term. Bilinear in (x, z), linear in depth ``y`` and time ``t``, clamped at the edges.
+    """
+    t0, t1, wt = locate_time(grid, t)
+    return sample_current_at(grid, x, y, z, t0, t1, wt)
+
+
+@hot_kernel(inline="always")
+def sample_current_at(grid, x, y, z, t0, t1, wt):
+    """:func:`sample_current_data` with the time already located (:func:`locate_time`), for
+    loops that sample many agents at one time."""
+    i, j, wx, wz = _hcell(grid, x, z)
+    k0, k1, wk = _locate(grid.depth, grid.depth_inv, grid.depth_lut, grid.depth_lut_inv_h, y)
+    a00 = (1.0 - wx) * (1.0 - wz)
+    a10 = wx * (1.0 - wz)
+    a01 = (1.0 - wx) * wz
+    a11 = wx * wz
+    uv = grid.uv
+    # four (time, depth) slabs, each bilinear in (x, z); summed as a tree (no long chains)
+    u00, v00 = _slab(uv, t0, k0, j, i, a00, a10, a01, a11)
+    u01, v01 = _slab(uv, t0, k1, j, i, a00, a10, a01, a11)
+    u10, v10 = _slab(uv, t1, k0, j, i, a00, a10, a01, a11)
+    u11, v11 = _slab(uv, t1, k1, j, i, a00, a10, a01, a11)
+    wt0 = 1.0 - wt
+    wk0 = 1.0 - wk
+    ue = wt0 * (wk0 * u00 + wk * u01) + wt * (wk0 * u10 + wk * u11)
+    vn = wt0 * (wk0 * v00 + wk * v01) + wt * (wk0 * v10 + wk * v11)
+    if grid.tide_layers == 1:
+        tt = grid.uv_tide
+        ut0, vt0 = _slab2(tt, t0, j, i, a00, a10, a01, a11)
+        ut1, vt1 = _slab2(tt, t1, j, i, a00, a10, a01, a11)
+        ue += wt0 * ut0 + wt * ut1
+        vn += wt0 * vt0 + wt * vt1
+    return grid.gain * ue, grid.gain * vn
+
+
+@hot_kernel(inline="always")
+def synthetic_tide(grid, t):
+    """Synthetic tide term A [sin(w t + phi), cos(w t + phi)] (east, north), m s-1."""
+    if grid.tide_amp == 0.0:
+        return 0.0, 0.0
+    ph = grid.tide_omega * t + grid.tide_phase
+    return grid.tide_amp * math.sin(ph), grid.tide_amp * math.cos(ph)
+
+
+@hot_kernel(inline="always")
+def sample_current(grid, x, y, z, t):
+    """Current (ce, cn) in m s-1 at world (x, y, z) m and time t (s since time0).
+
+    Bilinear in (x, z), linear in depth ``y`` and time, clamped outside the grid; includes the
+    gain, the real tide layers (if used) and the synthetic tide term. The vertical component
+    of the current is zero. (Loops over many agents at one time may call
+    :func:`sample_current_data` per agent and :func:`synthetic_tide` once.)
+    """
+    ce, cn = sample_current_data(grid, x, y, z, t)
+    te, tn = synthetic_tide(grid, t)
+    return ce + te, cn + tn
+
+
+@hot_kernel(inline="always")
+def _slab(uv, ti, ki, j, i, a00, a10, a01, a11):
+    return ((a00 * uv[ti, ki, j, i, 0] + a10 * uv[ti, ki, j, i + 1, 0])
+            + (a01 * uv[ti, ki, j + 1, i, 0] + a11 * uv[ti, ki, j + 1, i + 1, 0]),
+            (a00 * uv[ti, ki, j, i, 1] + a10 * uv[ti, ki, j, i + 1, 1])
+            + (a01 * uv[ti, ki, j + 1, i, 1] + a11 * uv[ti, ki, j + 1, i + 1, 1]))
+
+
+@hot_kernel(inline="always")
+def _slab2(tt, ti, j, i, a00, a10, a01, a11):
+    return ((a00 * tt[ti, j, i, 0] + a10 * tt[ti, j, i + 1, 0])
+            + (a01 * tt[ti, j + 1, i, 0] + a11 * tt[ti, j + 1, i + 1, 0]),
+            (a00 * tt[ti, j, i, 1] + a10 * tt[ti, j, i + 1, 1])
+            + (a01 * tt[ti, j + 1, i, 1] + a11 * tt[ti, j + 1, i + 1, 1]))
+
+
+@hot_kernel(inline="always")
+def _bilinear2d(a, i, j, wx, wz):
+    return ((1.0 - wz) * ((1.0 - wx) * a[j, i] + wx * a[j, i + 1])
+            + wz * ((1.0 - wx) * a[j + 1, i] + wx * a[j + 1, i + 1]))
+
+
+@hot_kernel(inline="always")
+def sample_elevation(grid, x, z):
+    """Bathymetric elevation h(x, z) in m (positive up), bilinear, clamped at the edges."""
+    i, j, wx, wz = _hcell(grid, x, z)
+    return _bilinear2d(grid.elevation, i, j, wx, wz)
+
+
+@hot_kernel(inline="always")
+def sample_land(grid, x, z):
+    """Land mask m_land(x, z) in [0, 1], bilinear, clamped at the edges."""
+    i, j, wx, wz = _hcell(grid, x, z)
+    return _bilinear2d(grid.land, i, j, wx, wz)
+
+
+@hot_kernel
+def sample_current_points(grid, xyz, t, out):
+    """Vectorised :func:`sample_current`: ``xyz`` (n, 3) m, ``t`` (n,) s -> ``out`` (n, 2)."""
+    for n in range(xyz.shape[0]):
+        ce, cn = sample_current(grid, xyz[n, 0], xyz[n, 1], xyz[n, 2], t[n])
+        out[n, 0] = ce
+        out[n, 1] = cn
+    return out
+
+
+@hot_kernel
+def sample_elevation_points(grid, xz, out):
+    """Vectorised :func:`sample_elevation`: ``xz`` (n, 2) [x, z] m -> ``out`` (n,) m."""
+    for n in range(xz.shape[0]):
+        out[n] = sample_elevation(grid, xz[n, 0], xz[n, 1])
+    return out
+
+
+def sample_currents(grid: Grid, xyz, t) -> np.ndarray:
+    """Currents (n, 2) [ce, cn] m s-1 at points ``xyz`` (n, 3) m and times ``t`` (n,) s."""
+    xyz = np.ascontiguousarray(np.atleast_2d(xyz), dtype=np.float64)
+    t = np.ascontiguousarray(np.broadcast_to(np.asarray(t, dtype=np.float64), (xyz.shape[0],)))
+    return sample_current_points(grid, xyz, t, np.empty((xyz.shape[0], 2)))
+
+
+# ----------------------------------------------------------------------------- test grids
+
+
+def make_test_grid(nt: int = 13, nz: int = 5, ny: int = 40, nx: int = 50, *,
+                   dx_m: float = 150.0, dz_m: float = 150.0, dt_s: float = 3600.0,
+                   depths=None, max_depth_m: float = 60.0, speed_ms: float = 0.5,
+                   tide_ms: float = 0.2, has_tide: bool = True, land: bool = True,
+                   origin_lat: float = 50.25, origin_lon: float = -4.40,
+                   time0_unix_s: float = 1735689600.0) -> dict:
+    """An analytic grid export with exactly the contracts §3 keys (for tests and benchmarks).
+
+    Currents vary in x, z, depth and time; a coast with land lies along the west edge, the
+    seafloor slopes down to ``1.25 * max_depth_m`` toward the east. The result can be saved
+    with :func:`oneocean.io.write_npz_atomic` and loaded with :func:`load_grid`.
+
+    Parameters
+    ----------
+    nt, nz, ny, nx : int
+        Grid size (time, depth, north, east). ``nt=49, nz=7, ny=150, nx=200`` is the size of
+        the ``public`` variant (48 h hourly, 0.002 deg over 0.3 x 0.4 deg).
+    dx_m, dz_m : float
+        Spacing east / north, m.
+    dt_s : float
+        Time step of the fields, s.
+    depths : array-like, optional
+        Depth levels, m (positive down); default ``geomspace``-like levels to ``max_depth_m``.
+    speed_ms, tide_ms : float
+        Scale of the ocean currents and of the tidal currents, m s-1.
+    """
+    if depths is None:
+        depths = np.concatenate([[0.5], np.geomspace(2.0, max_depth_m, nz - 1)]) if nz > 1 \
+            else np.array([0.5])
+    depth = np.asarray(depths, dtype=np.float64)
+    if depth.shape != (nz,):
+        raise ConfigError(f"make_test_grid: depths has shape {depth.shape}, expected ({nz},)")
+    deg = np.pi / 180.0
+    m_lat = 111_195.0
+    m_lon = 111_195.0 * np.cos(origin_lat * deg)
+    x0 = -0.5 * (nx - 1) * dx_m
+    z0 = -0.5 * (ny - 1) * dz_m
+    x = x0 + dx_m * np.arange(nx)
+    z = z0 + dz_m * np.arange(ny)
+    time_s = dt_s * np.arange(nt, dtype=np.float64)
+    lx = (nx - 1) * dx_m
+    lz = (ny - 1) * dz_m
+    X, Z = np.meshgrid(x, z)  # (ny, nx)
+    H = 1.25 * max_depth_m
+    if land:
+        coast = x0 + lx * (0.12 + 0.05 * np.sin(2 * np.pi * (Z - z0) / lz))
+        elev = -H * np.tanh(2.5 * (X - coast) / lx)
+        elev = np.where(elev >= 0, 5.0 + elev, elev)  # a visible step up onto land
+    else:
+        elev = -H * (0.6 + 0.4 * (X - x0) / lx)
+    land_mask = (elev >= 0).astype(np.float32)
+    valid = ((-elev[None, :, :] > depth[:, None, None]) & (land_mask[None] == 0)).astype(np.uint8)
+    T = time_s[:, None, None, None]
+    D = depth[None, :, None, None]
+    Xb, Zb = X[None, None], Z[None, None]
+    semi = 2 * np.pi / 44712.0  # M2, rad s-1
+    vert = np.exp(-D / (0.6 * max_depth_m))
+    u = speed_ms * (0.6 + 0.4 * np.sin(2 * np.pi * Xb / lx + 0.5) * np.cos(2 * np.pi * Zb / lz)) \
+        * vert * (1.0 + 0.3 * np.sin(semi * T))
+    v = speed_ms * 0.5 * np.cos(2 * np.pi * Xb / lx) * np.sin(2 * np.pi * Zb / lz + 0.3) \
+        * vert * (1.0 + 0.3 * np.cos(0.5 * semi * T))
+    u = np.where(valid[None] == 1, u, 0.0).astype(np.float32)
+    v = np.where(valid[None] == 1, v, 0.0).astype(np.float32)
+    if has_tide:
+        amp = tide_ms * (1.0 + 0.5 * (X - x0) / lx)
+        ph = semi * time_s[:, None, None]
+        u_t = amp[None] * np.cos(ph)
+        v_t = 0.6 * amp[None] * np.sin(ph)
+        water = (land_mask == 0)[None]
+        u_t = np.where(water, u_t, 0.0).astype(np.float32)
+        v_t = np.where(water, v_t, 0.0).astype(np.float32)
+    else:
+        u_t = np.zeros((nt, ny, nx), np.float32)
+        v_t = np.zeros((nt, ny, nx), np.float32)
+    meta = {"source": "oneocean.engine.grid.make_test_grid", "variant": "test",
+            "region": "analytic", "shape": [nt, nz, ny, nx]}
+    return {
+        "u": u, "v": v, "u_tide": u_t, "v_tide": v_t,
+        "has_tide": np.array(1 if has_tide else 0, dtype=np.int8),
+        "time_s": time_s, "time0_unix_s": np.array(float(time0_unix_s)),
+        "depth": depth,
+        "lat": origin_lat + z / m_lat, "lon": origin_lon + x / m_lon,
+        "x0_m": np.array(x0), "dx_m": np.array(float(dx_m)),
+        "z0_m": np.array(z0), "dz_m": np.array(float(dz_m)),
+        "origin_lat": np.array(float(origin_lat)), "origin_lon": np.array(float(origin_lon)),
+        "m_per_deg_lat": np.array(m_lat), "m_per_deg_lon": np.array(m_lon),
+        "elevation": elev.astype(np.float32), "land_mask": land_mask, "valid_mask": valid,
+        "meta_json": np.array(json.dumps(meta, sort_keys=True)),
+    }
+
+
+def uniform_grid(ce: float = 0.0, cn: float = 0.0, *, depth_m: float = 100.0, nx: int = 21,
+                 ny: int = 21, dx_m: float = 100.0, nt: int = 2, dt_s: float = 86400.0) -> dict:
+    """A land-free grid export with a spatially and temporally uniform current (ce, cn) m s-1.
+
+    Flat seafloor at ``depth_m``; used by tests that need exact, known disturbances.
+    """
+    g = make_test_grid(nt=nt, nz=2, ny=ny, nx=nx, dx_m=dx_m, dz_m=dx_m, dt_s=dt_s,
+                       depths=[0.0, 0.5 * depth_m], max_depth_m=depth_m, has_tide=False,
+                       land=False)
+    g["elevation"] = np.full((ny, nx), -float(depth_m), np.float32)
+    g["land_mask"] = np.zeros((ny, nx), np.float32)
+    g["valid_mask"] = np.ones((2, ny, nx), np.uint8)
+    g["u"] = np.full((nt, 2, ny, nx), ce, np.float32)
+    g["v"] = np.full((nt, 2, ny, nx), cn, np.float32)
+    return g

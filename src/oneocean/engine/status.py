@@ -1,0 +1,28 @@
+"""Per-agent status codes of the core engine: plain ints so kernels can set them.
+
+``OK`` means the last move was accepted. Codes ``>= 10`` are constraint violations: the move
+was rejected (position kept, velocity zeroed) and the agent's violation counter incremented.
+``TIMEOUT`` is reserved for the task layer (episode ended without success).
+"""
+
+from __future__ import annotations
+
+OK = 0
+#: The proposed position is on land (sampled land mask >= threshold).
+LAND = 10
+#: The proposed position is closer to the seafloor than the clearance.
+SEAFLOOR = 11
+#: The proposed position is outside the horizontal extent of the grid.
+OUTSIDE = 12
+#: The dynamics produced a non-finite state (a bug or absurd parameters); move rejected.
+NONFINITE = 20
+#: Episode reached its time limit without success (set by tasks, never by the engine).
+TIMEOUT = 30
+
+NAMES = {OK: "ok", LAND: "land", SEAFLOOR: "seafloor", OUTSIDE: "outside",
+         NONFINITE: "nonfinite", TIMEOUT: "timeout"}
+
+
+def is_violation(code: int) -> bool:
+    """True for codes that mean a rejected move (LAND, SEAFLOOR, OUTSIDE, NONFINITE)."""
+    return 10 <= int(code) < 30

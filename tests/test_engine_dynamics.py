@@ -1,0 +1,247 @@
+"""Vehicle dynamics: closed forms, physical invariants and the reference's failure modes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from oneocean import engine as E
+from oneocean.engine import dynamics as D
+from oneocean.engine.reference import reference_run
+from oneocean.errors import ConfigError
+
+RIGID = ("3dof", "4dof", "6dof")
+
+
+@pytest.fixture(scope="module")
+def vehicle():
+    return D.load_vehicle()
+
+
+def still_grid(ce=0.0, cn=0.0):
+    return E.load_grid(E.uniform_grid(ce, cn, depth_m=200.0, nx=41, ny=41, dx_m=200.0))
+
+
+def test_unknown_model_and_bad_vehicle():
+    with pytest.raises(ConfigError, match=r"dynamics: invalid value '5dof'.*'kinematic', '3dof'"):
+        D.model_id("5dof")
+    with pytest.raises(ConfigError, match="unknown override keys: mass"):
+        D.load_vehicle(overrides={"mass": 3.0})
+    with pytest.raises(ConfigError, match="max_substep_s"):
+        D.load_vehicle(overrides={"max_substep_s": 1.0})
+    with pytest.raises(ConfigError, match="added_mass"):
+        D.load_vehicle(overrides={"added_mass": [1.0, 2.0]})
+
+
+def test_clip_action():
+    assert D.clip_action(0.3, 0.4, 0.0, 1.0) == (0.3, 0.4, 0.0)
+    a = np.array(D.clip_action(3.0, 4.0, 12.0, 2.0))
+    assert np.linalg.norm(a) == pytest.approx(2.0, rel=1e-15)
+    np.testing.assert_allclose(a / np.linalg.norm(a), np.array([3, 4, 12]) / 13.0, rtol=1e-15)
+
+
+def test_sincos_and_wrap():
+    x = np.linspace(-50, 50, 20001)
+    s = np.array([D.sincos(v) for v in x])
+    assert np.abs(s[:, 0] - np.sin(x)).max() < 3e-16
+    assert np.abs(s[:, 1] - np.cos(x)).max() < 3e-16
+    w = np.array([D.wrap_angle(v) for v in x])
+    assert w.min() >= -math.pi and w.max() < math.pi
+    np.testing.assert_allclose(np.sin(w), np.sin(x), atol=1e-13)
+
+
+def test_kinematic_matches_closed_form_exactly():
+    # spatially and temporally varying currents: p_{t+1} = p_t + (a_t + c(p_t, t)) dt, bit for bit
+    g = E.load_grid(E.make_test_grid(), tide={"amplitude_ms": 0.2, "period_s": 5000.0})
+    rng = np.random.default_rng(0)
+    steps, dt = 60, 2.0
+    p0 = np.array([[[800.0, 4.0, 200.0]]])
+    acts = rng.uniform(-0.8, 0.8, (steps, 1, 1, 3))
+    acts[..., 1] *= 0.05
+    b = E.init_batch(p0, t0=500.0)
+    E.run(g, b, E.open_loop_controller(acts), steps, dt=dt, v_max=10.0)
+    p = p0[0, 0].copy()
+    for k in range(steps):
+        ce, cn = E.sample_current(g, p[0], p[1], p[2], 500.0 + k * dt)
+        a = acts[k, 0, 0]
+        p = np.array([p[0] + (a[0] + ce) * dt, p[1] + a[1] * dt, p[2] + (a[2] + cn) * dt])
+    assert b.violations.sum() == 0
+    np.testing.assert_array_equal(b.positions[0, 0], p)
+
+
+@pytest.mark.parametrize("model", RIGID)
+def test_zero_current_zero_action_stays_exactly_still(model, vehicle):
+    g = still_grid()
+    p0 = np.array([[[10.0, 30.0, -20.0]]])
+    b = E.init_batch(p0, heading=0.7)
+    E.run(g, b, E.open_loop_controller(np.zeros((300, 1, 1, 3))), 300, dynamics=model,
+          vehicle=vehicle)
+    expect = D.new_state(1, 1, p0, 0.7)
+    np.testing.assert_array_equal(b.state, expect)
+
+
+@pytest.mark.parametrize("model", ("kinematic",) + RIGID)
+def test_unactuated_vehicle_drifts_with_the_current(model, vehicle):
+    ce, cn = 0.4, -0.3
+    g = still_grid(ce, cn)
+    b = E.init_batch(np.array([[[0.0, 30.0, 0.0]]]), heading=1.0)
+    E.run(g, b, E.drift_controller(1, 1), 200, dynamics=model, vehicle=vehicle,
+          allow_time_clamp=True)
+    c32 = np.float32(ce), np.float32(cn)
+    vx, vz = b.state[0, 0, D.VX], b.state[0, 0, D.VZ]
+    assert abs(vx - c32[0]) < 1e-6 and abs(vz - c32[1]) < 1e-6
+    assert b.energy.sum() == 0.0
+    # the displacement over the last 100 steps is the current's
+    b2 = E.init_batch(b.positions.copy())
+    b2.state[:] = b.state
+    E.run(g, b2, E.drift_controller(1, 1), 100, dynamics=model, vehicle=vehicle,
+          allow_time_clamp=True)
+    d = b2.positions[0, 0] - b.positions[0, 0]
+    assert d[0] == pytest.approx(100 * c32[0], abs=1e-3)
+    assert d[2] == pytest.approx(100 * c32[1], abs=1e-3)
+
+
+def _mech_energy(model, vp, s, ce, cn):
+    return D.kinetic_energy_rel(model, vp, s, ce, cn) + D.potential_energy(vp, s)
+
+
+@pytest.mark.parametrize("model", RIGID)
+@pytest.mark.parametrize("current", [(0.0, 0.0), (0.5, -0.2)])
+@pytest.mark.parametrize("buoyancy", [0.0, 2.0])
+def test_dissipation_never_adds_energy(model, current, buoyancy):
+    # thrust off: kinetic energy relative to the water + restoring potential energy
+    # (net buoyancy, BG roll/pitch) never increases, at the benchmark dt and below
+    vp = D.load_vehicle(overrides={"net_buoyancy_n": buoyancy}).params
+    ce, cn = current
+    s = np.zeros(D.STATE_DIM)
+    s[D.Y] = 50.0
+    s[D.PSI] = 0.3
+    s[D.U:D.R + 1] = [1.5, -0.8, 0.4, 0.6, -0.5, 0.7]
+    if model == "6dof":
+        s[D.PHI], s[D.THETA] = 0.3, -0.2
+    m = D.model_id(model)
+    cmd = D.make_cmd(thrust=False)
+    e_prev = _mech_energy(m, vp, s, ce, cn)
+    e0 = e_prev
+    for dt in [1.0] * 150 + [0.1] * 50:
+        D.step_agent(m, vp, s, cmd, ce, cn, dt)
+        e = _mech_energy(m, vp, s, ce, cn)
+        assert e <= e_prev + 1e-12 * abs(e0), (e, e_prev)
+        e_prev = e
+    if buoyancy == 0.0:
+        assert D.kinetic_energy_rel(m, vp, s, ce, cn) < 1e-6
+
+
+@pytest.mark.parametrize("model", RIGID)
+@pytest.mark.parametrize("current", [(0.0, 0.0), (0.5, 0.3)])
+def test_station_keeping_settles_and_stays(model, current, vehicle):
+    # the reference's "6DoF" chattered +-1.2 m/s around every set-point: no limit cycle here
+    g = still_grid(*current)
+    goal = np.array([[[0.0, 30.0, 0.0]]])
+    off = np.array([4.0, 0.0 if model == "3dof" else 2.0, -3.0])  # 3dof holds its depth
+    b = E.init_batch(goal + off, record_every=1, max_steps=400)
+    E.run(g, b, E.goal_controller(goal, kp=0.3), 400, dynamics=model, vehicle=vehicle,
+          allow_time_clamp=True)
+    traj = b.traj[0, 0].astype(float)
+    err = np.linalg.norm(traj - goal[0, 0], axis=1)
+    assert err[0] >= 5
+    assert err[-150:].max() < 0.05, err[-150:].max()
+    speed = np.linalg.norm(np.diff(traj[-150:], axis=0), axis=1)
+    assert speed.max() < 1e-3
+    assert np.linalg.norm(b.state[0, 0, D.VX:D.VZ + 1]) < 1e-3
+
+
+def test_yaw_convention_compass_heading(vehicle):
+    g = still_grid()
+    for name, act, psi in (("east", (1.0, 0, 0), math.pi / 2), ("north", (0, 0, 1.0), 0.0),
+                           ("south-west", (-1.0, 0, -1.0), -3 * math.pi / 4)):
+        acts = np.tile(np.array(act, dtype=float), (80, 1, 1, 1))
+        b = E.init_batch(np.array([[[0.0, 30.0, 0.0]]]), heading=0.3)
+        E.run(g, b, E.open_loop_controller(acts), 80, dynamics="6dof", vehicle=vehicle,
+              allow_time_clamp=True)
+        s = b.state[0, 0]
+        assert abs(D.wrap_angle(s[D.PSI] - psi)) < 1e-3, name
+        # facing the direction of travel: all speed is surge
+        assert s[D.U] == pytest.approx(np.linalg.norm(act), abs=1e-3), name
+        assert abs(s[D.V]) < 1e-3
+        np.testing.assert_allclose(s[D.VX:D.VZ + 1], act, atol=1e-3)
+
+
+def test_commanded_heading_is_held(vehicle):
+    g = still_grid()
+    goal = np.array([[[0.0, 30.0, 0.0, -2.0]]])
+    b = E.init_batch(goal[..., :3] + np.array([3.0, 0.0, 0.0]))
+    E.run(g, b, E.goal_controller(goal, kp=0.3), 200, dynamics="4dof", vehicle=vehicle,
+          allow_time_clamp=True)
+    assert b.state[0, 0, D.PSI] == pytest.approx(-2.0, abs=1e-4)
+
+
+def test_six_dof_converges_to_kinematic_path_as_time_constants_shrink(vehicle):
+    g = E.load_grid(E.make_test_grid())
+    p0 = np.array([[[1500.0, 5.0, 0.0]]])
+    goal = p0 + np.array([[[-300.0, 3.0, 250.0]]])
+    steps = 150
+
+    def path(model, veh):
+        # start facing the goal: the shrinking quantities are time constants, not thrust
+        # limits (a sideways start saturates sway thrust, which is physics, not lag)
+        d = goal[0, 0] - p0[0, 0]
+        b = E.init_batch(p0, record_every=1, max_steps=steps, heading=math.atan2(d[0], d[2]))
+        E.run(g, b, E.goal_controller(goal, kp=0.02), steps, dynamics=model, vehicle=veh)
+        return b.traj[0, 0].astype(np.float64)
+
+    kin = path("kinematic", vehicle)
+    errs = []
+    for s in (1.0, 0.1, 0.01, 0.001):
+        spec = vehicle.spec
+        veh = D.load_vehicle(overrides={
+            "mass_kg": spec["mass_kg"] * s,
+            "inertia_kg_m2": [v * s for v in spec["inertia_kg_m2"]],
+            "added_mass": [v * s for v in spec["added_mass"]],
+            "velocity_time_constant_s": [v * s for v in spec["velocity_time_constant_s"]],
+            "net_buoyancy_n": 0.0})
+        errs.append(np.linalg.norm(path("6dof", veh) - kin, axis=1).max())
+    assert all(a > b for a, b in zip(errs, errs[1:])), errs
+    assert errs[0] > 0.3 and errs[-1] < 2e-3, errs  # error ~ time constant (linear)
+
+
+def test_surface_is_a_boundary_not_a_violation(vehicle):
+    g = still_grid()
+    for model in ("kinematic", "4dof", "6dof"):
+        acts = np.tile(np.array([0.0, -1.0, 0.0]), (40, 1, 1, 1))
+        b = E.init_batch(np.array([[[0.0, 3.0, 0.0]]]))
+        E.run(g, b, E.open_loop_controller(acts), 40, dynamics=model, vehicle=vehicle,
+              allow_time_clamp=True)
+        assert b.state[0, 0, D.Y] == 0.0 and b.violations.sum() == 0, model
+        assert b.state[0, 0, D.VY] == 0.0
+
+
+def test_depth_is_held_by_3dof(vehicle):
+    g = still_grid()
+    acts = np.tile(np.array([0.5, 0.7, 0.2]), (30, 1, 1, 1))
+    b = E.init_batch(np.array([[[0.0, 12.5, 0.0]]]))
+    E.run(g, b, E.open_loop_controller(acts), 30, dynamics="3dof", vehicle=vehicle,
+          allow_time_clamp=True)
+    assert b.state[0, 0, D.Y] == 12.5
+
+
+@pytest.mark.parametrize("model", ("kinematic",) + RIGID)
+def test_engine_matches_the_plain_numpy_reference(model, vehicle):
+    # an independent implementation (searchsorted, full matrices, np.linalg.solve); the
+    # scenario includes land rejections and near-collisions
+    g = E.load_grid(E.make_test_grid(), tide={"amplitude_ms": 0.1, "period_s": 3600.0})
+    pos = np.array([[[-2600.0, 3.0, 0.0], [-2598.5, 3.0, 0.5]],
+                    [[1000.0, 4.0, 100.0], [1010.0, 6.0, 90.0]]])
+    goals = pos + np.array([[[-900.0, 0.0, 40.0], [-900.0, 0.0, 40.0]],
+                            [[60.0, 3.0, -50.0], [40.0, -2.0, -30.0]]])
+    b = E.init_batch(pos, t0=100.0)
+    E.run(g, b, E.goal_controller(goals, kp=0.2), 60, dynamics=model, vehicle=vehicle)
+    r = reference_run(g, pos, goals, 60, dynamics=model, vehicle=vehicle, kp=0.2, t0=100.0)
+    assert b.violations[0].sum() > 0 and b.coll_steps[0] > 0  # the scenario bites
+    np.testing.assert_allclose(b.state, r["state"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(b.energy, r["energy"], rtol=1e-12)
+    np.testing.assert_array_equal(b.violations, r["violations"])
+    np.testing.assert_array_equal(b.status, r["status"])
+    np.testing.assert_array_equal(b.coll_steps, r["coll_steps"])

@@ -1,0 +1,201 @@
+"""Grid export loading/validation and the field-sampling kernels (oneocean.engine.grid)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from oneocean.engine import constraints as C
+from oneocean.engine import grid as G
+from oneocean.engine import status as st
+from oneocean.errors import ConfigError, DataError
+from oneocean.io import write_npz_atomic
+
+
+@pytest.fixture(scope="module")
+def export():
+    return G.make_test_grid()
+
+
+@pytest.fixture(scope="module")
+def grid(export):
+    return G.load_grid(export)
+
+
+def test_test_grid_has_exactly_the_contract_keys(export):
+    assert set(export) == set(G.REQUIRED_KEYS)
+
+
+def test_load_from_npz_path_equals_load_from_dict(tmp_path, export, grid):
+    p = tmp_path / "grid.npz"
+    write_npz_atomic(p, export)
+    g2 = G.load_grid(p)
+    for name, a, b in zip(G.Grid._fields, grid, g2):
+        if isinstance(a, np.ndarray):
+            np.testing.assert_array_equal(a, b, err_msg=name)
+        else:
+            assert a == b, name
+    assert G.grid_metadata(p)["variant"] == "test"
+
+
+def test_missing_fields_are_all_named(export):
+    d = {k: v for k, v in export.items() if k not in ("u", "dx_m", "valid_mask")}
+    with pytest.raises(DataError, match="missing fields: u, dx_m, valid_mask"):
+        G.load_grid(d)
+
+
+def test_nan_current_inside_valid_water_is_an_error(export):
+    d = dict(export)
+    u = d["u"].copy()
+    t, k, j, i = np.argwhere(d["valid_mask"][None].repeat(u.shape[0], 0) == 1)[5]
+    u[t, k, j, i] = np.nan
+    d["u"] = u
+    with pytest.raises(DataError, match="NaN currents inside valid water"):
+        G.load_grid(d)
+
+
+@pytest.mark.parametrize("key", ["elevation", "land_mask", "u_tide"])
+def test_nan_in_other_layers_is_an_error(export, key):
+    d = dict(export)
+    a = d[key].copy()
+    a.flat[3] = np.nan
+    d[key] = a
+    with pytest.raises(DataError, match=key):
+        G.load_grid(d)
+
+
+def test_shape_and_axis_errors(export):
+    d = dict(export, elevation=export["elevation"][:-1])
+    with pytest.raises(DataError, match="inconsistent shapes.*'elevation'"):
+        G.load_grid(d)
+    lon = export["lon"].copy()
+    lon[3] += 0.3 * (lon[1] - lon[0])
+    with pytest.raises(DataError, match="'lon' must have regular spacing"):
+        G.load_grid(dict(export, lon=lon))
+    with pytest.raises(DataError, match="'time_s' must be strictly ascending"):
+        G.load_grid(dict(export, time_s=export["time_s"][::-1].copy()))
+    with pytest.raises(DataError, match="'lat' disagrees"):
+        G.load_grid(dict(export, z0_m=np.array(float(export["z0_m"]) + 1000.0)))
+
+
+def test_bad_forcing_config(export):
+    with pytest.raises(ConfigError, match="current_gain"):
+        G.load_grid(export, current_gain=np.nan)
+    with pytest.raises(ConfigError, match="period_s"):
+        G.load_grid(export, tide={"amplitude_ms": 0.1})
+
+
+def _linear_grid():
+    """Currents linear in x, z, depth and time on an irregular depth axis (interp is exact)."""
+    d = G.make_test_grid(nt=4, nz=4, ny=6, nx=7, dx_m=50.0, dz_m=70.0, dt_s=600.0,
+                         depths=[0.0, 3.0, 10.0, 40.0], has_tide=True, land=False)
+    x = float(d["x0_m"]) + 50.0 * np.arange(7)
+    z = float(d["z0_m"]) + 70.0 * np.arange(6)
+    T, D, Z, X = np.meshgrid(d["time_s"], d["depth"], z, x, indexing="ij")
+    d["u"] = (0.1 + 1e-4 * X - 2e-4 * Z + 3e-3 * D + 1e-5 * T).astype(np.float64)
+    d["v"] = (-0.2 + 2e-4 * X + 1e-4 * Z - 1e-3 * D + 2e-5 * T).astype(np.float64)
+    T3, Z3, X3 = np.meshgrid(d["time_s"], z, x, indexing="ij")
+    d["u_tide"] = (0.05 + 1e-4 * X3 + 1e-6 * T3).astype(np.float32)
+    d["v_tide"] = (0.02 - 1e-4 * Z3).astype(np.float32)
+    d["valid_mask"] = np.ones_like(d["valid_mask"])
+    return d
+
+
+def _exact(x, y, z, t, tide=True):
+    u = 0.1 + 1e-4 * x - 2e-4 * z + 3e-3 * y + 1e-5 * t
+    v = -0.2 + 2e-4 * x + 1e-4 * z - 1e-3 * y + 2e-5 * t
+    if tide:
+        u += 0.05 + 1e-4 * x + 1e-6 * t
+        v += 0.02 - 1e-4 * z
+    return u, v
+
+
+def test_sampling_is_exact_for_linear_fields_in_4d():
+    d = _linear_grid()
+    g = G.load_grid(d)
+    rng = np.random.default_rng(0)
+    pts = np.column_stack([rng.uniform(g.x0, g.x_max, 200), rng.uniform(0, 40, 200),
+                           rng.uniform(g.z0, g.z_max, 200)])
+    t = rng.uniform(0, 1800, 200)
+    got = G.sample_currents(g, pts, t)
+    # the arrays are float32, so exact up to float32 rounding of the node values
+    u, v = _exact(pts[:, 0], pts[:, 1], pts[:, 2], t)
+    np.testing.assert_allclose(got[:, 0], u, atol=2e-6)
+    np.testing.assert_allclose(got[:, 1], v, atol=2e-6)
+
+
+def test_gain_tide_layers_and_synthetic_tide():
+    d = _linear_grid()
+    x, y, z, t = 10.0, 5.0, -20.0, 900.0
+    base = G.load_grid(d, use_tide_layers=False)
+    u0, v0 = G.sample_current(base, x, y, z, t)
+    ue, ve = _exact(x, y, z, t, tide=False)
+    assert abs(u0 - ue) < 2e-6 and abs(v0 - ve) < 2e-6
+    g2 = G.load_grid(d, current_gain=2.0)
+    u2, v2 = G.sample_current(g2, x, y, z, t)
+    ut, vt = _exact(x, y, z, t, tide=True)
+    assert abs(u2 - 2 * ut) < 4e-6 and abs(v2 - 2 * vt) < 4e-6
+    # tide layers are ignored when the export says it has none
+    u3, _ = G.sample_current(G.load_grid(dict(d, has_tide=np.int8(0))), x, y, z, t)
+    assert u3 == u0
+    amp, period, ph = 0.3, 1000.0, 0.4
+    g4 = G.with_forcing(base, tide={"amplitude_ms": amp, "period_s": period, "phase_rad": ph})
+    u4, v4 = G.sample_current(g4, x, y, z, t)
+    w = 2 * np.pi / period
+    assert u4 - u0 == pytest.approx(amp * np.sin(w * t + ph), abs=1e-12)
+    assert v4 - v0 == pytest.approx(amp * np.cos(w * t + ph), abs=1e-12)
+
+
+def test_nodes_and_clamping(grid, export):
+    k, t_i, j, i = 2, 3, 17, 23
+    x = grid.x0 + i * grid.dx
+    z = grid.z0 + j * grid.dz
+    ce, cn = G.sample_current(grid._replace(tide_layers=0), x, export["depth"][k], z,
+                              export["time_s"][t_i])
+    assert ce == pytest.approx(float(export["u"][t_i, k, j, i]), abs=1e-7)
+    assert cn == pytest.approx(float(export["v"][t_i, k, j, i]), abs=1e-7)
+    # outside the time / depth / horizontal range: the edge value
+    g0 = grid._replace(tide_layers=0)
+    last = G.sample_current(g0, x, export["depth"][-1], z, export["time_s"][-1])
+    assert G.sample_current(g0, x, 1e4, z, 1e9) == last
+    first = G.sample_current(g0, x, export["depth"][0], z, 0.0)
+    assert G.sample_current(g0, x, -5.0, z, -100.0) == first
+    assert G.sample_current(g0, grid.x_max + 500, 3.0, z, 10.0) == \
+        G.sample_current(g0, grid.x_max, 3.0, z, 10.0)
+
+
+def test_axis_lookup_matches_searchsorted():
+    rng = np.random.default_rng(1)
+    ax = np.cumsum(rng.uniform(0.01, 5.0, 40))
+    inv, lut, h = G._axis_lut(ax)
+    for v in rng.uniform(ax[0] - 1, ax[-1] + 1, 2000):
+        i0, i1, w = G._locate(ax, inv, lut, h, v)
+        if v <= ax[0]:
+            assert (i0, w) == (0, 0.0)
+        elif v >= ax[-1]:
+            assert (i1, w) == (ax.size - 1, 1.0)
+        else:
+            assert i0 == np.searchsorted(ax, v, side="right") - 1
+            assert (1 - w) * ax[i0] + w * ax[i1] == pytest.approx(v, rel=1e-12)
+
+
+def test_elevation_land_and_feasibility(grid):
+    # west edge is land, east is deep water (make_test_grid's coast)
+    zc = 0.5 * (grid.z0 + grid.z_max)
+    assert G.sample_land(grid, grid.x0, zc) == 1.0
+    assert G.sample_elevation(grid, grid.x0, zc) > 0
+    assert G.sample_land(grid, grid.x_max, zc) == 0.0
+    depth = -G.sample_elevation(grid, grid.x_max, zc)
+    assert depth > 30
+    assert C.check_move(grid, grid.x0, 1.0, zc, 0.5, 1.0) == st.LAND
+    assert C.check_move(grid, grid.x_max, depth - 0.5, zc, 0.5, 1.0) == st.SEAFLOOR
+    assert C.check_move(grid, grid.x_max, depth - 1.5, zc, 0.5, 1.0) == st.OK
+    assert C.check_move(grid, grid.x_max + 1, 1.0, zc, 0.5, 1.0) == st.OUTSIDE
+    assert C.check_move(grid, grid.x_max, -0.1, zc, 0.5, 1.0) == st.OUTSIDE  # above the surface
+    assert C.check_move(grid, np.nan, 1.0, zc, 0.5, 1.0) == st.NONFINITE
+
+
+def test_lonlat_roundtrip(grid):
+    lon, lat = G.world_to_lonlat(grid, np.array([123.0]), np.array([-456.0]))
+    x, z = G.lonlat_to_world(grid, lon, lat)
+    assert x[0] == pytest.approx(123.0) and z[0] == pytest.approx(-456.0)
