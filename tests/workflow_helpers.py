@@ -24,6 +24,8 @@ SMALL_CONFIG = {
         "public": {"extent_fraction": 1.0, "resolution_deg": 0.004, "hours": 12,
                    "max_depth_m": 40},
     },
+    "rollouts": {"variant": "public", "tasks": ["G2G", "FT"], "tiers": [1, 3],
+                 "methods": ["heuristic"], "episodes": 4, "seed": 0, "dynamics": "6dof"},
 }
 
 
