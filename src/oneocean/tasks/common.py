@@ -193,3 +193,163 @@ def empty_result(n_episodes: int, metrics) -> dict:
     out["success"] = np.zeros(n_episodes, dtype=np.bool_)
     out["violations"] = np.zeros(n_episodes, dtype=np.int64)
     return out
+
+
+# ------------------------------------------------------------------------------ nav helpers
+# (added for G2G/SK/RF/DPT/FT; generic: any task that steers to a point or samples a route)
+
+@hot_kernel(inline="always")
+def seek_max(px, py, pz, gx, gy, gz, v_max, kp, ce, cn):
+    """Best-effort velocity request (relative to water, |a| <= ``v_max``) toward a goal.
+
+    Cancels the cross-track part of the current ``(ce, 0, cn)`` first and spends the rest of
+    the speed budget along the goal direction ("crabbing"), so the ground track points at the
+    goal whenever ``|c_perp| < v_max``; the ground speed is ``min(kp * d, c_par +
+    sqrt(v_max^2 - |c_perp|^2))``. At the goal it holds station (``-c``, clipped).
+    The navigation tasks' steering: the oracle calls it with the exact current and the full
+    ``v_max``, the heuristic with its noisy probe and its cruise budget.
+    """
+    if not v_max > 0.0:
+        return 0.0, 0.0, 0.0
+    dx = gx - px
+    dy = gy - py
+    dz = gz - pz
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if d <= 1e-9:
+        n = math.sqrt(ce * ce + cn * cn)
+        if n > v_max:
+            return -ce * v_max / n, 0.0, -cn * v_max / n
+        return -ce, 0.0, -cn
+    ux = dx / d
+    uy = dy / d
+    uz = dz / d
+    c_par = ce * ux + cn * uz
+    qx = ce - c_par * ux          # cross-track current (world)
+    qy = -c_par * uy
+    qz = cn - c_par * uz
+    q2 = qx * qx + qy * qy + qz * qz
+    if q2 >= v_max * v_max:
+        f = v_max / math.sqrt(q2)
+        return -qx * f, -qy * f, -qz * f
+    v = c_par + math.sqrt(v_max * v_max - q2)   # fastest feasible ground speed along the goal
+    if kp * d < v:
+        v = kp * d
+    return ux * v - ce, uy * v, uz * v - cn
+
+
+def path_clear(grid: Grid, p0, p1, clearance: float, land_threshold: float = 0.5,
+               spacing_m: float = 20.0) -> bool:
+    """True if the straight segment ``p0 -> p1`` (world m, (3,)) is feasible every
+    ``spacing_m`` metres (land, grid extent and ``clearance`` m above the seafloor)."""
+    from ..engine.constraints import feasibility
+
+    p0 = np.asarray(p0, dtype=np.float64)
+    p1 = np.asarray(p1, dtype=np.float64)
+    n = max(2, int(math.ceil(float(np.linalg.norm(p1 - p0)) / spacing_m)) + 1)
+    w = np.linspace(0.0, 1.0, n)[:, None]
+    return bool(np.all(feasibility(grid, p0 + w * (p1 - p0), land_threshold, clearance)
+                       == st.OK))
+
+
+def sample_route(grid: Grid, rng: np.random.Generator, n_legs: int, leg_m: float,
+                 depth_m: tuple[float, float], clearance: float, *,
+                 max_turn_rad: float = math.pi, land_threshold: float = 0.5,
+                 vary_depth: bool = False, tries: int = 2000,
+                 what: str = "route") -> np.ndarray:
+    """A random polyline of ``n_legs`` straight legs of ``leg_m`` metres at one depth, whose
+    every leg is clear of land and ``clearance`` m above the seafloor (:func:`path_clear`).
+    ``n_legs = 0`` samples one valid point (a station).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The episode's reset stream.
+    depth_m : (lo, hi)
+        Range of the (constant) route depth, m, positive down; drawn uniformly per try.
+    max_turn_rad : float
+        Largest heading change between consecutive legs, rad (pi = any direction).
+    vary_depth : bool
+        Draw every vertex's depth independently in ``depth_m`` (a piecewise-linear depth
+        profile whose straight 3-D legs all keep ``clearance``) instead of one depth.
+
+    Returns
+    -------
+    (n_legs + 1, 3) float64
+        Vertices (x, y, z) in world metres; vertex 0 is the start.
+
+    Raises
+    ------
+    ConfigError
+        If no valid route was found in ``tries`` attempts (never a silent fallback).
+    """
+    from ..engine.constraints import spawn_positions
+
+    n_legs = int(n_legs)
+    lo, hi = float(depth_m[0]), float(depth_m[1])
+    out = np.empty((n_legs + 1, 3))
+    spawn_fails = 0
+    for _ in range(int(tries)):
+        y = rng.uniform(lo, hi)
+        try:
+            out[0] = spawn_positions(grid, rng, 1, {"y": (y, y)}, land_threshold=land_threshold,
+                                     clearance=clearance, max_candidates=4096)[0]
+        except ConfigError as exc:
+            spawn_fails += 1
+            if spawn_fails >= 5:   # no valid water at these depths: fail now, loudly
+                raise ConfigError(f"{what}: {exc}") from None
+            continue
+        heading = rng.uniform(-math.pi, math.pi)
+        ok = True
+        for leg in range(n_legs):
+            if leg > 0:
+                heading += rng.uniform(-max_turn_rad, max_turn_rad)
+            p = out[leg] + leg_m * np.array([math.sin(heading), 0.0, math.cos(heading)])
+            if vary_depth:
+                p[1] = rng.uniform(lo, hi)
+            if not path_clear(grid, out[leg], p, clearance, land_threshold):
+                ok = False
+                break
+            out[leg + 1] = p
+        if ok:
+            return out
+    raise ConfigError(f"{what}: no {n_legs}-leg route of {leg_m:g} m legs at depths "
+                      f"[{lo:g}, {hi:g}] m with {clearance:g} m clearance found in {tries} tries; "
+                      "the grid is too small or too shallow for this tier")
+
+
+@hot_kernel(inline="always")
+def steer(vx, vy, vz, budget, ce, cn):
+    """Velocity request (relative to water, ``|a| <= budget``) realising the desired ground
+    velocity ``(vx, vy, vz)`` m s-1 under the current ``(ce, 0, cn)``.
+
+    Returns ``v - c`` when it fits the budget; otherwise keeps the ground track along ``v``
+    if possible (cancels the cross-track current first, then the along-track ground speed
+    closest to ``|v|`` that the rest of the budget allows), else fights the cross current
+    with the whole budget. Used for slot / line-of-sight tracking with feed-forward.
+    """
+    if not budget > 0.0:
+        return 0.0, 0.0, 0.0
+    ax = vx - ce
+    ay = vy
+    az = vz - cn
+    b2 = budget * budget
+    if ax * ax + ay * ay + az * az <= b2:
+        return ax, ay, az
+    s = math.sqrt(vx * vx + vy * vy + vz * vz)
+    if s <= 1e-9:
+        n = math.sqrt(ce * ce + cn * cn)
+        return -ce * budget / n, 0.0, -cn * budget / n
+    ux = vx / s
+    uy = vy / s
+    uz = vz / s
+    c_par = ce * ux + cn * uz
+    qx = ce - c_par * ux
+    qy = -c_par * uy
+    qz = cn - c_par * uz
+    q2 = qx * qx + qy * qy + qz * qz
+    if q2 >= b2:
+        f = budget / math.sqrt(q2)
+        return -qx * f, -qy * f, -qz * f
+    r = math.sqrt(b2 - q2)
+    w = c_par + r if s > c_par else c_par - r
+    return ux * w - ce, uy * w, uz * w - cn
