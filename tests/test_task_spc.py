@@ -1,0 +1,188 @@
+"""SPC (surface pollution cleanup): reset geometry, mass budget, success rule, determinism."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numba
+import numpy as np
+import pandas as pd
+import pytest
+
+from oneocean import engine as E
+from oneocean.engine import status as st
+from oneocean.engine.dynamics import P_VMAX
+from oneocean.errors import ConfigError
+from oneocean.models import pollution as pol
+from oneocean.tasks import run_cell, spc
+from oneocean.tasks.common import STANDARD, load_task_table
+
+TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.1,
+        "spill_radius_m": 40.0, "target_fraction": 0.5, "staging_distance_m": 120.0,
+        "removal_radius_m": 11.0, "removal_rate_s": 0.1, "kappa_m2s": 1.0, "domain_m": 300.0,
+        "aerial_period_s": 20.0, "dt_s": 1.0}
+
+
+def _grid(ce=0.0, cn=0.0, depth=30.0, n=21):
+    return E.load_grid(E.uniform_grid(ce, cn, depth_m=depth, nx=n, ny=n, dx_m=100.0))
+
+
+@pytest.fixture(scope="module")
+def calm():
+    return _grid()
+
+
+@pytest.fixture(scope="module")
+def coast():
+    return E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+
+
+def _run(grid, tier, method, n_agents=4, n=4, seed=0, dyn="kinematic", vehicle=None):
+    init = spc.reset(grid, tier, n_agents, n, seed)
+    return init, spc.rollout(grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
+
+
+def test_reset_geometry_is_valid(coast):
+    init = spc.reset(coast, TIER, 6, 5, seed=3)
+    n, half = spc.field_frame(TIER["domain_m"])
+    assert init["C0"].shape == (5, 1, n, n) and init["land"].shape == (5, n, n)
+    p0 = init["pos0"]
+    assert p0.shape == (5, 6, 3)
+    np.testing.assert_allclose(p0[..., 1], spc.SURFACE_Y_M)
+    codes = E.feasibility(coast, p0.reshape(-1, 3), 0.5, spc.CLEARANCE_M)
+    assert np.all(codes == st.OK)
+    for e in range(5):
+        m = pol.total_mass(init["C0"][e], spc.FIELD_H_M)
+        assert math.isclose(m, spc.SPILL_MASS_KG, rel_tol=1e-9)
+        assert np.all(init["C0"][e, 0][init["land"][e] != 0] == 0.0)  # no oil on land
+        stg = p0[e, :, [0, 2]].T.mean(axis=0)
+        d = np.linalg.norm(stg - (init["origin"][e] + half))
+        assert abs(d - TIER["staging_distance_m"]) < 1e-6  # staging distance from the centre
+        # teammates start apart (>= the staging spacing)
+        dd = np.linalg.norm(p0[e, :, None] - p0[e, None], axis=2) + 1e9 * np.eye(6)
+        assert dd.min() >= spc.STAGING_SPACING_M - 1e-9
+    t_end = init["t0"] + TIER["time_limit_s"]
+    assert np.all(init["t0"] >= coast.time_s[0]) and np.all(t_end <= coast.time_s[-1])
+
+
+def test_staging_is_up_current():
+    init = spc.reset(_grid(1.0, 0.0), TIER, 3, 6, 0)  # current toward +x (east)
+    half = spc.field_frame(TIER["domain_m"])[1]
+    rel = init["pos0"][:, :, 0].mean(axis=1) - (init["origin"][:, 0] + half)
+    assert np.all(rel < -TIER["staging_distance_m"] * math.cos(spc.STAGING_SPREAD_RAD) + 1e-6)
+
+
+def test_reset_raises_when_impossible(calm):
+    with pytest.raises(ConfigError, match="n_agents"):
+        spc.reset(calm, TIER, 1, 2, 0)
+    with pytest.raises(ConfigError, match="n_agents"):
+        spc.reset(calm, TIER, 11, 2, 0)
+    with pytest.raises(ConfigError, match="SPC"):  # 2 km grid, 5 km staging distance
+        spc.reset(calm, {**TIER, "staging_distance_m": 5000.0}, 3, 2, 0)
+    with pytest.raises(ConfigError, match="SPC"):  # too shallow for a surface vehicle
+        spc.reset(_grid(depth=1.0), TIER, 3, 2, 0)
+    with pytest.raises(ConfigError, match="missing"):
+        spc.reset(calm, {k: v for k, v in TIER.items() if k != "kappa_m2s"}, 3, 2, 0)
+
+
+@pytest.mark.parametrize("method", ["heuristic", "oracle"])
+def test_mass_budget_closes(method):
+    # strong current: mass escapes through the open sides; removed + escaped + remaining = 1
+    grid = _grid(0.8, 0.3)
+    _, r = _run(grid, {**TIER, "target_fraction": 0.99, "time_limit_s": 300.0}, method)
+    tot = r["cleanup_rate"] + r["escaped_fraction"] + r["remaining_fraction"]
+    np.testing.assert_allclose(tot, 1.0, atol=1e-6)
+    assert np.all(r["escaped_fraction"] > 0.01) and np.all(r["cleanup_rate"] > 0.01)
+    assert not r["success"].any()
+    np.testing.assert_array_equal(r["T_s"], 300.0)
+    np.testing.assert_array_equal(r["time_to_target_s"], 300.0)
+
+
+def test_oracle_cleans_calm_water_and_success_rule(calm):
+    _, r = _run(calm, TIER, "oracle")
+    assert r["success"].all()
+    # stopped at the first step with removed >= target: just above the target fraction
+    assert np.all(r["cleanup_rate"] >= TIER["target_fraction"])
+    assert np.all(r["cleanup_rate"] < TIER["target_fraction"] + 0.05)
+    assert np.all(r["T_s"] < TIER["time_limit_s"])
+    np.testing.assert_array_equal(r["T_s"], r["time_to_target_s"])
+    # calm water: only diffusion reaches the open sides, 150 m from a 40 m spill
+    np.testing.assert_allclose(r["escaped_fraction"], 0.0, atol=1e-6)
+    np.testing.assert_array_equal(r["violations"], 0)
+    assert np.all(r["coll_ratio"] == 0.0)  # repulsion keeps them apart
+    # the heuristic is slower (cruise budget, stale map) but also succeeds in calm water
+    _, rh = _run(calm, TIER, "heuristic")
+    assert rh["success"].all() and np.all(rh["T_s"] > r["T_s"])
+
+
+def test_do_nothing_fails(calm):
+    veh = E.load_vehicle()
+    p = veh.params.copy()
+    p[P_VMAX] = 0.0
+    still = dataclasses.replace(veh, params=p)
+    _, r = _run(calm, TIER, "oracle", vehicle=still)
+    assert not r["success"].any()
+    np.testing.assert_array_equal(r["T_s"], TIER["time_limit_s"])
+    np.testing.assert_array_equal(r["E"], 0.0)
+    # parked 120 m from the centre: only the diffused fringe reaches the footprints or the
+    # open sides in 400 s
+    assert np.all(r["cleanup_rate"] < 5e-3) and np.all(r["escaped_fraction"] < 5e-3)
+    np.testing.assert_allclose(r["remaining_fraction"], 1.0, atol=1e-2)
+
+
+def test_hand_made_success_threshold(calm):
+    # agents parked on the spill centre (v_max = 0): the removal alone decides success
+    init = spc.reset(calm, TIER, 2, 1, 0)
+    half = spc.field_frame(TIER["domain_m"])[1]
+    c = init["origin"][0] + half
+    init["pos0"][0] = [[c[0] - 3.0, spc.SURFACE_Y_M, c[1]], [c[0] + 3.0, spc.SURFACE_Y_M, c[1]]]
+    veh = E.load_vehicle()
+    p = veh.params.copy()
+    p[P_VMAX] = 0.0
+    still = dataclasses.replace(veh, params=p)
+    tier = {**TIER, "kappa_m2s": 0.0, "time_limit_s": 50.0}
+    r = spc.rollout(calm, tier, init, "oracle", "kinematic", still, 0)
+    got = r["cleanup_rate"][0]
+    assert 0.0 < got < 1.0 and not r["success"][0]
+    assert r["coll_ratio"][0] == 0.0  # 6 m apart
+    r2 = spc.rollout(calm, {**tier, "target_fraction": got * 0.9}, init, "oracle", "kinematic",
+                     still, 0)
+    assert r2["success"][0] and r2["T_s"][0] < 50.0
+    # parked 1 m apart: every step is a near collision
+    init["pos0"][0, 1, 0] = c[0] - 2.0
+    r3 = spc.rollout(calm, tier, init, "oracle", "kinematic", still, 0)
+    assert r3["coll_ratio"][0] == 1.0
+
+
+def test_run_cell_deterministic_threads_and_columns(coast):
+    a = run_cell(coast, "SPC", 2, "heuristic", episodes=3, seed=5, n_agents=4)
+    b = run_cell(coast, "SPC", 2, "heuristic", episodes=3, seed=5, n_agents=4)
+    pd.testing.assert_frame_equal(a, b)
+    n0 = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        c = run_cell(coast, "SPC", 2, "heuristic", episodes=3, seed=5, n_agents=4)
+    finally:
+        numba.set_num_threads(n0)
+    pd.testing.assert_frame_equal(a, c)
+    d = run_cell(coast, "SPC", 2, "heuristic", episodes=3, seed=6, n_agents=4)
+    assert not np.array_equal(a["cleanup_rate"].to_numpy(), d["cleanup_rate"].to_numpy())
+    for k in STANDARD + ("primary",) + spc.METRICS:
+        assert k in a.columns
+    np.testing.assert_array_equal(a["primary"], a["cleanup_rate"])
+
+
+def test_tier_table_monotone_and_declared():
+    table = load_task_table("SPC")
+    tiers = table["tiers"]
+    assert sorted(tiers) == [1, 2, 3]
+    for key, way in table["harder"].items():
+        assert way in ("up", "down")
+        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
+        sign = 1.0 if way == "up" else -1.0
+        assert all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:])), (key, vals)
+    for t in (1, 2, 3):
+        assert set(tiers[t]) == set(table["harder"]) == set(spc._TIER_KEYS)
+    assert table["agents"] == {"default": 10, "range": [2, 10]}
+    assert math.isclose(table["dt_s"], 1.0)
