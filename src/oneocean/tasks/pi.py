@@ -1,0 +1,733 @@
+"""PI — pipeline inspection and leak detection (1-10 agents; Table V uses N = 1, our default).
+
+Objective
+    A pipeline lies on the seafloor of the shelf: a polyline of ``pipeline_length_m`` made of
+    legs of about ``LEG_M`` with turns of at most ``MAX_TURN_DEG``, every point of which (and
+    a ``CORRIDOR_CHECK_M`` band on either side) is water with seafloor depth in
+    ``[seafloor_min_m, seafloor_max_m]``. ``n_leaks`` leaks sit on it (arc length in
+    ``[LEAK_ARC_FRAC, 1 - LEAK_ARC_FRAC] * length``, at least ``leak_spacing_m`` apart), each
+    emitting ``U(0.5, 1) * leak_rate_kg_s`` of a dissolved tracer. Agent ``i`` of N starts near
+    the start of its section (the i-th of N equal arc-length sections), ``SPAWN_ALTITUDE_M``
+    above the seafloor; it must inspect its section and localise the leaks.
+Plume physics (the environment; identical for every method)
+    The tracer lives in a near-bottom layer: a 2-D column-mass field (kg m-2) on a local grid
+    of ``FIELD_H_M`` cells aligned with the pipeline's chord and ``FIELD_MARGIN_M`` wider than
+    the pipeline on every side (:mod:`oneocean.models.pollution`: conservative
+    advection-diffusion, ``KAPPA_M2_S``, open boundaries: plume mass leaves the corridor).
+    It is advected by the product's currents sampled ``NEAR_BOTTOM_M`` above the seafloor at
+    the field's face centres, refreshed every ``FIELD_REFRESH_S`` (time-varying currents and
+    tides), stepped every ``FIELD_EVERY`` agent steps; the leaks emit into it from
+    ``SPINUP_S`` before the episode starts (the plumes are developed when the survey begins).
+    The sensor reads the concentration at the vehicle: ``C(x, z) exp(-a / PLUME_SCALE_M) /
+    PLUME_SCALE_M`` (kg m-3) at altitude ``a`` (an exponential vertical profile holding the
+    column mass ``C``), so flying high weakens the signal.
+Detection and scoring
+    Readings are taken after every step. A reading at or above ``detect_threshold_kg_m3``
+    within ``DETECT_RADIUS_M`` of a leak *detects* it (the evaluator attributes every reading
+    to the nearest leak within that radius). The agent reports a position *estimate* for the
+    leak from its own readings near it (method-specific, below); the leak is *localised* if
+    the estimate lies within ``loc_tolerance_m`` (the field resolves ``FIELD_H_M``; the
+    oracle's estimator stays within ~10 m on the default region, the heuristic's peak within
+    ~35 m). The inspection report is final when every agent has finished its section, or at
+    the time limit.
+Success
+    Every leak localised (team) when the report is final; ``T_s`` is then the time at which
+    the last agent finished its section (the time limit on failure).
+Metrics
+    ``inspection_score`` (primary: localised / total leaks), ``localisation_error_m`` (mean
+    over detected leaks of the estimate's distance to the leak, m; NaN if none was detected),
+    ``detection_rate`` (detected / total).
+Methods (task logic)
+    Follow the pipeline polyline of one's section with line-of-sight guidance (carrot
+    ``LOOKAHEAD_M`` ahead), terrain-following at a low commanded altitude, crabbing against the
+    current (:func:`~oneocean.tasks.common.seek_max`).
+    ``heuristic``: altitude ``ALT_HEURISTIC_M`` (a safe bottom-following altitude), speed
+    budget ``CRUISE_FRAC * v_max``, NOISY probed current (``probe_noise_ms``); it reports
+    where its largest reading near the leak was taken (the plume's peak, which an along-pipe
+    current carries 1-2 cells downstream of the source).
+    ``oracle``: altitude ``ALT_ORACLE_M`` (stronger signal), exact current, full ``v_max``;
+    it reports the plume's *upstream edge*: with ``b`` the background (smallest reading near
+    the leak: upstream water, possibly carrying an upstream leak's plume), the weighted
+    centroid (weights ``reading - b``) of the readings >= ``b + ONSET_FRAC (peak - b)``
+    lying within ``ONSET_BAND_M`` (along the current) of the most upstream such reading --
+    the plume's peak in a cross-current, its onset in an along-pipe current.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from numba import njit, prange
+
+from ..engine import dynamics as dyn
+from ..engine._jit import ensure_fresh_cache, hot_kernel
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD, min_pairwise_distance, spawn_positions
+from ..engine.grid import sample_elevation, sample_elevation_points
+from ..errors import ConfigError
+from ..models import pollution as pol
+from .as_ import los_carrot
+from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
+                     method_id, probe, seek_max, set_velocity_cmd, start_times)
+
+TASK_ID = "PI"
+METRICS = ("inspection_score", "localisation_error_m", "detection_rate")
+COLUMNS = STANDARD + METRICS
+
+# ---- geometry
+#: Nominal leg length of the pipeline polyline, m, and the largest turn between legs, deg.
+LEG_M = 400.0
+MAX_TURN_DEG = 20.0
+#: Band on either side of the pipeline that must be water in the depth range, m.
+CORRIDOR_CHECK_M = 40.0
+#: Spacing of the geometry checks along the pipeline, m.
+CHECK_SPACING_M = 10.0
+#: Leaks lie in this fraction-of-length window: [f, 1 - f] of the arc length.
+LEAK_ARC_FRAC = 0.08
+#: Spawn box side around a section start, m, and altitude range, m (section starts are
+#: length / N >= 80 m apart, so agents start well separated).
+SPAWN_BOX_M = 20.0
+SPAWN_ALTITUDE_M = (5.0, 15.0)
+# ---- plume physics
+#: Plume field cell size, m; its margin around the pipeline, m; diffusivity, m2 s-1.
+FIELD_H_M = 20.0
+FIELD_MARGIN_M = 80.0
+KAPPA_M2_S = 1.0
+#: The field is stepped every FIELD_EVERY agent steps; face currents refreshed every
+#: FIELD_REFRESH_S; leaks emit from SPINUP_S before the start.
+FIELD_EVERY = 3
+FIELD_REFRESH_S = 60.0
+SPINUP_S = 600.0
+#: Height above the seafloor where the plume's currents are sampled, m.
+NEAR_BOTTOM_M = 2.0
+#: Vertical scale of the near-bottom plume layer, m.
+PLUME_SCALE_M = 5.0
+# ---- scoring
+#: A reading above the threshold is attributed to the nearest leak within this distance, m.
+DETECT_RADIUS_M = 50.0
+#: Oracle's estimator: readings >= b + ONSET_FRAC (peak - b) whose downstream coordinate is
+#: within ONSET_BAND_M (m) of the most upstream one are averaged, weights reading - b.
+ONSET_FRAC = 0.5
+ONSET_BAND_M = 10.0
+#: Below this current speed (m s-1) the downstream direction is undefined (coordinate 0).
+MIN_CURRENT_MS = 0.05
+#: Readings kept per leak (later ones are dropped; 1024 s of readings inside the 100 m zone).
+MAX_READS = 1024
+# ---- methods
+#: Heuristic speed budget through the water as a fraction of v_max.
+CRUISE_FRAC = 0.75
+#: Commanded altitude above the seafloor, m (heuristic, oracle).
+ALT_HEURISTIC_M = 6.0
+ALT_ORACLE_M = 2.5
+#: Line-of-sight lookahead, m; approach gain, s-1; waypoint tolerance, m; shallowest
+#: commanded depth, m.
+LOOKAHEAD_M = 12.0
+KP = 0.5
+WP_TOL_M = 1.0
+MIN_DEPTH_M = 1.0
+#: Seafloor clearance of the feasibility check, m; near-collision distance, m.
+CLEARANCE_M = 1.0
+R_COLL_M = 2.0
+
+_TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "pipeline_length_m",
+              "n_leaks", "leak_spacing_m", "leak_rate_kg_s", "detect_threshold_kg_m3",
+              "loc_tolerance_m", "seafloor_min_m", "seafloor_max_m")
+
+_I_MODEL, _I_METHOD, _I_STEPS, _I_SEED, _I_NAG, _I_NLEAK, _I_NSPIN, _I_REFRESH = range(8)
+(_F_DT, _F_VMAX, _F_SPEED, _F_KP, _F_NOISE, _F_LAND, _F_CLEAR, _F_ALT, _F_THR, _F_TOL,
+ _F_LOOK, _F_H, _F_KAPPA) = range(13)
+_C = {k: i for i, k in enumerate(COLUMNS)}
+_C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
+_C_SCORE, _C_LOC, _C_DET = (_C[k] for k in METRICS)
+
+
+def _need(tier: dict, *keys: str) -> None:
+    missing = [k for k in keys if k not in tier]
+    if missing:
+        raise ConfigError(f"task {TASK_ID}: tier parameters missing: {', '.join(missing)}")
+
+
+# ------------------------------------------------------------------------------ geometry
+
+def _densify(poly: np.ndarray, spacing: float) -> np.ndarray:
+    """Points (k, 2) every <= ``spacing`` m along the polyline (n, 2)."""
+    out = [poly[:1]]
+    for a, b in zip(poly[:-1], poly[1:]):
+        n = max(1, int(math.ceil(float(np.hypot(*(b - a))) / spacing)))
+        w = np.linspace(0.0, 1.0, n + 1)[1:, None]
+        out.append(a + w * (b - a))
+    return np.concatenate(out)
+
+
+def _corridor_ok(grid, poly: np.ndarray, tier) -> bool:
+    """The pipeline and a CORRIDOR_CHECK_M band either side: inside the grid, off land, with
+    seafloor depth in [seafloor_min_m, seafloor_max_m]."""
+    pts = _densify(poly, CHECK_SPACING_M)
+    d = np.diff(pts, axis=0)
+    d = np.vstack([d, d[-1:]])
+    nrm = np.stack([-d[:, 1], d[:, 0]], axis=1) / np.maximum(np.hypot(d[:, 0], d[:, 1]),
+                                                             1e-9)[:, None]
+    allp = np.concatenate([pts, pts + CORRIDOR_CHECK_M * nrm, pts - CORRIDOR_CHECK_M * nrm])
+    x, z = allp[:, 0], allp[:, 1]
+    if (x.min() < grid.x0 or x.max() > grid.x_max or z.min() < grid.z0
+            or z.max() > grid.z_max):
+        return False
+    depth = -sample_elevation_points(grid, np.ascontiguousarray(allp), np.empty(allp.shape[0]))
+    if depth.min() < float(tier["seafloor_min_m"]) or depth.max() > float(tier["seafloor_max_m"]):
+        return False
+    j = np.clip(((z - grid.z0) * grid.inv_dz).astype(np.int64), 0, grid.ny - 2)
+    i = np.clip(((x - grid.x0) * grid.inv_dx).astype(np.int64), 0, grid.nx - 2)
+    land = np.maximum.reduce([grid.land[j, i], grid.land[j + 1, i], grid.land[j, i + 1],
+                              grid.land[j + 1, i + 1]])
+    return not np.any(land > 0.0)
+
+
+def sample_pipeline(grid, rng, tier, tries: int = 3000, what: str = "pipeline") -> np.ndarray:
+    """A random pipeline polyline (n_vertices, 2) [x, z] m on the shelf (see module doc).
+
+    Raises
+    ------
+    ConfigError
+        No valid pipeline in ``tries`` attempts (never a silent fallback).
+    """
+    L = float(tier["pipeline_length_m"])
+    n_legs = max(1, int(round(L / LEG_M)))
+    leg = L / n_legs
+    depth = -grid.elevation.astype(np.float64)
+    ok = ((depth >= float(tier["seafloor_min_m"])) & (depth <= float(tier["seafloor_max_m"]))
+          & (grid.land == 0.0))
+    jj, ii = np.nonzero(ok)
+    turn = math.radians(MAX_TURN_DEG)
+    if jj.size:
+        for _ in range(int(tries)):
+            k = rng.integers(jj.size)
+            p = np.array([grid.x0 + ii[k] * grid.dx, grid.z0 + jj[k] * grid.dz])
+            p += rng.uniform(-0.5, 0.5, 2) * (grid.dx, grid.dz)
+            hdg = rng.uniform(-math.pi, math.pi)
+            poly = [p]
+            for j in range(n_legs):
+                if j > 0:
+                    hdg += rng.uniform(-turn, turn)
+                poly.append(poly[-1] + leg * np.array([math.sin(hdg), math.cos(hdg)]))
+            poly = np.array(poly)
+            if _corridor_ok(grid, poly, tier):
+                return poly
+    raise ConfigError(
+        f"{what}: no {L:g} m pipeline with seafloor depth in [{tier['seafloor_min_m']:g}, "
+        f"{tier['seafloor_max_m']:g}] m found in {tries} tries; the grid has no such shelf")
+
+
+def _arc(poly: np.ndarray) -> np.ndarray:
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poly, axis=0).T))])
+
+
+def point_at(poly: np.ndarray, s: float) -> np.ndarray:
+    """Point (2,) at arc length ``s`` m along the polyline."""
+    arc = _arc(poly)
+    k = int(np.clip(np.searchsorted(arc, s, side="right") - 1, 0, len(poly) - 2))
+    w = (s - arc[k]) / max(arc[k + 1] - arc[k], 1e-12)
+    return poly[k] + w * (poly[k + 1] - poly[k])
+
+
+def sub_polyline(poly: np.ndarray, s0: float, s1: float) -> np.ndarray:
+    """The part of the polyline between arc lengths ``s0 < s1`` (vertices included)."""
+    arc = _arc(poly)
+    inner = [poly[k] for k in range(len(poly)) if s0 < arc[k] < s1]
+    return np.array([point_at(poly, s0), *inner, point_at(poly, s1)])
+
+
+def sample_leaks(rng, poly: np.ndarray, tier, tries: int = 1000, what: str = "leaks"):
+    """Leak arc lengths (n,) sorted, at least ``leak_spacing_m`` apart (rejection sampling)."""
+    n = int(tier["n_leaks"])
+    L = _arc(poly)[-1]
+    lo, hi = LEAK_ARC_FRAC * L, (1.0 - LEAK_ARC_FRAC) * L
+    sp = float(tier["leak_spacing_m"])
+    for _ in range(int(tries)):
+        s = np.sort(rng.uniform(lo, hi, n))
+        if n < 2 or np.diff(s).min() >= sp:
+            return s
+    raise ConfigError(f"{what}: cannot place {n} leaks {sp:g} m apart on a {L:g} m pipeline")
+
+
+def field_frame(poly: np.ndarray, h: float, margin: float):
+    """Local plume-field frame along the pipeline's chord.
+
+    Returns
+    -------
+    origin : (2,) world [x, z] of the local origin (the first vertex), m
+    axes : (2,) [cos theta, sin theta] of the local x axis (the chord), world frame
+    s0, n0 : local coordinates of the centre of cell (0, 0), m
+    nx, nz : int, cells needed along / across the chord
+    """
+    o = poly[0]
+    d = poly[-1] - o
+    th = math.atan2(d[1], d[0])
+    c, s = math.cos(th), math.sin(th)
+    loc = np.stack([(poly[:, 0] - o[0]) * c + (poly[:, 1] - o[1]) * s,
+                    -(poly[:, 0] - o[0]) * s + (poly[:, 1] - o[1]) * c], axis=1)
+    s_lo, n_lo = loc.min(0) - margin
+    s_hi, n_hi = loc.max(0) + margin
+    nx = int(math.ceil((s_hi - s_lo) / h))
+    nz = int(math.ceil((n_hi - n_lo) / h))
+    return o, np.array([c, s]), s_lo + 0.5 * h, n_lo + 0.5 * h, nx, nz
+
+
+def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
+    """Sample the pipeline, leaks, start positions and start time of every episode.
+
+    Returns
+    -------
+    dict
+        ``poly`` (E, V, 2) pipeline vertices [x, z] m (V = legs + 1); ``leaks`` (E, n_leaks, 2)
+        [x, z] m; ``leak_rate`` (E, n_leaks) kg s-1; ``sections`` (E, N, 2) arc-length
+        range of each agent's section, m; ``pos0`` (E, N, 3) m; ``t0`` (E,) s.
+
+    Raises
+    ------
+    ConfigError
+        Team size outside [1, 10], missing tier keys, or no valid geometry for some episode.
+    """
+    n_agents = int(n_agents)
+    if not 1 <= n_agents <= 10:
+        raise ConfigError(f"task {TASK_ID}: n_agents must be in [1, 10], got {n_agents}")
+    _need(tier, *_TIER_KEYS)
+    n_leaks = int(tier["n_leaks"])
+    if n_leaks < 1:
+        raise ConfigError(f"task {TASK_ID}: n_leaks must be >= 1, got {n_leaks}")
+    rngs = episode_generators(seed, n_episodes)
+    t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
+    polys, leaks, rates, sections, pos0 = [], [], [], [], []
+    for e, rng in enumerate(rngs):
+        what = f"task {TASK_ID} reset (episode {e})"
+        poly = sample_pipeline(grid, rng, tier, what=what)
+        s_leak = sample_leaks(rng, poly, tier, what=what)
+        L = _arc(poly)[-1]
+        cuts = np.linspace(0.0, L, n_agents + 1)
+        p0 = np.empty((n_agents, 3))
+        for i in range(n_agents):
+            c = point_at(poly, cuts[i])
+            box = {"x": (c[0] - 0.5 * SPAWN_BOX_M, c[0] + 0.5 * SPAWN_BOX_M),
+                   "z": (c[1] - 0.5 * SPAWN_BOX_M, c[1] + 0.5 * SPAWN_BOX_M),
+                   "altitude": SPAWN_ALTITUDE_M}
+            p0[i] = spawn_positions(grid, rng, 1, box, clearance=CLEARANCE_M)[0]
+        polys.append(poly)
+        leaks.append(np.array([point_at(poly, s) for s in s_leak]))
+        rates.append(float(tier["leak_rate_kg_s"]) * rng.uniform(0.5, 1.0, n_leaks))
+        sections.append(np.stack([cuts[:-1], cuts[1:]], axis=1))
+        pos0.append(p0)
+    return {"poly": np.array(polys), "leaks": np.array(leaks), "leak_rate": np.array(rates),
+            "sections": np.array(sections), "pos0": np.array(pos0), "t0": t0}
+
+
+# ------------------------------------------------------------------------------ kernels
+
+@hot_kernel(inline="always")
+def _to_local(x, z, ox, oz, ca, sa):
+    dx = x - ox
+    dz = z - oz
+    return dx * ca + dz * sa, -dx * sa + dz * ca
+
+
+@hot_kernel
+def _refresh_faces(grid, frame, uf, vf, e, nx, nz, h, t):
+    """Sample the near-bottom current at every face of episode ``e``'s field, in local axes."""
+    ox = frame[e, 0]
+    oz = frame[e, 1]
+    ca = frame[e, 2]
+    sa = frame[e, 3]
+    s0 = frame[e, 4]
+    n0 = frame[e, 5]
+    for j in range(nz):
+        for f in range(nx + 1):
+            s = s0 + (f - 0.5) * h
+            n = n0 + j * h
+            x = ox + s * ca - n * sa
+            z = oz + s * sa + n * ca
+            y = -sample_elevation(grid, x, z) - NEAR_BOTTOM_M
+            if y < 0.5:
+                y = 0.5
+            ce, cn = current_at(grid, x, y, z, t)
+            uf[e, j, f] = ce * ca + cn * sa
+    for f in range(nz + 1):
+        for i in range(nx):
+            s = s0 + i * h
+            n = n0 + (f - 0.5) * h
+            x = ox + s * ca - n * sa
+            z = oz + s * sa + n * ca
+            y = -sample_elevation(grid, x, z) - NEAR_BOTTOM_M
+            if y < 0.5:
+                y = 0.5
+            ce, cn = current_at(grid, x, y, z, t)
+            vf[e, f, i] = -ce * sa + cn * ca
+
+
+@hot_kernel
+def _field_step(C, params, uf, vf, land, work, leak_loc, rate, e, n_leak, h, s0, n0, dt,
+                kappa):
+    """Emit every leak for ``dt`` then transport the field of episode ``e``."""
+    for q in range(n_leak):
+        pol.emit(C[e], 0, leak_loc[e, q, 0], leak_loc[e, q, 1], rate[e, q], dt, s0, n0, h)
+    pol.step_field(C[e], pol.KIND_TRACER, params, uf[e], vf[e], land[e], h, dt, kappa,
+                   pol.OPEN_ALL, work[e])
+
+
+@hot_kernel(inline="always")
+def _peak_estimate(reads, nread, peak, est, e, q):
+    """Leak ``q``'s estimate: where the largest reading near it was taken (heuristic)."""
+    for m in range(nread[e, q]):
+        if reads[e, q, m, 2] >= peak[e, q]:
+            est[e, q, 0] = reads[e, q, m, 0]
+            est[e, q, 1] = reads[e, q, m, 1]
+            return
+
+
+@hot_kernel(inline="always")
+def _onset_estimate(reads, nread, peak, est, e, q):
+    """Leak ``q``'s position estimate from the readings taken near it.
+
+    A point source sits at the upstream edge of its plume. With ``b`` the smallest reading
+    near the leak (the background: upstream water, possibly carrying other leaks' plumes) and
+    ``lim = b + ONSET_FRAC (peak - b)``, the estimate is the concentration-weighted centroid
+    of the readings >= ``lim`` lying within ``ONSET_BAND_M`` (along the probed current) of
+    the most upstream of them: the plume's peak in a cross-current, its onset in an along-pipe
+    current."""
+    n = nread[e, q]
+    b = peak[e, q]
+    for m in range(n):
+        if reads[e, q, m, 2] < b:
+            b = reads[e, q, m, 2]
+    lim = b + ONSET_FRAC * (peak[e, q] - b)
+    d_min = 1e300
+    for m in range(n):
+        if reads[e, q, m, 2] >= lim and reads[e, q, m, 3] < d_min:
+            d_min = reads[e, q, m, 3]
+    wx = 0.0
+    wz = 0.0
+    ws = 0.0
+    for m in range(n):
+        r = reads[e, q, m, 2] - b
+        if reads[e, q, m, 2] >= lim and reads[e, q, m, 3] <= d_min + ONSET_BAND_M:
+            wx += r * reads[e, q, m, 0]
+            wz += r * reads[e, q, m, 1]
+            ws += r
+    if ws > 0.0:
+        est[e, q, 0] = wx / ws
+        est[e, q, 1] = wz / ws
+    else:  # flat signal: the position of the peak-level readings
+        for m in range(n):
+            if reads[e, q, m, 2] >= lim:
+                est[e, q, 0] = reads[e, q, m, 0]
+                est[e, q, 1] = reads[e, q, m, 1]
+                break
+
+
+@hot_kernel
+def _episode(grid, vp, ipar, fpar, wps, wcount, leaks, leak_loc, rate, frame, t0, state, cmd,
+             widx, C, params, uf, vf, land, work, peak, nread, reads, org, est, res, e):
+    """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``).
+
+    Scratch per leak: ``peak`` (E, n_leaks) largest reading >= threshold near it (-1: none);
+    ``nread`` (E, n_leaks) and ``reads`` (E, n_leaks, MAX_READS, 4) the readings within
+    ``DETECT_RADIUS_M`` ``[x, z, value, downstream coordinate]`` (origin ``org`` (E, n_leaks,
+    2): the first reading near the leak); ``est`` (E, n_leaks, 2) the final estimate.
+    """
+    model = ipar[_I_MODEL]
+    method = ipar[_I_METHOD]
+    n_steps = ipar[_I_STEPS]
+    seed = ipar[_I_SEED]
+    n_ag = ipar[_I_NAG]
+    n_leak = ipar[_I_NLEAK]
+    n_spin = ipar[_I_NSPIN]
+    refresh = ipar[_I_REFRESH]
+    dt = fpar[_F_DT]
+    v_max = fpar[_F_VMAX]
+    speed = fpar[_F_SPEED]
+    kp = fpar[_F_KP]
+    noise = fpar[_F_NOISE]
+    land_thr = fpar[_F_LAND]
+    clearance = fpar[_F_CLEAR]
+    alt_c = fpar[_F_ALT]
+    thr = fpar[_F_THR]
+    tol = fpar[_F_TOL]
+    look = fpar[_F_LOOK]
+    h = fpar[_F_H]
+    kappa = fpar[_F_KAPPA]
+    nz = C.shape[2]
+    nx = C.shape[3]
+    ox = frame[e, 0]
+    oz = frame[e, 1]
+    ca = frame[e, 2]
+    sa = frame[e, 3]
+    s0 = frame[e, 4]
+    n0 = frame[e, 5]
+    dtf = FIELD_EVERY * dt
+    inv_scale = 1.0 / PLUME_SCALE_M
+    # ---- spin-up: the leaks have been emitting for n_spin field steps
+    for j in range(nz):
+        for i in range(nx):
+            C[e, 0, j, i] = 0.0
+    for k in range(n_spin):
+        t = t0[e] - (n_spin - k) * dtf
+        if k % refresh == 0:
+            _refresh_faces(grid, frame, uf, vf, e, nx, nz, h, t)
+        _field_step(C, params, uf, vf, land, work, leak_loc, rate, e, n_leak, h, s0, n0, dtf,
+                    kappa)
+    for q in range(n_leak):
+        peak[e, q] = -1.0
+        nread[e, q] = 0
+        est[e, q, 0] = math.nan
+        est[e, q, 1] = math.nan
+    for i in range(n_ag):
+        widx[e, i] = 0
+    energy = 0.0
+    viol = 0
+    n_coll = 0
+    k = 0
+    while k < n_steps:
+        t = t0[e] + k * dt
+        if k % FIELD_EVERY == 0:
+            if (k // FIELD_EVERY) % refresh == 0:
+                _refresh_faces(grid, frame, uf, vf, e, nx, nz, h, t)
+            _field_step(C, params, uf, vf, land, work, leak_loc, rate, e, n_leak, h, s0, n0,
+                        dtf, kappa)
+        active = 0
+        for i in range(n_ag):
+            s = state[e, i]
+            c = cmd[e, i]
+            px = s[0]
+            py = s[1]
+            pz = s[2]
+            ce, cn = current_at(grid, px, py, pz, t)
+            if method == HEURISTIC:
+                fe, fn = probe(ce, cn, noise, seed, e, 2 * (k * n_ag + i))
+                budget = speed
+            else:
+                fe = ce
+                fn = cn
+                budget = v_max
+            w = widx[e, i]
+            nw = wcount[e, i]
+            if w >= 1 and w < nw:
+                gx, gz, along, L = los_carrot(px, pz, wps[e, i, w - 1, 0], wps[e, i, w - 1, 1],
+                                              wps[e, i, w, 0], wps[e, i, w, 1], look)
+                if along >= L - WP_TOL_M:
+                    w += 1
+                    widx[e, i] = w
+                    if w < nw:
+                        gx, gz, along, L = los_carrot(px, pz, wps[e, i, w - 1, 0],
+                                                      wps[e, i, w - 1, 1], wps[e, i, w, 0],
+                                                      wps[e, i, w, 1], look)
+            if w >= nw:
+                gx = wps[e, i, nw - 1, 0]
+                gz = wps[e, i, nw - 1, 1]
+            elif w == 0:
+                gx = wps[e, i, 0, 0]
+                gz = wps[e, i, 0, 1]
+                if (px - gx) ** 2 + (pz - gz) ** 2 <= 4.0 * WP_TOL_M * WP_TOL_M:
+                    widx[e, i] = 1
+            if w < nw:
+                active += 1
+            gy = -sample_elevation(grid, gx, gz) - alt_c
+            if gy < MIN_DEPTH_M:
+                gy = MIN_DEPTH_M
+            ax, ay, az = seek_max(px, py, pz, gx, gy, gz, budget, kp, fe, fn)
+            set_velocity_cmd(c, ax, ay, az)
+            en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr,
+                                     clearance)
+            energy += en
+            if code != OK:
+                viol += 1
+            # ---- sensing: a reading above the threshold is attributed to the nearest leak
+            alt = -sample_elevation(grid, s[0], s[2]) - s[1]
+            if alt < 0.0:
+                alt = 0.0
+            ls, ln = _to_local(s[0], s[2], ox, oz, ca, sa)
+            r = pol.probe(C[e], 0, ls, ln, s0, n0, h) * math.exp(-alt * inv_scale) * inv_scale
+            q_min = -1
+            d_min = DETECT_RADIUS_M * DETECT_RADIUS_M
+            for q in range(n_leak):
+                d2 = (leaks[e, q, 0] - s[0]) ** 2 + (leaks[e, q, 1] - s[2]) ** 2
+                if d2 <= d_min:
+                    d_min = d2
+                    q_min = q
+            if q_min >= 0:
+                if r >= thr and r > peak[e, q_min]:
+                    peak[e, q_min] = r
+                m = nread[e, q_min]
+                if m == 0:  # origin of the downstream coordinate near this leak
+                    org[e, q_min, 0] = s[0]
+                    org[e, q_min, 1] = s[2]
+                if m < reads.shape[2]:
+                    # downstream coordinate along the agent's current knowledge (the oracle's
+                    # estimator uses it)
+                    cs = math.sqrt(fe * fe + fn * fn)
+                    dn = 0.0
+                    if cs > MIN_CURRENT_MS:
+                        dn = ((s[0] - org[e, q_min, 0]) * fe
+                              + (s[2] - org[e, q_min, 1]) * fn) / cs
+                    reads[e, q_min, m, 0] = s[0]
+                    reads[e, q_min, m, 1] = s[2]
+                    reads[e, q_min, m, 2] = r
+                    reads[e, q_min, m, 3] = dn
+                    nread[e, q_min] = m + 1
+        if n_ag > 1 and min_pairwise_distance(state[e]) <= R_COLL_M:
+            n_coll += 1
+        k += 1
+        if active == 0:
+            break  # every section inspected: the report is final
+    n_loc = 0
+    n_det = 0
+    err = 0.0
+    for q in range(n_leak):
+        if peak[e, q] >= 0.0:
+            if method == HEURISTIC:
+                _peak_estimate(reads, nread, peak, est, e, q)
+            else:
+                _onset_estimate(reads, nread, peak, est, e, q)
+            n_det += 1
+            d = math.sqrt((est[e, q, 0] - leaks[e, q, 0]) ** 2
+                          + (est[e, q, 1] - leaks[e, q, 1]) ** 2)
+            err += d
+            if d <= tol:
+                n_loc += 1
+    success = n_loc == n_leak
+    res[e, _C_SUCCESS] = 1.0 if success else 0.0
+    res[e, _C_T] = k * dt if success else n_steps * dt
+    res[e, _C_E] = energy
+    res[e, _C_COLL] = n_coll / k if (n_ag > 1 and k > 0) else 0.0
+    res[e, _C_VIOL] = viol
+    res[e, _C_SCORE] = n_loc / n_leak
+    res[e, _C_LOC] = err / n_det if n_det > 0 else math.nan
+    res[e, _C_DET] = n_det / n_leak
+
+
+@njit(parallel=True, cache=True)
+def _kernel(grid, vp, ipar, fpar, wps, wcount, leaks, leak_loc, rate, frame, t0, state, cmd,
+            widx, C, params, uf, vf, land, work, peak, nread, reads, org, est, res):
+    for e in prange(res.shape[0]):
+        _episode(grid, vp, ipar, fpar, wps, wcount, leaks, leak_loc, rate, frame, t0, state,
+                 cmd, widx, C, params, uf, vf, land, work, peak, nread, reads, org, est, res, e)
+
+
+def _field_land(grid, frame_e, nx, nz, h) -> np.ndarray:
+    """Land flags (nz, nx) uint8 of one episode's field cells: 1 where the bilinear land mask
+    at the cell centre is >= the land threshold, or outside the grid."""
+    ox, oz, ca, sa, s0, n0 = frame_e
+    S, N = np.meshgrid(s0 + h * np.arange(nx), n0 + h * np.arange(nz))
+    X = ox + S * ca - N * sa
+    Z = oz + S * sa + N * ca
+    inside = (X >= grid.x0) & (X <= grid.x_max) & (Z >= grid.z0) & (Z <= grid.z_max)
+    fx = np.clip((X - grid.x0) * grid.inv_dx, 0.0, grid.nx - 1.0)
+    fz = np.clip((Z - grid.z0) * grid.inv_dz, 0.0, grid.ny - 1.0)
+    i = np.minimum(fx.astype(np.int64), grid.nx - 2)
+    j = np.minimum(fz.astype(np.int64), grid.ny - 2)
+    wx, wz = fx - i, fz - j
+    lm = grid.land
+    land = ((1 - wz) * ((1 - wx) * lm[j, i] + wx * lm[j, i + 1])
+            + wz * ((1 - wx) * lm[j + 1, i] + wx * lm[j + 1, i + 1]))
+    return ((~inside) | (land >= DEFAULT_LAND_THRESHOLD)).astype(np.uint8)
+
+
+def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
+            seed: int, *, scratch: dict | None = None) -> dict:
+    """Run every episode of ``init`` (from :func:`reset`) with one method.
+
+    Parameters
+    ----------
+    grid : Grid
+        Forcing already applied (``run_cell`` sets the tier's ``current_gain``).
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        Output of :func:`reset`.
+    method : {"heuristic", "oracle"}
+    dyn_name : {"kinematic", "3dof", "4dof", "6dof"}
+    vehicle : Vehicle
+    seed : int
+        Run seed (probe-noise streams).
+    scratch : dict, optional
+        If given, filled with the kernel's final work arrays (diagnostics).
+
+    Returns
+    -------
+    dict of (E,) arrays
+        ``success`` (bool), ``T_s`` (s), ``E`` (m2 s-1), ``coll_ratio``, ``violations`` (int)
+        and ``METRICS``.
+    """
+    _need(tier, *_TIER_KEYS, "dt_s")
+    mid = method_id(method)
+    dt = float(tier["dt_s"])
+    poly = np.asarray(init["poly"], dtype=np.float64)
+    n_ep = poly.shape[0]
+    pos0 = np.ascontiguousarray(init["pos0"], dtype=np.float64)
+    n_ag = pos0.shape[1]
+    leaks = np.ascontiguousarray(init["leaks"], dtype=np.float64)
+    n_leak = leaks.shape[1]
+    v_max = float(vehicle.v_max)
+    h = FIELD_H_M
+    # per-episode field frames (same shape for every episode: the largest one)
+    frames = [field_frame(poly[e], h, FIELD_MARGIN_M) for e in range(n_ep)]
+    nx = max(f[4] for f in frames)
+    nz = max(f[5] for f in frames)
+    frame = np.empty((n_ep, 6))
+    leak_loc = np.empty((n_ep, n_leak, 2))
+    land = np.empty((n_ep, nz, nx), dtype=np.uint8)
+    for e, (o, ax_, s0, n0, fx, fz) in enumerate(frames):
+        # centre the episode's extent inside the common shape
+        s0 -= 0.5 * (nx - fx) * h
+        n0 -= 0.5 * (nz - fz) * h
+        frame[e] = (o[0], o[1], ax_[0], ax_[1], s0, n0)
+        dx = leaks[e, :, 0] - o[0]
+        dz = leaks[e, :, 1] - o[1]
+        leak_loc[e, :, 0] = dx * ax_[0] + dz * ax_[1]
+        leak_loc[e, :, 1] = -dx * ax_[1] + dz * ax_[0]
+        land[e] = _field_land(grid, frame[e], nx, nz, h)
+    # waypoints: each agent's section of the polyline
+    secs = [[sub_polyline(poly[e], *init["sections"][e, i]) for i in range(n_ag)]
+            for e in range(n_ep)]
+    n_max = max(len(s) for row in secs for s in row)
+    wps = np.zeros((n_ep, n_ag, n_max, 2))
+    wcount = np.zeros((n_ep, n_ag), dtype=np.int64)
+    for e in range(n_ep):
+        for i in range(n_ag):
+            wps[e, i, :len(secs[e][i])] = secs[e][i]
+            wcount[e, i] = len(secs[e][i])
+    dtf = FIELD_EVERY * dt
+    ipar = np.array([dyn.model_id(dyn_name), mid, int(math.ceil(float(tier["time_limit_s"]) / dt
+                                                                   - 1e-9)),
+                     int(seed), n_ag, n_leak, int(round(SPINUP_S / dtf)),
+                     max(1, int(round(FIELD_REFRESH_S / dtf)))], dtype=np.int64)
+    fpar = np.array([dt, v_max, CRUISE_FRAC * v_max, KP, float(tier["probe_noise_ms"]),
+                     DEFAULT_LAND_THRESHOLD, CLEARANCE_M,
+                     ALT_HEURISTIC_M if mid == HEURISTIC else ALT_ORACLE_M,
+                     float(tier["detect_threshold_kg_m3"]), float(tier["loc_tolerance_m"]),
+                     LOOKAHEAD_M, h, KAPPA_M2_S])
+    state = dyn.new_state(n_ep, n_ag, pos0)
+    cmd = np.zeros((n_ep, n_ag, dyn.CMD_DIM))
+    widx = np.zeros((n_ep, n_ag), dtype=np.int64)
+    C = np.zeros((n_ep, 1, nz, nx))
+    _, params = pol.field_params(pol.KIND_TRACER, 1)
+    uf = np.zeros((n_ep, nz, nx + 1))
+    vf = np.zeros((n_ep, nz + 1, nx))
+    work = np.zeros((n_ep, pol.work_size(1, nz, nx)))
+    peak = np.zeros((n_ep, n_leak))
+    nread = np.zeros((n_ep, n_leak), dtype=np.int64)
+    reads = np.zeros((n_ep, n_leak, MAX_READS, 4))
+    org = np.zeros((n_ep, n_leak, 2))
+    est = np.zeros((n_ep, n_leak, 2))
+    res = np.zeros((n_ep, len(COLUMNS)))
+    _kernel(grid, vehicle.params, ipar, fpar, wps, wcount, leaks, leak_loc,
+            np.ascontiguousarray(init["leak_rate"], dtype=np.float64), frame,
+            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, widx, C,
+            params, uf, vf, land, work, peak, nread, reads, org, est, res)
+    if scratch is not None:  # diagnostics: final field, per-leak peaks and estimates, states
+        scratch.update(C=C, peak=peak, est=est, nread=nread, reads=reads, state=state,
+                       frame=frame, leak_loc=leak_loc)
+    out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
+    out["success"] = out["success"] > 0.5
+    out["violations"] = out["violations"].astype(np.int64)
+    return out
+
+
+ensure_fresh_cache(_kernel, ("pi.",), Path(__file__).resolve().parent)

@@ -1,0 +1,245 @@
+"""AS (area scan over 3-D terrain): geometry, sensor footprint, success rule, metrics,
+determinism, planning and the tier table."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numba
+import numpy as np
+import pandas as pd
+import pytest
+
+from oneocean import engine as E
+from oneocean.engine import status as st
+from oneocean.engine.dynamics import P_VMAX
+from oneocean.errors import ConfigError
+from oneocean.tasks import as_, run_cell
+from oneocean.tasks.common import HEURISTIC, ORACLE, STANDARD, load_task_table
+
+TIER = {"current_gain": 1.0, "time_limit_s": 900.0, "probe_noise_ms": 0.1,
+        "region_long_m": 160.0, "region_short_m": 80.0, "coverage_threshold": 0.95,
+        "max_altitude_m": 20.0, "half_angle_deg": 45.0, "cell_m": 4.0, "seafloor_min_m": 30.0,
+        "seafloor_max_m": 150.0, "min_relief_m": 0.0, "dt_s": 1.0}
+
+
+def _sloped(ce=0.0, cn=0.0, nx=21, ny=21, dx=100.0):
+    """Land-free grid, uniform current, seafloor deepening eastward 40 -> 80 m."""
+    g = E.uniform_grid(ce, cn, depth_m=80.0, nx=nx, ny=ny, dx_m=dx)
+    x = np.arange(nx) / (nx - 1)
+    g["elevation"] = np.tile(-(40.0 + 40.0 * x), (ny, 1)).astype(np.float32)
+    return E.load_grid(g)
+
+
+@pytest.fixture(scope="module")
+def calm():
+    return _sloped()
+
+
+@pytest.fixture(scope="module")
+def coast():
+    return E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+
+
+def _still(veh=None):
+    veh = veh or E.load_vehicle()
+    p = veh.params.copy()
+    p[P_VMAX] = 0.0
+    return dataclasses.replace(veh, params=p)
+
+
+def test_reset_geometry_is_valid(coast):
+    tier = {**TIER, "min_relief_m": 3.0}
+    init = as_.reset(coast, tier, 3, 8, seed=2)
+    reg, pos0 = init["region"], init["pos0"]
+    assert reg.shape == (8, 4) and pos0.shape == (8, 3, 3) and init["t0"].shape == (8,)
+    w = reg[:, 2] - reg[:, 0]
+    h = reg[:, 3] - reg[:, 1]
+    long_ = np.where(init["long_axis"] == 0, w, h)
+    short = np.where(init["long_axis"] == 0, h, w)
+    np.testing.assert_allclose(long_, tier["region_long_m"])
+    np.testing.assert_allclose(short, tier["region_short_m"])
+    for e in range(8):
+        xs = np.linspace(reg[e, 0], reg[e, 2], 9)
+        zs = np.linspace(reg[e, 1], reg[e, 3], 9)
+        X, Z = np.meshgrid(xs, zs)
+        xz = np.ascontiguousarray(np.stack([X.ravel(), Z.ravel()], 1))
+        depth = -np.array([E.sample_elevation(coast, x, z) for x, z in xz])
+        land = np.array([E.sample_land(coast, x, z) for x, z in xz])
+        assert depth.min() >= tier["seafloor_min_m"] - 1e-6
+        assert depth.max() <= tier["seafloor_max_m"] + 1e-6
+        assert np.ptp(depth) >= tier["min_relief_m"] - 0.5  # 9 x 9 subsample of the check
+        assert land.max() == 0.0
+        # agents start near the south-west corner, apart, in feasible water
+        assert np.all(np.abs(pos0[e, :, 0] - reg[e, 0] - 0.5 * as_.SPAWN_BOX_M)
+                      <= 0.5 * as_.SPAWN_BOX_M)
+        assert np.all(np.abs(pos0[e, :, 2] - reg[e, 1] - 0.5 * as_.SPAWN_BOX_M)
+                      <= 0.5 * as_.SPAWN_BOX_M)
+        d = np.linalg.norm(pos0[e, :, None] - pos0[e, None], axis=-1) + 1e9 * np.eye(3)
+        assert d.min() >= as_.SPAWN_SEPARATION_M
+    assert np.all(E.feasibility(coast, pos0.reshape(-1, 3), 0.5, as_.CLEARANCE_M) == st.OK)
+    assert np.all(init["t0"] + TIER["time_limit_s"] <= coast.time_s[-1])
+
+
+def test_reset_raises_when_impossible(calm, coast):
+    with pytest.raises(ConfigError, match="AS"):  # seafloor 40-80 m: no 100 m deep region
+        as_.reset(calm, {**TIER, "seafloor_min_m": 100.0}, 1, 2, 0)
+    with pytest.raises(ConfigError, match="AS"):  # 2 km grid, 5 km region
+        as_.reset(calm, {**TIER, "region_long_m": 5000.0}, 1, 2, 0)
+    with pytest.raises(ConfigError, match="AS"):  # flat within 160 m: no 30 m of relief
+        as_.reset(calm, {**TIER, "min_relief_m": 30.0}, 1, 2, 0)
+    with pytest.raises(ConfigError, match="n_agents"):
+        as_.reset(calm, TIER, 11, 2, 0)
+    with pytest.raises(ConfigError, match="missing"):
+        as_.reset(calm, {k: v for k, v in TIER.items() if k != "cell_m"}, 1, 2, 0)
+
+
+@numba.njit
+def _mark_all(cov, x, z, r, x_lo, z_lo, cell, ncx, ncz):
+    return as_._mark(cov, 0, x, z, r, x_lo, z_lo, cell, ncx, ncz)
+
+
+def test_footprint_marks_exactly_the_cells_within_radius():
+    ncx, ncz, cell = 30, 20, 4.0
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        x, z, r = rng.uniform(-20, 140), rng.uniform(-20, 100), rng.uniform(0.5, 30)
+        cov = np.zeros((1, ncx * ncz), np.uint8)
+        n = _mark_all(cov, x, z, r, 0.0, 0.0, cell, ncx, ncz)
+        cx = (np.arange(ncx) + 0.5) * cell
+        cz = (np.arange(ncz) + 0.5) * cell
+        want = ((cx[None, :] - x) ** 2 + (cz[:, None] - z) ** 2 <= r * r).ravel()
+        np.testing.assert_array_equal(cov[0].astype(bool), want)
+        assert n == want.sum()
+        assert _mark_all(cov, x, z, r, 0.0, 0.0, cell, ncx, ncz) == 0  # counted once
+
+
+def test_hovering_vehicle_covers_its_altitude_footprint_only(calm):
+    """A vehicle that cannot move images exactly the cells within alt * tan(half-angle)."""
+    tier = {**TIER, "time_limit_s": 30.0}
+    init = as_.reset(calm, tier, 1, 4, 1)
+    r = as_.rollout(calm, tier, init, "oracle", "kinematic", _still(), 0)
+    assert not r["success"].any()
+    np.testing.assert_array_equal(r["T_s"], 30.0)  # T on failure = time limit
+    np.testing.assert_array_equal(r["E"], 0.0)
+    for e in range(4):
+        p = init["pos0"][e, 0]
+        alt = -E.sample_elevation(calm, p[0], p[2]) - p[1]
+        x_lo, z_lo, x_hi, z_hi = init["region"][e]
+        nx_, nz_ = round((x_hi - x_lo) / 4.0), round((z_hi - z_lo) / 4.0)
+        cx = x_lo + (np.arange(nx_) + 0.5) * 4.0
+        cz = z_lo + (np.arange(nz_) + 0.5) * 4.0
+        rad = alt * math.tan(math.radians(tier["half_angle_deg"]))
+        n = ((cx[None, :] - p[0]) ** 2 + (cz[:, None] - p[2]) ** 2 <= rad * rad).sum()
+        assert n > 0
+        assert r["coverage_fraction"][e] == pytest.approx(n / (nx_ * nz_))
+        assert r["mean_altitude_m"][e] == pytest.approx(alt)
+    # above the sensor's maximum altitude nothing is imaged
+    r2 = as_.rollout(calm, {**tier, "max_altitude_m": 4.0}, init, "oracle", "kinematic",
+                     _still(), 0)
+    np.testing.assert_array_equal(r2["coverage_fraction"], 0.0)
+    np.testing.assert_array_equal(r2["footprint_loss_frac"], 1.0)
+
+
+def test_both_methods_complete_the_scan_in_calm_water(calm):
+    init = as_.reset(calm, TIER, 1, 4, 3)
+    for method in ("oracle", "heuristic"):
+        r = as_.rollout(calm, TIER, init, method, "6dof", E.load_vehicle(), 0)
+        assert r["success"].all(), method
+        assert np.all(r["coverage_fraction"] >= TIER["coverage_threshold"])
+        assert np.all(r["T_s"] < TIER["time_limit_s"])
+        np.testing.assert_array_equal(r["violations"], 0)
+        np.testing.assert_array_equal(r["footprint_loss_frac"], 0.0)
+        # terrain following: the mean altitude is the method's commanded altitude
+        mid = HEURISTIC if method == "heuristic" else ORACLE
+        np.testing.assert_allclose(r["mean_altitude_m"], as_.method_altitude(TIER, mid), atol=1.5)
+
+
+def test_oracle_is_faster_and_a_strong_current_defeats_the_heuristic():
+    # 1.6 m/s eastward: above the heuristic's 1.5 m/s budget, below v_max = 2 m/s
+    grid = _sloped(ce=1.6)
+    tier = {**TIER, "time_limit_s": 1500.0}
+    init = as_.reset(grid, tier, 1, 4, 5)
+    ro = as_.rollout(grid, tier, init, "oracle", "6dof", E.load_vehicle(), 0)
+    rh = as_.rollout(grid, tier, init, "heuristic", "6dof", E.load_vehicle(), 0)
+    assert ro["success"].all()
+    assert not rh["success"].any()
+    assert np.all(rh["coverage_fraction"] < ro["coverage_fraction"])
+
+
+def test_oracle_orients_strips_across_the_current():
+    box = (0.0, 0.0, 200.0, 100.0)
+    east = _sloped(ce=1.2)
+    north = _sloped(cn=1.2)
+    assert as_.oracle_axis(east, box, 10.0, 0.0, 600.0, 2.0, 20.0) == 1  # strips along z
+    assert as_.oracle_axis(north, box, 10.0, 0.0, 600.0, 2.0, 20.0) == 0  # strips along x
+    # no current: the long axis (fewer turns)
+    assert as_.oracle_axis(_sloped(), box, 10.0, 0.0, 600.0, 2.0, 20.0) == 0
+    assert as_.oracle_axis(_sloped(), (0.0, 0.0, 100.0, 200.0), 10.0, 0.0, 600.0, 2.0,
+                           20.0) == 1
+
+
+def test_plan_splits_strips_between_agents():
+    wps, cnt = as_.plan_lawnmower((0.0, 0.0, 200.0, 100.0), 0, 20.0, 2)
+    assert list(cnt) == [6, 4]  # 5 strips: 3 + 2, two waypoints per strip
+    offs = sorted({round(w[1], 6) for i in range(2) for w in wps[i, :cnt[i]]})
+    np.testing.assert_allclose(offs, [10.0, 30.0, 50.0, 70.0, 90.0])
+    np.testing.assert_allclose(wps[0, :2, 0], [0.0, 200.0])  # boustrophedon
+    np.testing.assert_allclose(wps[0, 2:4, 0], [200.0, 0.0])
+    wps, cnt = as_.plan_lawnmower((0.0, 0.0, 200.0, 100.0), 0, 60.0, 3)
+    assert list(cnt) == [2, 2, 1]  # more agents than strips: the last holds at the corner
+
+
+def test_team_scans_faster_and_coll_ratio(calm):
+    init1 = as_.reset(calm, TIER, 1, 3, 4)
+    init3 = as_.reset(calm, TIER, 3, 3, 4)
+    r1 = as_.rollout(calm, TIER, init1, "oracle", "kinematic", E.load_vehicle(), 0)
+    r3 = as_.rollout(calm, TIER, init3, "oracle", "kinematic", E.load_vehicle(), 0)
+    assert r1["success"].all() and r3["success"].all()
+    assert np.all(r3["T_s"] < r1["T_s"])
+    np.testing.assert_array_equal(r1["coll_ratio"], 0.0)
+    assert np.all((r3["coll_ratio"] >= 0.0) & (r3["coll_ratio"] <= 1.0))
+    # two vehicles that cannot move, 1.5 m apart: near-collision at every step
+    init = {**init3, "pos0": init3["pos0"][:, :2].copy()}
+    init["pos0"][:, 1] = init["pos0"][:, 0] + np.array([1.5, 0.0, 0.0])
+    r = as_.rollout(calm, {**TIER, "time_limit_s": 20.0}, init, "oracle", "kinematic",
+                    _still(), 0)
+    np.testing.assert_array_equal(r["coll_ratio"], 1.0)
+
+
+def test_run_cell_deterministic_and_thread_independent(coast):
+    a = run_cell(coast, "AS", 2, "heuristic", episodes=3, seed=7, n_agents=2)
+    b = run_cell(coast, "AS", 2, "heuristic", episodes=3, seed=7, n_agents=2)
+    pd.testing.assert_frame_equal(a, b)
+    for k in STANDARD + ("primary",) + as_.METRICS:
+        assert k in a.columns
+    np.testing.assert_array_equal(a["primary"], a["coverage_fraction"])
+    c = run_cell(coast, "AS", 2, "heuristic", episodes=3, seed=8, n_agents=2)
+    assert not np.array_equal(a["coverage_fraction"].to_numpy(),
+                              c["coverage_fraction"].to_numpy())
+    if numba.config.NUMBA_NUM_THREADS >= 2:
+        prev = numba.get_num_threads()
+        try:
+            numba.set_num_threads(1)
+            d = run_cell(coast, "AS", 2, "heuristic", episodes=3, seed=7, n_agents=2)
+        finally:
+            numba.set_num_threads(prev)
+        pd.testing.assert_frame_equal(a, d)
+
+
+def test_tier_table_monotone_and_declared():
+    table = load_task_table("AS")
+    tiers = table["tiers"]
+    assert sorted(tiers) == [1, 2, 3]
+    for key, way in table["harder"].items():
+        assert way in ("up", "down")
+        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
+        sign = 1.0 if way == "up" else -1.0
+        assert all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:])), (key, vals)
+    varied = [k for k in table["harder"] if len({tiers[t][k] for t in (1, 2, 3)}) > 1]
+    assert len(varied) >= 5  # several stressors, never a single knob
+    for t in (1, 2, 3):
+        assert set(tiers[t]) == set(table["harder"]) == set(as_._TIER_KEYS)
+    assert table["agents"] == {"default": 1, "range": [1, 10]}
+    assert math.isclose(table["dt_s"], 1.0)

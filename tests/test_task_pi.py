@@ -1,0 +1,253 @@
+"""PI (pipeline inspection / leak detection): geometry, plume sensing, estimators, success
+rule, metrics, determinism and the tier table."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numba
+import numpy as np
+import pandas as pd
+import pytest
+
+from oneocean import engine as E
+from oneocean.engine import status as st
+from oneocean.engine.dynamics import P_VMAX
+from oneocean.errors import ConfigError
+from oneocean.models import pollution as pol
+from oneocean.tasks import pi, run_cell
+from oneocean.tasks.common import STANDARD, load_task_table
+
+TIER = {"current_gain": 1.0, "time_limit_s": 900.0, "probe_noise_ms": 0.1,
+        "pipeline_length_m": 800.0, "n_leaks": 2, "leak_spacing_m": 200.0,
+        "leak_rate_kg_s": 0.01, "detect_threshold_kg_m3": 4e-6, "loc_tolerance_m": 15.0,
+        "seafloor_min_m": 30.0, "seafloor_max_m": 150.0, "dt_s": 1.0}
+
+
+def _sloped(ce=0.0, cn=0.0, nx=21, ny=21, dx=100.0):
+    """Land-free grid, uniform current, seafloor deepening eastward 40 -> 80 m."""
+    g = E.uniform_grid(ce, cn, depth_m=80.0, nx=nx, ny=ny, dx_m=dx)
+    x = np.arange(nx) / (nx - 1)
+    g["elevation"] = np.tile(-(40.0 + 40.0 * x), (ny, 1)).astype(np.float32)
+    return E.load_grid(g)
+
+
+@pytest.fixture(scope="module")
+def calm():
+    return _sloped()
+
+
+@pytest.fixture(scope="module")
+def coast():
+    return E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+
+
+def _still():
+    veh = E.load_vehicle()
+    p = veh.params.copy()
+    p[P_VMAX] = 0.0
+    return dataclasses.replace(veh, params=p)
+
+
+def _straight_init(grid, x0=-450.0, x1=450.0, z=0.0, leaks=(-150.0, 150.0), n_agents=1,
+                   rate=0.01):
+    """A hand-made episode: a straight west-east pipeline, leaks at the given x."""
+    poly = np.array([[[x0, z], [0.5 * (x0 + x1), z], [x1, z]]])
+    L = x1 - x0
+    cuts = np.linspace(0.0, L, n_agents + 1)
+    pos0 = np.zeros((1, n_agents, 3))
+    for i in range(n_agents):
+        x = x0 + cuts[i]
+        pos0[0, i] = (x, -E.sample_elevation(grid, x, z) - 10.0, z)
+    nl = len(leaks)
+    return {"poly": poly, "leaks": np.array([[[x, z] for x in leaks]]),
+            "leak_rate": np.full((1, nl), rate), "pos0": pos0, "t0": np.zeros(1),
+            "sections": np.stack([cuts[:-1], cuts[1:]], axis=1)[None]}
+
+
+def test_reset_geometry_is_valid(coast):
+    init = pi.reset(coast, TIER, 2, 6, seed=4)
+    poly, leaks = init["poly"], init["leaks"]
+    assert leaks.shape == (6, 2, 2) and init["pos0"].shape == (6, 2, 3)
+    for e in range(6):
+        L = pi._arc(poly[e])[-1]
+        assert L == pytest.approx(TIER["pipeline_length_m"])
+        pts = pi._densify(poly[e], 10.0)
+        depth = -np.array([E.sample_elevation(coast, x, z) for x, z in pts])
+        land = np.array([E.sample_land(coast, x, z) for x, z in pts])
+        assert depth.min() >= TIER["seafloor_min_m"] and depth.max() <= TIER["seafloor_max_m"]
+        assert land.max() == 0.0
+        # turns bounded
+        d = np.diff(poly[e], axis=0)
+        hd = np.arctan2(d[:, 0], d[:, 1])
+        turn = np.abs((np.diff(hd) + np.pi) % (2 * np.pi) - np.pi)
+        assert np.all(turn <= math.radians(pi.MAX_TURN_DEG) + 1e-9)
+        # leaks lie on the pipeline, apart, inside the arc window
+        s_leak = []
+        for q in range(2):
+            dist = np.min(np.linalg.norm(pts - leaks[e, q], axis=1))
+            assert dist < 5.0
+            k = np.argmin(np.linalg.norm(pts - leaks[e, q], axis=1))
+            s_leak.append(pi._arc(pts)[k])
+        assert abs(s_leak[1] - s_leak[0]) >= TIER["leak_spacing_m"] - 10.0
+        assert min(s_leak) >= pi.LEAK_ARC_FRAC * L - 10.0
+        assert max(s_leak) <= (1 - pi.LEAK_ARC_FRAC) * L + 10.0
+        np.testing.assert_allclose(init["sections"][e], [[0.0, L / 2], [L / 2, L]])
+        for i in range(2):
+            start = pi.point_at(poly[e], init["sections"][e, i, 0])
+            assert np.all(np.abs(init["pos0"][e, i, [0, 2]] - start) <= 0.5 * pi.SPAWN_BOX_M)
+    assert np.all(init["leak_rate"] >= 0.5 * TIER["leak_rate_kg_s"])
+    assert np.all(init["leak_rate"] <= TIER["leak_rate_kg_s"])
+    codes = E.feasibility(coast, init["pos0"].reshape(-1, 3), 0.5, pi.CLEARANCE_M)
+    assert np.all(codes == st.OK)
+
+
+def test_field_frame_and_land_mask(coast):
+    poly = np.array([[-2500.0, 0.0], [-2000.0, 300.0], [-1500.0, 0.0]])
+    o, ax_, s0, n0, nx, nz = pi.field_frame(poly, 20.0, 80.0)
+    np.testing.assert_allclose(ax_, [1.0, 0.0])
+    assert nx * 20.0 >= 1000.0 + 160.0 and nz * 20.0 >= 300.0 + 160.0
+    frame = np.array([o[0], o[1], ax_[0], ax_[1], s0, n0])
+    land = pi._field_land(coast, frame, nx, nz, 20.0)
+    xs = o[0] + s0 + 20.0 * np.arange(nx)
+    zs = o[1] + n0 + 20.0 * np.arange(nz)
+    want = np.array([[E.sample_land(coast, x, z) >= 0.5 for x in xs] for z in zs])
+    np.testing.assert_array_equal(land.astype(bool), want)
+    assert 0 < land.sum() < land.size  # the test grid's coast crosses this field
+
+
+def test_reset_raises_when_impossible(calm):
+    with pytest.raises(ConfigError, match="PI"):  # 5 km pipeline on a 2 km grid
+        pi.reset(calm, {**TIER, "pipeline_length_m": 5000.0}, 1, 2, 0)
+    with pytest.raises(ConfigError, match="PI"):  # seafloor 40-80 m
+        pi.reset(calm, {**TIER, "seafloor_max_m": 35.0}, 1, 2, 0)
+    with pytest.raises(ConfigError, match="leaks"):  # 5 leaks 300 m apart on 800 m
+        pi.reset(calm, {**TIER, "n_leaks": 5, "leak_spacing_m": 300.0}, 1, 2, 0)
+    with pytest.raises(ConfigError, match="n_agents"):
+        pi.reset(calm, TIER, 11, 2, 0)
+    with pytest.raises(ConfigError, match="missing"):
+        pi.reset(calm, {k: v for k, v in TIER.items() if k != "n_leaks"}, 1, 2, 0)
+
+
+@numba.njit
+def _estimates(reads, n, peak):
+    est = np.zeros((1, 1, 2))
+    nread = np.array([[n]])
+    pk = np.array([[peak]])
+    pi._peak_estimate(reads, nread, pk, est, 0, 0)
+    a = est[0, 0].copy()
+    pi._onset_estimate(reads, nread, pk, est, 0, 0)
+    return a, est[0, 0].copy()
+
+
+def test_estimators_on_a_hand_made_along_current_plume():
+    # readings every 2 m along x through a plume advected +x (downstream = +x) from a source
+    # at x = 0: background 3 (an upstream leak's plume), an upstream edge smeared over one
+    # 20 m cell, the peak 30 m downstream (accumulation), a slow decay after
+    x = np.arange(-50.0, 51.0, 2.0)
+    s = np.interp(x, [-20.0, 0.0, 30.0], [0.0, 0.64, 1.0], left=0.0, right=np.nan)
+    s = np.where(np.isnan(s), np.exp(-(x - 30.0) / 200.0), s)
+    r = 3.0 + 10.0 * s
+    reads = np.zeros((1, 1, x.size, 4))
+    reads[0, 0, :, 0] = x
+    reads[0, 0, :, 2] = r
+    reads[0, 0, :, 3] = x - x[0]  # downstream coordinate
+    peak, onset = _estimates(reads, x.size, r.max())
+    assert peak[0] == pytest.approx(30.0)  # the peak sits downstream of the source
+    assert abs(onset[0]) < 5.0  # the upstream edge is at the source
+    # a cross-current plume (downstream coordinate constant): the onset estimator is the
+    # weighted centre of the peak
+    reads[0, 0, :, 3] = 0.0
+    reads[0, 0, :, 2] = np.exp(-0.5 * ((x - 6.0) / 8.0) ** 2)
+    peak, onset = _estimates(reads, x.size, reads[0, 0, :, 2].max())
+    assert peak[0] == pytest.approx(6.0) and onset[0] == pytest.approx(6.0, abs=0.5)
+
+
+def test_calm_water_both_methods_localise_every_leak(calm):
+    init = _straight_init(calm)
+    for method in ("oracle", "heuristic"):
+        sc = {}
+        r = pi.rollout(calm, TIER, init, method, "6dof", E.load_vehicle(), 0, scratch=sc)
+        assert r["success"][0], method
+        assert r["inspection_score"][0] == 1.0 and r["detection_rate"][0] == 1.0
+        assert r["localisation_error_m"][0] < 10.0
+        assert r["violations"][0] == 0
+        # T = the time the section was finished (< the time limit): ~900 m of pipeline
+        assert 900.0 / 2.0 < r["T_s"][0] < TIER["time_limit_s"]
+        # the field only holds emitted tracer (no mass is created)
+        emitted = init["leak_rate"].sum() * (pi.SPINUP_S + r["T_s"][0] + 3.0)
+        assert 0.0 < pol.total_mass(sc["C"][0], pi.FIELD_H_M) <= emitted * (1 + 1e-9)
+
+
+def test_failure_modes_do_nothing_and_high_threshold(calm):
+    init = _straight_init(calm)
+    r = pi.rollout(calm, TIER, init, "oracle", "6dof", _still(), 0)
+    assert not r["success"][0]
+    assert r["T_s"][0] == TIER["time_limit_s"]  # T on failure = the time limit
+    assert r["E"][0] == 0.0 and r["inspection_score"][0] == 0.0
+    assert math.isnan(r["localisation_error_m"][0])  # nothing detected
+    r = pi.rollout(calm, {**TIER, "detect_threshold_kg_m3": 1.0}, init, "oracle", "6dof",
+                   E.load_vehicle(), 0)
+    assert not r["success"][0] and r["detection_rate"][0] == 0.0
+    assert r["T_s"][0] == TIER["time_limit_s"]
+
+
+def test_along_pipe_current_biases_the_peak_not_the_onset():
+    grid = _sloped(ce=0.6)  # plumes run east along the pipeline
+    init = _straight_init(grid)
+    tier = {**TIER, "loc_tolerance_m": 12.0, "current_gain": 1.0}
+    so, sh = {}, {}
+    ro = pi.rollout(grid, tier, init, "oracle", "6dof", E.load_vehicle(), 0, scratch=so)
+    rh = pi.rollout(grid, tier, init, "heuristic", "6dof", E.load_vehicle(), 0, scratch=sh)
+    assert ro["success"][0] and ro["localisation_error_m"][0] < 12.0
+    assert rh["detection_rate"][0] == 1.0
+    # the heuristic's peak estimate lies downstream (east) of the leaks
+    assert np.all(sh["est"][0, :, 0] > init["leaks"][0, :, 0] + 5.0)
+    assert rh["localisation_error_m"][0] > ro["localisation_error_m"][0]
+
+
+def test_team_inspects_faster(calm):
+    r1 = pi.rollout(calm, TIER, _straight_init(calm), "oracle", "6dof", E.load_vehicle(), 0)
+    r2 = pi.rollout(calm, TIER, _straight_init(calm, n_agents=2), "oracle", "6dof",
+                    E.load_vehicle(), 0)
+    assert r1["success"][0] and r2["success"][0]
+    assert r2["T_s"][0] < 0.7 * r1["T_s"][0]
+    assert r1["coll_ratio"][0] == 0.0 and r2["coll_ratio"][0] == 0.0  # 450 m apart
+
+
+def test_run_cell_deterministic_and_thread_independent(coast):
+    a = run_cell(coast, "PI", 1, "heuristic", episodes=3, seed=2)
+    b = run_cell(coast, "PI", 1, "heuristic", episodes=3, seed=2)
+    pd.testing.assert_frame_equal(a, b)
+    for k in STANDARD + ("primary",) + pi.METRICS:
+        assert k in a.columns
+    np.testing.assert_array_equal(a["primary"], a["inspection_score"])
+    c = run_cell(coast, "PI", 1, "heuristic", episodes=3, seed=3)
+    assert not np.array_equal(a["E"].to_numpy(), c["E"].to_numpy())
+    if numba.config.NUMBA_NUM_THREADS >= 2:
+        prev = numba.get_num_threads()
+        try:
+            numba.set_num_threads(1)
+            d = run_cell(coast, "PI", 1, "heuristic", episodes=3, seed=2)
+        finally:
+            numba.set_num_threads(prev)
+        pd.testing.assert_frame_equal(a, d)
+
+
+def test_tier_table_monotone_and_declared():
+    table = load_task_table("PI")
+    tiers = table["tiers"]
+    assert sorted(tiers) == [1, 2, 3]
+    for key, way in table["harder"].items():
+        assert way in ("up", "down")
+        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
+        sign = 1.0 if way == "up" else -1.0
+        assert all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:])), (key, vals)
+    varied = [k for k in table["harder"] if len({tiers[t][k] for t in (1, 2, 3)}) > 1]
+    assert len(varied) >= 5
+    for t in (1, 2, 3):
+        assert set(tiers[t]) == set(table["harder"]) == set(pi._TIER_KEYS)
+        assert tiers[t]["loc_tolerance_m"] >= 0.75 * pi.FIELD_H_M
+    assert table["agents"] == {"default": 1, "range": [1, 10]}
+    assert math.isclose(table["dt_s"], 1.0)
