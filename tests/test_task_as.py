@@ -187,8 +187,11 @@ def test_plan_splits_strips_between_agents():
     np.testing.assert_allclose(offs, [10.0, 30.0, 50.0, 70.0, 90.0])
     np.testing.assert_allclose(wps[0, :2, 0], [0.0, 200.0])  # boustrophedon
     np.testing.assert_allclose(wps[0, 2:4, 0], [200.0, 0.0])
-    wps, cnt = as_.plan_lawnmower((0.0, 0.0, 200.0, 100.0), 0, 60.0, 3)
-    assert list(cnt) == [2, 2, 1]  # more agents than strips: the last holds at the corner
+    # more agents than strips of the nominal spacing: narrower strips, one per agent
+    wps, cnt = as_.plan_lawnmower((0.0, 0.0, 200.0, 100.0), 0, 60.0, 4)  # 2 nominal strips
+    assert list(cnt) == [2, 2, 2, 2]
+    np.testing.assert_allclose(wps[:, 0, 1], [12.5, 37.5, 62.5, 87.5])  # z offsets
+    np.testing.assert_allclose(wps[:, :2, 0], [[0.0, 200.0]] * 4)  # along x, same end
 
 
 def test_team_scans_faster_and_coll_ratio(calm):

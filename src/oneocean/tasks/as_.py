@@ -27,7 +27,8 @@ Methods (task logic lives here, not in the environment)
     Lawnmower: strips at commanded altitude ``a_c = ALT_FRAC * max_altitude_m`` (so the
     footprint survives terrain-following errors), spacing at most ``2 a_c tan(half_angle)
     (1 - OVERLAP)`` spread evenly over the region's width; the strips are split into contiguous
-    blocks, one per agent (boustrophedon inside a block). Strips are tracked with
+    blocks, one per agent (boustrophedon inside a block); teammates closer than ``SEP_M``
+    repel each other (their positions are observed). Strips are tracked with
     line-of-sight guidance (a carrot ``LOOKAHEAD_M`` ahead of the projection on the strip),
     terrain-following in depth (the carrot's depth is the seafloor depth there minus ``a_c``),
     crabbing against the current (:func:`~oneocean.tasks.common.seek_max`: the cross-track
@@ -92,6 +93,9 @@ CHECK_SPACING_M = 15.0
 CLEARANCE_M = 1.0
 #: Near-collision distance for coll_ratio, m.
 R_COLL_M = 2.0
+#: Teammate avoidance: repulsion inside SEP_M (m), up to K_REP_MS (m s-1) at contact.
+SEP_M = 6.0
+K_REP_MS = 1.0
 
 _TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "region_long_m",
               "region_short_m", "coverage_threshold", "max_altitude_m", "half_angle_deg",
@@ -225,6 +229,11 @@ def strip_spacing(tier: dict, mid: int) -> float:
 def plan_lawnmower(box, axis: int, spacing: float, n_agents: int):
     """Boustrophedon waypoints (x, z) per agent over ``box``, strips along ``axis``.
 
+    ``n = max(ceil(W / spacing), n_agents)`` strips (every agent gets at least one; a large
+    team flies narrower, overlapping strips rather than idling or crowding) at offsets
+    ``(k + 1/2) W / n``, split into contiguous blocks, one per agent; every block starts at
+    the strips' low end.
+
     Returns
     -------
     wps : (n_agents, n_max, 2) float64, m
@@ -237,10 +246,10 @@ def plan_lawnmower(box, axis: int, spacing: float, n_agents: int):
     else:
         a_lo, a_hi, b_lo, b_hi = z_lo, z_hi, x_lo, x_hi
     width = b_hi - b_lo
-    n_strips = max(1, int(math.ceil(width / spacing - 1e-9)))
+    n_strips = max(1, int(math.ceil(width / spacing - 1e-9)), int(n_agents))
     offs = b_lo + (np.arange(n_strips) + 0.5) * width / n_strips
     blocks = np.array_split(np.arange(n_strips), n_agents)
-    n_max = max(1, 2 * max(len(b) for b in blocks))
+    n_max = 2 * max(len(b) for b in blocks)
     wps = np.zeros((n_agents, n_max, 2))
     count = np.zeros(n_agents, dtype=np.int64)
     for i, blk in enumerate(blocks):
@@ -251,9 +260,6 @@ def plan_lawnmower(box, axis: int, spacing: float, n_agents: int):
                 wps[i, k] = (a, offs[s]) if axis == 0 else (offs[s], a)
                 k += 1
         count[i] = k
-        if k == 0:  # more agents than strips: hold at the region's corner
-            wps[i, 0] = (x_lo, z_lo)
-            count[i] = 1
     return wps, count
 
 
@@ -316,6 +322,27 @@ def los_carrot(px, pz, ax_, az_, bx, bz, look):
     if c < 0.0:
         c = 0.0
     return ax_ + c * ux, az_ + c * uz, s, L
+
+
+@hot_kernel(inline="always")
+def _repulsion(state, e, i, n_ag):
+    """Horizontal velocity (m s-1) pushing agent ``i`` away from teammates closer than
+    ``SEP_M``: ``K_REP_MS (SEP_M - d) / SEP_M`` per teammate, along the separation."""
+    rx = 0.0
+    rz = 0.0
+    px = state[e, i, 0]
+    pz = state[e, i, 2]
+    for j in range(n_ag):
+        if j == i:
+            continue
+        dx = px - state[e, j, 0]
+        dz = pz - state[e, j, 2]
+        d = math.sqrt(dx * dx + dz * dz)
+        if d < SEP_M and d > 1e-9:
+            f = K_REP_MS * (SEP_M - d) / (SEP_M * d)
+            rx += dx * f
+            rz += dz * f
+    return rx, rz
 
 
 @hot_kernel(inline="always")
@@ -430,6 +457,10 @@ def _episode(grid, vp, ipar, fpar, region, ncell, wps, wcount, t0, state, cmd, w
             if gy < MIN_DEPTH_M:
                 gy = MIN_DEPTH_M
             ax, ay, az = seek_max(px, py, pz, gx, gy, gz, budget, kp, fe, fn)
+            if n_ag > 1:  # keep clear of teammates (their positions are observed)
+                rx, rz = _repulsion(state, e, i, n_ag)
+                ax += rx
+                az += rz
             set_velocity_cmd(c, ax, ay, az)
             en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr,
                                      clearance)
