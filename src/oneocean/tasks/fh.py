@@ -34,11 +34,14 @@ Methods (task logic; the environment above does not depend on it)
     seeks its waypoint with P-control, feed-forward of the school's velocity (centroid
     displacement over the last step) and of its current probe. The push direction is frozen
     while the centroid is within ``DEADBAND_FRAC * zone_radius_m`` of the centre.
-    ``heuristic``: ``w = v`` (the school's drift is ignored); cruise ``CRUISE_FRAC * v_max``;
-    noisy probe (``probe_noise_ms``). ``oracle``: ``w = v - c`` with the exact current ``c`` at
-    the centroid, where ``v`` is the fastest ground velocity toward the zone with
-    ``|w| <= ORACLE_SWIM_MS`` (the school crabs across the current; ramp ``ORACLE_KP_PUSH``);
-    full ``v_max``, exact current, crab steering of the vehicles.
+    ``heuristic``: ``w = v`` (the school's drift is ignored); the arc re-aims at once; cruise
+    ``CRUISE_FRAC * v_max``; noisy probe (``probe_noise_ms``).
+    ``oracle``: ``w = v - c`` with the exact current ``c`` at the centroid, where ``v`` is the
+    fastest ground velocity toward the zone with ``|w| <= ORACLE_SWIM_MS`` (the school crabs
+    across the current; same ramp); the arc turns at most ``SLEW_RAD_S``; within
+    ``ORACLE_I_ZONE`` zone radii an integral action on the school's measured ground-velocity
+    error adapts the standoff (removes the steady offset a drifting school settles at); full
+    ``v_max``, exact current, crab steering of the vehicles.
 """
 
 from __future__ import annotations
@@ -69,8 +72,6 @@ COLUMNS = STANDARD + METRICS
 
 #: Team size.
 N_AGENTS = 8
-#: Overrides of the fish model's defaults (:data:`oneocean.models.fish.FISH_PARAM_DEFAULTS`).
-FISH_OVERRIDES: dict = {}
 #: Depth of the school and of the vehicles, m.
 FISH_DEPTH_M = 2.0
 #: Seafloor clearance of a fish position, m.
@@ -100,16 +101,17 @@ BACKOFF_M = 14.0
 #: Planned school ground speed toward the zone centre: min(PUSH_SPEED_MS, KP_PUSH * distance).
 PUSH_SPEED_MS = 0.7
 KP_PUSH = 0.05
-#: The push direction is frozen while the centroid is within this fraction of the zone radius.
-DEADBAND_FRAC = 0.5
+#: The push direction is frozen while the centroid is within this fraction of the zone radius
+#: (heuristic, oracle).
+DEADBAND_FRAC = (0.5, 0.25)
+#: Largest turn rate of the push direction, rad s-1 (heuristic: none, the arc re-aims at once;
+#: oracle: the arc rotates around the school).
+SLEW_RAD_S = (math.inf, 0.2)
 #: Oracle: largest swim speed (relative to the water) it plans for the school, m s-1 (the
 #: fish swim at most 1 m s-1).
 ORACLE_SWIM_MS = 0.85
-#: Oracle: ramp of its planned ground speed near the zone, s-1 (drift compensated, so it can
-#: afford a stiffer ramp than the heuristic's KP_PUSH).
-ORACLE_KP_PUSH = 0.05
 #: Oracle: rate of its standoff adaptation to the school's swim-speed error, m per m s-1 per s.
-ORACLE_KS = 5.0
+ORACLE_KS = 3.0
 #: Oracle: smallest adapted standoff, m.
 ORACLE_STANDOFF_MIN_M = 3.0
 #: Oracle: its integral action is on within this many zone radii of the zone centre.
@@ -117,7 +119,8 @@ ORACLE_I_ZONE = 3.0
 
 _I_MODEL, _I_METHOD, _I_STEPS, _I_SEED = range(4)
 (_F_DT, _F_VMAX, _F_SPEED, _F_KP, _F_NOISE, _F_LAND, _F_CLEAR, _F_ZONE_R, _F_HOLD, _F_ARC,
- _F_STAND, _F_SGAIN, _F_BACK, _F_PUSH, _F_OSWIM, _F_KPP, _F_OKPP, _F_DEADB, _F_OKS, _F_SMIN) = range(20)
+ _F_STAND, _F_SGAIN, _F_BACK, _F_PUSH, _F_OSWIM, _F_KPP, _F_DEADB, _F_OKS, _F_SMIN,
+ _F_SLEW) = range(20)
 _C = {k: i for i, k in enumerate(COLUMNS)}
 _C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
 _C_CONT, _C_DIST, _C_FRAC, _C_SPREAD = (_C[k] for k in METRICS)
@@ -234,6 +237,12 @@ def _wrap(a):
     return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
 
+@hot_kernel
+def _current(grid, x, y, z, t):
+    """:func:`~oneocean.tasks.common.current_at`, not inlined (once per step)."""
+    return current_at(grid, x, y, z, t)
+
+
 @njit(cache=True)
 def _fish_step(grid, fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, t, dt, land_thr, gx, gz,
                gvx, gvz):
@@ -251,7 +260,7 @@ def _fish_step(grid, fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, t, dt, land
             gvz[f] = 0.0
 
 
-@njit(cache=True)
+@hot_kernel
 def _episode(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, keys, fa, fb,
              fc, res, e):
     """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``).
@@ -281,10 +290,11 @@ def _episode(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, k
     back = fpar[_F_BACK]
     push = fpar[_F_PUSH]
     oswim = fpar[_F_OSWIM]
-    kpp = fpar[_F_KPP] if method == HEURISTIC else fpar[_F_OKPP]
+    kpp = fpar[_F_KPP]
     deadband = fpar[_F_DEADB]
     oks = fpar[_F_OKS]
     stand_min = fpar[_F_SMIN]
+    slew = fpar[_F_SLEW]
     n = state.shape[1]
     S = state[e]
     C = cmd[e]
@@ -330,7 +340,7 @@ def _episode(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, k
             wx = ux * vd
             wz = uz * vd
         else:
-            ce, cn = current_at(grid, cxs, FISH_DEPTH_M, czs, t)
+            ce, cn = _current(grid, cxs, FISH_DEPTH_M, czs, t)
             cpar = ce * ux + cn * uz
             qx = ce - cpar * ux
             qz = cn - cpar * uz
@@ -346,10 +356,18 @@ def _episode(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, k
                 wx = ux * vg - ce
                 wz = uz * vg - cn
         wn = math.sqrt(wx * wx + wz * wz)
-        # compass angle of "behind the school"; frozen near the zone centre (dead band) so the
-        # arc does not flip around the school when the centroid crosses the centre
-        if dist > deadband * zr or k == 0:
+        # compass angle of "behind the school": frozen near the zone centre (dead band) so the
+        # arc does not flip around the school when the centroid crosses the centre, and turned
+        # at most ``slew`` rad/s so the agents circle around the school, not through it
+        if k == 0:
             th_back = math.atan2(-wx, -wz)
+        elif dist > deadband * zr:
+            dth = _wrap(math.atan2(-wx, -wz) - th_back)
+            if dth > slew * dt:
+                dth = slew * dt
+            elif dth < -slew * dt:
+                dth = -slew * dt
+            th_back = _wrap(th_back + dth)
         # close in when a strong push is needed, back off toward the flee radius otherwise
         g = wn / (push if method == HEURISTIC else oswim)
         if g > 1.0:
@@ -496,8 +514,8 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     fpar = np.array([dt, v_max, speed, KP, float(tier["probe_noise_ms"]),
                      DEFAULT_LAND_THRESHOLD, CLEARANCE_M, float(tier["zone_radius_m"]),
                      float(tier["hold_s"]), ARC_RAD, STANDOFF_M, SPREAD_GAIN, BACKOFF_M,
-                     PUSH_SPEED_MS, ORACLE_SWIM_MS, KP_PUSH, ORACLE_KP_PUSH, DEADBAND_FRAC,
-                     ORACLE_KS, ORACLE_STANDOFF_MIN_M])
+                     PUSH_SPEED_MS, ORACLE_SWIM_MS, KP_PUSH, DEADBAND_FRAC[mid], ORACLE_KS,
+                     ORACLE_STANDOFF_MIN_M, SLEW_RAD_S[mid]])
     state = dyn.new_state(n_ep, n, init["pos0"], init["psi0"])
     cmd = np.zeros((n_ep, n, dyn.CMD_DIM))
     cur = np.zeros((n_ep, n, 2))
@@ -509,7 +527,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     fb = np.zeros((n_ep, 4, n_fish))
     fc = np.zeros((n_ep, 2, n_fish))
     res = np.zeros((n_ep, len(COLUMNS)))
-    _kernel(grid, vehicle.params, ipar, fpar, fish_params(FISH_OVERRIDES), np.ascontiguousarray(init["zone"]),
+    _kernel(grid, vehicle.params, ipar, fpar, fish_params(), np.ascontiguousarray(init["zone"]),
             np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, cur, apos, order,
             keys, fa, fb, fc, res)
     out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}

@@ -24,6 +24,9 @@ Physics (the environment; identical for every method)
       of the load; a correction that would make the agent's position infeasible is skipped.
       The seafloor stops the assembly: while the object rests on the floor and the team does
       not pull it up, it stays put (static friction) and so does the assembly's mean.
+      (The default vehicle's heave is thrust-limited to ~0.7 m/s through the water in the
+      rigid-body models, so the tiers keep ``sink_speed_ms`` well below it; the 3-DoF model
+      holds its depth and cannot do this task.)
     * Without the quorum a suspended object sinks at ``sink_speed_ms`` and drifts with the
       current at its own depth; on the floor it rests. Land and the grid edge block it.
 Success
@@ -247,7 +250,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     return {"obj0": obj0, "slot_off": slot_off, "pos0": pos0, "psi0": psi0, "t0": t0}
 
 
-@hot_kernel(inline="always")
+@hot_kernel  # not inlined: called once per step, keeps the episode kernel's compile time down
 def _place_object(grid, ox, oy, oz, nx, ny, nz, land_thr):
     """Move the object from (ox, oy, oz) toward (nx, ny, nz): land and the grid edge block the
     horizontal move, the seafloor stops it (centre >= OBJ_HALF_HEIGHT_M above), the surface
@@ -263,6 +266,18 @@ def _place_object(grid, ox, oy, oz, nx, ny, nz, land_thr):
     if ny < 0.0:
         ny = 0.0
     return nx, ny, nz, on_floor
+
+
+@hot_kernel
+def _current(grid, x, y, z, t):
+    """:func:`~oneocean.tasks.common.current_at`, not inlined (once per step)."""
+    return current_at(grid, x, y, z, t)
+
+
+@hot_kernel
+def _feasible(grid, x, y, z, land_thr, clearance):
+    """:func:`~oneocean.engine.constraints.check_move` is OK, not inlined."""
+    return check_move(grid, x, y, z, land_thr, clearance) == OK
 
 
 @hot_kernel
@@ -452,12 +467,12 @@ def _episode(grid, vp, ipar, fpar, obj0, slot_off, t0, state, cmd, prev, cur, at
                     qx = S[i, 0] + cx
                     qy = S[i, 1] + cy
                     qz = S[i, 2] + cz
-                    if qy >= 0.0 and check_move(grid, qx, qy, qz, land_thr, clearance) == OK:
+                    if qy >= 0.0 and _feasible(grid, qx, qy, qz, land_thr, clearance):
                         S[i, 0] = qx
                         S[i, 1] = qy
                         S[i, 2] = qz
         elif not on_floor:  # suspended without the quorum: sinks and drifts
-            ce, cn = current_at(grid, ox, oy, oz, t)
+            ce, cn = _current(grid, ox, oy, oz, t)
             ox, oy, oz, on_floor = _place_object(grid, ox, oy, oz, ox + ce * dt,
                                                  oy + sink * dt, oz + cn * dt, land_thr)
         vox = (ox - pox) / dt
@@ -555,7 +570,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
         (int) and ``METRICS``.
     """
     _need(tier, *_TIER_KEYS, "dt_s")
-    check_reachable(tier, grid)
+    check_reachable(tier)
     dt = float(tier["dt_s"])
     n_ep, n = init["pos0"].shape[:2]
     v_max = float(vehicle.v_max)

@@ -1,0 +1,212 @@
+"""FH (fish herding): reset geometry, fish stay in water, success rule, metrics, determinism
+(seeds and threads), tier table."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numba
+import numpy as np
+import pandas as pd
+import pytest
+
+from oneocean import engine as E
+from oneocean.engine import status as st
+from oneocean.engine.dynamics import P_VMAX
+from oneocean.errors import ConfigError
+from oneocean.models.fish import fish_params, init_school, step_school
+from oneocean.tasks import fh, run_cell
+from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
+
+TIER = {"current_gain": 1.0, "time_limit_s": 600.0, "probe_noise_ms": 0.1, "fish_count": 60,
+        "zone_distance_m": 100.0, "zone_radius_m": 10.0, "hold_s": 20.0, "dt_s": 1.0}
+N = fh.N_AGENTS
+
+
+@pytest.fixture(scope="module")
+def calm():
+    return E.load_grid(E.uniform_grid(0.0, 0.0, depth_m=30.0, nx=21, ny=21, dx_m=100.0))
+
+
+@pytest.fixture(scope="module")
+def coast():
+    return E.load_grid(E.make_test_grid(nt=4, nz=3, ny=30, nx=40, dt_s=3600.0))
+
+
+def _tier(i):
+    return {**tier_params("FH", i), "dt_s": 1.0}
+
+
+def _roll(grid, tier, init, method="oracle", dyn="kinematic", vehicle=None, seed=0):
+    return fh.rollout(grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
+
+
+def _hand_init(zone, n_fish=60, n_ep=1, ring=40.0):
+    """School at the origin, zone centre ``zone`` (x, z), agents on a ring of ``ring`` m."""
+    fx, fz, _, _ = init_school(n_fish, (0.0, 0.0), fh.SCHOOL_RADIUS_M, 7)
+    a = 2 * np.pi * np.arange(N) / N
+    pos = np.stack([ring * np.sin(a), np.full(N, fh.FISH_DEPTH_M), ring * np.cos(a)], axis=1)
+    return {"fish0": np.tile(np.stack([fx, fz]), (n_ep, 1, 1)),
+            "zone": np.tile(np.asarray(zone, float), (n_ep, 1)),
+            "pos0": np.tile(pos, (n_ep, 1, 1)), "psi0": np.zeros((n_ep, N)),
+            "t0": np.zeros(n_ep)}
+
+
+def test_reset_geometry_is_valid(coast):
+    tier = _tier(3)
+    init = fh.reset(coast, tier, N, 8, seed=2)
+    fish, zone, pos0 = init["fish0"], init["zone"], init["pos0"]
+    assert fish.shape == (8, 2, tier["fish_count"]) and tier["fish_count"] >= 50
+    xyz = np.stack([fish[:, 0].ravel(), np.full(fish[:, 0].size, fh.FISH_DEPTH_M),
+                    fish[:, 1].ravel()], axis=1)
+    assert np.all(E.feasibility(coast, xyz, 0.5, fh.FISH_CLEARANCE_M) == st.OK)
+    centre = fish.mean(axis=2)
+    d = np.linalg.norm(zone - centre, axis=1)
+    assert np.all(np.abs(d - tier["zone_distance_m"]) < fh.SCHOOL_RADIUS_M)
+    for e in range(8):
+        a = np.array([centre[e, 0], fh.FISH_DEPTH_M, centre[e, 1]])
+        b = np.array([zone[e, 0], fh.FISH_DEPTH_M, zone[e, 1]])
+        assert path_clear(coast, a, b, fh.ROUTE_CLEARANCE_M - 0.5)
+    assert np.all(E.feasibility(coast, pos0.reshape(-1, 3), 0.5, fh.CLEARANCE_M) == st.OK)
+    r = np.linalg.norm(pos0[..., [0, 2]] - centre[:, None], axis=2)
+    assert np.all(r > 15.0 + fh.SCHOOL_RADIUS_M)  # the school is not scared at the start
+    t_end = init["t0"] + tier["time_limit_s"]
+    assert np.all(init["t0"] >= coast.time_s[0]) and np.all(t_end <= coast.time_s[-1])
+
+
+def test_reset_raises_when_impossible(calm):
+    with pytest.raises(ConfigError, match="exactly 8"):
+        fh.reset(calm, TIER, 5, 2, 0)
+    with pytest.raises(ConfigError, match="< 50"):
+        fh.reset(calm, {**TIER, "fish_count": 40}, N, 2, 0)
+    shallow = E.load_grid(E.uniform_grid(0.0, 0.0, depth_m=4.0))  # fish need >= 5 m of water
+    with pytest.raises(ConfigError, match="FH"):
+        fh.reset(shallow, TIER, N, 2, 0)
+    with pytest.raises(ConfigError, match="FH"):  # 5 km to the zone in a 2 km grid
+        fh.reset(calm, {**TIER, "zone_distance_m": 5000.0}, N, 2, 0)
+
+
+def test_fish_never_enter_land():
+    # a 1 m/s westward current pushes the school onto a coast 80 m west of it
+    g = E.uniform_grid(-1.0, 0.0, depth_m=30.0, nx=21, ny=21, dx_m=100.0)
+    g["land_mask"][:, :10] = 1.0
+    g["elevation"][:, :10] = 5.0
+    g["valid_mask"][:, :, :10] = 0
+    g["u"][:, :, :, :10] = 0.0
+    grid = E.load_grid(g)
+    n = 60
+    fx, fz, vx, vz = init_school(n, (30.0, 0.0), 8.0, 3)
+    gx, gz, gvx, gvz, cx, cz = (np.empty(n) for _ in range(6))
+    none = np.empty(0)
+    p = fish_params()
+    # without the rule, the school's own step would put fish on land
+    step_school(fx, fz, vx, vz, none, none, np.full(n, -80.0), np.zeros(n), p, 1, 0, 1.0,
+                gx, gz, gvx, gvz)
+    raw = np.stack([gx, np.full(n, fh.FISH_DEPTH_M), gz], axis=1)
+    assert np.any(E.feasibility(grid, raw, 0.5, fh.FISH_CLEARANCE_M) != st.OK)
+    for k in range(120):
+        fh._fish_step(grid, fx, fz, vx, vz, none, none, cx, cz, p, np.uint64(1), k, 0.0, 1.0,
+                      0.5, gx, gz, gvx, gvz)
+        pts = np.stack([gx, np.full(n, fh.FISH_DEPTH_M), gz], axis=1)
+        assert np.all(E.feasibility(grid, pts, 0.5, fh.FISH_CLEARANCE_M) == st.OK)
+        fx, fz, vx, vz, gx, gz, gvx, gvz = gx, gz, gvx, gvz, fx, fz, vx, vz
+    assert np.all(cx < -0.4)  # the current was sampled at every fish (weaker at the coast)
+    assert fx.min() < -40.0  # the school was pushed onto the coast (land for x < -50 m)
+
+
+@pytest.mark.parametrize("tier", [1, 2, 3])
+def test_every_tier_is_solvable_in_calm_water(coast, tier):
+    df = run_cell(coast, "FH", tier, "oracle", episodes=3, seed=1, currents=False)
+    assert df["success"].all()
+    assert (df["final_centroid_distance_m"] <= _tier(tier)["zone_radius_m"]).all()
+
+
+def test_school_already_in_zone_succeeds_after_hold(calm):
+    # zone centred on the school, far enough from the agents not to scare it
+    init = _hand_init((0.0, 0.0), ring=60.0)
+    tier = {**TIER, "hold_s": 12.0}
+    r = _roll(calm, tier, init)
+    assert r["success"][0] and r["T_s"][0] == 12.0
+    assert r["fraction_inside"][0] > 0.9
+
+
+def test_do_nothing_fails_with_time_limit(calm):
+    veh = E.load_vehicle()
+    p = veh.params.copy()
+    p[P_VMAX] = 0.0
+    still = dataclasses.replace(veh, params=p)
+    init = _hand_init((80.0, 0.0), ring=60.0)
+    r = _roll(calm, {**TIER, "time_limit_s": 150.0}, init, vehicle=still)
+    assert not r["success"][0]
+    assert r["T_s"][0] == 150.0
+    assert r["E"][0] == 0.0
+    assert r["final_centroid_distance_m"][0] > 70.0  # the school stays where it was
+    assert r["fraction_inside"][0] == 0.0
+    # the same episode with working vehicles herds the school in
+    r = _roll(calm, {**TIER, "time_limit_s": 600.0}, init)
+    assert r["success"][0] and r["final_centroid_distance_m"][0] <= TIER["zone_radius_m"]
+
+
+def test_strong_current_away_from_the_zone_defeats_herding():
+    # fish swim at most 1 m/s: a 1.5 m/s current away from the zone cannot be beaten
+    grid = E.load_grid(E.uniform_grid(-1.5, 0.0, depth_m=30.0, nx=41, ny=21, dx_m=100.0))
+    init = _hand_init((80.0, 0.0), ring=60.0)
+    for method in ("oracle", "heuristic"):
+        r = _roll(grid, {**TIER, "time_limit_s": 200.0}, init, method=method)
+        assert not r["success"][0] and r["T_s"][0] == 200.0
+        assert r["final_centroid_distance_m"][0] > 150.0
+
+
+def test_metrics_are_consistent(coast):
+    df = run_cell(coast, "FH", 2, "heuristic", episodes=4, seed=3)
+    for k in STANDARD + ("primary",) + fh.METRICS:
+        assert k in df.columns
+    np.testing.assert_array_equal(df["primary"], df["containment_success"])
+    np.testing.assert_array_equal(df["containment_success"], df["success"].astype(float))
+    lim = _tier(2)["time_limit_s"]
+    assert (df.loc[~df.success, "T_s"] == lim).all()
+    assert (df.loc[df.success, "T_s"] >= _tier(2)["hold_s"]).all()
+    assert (df.loc[df.success, "final_centroid_distance_m"] <= _tier(2)["zone_radius_m"]).all()
+    assert df["fraction_inside"].between(0.0, 1.0).all()
+    assert df["coll_ratio"].between(0.0, 1.0).all()
+    assert (df["E"] > 0).all() and (df["E"] <= N * 2.0 ** 2 * df["T_s"] + 1e-9).all()
+    assert (df["school_spread_m"] > 0).all()
+
+
+def test_near_collision_ratio_counts_close_steps(calm):
+    init = _hand_init((0.0, 0.0), ring=60.0)
+    tier = {**TIER, "hold_s": 30.0}
+    assert _roll(calm, tier, init)["coll_ratio"][0] == 0.0  # agents 46 m apart
+    init["pos0"][0] = np.array([[60.0 + 0.25 * i, 2.0, 0.0] for i in range(N)])  # bunched
+    assert _roll(calm, tier, init)["coll_ratio"][0] > 0.0
+
+
+def test_run_cell_deterministic_seeds_and_threads(coast):
+    a = run_cell(coast, "FH", 1, "heuristic", episodes=4, seed=5)
+    b = run_cell(coast, "FH", 1, "heuristic", episodes=4, seed=5)
+    pd.testing.assert_frame_equal(a, b)
+    c = run_cell(coast, "FH", 1, "heuristic", episodes=4, seed=6)
+    assert not np.array_equal(a["E"].to_numpy(), c["E"].to_numpy())
+    n0 = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        d = run_cell(coast, "FH", 1, "heuristic", episodes=4, seed=5)
+    finally:
+        numba.set_num_threads(n0)
+    pd.testing.assert_frame_equal(a, d)
+
+
+def test_tier_table_monotone_and_declared():
+    table = load_task_table("FH")
+    tiers = table["tiers"]
+    assert sorted(tiers) == [1, 2, 3]
+    for key, way in table["harder"].items():
+        assert way in ("up", "down")
+        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
+        sign = 1.0 if way == "up" else -1.0
+        assert all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:])), (key, vals)
+    for t in (1, 2, 3):
+        assert set(tiers[t]) == set(table["harder"]) == set(fh._TIER_KEYS)
+        assert tiers[t]["fish_count"] >= 50
+    assert table["agents"] == {"default": 8, "range": [8, 8]}
+    assert table["dt_s"] == 1.0

@@ -1,0 +1,230 @@
+"""UPL (cooperative lift): reset geometry, reachability, attach/lift physics, success rule,
+metrics, determinism (seeds and threads), tier table."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numba
+import numpy as np
+import pandas as pd
+import pytest
+
+from oneocean import engine as E
+from oneocean.engine import status as st
+from oneocean.engine.dynamics import P_VMAX
+from oneocean.errors import ConfigError
+from oneocean.tasks import run_cell, upl
+from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
+
+TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.1, "site_depth_m": 40.0,
+        "start_distance_m": 60.0, "attach_radius_m": 1.0, "attach_dwell_s": 5.0,
+        "detach_radius_m": 2.5, "sink_speed_ms": 0.3, "quorum": 5, "hold_radius_m": 30.0,
+        "success_depth_m": 2.5, "dt_s": 1.0}
+N = upl.N_SLOTS
+
+
+def _flat(floor_m, deepest_m=80.0, ce=0.0):
+    """Flat ``floor_m`` seafloor, no land, uniform current; current levels 0 and ``deepest_m``."""
+    g = E.uniform_grid(ce, 0.0, depth_m=floor_m, nx=21, ny=21, dx_m=100.0)
+    g["depth"] = np.array([0.0, float(deepest_m)])
+    return E.load_grid(g)
+
+
+@pytest.fixture(scope="module")
+def calm():
+    """Flat 40 m seafloor, no current, no land."""
+    return _flat(40.0)
+
+
+@pytest.fixture(scope="module")
+def coast():
+    """Sloping seafloor to 75 m with a coast, currents, tides; deepest level 60 m."""
+    return E.load_grid(E.make_test_grid(nt=4, nz=5, ny=40, nx=50, max_depth_m=60.0))
+
+
+def _tier(i):
+    return {**tier_params("UPL", i), "dt_s": 1.0}
+
+
+def _at_slots(depth_floor=40.0, n_ep=1, offset=0.0):
+    """Hand-made init: object on a flat floor at the origin, agents ``offset`` m above slots."""
+    obj = np.array([0.0, depth_floor - upl.OBJ_HALF_HEIGHT_M, 0.0])
+    off = upl.slot_offsets(0.3)
+    pos = obj + off + np.array([0.0, -offset, 0.0])
+    return {"obj0": np.tile(obj, (n_ep, 1)), "slot_off": np.tile(off, (n_ep, 1, 1)),
+            "pos0": np.tile(pos, (n_ep, 1, 1)), "psi0": np.zeros((n_ep, N)),
+            "t0": np.zeros(n_ep)}
+
+
+def _roll(grid, tier, init, method="oracle", dyn="kinematic", vehicle=None, seed=0):
+    return upl.rollout(grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
+
+
+def test_reset_geometry_is_valid(coast):
+    tier = _tier(2)
+    init = upl.reset(coast, tier, N, 10, seed=4)
+    obj, off, pos0 = init["obj0"], init["slot_off"], init["pos0"]
+    floor = -E.grid.sample_elevation_points(coast, np.ascontiguousarray(obj[:, [0, 2]]),
+                                            np.empty(10))
+    # the object rests on the seafloor, at a depth the tier asks for and the grid can reach
+    np.testing.assert_allclose(obj[:, 1], floor - upl.OBJ_HALF_HEIGHT_M)
+    lo = tier["site_depth_m"] - upl.SITE_DEPTH_SPAN_M
+    assert np.all((floor >= lo) & (floor <= tier["site_depth_m"]))
+    assert np.all(floor <= coast.depth[-1])
+    slots = obj[:, None, :] + off
+    assert np.all(E.feasibility(coast, slots.reshape(-1, 3), 0.5, upl.CLEARANCE_M) == st.OK)
+    # agents start apart (not attached), in valid water, with a clear descent to the site
+    assert np.all(E.feasibility(coast, pos0.reshape(-1, 3), 0.5, upl.CLEARANCE_M) == st.OK)
+    hd = np.linalg.norm((pos0 - obj[:, None, :])[..., [0, 2]], axis=2)
+    assert np.all(hd >= upl.START_RING_FRAC * tier["start_distance_m"] - 1e-9)
+    assert np.all(hd <= tier["start_distance_m"] + 1e-9)
+    assert np.min(np.linalg.norm(pos0[:, :, None] - pos0[:, None], axis=3)
+                  + 1e9 * np.eye(N)) >= upl.START_SEPARATION_M
+    assert np.all(np.linalg.norm(pos0 - slots, axis=2) > tier["detach_radius_m"])
+    for e in range(10):
+        above = [obj[e, 0], obj[e, 1] - upl.SLOT_RISE_M, obj[e, 2]]
+        assert all(path_clear(coast, p, above, upl.CLEARANCE_M, spacing_m=5.0) for p in pos0[e])
+    t_end = init["t0"] + tier["time_limit_s"]
+    assert np.all(init["t0"] >= coast.time_s[0]) and np.all(t_end <= coast.time_s[-1])
+
+
+def test_reset_raises_when_impossible(calm, coast):
+    with pytest.raises(ConfigError, match="exactly 5"):
+        upl.reset(calm, TIER, 4, 2, 0)
+    with pytest.raises(ConfigError, match="no site"):  # flat 40 m floor, sites must be 45-60 m
+        upl.reset(calm, {**TIER, "site_depth_m": 60.0}, N, 2, 0)
+    with pytest.raises(ConfigError, match="no site"):  # starts 5 km away: outside the 2 km grid
+        upl.reset(calm, {**TIER, "start_distance_m": 5000.0}, N, 2, 0)
+    with pytest.raises(ConfigError, match="deepest current level"):  # coast's deepest: 60 m
+        upl.reset(coast, {**TIER, "site_depth_m": 70.0}, N, 2, 0)
+    with pytest.raises(ConfigError, match="missing"):
+        upl.reset(calm, {k: v for k, v in TIER.items() if k != "quorum"}, N, 2, 0)
+
+
+def test_unreachable_success_depth_is_rejected(calm):
+    # the reference's flaw: the goal depth could not reach the success depth
+    with pytest.raises(ConfigError, match="unreachable"):
+        upl.check_reachable({**TIER, "success_depth_m": upl.SLOT_RISE_M - 0.1})
+    with pytest.raises(ConfigError, match="unreachable"):
+        upl.rollout(calm, {**TIER, "success_depth_m": 1.0}, _at_slots(), "oracle", "kinematic",
+                    E.load_vehicle(), 0)
+    with pytest.raises(ConfigError, match="above the success depth"):
+        upl.check_reachable({**TIER, "site_depth_m": 17.0})
+    for i in (1, 2, 3):
+        upl.check_reachable(_tier(i))
+
+
+@pytest.mark.parametrize("tier", [1, 2, 3])
+def test_every_tier_is_solvable_in_calm_water(coast, tier):
+    # the real tier geometry and rules, currents off: the oracle lifts every object
+    df = run_cell(coast, "UPL", tier, "oracle", episodes=4, seed=1, currents=False)
+    assert df["success"].all()
+    assert (df["final_object_depth_m"] <= _tier(tier)["success_depth_m"]).all()
+    assert (df["attach_time_s"] < df["T_s"]).all()
+
+
+def test_lift_rate_is_team_pull_minus_sink(calm):
+    # agents start on their slots: attach after the dwell, then the assembly rises at
+    # v_max - sink (kinematic, all five pulling at v_max = 2 m/s)
+    tier = {**TIER, "sink_speed_ms": 0.5, "attach_dwell_s": 3.0}
+    r = _roll(calm, tier, _at_slots())
+    assert r["success"][0]
+    assert r["attach_time_s"][0] == 3.0
+    depth0 = 40.0 - upl.OBJ_HALF_HEIGHT_M
+    lift_steps = np.ceil((depth0 - tier["success_depth_m"]) / (2.0 - 0.5))
+    assert abs(r["T_s"][0] - (3.0 + lift_steps)) <= 1.0
+    assert r["final_object_depth_m"][0] <= tier["success_depth_m"]
+    assert r["object_drift_m"][0] < 1e-6
+
+
+def test_too_heavy_object_is_never_lifted(calm):
+    tier = {**TIER, "sink_speed_ms": 2.5, "time_limit_s": 60.0}  # sink > v_max
+    r = _roll(calm, tier, _at_slots())
+    assert not r["success"][0]
+    assert r["T_s"][0] == 60.0
+    assert r["final_object_depth_m"][0] == pytest.approx(40.0 - upl.OBJ_HALF_HEIGHT_M)
+
+
+def test_object_moves_only_with_the_quorum(calm):
+    init = _at_slots()
+    init["pos0"][0, 4] += np.array([150.0, -30.0, 0.0])  # one agent far away
+    tier = {**TIER, "time_limit_s": 400.0}
+    r5 = _roll(calm, {**tier, "quorum": 5}, init)
+    r4 = _roll(calm, {**tier, "quorum": 4}, init)
+    assert r4["attach_time_s"][0] == tier["attach_dwell_s"]
+    assert r5["attach_time_s"][0] > 60.0  # waits for the far agent (>= 150 m at 2 m/s)
+    assert r4["success"][0] and r5["success"][0]
+    assert r4["T_s"][0] < r5["T_s"][0]
+
+
+def test_do_nothing_fails_with_time_limit(coast):
+    veh = E.load_vehicle()
+    p = veh.params.copy()
+    p[P_VMAX] = 0.0
+    still = dataclasses.replace(veh, params=p)
+    tier = _tier(1)
+    init = upl.reset(coast, tier, N, 3, 0)
+    r = _roll(coast, tier, init, vehicle=still)
+    assert not r["success"].any()
+    np.testing.assert_array_equal(r["T_s"], tier["time_limit_s"])
+    np.testing.assert_array_equal(r["attach_time_s"], tier["time_limit_s"])
+    np.testing.assert_array_equal(r["E"], 0.0)
+    np.testing.assert_allclose(r["final_object_depth_m"], init["obj0"][:, 1])
+    np.testing.assert_array_equal(r["lift_success"], 0.0)
+
+
+def test_metrics_are_consistent(coast):
+    df = run_cell(coast, "UPL", 2, "heuristic", episodes=6, seed=2)
+    for k in STANDARD + ("primary",) + upl.METRICS:
+        assert k in df.columns
+    np.testing.assert_array_equal(df["primary"], df["lift_success"])
+    np.testing.assert_array_equal(df["lift_success"], df["success"].astype(float))
+    lim = _tier(2)["time_limit_s"]
+    assert (df.loc[~df.success, "T_s"] == lim).all()
+    assert (df.loc[df.success, "T_s"] <= lim).all()
+    assert (df["coll_ratio"].between(0.0, 1.0)).all()
+    assert (df["E"] > 0).all() and (df["E"] <= N * 2.0 ** 2 * df["T_s"] + 1e-9).all()
+    ok = df[df.success]
+    assert (ok["final_object_depth_m"] <= 2.5).all()
+    assert (ok["object_drift_m"] <= _tier(2)["hold_radius_m"]).all()
+
+
+def test_near_collision_ratio_counts_close_steps(calm):
+    # five agents start bunched within 1.6 m of each other, 30 m from the object
+    init = _at_slots()
+    init["pos0"][0] = np.array([[30.0 + 0.4 * i, 5.0, 0.0] for i in range(N)])
+    r = _roll(calm, {**TIER, "time_limit_s": 200.0}, init)
+    assert r["coll_ratio"][0] > 0.0
+    r0 = _roll(calm, {**TIER, "time_limit_s": 200.0}, _at_slots())
+    assert r0["coll_ratio"][0] == 0.0  # slots are 3.5 m apart
+
+
+def test_run_cell_deterministic_seeds_and_threads(coast):
+    a = run_cell(coast, "UPL", 3, "heuristic", episodes=4, seed=5)
+    b = run_cell(coast, "UPL", 3, "heuristic", episodes=4, seed=5)
+    pd.testing.assert_frame_equal(a, b)
+    c = run_cell(coast, "UPL", 3, "heuristic", episodes=4, seed=6)
+    assert not np.array_equal(a["E"].to_numpy(), c["E"].to_numpy())
+    n0 = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        d = run_cell(coast, "UPL", 3, "heuristic", episodes=4, seed=5)
+    finally:
+        numba.set_num_threads(n0)
+    pd.testing.assert_frame_equal(a, d)
+
+
+def test_tier_table_monotone_and_declared():
+    table = load_task_table("UPL")
+    tiers = table["tiers"]
+    assert sorted(tiers) == [1, 2, 3]
+    for key, way in table["harder"].items():
+        assert way in ("up", "down")
+        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
+        sign = 1.0 if way == "up" else -1.0
+        assert all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:])), (key, vals)
+    for t in (1, 2, 3):
+        assert set(tiers[t]) == set(table["harder"]) == set(upl._TIER_KEYS)
+    assert table["agents"] == {"default": 5, "range": [5, 5]}
+    assert table["dt_s"] == 1.0
