@@ -52,27 +52,23 @@ def time_rollouts() -> None:
 
 
 def ladder_checks(tasks, episodes: int, seed: int, dynamics: str) -> bool:
-    from oneocean.engine import load_grid, load_vehicle
+    from calibrate import run_cells  # benchmarks/calibrate.py, beside this script
+
     from oneocean.config import load_config
-    from oneocean.tasks import run_cell
+    from oneocean.engine import load_grid
 
     cfg = load_config(REPO / "config" / "config.yaml")
     grid_path = (REPO / "results" / "exports" / cfg["region"]["name"]
                  / cfg["rollouts"]["variant"] / "grid.npz")
     grid = load_grid(grid_path)
-    veh = load_vehicle()
-    rows = []
+    cells = [(method, tier, currents) for tier in (1, 2, 3)
+             for method, currents in (("heuristic", True), ("oracle", True), ("heuristic", False))]
     t0 = time.perf_counter()
-    for task in tasks:
-        for tier in (1, 2, 3):
-            for method, currents in (("heuristic", True), ("oracle", True),
-                                     ("heuristic", False)):
-                df = run_cell(grid, task, tier, method, episodes, seed, dynamics,
-                              currents=currents, vehicle=veh)
-                rows.append({"task": task, "tier": tier,
-                             "col": f"{method}{'' if currents else '_off'}",
-                             "sr": 100.0 * df["success"].mean()})
+    out = run_cells(grid, tasks, cells, episodes, seed, dynamics)
     wall = time.perf_counter() - t0
+    rows = [{"task": task, "tier": tier, "col": f"{method}{'' if cur else '_off'}",
+             "sr": 100.0 * info[(method, tier, cur)]["sr"]}
+            for task, info in out for method, tier, cur in cells]
     tab = pd.DataFrame(rows).pivot_table(index="task", columns=["col", "tier"], values="sr")
     tab = tab.loc[[t for t in tasks]]
     with pd.option_context("display.width", 200, "display.precision", 1):

@@ -21,7 +21,7 @@ from oneocean.tasks.common import STANDARD, load_task_table
 TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.1,
         "spill_radius_m": 40.0, "target_fraction": 0.5, "staging_distance_m": 120.0,
         "removal_radius_m": 11.0, "removal_rate_s": 0.1, "kappa_m2s": 1.0, "domain_m": 300.0,
-        "aerial_period_s": 20.0, "dt_s": 1.0}
+        "aerial_period_s": 20.0, "min_drift_ms": 0.0, "dt_s": 1.0}
 
 
 def _grid(ce=0.0, cn=0.0, depth=30.0, n=21):
@@ -84,6 +84,25 @@ def test_reset_raises_when_impossible(calm):
         spc.reset(_grid(depth=1.0), TIER, 3, 2, 0)
     with pytest.raises(ConfigError, match="missing"):
         spc.reset(calm, {k: v for k, v in TIER.items() if k != "kappa_m2s"}, 3, 2, 0)
+
+
+def test_min_drift_selects_moving_water(coast):
+    """Harder tiers put the spill in moving water: every sampled site drifts >= min_drift_ms
+    (mean over the episode), and a grid without such water is refused with a named reason."""
+    half = spc.field_frame(TIER["domain_m"])[1]
+    base = spc.reset(coast, TIER, 3, 6, seed=1)
+    centres = lambda init: [np.array([x + half, spc.SURFACE_Y_M, z + half])  # noqa: E731
+                            for x, z in init["origin"]]
+    drifts = [spc.site_drift(coast, c, t, TIER["time_limit_s"])
+              for c, t in zip(centres(base), base["t0"])]
+    thr = float(np.median(drifts))
+    assert min(drifts) < thr  # the filter has something to remove on this grid
+    init = spc.reset(coast, {**TIER, "min_drift_ms": thr}, 3, 6, seed=1)
+    got = [spc.site_drift(coast, c, t, TIER["time_limit_s"])
+           for c, t in zip(centres(init), init["t0"])]
+    assert min(got) >= thr
+    with pytest.raises(ConfigError, match="drift >= 0.5 m/s"):
+        spc.reset(_grid(0.2, 0.0), {**TIER, "min_drift_ms": 0.5}, 3, 2, 0)
 
 
 @pytest.mark.parametrize("method", ["heuristic", "oracle"])

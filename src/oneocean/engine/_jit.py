@@ -49,13 +49,14 @@ _ENGINE_DIR = Path(__file__).resolve().parent
 _MARKER = "oneocean-engine.fingerprint"
 
 
-def source_fingerprint(*dirs: Path) -> str:
-    """sha256 over the ``.py`` sources of the engine (and ``dirs``), plus the numba version."""
+def source_fingerprint(*paths: Path) -> str:
+    """sha256 over the engine's ``.py`` sources and ``paths`` (files, or folders of ``.py``
+    files), plus the numba version."""
     import numba
 
     h = hashlib.sha256(numba.__version__.encode())
-    for d in (_ENGINE_DIR, *map(Path, dirs)):
-        for f in sorted(Path(d).glob("*.py")):
+    for p in (_ENGINE_DIR, *map(Path, paths)):
+        for f in (sorted(p.glob("*.py")) if p.is_dir() else [p]):
             h.update(f.name.encode())
             h.update(f.read_bytes())
     return h.hexdigest()
@@ -68,17 +69,19 @@ def cache_dir_of(dispatcher) -> Path | None:
     return Path(path) if path else None
 
 
-def ensure_fresh_cache(dispatcher, module_prefixes: tuple[str, ...], *extra_dirs: Path) -> bool:
+def ensure_fresh_cache(dispatcher, module_prefixes: tuple[str, ...], *sources: Path) -> bool:
     """Remove stale numba cache files of ``module_prefixes`` next to ``dispatcher``'s cache.
 
-    Returns True if files were removed. Call at import time, before any kernel runs; the task
-    layer can call it for its own modules with the engine as a dependency.
+    The fingerprint covers the engine and ``sources`` (the files or folders the cached kernels
+    depend on). Returns True if files were removed. Call at import time, before any kernel
+    runs; the task layer calls it per task module (:func:`oneocean.tasks.common.fresh_cache`),
+    so editing one task recompiles only that task's kernel.
     """
     d = cache_dir_of(dispatcher)
     if d is None or not d.is_dir():
         return False
-    fp = source_fingerprint(*extra_dirs)
-    marker = d / (_MARKER if not extra_dirs else f"{_MARKER}.{module_prefixes[0]}")
+    fp = source_fingerprint(*sources)
+    marker = d / (_MARKER if not sources else f"{_MARKER}.{module_prefixes[0]}")
     try:
         if marker.read_text() == fp:
             return False

@@ -152,6 +152,49 @@ def init_batch(positions, *, t0=0.0, heading=0.0, seed: int = 0, episode_ids=Non
                  episode_ids=ids, seed=int(seed))
 
 
+@hot_kernel(inline="always")
+def advance_agent(grid, model, vp, s, cmd, ce, cn, v_max, dt, land_threshold, clearance):
+    """Clip the command, advance one agent one step and enforce feasibility, in place.
+
+    Parameters
+    ----------
+    s : (STATE_DIM,) float64
+        Agent state (see :mod:`oneocean.engine.dynamics`), modified in place.
+    cmd : (CMD_DIM,) float64
+        ``[ax, ay, az, psi_cmd, thrust]``: desired velocity relative to the water (world m s-1);
+        clipped here to ``v_max`` (the executed action a_t is written back into ``cmd``).
+    ce, cn : float
+        True current at the agent (m s-1), frozen over the step.
+
+    Returns
+    -------
+    energy : float
+        ``||a_t||^2 dt`` of the clipped action (m2 s-1), 0 when thrust is off.
+    code : int
+        Status of the move (``OK`` or the rejection reason); a rejected move keeps the
+        position and zeroes the velocity.
+    """
+    ax, ay, az = dyn.clip_action(cmd[0], cmd[1], cmd[2], v_max)
+    cmd[0] = ax
+    cmd[1] = ay
+    cmd[2] = az
+    e = (ax * ax + ay * ay + az * az) * dt if cmd[4] != 0.0 else 0.0
+    px = s[0]
+    py = s[1]
+    pz = s[2]
+    dyn.step_agent(model, vp, s, cmd, ce, cn, dt)
+    code = check_move(grid, s[0], s[1], s[2], land_threshold, clearance)
+    if code != st.OK:
+        s[0] = px
+        s[1] = py
+        s[2] = pz
+        for c in range(dyn.U, dyn.W + 1):
+            s[c] = 0.0
+        for c in range(dyn.VX, dyn.VZ + 1):
+            s[c] = 0.0
+    return e, code
+
+
 @hot_kernel
 def run_episode(grid, vp, cp, goals, plan, plan_len, mlp_sizes, mlp_w, feats, actions, state,
                 t0, steps, alive, status, violations, energy, coll_steps, min_dist, wp_idx, traj,
@@ -204,22 +247,13 @@ def run_episode(grid, vp, cp, goals, plan, plan_len, mlp_sizes, mlp_w, feats, ac
                 ax += noise_std * normal(seed, eid, PURPOSE_ACTION_NOISE, base)
                 ay += noise_std * normal(seed, eid, PURPOSE_ACTION_NOISE, base + 1)
                 az += noise_std * normal(seed, eid, PURPOSE_ACTION_NOISE, base + 2)
-            ax, ay, az = dyn.clip_action(ax, ay, az, v_max)
             cmd[0] = ax
             cmd[1] = ay
             cmd[2] = az
-            if cmd[4] != 0.0:
-                energy[ei, ai] += (ax * ax + ay * ay + az * az) * dt
-            dyn.step_agent(model, vp, s, cmd, ce, cn, dt)
-            code = check_move(grid, s[0], s[1], s[2], land_threshold, clearance)
+            en, code = advance_agent(grid, model, vp, s, cmd, ce, cn, v_max, dt, land_threshold,
+                                     clearance)
+            energy[ei, ai] += en
             if code != st.OK:
-                s[0] = px
-                s[1] = py
-                s[2] = pz
-                for c in range(dyn.U, dyn.W + 1):
-                    s[c] = 0.0
-                for c in range(dyn.VX, dyn.VZ + 1):
-                    s[c] = 0.0
                 violations[ei, ai] += 1
             status[ei, ai] = code
         steps[ei] = kstep + 1

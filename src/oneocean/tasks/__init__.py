@@ -48,7 +48,8 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     ----------
     grid : Grid
         A loaded grid export (:func:`oneocean.engine.load_grid`); the tier's ``current_gain``
-        is applied here (``currents=False`` sets it to 0 and drops tides: the ablation).
+        is applied here (``currents=False`` sets it to 0 and drops tides in the rollout: the
+        ablation; ``reset`` always sees the tier's forcing, so both replay the same episodes).
     Returns
     -------
     DataFrame, one row per episode: ``episode, seed, success, T_s, E, coll_ratio,
@@ -62,13 +63,13 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     params = tier_params(task, int(tier))
     table = load_task_table(task)
     n = n_agents_for(task, n_agents)
-    gain = float(params.get("current_gain", 1.0)) if currents else 0.0
-    g = with_forcing(grid, current_gain=gain)
-    if not currents:
-        g = g._replace(tide_layers=0, tide_amp=0.0)
+    # episodes are sampled under the tier's forcing, so the currents-off ablation replays the
+    # same episodes (geometry, start times) with the current switched off in the rollout only
+    g_reset = with_forcing(grid, current_gain=float(params.get("current_gain", 1.0)))
+    g = g_reset if currents else g_reset._replace(gain=0.0, tide_layers=0, tide_amp=0.0)
     veh = vehicle if vehicle is not None else load_vehicle()
     params = {**params, "dt_s": float(table["dt_s"])}
-    init = mod.reset(g, params, n, int(episodes), int(seed))
+    init = mod.reset(g_reset, params, n, int(episodes), int(seed))
     res = mod.rollout(g, params, init, method, dynamics, veh, int(seed))
     missing = [k for k in STANDARD + tuple(mod.METRICS) if k not in res]
     if missing:

@@ -47,18 +47,18 @@ Default team size: N = 1, as in the paper's Table V (so SRs are comparable); any
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
 
 from ..engine import dynamics as dyn
-from ..engine._jit import ensure_fresh_cache, hot_kernel
+from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, min_pairwise_distance, spawn_positions
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     method_id, probe, seek_max, set_velocity_cmd, start_times)
+                     fresh_cache, los_carrot, method_id, probe, seek_max, set_velocity_cmd,
+                     start_times)
 
 TASK_ID = "AS"
 METRICS = ("coverage_fraction", "footprint_loss_frac", "mean_altitude_m")
@@ -303,26 +303,6 @@ def oracle_axis(grid, box, depth: float, t0: float, duration: float, v: float,
 
 
 # ------------------------------------------------------------------------------ kernels
-
-@hot_kernel(inline="always")
-def los_carrot(px, pz, ax_, az_, bx, bz, look):
-    """Line-of-sight carrot on segment a -> b: the projection of p plus ``look`` m, clamped
-    to b. Returns (cx, cz, along, length)."""
-    dx = bx - ax_
-    dz = bz - az_
-    L = math.sqrt(dx * dx + dz * dz)
-    if L < 1e-9:
-        return bx, bz, 0.0, 0.0
-    ux = dx / L
-    uz = dz / L
-    s = (px - ax_) * ux + (pz - az_) * uz
-    c = s + look
-    if c > L:
-        c = L
-    if c < 0.0:
-        c = 0.0
-    return ax_ + c * ux, az_ + c * uz, s, L
-
 
 @hot_kernel(inline="always")
 def _repulsion(state, e, i, n_ag):
@@ -574,5 +554,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     return out
 
 
-# numba keys a cache entry on this file only; drop it when the engine or the task layer changes.
-ensure_fresh_cache(_kernel, ("as_.",), Path(__file__).resolve().parent)
+
+# numba keys a cache entry on this file only; drop it when the engine, the task layer changes.
+fresh_cache(_kernel, __file__)

@@ -14,10 +14,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..engine import dynamics as dyn
 from ..engine import status as st
 from ..engine._jit import hot_kernel
-from ..engine.constraints import check_move, min_pairwise_distance
+from ..engine.rollout import advance_agent  # noqa: F401  (re-exported for task kernels)
 from ..engine.grid import Grid, sample_current_data, synthetic_tide
 from ..engine.rng import PURPOSE_TASK, normal
 from ..errors import ConfigError
@@ -37,6 +36,17 @@ STANDARD = ("success", "T_s", "E", "coll_ratio", "violations")
 
 #: Status code of :func:`advance_agent` (re-exported for kernels).
 OK = st.OK
+
+# shared by the single-vehicle navigation tasks (G2G, SK, RF, DPT) and FT
+#: Heuristic throttle cap: its speed through the water is at most CRUISE_FRAC * v_max
+#: (1.2 m s-1 for the default vehicle, an economical survey-AUV cruise).
+CRUISE_FRAC = 0.6
+#: Depth range of starts, goals and routes, m (positive down).
+DEPTH_RANGE_M = (2.0, 10.0)
+#: Minimum altitude above the seafloor of starts, goals and the segments between them, m.
+MIN_ALTITUDE_M = 5.0
+#: Seafloor clearance of the feasibility check during the rollout, m (engine default).
+CLEARANCE_M = 1.0
 
 
 def method_id(method: str) -> int:
@@ -61,49 +71,6 @@ def probe(ce, cn, noise_std, seed, episode, counter):
         return ce, cn
     return (ce + noise_std * normal(seed, episode, PURPOSE_PROBE, counter),
             cn + noise_std * normal(seed, episode, PURPOSE_PROBE, counter + 1))
-
-
-@hot_kernel(inline="always")
-def advance_agent(grid, model, vp, s, cmd, ce, cn, v_max, dt, land_threshold, clearance):
-    """Clip the command, advance one agent one step and enforce feasibility, in place.
-
-    Parameters
-    ----------
-    s : (STATE_DIM,) float64
-        Agent state (see :mod:`oneocean.engine.dynamics`), modified in place.
-    cmd : (CMD_DIM,) float64
-        ``[ax, ay, az, psi_cmd, thrust]``: desired velocity relative to the water (world m s-1);
-        clipped here to ``v_max`` (the executed action a_t is written back into ``cmd``).
-    ce, cn : float
-        True current at the agent (m s-1), frozen over the step.
-
-    Returns
-    -------
-    energy : float
-        ``||a_t||^2 dt`` of the clipped action (m2 s-1), 0 when thrust is off.
-    code : int
-        Status of the move (``OK`` or the rejection reason); a rejected move keeps the
-        position and zeroes the velocity.
-    """
-    ax, ay, az = dyn.clip_action(cmd[0], cmd[1], cmd[2], v_max)
-    cmd[0] = ax
-    cmd[1] = ay
-    cmd[2] = az
-    e = (ax * ax + ay * ay + az * az) * dt if cmd[4] != 0.0 else 0.0
-    px = s[0]
-    py = s[1]
-    pz = s[2]
-    dyn.step_agent(model, vp, s, cmd, ce, cn, dt)
-    code = check_move(grid, s[0], s[1], s[2], land_threshold, clearance)
-    if code != st.OK:
-        s[0] = px
-        s[1] = py
-        s[2] = pz
-        for c in range(dyn.U, dyn.W + 1):
-            s[c] = 0.0
-        for c in range(dyn.VX, dyn.VZ + 1):
-            s[c] = 0.0
-    return e, code
 
 
 @hot_kernel(inline="always")
@@ -353,3 +320,37 @@ def steer(vx, vy, vz, budget, ce, cn):
     r = math.sqrt(b2 - q2)
     w = c_par + r if s > c_par else c_par - r
     return ux * w - ce, uy * w, uz * w - cn
+
+
+@hot_kernel(inline="always")
+def los_carrot(px, pz, ax_, az_, bx, bz, look):
+    """Line-of-sight carrot on segment a -> b: the projection of p plus ``look`` m, clamped
+    to b. Returns (cx, cz, along, length)."""
+    dx = bx - ax_
+    dz = bz - az_
+    L = math.sqrt(dx * dx + dz * dz)
+    if L < 1e-9:
+        return bx, bz, 0.0, 0.0
+    ux = dx / L
+    uz = dz / L
+    s = (px - ax_) * ux + (pz - az_) * uz
+    c = s + look
+    if c > L:
+        c = L
+    if c < 0.0:
+        c = 0.0
+    return ax_ + c * ux, az_ + c * uz, s, L
+
+
+def fresh_cache(kernel, module_file: str, *deps) -> bool:
+    """Drop ``kernel``'s stale numba cache entries at import (:func:`ensure_fresh_cache`).
+
+    numba keys a cache entry on the kernel's own file only; a task kernel also inlines the
+    engine, this module and ``deps`` (e.g. a model file), so the fingerprint covers exactly
+    those: editing one task recompiles that task alone.
+    """
+    from ..engine._jit import ensure_fresh_cache
+
+    here = Path(module_file).resolve()
+    return ensure_fresh_cache(kernel, (here.stem + ".",), here, Path(__file__).resolve(),
+                              *(Path(d).resolve() for d in deps))

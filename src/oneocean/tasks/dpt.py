@@ -31,18 +31,17 @@ Methods
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
 
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine.dynamics import CMD_DIM, VX, VZ, model_id, new_state
-from ..engine._jit import ensure_fresh_cache, hot_kernel
+from ..engine._jit import hot_kernel
 from ..errors import ConfigError
-from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     method_id, probe, sample_route, seek_max, set_velocity_cmd, start_times)
-from .g2g import CLEARANCE_M, CRUISE_FRAC, MIN_ALTITUDE_M
+from .common import (CLEARANCE_M, CRUISE_FRAC, HEURISTIC, MIN_ALTITUDE_M, OK, STANDARD,
+                     advance_agent, current_at, episode_generators, fresh_cache, method_id, probe,
+                     sample_route, seek_max, set_velocity_cmd, start_times)
 
 TASK_ID = "DPT"
 METRICS = ("depth_error_m", "waypoints_reached", "max_depth_error_m", "cross_track_error_m")
@@ -238,5 +237,5 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     out["waypoints_reached"] = out["waypoints_reached"].astype(np.int64)
     return out
 
-
-ensure_fresh_cache(_kernel, ("dpt.",), Path(__file__).resolve().parent)
+# numba keys a cache entry on this file only; drop it when the engine, the task layer changes.
+fresh_cache(_kernel, __file__)

@@ -47,23 +47,23 @@ Methods (task logic; the environment above does not depend on it)
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
 
 from ..engine import dynamics as dyn
 from ..engine import status as st
-from ..engine._jit import ensure_fresh_cache, hot_kernel
+from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility, \
     min_pairwise_distance
 from ..engine.rng import hash64
 from ..errors import ConfigError
+from ..models import fish as _fish
 from ..models.fish import (fish_params, fraction_inside_circle, init_school, school_centroid,
                            school_spread, step_school)
 from .common import (HEURISTIC, OK, PURPOSE_TASK_NOISE, STANDARD, advance_agent, current_at,
-                     episode_generators, method_id, path_clear, probe, sample_route, seek,
-                     seek_max, set_velocity_cmd, start_times)
+                     episode_generators, fresh_cache, method_id, path_clear, probe, sample_route,
+                     seek, seek_max, set_velocity_cmd, start_times)
 
 TASK_ID = "FH"
 METRICS = ("containment_success", "final_centroid_distance_m", "fraction_inside",
@@ -536,5 +536,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     return out
 
 
-# numba keys a cache entry on this file only; drop it when the engine or the task layer changes.
-ensure_fresh_cache(_kernel, ("fh.",), Path(__file__).resolve().parent)
+
+# numba keys a cache entry on this file only; drop it when the engine, the task layer or the model changes.
+fresh_cache(_kernel, __file__, _fish.__file__)

@@ -32,19 +32,18 @@ Methods (task logic lives here, not in the environment)
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
 
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, DEFAULT_R_COLL_M, min_pairwise_distance
 from ..engine.dynamics import CMD_DIM, model_id, new_state
-from ..engine._jit import ensure_fresh_cache, hot_kernel
+from ..engine._jit import hot_kernel
 from ..errors import ConfigError
-from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
+from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
+                     STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
                      method_id, path_clear, probe, sample_route, set_velocity_cmd, start_times,
                      steer)
-from .g2g import CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, MIN_ALTITUDE_M
 
 TASK_ID = "FT"
 METRICS = ("formation_error_m", "max_slot_error_m", "final_centroid_error_m")
@@ -326,5 +325,5 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     out["violations"] = out["violations"].astype(np.int64)
     return out
 
-
-ensure_fresh_cache(_kernel, ("ft.",), Path(__file__).resolve().parent)
+# numba keys a cache entry on this file only; drop it when the engine, the task layer changes.
+fresh_cache(_kernel, __file__)

@@ -33,35 +33,25 @@ Module layout (the template every task module follows)
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
 
 from ..engine.dynamics import CMD_DIM, model_id, new_state
-from ..engine._jit import ensure_fresh_cache, hot_kernel
+from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..errors import ConfigError
-from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     method_id, probe, sample_route, seek_max, set_velocity_cmd,
-                     start_times)
+from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
+                     STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
+                     method_id, probe, sample_route, seek_max, set_velocity_cmd, start_times)
 
 TASK_ID = "G2G"
 METRICS = ("final_error_m", "min_error_m", "path_length_m")
 #: Result-matrix columns written by the kernel (standard columns first).
 COLUMNS = STANDARD + METRICS
 
-#: Heuristic throttle cap: its speed through the water is at most CRUISE_FRAC * v_max
-#: (1.2 m s-1 for the default vehicle, an economical survey-AUV cruise).
-CRUISE_FRAC = 0.6
 #: Proportional gain of the approach (ground speed = min(KP * distance, cruise)), s-1.
 KP = 0.5
-#: Depth range of start and goal, m (positive down).
-DEPTH_RANGE_M = (2.0, 10.0)
-#: Minimum altitude above the seafloor of start, goal and the segment between them, m.
-MIN_ALTITUDE_M = 5.0
-#: Seafloor clearance of the feasibility check during the rollout, m (engine default).
-CLEARANCE_M = 1.0
 
 # indices of ipar / fpar (the kernel's scalar parameters)
 _I_MODEL, _I_METHOD, _I_STEPS, _I_SEED = range(4)
@@ -233,5 +223,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
     return out
 
 
-# numba keys a cache entry on this file only; drop it when the engine or the task layer changes.
-ensure_fresh_cache(_kernel, ("g2g.",), Path(__file__).resolve().parent)
+
+# numba keys a cache entry on this file only; drop it when the engine, the task layer changes.
+fresh_cache(_kernel, __file__)

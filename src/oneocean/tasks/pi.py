@@ -56,20 +56,19 @@ Methods (task logic)
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
 
 from ..engine import dynamics as dyn
-from ..engine._jit import ensure_fresh_cache, hot_kernel
+from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, min_pairwise_distance, spawn_positions
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
 from ..models import pollution as pol
-from .as_ import los_carrot
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     method_id, probe, seek_max, set_velocity_cmd, start_times)
+                     fresh_cache, los_carrot, method_id, probe, seek_max, set_velocity_cmd,
+                     start_times)
 
 TASK_ID = "PI"
 METRICS = ("inspection_score", "localisation_error_m", "detection_rate")
@@ -729,5 +728,5 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     out["violations"] = out["violations"].astype(np.int64)
     return out
 
-
-ensure_fresh_cache(_kernel, ("pi.",), Path(__file__).resolve().parent)
+# numba keys a cache entry on this file only; drop it when the engine, the task layer or the model changes.
+fresh_cache(_kernel, __file__, pol.__file__)

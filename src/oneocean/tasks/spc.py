@@ -14,7 +14,10 @@ Objective
     ``staging_distance_m`` from the spill centre (straight, clear surface path to it), UP-current
     of the spill (bearing opposite the data surface current at the centre at t0, gain and tides
     ignored so currents-off episodes share the geometry, +- ``STAGING_SPREAD_RAD``): the slick
-    drifts away from the response base and the team has to catch it.
+    drifts away from the response base and the team has to catch it. The spill site's mean
+    surface current over the episode (:func:`site_drift`, the tier's forcing) is at least
+    ``min_drift_ms``: harder tiers are spills in moving water (a spill in slack water is no
+    response challenge); the currents-off ablation replays the same sites.
 Physics (identical for every method)
     Each step every vehicle moves (:func:`~oneocean.tasks.common.advance_agent`), then removes
     the fraction ``removal_rate_s * dt`` of the concentration of every field cell whose centre
@@ -54,7 +57,6 @@ allocated in ``rollout`` with a leading episode axis.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
@@ -63,12 +65,13 @@ from ..engine import status as st
 from ..engine.constraints import (DEFAULT_LAND_THRESHOLD, feasibility, min_pairwise_distance,
                                   spawn_positions)
 from ..engine.dynamics import CMD_DIM, model_id, new_state
-from ..engine.grid import sample_current_data
-from ..engine._jit import ensure_fresh_cache, hot_kernel
+from ..engine.grid import sample_current_data, sample_currents
+from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from ..models import pollution as pol
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     method_id, path_clear, probe, set_velocity_cmd, start_times, steer)
+                     fresh_cache, method_id, path_clear, probe, set_velocity_cmd, start_times,
+                     steer)
 
 TASK_ID = "SPC"
 METRICS = ("cleanup_rate", "escaped_fraction", "remaining_fraction", "time_to_target_s")
@@ -113,7 +116,7 @@ _C_CLEAN, _C_ESC, _C_REM, _C_TTT = (_C[k] for k in METRICS)
 
 _TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "spill_radius_m",
               "target_fraction", "staging_distance_m", "removal_radius_m", "removal_rate_s",
-              "kappa_m2s", "domain_m", "aerial_period_s")
+              "kappa_m2s", "domain_m", "aerial_period_s", "min_drift_ms")
 #: Near-collision radius, m (task contract).
 R_COLL_M = 2.0
 
@@ -141,6 +144,15 @@ def field_frame(domain_m: float) -> tuple[int, float]:
     """Cells per side and half-width (centre of cell 0 relative to the spill centre), m."""
     n = max(8, int(round(float(domain_m) / FIELD_H_M)))
     return n, 0.5 * (n - 1) * FIELD_H_M
+
+
+def site_drift(grid, c, t0: float, duration: float, n_times: int = 3) -> float:
+    """Mean surface current speed (m s-1) at spill centre ``c`` (x, y, z) over the episode:
+    the tier's forcing (gain, product tides, synthetic tide) at ``n_times`` instants."""
+    ts = t0 + np.linspace(0.0, duration, n_times)
+    xyz = np.tile([c[0], SURFACE_Y_M, c[2]], (n_times, 1))
+    cur = sample_currents(grid, xyz, ts)
+    return float(np.hypot(cur[:, 0], cur[:, 1]).mean())
 
 
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
@@ -174,6 +186,8 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     _need(tier, *_TIER_KEYS)
     R = float(tier["spill_radius_m"])
     dist = float(tier["staging_distance_m"])
+    min_drift = float(tier["min_drift_ms"])
+    T = float(tier["time_limit_s"])
     n, half = field_frame(float(tier["domain_m"]))
     if 2.0 * R > half:
         raise ConfigError(f"task {TASK_ID}: spill_radius_m={R:g} too large for domain_m="
@@ -194,7 +208,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     raw = grid._replace(gain=1.0, tide_layers=0)
     for e, rng in enumerate(rngs):
         found = False
-        for _ in range(300):
+        for _ in range(1000):
             try:
                 c = spawn_positions(grid, rng, 1, {"y": (SURFACE_Y_M, SURFACE_Y_M)},
                                     land_threshold=DEFAULT_LAND_THRESHOLD,
@@ -205,6 +219,8 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
             if not _surface_ok(grid, cxz + rings).all():
                 continue
             # the response base lies up-current of the spill: the slick drifts away from it
+            if min_drift > 0.0 and not site_drift(grid, c, t0[e], T) >= min_drift:
+                continue  # (also rejects NaN)
             ue, un = sample_current_data(raw, c[0], SURFACE_Y_M, c[2], t0[e])
             a = rng.uniform(-STAGING_SPREAD_RAD, STAGING_SPREAD_RAD)
             if math.isfinite(ue) and math.isfinite(un) and ue * ue + un * un > 1e-6:
@@ -225,8 +241,9 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
             break
         if not found:
             raise ConfigError(f"task {TASK_ID} reset (episode {e}): no spill site clear of land "
-                              f"within {CLEAR_RADII * R:g} m with a clear staging point "
-                              f"{dist:g} m away; the grid has no such water for this tier")
+                              f"within {CLEAR_RADII * R:g} m, with a surface drift >= "
+                              f"{min_drift:g} m/s and a clear staging point {dist:g} m away; "
+                              f"the grid has no such water for this tier")
         x0, z0 = cxz[0] - half, cxz[1] - half
         X, Z = np.meshgrid(x0 + ci, z0 + ci)
         ok = _surface_ok(grid, np.stack([X.ravel(), Z.ravel()], 1)).reshape(n, n)
@@ -507,7 +524,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
     return out
 
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer or the
-# pollution model changes.
-ensure_fresh_cache(_kernel, ("spc.",), Path(__file__).resolve().parent,
-                   Path(pol.__file__).resolve().parent)
+
+# numba keys a cache entry on this file only; drop it when the engine, the task layer or the model changes.
+fresh_cache(_kernel, __file__, pol.__file__)

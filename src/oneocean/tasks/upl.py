@@ -55,20 +55,19 @@ Methods (task logic; the environment above does not depend on it)
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
 
 from ..engine import dynamics as dyn
 from ..engine import status as st
-from ..engine._jit import ensure_fresh_cache, hot_kernel
+from ..engine._jit import hot_kernel
 from ..engine.constraints import (DEFAULT_LAND_THRESHOLD, check_move, feasibility,
                                   min_pairwise_distance)
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     method_id, path_clear, probe, seek, seek_max, set_velocity_cmd,
+                     fresh_cache, method_id, path_clear, probe, seek, seek_max, set_velocity_cmd,
                      start_times)
 
 TASK_ID = "UPL"
@@ -601,5 +600,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     return out
 
 
-# numba keys a cache entry on this file only; drop it when the engine or the task layer changes.
-ensure_fresh_cache(_kernel, ("upl.",), Path(__file__).resolve().parent)
+
+# numba keys a cache entry on this file only; drop it when the engine, the task layer changes.
+fresh_cache(_kernel, __file__)
