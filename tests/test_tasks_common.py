@@ -14,8 +14,10 @@ from oneocean import engine as E
 from oneocean.engine import status as st
 from oneocean.errors import ConfigError
 from oneocean.tasks import g2g, run_cell
-from oneocean.tasks.common import (STANDARD, path_clear, sample_route, seek_max, start_times,
-                                   steer, episode_generators)
+from oneocean.tasks import sk
+from oneocean.tasks.common import (STANDARD, HEURISTIC, ORACLE, path_clear, sample_route,
+                                   seek_max, sensed_current, start_times, steer,
+                                   episode_generators, waypoint_carrot)
 
 
 @pytest.fixture(scope="module")
@@ -179,3 +181,50 @@ def test_geometry_is_paired_across_methods_and_ablation(coast):
     for k in a:
         np.testing.assert_array_equal(a[k], b[k])
     assert E.feasibility(coast, a["goal"], 0.5, 1.0).tolist() == [st.OK] * 4
+
+
+def test_currents_off_replays_the_same_episodes(coast, monkeypatch):
+    # SK's reset heads the station into the current: the ablation must still see that episode
+    seen = []
+    orig = sk.reset
+
+    def spy(grid, tier, n, episodes, seed):
+        out = orig(grid, tier, n, episodes, seed)
+        seen.append(out)
+        return out
+
+    monkeypatch.setattr(sk, "reset", spy)
+    run_cell(coast, "SK", 3, "heuristic", episodes=4, seed=2)
+    run_cell(coast, "SK", 3, "heuristic", episodes=4, seed=2, currents=False)
+    assert len(seen) == 2 and set(seen[0]) == set(seen[1])
+    for k in seen[0]:
+        np.testing.assert_array_equal(seen[0][k], seen[1][k])
+
+
+def test_sensed_current_noisy_for_heuristic_exact_for_oracle():
+    assert sensed_current(ORACLE, 0.3, -0.2, 0.5, 1, 0, 0) == (0.3, -0.2)
+    a = sensed_current(HEURISTIC, 0.3, -0.2, 0.5, 1, 0, 0)
+    assert a != (0.3, -0.2) and a == sensed_current(HEURISTIC, 0.3, -0.2, 0.5, 1, 0, 0)
+    assert sensed_current(HEURISTIC, 0.3, -0.2, 0.0, 1, 0, 0) == (0.3, -0.2)
+
+
+def test_waypoint_carrot_transit_legs_and_hold():
+    wps = np.zeros((1, 1, 3, 2))
+    wps[0, 0] = [(0.0, 0.0), (100.0, 0.0), (100.0, 50.0)]
+    widx = np.zeros((1, 1), dtype=np.int64)
+    wcount = np.full((1, 1), 3, dtype=np.int64)
+    # transit: aim at the first waypoint until within 2 tol
+    assert waypoint_carrot(wps, widx, wcount, 0, 0, -40.0, 30.0, 10.0, 1.0) == (0.0, 0.0, 0)
+    assert widx[0, 0] == 0
+    waypoint_carrot(wps, widx, wcount, 0, 0, 0.5, 1.0, 10.0, 1.0)
+    assert widx[0, 0] == 1
+    # on leg 0 -> 1, 3 m off track: the carrot is 10 m ahead of the projection, on the track
+    gx, gz, w = waypoint_carrot(wps, widx, wcount, 0, 0, 20.0, 3.0, 10.0, 1.0)
+    assert (gx, gz, w) == (30.0, 0.0, 1)
+    # near the end of the leg: advance to leg 1 -> 2 and aim along it
+    gx, gz, w = waypoint_carrot(wps, widx, wcount, 0, 0, 99.5, 0.0, 10.0, 1.0)
+    assert w == 2 and widx[0, 0] == 2 and gx == pytest.approx(100.0) and gz == pytest.approx(10.0)
+    # past the last waypoint: hold there
+    waypoint_carrot(wps, widx, wcount, 0, 0, 100.0, 49.5, 10.0, 1.0)
+    assert widx[0, 0] == 3
+    assert waypoint_carrot(wps, widx, wcount, 0, 0, 90.0, 40.0, 10.0, 1.0) == (100.0, 50.0, 3)

@@ -30,7 +30,6 @@ from functools import partial
 import dask.array as da
 import numpy as np
 import xarray as xr
-from scipy.special import erf
 
 from ..errors import ConfigError
 from ..exports import metres_per_degree

@@ -16,7 +16,7 @@ import yaml
 
 from ..engine import status as st
 from ..engine._jit import hot_kernel
-from ..engine.rollout import advance_agent  # noqa: F401  (re-exported for task kernels)
+from ..engine.rollout import advance_agent  # noqa: F401  (re-exported: every task kernel's step)
 from ..engine.grid import Grid, sample_current_data, synthetic_tide
 from ..engine.rng import PURPOSE_TASK, normal
 from ..errors import ConfigError
@@ -71,6 +71,15 @@ def probe(ce, cn, noise_std, seed, episode, counter):
         return ce, cn
     return (ce + noise_std * normal(seed, episode, PURPOSE_PROBE, counter),
             cn + noise_std * normal(seed, episode, PURPOSE_PROBE, counter + 1))
+
+
+@hot_kernel(inline="always")
+def sensed_current(method, ce, cn, noise_std, seed, episode, counter):
+    """The current a method knows at its agent: the heuristic's noisy :func:`probe`, the
+    oracle's exact ``(ce, cn)``."""
+    if method == HEURISTIC:
+        return probe(ce, cn, noise_std, seed, episode, counter)
+    return ce, cn
 
 
 @hot_kernel(inline="always")
@@ -340,6 +349,41 @@ def los_carrot(px, pz, ax_, az_, bx, bz, look):
     if c < 0.0:
         c = 0.0
     return ax_ + c * ux, az_ + c * uz, s, L
+
+
+@hot_kernel(inline="always")
+def waypoint_carrot(wps, widx, wcount, e, i, px, pz, look, tol):
+    """Follow agent ``i``'s waypoint list (AS and PI lawnmowers), in the horizontal plane.
+
+    ``wps[e, i, :wcount[e, i]]`` are (x, z) waypoints and ``widx[e, i]`` the current one:
+    0 = transit to the first (reached within ``2 tol``), then each leg w-1 -> w is followed
+    with a line-of-sight carrot ``look`` m ahead (:func:`los_carrot`), advancing when the
+    along-track end is within ``tol``; past the last waypoint the agent holds there.
+    ``widx`` is updated in place. Returns ``(gx, gz, w)``: the carrot and the waypoint index
+    this step used (before a transit arrival is counted).
+    """
+    w = widx[e, i]
+    nw = wcount[e, i]
+    gx = 0.0
+    gz = 0.0
+    if w >= 1 and w < nw:
+        gx, gz, along, L = los_carrot(px, pz, wps[e, i, w - 1, 0], wps[e, i, w - 1, 1],
+                                      wps[e, i, w, 0], wps[e, i, w, 1], look)
+        if along >= L - tol:
+            w += 1
+            widx[e, i] = w
+            if w < nw:
+                gx, gz, along, L = los_carrot(px, pz, wps[e, i, w - 1, 0], wps[e, i, w - 1, 1],
+                                              wps[e, i, w, 0], wps[e, i, w, 1], look)
+    if w >= nw:  # done: hold at the last waypoint
+        gx = wps[e, i, nw - 1, 0]
+        gz = wps[e, i, nw - 1, 1]
+    elif w == 0:  # transit to the first leg's start
+        gx = wps[e, i, 0, 0]
+        gz = wps[e, i, 0, 1]
+        if (px - gx) ** 2 + (pz - gz) ** 2 <= 4.0 * tol * tol:
+            widx[e, i] = 1
+    return gx, gz, w
 
 
 def fresh_cache(kernel, module_file: str, *deps) -> bool:

@@ -40,8 +40,8 @@ from ..engine.dynamics import CMD_DIM, VX, VZ, model_id, new_state
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from .common import (CLEARANCE_M, CRUISE_FRAC, HEURISTIC, MIN_ALTITUDE_M, OK, STANDARD,
-                     advance_agent, current_at, episode_generators, fresh_cache, method_id, probe,
-                     sample_route, seek_max, set_velocity_cmd, start_times)
+                     advance_agent, current_at, episode_generators, fresh_cache, method_id,
+                     sample_route, seek_max, sensed_current, set_velocity_cmd, start_times)
 
 TASK_ID = "DPT"
 METRICS = ("depth_error_m", "waypoints_reached", "max_depth_error_m", "cross_track_error_m")
@@ -158,11 +158,7 @@ def _episode(grid, vp, ipar, fpar, route, t0, state, cmd, res, e):
         py = s[1]
         pz = s[2]
         ce, cn = current_at(grid, px, py, pz, t)
-        if method == HEURISTIC:
-            pe, pn = probe(ce, cn, noise, seed, e, 2 * k)
-        else:
-            pe = ce
-            pn = cn
+        pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * k)
         a0x = route[e, wp - 1, 0]
         a0y = route[e, wp - 1, 1]
         a0z = route[e, wp - 1, 2]
@@ -237,5 +233,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     out["waypoints_reached"] = out["waypoints_reached"].astype(np.int64)
     return out
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer changes.
+# numba keys a cache entry on this file only; drop it when the engine or the task layer
+# changes.
 fresh_cache(_kernel, __file__)

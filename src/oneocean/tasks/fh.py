@@ -62,8 +62,8 @@ from ..models import fish as _fish
 from ..models.fish import (fish_params, fraction_inside_circle, init_school, school_centroid,
                            school_spread, step_school)
 from .common import (HEURISTIC, OK, PURPOSE_TASK_NOISE, STANDARD, advance_agent, current_at,
-                     episode_generators, fresh_cache, method_id, path_clear, probe, sample_route,
-                     seek, seek_max, set_velocity_cmd, start_times)
+                     episode_generators, fresh_cache, method_id, path_clear, sample_route, seek,
+                     seek_max, sensed_current, set_velocity_cmd, start_times)
 
 TASK_ID = "FH"
 METRICS = ("containment_success", "final_centroid_distance_m", "fraction_inside",
@@ -406,11 +406,7 @@ def _episode(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, k
             ce, cn = current_at(grid, px, py, pz, t)
             CU[i, 0] = ce
             CU[i, 1] = cn
-            if method == HEURISTIC:
-                pe, pn = probe(ce, cn, noise, seed, e, 2 * (k * n + i))
-            else:
-                pe = ce
-                pn = cn
+            pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * (k * n + i))
             delta = -0.5 * arc + arc * r / (n - 1)
             # go around the school: at most 45 degrees of arc toward the slot per waypoint
             ang_i = KY[i]
@@ -537,5 +533,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
 
 
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer or the model changes.
+# numba keys a cache entry on this file only; drop it when the engine, the task layer or
+# the model changes.
 fresh_cache(_kernel, __file__, _fish.__file__)

@@ -42,8 +42,8 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
                      STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
-                     method_id, path_clear, probe, sample_route, set_velocity_cmd, start_times,
-                     steer)
+                     method_id, path_clear, sample_route, sensed_current, set_velocity_cmd,
+                     start_times, steer)
 
 TASK_ID = "FT"
 METRICS = ("formation_error_m", "max_slot_error_m", "final_centroid_error_m")
@@ -226,11 +226,7 @@ def _episode(grid, vp, ipar, fpar, offsets, start, goal, t0, state, cmd, res, e)
             py = s[1]
             pz = s[2]
             ce, cn = current_at(grid, px, py, pz, t)
-            if method == HEURISTIC:
-                pe, pn = probe(ce, cn, noise, seed, e, 2 * (k * n + i))
-            else:
-                pe = ce
-                pn = cn
+            pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * (k * n + i))
             qx = kp * (vcx + offsets[e, i, 0] - px)
             qy = kp * (vcy + offsets[e, i, 1] - py)
             qz = kp * (vcz + offsets[e, i, 2] - pz)
@@ -325,5 +321,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     out["violations"] = out["violations"].astype(np.int64)
     return out
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer changes.
+# numba keys a cache entry on this file only; drop it when the engine or the task layer
+# changes.
 fresh_cache(_kernel, __file__)

@@ -224,5 +224,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
 
 
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer changes.
+# numba keys a cache entry on this file only; drop it when the engine or the task layer
+# changes.
 fresh_cache(_kernel, __file__)

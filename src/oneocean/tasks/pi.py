@@ -67,8 +67,8 @@ from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
 from ..models import pollution as pol
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     fresh_cache, los_carrot, method_id, probe, seek_max, set_velocity_cmd,
-                     start_times)
+                     fresh_cache, method_id, seek_max, sensed_current, set_velocity_cmd,
+                     start_times, waypoint_carrot)
 
 TASK_ID = "PI"
 METRICS = ("inspection_score", "localisation_error_m", "detection_rate")
@@ -498,34 +498,10 @@ def _episode(grid, vp, ipar, fpar, wps, wcount, leaks, leak_loc, rate, frame, t0
             py = s[1]
             pz = s[2]
             ce, cn = current_at(grid, px, py, pz, t)
-            if method == HEURISTIC:
-                fe, fn = probe(ce, cn, noise, seed, e, 2 * (k * n_ag + i))
-                budget = speed
-            else:
-                fe = ce
-                fn = cn
-                budget = v_max
-            w = widx[e, i]
-            nw = wcount[e, i]
-            if w >= 1 and w < nw:
-                gx, gz, along, L = los_carrot(px, pz, wps[e, i, w - 1, 0], wps[e, i, w - 1, 1],
-                                              wps[e, i, w, 0], wps[e, i, w, 1], look)
-                if along >= L - WP_TOL_M:
-                    w += 1
-                    widx[e, i] = w
-                    if w < nw:
-                        gx, gz, along, L = los_carrot(px, pz, wps[e, i, w - 1, 0],
-                                                      wps[e, i, w - 1, 1], wps[e, i, w, 0],
-                                                      wps[e, i, w, 1], look)
-            if w >= nw:
-                gx = wps[e, i, nw - 1, 0]
-                gz = wps[e, i, nw - 1, 1]
-            elif w == 0:
-                gx = wps[e, i, 0, 0]
-                gz = wps[e, i, 0, 1]
-                if (px - gx) ** 2 + (pz - gz) ** 2 <= 4.0 * WP_TOL_M * WP_TOL_M:
-                    widx[e, i] = 1
-            if w < nw:
+            fe, fn = sensed_current(method, ce, cn, noise, seed, e, 2 * (k * n_ag + i))
+            budget = speed if method == HEURISTIC else v_max
+            gx, gz, w = waypoint_carrot(wps, widx, wcount, e, i, px, pz, look, WP_TOL_M)
+            if w < wcount[e, i]:
                 active += 1
             gy = -sample_elevation(grid, gx, gz) - alt_c
             if gy < MIN_DEPTH_M:
@@ -728,5 +704,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     out["violations"] = out["violations"].astype(np.int64)
     return out
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer or the model changes.
+# numba keys a cache entry on this file only; drop it when the engine, the task layer or
+# the model changes.
 fresh_cache(_kernel, __file__, pol.__file__)

@@ -34,7 +34,8 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
                      STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
-                     method_id, probe, sample_route, seek_max, set_velocity_cmd, start_times)
+                     method_id, sample_route, seek_max, sensed_current, set_velocity_cmd,
+                     start_times)
 
 TASK_ID = "RF"
 METRICS = ("cross_track_error_m", "waypoints_reached", "max_cross_track_m")
@@ -143,11 +144,7 @@ def _episode(grid, vp, ipar, fpar, route, t0, state, cmd, res, e):
         py = s[1]
         pz = s[2]
         ce, cn = current_at(grid, px, py, pz, t)
-        if method == HEURISTIC:
-            pe, pn = probe(ce, cn, noise, seed, e, 2 * k)
-        else:
-            pe = ce
-            pn = cn
+        pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * k)
         a0 = route[e, wp - 1]
         b0 = route[e, wp]
         al, _, tx, ty, tz, ln = leg_geometry(a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
@@ -219,5 +216,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     out["waypoints_reached"] = out["waypoints_reached"].astype(np.int64)
     return out
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer changes.
+# numba keys a cache entry on this file only; drop it when the engine or the task layer
+# changes.
 fresh_cache(_kernel, __file__)

@@ -35,7 +35,7 @@ from ..engine.grid import sample_currents
 from ..errors import ConfigError
 from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
                      STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
-                     method_id, probe, sample_route, seek_max, start_times)
+                     method_id, sample_route, seek_max, sensed_current, start_times)
 
 TASK_ID = "SK"
 METRICS = ("rms_error_m", "heading_rms_deg", "max_error_m", "hold_s")
@@ -127,11 +127,7 @@ def _episode(grid, vp, ipar, fpar, station, heading, t0, state, cmd, res, e):
         py = s[1]
         pz = s[2]
         ce, cn = current_at(grid, px, py, pz, t)
-        if method == HEURISTIC:
-            pe, pn = probe(ce, cn, noise, seed, e, 2 * k)
-        else:
-            pe = ce
-            pn = cn
+        pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * k)
         ax, ay, az = seek_max(px, py, pz, gx, gy, gz, budget, kp, pe, pn)
         c[0] = ax
         c[1] = ay
@@ -202,5 +198,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     out["violations"] = out["violations"].astype(np.int64)
     return out
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer changes.
+# numba keys a cache entry on this file only; drop it when the engine or the task layer
+# changes.
 fresh_cache(_kernel, __file__)

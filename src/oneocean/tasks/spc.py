@@ -70,8 +70,8 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from ..models import pollution as pol
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     fresh_cache, method_id, path_clear, probe, set_velocity_cmd, start_times,
-                     steer)
+                     fresh_cache, method_id, path_clear, sensed_current, set_velocity_cmd,
+                     start_times, steer)
 
 TASK_ID = "SPC"
 METRICS = ("cleanup_rate", "escaped_fraction", "remaining_fraction", "time_to_target_s")
@@ -406,11 +406,7 @@ def _episode(grid, vp, ipar, fpar, dparams, t0, origin, report, C, land, uf, vf,
             py = s[1]
             pz = s[2]
             ce, cn = current_at(grid, px, py, pz, t)
-            if method == HEURISTIC:
-                pe, pn = probe(ce, cn, noise, seed, e, 2 * (k * n_ag + i))
-            else:
-                pe = ce
-                pn = cn
+            pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * (k * n_ag + i))
             # through-water velocity toward the (drifting) target
             wx = kp * (tgt[e, i, 0] + pe * age - px)
             wz = kp * (tgt[e, i, 1] + pn * age - pz)
@@ -525,5 +521,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
 
 
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer or the model changes.
+# numba keys a cache entry on this file only; drop it when the engine, the task layer or
+# the model changes.
 fresh_cache(_kernel, __file__, pol.__file__)

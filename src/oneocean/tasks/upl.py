@@ -67,8 +67,8 @@ from ..engine.constraints import (DEFAULT_LAND_THRESHOLD, check_move, feasibilit
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     fresh_cache, method_id, path_clear, probe, seek, seek_max, set_velocity_cmd,
-                     start_times)
+                     fresh_cache, method_id, path_clear, seek, seek_max, sensed_current,
+                     set_velocity_cmd, start_times)
 
 TASK_ID = "UPL"
 METRICS = ("lift_success", "final_object_depth_m", "attach_time_s", "object_drift_m")
@@ -387,11 +387,7 @@ def _episode(grid, vp, ipar, fpar, obj0, slot_off, t0, state, cmd, prev, cur, at
             ce, cn = current_at(grid, px, py, pz, t)
             CU[i, 0] = ce
             CU[i, 1] = cn
-            if method == HEURISTIC:
-                pe, pn = probe(ce, cn, noise, seed, e, 2 * (k * n + i))
-            else:
-                pe = ce
-                pn = cn
+            pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * (k * n + i))
             j = A[i]
             if j < 0:
                 j = TG[i]
@@ -601,5 +597,6 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
 
 
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer changes.
+# numba keys a cache entry on this file only; drop it when the engine or the task layer
+# changes.
 fresh_cache(_kernel, __file__)
