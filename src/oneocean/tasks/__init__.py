@@ -15,7 +15,8 @@ import pandas as pd
 
 from ..errors import ConfigError
 from ..vocab import TASK_IDS, validate_choice
-from .common import STANDARD, load_task_table, method_id, tier_params
+from .common import (ACT_FIELDS, OBS_FIELDS, STANDARD, load_task_table, method_id,  # noqa: F401
+                     tier_params)
 
 #: Task id -> module name inside this package.
 MODULES = {"G2G": "g2g", "SK": "sk", "RF": "rf", "DPT": "dpt", "AS": "as_", "PI": "pi",
@@ -41,7 +42,7 @@ def n_agents_for(task_id: str, n_agents: int | None) -> int:
 
 def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: int = 50,
              seed: int = 0, dynamics: str = "6dof", currents: bool = True,
-             n_agents: int | None = None, vehicle=None) -> pd.DataFrame:
+             n_agents: int | None = None, vehicle=None, observations: bool = False):
     """Run ``episodes`` episodes of one (task, tier, method) cell, batched in one kernel call.
 
     Parameters
@@ -50,10 +51,16 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
         A loaded grid export (:func:`oneocean.engine.load_grid`); the tier's ``current_gain``
         is applied here (``currents=False`` sets it to 0 and drops tides in the rollout: the
         ablation; ``reset`` always sees the tier's forcing, so both replay the same episodes).
+    observations : bool
+        Also return every agent's per-step observation and action (for learning methods).
+
     Returns
     -------
     DataFrame, one row per episode: ``episode, seed, success, T_s, E, coll_ratio,
-    violations, primary`` and the task's metric columns.
+    violations, primary`` and the task's metric columns. With ``observations=True`` a tuple
+    ``(df, obs, act)``: ``obs`` (E, n_steps, N, len(OBS_FIELDS)) and ``act``
+    (E, n_steps, N, 3) float64 (:data:`oneocean.tasks.common.OBS_FIELDS`, ``ACT_FIELDS``),
+    NaN after an episode ended.
     """
     from ..engine import load_vehicle
     from ..engine.grid import with_forcing
@@ -70,7 +77,7 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     veh = vehicle if vehicle is not None else load_vehicle()
     params = {**params, "dt_s": float(table["dt_s"])}
     init = mod.reset(g_reset, params, n, int(episodes), int(seed))
-    res = mod.rollout(g, params, init, method, dynamics, veh, int(seed))
+    res = mod.rollout(g, params, init, method, dynamics, veh, int(seed), record=observations)
     missing = [k for k in STANDARD + tuple(mod.METRICS) if k not in res]
     if missing:
         raise RuntimeError(f"task {task}: rollout did not return {missing}")
@@ -86,6 +93,8 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
         df[k] = res[k]
     df.attrs.update(task=task, tier=int(tier), method=method, n_agents=n, dynamics=dynamics,
                     currents=bool(currents), primary=mod.METRICS[0])
+    if observations:
+        return df, res["obs"], res["act"]
     return df
 
 

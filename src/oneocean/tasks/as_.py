@@ -57,8 +57,8 @@ from ..engine.constraints import DEFAULT_LAND_THRESHOLD, min_pairwise_distance, 
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     fresh_cache, method_id, seek_max, sensed_current, set_velocity_cmd,
-                     start_times, waypoint_carrot)
+                     fresh_cache, method_id, obs_buffers, observe, seek_max, sensed_current,
+                     set_velocity_cmd, start_times, waypoint_carrot)
 
 TASK_ID = "AS"
 METRICS = ("coverage_fraction", "footprint_loss_frac", "mean_altitude_m")
@@ -356,7 +356,7 @@ def _mark(cov, e, x, z, r, x_lo, z_lo, cell, ncx, ncz):
 
 @hot_kernel
 def _episode(grid, vp, ipar, fpar, region, ncell, wps, wcount, t0, state, cmd, widx, cov,
-             res, e):
+             obs, act, res, e):
     """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``)."""
     model = ipar[_I_MODEL]
     method = ipar[_I_METHOD]
@@ -416,6 +416,7 @@ def _episode(grid, vp, ipar, fpar, region, ncell, wps, wcount, t0, state, cmd, w
                 rx, rz = _repulsion(state, e, i, n_ag)
                 ax += rx
                 az += rz
+            observe(obs, act, e, k, i, grid, state, gx, gy, gz, fe, fn, math.nan, ax, ay, az)
             set_velocity_cmd(c, ax, ay, az)
             en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr,
                                      clearance)
@@ -447,14 +448,15 @@ def _episode(grid, vp, ipar, fpar, region, ncell, wps, wcount, t0, state, cmd, w
 
 
 @njit(parallel=True, cache=True)
-def _kernel(grid, vp, ipar, fpar, region, ncell, wps, wcount, t0, state, cmd, widx, cov, res):
+def _kernel(grid, vp, ipar, fpar, region, ncell, wps, wcount, t0, state, cmd, widx, cov, obs,
+            act, res):
     for e in prange(res.shape[0]):
         _episode(grid, vp, ipar, fpar, region, ncell, wps, wcount, t0, state, cmd, widx, cov,
-                 res, e)
+                 obs, act, res, e)
 
 
 def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
-            seed: int) -> dict:
+            seed: int, *, record: bool = False) -> dict:
     """Run every episode of ``init`` (from :func:`reset`) with one method.
 
     Parameters
@@ -521,11 +523,15 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     widx = np.zeros((n_ep, n_ag), dtype=np.int64)
     cov = np.zeros((n_ep, int((ncell[:, 0] * ncell[:, 1]).max())), dtype=np.uint8)
     res = np.zeros((n_ep, len(COLUMNS)))
+    obs, act = obs_buffers(tier, init, record)
     _kernel(grid, vehicle.params, ipar, fpar, region, ncell, wps, wcount,
-            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, widx, cov, res)
+            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, widx, cov, obs, act,
+            res)
     out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
     out["success"] = out["success"] > 0.5
     out["violations"] = out["violations"].astype(np.int64)
+    if record:
+        out["obs"], out["act"] = obs, act
     return out
 
 

@@ -17,7 +17,7 @@ import yaml
 from ..engine import status as st
 from ..engine._jit import hot_kernel
 from ..engine.rollout import advance_agent  # noqa: F401  (re-exported: every task kernel's step)
-from ..engine.grid import Grid, sample_current_data, synthetic_tide
+from ..engine.grid import Grid, sample_current_data, sample_elevation, synthetic_tide
 from ..engine.rng import PURPOSE_TASK, normal
 from ..errors import ConfigError
 from ..vocab import validate_choice
@@ -33,6 +33,21 @@ PURPOSE_TASK_NOISE = PURPOSE_TASK + 3
 
 #: Columns every task returns for every episode (then its own METRICS).
 STANDARD = ("success", "T_s", "E", "coll_ratio", "violations")
+
+#: Per-agent observation of every task, one row per (episode, step, agent) (:func:`observe`):
+#: the relative goal cue (the method's current target point: goal, route carrot, slot, ...),
+#: the current the method senses there (the heuristic's noisy probe), depth and altitude
+#: above the seafloor, the pollution probe (SPC: surface concentration kg m-2; PI: the
+#: sensor reading; NaN where the task has no field), and the N_MATES nearest teammates'
+#: horizontal offsets (NaN when there are fewer teammates). World frame, metres, m s-1.
+N_MATES = 3
+OBS_FIELDS = (("goal_dx_m", "goal_dy_m", "goal_dz_m", "current_e_ms", "current_n_ms",
+               "depth_m", "altitude_m", "pollution")
+              + tuple(f"mate{m + 1}_{c}_m" for m in range(N_MATES) for c in ("dx", "dz")))
+OBS_DIM = len(OBS_FIELDS)
+#: The recorded action: the method's through-water velocity request (world m s-1), before
+#: the engine clips it to v_max.
+ACT_FIELDS = ("ax_ms", "ay_ms", "az_ms")
 
 #: Status code of :func:`advance_agent` (re-exported for kernels).
 OK = st.OK
@@ -398,3 +413,61 @@ def fresh_cache(kernel, module_file: str, *deps) -> bool:
     here = Path(module_file).resolve()
     return ensure_fresh_cache(kernel, (here.stem + ".",), here, Path(__file__).resolve(),
                               *(Path(d).resolve() for d in deps))
+
+
+
+def obs_buffers(tier: dict, init: dict, record: bool):
+    """Observation and action buffers of a rollout: ``(E, n_steps, N, OBS_DIM)`` and
+    ``(E, n_steps, N, 3)`` filled with NaN (steps after an episode ends stay NaN) when
+    ``record``, else zero-length step axes (then :func:`observe` does nothing)."""
+    n_ep, n_ag = init["pos0"].shape[:2]
+    steps = int(math.ceil(float(tier["time_limit_s"]) / float(tier["dt_s"]) - 1e-9)) if record \
+        else 0
+    return (np.full((n_ep, steps, n_ag, OBS_DIM), np.nan),
+            np.full((n_ep, steps, n_ag, len(ACT_FIELDS)), np.nan))
+
+@hot_kernel(inline="always")
+def observe(obs, act, e, k, i, grid, state, gx, gy, gz, pe, pn, pollution, ax, ay, az):
+    """Record agent ``i``'s observation (``OBS_FIELDS``) and action (``ACT_FIELDS``) at step
+    ``k`` of episode ``e``, from its pre-step state; a no-op when ``k >= obs.shape[1]`` (the
+    rollout allocates a zero-length step axis unless observations are requested)."""
+    if k >= obs.shape[1]:
+        return
+    o = obs[e, k, i]
+    px = state[e, i, 0]
+    py = state[e, i, 1]
+    pz = state[e, i, 2]
+    o[0] = gx - px
+    o[1] = gy - py
+    o[2] = gz - pz
+    o[3] = pe
+    o[4] = pn
+    o[5] = py
+    o[6] = -sample_elevation(grid, px, pz) - py
+    o[7] = pollution
+    n_ag = state.shape[1]
+    d_prev = -1.0
+    j_prev = -1
+    for m in range(N_MATES):
+        best = -1
+        d_best = math.inf
+        for j in range(n_ag):
+            if j == i:
+                continue
+            d = (state[e, j, 0] - px) ** 2 + (state[e, j, 2] - pz) ** 2
+            # strictly after the previous pick in (distance, index) order
+            if (d > d_prev or (d == d_prev and j > j_prev)) and d < d_best:
+                best = j
+                d_best = d
+        if best < 0:
+            o[8 + 2 * m] = math.nan
+            o[9 + 2 * m] = math.nan
+        else:
+            o[8 + 2 * m] = state[e, best, 0] - px
+            o[9 + 2 * m] = state[e, best, 2] - pz
+            d_prev = d_best
+            j_prev = best
+    a = act[e, k, i]
+    a[0] = ax
+    a[1] = ay
+    a[2] = az

@@ -62,8 +62,8 @@ from ..models import fish as _fish
 from ..models.fish import (fish_params, fraction_inside_circle, init_school, school_centroid,
                            school_spread, step_school)
 from .common import (HEURISTIC, OK, PURPOSE_TASK_NOISE, STANDARD, advance_agent, current_at,
-                     episode_generators, fresh_cache, method_id, path_clear, sample_route, seek,
-                     seek_max, sensed_current, set_velocity_cmd, start_times)
+                     episode_generators, fresh_cache, method_id, obs_buffers, observe, path_clear,
+                     sample_route, seek, seek_max, sensed_current, set_velocity_cmd, start_times)
 
 TASK_ID = "FH"
 METRICS = ("containment_success", "final_centroid_distance_m", "fraction_inside",
@@ -262,7 +262,7 @@ def _fish_step(grid, fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, t, dt, land
 
 @hot_kernel
 def _episode(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, keys, fa, fb,
-             fc, res, e):
+             fc, obs, act, res, e):
     """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``).
 
     Work arrays (indexed ``[e]``): ``state`` (E, 8, STATE_DIM) initial states; ``cmd``
@@ -424,6 +424,8 @@ def _episode(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, k
             else:
                 ax, ay, az = seek_max(px, py, pz, gx, FISH_DEPTH_M, gz, speed, kp, pe - vcx,
                                       pn - vcz)
+            observe(obs, act, e, k, i, grid, state, gx, FISH_DEPTH_M, gz, pe, pn, math.nan, ax, ay,
+                    az)
             set_velocity_cmd(C[i], ax, ay, az)
         for i in range(n):
             AX[i] = S[i, 0]
@@ -467,14 +469,14 @@ def _episode(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, k
 
 @njit(parallel=True, cache=True)
 def _kernel(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, keys, fa, fb, fc,
-            res):
+            obs, act, res):
     for e in prange(res.shape[0]):
         _episode(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, keys, fa,
-                 fb, fc, res, e)
+                 fb, fc, obs, act, res, e)
 
 
 def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
-            seed: int) -> dict:
+            seed: int, *, record: bool = False) -> dict:
     """Run every episode of ``init`` (from :func:`reset`) with one method.
 
     Parameters
@@ -523,12 +525,15 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     fb = np.zeros((n_ep, 4, n_fish))
     fc = np.zeros((n_ep, 2, n_fish))
     res = np.zeros((n_ep, len(COLUMNS)))
+    obs, act = obs_buffers(tier, init, record)
     _kernel(grid, vehicle.params, ipar, fpar, fish_params(), np.ascontiguousarray(init["zone"]),
             np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, cur, apos, order,
-            keys, fa, fb, fc, res)
+            keys, fa, fb, fc, obs, act, res)
     out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
     out["success"] = out["success"] > 0.5
     out["violations"] = out["violations"].astype(np.int64)
+    if record:
+        out["obs"], out["act"] = obs, act
     return out
 
 

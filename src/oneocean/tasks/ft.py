@@ -42,8 +42,8 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
                      STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
-                     method_id, path_clear, sample_route, sensed_current, set_velocity_cmd,
-                     start_times, steer)
+                     method_id, obs_buffers, observe, path_clear, sample_route, sensed_current,
+                     set_velocity_cmd, start_times, steer)
 
 TASK_ID = "FT"
 METRICS = ("formation_error_m", "max_slot_error_m", "final_centroid_error_m")
@@ -153,7 +153,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
 
 @hot_kernel
-def _episode(grid, vp, ipar, fpar, offsets, start, goal, t0, state, cmd, res, e):
+def _episode(grid, vp, ipar, fpar, offsets, start, goal, t0, state, cmd, obs, act, res, e):
     """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``)."""
     model = ipar[_I_MODEL]
     method = ipar[_I_METHOD]
@@ -237,6 +237,8 @@ def _episode(grid, vp, ipar, fpar, offsets, start, goal, t0, state, cmd, res, e)
                 qy *= f
                 qz *= f
             ax, ay, az = steer(fx + qx, fy + qy, fz + qz, budget, pe, pn)
+            observe(obs, act, e, k, i, grid, state, vcx + offsets[e, i, 0], vcy + offsets[e, i, 1],
+                    vcz + offsets[e, i, 2], pe, pn, math.nan, ax, ay, az)
             set_velocity_cmd(c, ax, ay, az)
             en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr,
                                      clearance)
@@ -290,12 +292,13 @@ def _episode(grid, vp, ipar, fpar, offsets, start, goal, t0, state, cmd, res, e)
 
 
 @njit(parallel=True, cache=True)
-def _kernel(grid, vp, ipar, fpar, offsets, start, goal, t0, state, cmd, res):
+def _kernel(grid, vp, ipar, fpar, offsets, start, goal, t0, state, cmd, obs, act, res):
     for e in prange(res.shape[0]):
-        _episode(grid, vp, ipar, fpar, offsets, start, goal, t0, state, cmd, res, e)
+        _episode(grid, vp, ipar, fpar, offsets, start, goal, t0, state, cmd, obs, act, res, e)
 
 
-def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int) -> dict:
+def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int, *,
+            record: bool = False) -> dict:
     """Run every episode of ``init`` (from :func:`reset`); see :func:`.g2g.rollout`."""
     _need(tier, "time_limit_s", "goal_radius_m", "slot_tol_m", "max_error_m",
           "probe_noise_ms", "dt_s")
@@ -313,12 +316,15 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     state = new_state(n_ep, n, pos0, init["psi0"])
     cmd = np.zeros((n_ep, n, CMD_DIM))
     res = np.zeros((n_ep, len(COLUMNS)))
+    obs, act = obs_buffers(tier, init, record)
     _kernel(grid, vehicle.params, ipar, fpar, np.ascontiguousarray(init["offsets"]),
             np.ascontiguousarray(init["start"]), np.ascontiguousarray(init["goal"]),
-            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, res)
+            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, obs, act, res)
     out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
     out["success"] = out["success"] > 0.5
     out["violations"] = out["violations"].astype(np.int64)
+    if record:
+        out["obs"], out["act"] = obs, act
     return out
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer

@@ -43,7 +43,8 @@ from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..errors import ConfigError
 from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
                      STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
-                     method_id, probe, sample_route, seek_max, set_velocity_cmd, start_times)
+                     method_id, obs_buffers, observe, sample_route, seek_max, sensed_current,
+                     set_velocity_cmd, start_times)
 
 TASK_ID = "G2G"
 METRICS = ("final_error_m", "min_error_m", "path_length_m")
@@ -109,7 +110,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
 
 @hot_kernel
-def _episode(grid, vp, ipar, fpar, pos0, goal, t0, state, cmd, res, e):
+def _episode(grid, vp, ipar, fpar, pos0, goal, t0, state, cmd, obs, act, res, e):
     """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``).
 
     ``state`` (E, 1, STATE_DIM) must hold the initial state; ``cmd`` (E, 1, CMD_DIM) is scratch.
@@ -145,11 +146,10 @@ def _episode(grid, vp, ipar, fpar, pos0, goal, t0, state, cmd, res, e):
         py = s[1]
         pz = s[2]
         ce, cn = current_at(grid, px, py, pz, t)
-        if method == HEURISTIC:
-            pe, pn = probe(ce, cn, noise, seed, e, 2 * k)
-            ax, ay, az = seek_max(px, py, pz, gx, gy, gz, speed, kp, pe, pn)
-        else:
-            ax, ay, az = seek_max(px, py, pz, gx, gy, gz, v_max, kp, ce, cn)
+        pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * k)
+        ax, ay, az = seek_max(px, py, pz, gx, gy, gz, speed if method == HEURISTIC else v_max, kp,
+                              pe, pn)
+        observe(obs, act, e, k, 0, grid, state, gx, gy, gz, pe, pn, math.nan, ax, ay, az)
         set_velocity_cmd(c, ax, ay, az)
         en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr, clearance)
         energy += en
@@ -174,13 +174,13 @@ def _episode(grid, vp, ipar, fpar, pos0, goal, t0, state, cmd, res, e):
 
 
 @njit(parallel=True, cache=True)
-def _kernel(grid, vp, ipar, fpar, pos0, goal, t0, state, cmd, res):
+def _kernel(grid, vp, ipar, fpar, pos0, goal, t0, state, cmd, obs, act, res):
     for e in prange(res.shape[0]):
-        _episode(grid, vp, ipar, fpar, pos0, goal, t0, state, cmd, res, e)
+        _episode(grid, vp, ipar, fpar, pos0, goal, t0, state, cmd, obs, act, res, e)
 
 
 def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
-            seed: int) -> dict:
+            seed: int, *, record: bool = False) -> dict:
     """Run every episode of ``init`` (from :func:`reset`) with one method.
 
     Parameters
@@ -215,11 +215,14 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
     state = new_state(n_ep, 1, init["pos0"], init["psi0"])
     cmd = np.zeros((n_ep, 1, CMD_DIM))
     res = np.zeros((n_ep, len(COLUMNS)))
+    obs, act = obs_buffers(tier, init, record)
     _kernel(grid, vehicle.params, ipar, fpar, init["pos0"], np.ascontiguousarray(init["goal"]),
-            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, res)
+            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, obs, act, res)
     out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
     out["success"] = out["success"] > 0.5
     out["violations"] = out["violations"].astype(np.int64)
+    if record:
+        out["obs"], out["act"] = obs, act
     return out
 
 

@@ -67,8 +67,8 @@ from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
 from ..models import pollution as pol
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     fresh_cache, method_id, seek_max, sensed_current, set_velocity_cmd,
-                     start_times, waypoint_carrot)
+                     fresh_cache, method_id, obs_buffers, observe, seek_max, sensed_current,
+                     set_velocity_cmd, start_times, waypoint_carrot)
 
 TASK_ID = "PI"
 METRICS = ("inspection_score", "localisation_error_m", "detection_rate")
@@ -423,7 +423,7 @@ def _onset_estimate(reads, nread, peak, est, e, q):
 
 @hot_kernel
 def _episode(grid, vp, ipar, fpar, wps, wcount, leaks, leak_loc, rate, frame, t0, state, cmd,
-             widx, C, params, uf, vf, land, work, peak, nread, reads, org, est, res, e):
+             widx, C, params, uf, vf, land, work, peak, nread, reads, org, est, obs, act, res, e):
     """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``).
 
     Scratch per leak: ``peak`` (E, n_leaks) largest reading >= threshold near it (-1: none);
@@ -507,6 +507,12 @@ def _episode(grid, vp, ipar, fpar, wps, wcount, leaks, leak_loc, rate, frame, t0
             if gy < MIN_DEPTH_M:
                 gy = MIN_DEPTH_M
             ax, ay, az = seek_max(px, py, pz, gx, gy, gz, budget, kp, fe, fn)
+            if k < obs.shape[1]:  # the sensor reading here, before the move
+                a0 = max(-sample_elevation(grid, px, pz) - py, 0.0)
+                l0s, l0n = _to_local(px, pz, ox, oz, ca, sa)
+                r0 = (pol.probe(C[e], 0, l0s, l0n, s0, n0, h) * math.exp(-a0 * inv_scale)
+                      * inv_scale)
+                observe(obs, act, e, k, i, grid, state, gx, gy, gz, fe, fn, r0, ax, ay, az)
             set_velocity_cmd(c, ax, ay, az)
             en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr,
                                      clearance)
@@ -579,10 +585,11 @@ def _episode(grid, vp, ipar, fpar, wps, wcount, leaks, leak_loc, rate, frame, t0
 
 @njit(parallel=True, cache=True)
 def _kernel(grid, vp, ipar, fpar, wps, wcount, leaks, leak_loc, rate, frame, t0, state, cmd,
-            widx, C, params, uf, vf, land, work, peak, nread, reads, org, est, res):
+            widx, C, params, uf, vf, land, work, peak, nread, reads, org, est, obs, act, res):
     for e in prange(res.shape[0]):
         _episode(grid, vp, ipar, fpar, wps, wcount, leaks, leak_loc, rate, frame, t0, state,
-                 cmd, widx, C, params, uf, vf, land, work, peak, nread, reads, org, est, res, e)
+                 cmd, widx, C, params, uf, vf, land, work, peak, nread, reads, org, est, obs, act,
+                 res, e)
 
 
 def _field_land(grid, frame_e, nx, nz, h) -> np.ndarray:
@@ -605,7 +612,7 @@ def _field_land(grid, frame_e, nx, nz, h) -> np.ndarray:
 
 
 def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
-            seed: int, *, scratch: dict | None = None) -> dict:
+            seed: int, *, scratch: dict | None = None, record: bool = False) -> dict:
     """Run every episode of ``init`` (from :func:`reset`) with one method.
 
     Parameters
@@ -692,16 +699,19 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     org = np.zeros((n_ep, n_leak, 2))
     est = np.zeros((n_ep, n_leak, 2))
     res = np.zeros((n_ep, len(COLUMNS)))
+    obs, act = obs_buffers(tier, init, record)
     _kernel(grid, vehicle.params, ipar, fpar, wps, wcount, leaks, leak_loc,
             np.ascontiguousarray(init["leak_rate"], dtype=np.float64), frame,
             np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, widx, C,
-            params, uf, vf, land, work, peak, nread, reads, org, est, res)
+            params, uf, vf, land, work, peak, nread, reads, org, est, obs, act, res)
     if scratch is not None:  # diagnostics: final field, per-leak peaks and estimates, states
         scratch.update(C=C, peak=peak, est=est, nread=nread, reads=reads, state=state,
                        frame=frame, leak_loc=leak_loc)
     out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
     out["success"] = out["success"] > 0.5
     out["violations"] = out["violations"].astype(np.int64)
+    if record:
+        out["obs"], out["act"] = obs, act
     return out
 
 # numba keys a cache entry on this file only; drop it when the engine, the task layer or

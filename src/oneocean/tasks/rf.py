@@ -34,8 +34,8 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
                      STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
-                     method_id, sample_route, seek_max, sensed_current, set_velocity_cmd,
-                     start_times)
+                     method_id, obs_buffers, observe, sample_route, seek_max, sensed_current,
+                     set_velocity_cmd, start_times)
 
 TASK_ID = "RF"
 METRICS = ("cross_track_error_m", "waypoints_reached", "max_cross_track_m")
@@ -113,7 +113,7 @@ def leg_geometry(ax_, ay_, az_, bx, by, bz, px, py, pz):
 
 
 @hot_kernel
-def _episode(grid, vp, ipar, fpar, route, t0, state, cmd, res, e):
+def _episode(grid, vp, ipar, fpar, route, t0, state, cmd, obs, act, res, e):
     """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``)."""
     model = ipar[_I_MODEL]
     method = ipar[_I_METHOD]
@@ -154,6 +154,7 @@ def _episode(grid, vp, ipar, fpar, route, t0, state, cmd, res, e):
         ly = a0[1] + sl * ty
         lz = a0[2] + sl * tz
         ax, ay, az = seek_max(px, py, pz, lx, ly, lz, budget, kp, pe, pn)
+        observe(obs, act, e, k, 0, grid, state, lx, ly, lz, pe, pn, math.nan, ax, ay, az)
         set_velocity_cmd(c, ax, ay, az)
         en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr, clearance)
         energy += en
@@ -187,12 +188,13 @@ def _episode(grid, vp, ipar, fpar, route, t0, state, cmd, res, e):
 
 
 @njit(parallel=True, cache=True)
-def _kernel(grid, vp, ipar, fpar, route, t0, state, cmd, res):
+def _kernel(grid, vp, ipar, fpar, route, t0, state, cmd, obs, act, res):
     for e in prange(res.shape[0]):
-        _episode(grid, vp, ipar, fpar, route, t0, state, cmd, res, e)
+        _episode(grid, vp, ipar, fpar, route, t0, state, cmd, obs, act, res, e)
 
 
-def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int) -> dict:
+def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int, *,
+            record: bool = False) -> dict:
     """Run every episode of ``init`` (from :func:`reset`); see :func:`.g2g.rollout`."""
     _need(tier, "time_limit_s", "wp_radius_m", "xte_max_m", "probe_noise_ms", "dt_s")
     dt = float(tier["dt_s"])
@@ -208,12 +210,15 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     state = new_state(n_ep, 1, init["pos0"], init["psi0"])
     cmd = np.zeros((n_ep, 1, CMD_DIM))
     res = np.zeros((n_ep, len(COLUMNS)))
+    obs, act = obs_buffers(tier, init, record)
     _kernel(grid, vehicle.params, ipar, fpar, route,
-            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, res)
+            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, obs, act, res)
     out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
     out["success"] = out["success"] > 0.5
     out["violations"] = out["violations"].astype(np.int64)
     out["waypoints_reached"] = out["waypoints_reached"].astype(np.int64)
+    if record:
+        out["obs"], out["act"] = obs, act
     return out
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer

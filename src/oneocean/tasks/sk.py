@@ -35,7 +35,8 @@ from ..engine.grid import sample_currents
 from ..errors import ConfigError
 from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
                      STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
-                     method_id, sample_route, seek_max, sensed_current, start_times)
+                     method_id, obs_buffers, observe, sample_route, seek_max, sensed_current,
+                     start_times)
 
 TASK_ID = "SK"
 METRICS = ("rms_error_m", "heading_rms_deg", "max_error_m", "hold_s")
@@ -91,7 +92,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
 
 @hot_kernel
-def _episode(grid, vp, ipar, fpar, station, heading, t0, state, cmd, res, e):
+def _episode(grid, vp, ipar, fpar, station, heading, t0, state, cmd, obs, act, res, e):
     """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``)."""
     model = ipar[_I_MODEL]
     method = ipar[_I_METHOD]
@@ -129,6 +130,7 @@ def _episode(grid, vp, ipar, fpar, station, heading, t0, state, cmd, res, e):
         ce, cn = current_at(grid, px, py, pz, t)
         pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * k)
         ax, ay, az = seek_max(px, py, pz, gx, gy, gz, budget, kp, pe, pn)
+        observe(obs, act, e, k, 0, grid, state, gx, gy, gz, pe, pn, math.nan, ax, ay, az)
         c[0] = ax
         c[1] = ay
         c[2] = az
@@ -166,12 +168,13 @@ def _episode(grid, vp, ipar, fpar, station, heading, t0, state, cmd, res, e):
 
 
 @njit(parallel=True, cache=True)
-def _kernel(grid, vp, ipar, fpar, station, heading, t0, state, cmd, res):
+def _kernel(grid, vp, ipar, fpar, station, heading, t0, state, cmd, obs, act, res):
     for e in prange(res.shape[0]):
-        _episode(grid, vp, ipar, fpar, station, heading, t0, state, cmd, res, e)
+        _episode(grid, vp, ipar, fpar, station, heading, t0, state, cmd, obs, act, res, e)
 
 
-def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int) -> dict:
+def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int, *,
+            record: bool = False) -> dict:
     """Run every episode of ``init`` (from :func:`reset`); see :func:`.g2g.rollout`.
 
     Returns
@@ -190,12 +193,15 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     state = new_state(n_ep, 1, init["pos0"], init["psi0"])
     cmd = np.zeros((n_ep, 1, CMD_DIM))
     res = np.zeros((n_ep, len(COLUMNS)))
+    obs, act = obs_buffers(tier, init, record)
     _kernel(grid, vehicle.params, ipar, fpar, np.ascontiguousarray(init["station"]),
             np.ascontiguousarray(init["heading"], dtype=np.float64),
-            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, res)
+            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, obs, act, res)
     out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
     out["success"] = out["success"] > 0.5
     out["violations"] = out["violations"].astype(np.int64)
+    if record:
+        out["obs"], out["act"] = obs, act
     return out
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer

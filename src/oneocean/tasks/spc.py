@@ -70,8 +70,8 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from ..models import pollution as pol
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     fresh_cache, method_id, path_clear, sensed_current, set_velocity_cmd,
-                     start_times, steer)
+                     fresh_cache, method_id, obs_buffers, observe, path_clear, sensed_current,
+                     set_velocity_cmd, start_times, steer)
 
 TASK_ID = "SPC"
 METRICS = ("cleanup_rate", "escaped_fraction", "remaining_fraction", "time_to_target_s")
@@ -344,7 +344,7 @@ def _assign(S, bm, bx, bz, cnt, tgt, done, tot):
 
 @hot_kernel
 def _episode(grid, vp, ipar, fpar, dparams, t0, origin, report, C, land, uf, vf, work, bm, bx,
-             bz, cnt, done, tgt, state, cmd, res, e):
+             bz, cnt, done, tgt, state, cmd, obs, act, res, e):
     """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``)."""
     model = ipar[_I_MODEL]
     method = ipar[_I_METHOD]
@@ -426,6 +426,10 @@ def _episode(grid, vp, ipar, fpar, dparams, t0, origin, report, C, land, uf, vf,
                         else:
                             wx += sep_gain * sep * (1.0 if i > j else -1.0)
             ax, ay, az = steer(wx + pe, kpy * (y_op - py), wz + pn, budget, pe, pn)
+            if k < obs.shape[1]:  # surface concentration under the vehicle, kg m-2
+                observe(obs, act, e, k, i, grid, state, tgt[e, i, 0] + pe * age, y_op,
+                        tgt[e, i, 1] + pn * age, pe, pn, pol.probe(Ce, 0, px, pz, x0, z0, h), ax,
+                        ay, az)
             c = cmd[e, i]
             set_velocity_cmd(c, ax, ay, az)
             en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr,
@@ -457,14 +461,14 @@ def _episode(grid, vp, ipar, fpar, dparams, t0, origin, report, C, land, uf, vf,
 
 @njit(parallel=True, cache=True)
 def _kernel(grid, vp, ipar, fpar, dparams, t0, origin, report, C, land, uf, vf, work, bm, bx,
-            bz, cnt, done, tgt, state, cmd, res):
+            bz, cnt, done, tgt, state, cmd, obs, act, res):
     for e in prange(res.shape[0]):
         _episode(grid, vp, ipar, fpar, dparams, t0, origin, report, C, land, uf, vf, work, bm,
-                 bx, bz, cnt, done, tgt, state, cmd, res, e)
+                 bx, bz, cnt, done, tgt, state, cmd, obs, act, res, e)
 
 
 def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
-            seed: int) -> dict:
+            seed: int, *, record: bool = False) -> dict:
     """Run every episode of ``init`` (from :func:`reset`) with one method.
 
     Parameters
@@ -506,6 +510,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
     state = new_state(n_ep, n_ag, init["pos0"], init["psi0"])
     cmd = np.zeros((n_ep, n_ag, CMD_DIM))
     res = np.zeros((n_ep, len(COLUMNS)))
+    obs, act = obs_buffers(tier, init, record)
     _kernel(grid, vehicle.params, ipar, fpar, np.zeros(1), np.ascontiguousarray(init["t0"],
             dtype=np.float64), np.ascontiguousarray(init["origin"], dtype=np.float64),
             np.ascontiguousarray(init["report"], dtype=np.float64), C,
@@ -513,10 +518,12 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
             np.zeros((n_ep, nz + 1, nx)), np.zeros((n_ep, pol.work_size(1, nz, nx))),
             np.zeros((n_ep, nb)), np.zeros((n_ep, nb)), np.zeros((n_ep, nb)),
             np.zeros((n_ep, nb), dtype=np.int64), np.zeros((n_ep, n_ag), dtype=np.int64),
-            np.zeros((n_ep, n_ag, 2)), state, cmd, res)
+            np.zeros((n_ep, n_ag, 2)), state, cmd, obs, act, res)
     out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
     out["success"] = out["success"] > 0.5
     out["violations"] = out["violations"].astype(np.int64)
+    if record:
+        out["obs"], out["act"] = obs, act
     return out
 
 

@@ -67,8 +67,8 @@ from ..engine.constraints import (DEFAULT_LAND_THRESHOLD, check_move, feasibilit
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     fresh_cache, method_id, path_clear, seek, seek_max, sensed_current,
-                     set_velocity_cmd, start_times)
+                     fresh_cache, method_id, obs_buffers, observe, path_clear, seek, seek_max,
+                     sensed_current, set_velocity_cmd, start_times)
 
 TASK_ID = "UPL"
 METRICS = ("lift_success", "final_object_depth_m", "attach_time_s", "object_drift_m")
@@ -281,7 +281,7 @@ def _feasible(grid, x, y, z, land_thr, clearance):
 
 @hot_kernel
 def _episode(grid, vp, ipar, fpar, obj0, slot_off, t0, state, cmd, prev, cur, att, owner,
-             dwell, dslot, target, res, e):
+             dwell, dslot, target, obs, act, res, e):
     """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``).
 
     Work arrays (all indexed ``[e]``): ``state`` (E, 5, STATE_DIM) initial states; ``cmd``
@@ -422,6 +422,7 @@ def _episode(grid, vp, ipar, fpar, obj0, slot_off, t0, state, cmd, prev, cur, at
             else:
                 ax, ay, az = seek_max(px, py, pz, gx, gy, gz, speed, kp, pe - vox, pn - voz)
                 ay += voy
+            observe(obs, act, e, k, i, grid, state, gx, gy, gz, pe, pn, math.nan, ax, ay, az)
             set_velocity_cmd(C[i], ax, ay, az)
         # ---- every agent's own step
         for i in range(n):
@@ -534,14 +535,14 @@ def _episode(grid, vp, ipar, fpar, obj0, slot_off, t0, state, cmd, prev, cur, at
 
 @njit(parallel=True, cache=True)
 def _kernel(grid, vp, ipar, fpar, obj0, slot_off, t0, state, cmd, prev, cur, att, owner, dwell,
-            dslot, target, res):
+            dslot, target, obs, act, res):
     for e in prange(res.shape[0]):
         _episode(grid, vp, ipar, fpar, obj0, slot_off, t0, state, cmd, prev, cur, att, owner,
-                 dwell, dslot, target, res, e)
+                 dwell, dslot, target, obs, act, res, e)
 
 
 def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
-            seed: int) -> dict:
+            seed: int, *, record: bool = False) -> dict:
     """Run every episode of ``init`` (from :func:`reset`) with one method.
 
     Parameters
@@ -586,13 +587,16 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     ints = [np.zeros((n_ep, n), dtype=np.int64) for _ in range(4)]
     dwell = np.zeros((n_ep, n))
     res = np.zeros((n_ep, len(COLUMNS)))
+    obs, act = obs_buffers(tier, init, record)
     _kernel(grid, vehicle.params, ipar, fpar, np.ascontiguousarray(init["obj0"]),
             np.ascontiguousarray(init["slot_off"]),
             np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, prev, cur,
-            ints[0], ints[1], dwell, ints[2], ints[3], res)
+            ints[0], ints[1], dwell, ints[2], ints[3], obs, act, res)
     out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
     out["success"] = out["success"] > 0.5
     out["violations"] = out["violations"].astype(np.int64)
+    if record:
+        out["obs"], out["act"] = obs, act
     return out
 
 

@@ -1,0 +1,88 @@
+"""Per-agent observations and actions of every task (``run_cell(..., observations=True)``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from oneocean import engine as E
+from oneocean.tasks import run_cell, task_module
+from oneocean.tasks.common import ACT_FIELDS, N_MATES, OBS_DIM, OBS_FIELDS, tier_params
+from oneocean.vocab import TASK_IDS
+
+#: (n_agents, tier) per task on the test grid: team tasks with several agents.
+SETUP = {"G2G": (None, 1), "SK": (None, 1), "RF": (None, 1), "DPT": (None, 1),
+         "AS": (3, 1), "PI": (2, 1), "FT": (5, 1), "SPC": (4, 1), "UPL": (None, 1),
+         "FH": (None, 1)}
+FIELD_TASKS = ("SPC", "PI")
+COL = {k: i for i, k in enumerate(OBS_FIELDS)}
+
+
+@pytest.fixture(scope="module")
+def coast():
+    return E.load_grid(E.make_test_grid(nt=5, nz=5, ny=40, nx=50, max_depth_m=60.0))
+
+
+def test_layout():
+    assert OBS_DIM == len(OBS_FIELDS) == 8 + 2 * N_MATES
+    assert len(set(OBS_FIELDS)) == OBS_DIM and len(ACT_FIELDS) == 3
+
+
+@pytest.mark.parametrize("task", TASK_IDS)
+def test_observations_and_actions(coast, task):
+    n_agents, tier = SETUP[task]
+    plain = run_cell(coast, task, tier, "heuristic", episodes=2, seed=3, n_agents=n_agents)
+    df, obs, act = run_cell(coast, task, tier, "heuristic", episodes=2, seed=3,
+                            n_agents=n_agents, observations=True)
+    # recording never changes the episode
+    pd.testing.assert_frame_equal(plain, df)
+    n = int(df["n_agents"].iloc[0])
+    assert obs.shape[:3] == act.shape[:3] and obs.shape[0] == 2 and obs.shape[2] == n
+    assert obs.shape[3] == OBS_DIM and act.shape[3] == 3
+    gain = tier_params(task, tier).get("current_gain", 1.0)
+    init = task_module(task).reset(E.with_forcing(coast, current_gain=gain),
+                                   {**tier_params(task, tier), "dt_s": 1.0}, n, 2, 3)
+    for e in range(2):
+        o0 = obs[e, 0]
+        # step 0 is recorded for every agent, from the start state
+        assert np.isfinite(o0[:, :7]).all() and np.isfinite(act[e, 0]).all()
+        np.testing.assert_allclose(o0[:, COL["depth_m"]], init["pos0"][e, :, 1])
+        alt = -np.array([E.sample_elevation(coast, x, z) for x, _, z in init["pos0"][e]])
+        np.testing.assert_allclose(o0[:, COL["altitude_m"]], alt - init["pos0"][e, :, 1])
+        # the pollution probe only where the task has a field
+        pol = obs[e, :, :, COL["pollution"]]
+        rec = np.isfinite(obs[e, :, :, 0])
+        if task in FIELD_TASKS:
+            assert np.all(pol[rec] >= 0.0)
+        else:
+            assert np.isnan(pol).all()
+        # teammates: the nearest first, NaN past the team (agent 0 moves first: exact check)
+        mates = o0[:, 8:].reshape(n, N_MATES, 2)
+        k = min(n - 1, N_MATES)
+        for i in range(n):
+            d = np.hypot(mates[i, :, 0], mates[i, :, 1])
+            assert np.isfinite(d[:k]).all() and np.isnan(d[k:]).all()
+            assert np.all(np.diff(d[:k]) >= 0)
+        if k:
+            p = init["pos0"][e]
+            others = np.hypot(p[1:, 0] - p[0, 0], p[1:, 2] - p[0, 2])
+            assert math.isclose(np.hypot(*mates[0, 0]), others.min(), rel_tol=1e-9)
+        # the recorded steps are a prefix covering the episode (T), actions alongside
+        rec = np.isfinite(obs[e, :, 0, 0])
+        m = int(rec.sum())
+        assert rec[:m].all() and m >= int(round(df["T_s"].iloc[e]))
+        assert np.isfinite(act[e, :m]).all() and not np.isfinite(act[e, m:]).any()
+
+def test_goal_cue_points_at_the_goal(coast):
+    tier = {**tier_params("G2G", 1), "dt_s": 1.0}
+    init = task_module("G2G").reset(coast, tier, 1, 2, 1)
+    df, obs, _ = run_cell(coast, "G2G", 1, "oracle", episodes=2, seed=1, observations=True)
+    np.testing.assert_allclose(obs[:, 0, 0, :3], init["goal"] - init["pos0"][:, 0, :])
+    # the goal's depth is fixed: cue + depth is constant along every episode
+    for e in range(2):
+        steps = int(round(df["T_s"].iloc[e]))
+        np.testing.assert_allclose(obs[e, :steps, 0, 1] + obs[e, :steps, 0, 5],
+                                   init["goal"][e, 1], atol=1e-9)
