@@ -57,8 +57,8 @@ from ..engine.constraints import DEFAULT_LAND_THRESHOLD, min_pairwise_distance, 
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     fresh_cache, method_id, obs_buffers, observe, seek_max, sensed_current,
-                     set_velocity_cmd, start_times, waypoint_carrot)
+                     fresh_cache, method_id, need_tier, obs_buffers, observe, rollout_results,
+                     seek_max, sensed_current, set_velocity_cmd, start_times, waypoint_carrot)
 
 TASK_ID = "AS"
 METRICS = ("coverage_fraction", "footprint_loss_frac", "mean_altitude_m")
@@ -107,12 +107,6 @@ _I_MODEL, _I_METHOD, _I_STEPS, _I_SEED, _I_NAG = range(5)
 _C = {k: i for i, k in enumerate(COLUMNS)}
 _C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
 _C_COV, _C_LOSS, _C_ALT = (_C[k] for k in METRICS)
-
-
-def _need(tier: dict, *keys: str) -> None:
-    missing = [k for k in keys if k not in tier]
-    if missing:
-        raise ConfigError(f"task {TASK_ID}: tier parameters missing: {', '.join(missing)}")
 
 
 # ------------------------------------------------------------------------------ geometry
@@ -194,7 +188,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     n_agents = int(n_agents)
     if not 1 <= n_agents <= 10:
         raise ConfigError(f"task {TASK_ID}: n_agents must be in [1, 10], got {n_agents}")
-    _need(tier, *_TIER_KEYS)
+    need_tier(TASK_ID, tier, *_TIER_KEYS)
     rngs = episode_generators(seed, n_episodes)
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
     region = np.empty((n_episodes, 4))
@@ -479,7 +473,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
         ``success`` (bool), ``T_s`` (s), ``E`` (m2 s-1), ``coll_ratio``, ``violations`` (int)
         and ``METRICS``.
     """
-    _need(tier, *_TIER_KEYS, "dt_s")
+    need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
     mid = method_id(method)
     dt = float(tier["dt_s"])
     region = np.ascontiguousarray(init["region"], dtype=np.float64)
@@ -527,13 +521,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     _kernel(grid, vehicle.params, ipar, fpar, region, ncell, wps, wcount,
             np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, widx, cov, obs, act,
             res)
-    out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
-    out["success"] = out["success"] > 0.5
-    out["violations"] = out["violations"].astype(np.int64)
-    if record:
-        out["obs"], out["act"] = obs, act
-    return out
-
+    return rollout_results(res, COLUMNS, obs, act, record)
 
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer

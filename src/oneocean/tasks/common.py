@@ -179,13 +179,6 @@ def start_times(grid: Grid, rngs, duration_s: float) -> np.ndarray:
     return np.array([r.uniform(t_lo, t_hi) for r in rngs])
 
 
-def empty_result(n_episodes: int, metrics) -> dict:
-    out = {k: np.zeros(n_episodes) for k in STANDARD + tuple(metrics)}
-    out["success"] = np.zeros(n_episodes, dtype=np.bool_)
-    out["violations"] = np.zeros(n_episodes, dtype=np.int64)
-    return out
-
-
 # ------------------------------------------------------------------------------ nav helpers
 # (added for G2G/SK/RF/DPT/FT; generic: any task that steers to a point or samples a route)
 
@@ -416,13 +409,35 @@ def fresh_cache(kernel, module_file: str, *deps) -> bool:
 
 
 
+
+def need_tier(task_id: str, tier: dict, *keys: str) -> None:
+    """Raise a one-line ConfigError naming the tier parameters ``keys`` missing from ``tier``."""
+    missing = [k for k in keys if k not in tier]
+    if missing:
+        raise ConfigError(f"task {task_id}: tier parameters missing: {', '.join(missing)}")
+
+
+def episode_steps(tier: dict) -> int:
+    """Steps of an episode: ``ceil(time_limit_s / dt_s)`` (round-off tolerant)."""
+    return int(math.ceil(float(tier["time_limit_s"]) / float(tier["dt_s"]) - 1e-9))
+
+
+def rollout_results(res: np.ndarray, columns, obs, act, record: bool) -> dict:
+    """A task kernel's result matrix as the ``rollout`` dict: one (E,) array per column
+    (``success`` bool, ``violations`` int), plus ``obs`` / ``act`` when ``record``."""
+    out = {k: res[:, i].copy() for i, k in enumerate(columns)}
+    out["success"] = out["success"] > 0.5
+    out["violations"] = out["violations"].astype(np.int64)
+    if record:
+        out["obs"], out["act"] = obs, act
+    return out
+
 def obs_buffers(tier: dict, init: dict, record: bool):
     """Observation and action buffers of a rollout: ``(E, n_steps, N, OBS_DIM)`` and
     ``(E, n_steps, N, 3)`` filled with NaN (steps after an episode ends stay NaN) when
     ``record``, else zero-length step axes (then :func:`observe` does nothing)."""
     n_ep, n_ag = init["pos0"].shape[:2]
-    steps = int(math.ceil(float(tier["time_limit_s"]) / float(tier["dt_s"]) - 1e-9)) if record \
-        else 0
+    steps = episode_steps(tier) if record else 0
     return (np.full((n_ep, steps, n_ag, OBS_DIM), np.nan),
             np.full((n_ep, steps, n_ag, len(ACT_FIELDS)), np.nan))
 

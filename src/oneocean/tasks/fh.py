@@ -62,8 +62,9 @@ from ..models import fish as _fish
 from ..models.fish import (fish_params, fraction_inside_circle, init_school, school_centroid,
                            school_spread, step_school)
 from .common import (HEURISTIC, OK, PURPOSE_TASK_NOISE, STANDARD, advance_agent, current_at,
-                     episode_generators, fresh_cache, method_id, obs_buffers, observe, path_clear,
-                     sample_route, seek, seek_max, sensed_current, set_velocity_cmd, start_times)
+                     episode_generators, episode_steps, fresh_cache, method_id, need_tier,
+                     obs_buffers, observe, path_clear, rollout_results, sample_route, seek,
+                     seek_max, sensed_current, set_velocity_cmd, start_times)
 
 TASK_ID = "FH"
 METRICS = ("containment_success", "final_centroid_distance_m", "fraction_inside",
@@ -127,12 +128,6 @@ _C_CONT, _C_DIST, _C_FRAC, _C_SPREAD = (_C[k] for k in METRICS)
 
 _TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "fish_count",
               "zone_distance_m", "zone_radius_m", "hold_s")
-
-
-def _need(tier: dict, *keys: str) -> None:
-    missing = [k for k in keys if k not in tier]
-    if missing:
-        raise ConfigError(f"task {TASK_ID}: tier parameters missing: {', '.join(missing)}")
 
 
 def _ok(grid, xz: np.ndarray, clearance: float) -> np.ndarray:
@@ -204,7 +199,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """
     if int(n_agents) != N_AGENTS:
         raise ConfigError(f"task {TASK_ID}: needs exactly {N_AGENTS} agents, got {n_agents}")
-    _need(tier, *_TIER_KEYS)
+    need_tier(TASK_ID, tier, *_TIER_KEYS)
     n_fish = int(tier["fish_count"])
     if n_fish < 50:
         raise ConfigError(f"task {TASK_ID}: fish_count={n_fish} < 50")
@@ -499,14 +494,14 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
         ``success`` (bool), ``T_s`` (s), ``E`` (m2 s-1), ``coll_ratio``, ``violations``
         (int) and ``METRICS``.
     """
-    _need(tier, *_TIER_KEYS, "dt_s")
+    need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
     dt = float(tier["dt_s"])
     n_ep, n = init["pos0"].shape[:2]
     n_fish = init["fish0"].shape[2]
     v_max = float(vehicle.v_max)
     mid = method_id(method)
     ipar = np.array([dyn.model_id(dyn_name), mid,
-                     int(math.ceil(float(tier["time_limit_s"]) / dt - 1e-9)), int(seed)],
+                     episode_steps(tier), int(seed)],
                     dtype=np.int64)
     speed = CRUISE_FRAC * v_max if mid == HEURISTIC else v_max
     fpar = np.array([dt, v_max, speed, KP, float(tier["probe_noise_ms"]),
@@ -529,13 +524,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     _kernel(grid, vehicle.params, ipar, fpar, fish_params(), np.ascontiguousarray(init["zone"]),
             np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, cur, apos, order,
             keys, fa, fb, fc, obs, act, res)
-    out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
-    out["success"] = out["success"] > 0.5
-    out["violations"] = out["violations"].astype(np.int64)
-    if record:
-        out["obs"], out["act"] = obs, act
-    return out
-
+    return rollout_results(res, COLUMNS, obs, act, record)
 
 
 # numba keys a cache entry on this file only; drop it when the engine, the task layer or

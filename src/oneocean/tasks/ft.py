@@ -41,9 +41,10 @@ from ..engine.dynamics import CMD_DIM, model_id, new_state
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
-                     STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
-                     method_id, obs_buffers, observe, path_clear, sample_route, sensed_current,
-                     set_velocity_cmd, start_times, steer)
+                     STANDARD, advance_agent, current_at, episode_generators, episode_steps,
+                     fresh_cache, method_id, need_tier, obs_buffers, observe, path_clear,
+                     rollout_results, sample_route, sensed_current, set_velocity_cmd, start_times,
+                     steer)
 
 TASK_ID = "FT"
 METRICS = ("formation_error_m", "max_slot_error_m", "final_centroid_error_m")
@@ -71,12 +72,6 @@ _I_MODEL, _I_METHOD, _I_STEPS, _I_SEED = range(4)
 _C = {k: i for i, k in enumerate(COLUMNS)}
 _C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
 _C_FERR, _C_EMAX, _C_FINAL = (_C[k] for k in METRICS)
-
-
-def _need(tier: dict, *keys: str) -> None:
-    missing = [k for k in keys if k not in tier]
-    if missing:
-        raise ConfigError(f"task {TASK_ID}: tier parameters missing: {', '.join(missing)}")
 
 
 def wedge_offsets(n: int, spacing: float = SPACING_M,
@@ -115,7 +110,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     n = int(n_agents)
     if n < 2:
         raise ConfigError(f"task {TASK_ID}: team task needs n_agents >= 2, got {n}")
-    _need(tier, "route_m", "time_limit_s")
+    need_tier(TASK_ID, tier, "route_m", "time_limit_s")
     route_m = float(tier["route_m"])
     rngs = episode_generators(seed, n_episodes)
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
@@ -300,14 +295,14 @@ def _kernel(grid, vp, ipar, fpar, offsets, start, goal, t0, state, cmd, obs, act
 def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int, *,
             record: bool = False) -> dict:
     """Run every episode of ``init`` (from :func:`reset`); see :func:`.g2g.rollout`."""
-    _need(tier, "time_limit_s", "goal_radius_m", "slot_tol_m", "max_error_m",
+    need_tier(TASK_ID, tier, "time_limit_s", "goal_radius_m", "slot_tol_m", "max_error_m",
           "probe_noise_ms", "dt_s")
     dt = float(tier["dt_s"])
     pos0 = np.ascontiguousarray(init["pos0"], dtype=np.float64)
     n_ep, n = pos0.shape[:2]
     v_max = float(vehicle.v_max)
     ipar = np.array([model_id(dyn), method_id(method),
-                     int(math.ceil(float(tier["time_limit_s"]) / dt - 1e-9)), int(seed)],
+                     episode_steps(tier), int(seed)],
                     dtype=np.int64)
     fpar = np.array([dt, v_max, CRUISE_FRAC * v_max, KP, float(tier["probe_noise_ms"]),
                      float(tier["goal_radius_m"]), DEFAULT_LAND_THRESHOLD, CLEARANCE_M,
@@ -320,12 +315,8 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     _kernel(grid, vehicle.params, ipar, fpar, np.ascontiguousarray(init["offsets"]),
             np.ascontiguousarray(init["start"]), np.ascontiguousarray(init["goal"]),
             np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, obs, act, res)
-    out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
-    out["success"] = out["success"] > 0.5
-    out["violations"] = out["violations"].astype(np.int64)
-    if record:
-        out["obs"], out["act"] = obs, act
-    return out
+    return rollout_results(res, COLUMNS, obs, act, record)
+
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer
 # changes.

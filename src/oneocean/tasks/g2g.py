@@ -42,9 +42,9 @@ from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..errors import ConfigError
 from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
-                     STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
-                     method_id, obs_buffers, observe, sample_route, seek_max, sensed_current,
-                     set_velocity_cmd, start_times)
+                     STANDARD, advance_agent, current_at, episode_generators, episode_steps,
+                     fresh_cache, method_id, need_tier, obs_buffers, observe, rollout_results,
+                     sample_route, seek_max, sensed_current, set_velocity_cmd, start_times)
 
 TASK_ID = "G2G"
 METRICS = ("final_error_m", "min_error_m", "path_length_m")
@@ -60,12 +60,6 @@ _F_DT, _F_VMAX, _F_SPEED, _F_KP, _F_NOISE, _F_RADIUS, _F_LAND, _F_CLEAR = range(
 _C = {k: i for i, k in enumerate(COLUMNS)}
 _C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
 _C_FINAL, _C_MIN, _C_PATH = (_C[k] for k in METRICS)
-
-
-def _need(tier: dict, *keys: str) -> None:
-    missing = [k for k in keys if k not in tier]
-    if missing:
-        raise ConfigError(f"task {TASK_ID}: tier parameters missing: {', '.join(missing)}")
 
 
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
@@ -93,7 +87,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """
     if int(n_agents) != 1:
         raise ConfigError(f"task {TASK_ID}: single-agent task, got n_agents={n_agents}")
-    _need(tier, "goal_distance_m", "time_limit_s")
+    need_tier(TASK_ID, tier, "goal_distance_m", "time_limit_s")
     rngs = episode_generators(seed, n_episodes)
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
     pos0 = np.empty((n_episodes, 1, 3))
@@ -203,12 +197,12 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
         ``success`` (bool), ``T_s`` (s), ``E`` (m2 s-1), ``coll_ratio`` (0 for one agent),
         ``violations`` (int) and ``METRICS``.
     """
-    _need(tier, "time_limit_s", "goal_radius_m", "probe_noise_ms", "dt_s")
+    need_tier(TASK_ID, tier, "time_limit_s", "goal_radius_m", "probe_noise_ms", "dt_s")
     dt = float(tier["dt_s"])
     n_ep = init["goal"].shape[0]
     v_max = float(vehicle.v_max)
     ipar = np.array([model_id(dyn), method_id(method),
-                     int(math.ceil(float(tier["time_limit_s"]) / dt - 1e-9)), int(seed)],
+                     episode_steps(tier), int(seed)],
                     dtype=np.int64)
     fpar = np.array([dt, v_max, CRUISE_FRAC * v_max, KP, float(tier["probe_noise_ms"]),
                      float(tier["goal_radius_m"]), DEFAULT_LAND_THRESHOLD, CLEARANCE_M])
@@ -218,13 +212,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
     obs, act = obs_buffers(tier, init, record)
     _kernel(grid, vehicle.params, ipar, fpar, init["pos0"], np.ascontiguousarray(init["goal"]),
             np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, obs, act, res)
-    out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
-    out["success"] = out["success"] > 0.5
-    out["violations"] = out["violations"].astype(np.int64)
-    if record:
-        out["obs"], out["act"] = obs, act
-    return out
-
+    return rollout_results(res, COLUMNS, obs, act, record)
 
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer

@@ -67,8 +67,9 @@ from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
 from ..models import pollution as pol
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     fresh_cache, method_id, obs_buffers, observe, seek_max, sensed_current,
-                     set_velocity_cmd, start_times, waypoint_carrot)
+                     episode_steps, fresh_cache, method_id, need_tier, obs_buffers, observe,
+                     rollout_results, seek_max, sensed_current, set_velocity_cmd, start_times,
+                     waypoint_carrot)
 
 TASK_ID = "PI"
 METRICS = ("inspection_score", "localisation_error_m", "detection_rate")
@@ -139,12 +140,6 @@ _I_MODEL, _I_METHOD, _I_STEPS, _I_SEED, _I_NAG, _I_NLEAK, _I_NSPIN, _I_REFRESH =
 _C = {k: i for i, k in enumerate(COLUMNS)}
 _C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
 _C_SCORE, _C_LOC, _C_DET = (_C[k] for k in METRICS)
-
-
-def _need(tier: dict, *keys: str) -> None:
-    missing = [k for k in keys if k not in tier]
-    if missing:
-        raise ConfigError(f"task {TASK_ID}: tier parameters missing: {', '.join(missing)}")
 
 
 # ------------------------------------------------------------------------------ geometry
@@ -290,7 +285,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     n_agents = int(n_agents)
     if not 1 <= n_agents <= 10:
         raise ConfigError(f"task {TASK_ID}: n_agents must be in [1, 10], got {n_agents}")
-    _need(tier, *_TIER_KEYS)
+    need_tier(TASK_ID, tier, *_TIER_KEYS)
     n_leaks = int(tier["n_leaks"])
     if n_leaks < 1:
         raise ConfigError(f"task {TASK_ID}: n_leaks must be >= 1, got {n_leaks}")
@@ -637,7 +632,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
         ``success`` (bool), ``T_s`` (s), ``E`` (m2 s-1), ``coll_ratio``, ``violations`` (int)
         and ``METRICS``.
     """
-    _need(tier, *_TIER_KEYS, "dt_s")
+    need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
     mid = method_id(method)
     dt = float(tier["dt_s"])
     poly = np.asarray(init["poly"], dtype=np.float64)
@@ -676,8 +671,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
             wps[e, i, :len(secs[e][i])] = secs[e][i]
             wcount[e, i] = len(secs[e][i])
     dtf = FIELD_EVERY * dt
-    ipar = np.array([dyn.model_id(dyn_name), mid, int(math.ceil(float(tier["time_limit_s"]) / dt
-                                                                   - 1e-9)),
+    ipar = np.array([dyn.model_id(dyn_name), mid, episode_steps(tier),
                      int(seed), n_ag, n_leak, int(round(SPINUP_S / dtf)),
                      max(1, int(round(FIELD_REFRESH_S / dtf)))], dtype=np.int64)
     fpar = np.array([dt, v_max, CRUISE_FRAC * v_max, KP, float(tier["probe_noise_ms"]),
@@ -707,12 +701,8 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
     if scratch is not None:  # diagnostics: final field, per-leak peaks and estimates, states
         scratch.update(C=C, peak=peak, est=est, nread=nread, reads=reads, state=state,
                        frame=frame, leak_loc=leak_loc)
-    out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
-    out["success"] = out["success"] > 0.5
-    out["violations"] = out["violations"].astype(np.int64)
-    if record:
-        out["obs"], out["act"] = obs, act
-    return out
+    return rollout_results(res, COLUMNS, obs, act, record)
+
 
 # numba keys a cache entry on this file only; drop it when the engine, the task layer or
 # the model changes.

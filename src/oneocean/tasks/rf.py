@@ -33,9 +33,9 @@ from ..engine.dynamics import CMD_DIM, model_id, new_state
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
-                     STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
-                     method_id, obs_buffers, observe, sample_route, seek_max, sensed_current,
-                     set_velocity_cmd, start_times)
+                     STANDARD, advance_agent, current_at, episode_generators, episode_steps,
+                     fresh_cache, method_id, need_tier, obs_buffers, observe, rollout_results,
+                     sample_route, seek_max, sensed_current, set_velocity_cmd, start_times)
 
 TASK_ID = "RF"
 METRICS = ("cross_track_error_m", "waypoints_reached", "max_cross_track_m")
@@ -56,12 +56,6 @@ _C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
 _C_XTE, _C_WP, _C_XMAX = (_C[k] for k in METRICS)
 
 
-def _need(tier: dict, *keys: str) -> None:
-    missing = [k for k in keys if k not in tier]
-    if missing:
-        raise ConfigError(f"task {TASK_ID}: tier parameters missing: {', '.join(missing)}")
-
-
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the route and start time of every episode.
 
@@ -73,7 +67,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """
     if int(n_agents) != 1:
         raise ConfigError(f"task {TASK_ID}: single-agent task, got n_agents={n_agents}")
-    _need(tier, "n_waypoints", "leg_m", "time_limit_s")
+    need_tier(TASK_ID, tier, "n_waypoints", "leg_m", "time_limit_s")
     n_wp = int(tier["n_waypoints"])
     if n_wp < 1:
         raise ConfigError(f"task {TASK_ID}: n_waypoints must be >= 1, got {n_wp}")
@@ -196,13 +190,13 @@ def _kernel(grid, vp, ipar, fpar, route, t0, state, cmd, obs, act, res):
 def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int, *,
             record: bool = False) -> dict:
     """Run every episode of ``init`` (from :func:`reset`); see :func:`.g2g.rollout`."""
-    _need(tier, "time_limit_s", "wp_radius_m", "xte_max_m", "probe_noise_ms", "dt_s")
+    need_tier(TASK_ID, tier, "time_limit_s", "wp_radius_m", "xte_max_m", "probe_noise_ms", "dt_s")
     dt = float(tier["dt_s"])
     route = np.ascontiguousarray(init["route"], dtype=np.float64)
     n_ep = route.shape[0]
     v_max = float(vehicle.v_max)
     ipar = np.array([model_id(dyn), method_id(method),
-                     int(math.ceil(float(tier["time_limit_s"]) / dt - 1e-9)), int(seed)],
+                     episode_steps(tier), int(seed)],
                     dtype=np.int64)
     fpar = np.array([dt, v_max, CRUISE_FRAC * v_max, KP, float(tier["probe_noise_ms"]),
                      float(tier["wp_radius_m"]), DEFAULT_LAND_THRESHOLD, CLEARANCE_M,
@@ -213,13 +207,10 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     obs, act = obs_buffers(tier, init, record)
     _kernel(grid, vehicle.params, ipar, fpar, route,
             np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, obs, act, res)
-    out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
-    out["success"] = out["success"] > 0.5
-    out["violations"] = out["violations"].astype(np.int64)
+    out = rollout_results(res, COLUMNS, obs, act, record)
     out["waypoints_reached"] = out["waypoints_reached"].astype(np.int64)
-    if record:
-        out["obs"], out["act"] = obs, act
     return out
+
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer
 # changes.

@@ -34,9 +34,9 @@ from ..engine._jit import hot_kernel
 from ..engine.grid import sample_currents
 from ..errors import ConfigError
 from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
-                     STANDARD, advance_agent, current_at, episode_generators, fresh_cache,
-                     method_id, obs_buffers, observe, sample_route, seek_max, sensed_current,
-                     start_times)
+                     STANDARD, advance_agent, current_at, episode_generators, episode_steps,
+                     fresh_cache, method_id, need_tier, obs_buffers, observe, rollout_results,
+                     sample_route, seek_max, sensed_current, start_times)
 
 TASK_ID = "SK"
 METRICS = ("rms_error_m", "heading_rms_deg", "max_error_m", "hold_s")
@@ -54,12 +54,6 @@ _C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
 _C_RMS, _C_HDG, _C_MAX, _C_HOLD = (_C[k] for k in METRICS)
 
 
-def _need(tier: dict, *keys: str) -> None:
-    missing = [k for k in keys if k not in tier]
-    if missing:
-        raise ConfigError(f"task {TASK_ID}: tier parameters missing: {', '.join(missing)}")
-
-
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the station, its heading and the start time of every episode.
 
@@ -71,7 +65,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """
     if int(n_agents) != 1:
         raise ConfigError(f"task {TASK_ID}: single-agent task, got n_agents={n_agents}")
-    _need(tier, "time_limit_s", "hold_time_s")
+    need_tier(TASK_ID, tier, "time_limit_s", "hold_time_s")
     if float(tier["hold_time_s"]) > float(tier["time_limit_s"]):
         raise ConfigError(f"task {TASK_ID}: hold_time_s={tier['hold_time_s']} exceeds "
                           f"time_limit_s={tier['time_limit_s']}")
@@ -181,12 +175,13 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     -------
     dict of (E,) arrays: ``STANDARD`` columns and ``METRICS``.
     """
-    _need(tier, "time_limit_s", "hold_time_s", "hold_radius_m", "probe_noise_ms", "dt_s")
+    need_tier(TASK_ID, tier, "time_limit_s", "hold_time_s", "hold_radius_m", "probe_noise_ms",
+              "dt_s")
     dt = float(tier["dt_s"])
     n_ep = init["station"].shape[0]
     v_max = float(vehicle.v_max)
     ipar = np.array([model_id(dyn), method_id(method),
-                     int(math.ceil(float(tier["time_limit_s"]) / dt - 1e-9)), int(seed),
+                     episode_steps(tier), int(seed),
                      int(math.ceil(float(tier["hold_time_s"]) / dt - 1e-9))], dtype=np.int64)
     fpar = np.array([dt, v_max, CRUISE_FRAC * v_max, KP, float(tier["probe_noise_ms"]),
                      float(tier["hold_radius_m"]), DEFAULT_LAND_THRESHOLD, CLEARANCE_M])
@@ -197,12 +192,8 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: 
     _kernel(grid, vehicle.params, ipar, fpar, np.ascontiguousarray(init["station"]),
             np.ascontiguousarray(init["heading"], dtype=np.float64),
             np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, obs, act, res)
-    out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
-    out["success"] = out["success"] > 0.5
-    out["violations"] = out["violations"].astype(np.int64)
-    if record:
-        out["obs"], out["act"] = obs, act
-    return out
+    return rollout_results(res, COLUMNS, obs, act, record)
+
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer
 # changes.

@@ -70,8 +70,9 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from ..models import pollution as pol
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     fresh_cache, method_id, obs_buffers, observe, path_clear, sensed_current,
-                     set_velocity_cmd, start_times, steer)
+                     episode_steps, fresh_cache, method_id, need_tier, obs_buffers, observe,
+                     path_clear, rollout_results, sensed_current, set_velocity_cmd, start_times,
+                     steer)
 
 TASK_ID = "SPC"
 METRICS = ("cleanup_rate", "escaped_fraction", "remaining_fraction", "time_to_target_s")
@@ -119,12 +120,6 @@ _TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "spill_radius_m"
               "kappa_m2s", "domain_m", "aerial_period_s", "min_drift_ms")
 #: Near-collision radius, m (task contract).
 R_COLL_M = 2.0
-
-
-def _need(tier: dict, *keys: str) -> None:
-    missing = [k for k in keys if k not in tier]
-    if missing:
-        raise ConfigError(f"task {TASK_ID}: tier parameters missing: {', '.join(missing)}")
 
 
 def staging_offsets(n: int) -> np.ndarray:
@@ -183,7 +178,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     n_agents = int(n_agents)
     if not 2 <= n_agents <= 10:
         raise ConfigError(f"task {TASK_ID}: n_agents must be in [2, 10], got {n_agents}")
-    _need(tier, *_TIER_KEYS)
+    need_tier(TASK_ID, tier, *_TIER_KEYS)
     R = float(tier["spill_radius_m"])
     dist = float(tier["staging_distance_m"])
     min_drift = float(tier["min_drift_ms"])
@@ -491,7 +486,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
         ``success`` (bool), ``T_s`` (s), ``E`` (m2 s-1), ``coll_ratio``, ``violations`` (int)
         and ``METRICS``.
     """
-    _need(tier, *_TIER_KEYS, "dt_s")
+    need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
     dt = float(tier["dt_s"])
     C = np.ascontiguousarray(init["C0"], dtype=np.float64).copy()
     n_ep, _, nz, nx = C.shape
@@ -499,7 +494,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
     v_max = float(vehicle.v_max)
     aerial = max(1, int(round(float(tier["aerial_period_s"]) / dt)))
     ipar = np.array([model_id(dyn), method_id(method),
-                     int(math.ceil(float(tier["time_limit_s"]) / dt - 1e-9)), int(seed),
+                     episode_steps(tier), int(seed),
                      aerial, FACE_REFRESH_STEPS, BLOCK_CELLS], dtype=np.int64)
     fpar = np.array([dt, v_max, CRUISE_FRAC * v_max, KP, float(tier["probe_noise_ms"]),
                      DEFAULT_LAND_THRESHOLD, CLEARANCE_M, FIELD_H_M, float(tier["kappa_m2s"]),
@@ -519,13 +514,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
             np.zeros((n_ep, nb)), np.zeros((n_ep, nb)), np.zeros((n_ep, nb)),
             np.zeros((n_ep, nb), dtype=np.int64), np.zeros((n_ep, n_ag), dtype=np.int64),
             np.zeros((n_ep, n_ag, 2)), state, cmd, obs, act, res)
-    out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
-    out["success"] = out["success"] > 0.5
-    out["violations"] = out["violations"].astype(np.int64)
-    if record:
-        out["obs"], out["act"] = obs, act
-    return out
-
+    return rollout_results(res, COLUMNS, obs, act, record)
 
 
 # numba keys a cache entry on this file only; drop it when the engine, the task layer or

@@ -67,8 +67,9 @@ from ..engine.constraints import (DEFAULT_LAND_THRESHOLD, check_move, feasibilit
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
 from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     fresh_cache, method_id, obs_buffers, observe, path_clear, seek, seek_max,
-                     sensed_current, set_velocity_cmd, start_times)
+                     episode_steps, fresh_cache, method_id, need_tier, obs_buffers, observe,
+                     path_clear, rollout_results, seek, seek_max, sensed_current, set_velocity_cmd,
+                     start_times)
 
 TASK_ID = "UPL"
 METRICS = ("lift_success", "final_object_depth_m", "attach_time_s", "object_drift_m")
@@ -112,12 +113,6 @@ _C_LIFT, _C_DEPTH, _C_ATT_T, _C_DRIFT = (_C[k] for k in METRICS)
 _TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "site_depth_m",
               "start_distance_m", "attach_radius_m", "attach_dwell_s", "detach_radius_m",
               "sink_speed_ms", "quorum", "hold_radius_m", "success_depth_m")
-
-
-def _need(tier: dict, *keys: str) -> None:
-    missing = [k for k in keys if k not in tier]
-    if missing:
-        raise ConfigError(f"task {TASK_ID}: tier parameters missing: {', '.join(missing)}")
 
 
 def slot_offsets(phase: float = 0.0) -> np.ndarray:
@@ -219,7 +214,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """
     if int(n_agents) != N_SLOTS:
         raise ConfigError(f"task {TASK_ID}: needs exactly {N_SLOTS} agents, got {n_agents}")
-    _need(tier, *_TIER_KEYS)
+    need_tier(TASK_ID, tier, *_TIER_KEYS)
     check_reachable(tier, grid)
     hi = float(tier["site_depth_m"])
     lo = hi - SITE_DEPTH_SPAN_M
@@ -565,14 +560,14 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
         ``success`` (bool), ``T_s`` (s), ``E`` (m2 s-1), ``coll_ratio``, ``violations``
         (int) and ``METRICS``.
     """
-    _need(tier, *_TIER_KEYS, "dt_s")
+    need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
     check_reachable(tier)
     dt = float(tier["dt_s"])
     n_ep, n = init["pos0"].shape[:2]
     v_max = float(vehicle.v_max)
     mid = method_id(method)
     ipar = np.array([dyn.model_id(dyn_name), mid,
-                     int(math.ceil(float(tier["time_limit_s"]) / dt - 1e-9)), int(seed),
+                     episode_steps(tier), int(seed),
                      int(tier["quorum"])], dtype=np.int64)
     speed = CRUISE_FRAC * v_max if mid == HEURISTIC else v_max
     fpar = np.array([dt, v_max, speed, KP, float(tier["probe_noise_ms"]),
@@ -592,13 +587,7 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
             np.ascontiguousarray(init["slot_off"]),
             np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, prev, cur,
             ints[0], ints[1], dwell, ints[2], ints[3], obs, act, res)
-    out = {k: res[:, i].copy() for i, k in enumerate(COLUMNS)}
-    out["success"] = out["success"] > 0.5
-    out["violations"] = out["violations"].astype(np.int64)
-    if record:
-        out["obs"], out["act"] = obs, act
-    return out
-
+    return rollout_results(res, COLUMNS, obs, act, record)
 
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer
