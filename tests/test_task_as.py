@@ -17,6 +17,7 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.tasks import as_, run_cell
 from oneocean.tasks.common import HEURISTIC, ORACLE, STANDARD, load_task_table
+from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 900.0, "probe_noise_ms": 0.1,
         "region_long_m": 160.0, "region_short_m": 80.0, "coverage_threshold": 0.95,
@@ -222,24 +223,14 @@ def test_run_cell_deterministic_and_thread_independent(coast):
     assert not np.array_equal(a["coverage_fraction"].to_numpy(),
                               c["coverage_fraction"].to_numpy())
     if numba.config.NUMBA_NUM_THREADS >= 2:
-        prev = numba.get_num_threads()
-        try:
-            numba.set_num_threads(1)
-            d = run_cell(coast, "AS", 2, "heuristic", episodes=3, seed=7, n_agents=2)
-        finally:
-            numba.set_num_threads(prev)
+        d = on_one_thread(run_cell, coast, "AS", 2, "heuristic", episodes=3, seed=7, n_agents=2)
         pd.testing.assert_frame_equal(a, d)
 
 
 def test_tier_table_monotone_and_declared():
     table = load_task_table("AS")
     tiers = table["tiers"]
-    assert sorted(tiers) == [1, 2, 3]
-    for key, way in table["harder"].items():
-        assert way in ("up", "down")
-        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
-        sign = 1.0 if way == "up" else -1.0
-        assert all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:])), (key, vals)
+    assert_tier_table_monotone(table)
     varied = [k for k in table["harder"] if len({tiers[t][k] for t in (1, 2, 3)}) > 1]
     assert len(varied) >= 5  # several stressors, never a single knob
     for t in (1, 2, 3):

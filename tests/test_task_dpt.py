@@ -13,6 +13,7 @@ from oneocean import engine as E
 from oneocean.errors import ConfigError
 from oneocean.tasks import dpt, run_cell
 from oneocean.tasks.common import load_task_table, path_clear
+from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 900.0, "probe_noise_ms": 0.0, "n_waypoints": 3,
         "leg_m": 250.0, "wp_radius_m": 5.0, "depth_span_m": 30.0, "depth_tol_m": 0.5,
@@ -103,23 +104,14 @@ def test_determinism_and_threads(coast):
     pd.testing.assert_frame_equal(a, b)
     np.testing.assert_array_equal(a["primary"], a["depth_error_m"])
     if numba.config.NUMBA_NUM_THREADS >= 2:
-        prev = numba.get_num_threads()
-        try:
-            numba.set_num_threads(1)
-            c = run_cell(coast, "DPT", 3, "heuristic", episodes=4, seed=1)
-        finally:
-            numba.set_num_threads(prev)
+        c = on_one_thread(run_cell, coast, "DPT", 3, "heuristic", episodes=4, seed=1)
         pd.testing.assert_frame_equal(a, c)
 
 
 def test_tier_table_monotone_and_declared():
     table = load_task_table("DPT")
     tiers = table["tiers"]
-    assert sorted(tiers) == [1, 2, 3]
-    for key, way in table["harder"].items():
-        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
-        sign = 1.0 if way == "up" else -1.0
-        assert way in ("up", "down") and all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:]))
+    assert_tier_table_monotone(table)
     for t in (1, 2, 3):
         assert set(tiers[t]) == set(table["harder"])
     assert table["agents"] == {"default": 1, "range": [1, 1]}

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 
-import numba
 import numpy as np
 import pandas as pd
 import pytest
@@ -17,6 +16,7 @@ from oneocean.errors import ConfigError
 from oneocean.models.fish import fish_params, init_school, step_school
 from oneocean.tasks import fh, run_cell
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
+from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 600.0, "probe_noise_ms": 0.1, "fish_count": 60,
         "zone_distance_m": 100.0, "zone_radius_m": 10.0, "hold_s": 20.0, "dt_s": 1.0}
@@ -187,24 +187,14 @@ def test_run_cell_deterministic_seeds_and_threads(coast):
     pd.testing.assert_frame_equal(a, b)
     c = run_cell(coast, "FH", 1, "heuristic", episodes=4, seed=6)
     assert not np.array_equal(a["E"].to_numpy(), c["E"].to_numpy())
-    n0 = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        d = run_cell(coast, "FH", 1, "heuristic", episodes=4, seed=5)
-    finally:
-        numba.set_num_threads(n0)
+    d = on_one_thread(run_cell, coast, "FH", 1, "heuristic", episodes=4, seed=5)
     pd.testing.assert_frame_equal(a, d)
 
 
 def test_tier_table_monotone_and_declared():
     table = load_task_table("FH")
     tiers = table["tiers"]
-    assert sorted(tiers) == [1, 2, 3]
-    for key, way in table["harder"].items():
-        assert way in ("up", "down")
-        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
-        sign = 1.0 if way == "up" else -1.0
-        assert all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:])), (key, vals)
+    assert_tier_table_monotone(table)
     for t in (1, 2, 3):
         assert set(tiers[t]) == set(table["harder"]) == set(fh._TIER_KEYS)
         assert tiers[t]["fish_count"] >= 50

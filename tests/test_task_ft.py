@@ -13,6 +13,7 @@ from oneocean import engine as E
 from oneocean.errors import ConfigError
 from oneocean.tasks import ft, run_cell
 from oneocean.tasks.common import load_task_table, path_clear
+from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 700.0, "probe_noise_ms": 0.0, "route_m": 400.0,
         "goal_radius_m": 5.0, "slot_tol_m": 1.5, "max_error_m": 5.0, "dt_s": 1.0}
@@ -138,23 +139,14 @@ def test_determinism_and_threads(coast):
     np.testing.assert_array_equal(a["primary"], a["formation_error_m"])
     assert a.attrs["n_agents"] == 6
     if numba.config.NUMBA_NUM_THREADS >= 2:
-        prev = numba.get_num_threads()
-        try:
-            numba.set_num_threads(1)
-            c = run_cell(coast, "FT", 3, "heuristic", episodes=3, seed=5, n_agents=6)
-        finally:
-            numba.set_num_threads(prev)
+        c = on_one_thread(run_cell, coast, "FT", 3, "heuristic", episodes=3, seed=5, n_agents=6)
         pd.testing.assert_frame_equal(a, c)
 
 
 def test_tier_table_monotone_and_declared():
     table = load_task_table("FT")
     tiers = table["tiers"]
-    assert sorted(tiers) == [1, 2, 3]
-    for key, way in table["harder"].items():
-        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
-        sign = 1.0 if way == "up" else -1.0
-        assert way in ("up", "down") and all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:]))
+    assert_tier_table_monotone(table)
     for t in (1, 2, 3):
         assert set(tiers[t]) == set(table["harder"])
         assert tiers[t]["slot_tol_m"] < tiers[t]["max_error_m"]

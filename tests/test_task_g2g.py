@@ -15,6 +15,7 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.tasks import g2g, run_cell
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear
+from task_helpers import assert_tier_table_monotone
 
 TIER = {"current_gain": 1.0, "time_limit_s": 600.0, "probe_noise_ms": 0.1,
         "goal_distance_m": 550.0, "goal_radius_m": 10.0, "dt_s": 1.0}
@@ -137,12 +138,7 @@ def test_run_cell_deterministic_and_columns(coast):
 def test_tier_table_monotone_and_declared():
     table = load_task_table("G2G")
     tiers = table["tiers"]
-    assert sorted(tiers) == [1, 2, 3]
-    for key, way in table["harder"].items():
-        assert way in ("up", "down")
-        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
-        sign = 1.0 if way == "up" else -1.0
-        assert all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:])), (key, vals)
+    assert_tier_table_monotone(table)
     for t in (1, 2, 3):
         assert set(tiers[t]) == set(table["harder"])
         assert {"current_gain", "time_limit_s", "probe_noise_ms"} <= set(tiers[t])

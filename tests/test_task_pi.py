@@ -18,6 +18,7 @@ from oneocean.errors import ConfigError
 from oneocean.models import pollution as pol
 from oneocean.tasks import pi, run_cell
 from oneocean.tasks.common import STANDARD, load_task_table
+from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 900.0, "probe_noise_ms": 0.1,
         "pipeline_length_m": 800.0, "n_leaks": 2, "leak_spacing_m": 200.0,
@@ -226,24 +227,14 @@ def test_run_cell_deterministic_and_thread_independent(coast):
     c = run_cell(coast, "PI", 1, "heuristic", episodes=3, seed=3)
     assert not np.array_equal(a["E"].to_numpy(), c["E"].to_numpy())
     if numba.config.NUMBA_NUM_THREADS >= 2:
-        prev = numba.get_num_threads()
-        try:
-            numba.set_num_threads(1)
-            d = run_cell(coast, "PI", 1, "heuristic", episodes=3, seed=2)
-        finally:
-            numba.set_num_threads(prev)
+        d = on_one_thread(run_cell, coast, "PI", 1, "heuristic", episodes=3, seed=2)
         pd.testing.assert_frame_equal(a, d)
 
 
 def test_tier_table_monotone_and_declared():
     table = load_task_table("PI")
     tiers = table["tiers"]
-    assert sorted(tiers) == [1, 2, 3]
-    for key, way in table["harder"].items():
-        assert way in ("up", "down")
-        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
-        sign = 1.0 if way == "up" else -1.0
-        assert all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:])), (key, vals)
+    assert_tier_table_monotone(table)
     varied = [k for k in table["harder"] if len({tiers[t][k] for t in (1, 2, 3)}) > 1]
     assert len(varied) >= 5
     for t in (1, 2, 3):

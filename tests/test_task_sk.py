@@ -16,6 +16,7 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.tasks import run_cell, sk
 from oneocean.tasks.common import load_task_table
+from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.0,
         "hold_time_s": 200.0, "hold_radius_m": 2.0, "dt_s": 1.0}
@@ -119,23 +120,14 @@ def test_determinism_and_threads(coast):
     pd.testing.assert_frame_equal(a, b)
     np.testing.assert_array_equal(a["primary"], a["rms_error_m"])
     if numba.config.NUMBA_NUM_THREADS >= 2:
-        prev = numba.get_num_threads()
-        try:
-            numba.set_num_threads(1)
-            c = run_cell(coast, "SK", 3, "heuristic", episodes=6, seed=2)
-        finally:
-            numba.set_num_threads(prev)
+        c = on_one_thread(run_cell, coast, "SK", 3, "heuristic", episodes=6, seed=2)
         pd.testing.assert_frame_equal(a, c)
 
 
 def test_tier_table_monotone_and_declared():
     table = load_task_table("SK")
     tiers = table["tiers"]
-    assert sorted(tiers) == [1, 2, 3]
-    for key, way in table["harder"].items():
-        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
-        sign = 1.0 if way == "up" else -1.0
-        assert way in ("up", "down") and all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:]))
+    assert_tier_table_monotone(table)
     for t in (1, 2, 3):
         assert set(tiers[t]) == set(table["harder"])
         assert tiers[t]["hold_time_s"] <= tiers[t]["time_limit_s"]

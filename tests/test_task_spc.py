@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import numba
 import numpy as np
 import pandas as pd
 import pytest
@@ -17,6 +16,7 @@ from oneocean.errors import ConfigError
 from oneocean.models import pollution as pol
 from oneocean.tasks import run_cell, spc
 from oneocean.tasks.common import STANDARD, load_task_table
+from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.1,
         "spill_radius_m": 40.0, "target_fraction": 0.5, "staging_distance_m": 120.0,
@@ -178,12 +178,7 @@ def test_run_cell_deterministic_threads_and_columns(coast):
     a = run_cell(coast, "SPC", 2, "heuristic", episodes=3, seed=5, n_agents=4)
     b = run_cell(coast, "SPC", 2, "heuristic", episodes=3, seed=5, n_agents=4)
     pd.testing.assert_frame_equal(a, b)
-    n0 = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        c = run_cell(coast, "SPC", 2, "heuristic", episodes=3, seed=5, n_agents=4)
-    finally:
-        numba.set_num_threads(n0)
+    c = on_one_thread(run_cell, coast, "SPC", 2, "heuristic", episodes=3, seed=5, n_agents=4)
     pd.testing.assert_frame_equal(a, c)
     d = run_cell(coast, "SPC", 2, "heuristic", episodes=3, seed=6, n_agents=4)
     assert not np.array_equal(a["cleanup_rate"].to_numpy(), d["cleanup_rate"].to_numpy())
@@ -195,12 +190,7 @@ def test_run_cell_deterministic_threads_and_columns(coast):
 def test_tier_table_monotone_and_declared():
     table = load_task_table("SPC")
     tiers = table["tiers"]
-    assert sorted(tiers) == [1, 2, 3]
-    for key, way in table["harder"].items():
-        assert way in ("up", "down")
-        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
-        sign = 1.0 if way == "up" else -1.0
-        assert all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:])), (key, vals)
+    assert_tier_table_monotone(table)
     for t in (1, 2, 3):
         assert set(tiers[t]) == set(table["harder"]) == set(spc._TIER_KEYS)
     assert table["agents"] == {"default": 10, "range": [2, 10]}

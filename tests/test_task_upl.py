@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 
-import numba
 import numpy as np
 import pandas as pd
 import pytest
@@ -16,6 +15,7 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.tasks import run_cell, upl
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
+from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.1, "site_depth_m": 40.0,
         "start_distance_m": 60.0, "attach_radius_m": 1.0, "attach_dwell_s": 5.0,
@@ -206,24 +206,14 @@ def test_run_cell_deterministic_seeds_and_threads(coast):
     pd.testing.assert_frame_equal(a, b)
     c = run_cell(coast, "UPL", 3, "heuristic", episodes=4, seed=6)
     assert not np.array_equal(a["E"].to_numpy(), c["E"].to_numpy())
-    n0 = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        d = run_cell(coast, "UPL", 3, "heuristic", episodes=4, seed=5)
-    finally:
-        numba.set_num_threads(n0)
+    d = on_one_thread(run_cell, coast, "UPL", 3, "heuristic", episodes=4, seed=5)
     pd.testing.assert_frame_equal(a, d)
 
 
 def test_tier_table_monotone_and_declared():
     table = load_task_table("UPL")
     tiers = table["tiers"]
-    assert sorted(tiers) == [1, 2, 3]
-    for key, way in table["harder"].items():
-        assert way in ("up", "down")
-        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
-        sign = 1.0 if way == "up" else -1.0
-        assert all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:])), (key, vals)
+    assert_tier_table_monotone(table)
     for t in (1, 2, 3):
         assert set(tiers[t]) == set(table["harder"]) == set(upl._TIER_KEYS)
     assert table["agents"] == {"default": 5, "range": [5, 5]}
