@@ -24,15 +24,17 @@ wildcard_constraints:
 
 
 def code_version(*modules):
-    """sha256 of the source of oneocean modules/packages a rule depends on (a params value,
-    so that editing the code reruns the rule)."""
+    """sha256 of the source of oneocean modules/packages a rule depends on, their ``.py`` files
+    and data tables (``.yaml``) (a params value, so that editing the code or a table such as a
+    task's tier table reruns the rule)."""
     h = hashlib.sha256()
     for mod in modules:
         spec = importlib.util.find_spec(mod)
         if spec is None:
             raise WorkflowError(f"code_version: module {mod} not found")
         if spec.submodule_search_locations:
-            files = sorted(f for d in spec.submodule_search_locations for f in Path(d).rglob("*.py"))
+            files = sorted(f for d in spec.submodule_search_locations for pat in ("*.py", "*.yaml")
+                           for f in Path(d).rglob(pat))
         else:
             files = [Path(spec.origin)]
         for f in files:
