@@ -15,6 +15,7 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.tasks import g2g, run_cell
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear
+from oneocean.tasks.episodes import rollout
 from task_helpers import assert_tier_table_monotone
 
 TIER = {"current_gain": 1.0, "time_limit_s": 600.0, "probe_noise_ms": 0.1,
@@ -33,7 +34,7 @@ def coast():
 
 def _run(grid, tier, method, dyn="kinematic", n=6, seed=0, vehicle=None):
     init = g2g.reset(grid, tier, 1, n, seed)
-    return init, g2g.rollout(grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
+    return init, rollout(g2g, grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
 
 
 def test_reset_geometry_is_valid(coast):
@@ -103,13 +104,13 @@ def test_current_stronger_than_vmax_defeats_both_methods():
             "psi0": np.array([[math.pi / 2]]), "t0": np.zeros(1)}
     tier = {**TIER, "time_limit_s": 200.0}
     for method in ("oracle", "heuristic"):
-        r = g2g.rollout(grid, tier, init, method, "6dof", E.load_vehicle(), 0)
+        r = rollout(g2g, grid, tier, init, method, "6dof", E.load_vehicle(), 0)
         assert not r["success"][0]
         assert r["T_s"][0] == 200.0
         assert r["final_error_m"][0] > 500.0  # pushed away
     # the same goal downstream is reached
     init["goal"] = np.array([[-500.0, 5.0, 0.0]])
-    r = g2g.rollout(grid, tier, init, "heuristic", "6dof", E.load_vehicle(), 0)
+    r = rollout(g2g, grid, tier, init, "heuristic", "6dof", E.load_vehicle(), 0)
     assert r["success"][0] and r["T_s"][0] < 200.0
 
 

@@ -18,14 +18,11 @@ from ..vocab import TASK_IDS, validate_choice
 from .common import (ACT_FIELDS, OBS_FIELDS, STANDARD, load_task_table, method_id,  # noqa: F401
                      tier_params)
 
-#: Task id -> module name inside this package.
-MODULES = {"G2G": "g2g", "SK": "sk", "RF": "rf", "DPT": "dpt", "AS": "as_", "PI": "pi",
-           "FT": "ft", "SPC": "spc", "UPL": "upl", "FH": "fh"}
-
-
 def task_module(task_id: str):
-    validate_choice(task_id, TASK_IDS, "task")
-    return importlib.import_module(f"{__name__}.{MODULES[task_id]}")
+    """The module implementing ``task_id`` (``oneocean.registry.task_spec(id).module``)."""
+    from ..registry import task_spec
+
+    return importlib.import_module(task_spec(task_id).module)
 
 
 def n_agents_for(task_id: str, n_agents: int | None) -> int:
@@ -77,7 +74,14 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     veh = vehicle if vehicle is not None else load_vehicle()
     params = {**params, "dt_s": float(table["dt_s"])}
     init = mod.reset(g_reset, params, n, int(episodes), int(seed))
-    res = mod.rollout(g, params, init, method, dynamics, veh, int(seed), record=observations)
+    if hasattr(mod, "make"):   # a task on the one episode loop
+        from .episodes import rollout
+
+        res = rollout(mod, g, params, init, method, dynamics, veh, int(seed),
+                      record=observations)
+    else:
+        res = mod.rollout(g, params, init, method, dynamics, veh, int(seed),
+                          record=observations)
     missing = [k for k in STANDARD + tuple(mod.METRICS) if k not in res]
     if missing:
         raise RuntimeError(f"task {task}: rollout did not return {missing}")

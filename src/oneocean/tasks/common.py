@@ -131,8 +131,13 @@ def _tiers_dir() -> Path:
 
 
 def load_task_table(task_id: str, path: str | Path | None = None) -> dict:
-    """The tier table of one task (``data/tasks/<ID>.yaml``): agents, dt, harder, tiers."""
-    f = Path(path) if path else _tiers_dir() / f"{task_id}.yaml"
+    """The tier table of one task (its registry spec's ``table_path``, for the built-ins
+    ``data/tasks/<ID>.yaml``): agents, dt, harder, tiers (and the registry's ``spec``)."""
+    if path is None:
+        from ..registry import task_spec
+
+        path = task_spec(task_id).table_path
+    f = Path(path)
     try:
         doc = yaml.safe_load(f.read_text())
     except OSError as exc:
@@ -398,14 +403,16 @@ def fresh_cache(kernel, module_file: str, *deps) -> bool:
     """Drop ``kernel``'s stale numba cache entries at import (:func:`ensure_fresh_cache`).
 
     numba keys a cache entry on the kernel's own file only; a task kernel also inlines the
-    engine, this module and ``deps`` (e.g. a model file), so the fingerprint covers exactly
-    those: editing one task recompiles that task alone.
+    engine, this module, the episode loop (``loop.py``) and ``deps`` (e.g. its policy module,
+    a model file), so the fingerprint covers exactly those: editing one task recompiles that
+    task alone.
     """
     from ..engine._jit import ensure_fresh_cache
 
     here = Path(module_file).resolve()
-    return ensure_fresh_cache(kernel, (here.stem + ".",), here, Path(__file__).resolve(),
-                              *(Path(d).resolve() for d in deps))
+    mine = Path(__file__).resolve()
+    return ensure_fresh_cache(kernel, (here.stem + ".",), here, mine,
+                              mine.with_name("loop.py"), *(Path(d).resolve() for d in deps))
 
 
 

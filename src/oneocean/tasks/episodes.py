@@ -1,0 +1,137 @@
+"""Python side of the one episode loop: a batch of episodes of one task, resumable.
+
+:class:`Episodes` holds everything a rollout needs (the loop's params and state, the task's
+params ``P`` and work arrays ``W``, the method's params ``M``, agent states, buffers) and
+advances all episodes together with the task's kernel (:func:`oneocean.tasks.loop.run_episode`
+in ``prange``). ``run()`` runs to the end; ``run(k_stop)`` stops every episode before step
+``k_stop`` so a planner or the step API can act in between (``observe`` gives the next
+observation, ``set_actions`` the external actions of the next segment).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD, DEFAULT_R_COLL_M
+from ..engine.dynamics import CMD_DIM, model_id, new_state
+from ..errors import ConfigError
+from .common import (ACT_FIELDS, CLEARANCE_M, OBS_DIM, STANDARD, episode_steps, need_tier,
+                     rollout_results)
+from .loop import EXTERNAL, FUSED, FINISHED, LoopParams, new_loop_state
+
+
+class Episodes:
+    """E episodes of one task under one method, advanced by the task's fused kernel.
+
+    Parameters
+    ----------
+    mod : module
+        The task module (``TASK_ID``, ``METRICS``, ``make``, ``POLICY``, ``_kernel``,
+        ``_observe_kernel``).
+    grid : Grid
+        Forcing applied (``run_cell`` sets the tier's gain or switches the current off).
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        The task's ``reset`` output (``pos0`` (E, N, 3), ``psi0`` (E, N), ``t0`` (E,), ...).
+    method : str
+        A fused method the task's policy module knows (``heuristic``, ``oracle``), or
+        ``None`` for external actions (the step API; sensing is then the noisy probe).
+    dyn : str
+        Dynamics model name.
+    vehicle : Vehicle
+    seed : int
+        Run seed (probe-noise streams).
+    record : bool
+        Record every agent's per-step observation and action.
+    """
+
+    def __init__(self, mod, grid, tier: dict, init: dict, method: str | None, dyn: str,
+                 vehicle, seed: int, *, record: bool = False):
+        need_tier(mod.TASK_ID, tier, "time_limit_s", "dt_s")
+        pol = mod.POLICY
+        if method is not None and method not in pol.SENSING:
+            raise ConfigError(f"task {mod.TASK_ID}: method {method!r} has no fused policy "
+                              f"here; fused methods: {', '.join(sorted(pol.SENSING))}")
+        self.mod = mod
+        self.grid = grid
+        self.vehicle = vehicle
+        pos0 = np.ascontiguousarray(init["pos0"], dtype=np.float64)
+        n_ep, n_ag = pos0.shape[:2]
+        self.n_episodes, self.n_agents = n_ep, n_ag
+        self.n_steps = episode_steps(tier)
+        dt = float(tier["dt_s"])
+        self.dt = dt
+        self.P, self.W = mod.make(grid, tier, init)
+        self.M = pol.params(method or "heuristic", tier, vehicle)
+        noisy = pol.SENSING[method] if method is not None else 1
+        self.LP = LoopParams(model_id(dyn), FUSED if method is not None else EXTERNAL,
+                             int(noisy), self.n_steps, int(seed), dt, float(vehicle.v_max),
+                             float(tier.get("probe_noise_ms", 0.0)), DEFAULT_LAND_THRESHOLD,
+                             float(getattr(mod, "CLEARANCE_M", CLEARANCE_M)),
+                             float(getattr(mod, "R_COLL_M", DEFAULT_R_COLL_M)))
+        self.LS = new_loop_state(n_ep, n_ag)
+        self.t0 = np.ascontiguousarray(init["t0"], dtype=np.float64)
+        self.state = new_state(n_ep, n_ag, pos0, init["psi0"])
+        self.cmd = np.zeros((n_ep, n_ag, CMD_DIM))
+        self.ext = np.zeros((n_ep, n_ag, len(ACT_FIELDS)))
+        steps = self.n_steps if record else 0
+        self.record = bool(record)
+        self.obs = np.full((n_ep, steps, n_ag, OBS_DIM), np.nan)
+        self.act = np.full((n_ep, steps, n_ag, len(ACT_FIELDS)), np.nan)
+        self.columns = STANDARD + tuple(mod.METRICS)
+        self.res = np.zeros((n_ep, len(self.columns)))
+
+    # ------------------------------------------------------------------ stepping
+    @property
+    def k(self) -> np.ndarray:
+        """(E,) steps taken by each episode."""
+        return self.LS.k
+
+    @property
+    def done(self) -> np.ndarray:
+        """(E,) bool: the episode has ended (success, termination or time limit)."""
+        return self.LS.status == FINISHED
+
+    def run(self, k_stop: int | None = None) -> "Episodes":
+        """Advance every running episode up to step ``k_stop`` (default: to its end)."""
+        k_stop = self.n_steps if k_stop is None else int(k_stop)
+        self.mod._kernel(self.grid, self.vehicle.params, self.LP, self.P, self.W, self.M,
+                         self.LS, self.t0, self.state, self.cmd, self.ext, self.obs, self.act,
+                         self.res, k_stop)
+        return self
+
+    def set_actions(self, actions) -> None:
+        """External actions (E, N, 3) for the next step(s): desired velocity relative to the
+        water, world frame (x east, y down, z north), m s-1; clipped to ``v_max`` by the loop."""
+        a = np.asarray(actions, dtype=np.float64)
+        if a.shape != self.ext.shape:
+            raise ConfigError(f"actions: expected shape {self.ext.shape}, got {a.shape}")
+        self.ext[...] = a
+
+    def observe(self) -> np.ndarray:
+        """(E, N, OBS_DIM) observation of every agent before its next step (NaN rows for
+        finished episodes are not cleared: check :attr:`done`)."""
+        nobs = np.full((self.n_episodes, 1, self.n_agents, OBS_DIM), np.nan)
+        nact = np.zeros((self.n_episodes, 1, self.n_agents, len(ACT_FIELDS)))
+        self.mod._observe_kernel(self.grid, self.LP, self.P, self.W, self.LS, self.t0,
+                                 self.state, nobs, nact)
+        return nobs[:, 0]
+
+    def results(self) -> dict:
+        """The per-episode result columns (finished episodes; see ``STANDARD`` + METRICS)."""
+        if not self.done.all():
+            raise RuntimeError(f"task {self.mod.TASK_ID}: results requested before every "
+                               "episode ended")
+        out = rollout_results(self.res, self.columns, self.obs, self.act, self.record)
+        for k in getattr(self.mod, "INT_METRICS", ()):
+            out[k] = out[k].astype(np.int64)
+        return out
+
+
+def rollout(mod, grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int, *,
+            record: bool = False) -> dict:
+    """Run every episode of ``init`` (the task's ``reset`` output) to its end with one fused
+    method; returns the per-episode columns (``STANDARD`` + the task's ``METRICS``, plus
+    ``obs``/``act`` when ``record``)."""
+    return Episodes(mod, grid, tier, init, method, dyn, vehicle, seed, record=record).run().results()

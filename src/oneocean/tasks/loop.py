@@ -1,0 +1,224 @@
+"""The one episode loop every task runs on, and the contract of a task's hooks.
+
+A task (``oneocean.tasks.<id>``) says what the world does; a method (``oneocean.methods``)
+says what the agents do. This loop owns everything they share, so no task re-implements it:
+time, current sampling at every agent, the method's sensing (the heuristic's noisy probe or
+the exact current), observation recording, the action (through :func:`advance_agent`:
+clipping to ``v_max``, dynamics, feasibility), the energy proxy (eq. 7), rejected moves,
+near-collisions (eq. 4, one ``r_coll``), termination, success and ``T`` — in resumable
+segments of steps (``k_stop``), so a Python planner or a step API can act between them.
+
+Per step ``k`` of episode ``e`` (``t = t0[e] + k dt``)::
+
+    env.pre_step                      task physics before the agents act (e.g. face velocities)
+    policy.plan                       the method's team-level decision (assignment, map)
+    for every agent i:
+        c   = true current at the agent (gain and tides included)
+        c~  = what the method senses (noisy probe or exact)
+        a   = policy.act(..., c~)     or the external action ext[e, i] (step API)
+        record observation (env.cue) and action when asked
+        advance_agent(a, c); env.after_agent
+    near-collision count
+    stop = env.post_step              task physics after the moves, metrics, termination
+    k += 1
+    at the end: success = env.finish(...); T = k dt on success, else the time limit
+
+Hooks are plain ``@hot_kernel`` functions of the task module (the env) and of its method
+module (the policy). The task module passes them to :func:`run_episode` (``inline="always"``)
+from its own serial ``_episode`` (``hot_kernel``), which its kernel ``_kernel``
+(``njit(parallel=True, cache=True)``) runs in ``prange`` over episodes; ``_observe`` /
+``_observe_kernel`` do the same for :func:`observe_next`. Two numba facts shape this
+(numba 0.6x, both reproduced in ``tests/test_loop.py``):
+
+* functions must reach the loop as module globals of the caller and the loop must be
+  inlined there: a kernel that receives functions as run-time arguments embeds their
+  addresses and cannot be cached ("uses dynamic globals"), so it recompiles in every process;
+* code inlined directly into a ``prange`` body loses stores into arrays held by a
+  heterogeneous NamedTuple (such as :class:`LoopState` or a task's work arrays): hence the
+  serial ``_episode`` between the ``prange`` and the inlined loop.
+
+NamedTuple classes crossing into a kernel need package-unique names (numba's parfor lowering
+resolves them by name: two classes both called ``Params`` collide), so they carry the task id.
+
+Env hooks (``P``: the task's params NamedTuple, ``W``: its per-episode work arrays)::
+
+    begin(grid, P, W, state, e) -> stop            before step 0 (state holds the start)
+    pre_step(grid, P, W, state, e, k, t)
+    cue(grid, P, W, state, e, k, i) -> (gx, gy, gz, probe)   observation's goal cue, probe
+    after_agent(grid, P, W, state, e, k, i, code)  right after agent i moved
+    post_step(grid, P, W, state, prev, e, k, t) -> stop   (prev: positions before the step)
+    finish(grid, P, W, state, e, k, row) -> success        writes the task's metric columns
+
+Policy hooks (``M``: the method's params NamedTuple)::
+
+    plan(grid, P, W, M, state, e, k, t)
+    act(grid, P, W, M, state, e, k, i, t, pe, pn) -> (ax, ay, az, psi)
+        desired velocity relative to the water (world m s-1) and heading (rad, NaN = free)
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..engine.constraints import min_pairwise_distance
+from ..engine._jit import hot_kernel
+from ..engine.rollout import advance_agent
+from .common import OK, current_at, observe, probe
+
+#: Policy kinds inside the loop: the task's fused policy (heuristic, oracle, ...) or an
+#: external action per agent and step (``ext``; the step API and Python callables).
+FUSED, EXTERNAL = 0, 1
+
+#: Columns every task writes first in its result row (then its metrics).
+N_STANDARD = 5
+C_SUCCESS, C_T, C_E, C_COLL, C_VIOL = range(N_STANDARD)
+
+
+class LoopParams(NamedTuple):
+    """Scalars of the loop (one rollout, all episodes)."""
+    model: int          # dynamics model id (engine.dynamics.model_id)
+    policy: int         # FUSED or EXTERNAL
+    noisy: int          # 1: the method senses the current through the noisy probe
+    n_steps: int        # episode length, steps (the time limit)
+    seed: int           # run seed (probe-noise streams)
+    dt: float           # step, s
+    v_max: float        # vehicle speed limit, m s-1
+    noise: float        # probe noise std, m s-1
+    land_thr: float     # land-mask threshold of the feasibility check
+    clearance: float    # seafloor clearance of the feasibility check, m
+    r_coll: float       # near-collision radius, m
+
+
+class LoopState(NamedTuple):
+    """Per-episode state of the loop, kept between segments."""
+    k: np.ndarray           # (E,) int64 steps taken
+    status: np.ndarray      # (E,) int64 RUNNING / STOPPED / FINISHED
+    energy: np.ndarray      # (E,) float64 team energy proxy, m2 s-1
+    viol: np.ndarray        # (E,) int64 rejected moves (team)
+    coll: np.ndarray        # (E,) int64 steps with a near-collision
+    prev: np.ndarray        # (E, N, 3) positions before the current step, m
+
+
+NEW, RUNNING, FINISHED = 0, 1, 2
+
+
+def new_loop_state(n_episodes: int, n_agents: int) -> LoopState:
+    return LoopState(np.zeros(n_episodes, np.int64), np.zeros(n_episodes, np.int64),
+                     np.zeros(n_episodes), np.zeros(n_episodes, np.int64),
+                     np.zeros(n_episodes, np.int64), np.zeros((n_episodes, n_agents, 3)))
+
+
+@hot_kernel(inline="always")
+def sense(noisy, ce, cn, noise, seed, e, counter):
+    """What a method knows of the current at its agent: the noisy probe or the truth."""
+    if noisy != 0:
+        return probe(ce, cn, noise, seed, e, counter)
+    return ce, cn
+
+
+@hot_kernel(inline="always")
+def observe_next(grid, cue, P, W, LP, state, t0, e, k, nobs, nact):
+    """The observation every agent gets before step ``k`` (the step API's ``obs``), into
+    ``nobs[e, 0]`` (``nact`` (E, 1, N, 3) is scratch)."""
+    n_ag = state.shape[1]
+    t = t0[e] + k * LP.dt
+    for i in range(n_ag):
+        s = state[e, i]
+        ce, cn = current_at(grid, s[0], s[1], s[2], t)
+        pe, pn = sense(LP.noisy, ce, cn, LP.noise, LP.seed, e, 2 * (k * n_ag + i))
+        gx, gy, gz, pr = cue(grid, P, W, state, e, k, i)
+        observe(nobs, nact, e, 0, i, grid, state, gx, gy, gz, pe, pn, pr,
+                math.nan, math.nan, math.nan)
+
+
+@hot_kernel(inline="always")
+def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
+                grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act_rec, res, e, k_stop):
+    """Advance episode ``e`` up to step ``k_stop`` (or its end); write ``res[e]`` when it
+    ends. Serial; the per-task kernel runs it for every episode in ``prange``."""
+    if LS.status[e] == FINISHED:
+        return
+    n_ag = state.shape[1]
+    n_steps = LP.n_steps
+    dt = LP.dt
+    stop = False
+    if LS.status[e] == NEW:
+        LS.status[e] = RUNNING
+        stop = begin(grid, P, W, state, e)
+    k = LS.k[e]
+    energy = LS.energy[e]
+    viol = LS.viol[e]
+    coll = LS.coll[e]
+    S = state[e]
+    while k < n_steps and k < k_stop and not stop:
+        t = t0[e] + k * dt
+        pre_step(grid, P, W, state, e, k, t)
+        if LP.policy == FUSED:
+            plan(grid, P, W, M, state, e, k, t)
+        for i in range(n_ag):
+            s = S[i]
+            px = s[0]
+            py = s[1]
+            pz = s[2]
+            LS.prev[e, i, 0] = px
+            LS.prev[e, i, 1] = py
+            LS.prev[e, i, 2] = pz
+            ce, cn = current_at(grid, px, py, pz, t)
+            pe, pn = sense(LP.noisy, ce, cn, LP.noise, LP.seed, e, 2 * (k * n_ag + i))
+            if LP.policy == FUSED:
+                ax, ay, az, psi = act(grid, P, W, M, state, e, k, i, t, pe, pn)
+            else:
+                ax = ext[e, i, 0]
+                ay = ext[e, i, 1]
+                az = ext[e, i, 2]
+                psi = math.nan
+            if k < obs.shape[1]:
+                gx, gy, gz, pr = cue(grid, P, W, state, e, k, i)
+                observe(obs, act_rec, e, k, i, grid, state, gx, gy, gz, pe, pn, pr, ax, ay, az)
+            c = cmd[e, i]
+            c[0] = ax
+            c[1] = ay
+            c[2] = az
+            c[3] = psi
+            c[4] = 1.0
+            en, code = advance_agent(grid, LP.model, vp, s, c, ce, cn, LP.v_max, dt,
+                                     LP.land_thr, LP.clearance)
+            energy += en
+            if code != OK:
+                viol += 1
+            after_agent(grid, P, W, state, e, k, i, code)
+        if n_ag > 1 and min_pairwise_distance(S) <= LP.r_coll:
+            coll += 1
+        stop = post_step(grid, P, W, state, LS.prev, e, k, t)
+        k += 1
+    LS.k[e] = k
+    LS.energy[e] = energy
+    LS.viol[e] = viol
+    LS.coll[e] = coll
+    if stop or k >= n_steps:
+        LS.status[e] = FINISHED
+        row = res[e]
+        success = finish(grid, P, W, state, e, k, row)
+        row[C_SUCCESS] = 1.0 if success else 0.0
+        row[C_T] = k * dt if success else n_steps * dt
+        row[C_E] = energy
+        row[C_COLL] = coll / k if k > 0 else 0.0
+        row[C_VIOL] = viol
+
+
+@hot_kernel(inline="always")
+def noop_pre_step(grid, P, W, state, e, k, t):
+    return
+
+
+@hot_kernel(inline="always")
+def noop_after_agent(grid, P, W, state, e, k, i, code):
+    return
+
+
+@hot_kernel(inline="always")
+def noop_plan(grid, P, W, M, state, e, k, t):
+    return
