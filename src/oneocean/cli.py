@@ -1,4 +1,4 @@
-"""Command-line entry point: ``oneocean verify [results/]``."""
+"""Command-line entry point: ``oneocean verify [results/]``, ``oneocean evaluate ...``."""
 
 from __future__ import annotations
 
@@ -29,6 +29,27 @@ def _verify(args) -> int:
     return 0
 
 
+def _evaluate(args) -> int:
+    from .errors import ConfigError
+    from .evaluate import evaluate_to_file
+
+    try:
+        entry = evaluate_to_file(args.policy, args.out, args.task, args.tier, args.grid,
+                                 name=args.name, episodes=args.episodes, seed=args.seed,
+                                 dynamics=args.dynamics, n_agents=args.n_agents,
+                                 currents=not args.currents_off)
+    except ConfigError as exc:
+        print(f"oneocean evaluate: {exc}", file=sys.stderr)
+        return 2
+    import pandas as pd
+
+    df = pd.read_parquet(args.out)
+    print(f"{args.task} tier {args.tier} {df['method'].iloc[0]}: SR {df['success'].mean():.1%} "
+          f"over {len(df)} episodes, mean {df.attrs.get('primary', 'primary')} "
+          f"{df['primary'].mean():.4g}; wrote {entry['path']}")
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="oneocean", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -36,6 +57,21 @@ def main(argv=None) -> int:
     p.add_argument("results", nargs="?", default="results",
                    help="results folder holding manifest.json (default: results)")
     p.set_defaults(func=_verify)
+    p = sub.add_parser("evaluate", help="score your own policy (module:callable) on a cell "
+                       "and write the same Parquet table as the workflow")
+    p.add_argument("--task", required=True)
+    p.add_argument("--tier", type=int, required=True)
+    p.add_argument("--policy", required=True, help="module:callable, obs (E,N,D) -> (E,N,3)")
+    p.add_argument("--grid", default="results/exports/synthetic_coast/scene/grid.npz",
+                   help="grid export (default: the default region's scene variant)")
+    p.add_argument("--out", required=True, help="output Parquet path")
+    p.add_argument("--name", default=None, help="method name in the table (default: callable)")
+    p.add_argument("--episodes", type=int, default=50)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--dynamics", default="6dof")
+    p.add_argument("--n-agents", type=int, default=None)
+    p.add_argument("--currents-off", action="store_true", help="the currents-off ablation")
+    p.set_defaults(func=_evaluate)
     args = parser.parse_args(argv)
     return args.func(args)
 

@@ -37,6 +37,39 @@ def n_agents_for(task_id: str, n_agents: int | None) -> int:
     return int(n_agents)
 
 
+class Cell:
+    """One (task, tier) on one grid, ready to sample episodes and run them.
+
+    ``grid_reset`` carries the tier's forcing (``current_gain``); ``grid`` is what the
+    rollout sees: the same, or with the current switched off (``currents=False``, tides
+    dropped: the ablation). Episodes are always sampled on ``grid_reset``, so the ablation
+    replays the same episodes (geometry, start times).
+    """
+
+    def __init__(self, grid, task: str, tier: int, *, n_agents: int | None = None,
+                 currents: bool = True, vehicle=None):
+        from ..engine import load_grid, load_vehicle
+        from ..engine.grid import Grid, with_forcing
+
+        self.task, self.tier = task, int(tier)
+        self.mod = task_module(task)
+        grid = grid if isinstance(grid, Grid) else load_grid(grid)
+        params = tier_params(task, self.tier)
+        self.params = {**params, "dt_s": float(load_task_table(task)["dt_s"])}
+        self.n_agents = n_agents_for(task, n_agents)
+        self.grid_reset = with_forcing(grid,
+                                       current_gain=float(params.get("current_gain", 1.0)))
+        self.grid = self.grid_reset if currents else self.grid_reset._replace(
+            gain=0.0, tide_layers=0, tide_amp=0.0)
+        self.currents = bool(currents)
+        self.vehicle = vehicle if vehicle is not None else load_vehicle()
+
+    def reset(self, episodes: int, seed: int) -> dict:
+        """The task's episodes ``0 .. episodes-1`` of ``seed`` (its ``reset`` output)."""
+        return self.mod.reset(self.grid_reset, self.params, self.n_agents, int(episodes),
+                              int(seed))
+
+
 def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: int = 50,
              seed: int = 0, dynamics: str = "6dof", currents: bool = True,
              n_agents: int | None = None, vehicle=None, observations: bool = False):
@@ -59,34 +92,34 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     (E, n_steps, N, 3) float64 (:data:`oneocean.tasks.common.OBS_FIELDS`, ``ACT_FIELDS``),
     NaN after an episode ended.
     """
-    from ..engine import load_vehicle
-    from ..engine.grid import with_forcing
-
-    mod = task_module(task)
+    cell = Cell(grid, task, tier, n_agents=n_agents, currents=currents, vehicle=vehicle)
     method_id(method)
-    params = tier_params(task, int(tier))
-    table = load_task_table(task)
-    n = n_agents_for(task, n_agents)
-    # episodes are sampled under the tier's forcing, so the currents-off ablation replays the
-    # same episodes (geometry, start times) with the current switched off in the rollout only
-    g_reset = with_forcing(grid, current_gain=float(params.get("current_gain", 1.0)))
-    g = g_reset if currents else g_reset._replace(gain=0.0, tide_layers=0, tide_amp=0.0)
-    veh = vehicle if vehicle is not None else load_vehicle()
-    params = {**params, "dt_s": float(table["dt_s"])}
-    init = mod.reset(g_reset, params, n, int(episodes), int(seed))
+    mod, n = cell.mod, cell.n_agents
+    init = cell.reset(episodes, seed)
     if hasattr(mod, "make"):   # a task on the one episode loop
         from .episodes import rollout
 
-        res = rollout(mod, g, params, init, method, dynamics, veh, int(seed),
-                      record=observations)
+        res = rollout(mod, cell.grid, cell.params, init, method, dynamics, cell.vehicle,
+                      int(seed), record=observations)
     else:
-        res = mod.rollout(g, params, init, method, dynamics, veh, int(seed),
-                          record=observations)
+        res = mod.rollout(cell.grid, cell.params, init, method, dynamics, cell.vehicle,
+                          int(seed), record=observations)
+    df = cell_frame(mod, res, tier, method, n, dynamics, currents, episodes, seed)
+    if observations:
+        return df, res["obs"], res["act"]
+    return df
+
+
+def cell_frame(mod, res: dict, tier: int, method: str, n_agents: int, dynamics: str,
+               currents: bool, episodes: int, seed: int) -> pd.DataFrame:
+    """The cell table (one row per episode) from a rollout's result columns ``res``: the
+    same columns whether a fused method, a planner or a user's policy produced them."""
+    task = mod.TASK_ID
     missing = [k for k in STANDARD + tuple(mod.METRICS) if k not in res]
     if missing:
         raise RuntimeError(f"task {task}: rollout did not return {missing}")
     df = pd.DataFrame({"task": task, "tier": np.full(episodes, int(tier), dtype=np.int64),
-                       "method": method, "n_agents": np.full(episodes, n, dtype=np.int64),
+                       "method": method, "n_agents": np.full(episodes, n_agents, dtype=np.int64),
                        "dynamics": dynamics, "currents": bool(currents),
                        "episode": np.arange(episodes, dtype=np.int64),
                        "seed": np.full(episodes, seed, dtype=np.int64)})
@@ -95,10 +128,8 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     df["primary"] = res[mod.METRICS[0]]
     for k in mod.METRICS:
         df[k] = res[k]
-    df.attrs.update(task=task, tier=int(tier), method=method, n_agents=n, dynamics=dynamics,
-                    currents=bool(currents), primary=mod.METRICS[0])
-    if observations:
-        return df, res["obs"], res["act"]
+    df.attrs.update(task=task, tier=int(tier), method=method, n_agents=n_agents,
+                    dynamics=dynamics, currents=bool(currents), primary=mod.METRICS[0])
     return df
 
 

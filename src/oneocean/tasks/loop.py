@@ -28,7 +28,8 @@ module (the policy). The task module passes them to :func:`run_episode` (``inlin
 from its own serial ``_episode`` (``hot_kernel``), which its kernel ``_kernel``
 (``njit(parallel=True, cache=True)``) runs in ``prange`` over episodes; ``_observe`` /
 ``_observe_kernel`` do the same for :func:`observe_next`. Two numba facts shape this
-(numba 0.6x, both reproduced in ``tests/test_loop.py``):
+(numba 0.6x; ``tests/test_loop.py`` checks that the kernels cache and that the loop
+state is written back):
 
 * functions must reach the loop as module globals of the caller and the loop must be
   inlined there: a kernel that receives functions as run-time arguments embeds their

@@ -1,0 +1,89 @@
+"""Score your own policy on the benchmark: the same episodes, loop and metrics as the paper's
+methods, and the same Parquet table as the workflow's rollout cells.
+
+A policy is any Python callable ``policy(obs) -> actions`` on a batch: ``obs`` is
+(E, N, OBS_DIM) float64 (:data:`oneocean.tasks.common.OBS_FIELDS`; what the step API gives
+every agent) and ``actions`` (E, N, 3): the desired velocity relative to the water, world
+frame (x east, y down, z north), m s-1, clipped to the vehicle's ``v_max``. If the object has
+a ``reset(n_episodes, n_agents)`` method it is called before the first step. Rows of finished
+episodes are ignored.
+
+Python::
+
+    from oneocean.evaluate import evaluate
+    df = evaluate(my_policy, "G2G", 2, "results/exports/synthetic_coast/scene/grid.npz")
+
+Command line::
+
+    oneocean evaluate --task G2G --tier 2 --policy mypkg.mod:act \\
+        --grid results/exports/synthetic_coast/scene/grid.npz --out mine.parquet
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import numpy as np
+import pandas as pd
+
+from .errors import ConfigError
+
+
+def load_policy(spec: str):
+    """``"package.module:attr"`` -> the object (a one-line ConfigError if it is not there)."""
+    if ":" not in spec:
+        raise ConfigError(f"policy {spec!r}: expected 'module:callable', e.g. mypkg.mod:act")
+    mod_name, attr = spec.split(":", 1)
+    try:
+        mod = importlib.import_module(mod_name)
+    except ImportError as exc:
+        raise ConfigError(f"policy {spec!r}: cannot import module {mod_name!r} ({exc})") from None
+    obj = mod
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise ConfigError(f"policy {spec!r}: module {mod_name!r} has no attribute {attr!r}")
+        obj = getattr(obj, part)
+    if not callable(obj):
+        raise ConfigError(f"policy {spec!r}: {attr!r} is not callable")
+    return obj
+
+
+def evaluate(policy, task: str, tier: int, grid, *, episodes: int = 50, seed: int = 0,
+             dynamics: str = "6dof", n_agents: int | None = None, currents: bool = True,
+             vehicle=None, name: str = "user") -> pd.DataFrame:
+    """Run ``policy`` on ``episodes`` episodes of a (task, tier) cell through the step API's
+    loop; returns the cell table (:func:`oneocean.tasks.cell_frame`) with ``method = name``."""
+    from .envs import OceanVectorEnv
+    from .tasks import cell_frame
+
+    env = OceanVectorEnv(task, tier, grid, num_envs=int(episodes), dynamics=dynamics,
+                         n_agents=n_agents, currents=currents, vehicle=vehicle)
+    obs, _ = env.reset(seed=int(seed))
+    b = env.batch
+    if hasattr(policy, "reset"):
+        policy.reset(b.n_episodes, b.n_agents)
+    while not b.done.all():
+        act = np.asarray(policy(obs), dtype=np.float64)
+        if act.shape != env.action_space.shape:
+            raise ConfigError(f"policy {name!r}: returned actions of shape {act.shape}, "
+                              f"expected {env.action_space.shape} (episodes, agents, 3)")
+        act = np.where(np.isfinite(act), act, 0.0)
+        obs, *_ = env.step(act)
+    res = b.results()
+    return cell_frame(b.mod, res, tier, name, b.n_agents, dynamics, currents, int(episodes),
+                      int(seed))
+
+
+def evaluate_to_file(policy_spec: str, out_path, task: str, tier: int, grid_path, *,
+                     name: str | None = None, **kw) -> dict:
+    """:func:`evaluate` a ``module:callable`` policy and write the cell's Parquet table
+    atomically (with its manifest entry), like the workflow's rollout cells."""
+    from .engine import write_metrics
+    from .tasks.common import tier_params
+
+    policy = load_policy(policy_spec)
+    name = name or policy_spec.split(":", 1)[1]
+    df = evaluate(policy, task, tier, grid_path, name=name, **kw)
+    return write_metrics(df, out_path, meta={"dynamics": kw.get("dynamics", "6dof"),
+                                             "policy": policy_spec,
+                                             "tier_params": tier_params(task, int(tier))})

@@ -1,0 +1,84 @@
+"""The one episode loop (tasks/loop.py) and its Python driver (tasks/episodes.py)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from oneocean import engine as E
+from oneocean.errors import ConfigError
+from oneocean.tasks import Cell
+from oneocean.tasks.episodes import Episodes, rollout
+from oneocean.tasks.loop import FINISHED
+
+
+@pytest.fixture(scope="module")
+def coast():
+    return E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+
+
+def _episodes(cell, method, n=4, seed=1, record=False):
+    return Episodes(cell.mod, cell.grid, cell.params, cell.reset(n, seed), method, "6dof",
+                    cell.vehicle, seed, record=record)
+
+
+@pytest.mark.parametrize("method", ["heuristic", "oracle"])
+def test_segments_resume_exactly(coast, method):
+    """Running in K-step segments (what a planner or the step API does) gives the same
+    episodes, bit for bit, as one call; the loop's state is kept between segments."""
+    cell = Cell(coast, "G2G", 1)
+    whole = _episodes(cell, method).run()
+    parts = _episodes(cell, method)
+    k = 0
+    while not parts.done.all():
+        k += 37
+        parts.run(k)
+        assert (parts.k <= k).all()
+    np.testing.assert_array_equal(parts.res, whole.res)
+    np.testing.assert_array_equal(parts.state, whole.state)
+    # the loop state was written back (a heterogeneous NamedTuple: see loop.py)
+    assert (whole.LS.status == FINISHED).all()
+    T = whole.res[:, 1]
+    ok = whole.res[:, 0] > 0.5
+    np.testing.assert_array_equal(whole.LS.k[ok] * whole.dt, T[ok])
+    assert (whole.LS.energy == whole.res[:, 2]).all() and (whole.LS.energy > 0).all()
+
+
+def test_results_need_every_episode_to_end(coast):
+    ep = _episodes(Cell(coast, "G2G", 1), "heuristic").run(3)
+    with pytest.raises(RuntimeError, match="before every episode ended"):
+        ep.results()
+
+
+def test_unknown_method_is_a_config_error(coast):
+    cell = Cell(coast, "G2G", 1)
+    with pytest.raises(ConfigError, match="no fused policy"):
+        rollout(cell.mod, cell.grid, cell.params, cell.reset(2, 0), "bc", "6dof",
+                cell.vehicle, 0)
+
+
+def test_external_actions_shape_is_checked(coast):
+    ep = _episodes(Cell(coast, "G2G", 1), None)
+    with pytest.raises(ConfigError, match="expected shape"):
+        ep.set_actions(np.zeros((3, 1, 3)))
+
+
+def test_task_kernel_loads_from_the_cache_in_a_new_process(coast):
+    """A task kernel gets its hooks as module globals, never as run-time arguments, so numba
+    can cache it: a second process loads it instead of compiling it again."""
+    code = textwrap.dedent("""
+        from oneocean import engine as E
+        from oneocean.tasks import run_cell, g2g
+        g = E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+        run_cell(g, "G2G", 1, "heuristic", episodes=2, seed=0)
+        print(sum(g2g._kernel.stats.cache_hits.values()),
+              sum(g2g._kernel.stats.cache_misses.values()))
+    """)
+    out = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True).stdout.split() for _ in range(2)]
+    hits, misses = map(int, out[1])
+    assert hits == 1 and misses == 0, out
