@@ -13,6 +13,7 @@ from oneocean import engine as E
 from oneocean.errors import ConfigError
 from oneocean.tasks import ft, run_cell
 from oneocean.tasks.common import load_task_table, path_clear
+from oneocean.tasks.episodes import rollout
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 700.0, "probe_noise_ms": 0.0, "route_m": 400.0,
@@ -30,7 +31,7 @@ def coast():
 
 def _run(grid, tier, method, n_agents=4, dyn="kinematic", n=3, seed=0, init=None):
     init = init if init is not None else ft.reset(grid, tier, n_agents, n, seed)
-    return init, ft.rollout(grid, tier, init, method, dyn, E.load_vehicle(), seed)
+    return init, rollout(ft, grid, tier, init, method, dyn, E.load_vehicle(), seed)
 
 
 def _line_init(n_agents=3, offsets=None):
@@ -87,7 +88,8 @@ def test_oracle_transits_in_formation():
     assert r["formation_error_m"][0] < 1e-9 and r["max_slot_error_m"][0] < 1e-9
     assert r["final_centroid_error_m"][0] <= TIER["goal_radius_m"]
     assert r["coll_ratio"][0] == 0.0 and r["violations"][0] == 0
-    # the virtual centre runs at V_NOM_FRAC * v_max = 1.6 m/s: 395 m in ~247 s
+    # the virtual centre runs at V_NOM_FRAC * v_max = 1.6 m/s (methods.heuristic.ft): 395 m
+    # in ~247 s
     assert 240.0 <= r["T_s"][0] <= 260.0
 
 

@@ -1,0 +1,114 @@
+"""FT heuristic and oracle: a paced virtual centre, every agent tracking its slot around it.
+
+A virtual centre advances along the route (start centroid to goal) at
+``pace * V_NOM_FRAC * budget``, where ``pace = clip(1 - (e_max - PACE_E0_M) / PACE_E1_M, 0, 1)``
+slows it when the worst agent lags (``e_max`` = largest distance of an agent to its slot
+around the virtual centre at the start of the step). Each agent tracks its slot (around the
+virtual centre at the start of the step) with feed-forward of the virtual centre's velocity
+over the step plus P-control ``KP`` (capped at ``P_CAP_MS``) through
+:func:`~oneocean.tasks.common.steer`.
+
+``heuristic``: NOISY probed current, throttle cap ``budget = CRUISE_FRAC * v_max``.
+``oracle``: exact current, ``budget = v_max``.
+
+The virtual centre is the plan token: ``plan`` writes its position at the start of the step
+(``W.vc``, the observation's goal cue is the agent's slot around it), its velocity over the
+step (``W.vff``) and its distance along the route (``W.sigma``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from ...engine._jit import hot_kernel
+from ...tasks.common import CRUISE_FRAC, steer
+from . import SENSING  # noqa: F401
+
+#: Virtual-centre nominal speed as a fraction of the method's speed budget.
+V_NOM_FRAC = 0.8
+#: Pacing: the virtual centre slows once the worst slot lag exceeds PACE_E0_M and stops at
+#: PACE_E0_M + PACE_E1_M, m.
+PACE_E0_M = 1.0
+PACE_E1_M = 3.0
+#: Slot-tracking gain (s-1) and cap of the P part of the ground-velocity request (m s-1).
+KP = 0.3
+P_CAP_MS = 0.6
+
+
+class FTPolicy(NamedTuple):
+    budget: float   # speed budget through the water, m s-1
+    v_nom: float    # virtual-centre nominal speed (V_NOM_FRAC * budget), m s-1
+    kp: float       # slot-tracking gain, s-1
+    p_cap: float    # cap of the P part of the ground-velocity request, m s-1
+    e0: float       # pacing: lag where the virtual centre starts slowing, m
+    e1: float       # pacing: extra lag where it stops, m
+    dt: float       # step, s
+
+
+def params(method: str, tier: dict, vehicle) -> FTPolicy:
+    v_max = float(vehicle.v_max)
+    budget = CRUISE_FRAC * v_max if method == "heuristic" else v_max
+    return FTPolicy(budget, V_NOM_FRAC * budget, KP, P_CAP_MS, PACE_E0_M, PACE_E1_M,
+                    float(tier["dt_s"]))
+
+
+@hot_kernel(inline="always")
+def plan(grid, P, W, M, state, e, k, t):
+    """Pace the virtual centre by the worst slot lag around it; advance it over the step."""
+    st_e = state[e]
+    n = st_e.shape[0]
+    offsets = W.offsets
+    sx = W.start[e, 0]
+    sy = W.start[e, 1]
+    sz = W.start[e, 2]
+    lx = W.goal[e, 0] - sx
+    ly = W.goal[e, 1] - sy
+    lz = W.goal[e, 2] - sz
+    length = math.sqrt(lx * lx + ly * ly + lz * lz)
+    tx = lx / length
+    ty = ly / length
+    tz = lz / length
+    sigma = W.sigma[e]
+    dt = M.dt
+    vcx = sx + sigma * tx
+    vcy = sy + sigma * ty
+    vcz = sz + sigma * tz
+    lag = 0.0
+    for i in range(n):
+        d = math.sqrt((st_e[i, 0] - vcx - offsets[e, i, 0]) ** 2
+                      + (st_e[i, 1] - vcy - offsets[e, i, 1]) ** 2
+                      + (st_e[i, 2] - vcz - offsets[e, i, 2]) ** 2)
+        if d > lag:
+            lag = d
+    pace = min(max(1.0 - (lag - M.e0) / M.e1, 0.0), 1.0)
+    step = min(pace * M.v_nom * dt, length - sigma)
+    W.sigma[e] = sigma + step
+    W.vc[e, 0] = vcx
+    W.vc[e, 1] = vcy
+    W.vc[e, 2] = vcz
+    W.vff[e, 0] = step / dt * tx
+    W.vff[e, 1] = step / dt * ty
+    W.vff[e, 2] = step / dt * tz
+
+
+@hot_kernel(inline="always")
+def act(grid, P, W, M, state, e, k, i, t, pe, pn):
+    """Track slot i around the virtual centre: feed-forward plus capped P-control."""
+    s = state[e, i]
+    px = s[0]
+    py = s[1]
+    pz = s[2]
+    kp = M.kp
+    p_cap = M.p_cap
+    qx = kp * (W.vc[e, 0] + W.offsets[e, i, 0] - px)
+    qy = kp * (W.vc[e, 1] + W.offsets[e, i, 1] - py)
+    qz = kp * (W.vc[e, 2] + W.offsets[e, i, 2] - pz)
+    qn = math.sqrt(qx * qx + qy * qy + qz * qz)
+    if qn > p_cap:
+        f = p_cap / qn
+        qx *= f
+        qy *= f
+        qz *= f
+    ax, ay, az = steer(W.vff[e, 0] + qx, W.vff[e, 1] + qy, W.vff[e, 2] + qz, M.budget, pe, pn)
+    return ax, ay, az, math.nan
