@@ -1,5 +1,7 @@
 """Config validation: defaults filled from the schema, bad keys named in one line."""
 
+from pathlib import Path
+
 import pytest
 import yaml
 
@@ -75,3 +77,22 @@ def test_region_files_are_valid():
     for region in sorted((REPO / "config" / "regions").glob("*.yaml")):
         cfg = load_config(DEFAULT, region)
         assert cfg["region"]["name"] == yaml.safe_load(region.read_text())["region"]["name"]
+
+
+def test_schema_is_package_data_with_registry_enums():
+    import oneocean
+    from oneocean import registry
+    from oneocean.config import SCHEMA_PATH
+
+    assert SCHEMA_PATH.is_file()
+    assert SCHEMA_PATH.parent == Path(oneocean.__file__).parent / "data"
+    assert not (REPO / "workflow" / "schemas").exists()
+    rollouts = load_schema()["properties"]["rollouts"]["properties"]
+    assert rollouts["tasks"]["items"]["enum"] == list(registry.task_ids())
+    assert rollouts["tasks"]["default"] == list(registry.builtin_task_ids())
+    assert rollouts["methods"]["items"]["enum"] == list(registry.method_names())
+    # the file itself lists no task or method: the registry is the one list
+    assert "G2G" not in SCHEMA_PATH.read_text() and "oracle]" not in SCHEMA_PATH.read_text()
+    assert validate_config({})["plugins"] == []
+    with pytest.raises(ConfigError, match=r"rollouts\.tasks\.1.*'XX'"):
+        validate_config({"rollouts": {"tasks": ["G2G", "XX"]}})

@@ -1,7 +1,8 @@
 """Load and validate the workflow configuration against its JSON schema.
 
-The schema (``workflow/schemas/config.schema.yaml``) documents every key and its default; this
-module fills the defaults and turns the first violation into a one-line
+The schema (package data ``oneocean/data/config.schema.yaml``) documents every key and its
+default; :func:`load_schema` fills in the task and method enums from :mod:`oneocean.registry`.
+This module fills the defaults and turns the first violation into a one-line
 :class:`~oneocean.errors.ConfigError` that names the offending key.
 """
 
@@ -9,20 +10,36 @@ from __future__ import annotations
 
 import copy
 from datetime import datetime
+from importlib import resources
 from pathlib import Path
 
 import jsonschema
 import yaml
 
+from . import registry
 from .errors import ConfigError
 
-#: Schema shipped with the workflow (the single source of truth for keys and defaults).
-SCHEMA_PATH = Path(__file__).resolve().parents[2] / "workflow" / "schemas" / "config.schema.yaml"
+#: Schema shipped as package data (the single source of truth for keys and defaults; task and
+#: method enums are injected from the registry by :func:`load_schema`).
+SCHEMA_PATH = Path(str(resources.files("oneocean") / "data" / "config.schema.yaml"))
 
 
 def load_schema(path: str | Path | None = None) -> dict:
-    with open(path or SCHEMA_PATH) as fh:
-        return yaml.safe_load(fh)
+    """The config schema (the packaged one unless ``path``), with ``rollouts.tasks`` and
+    ``rollouts.methods`` restricted to the tasks and methods registered now, and
+    ``rollouts.tasks`` defaulting to the packaged task ladder."""
+    if path is None:
+        text = (resources.files("oneocean") / "data" / "config.schema.yaml").read_text()
+    else:
+        text = Path(path).read_text()
+    schema = yaml.safe_load(text)
+    rollouts = schema.get("properties", {}).get("rollouts", {}).get("properties", {})
+    if "tasks" in rollouts:
+        rollouts["tasks"]["items"] = {"enum": list(registry.task_ids())}
+        rollouts["tasks"].setdefault("default", list(registry.builtin_task_ids()))
+    if "methods" in rollouts:
+        rollouts["methods"]["items"] = {"enum": list(registry.method_names())}
+    return schema
 
 
 def _with_defaults(validator_cls):
@@ -55,13 +72,16 @@ def _key(error: jsonschema.ValidationError) -> str:
 
 
 def validate_config(config: dict, schema: dict | None = None) -> dict:
-    """Validate ``config`` in place, fill defaults, and return it.
+    """Import the config's ``plugins`` (they may register tasks and methods), then validate
+    ``config`` in place against ``schema`` (default :func:`load_schema`), fill defaults, and
+    return it.
 
     Raises
     ------
     ConfigError
         One line naming the first bad key: unknown, ill-typed, out of range, or inconsistent.
     """
+    registry.load_plugins(config.get("plugins") if isinstance(config, dict) else None)
     schema = schema or load_schema()
     validator = _Filling(schema, format_checker=jsonschema.FormatChecker())
     errors = sorted(validator.iter_errors(config), key=lambda e: list(map(str, e.absolute_path)))

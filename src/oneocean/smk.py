@@ -40,6 +40,10 @@ def run(snakemake, func) -> None:
     from .errors import OneOceanError
 
     try:
+        from .registry import load_plugins
+
+        # the workflow's plugins (tasks/methods they register) exist in every job's process too
+        load_plugins((getattr(snakemake, "config", None) or {}).get("plugins") or [])
         func(snakemake)
     except OneOceanError as err:
         log.error("%s", err)

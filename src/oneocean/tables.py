@@ -69,26 +69,29 @@ def dataset_variants_table(metadata_files, out_tex) -> None:
     write_text_atomic(out_tex, tex)
 
 
-#: Row order and families of the paper's Table V.
-TASK_FAMILIES = (("Navigation / Tracking", ("G2G", "SK", "RF", "DPT")),
-                 ("Sensing / Inspection", ("AS", "PI")),
-                 ("Coordination / Pollution", ("FT", "SPC", "UPL", "FH")))
-
-
 def task_success_frame(cell_files) -> pd.DataFrame:
     """Per-task success rate (%) by method and tier from per-episode rollout tables, plus a
-    macro (unweighted mean over tasks) row."""
+    macro (unweighted mean over tasks) row.
+
+    Rows follow :func:`oneocean.registry.task_ids` (the paper's order, then registered extras)
+    with the registry's family labels; columns follow the registry's method order, labelled
+    with each method's ``short`` label. A task or method in the rollouts that is not
+    registered is a ConfigError (never silently dropped).
+    """
+    from . import registry
+
     cells = pd.concat([pd.read_parquet(f) for f in cell_files], ignore_index=True)
     sr = (cells.groupby(["task", "method", "tier"])["success"].mean() * 100.0).unstack(
-        ["method", "tier"]).sort_index(axis=1)
+        ["method", "tier"])
     n = cells.groupby("task")["n_agents"].first()
-    order = [t for _, tasks in TASK_FAMILIES for t in tasks if t in sr.index]
-    sr = sr.loc[order]
-    names = {"heuristic": "Heur", "oracle": "Oracle"}
-    sr.columns = [f"{names.get(m, m)} T{t}" for m, t in sr.columns]
-    family = {t: fam for fam, tasks in TASK_FAMILIES for t in tasks}
+    specs = {t: registry.task_spec(t) for t in sr.index}            # unknown task: error
+    methods = {m: registry.method_spec(m) for m in sr.columns.get_level_values(0)}
+    sr = sr.loc[[t for t in registry.task_ids() if t in specs]]
+    m_order = {m: i for i, m in enumerate(registry.method_names())}
+    sr = sr[sorted(sr.columns, key=lambda c: (m_order[c[0]], c[1]))]
+    sr.columns = [f"{methods[m].short} T{t}" for m, t in sr.columns]
     out = sr.reset_index().rename(columns={"task": "Task"})
-    out.insert(0, "Family", out["Task"].map(family))
+    out.insert(0, "Family", out["Task"].map(lambda t: registry.family_label(specs[t].family)))
     out.insert(2, "N", out["Task"].map(n).astype(int))
     macro = {"Family": "", "Task": "Macro", "N": pd.NA, **sr.mean(axis=0).to_dict()}
     return pd.concat([out, pd.DataFrame([macro])], ignore_index=True)

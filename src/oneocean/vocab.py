@@ -1,10 +1,13 @@
 """The one vocabulary of OneOcean: ``Literal`` aliases plus a single validator.
 
 Snakemake's ``wildcard_constraints`` and the config schema are built from the same tuples.
+Task ids and method names are not listed here: they come from :mod:`oneocean.registry`
+(``TASK_IDS`` and ``METHODS`` are live read-only views of it).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Literal, get_args
 
 from .errors import ConfigError
@@ -12,18 +15,64 @@ from .errors import ConfigError
 Variant = Literal["tiny", "scene", "public"]
 SourceKind = Literal["synthetic", "cmems", "gebco", "etopo", "files"]
 Dynamics = Literal["kinematic", "3dof", "4dof", "6dof"]
-TaskId = Literal["G2G", "SK", "RF", "DPT", "AS", "PI", "FT", "SPC", "UPL", "FH"]
+#: A registered task id (:func:`oneocean.registry.task_ids`).
+TaskId = str
 Tier = Literal[1, 2, 3]
-#: Implemented rollout methods: the paper's heuristic baseline and a privileged oracle
-#: (solvability check). BC and the LLM planner are not implemented yet.
-Method = Literal["heuristic", "oracle"]
+#: A registered method name (:func:`oneocean.registry.method_names`).
+Method = str
 
 VARIANTS: tuple[str, ...] = get_args(Variant)
 SOURCE_KINDS: tuple[str, ...] = get_args(SourceKind)
 DYNAMICS: tuple[str, ...] = get_args(Dynamics)
-TASK_IDS: tuple[str, ...] = get_args(TaskId)
 TIERS: tuple[int, ...] = get_args(Tier)
-METHODS: tuple[str, ...] = get_args(Method)
+
+
+class _RegistryView(Sequence):
+    """A read-only, always-current tuple-like view of a registry listing (lazy: reading the
+    registry happens on first use, not at import)."""
+
+    def __init__(self, getter):
+        self._get = getter
+
+    def __getitem__(self, i):
+        return self._get()[i]
+
+    def __len__(self):
+        return len(self._get())
+
+    def __iter__(self):
+        return iter(self._get())
+
+    def __contains__(self, value):
+        return value in self._get()
+
+    def __eq__(self, other):
+        if isinstance(other, (_RegistryView, tuple, list)):
+            return tuple(self) == tuple(other)
+        return NotImplemented
+
+    __hash__ = None
+
+    def __repr__(self):
+        return repr(self._get())
+
+
+def _task_ids():
+    from .registry import task_ids
+    return task_ids()
+
+
+def _method_names():
+    from .registry import method_names
+    return method_names()
+
+
+#: Every registered task id, the paper's ladder (G2G, SK, RF, DPT, AS, PI, FT, SPC, UPL, FH)
+#: first (a live view of :func:`oneocean.registry.task_ids`).
+TASK_IDS: Sequence[str] = _RegistryView(_task_ids)
+#: Every registered method: the paper's heuristic baseline, a privileged oracle (solvability
+#: check), then plugins' (a live view of :func:`oneocean.registry.method_names`).
+METHODS: Sequence[str] = _RegistryView(_method_names)
 
 #: Canonical (CF) names used everywhere downstream of the readers.
 CF = {

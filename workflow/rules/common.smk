@@ -1,14 +1,18 @@
 # Config validation, vocabularies, input functions and code hashes (no numerics here).
 import hashlib
 import importlib.util
+import re
 from pathlib import Path
 
-from oneocean.config import load_schema, validate_config
+from oneocean.config import validate_config
 from oneocean.errors import ConfigError
-from oneocean.vocab import METHODS, TASK_IDS, TIERS, VARIANTS
+from oneocean.registry import method_names, task_ids
+from oneocean.vocab import TIERS, VARIANTS
 
 try:
-    validate_config(config, load_schema(workflow.source_path("../schemas/config.schema.yaml")))
+    # imports config["plugins"] first (they may register tasks and methods), then validates
+    # against the packaged schema whose task/method enums come from oneocean.registry
+    validate_config(config)
 except ConfigError as _err:
     raise WorkflowError(str(_err)) from None
 
@@ -18,9 +22,9 @@ REGION = config["region"]["name"]
 wildcard_constraints:
     region=r"[A-Za-z0-9_-]+",
     variant="|".join(VARIANTS),
-    task="|".join(TASK_IDS),
+    task="|".join(map(re.escape, task_ids())),
     tier="|".join(map(str, TIERS)),
-    method="|".join(METHODS),
+    method="|".join(map(re.escape, method_names())),
 
 
 def code_version(*modules):

@@ -29,7 +29,7 @@ rule table_task_success:
     log:
         "logs/tables/task_success_by_tier.log",
     params:
-        code=code_version("oneocean.tables"),
+        code=code_version("oneocean.tables", "oneocean.registry", "oneocean.data"),
     threads: 1
     script:
         "../scripts/table_task_success.py"

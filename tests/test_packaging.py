@@ -1,0 +1,82 @@
+"""A built wheel carries everything the package reads at run time: installed into a fresh
+virtual environment (no network), it loads and validates the config, a tier table, the task
+registry and the vehicles file without the source checkout."""
+
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+import zipfile
+from pathlib import Path
+
+from workflow_helpers import REPO
+
+SCRIPT = textwrap.dedent("""\
+    import sys
+    from pathlib import Path
+
+    import oneocean
+    from oneocean import registry
+    from oneocean.config import SCHEMA_PATH, load_config, validate_config
+    from oneocean.engine import load_vehicle
+    from oneocean.tasks.common import load_task_table
+
+    prefix = Path(sys.prefix).resolve()
+    assert Path(oneocean.__file__).resolve().is_relative_to(prefix), oneocean.__file__
+    assert SCHEMA_PATH.resolve().is_relative_to(prefix), SCHEMA_PATH
+    cfg = load_config(sys.argv[1])
+    assert cfg["rollouts"]["tasks"] == list(registry.task_ids())[:10], cfg["rollouts"]["tasks"]
+    assert validate_config({})["region"]["name"] == "synthetic_coast"
+    table = load_task_table("FT")
+    assert table["agents"]["range"] == [2, 10] and set(table["tiers"]) == {1, 2, 3}
+    assert registry.task_spec("UPL").primary == "lift_success"
+    vehicle = load_vehicle()
+    assert vehicle.name == "generic_auv" and vehicle.spec and vehicle.params.size > 0
+    print("OK", oneocean.__file__)
+    """)
+
+
+def _run(cmd, **kw):
+    res = subprocess.run(cmd, capture_output=True, text=True, **kw)
+    assert res.returncode == 0, f"{cmd}\n{res.stdout}\n{res.stderr}"
+    return res
+
+
+def test_wheel_installs_and_reads_its_package_data(tmp_path):
+    # build from a copy of the sources, so the build leaves nothing in the checkout
+    src = tmp_path / "src_copy"
+    src.mkdir()
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy2(REPO / name, src / name)
+    shutil.copytree(REPO / "src", src / "src", ignore=shutil.ignore_patterns(
+        "__pycache__", "*.egg-info", "*.nbi", "*.nbc", "*.pyc"))
+    wheels = tmp_path / "wheels"
+    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation",
+          "--no-index", "-q", "-w", str(wheels), str(src)])
+    (wheel,) = wheels.glob("oneocean-*.whl")
+
+    # every YAML/JSON file of the package's data folder is in the wheel
+    data = REPO / "src" / "oneocean"
+    wanted = {p.relative_to(data.parent).as_posix() for pat in ("*.yaml", "*.json")
+              for p in (data / "data").rglob(pat)}
+    assert "oneocean/data/config.schema.yaml" in wanted
+    assert len([w for w in wanted if w.startswith("oneocean/data/tasks/")]) >= 10
+    with zipfile.ZipFile(wheel) as zf:
+        assert wanted <= set(zf.namelist()), wanted - set(zf.namelist())
+
+    # a fresh venv: dependencies from this environment, oneocean from the wheel alone (no
+    # PYTHONPATH that could point back at a source tree)
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    venv = tmp_path / "venv"
+    _run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(venv)])
+    py = venv / "bin" / "python"
+    _run([str(py), "-m", "pip", "install", "--no-deps", "--no-index", "--ignore-installed",
+          "-q", str(wheel)], cwd=tmp_path, env=env)
+    script = tmp_path / "check_install.py"
+    script.write_text(SCRIPT)
+    out = _run([str(py), str(script), str(REPO / "config" / "config.yaml")],
+               cwd=tmp_path, env=env).stdout
+    assert out.startswith("OK ")
+    assert Path(out.split()[1]).resolve().is_relative_to(venv.resolve())
+    assert not Path(out.split()[1]).resolve().is_relative_to(REPO)
