@@ -15,6 +15,7 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.tasks import run_cell, upl
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
+from oneocean.tasks.episodes import rollout
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.1, "site_depth_m": 40.0,
@@ -58,7 +59,7 @@ def _at_slots(depth_floor=40.0, n_ep=1, offset=0.0):
 
 
 def _roll(grid, tier, init, method="oracle", dyn="kinematic", vehicle=None, seed=0):
-    return upl.rollout(grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
+    return rollout(upl, grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
 
 
 def test_reset_geometry_is_valid(coast):
@@ -107,8 +108,8 @@ def test_unreachable_success_depth_is_rejected(calm):
     with pytest.raises(ConfigError, match="unreachable"):
         upl.check_reachable({**TIER, "success_depth_m": upl.SLOT_RISE_M - 0.1})
     with pytest.raises(ConfigError, match="unreachable"):
-        upl.rollout(calm, {**TIER, "success_depth_m": 1.0}, _at_slots(), "oracle", "kinematic",
-                    E.load_vehicle(), 0)
+        rollout(upl, calm, {**TIER, "success_depth_m": 1.0}, _at_slots(), "oracle", "kinematic",
+                E.load_vehicle(), 0)
     with pytest.raises(ConfigError, match="above the success depth"):
         upl.check_reachable({**TIER, "site_depth_m": 17.0})
     for i in (1, 2, 3):

@@ -39,40 +39,42 @@ Metrics
     ``lift_success`` (primary, 0/1), ``final_object_depth_m`` (object centre depth at the end,
     m), ``attach_time_s`` (first time the quorum was attached, s; the time limit if never),
     ``object_drift_m`` (horizontal distance of the object from the site at the end, m).
-Methods (task logic; the environment above does not depend on it)
-    Assignment: greedy nearest (agent, slot) pairs at the start; an agent whose slot was taken
-    by another retargets the nearest free slot. Unattached agents seek their slot with P-control
-    (cruise speed), feed-forward of the probed current and of the object's last velocity.
-    (``oracle``: crab steering, :func:`~oneocean.tasks.common.seek_max`.)
-    Attached agents hold their slot until the quorum is attached, then lift: desired ground
-    velocity = slot tracking + hold (P toward the site, capped at ``HOLD_SPEED_MS``) + full
-    upward speed; the horizontal part (incl. the current feed-forward) has priority and the
-    vertical part gets the rest of the speed budget.
-    ``heuristic``: speed budget ``CRUISE_FRAC * v_max``, probed current with noise
-    ``probe_noise_ms``. ``oracle``: exact current, full ``v_max``, same logic.
+Methods
+    :mod:`oneocean.methods.heuristic.upl` (greedy slot assignment, slot seeking, held lift;
+    heuristic: cruise budget, noisy probe; oracle: full speed, exact current). The environment
+    above does not depend on the method.
+
+Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
+    ``TASK_ID``, ``METRICS``; ``reset`` (Python: site, slots, starts and start times);
+    ``UPLParams`` / ``UPLWork`` and ``make`` (the env's typed scalars and per-episode arrays:
+    object, attachments, the method's slot targets); the env hooks ``begin``, ``pre_step``
+    (positions and attached count at the step start), ``cue`` (the agent's slot),
+    ``after_agent`` (after the last agent's move: the object and the assembly move, so the
+    near-collision count sees the carried agents), ``post_step`` (attach / detach, quorum time,
+    success), ``finish``; ``POLICY``; ``_kernel`` and ``_observe_kernel``.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
-from ..engine import dynamics as dyn
 from ..engine import status as st
 from ..engine._jit import hot_kernel
-from ..engine.constraints import (DEFAULT_LAND_THRESHOLD, check_move, feasibility,
-                                  min_pairwise_distance)
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
-from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     episode_steps, fresh_cache, method_id, need_tier, obs_buffers, observe,
-                     path_clear, rollout_results, seek, seek_max, sensed_current, set_velocity_cmd,
-                     start_times)
+from ..methods.heuristic import upl as POLICY
+from .common import (OK, STANDARD, current_at, episode_generators, episode_steps, fresh_cache,
+                     need_tier, path_clear, start_times)
+from .loop import observe_next, run_episode
 
 TASK_ID = "UPL"
 METRICS = ("lift_success", "final_object_depth_m", "attach_time_s", "object_drift_m")
+#: Result-matrix columns written by the kernel (standard columns first).
 COLUMNS = STANDARD + METRICS
 
 #: Team size (one agent per attachment slot).
@@ -95,20 +97,8 @@ START_SEPARATION_M = 6.0
 CLEARANCE_M = 1.0
 #: Extra altitude margin required at every slot of a sampled site, m.
 SLOT_MARGIN_M = 0.5
-#: Heuristic speed budget as a fraction of v_max.
-CRUISE_FRAC = 0.75
-#: Slot-tracking proportional gain, s-1.
-KP = 0.6
-#: Hold (object over the site) proportional gain, s-1, and its speed cap, m s-1.
-KP_HOLD = 0.1
-HOLD_SPEED_MS = 0.5
 
-_I_MODEL, _I_METHOD, _I_STEPS, _I_SEED, _I_QUORUM = range(5)
-(_F_DT, _F_VMAX, _F_SPEED, _F_KP, _F_NOISE, _F_LAND, _F_CLEAR, _F_ATT_R, _F_DWELL, _F_DET_R,
- _F_SINK, _F_SUCC_D, _F_HOLD_R, _F_KPH, _F_HOLD_V) = range(15)
-_C = {k: i for i, k in enumerate(COLUMNS)}
-_C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
-_C_LIFT, _C_DEPTH, _C_ATT_T, _C_DRIFT = (_C[k] for k in METRICS)
+_C_LIFT, _C_DEPTH, _C_ATT_T, _C_DRIFT = (len(STANDARD) + i for i in range(len(METRICS)))
 
 _TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "site_depth_m",
               "start_distance_m", "attach_radius_m", "attach_dwell_s", "detach_radius_m",
@@ -274,322 +264,277 @@ def _feasible(grid, x, y, z, land_thr, clearance):
     return check_move(grid, x, y, z, land_thr, clearance) == OK
 
 
-@hot_kernel
-def _episode(grid, vp, ipar, fpar, obj0, slot_off, t0, state, cmd, prev, cur, att, owner,
-             dwell, dslot, target, obs, act, res, e):
-    """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``).
-
-    Work arrays (all indexed ``[e]``): ``state`` (E, 5, STATE_DIM) initial states; ``cmd``
-    (E, 5, CMD_DIM); ``prev`` (E, 5, 3) positions before the step; ``cur`` (E, 5, 2) true
-    currents; ``att`` (E, 5) int slot of each attached agent (-1 none); ``owner`` (E, 5) int
-    agent attached to each slot (-1 none); ``dwell`` (E, 5) s in reach of ``dslot`` (E, 5) int;
-    ``target`` (E, 5) int the method's slot assignment.
-    """
-    model = ipar[_I_MODEL]
-    method = ipar[_I_METHOD]
-    n_steps = ipar[_I_STEPS]
-    seed = ipar[_I_SEED]
-    quorum = ipar[_I_QUORUM]
-    dt = fpar[_F_DT]
-    v_max = fpar[_F_VMAX]
-    speed = fpar[_F_SPEED]
-    kp = fpar[_F_KP]
-    noise = fpar[_F_NOISE]
-    land_thr = fpar[_F_LAND]
-    clearance = fpar[_F_CLEAR]
-    att_r = fpar[_F_ATT_R]
-    dwell_s = fpar[_F_DWELL]
-    det_r = fpar[_F_DET_R]
-    sink = fpar[_F_SINK]
-    succ_d = fpar[_F_SUCC_D]
-    hold_r = fpar[_F_HOLD_R]
-    kph = fpar[_F_KPH]
-    hold_v = fpar[_F_HOLD_V]
-    n = state.shape[1]
-    S = state[e]
-    C = cmd[e]
-    P = prev[e]
-    CU = cur[e]
-    A = att[e]
-    O = owner[e]
-    DW = dwell[e]
-    DS = dslot[e]
-    TG = target[e]
-    off = slot_off[e]
-    sx0 = obj0[e, 0]
-    sz0 = obj0[e, 2]
-    ox = obj0[e, 0]
-    oy = obj0[e, 1]
-    oz = obj0[e, 2]
-    on_floor = True
-    vox = 0.0
-    voy = 0.0
-    voz = 0.0
-    for i in range(n):
-        A[i] = -1
-        O[i] = -1
-        DW[i] = 0.0
-        DS[i] = -1
-        TG[i] = -1
-    # method: greedy nearest (agent, slot) assignment
-    for _r in range(n):
-        best = np.inf
-        bi = -1
-        bj = -1
-        for i in range(n):
-            if TG[i] >= 0:
-                continue
-            for j in range(n):
-                taken = False
-                for i2 in range(n):
-                    if TG[i2] == j:
-                        taken = True
-                if taken:
-                    continue
-                d2 = ((S[i, 0] - ox - off[j, 0]) ** 2 + (S[i, 1] - oy - off[j, 1]) ** 2
-                      + (S[i, 2] - oz - off[j, 2]) ** 2)
-                if d2 < best:
-                    best = d2
-                    bi = i
-                    bj = j
-        TG[bi] = bj
-    energy = 0.0
-    viol = 0
-    n_close = 0
-    success = False
-    t_s = 0.0
-    t_att = -1.0
-    k = 0
-    while k < n_steps and not success:
-        t = t0[e] + k * dt
-        n_att = 0
-        for i in range(n):
-            if A[i] >= 0:
-                n_att += 1
-        lifting = n_att >= quorum
-        # hold: desired horizontal velocity of the assembly toward the site (method logic)
-        hx = kph * (sx0 - ox)
-        hz = kph * (sz0 - oz)
-        hn = math.sqrt(hx * hx + hz * hz)
-        if hn > hold_v:
-            hx *= hold_v / hn
-            hz *= hold_v / hn
-        # ---- commands (all agents see the state at time t)
-        for i in range(n):
-            px = S[i, 0]
-            py = S[i, 1]
-            pz = S[i, 2]
-            ce, cn = current_at(grid, px, py, pz, t)
-            CU[i, 0] = ce
-            CU[i, 1] = cn
-            pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * (k * n + i))
-            j = A[i]
-            if j < 0:
-                j = TG[i]
-                if O[j] >= 0 and O[j] != i:  # taken by a teammate: nearest free slot
-                    best = np.inf
-                    for j2 in range(n):
-                        if O[j2] < 0:
-                            d2 = ((px - ox - off[j2, 0]) ** 2 + (py - oy - off[j2, 1]) ** 2
-                                  + (pz - oz - off[j2, 2]) ** 2)
-                            if d2 < best:
-                                best = d2
-                                j = j2
-                    TG[i] = j
-            gx = ox + off[j, 0]
-            gy = oy + off[j, 1]
-            gz = oz + off[j, 2]
-            if A[i] >= 0 and lifting:
-                ax = kp * (gx - px) + hx - pe
-                az = kp * (gz - pz) + hz - pn
-                vy = kp * (gy - py) - speed
-                ah = math.sqrt(ax * ax + az * az)
-                if ah >= speed:
-                    ax *= speed / ah
-                    az *= speed / ah
-                    ay = 0.0
-                else:
-                    vb = math.sqrt(speed * speed - ah * ah)
-                    ay = min(max(vy, -vb), vb)
-            elif method == HEURISTIC:
-                ax, ay, az = seek(px, py, pz, gx, gy, gz, speed, kp, pe - vox, pn - voz)
-                ay += voy
-            else:
-                ax, ay, az = seek_max(px, py, pz, gx, gy, gz, speed, kp, pe - vox, pn - voz)
-                ay += voy
-            observe(obs, act, e, k, i, grid, state, gx, gy, gz, pe, pn, math.nan, ax, ay, az)
-            set_velocity_cmd(C[i], ax, ay, az)
-        # ---- every agent's own step
-        for i in range(n):
-            P[i, 0] = S[i, 0]
-            P[i, 1] = S[i, 1]
-            P[i, 2] = S[i, 2]
-            en, code = advance_agent(grid, model, vp, S[i], C[i], CU[i, 0], CU[i, 1], v_max,
-                                     dt, land_thr, clearance)
-            energy += en
-            if code != OK:
-                viol += 1
-        # ---- the object
-        pox = ox
-        poy = oy
-        poz = oz
-        if lifting:
-            mx = 0.0
-            my = 0.0
-            mz = 0.0
-            for i in range(n):
-                if A[i] >= 0:
-                    mx += S[i, 0] - P[i, 0]
-                    my += S[i, 1] - P[i, 1]
-                    mz += S[i, 2] - P[i, 2]
-            mx /= n_att
-            my /= n_att
-            mz /= n_att
-            dy = my + sink * N_SLOTS / n_att * dt
-            if not (on_floor and dy >= 0.0):
-                ox, oy, oz, on_floor = _place_object(grid, ox, oy, oz, ox + mx, oy + dy,
-                                                     oz + mz, land_thr)
-            # attached agents carry their share: displaced by (assembly - mean agent) motion
-            cx = (ox - pox) - mx
-            cy = (oy - poy) - my
-            cz = (oz - poz) - mz
-            for i in range(n):
-                if A[i] >= 0:
-                    qx = S[i, 0] + cx
-                    qy = S[i, 1] + cy
-                    qz = S[i, 2] + cz
-                    if qy >= 0.0 and _feasible(grid, qx, qy, qz, land_thr, clearance):
-                        S[i, 0] = qx
-                        S[i, 1] = qy
-                        S[i, 2] = qz
-        elif not on_floor:  # suspended without the quorum: sinks and drifts
-            ce, cn = _current(grid, ox, oy, oz, t)
-            ox, oy, oz, on_floor = _place_object(grid, ox, oy, oz, ox + ce * dt,
-                                                 oy + sink * dt, oz + cn * dt, land_thr)
-        vox = (ox - pox) / dt
-        voy = (oy - poy) / dt
-        voz = (oz - poz) / dt
-        # ---- attach / detach
-        for i in range(n):
-            px = S[i, 0]
-            py = S[i, 1]
-            pz = S[i, 2]
-            j = A[i]
-            if j >= 0:
-                d = math.sqrt((px - ox - off[j, 0]) ** 2 + (py - oy - off[j, 1]) ** 2
-                              + (pz - oz - off[j, 2]) ** 2)
-                if d > det_r:
-                    A[i] = -1
-                    O[j] = -1
-                    DW[i] = 0.0
-                    DS[i] = -1
-                continue
-            jn = -1
-            for j2 in range(n):
-                if O[j2] < 0:
-                    d = math.sqrt((px - ox - off[j2, 0]) ** 2 + (py - oy - off[j2, 1]) ** 2
-                                  + (pz - oz - off[j2, 2]) ** 2)
-                    if d <= att_r:
-                        jn = j2
-            if jn < 0:
-                DW[i] = 0.0
-                DS[i] = -1
-            else:
-                if DS[i] == jn:
-                    DW[i] += dt
-                else:
-                    DS[i] = jn
-                    DW[i] = dt
-                if DW[i] >= dwell_s - 1e-9:
-                    A[i] = jn
-                    O[jn] = i
-        k += 1
-        if min_pairwise_distance(S) <= 2.0:
-            n_close += 1
-        if t_att < 0.0:
-            n_att = 0
-            for i in range(n):
-                if A[i] >= 0:
-                    n_att += 1
-            if n_att >= quorum:
-                t_att = k * dt
-        drift = math.sqrt((ox - sx0) ** 2 + (oz - sz0) ** 2)
-        if oy <= succ_d and drift <= hold_r:
-            success = True
-            t_s = k * dt
-    res[e, _C_SUCCESS] = 1.0 if success else 0.0
-    res[e, _C_T] = t_s if success else n_steps * dt
-    res[e, _C_E] = energy
-    res[e, _C_COLL] = n_close / k if k > 0 else 0.0
-    res[e, _C_VIOL] = viol
-    res[e, _C_LIFT] = 1.0 if success else 0.0
-    res[e, _C_DEPTH] = oy
-    res[e, _C_ATT_T] = t_att if t_att >= 0.0 else n_steps * dt
-    res[e, _C_DRIFT] = math.sqrt((ox - sx0) ** 2 + (oz - sz0) ** 2)
+class UPLParams(NamedTuple):
+    quorum: int             # attached agents needed to lift
+    dt: float               # step, s
+    t_limit: float          # time limit (n_steps dt), s
+    land_thr: float         # land-mask threshold of the object / carry checks
+    clearance: float        # seafloor clearance of the carry check, m
+    att_r: float            # attach radius, m
+    dwell_s: float          # attach dwell, s
+    det_r: float            # detach radius, m
+    sink: float             # sink speed of the object alone, m s-1
+    succ_d: float           # success depth of the object's centre, m
+    hold_r: float           # success radius around the site (horizontal), m
 
 
-@njit(parallel=True, cache=True)
-def _kernel(grid, vp, ipar, fpar, obj0, slot_off, t0, state, cmd, prev, cur, att, owner, dwell,
-            dslot, target, obs, act, res):
-    for e in prange(res.shape[0]):
-        _episode(grid, vp, ipar, fpar, obj0, slot_off, t0, state, cmd, prev, cur, att, owner,
-                 dwell, dslot, target, obs, act, res, e)
+class UPLWork(NamedTuple):
+    site: np.ndarray        # (E, 3) object's start (the site; the vessel waits above), m
+    slot_off: np.ndarray    # (E, 5, 3) slot offsets from the object's centre, m
+    obj: np.ndarray         # (E, 3) object centre, m
+    vobj: np.ndarray        # (E, 3) object velocity over the last step, m s-1
+    on_floor: np.ndarray    # (E,) bool the object rests on the seafloor
+    att: np.ndarray         # (E, 5) int slot of each attached agent (-1 none)
+    owner: np.ndarray       # (E, 5) int agent attached to each slot (-1 none)
+    dwell: np.ndarray       # (E, 5) s agent has been in reach of ``dslot``
+    dslot: np.ndarray       # (E, 5) int slot in reach (-1 none)
+    prev: np.ndarray        # (E, 5, 3) agent positions at the start of the step, m
+    t: np.ndarray           # (E,) time of the current step, s
+    n_att: np.ndarray       # (E,) int attached agents at the start of the step
+    t_att: np.ndarray       # (E,) first time the quorum was attached, s (-1: not yet)
+    # the method's (oneocean.methods.heuristic.upl)
+    target: np.ndarray      # (E, 5) int slot assigned to each agent
+    hold: np.ndarray        # (E, 2) the step's hold velocity of the assembly (x, z), m s-1
 
 
-def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
-            seed: int, *, record: bool = False) -> dict:
-    """Run every episode of ``init`` (from :func:`reset`) with one method.
-
-    Parameters
-    ----------
-    grid : Grid
-        Forcing already applied (``run_cell`` sets the tier's ``current_gain``).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        Output of :func:`reset`.
-    method : {"heuristic", "oracle"}
-    dyn_name : {"kinematic", "3dof", "4dof", "6dof"}
-    vehicle : Vehicle
-    seed : int
-        Run seed (probe-noise streams).
-
-    Returns
-    -------
-    dict of (E,) arrays
-        ``success`` (bool), ``T_s`` (s), ``E`` (m2 s-1), ``coll_ratio``, ``violations``
-        (int) and ``METRICS``.
-    """
+def make(grid, tier: dict, init: dict):
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
     need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
     check_reachable(tier)
     dt = float(tier["dt_s"])
     n_ep, n = init["pos0"].shape[:2]
-    v_max = float(vehicle.v_max)
-    mid = method_id(method)
-    ipar = np.array([dyn.model_id(dyn_name), mid,
-                     episode_steps(tier), int(seed),
-                     int(tier["quorum"])], dtype=np.int64)
-    speed = CRUISE_FRAC * v_max if mid == HEURISTIC else v_max
-    fpar = np.array([dt, v_max, speed, KP, float(tier["probe_noise_ms"]),
-                     DEFAULT_LAND_THRESHOLD, CLEARANCE_M, float(tier["attach_radius_m"]),
-                     float(tier["attach_dwell_s"]), float(tier["detach_radius_m"]),
-                     float(tier["sink_speed_ms"]), float(tier["success_depth_m"]),
-                     float(tier["hold_radius_m"]), KP_HOLD, HOLD_SPEED_MS])
-    state = dyn.new_state(n_ep, n, init["pos0"], init["psi0"])
-    cmd = np.zeros((n_ep, n, dyn.CMD_DIM))
-    prev = np.zeros((n_ep, n, 3))
-    cur = np.zeros((n_ep, n, 2))
-    ints = [np.zeros((n_ep, n), dtype=np.int64) for _ in range(4)]
-    dwell = np.zeros((n_ep, n))
-    res = np.zeros((n_ep, len(COLUMNS)))
-    obs, act = obs_buffers(tier, init, record)
-    _kernel(grid, vehicle.params, ipar, fpar, np.ascontiguousarray(init["obj0"]),
-            np.ascontiguousarray(init["slot_off"]),
-            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, prev, cur,
-            ints[0], ints[1], dwell, ints[2], ints[3], obs, act, res)
-    return rollout_results(res, COLUMNS, obs, act, record)
+    P = UPLParams(int(tier["quorum"]), dt, episode_steps(tier) * dt, DEFAULT_LAND_THRESHOLD,
+                  CLEARANCE_M, float(tier["attach_radius_m"]), float(tier["attach_dwell_s"]),
+                  float(tier["detach_radius_m"]), float(tier["sink_speed_ms"]),
+                  float(tier["success_depth_m"]), float(tier["hold_radius_m"]))
+    site = np.ascontiguousarray(init["obj0"], dtype=np.float64)
+    W = UPLWork(site, np.ascontiguousarray(init["slot_off"], dtype=np.float64), site.copy(),
+                np.zeros((n_ep, 3)), np.ones(n_ep, dtype=np.bool_),
+                np.full((n_ep, n), -1, dtype=np.int64), np.full((n_ep, n), -1, dtype=np.int64),
+                np.zeros((n_ep, n)), np.full((n_ep, n), -1, dtype=np.int64),
+                np.zeros((n_ep, n, 3)), np.zeros(n_ep), np.zeros(n_ep, dtype=np.int64),
+                np.full(n_ep, -1.0), np.full((n_ep, n), -1, dtype=np.int64),
+                np.zeros((n_ep, 2)))
+    return P, W
+
+
+@hot_kernel(inline="always")
+def begin(grid, P, W, state, e):
+    n = state.shape[1]
+    for c in range(3):
+        W.obj[e, c] = W.site[e, c]
+        W.vobj[e, c] = 0.0
+    W.on_floor[e] = True
+    for i in range(n):
+        W.att[e, i] = -1
+        W.owner[e, i] = -1
+        W.dwell[e, i] = 0.0
+        W.dslot[e, i] = -1
+    W.t_att[e] = -1.0
+    return False
+
+
+@hot_kernel(inline="always")
+def pre_step(grid, P, W, state, e, k, t):
+    n = state.shape[1]
+    S = state[e]
+    for i in range(n):
+        W.prev[e, i, 0] = S[i, 0]
+        W.prev[e, i, 1] = S[i, 1]
+        W.prev[e, i, 2] = S[i, 2]
+    W.t[e] = t
+    n_att = 0
+    for i in range(n):
+        if W.att[e, i] >= 0:
+            n_att += 1
+    W.n_att[e] = n_att
+
+
+@hot_kernel(inline="always")
+def cue(grid, P, W, state, e, k, i):
+    """The agent's slot: its own when attached, else the method's target (the nearest slot
+    when no fused method assigns one)."""
+    off = W.slot_off[e]
+    ox = W.obj[e, 0]
+    oy = W.obj[e, 1]
+    oz = W.obj[e, 2]
+    j = W.att[e, i]
+    if j < 0:
+        j = W.target[e, i]
+    if j < 0:
+        best = np.inf
+        for j2 in range(off.shape[0]):
+            d2 = ((state[e, i, 0] - ox - off[j2, 0]) ** 2
+                  + (state[e, i, 1] - oy - off[j2, 1]) ** 2
+                  + (state[e, i, 2] - oz - off[j2, 2]) ** 2)
+            if d2 < best:
+                best = d2
+                j = j2
+    return ox + off[j, 0], oy + off[j, 1], oz + off[j, 2], math.nan
+
+
+@hot_kernel(inline="always")
+def after_agent(grid, P, W, state, e, k, i, code):
+    """After the last agent's own step: the object (and the assembly) moves, before the
+    near-collision count."""
+    n = state.shape[1]
+    if i != n - 1:
+        return
+    dt = P.dt
+    sink = P.sink
+    land_thr = P.land_thr
+    S = state[e]
+    PV = W.prev[e]
+    A = W.att[e]
+    ox = W.obj[e, 0]
+    oy = W.obj[e, 1]
+    oz = W.obj[e, 2]
+    on_floor = W.on_floor[e]
+    n_att = W.n_att[e]
+    pox = ox
+    poy = oy
+    poz = oz
+    if n_att >= P.quorum:
+        mx = 0.0
+        my = 0.0
+        mz = 0.0
+        for i2 in range(n):
+            if A[i2] >= 0:
+                mx += S[i2, 0] - PV[i2, 0]
+                my += S[i2, 1] - PV[i2, 1]
+                mz += S[i2, 2] - PV[i2, 2]
+        mx /= n_att
+        my /= n_att
+        mz /= n_att
+        dy = my + sink * N_SLOTS / n_att * dt
+        if not (on_floor and dy >= 0.0):
+            ox, oy, oz, on_floor = _place_object(grid, ox, oy, oz, ox + mx, oy + dy,
+                                                 oz + mz, land_thr)
+        # attached agents carry their share: displaced by (assembly - mean agent) motion
+        cx = (ox - pox) - mx
+        cy = (oy - poy) - my
+        cz = (oz - poz) - mz
+        for i2 in range(n):
+            if A[i2] >= 0:
+                qx = S[i2, 0] + cx
+                qy = S[i2, 1] + cy
+                qz = S[i2, 2] + cz
+                if qy >= 0.0 and _feasible(grid, qx, qy, qz, land_thr, P.clearance):
+                    S[i2, 0] = qx
+                    S[i2, 1] = qy
+                    S[i2, 2] = qz
+    elif not on_floor:  # suspended without the quorum: sinks and drifts
+        ce, cn = _current(grid, ox, oy, oz, W.t[e])
+        ox, oy, oz, on_floor = _place_object(grid, ox, oy, oz, ox + ce * dt,
+                                             oy + sink * dt, oz + cn * dt, land_thr)
+    W.obj[e, 0] = ox
+    W.obj[e, 1] = oy
+    W.obj[e, 2] = oz
+    W.on_floor[e] = on_floor
+    W.vobj[e, 0] = (ox - pox) / dt
+    W.vobj[e, 1] = (oy - poy) / dt
+    W.vobj[e, 2] = (oz - poz) / dt
+
+
+@hot_kernel(inline="always")
+def post_step(grid, P, W, state, prev, e, k, t):
+    """Attach / detach, the quorum's first time, success."""
+    n = state.shape[1]
+    dt = P.dt
+    S = state[e]
+    A = W.att[e]
+    O = W.owner[e]
+    DW = W.dwell[e]
+    DS = W.dslot[e]
+    off = W.slot_off[e]
+    ox = W.obj[e, 0]
+    oy = W.obj[e, 1]
+    oz = W.obj[e, 2]
+    for i in range(n):
+        px = S[i, 0]
+        py = S[i, 1]
+        pz = S[i, 2]
+        j = A[i]
+        if j >= 0:
+            d = math.sqrt((px - ox - off[j, 0]) ** 2 + (py - oy - off[j, 1]) ** 2
+                          + (pz - oz - off[j, 2]) ** 2)
+            if d > P.det_r:
+                A[i] = -1
+                O[j] = -1
+                DW[i] = 0.0
+                DS[i] = -1
+            continue
+        jn = -1
+        for j2 in range(n):
+            if O[j2] < 0:
+                d = math.sqrt((px - ox - off[j2, 0]) ** 2 + (py - oy - off[j2, 1]) ** 2
+                              + (pz - oz - off[j2, 2]) ** 2)
+                if d <= P.att_r:
+                    jn = j2
+        if jn < 0:
+            DW[i] = 0.0
+            DS[i] = -1
+        else:
+            if DS[i] == jn:
+                DW[i] += dt
+            else:
+                DS[i] = jn
+                DW[i] = dt
+            if DW[i] >= P.dwell_s - 1e-9:
+                A[i] = jn
+                O[jn] = i
+    if W.t_att[e] < 0.0:
+        n_att = 0
+        for i in range(n):
+            if A[i] >= 0:
+                n_att += 1
+        if n_att >= P.quorum:
+            W.t_att[e] = (k + 1) * dt
+    return _success(P, W, e)
+
+
+@hot_kernel(inline="always")
+def _success(P, W, e):
+    drift = math.sqrt((W.obj[e, 0] - W.site[e, 0]) ** 2 + (W.obj[e, 2] - W.site[e, 2]) ** 2)
+    return W.obj[e, 1] <= P.succ_d and drift <= P.hold_r
+
+
+@hot_kernel(inline="always")
+def finish(grid, P, W, state, e, k, row):
+    success = _success(P, W, e)
+    row[_C_LIFT] = 1.0 if success else 0.0
+    row[_C_DEPTH] = W.obj[e, 1]
+    row[_C_ATT_T] = W.t_att[e] if W.t_att[e] >= 0.0 else P.t_limit
+    row[_C_DRIFT] = math.sqrt((W.obj[e, 0] - W.site[e, 0]) ** 2
+                              + (W.obj[e, 2] - W.site[e, 2]) ** 2)
+    return success
+
+
+# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
+@hot_kernel
+def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
+    run_episode(begin, pre_step, cue, after_agent, post_step, finish, POLICY.plan,
+                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
+                k_stop)
+
+
+@njit(parallel=True, cache=True)
+def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop):
+    for e in prange(state.shape[0]):
+        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
+
+
+@hot_kernel
+def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
+    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+
+
+@njit(parallel=True, cache=True)
+def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact):
+    for e in prange(state.shape[0]):
+        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
 
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer
 # changes.
-fresh_cache(_kernel, __file__)
+fresh_cache(_kernel, __file__, POLICY.__file__)
