@@ -15,9 +15,11 @@ from oneocean import engine as E
 from oneocean.engine import status as st
 from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
+from oneocean.methods.heuristic import pi as pi_policy
 from oneocean.models import pollution as pol
 from oneocean.tasks import pi, run_cell
 from oneocean.tasks.common import STANDARD, load_task_table
+from oneocean.tasks.episodes import Episodes, rollout
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 900.0, "probe_noise_ms": 0.1,
@@ -63,8 +65,14 @@ def _straight_init(grid, x0=-450.0, x1=450.0, z=0.0, leaks=(-150.0, 150.0), n_ag
         pos0[0, i] = (x, -E.sample_elevation(grid, x, z) - 10.0, z)
     nl = len(leaks)
     return {"poly": poly, "leaks": np.array([[[x, z] for x in leaks]]),
-            "leak_rate": np.full((1, nl), rate), "pos0": pos0, "t0": np.zeros(1),
-            "sections": np.stack([cuts[:-1], cuts[1:]], axis=1)[None]}
+            "leak_rate": np.full((1, nl), rate), "pos0": pos0, "psi0": np.zeros((1, n_agents)),
+            "t0": np.zeros(1), "sections": np.stack([cuts[:-1], cuts[1:]], axis=1)[None]}
+
+
+def _run(grid, tier, init, method, vehicle, seed=0):
+    """Results and the final work arrays (field, per-leak peaks, logs and estimates)."""
+    ep = Episodes(pi, grid, tier, init, method, "6dof", vehicle, seed).run()
+    return ep.results(), ep.W
 
 
 def test_reset_geometry_is_valid(coast):
@@ -136,9 +144,9 @@ def _estimates(reads, n, peak):
     est = np.zeros((1, 1, 2))
     nread = np.array([[n]])
     pk = np.array([[peak]])
-    pi._peak_estimate(reads, nread, pk, est, 0, 0)
+    pi_policy.peak_estimate(reads, nread, pk, est, 0, 0)
     a = est[0, 0].copy()
-    pi._onset_estimate(reads, nread, pk, est, 0, 0)
+    pi_policy.onset_estimate(reads, nread, pk, est, 0, 0)
     return a, est[0, 0].copy()
 
 
@@ -168,8 +176,7 @@ def test_estimators_on_a_hand_made_along_current_plume():
 def test_calm_water_both_methods_localise_every_leak(calm):
     init = _straight_init(calm)
     for method in ("oracle", "heuristic"):
-        sc = {}
-        r = pi.rollout(calm, TIER, init, method, "6dof", E.load_vehicle(), 0, scratch=sc)
+        r, W = _run(calm, TIER, init, method, E.load_vehicle())
         assert r["success"][0], method
         assert r["inspection_score"][0] == 1.0 and r["detection_rate"][0] == 1.0
         assert r["localisation_error_m"][0] < 10.0
@@ -178,18 +185,18 @@ def test_calm_water_both_methods_localise_every_leak(calm):
         assert 900.0 / 2.0 < r["T_s"][0] < TIER["time_limit_s"]
         # the field only holds emitted tracer (no mass is created)
         emitted = init["leak_rate"].sum() * (pi.SPINUP_S + r["T_s"][0] + 3.0)
-        assert 0.0 < pol.total_mass(sc["C"][0], pi.FIELD_H_M) <= emitted * (1 + 1e-9)
+        assert 0.0 < pol.total_mass(W.C[0], pi.FIELD_H_M) <= emitted * (1 + 1e-9)
 
 
 def test_failure_modes_do_nothing_and_high_threshold(calm):
     init = _straight_init(calm)
-    r = pi.rollout(calm, TIER, init, "oracle", "6dof", _still(), 0)
+    r = rollout(pi, calm, TIER, init, "oracle", "6dof", _still(), 0)
     assert not r["success"][0]
     assert r["T_s"][0] == TIER["time_limit_s"]  # T on failure = the time limit
     assert r["E"][0] == 0.0 and r["inspection_score"][0] == 0.0
     assert math.isnan(r["localisation_error_m"][0])  # nothing detected
-    r = pi.rollout(calm, {**TIER, "detect_threshold_kg_m3": 1.0}, init, "oracle", "6dof",
-                   E.load_vehicle(), 0)
+    r = rollout(pi, calm, {**TIER, "detect_threshold_kg_m3": 1.0}, init, "oracle", "6dof",
+                E.load_vehicle(), 0)
     assert not r["success"][0] and r["detection_rate"][0] == 0.0
     assert r["T_s"][0] == TIER["time_limit_s"]
 
@@ -198,20 +205,19 @@ def test_along_pipe_current_biases_the_peak_not_the_onset():
     grid = _sloped(ce=0.6)  # plumes run east along the pipeline
     init = _straight_init(grid)
     tier = {**TIER, "loc_tolerance_m": 12.0, "current_gain": 1.0}
-    so, sh = {}, {}
-    ro = pi.rollout(grid, tier, init, "oracle", "6dof", E.load_vehicle(), 0, scratch=so)
-    rh = pi.rollout(grid, tier, init, "heuristic", "6dof", E.load_vehicle(), 0, scratch=sh)
+    ro, _ = _run(grid, tier, init, "oracle", E.load_vehicle())
+    rh, wh = _run(grid, tier, init, "heuristic", E.load_vehicle())
     assert ro["success"][0] and ro["localisation_error_m"][0] < 12.0
     assert rh["detection_rate"][0] == 1.0
     # the heuristic's peak estimate lies downstream (east) of the leaks
-    assert np.all(sh["est"][0, :, 0] > init["leaks"][0, :, 0] + 5.0)
+    assert np.all(wh.est[0, :, 0] > init["leaks"][0, :, 0] + 5.0)
     assert rh["localisation_error_m"][0] > ro["localisation_error_m"][0]
 
 
 def test_team_inspects_faster(calm):
-    r1 = pi.rollout(calm, TIER, _straight_init(calm), "oracle", "6dof", E.load_vehicle(), 0)
-    r2 = pi.rollout(calm, TIER, _straight_init(calm, n_agents=2), "oracle", "6dof",
-                    E.load_vehicle(), 0)
+    r1 = rollout(pi, calm, TIER, _straight_init(calm), "oracle", "6dof", E.load_vehicle(), 0)
+    r2 = rollout(pi, calm, TIER, _straight_init(calm, n_agents=2), "oracle", "6dof",
+                 E.load_vehicle(), 0)
     assert r1["success"][0] and r2["success"][0]
     assert r2["T_s"][0] < 0.7 * r1["T_s"][0]
     assert r1["coll_ratio"][0] == 0.0 and r2["coll_ratio"][0] == 0.0  # 450 m apart

@@ -24,12 +24,14 @@ Plume physics (the environment; identical for every method)
 Detection and scoring
     Readings are taken after every step. A reading at or above ``detect_threshold_kg_m3``
     within ``DETECT_RADIUS_M`` of a leak *detects* it (the evaluator attributes every reading
-    to the nearest leak within that radius). The agent reports a position *estimate* for the
-    leak from its own readings near it (method-specific, below); the leak is *localised* if
-    the estimate lies within ``loc_tolerance_m`` (the field resolves ``FIELD_H_M``; the
-    oracle's estimator stays within ~10 m on the default region, the heuristic's peak within
-    ~35 m). The inspection report is final when every agent has finished its section, or at
-    the time limit.
+    to the nearest leak within that radius) and is logged for that leak with its
+    *downstream coordinate* (the distance from the leak's first logged reading along the
+    current the agent sensed at its step; 0 below ``MIN_CURRENT_MS``). The agent reports a
+    position *estimate* for the leak from its readings logged near it (method-specific,
+    below); the leak is *localised* if the estimate lies within ``loc_tolerance_m`` (the
+    field resolves ``FIELD_H_M``; the oracle's estimator stays within ~10 m on the default
+    region, the heuristic's peak within ~35 m). The inspection report is final when every
+    agent has finished its section, or at the time limit.
 Success
     Every leak localised (team) when the report is final; ``T_s`` is then the time at which
     the last agent finished its section (the time limit on failure).
@@ -37,39 +39,40 @@ Metrics
     ``inspection_score`` (primary: localised / total leaks), ``localisation_error_m`` (mean
     over detected leaks of the estimate's distance to the leak, m; NaN if none was detected),
     ``detection_rate`` (detected / total).
-Methods (task logic)
-    Follow the pipeline polyline of one's section with line-of-sight guidance (carrot
-    ``LOOKAHEAD_M`` ahead), terrain-following at a low commanded altitude, crabbing against the
-    current (:func:`~oneocean.tasks.common.seek_max`).
-    ``heuristic``: altitude ``ALT_HEURISTIC_M`` (a safe bottom-following altitude), speed
-    budget ``CRUISE_FRAC * v_max``, NOISY probed current (``probe_noise_ms``); it reports
-    where its largest reading near the leak was taken (the plume's peak, which an along-pipe
-    current carries 1-2 cells downstream of the source).
-    ``oracle``: altitude ``ALT_ORACLE_M`` (stronger signal), exact current, full ``v_max``;
-    it reports the plume's *upstream edge*: with ``b`` the background (smallest reading near
-    the leak: upstream water, possibly carrying an upstream leak's plume), the weighted
-    centroid (weights ``reading - b``) of the readings >= ``b + ONSET_FRAC (peak - b)``
-    lying within ``ONSET_BAND_M`` (along the current) of the most upstream such reading --
-    the plume's peak in a cross-current, its onset in an along-pipe current.
+Methods
+    :mod:`oneocean.methods.heuristic.pi` (both follow their section's polyline low over the
+    seafloor; heuristic: ``ALT_HEURISTIC_M``, cruise budget, noisy probe, reports the plume's
+    peak; oracle: ``ALT_ORACLE_M``, full speed, exact current, reports the plume's upstream
+    edge). The survey waypoints are the method's plan (``survey``, stored in the work arrays);
+    the leak estimate is the method's report (``estimate``), computed when the episode ends
+    from the readings the env logged near each leak, and scored here.
+
+Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
+    ``TASK_ID``, ``METRICS``; ``reset``; ``PIParams`` / ``PIWork`` and ``make``; the env hooks
+    ``begin`` (plume spin-up), ``pre_step`` (the field's emit and transport), ``cue`` (the
+    agent's carrot and the reading before the move), ``after_agent`` (the reading after the
+    move: detection and the per-leak reading log), ``post_step`` (the report is final when
+    every agent has finished its section), ``finish`` (the method's estimates, scored);
+    ``POLICY``; ``_kernel`` and ``_observe_kernel``.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
-from ..engine import dynamics as dyn
 from ..engine._jit import hot_kernel
-from ..engine.constraints import DEFAULT_LAND_THRESHOLD, min_pairwise_distance, spawn_positions
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD, spawn_positions
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError
+from ..methods.heuristic import pi as POLICY
 from ..models import pollution as pol
-from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     episode_steps, fresh_cache, method_id, need_tier, obs_buffers, observe,
-                     rollout_results, seek_max, sensed_current, set_velocity_cmd, start_times,
-                     waypoint_carrot)
+from .common import (STANDARD, current_at, episode_generators, fresh_cache, need_tier,
+                     start_times)
+from .loop import observe_next, run_episode
 
 TASK_ID = "PI"
 METRICS = ("inspection_score", "localisation_error_m", "detection_rate")
@@ -106,26 +109,11 @@ PLUME_SCALE_M = 5.0
 # ---- scoring
 #: A reading above the threshold is attributed to the nearest leak within this distance, m.
 DETECT_RADIUS_M = 50.0
-#: Oracle's estimator: readings >= b + ONSET_FRAC (peak - b) whose downstream coordinate is
-#: within ONSET_BAND_M (m) of the most upstream one are averaged, weights reading - b.
-ONSET_FRAC = 0.5
-ONSET_BAND_M = 10.0
-#: Below this current speed (m s-1) the downstream direction is undefined (coordinate 0).
+#: Below this sensed current speed (m s-1) a reading's downstream coordinate is 0 (the
+#: direction is undefined).
 MIN_CURRENT_MS = 0.05
 #: Readings kept per leak (later ones are dropped; 1024 s of readings inside the 100 m zone).
 MAX_READS = 1024
-# ---- methods
-#: Heuristic speed budget through the water as a fraction of v_max.
-CRUISE_FRAC = 0.75
-#: Commanded altitude above the seafloor, m (heuristic, oracle).
-ALT_HEURISTIC_M = 6.0
-ALT_ORACLE_M = 2.5
-#: Line-of-sight lookahead, m; approach gain, s-1; waypoint tolerance, m; shallowest
-#: commanded depth, m.
-LOOKAHEAD_M = 12.0
-KP = 0.5
-WP_TOL_M = 1.0
-MIN_DEPTH_M = 1.0
 #: Seafloor clearance of the feasibility check, m; near-collision distance, m.
 CLEARANCE_M = 1.0
 R_COLL_M = 2.0
@@ -134,12 +122,7 @@ _TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "pipeline_length
               "n_leaks", "leak_spacing_m", "leak_rate_kg_s", "detect_threshold_kg_m3",
               "loc_tolerance_m", "seafloor_min_m", "seafloor_max_m")
 
-_I_MODEL, _I_METHOD, _I_STEPS, _I_SEED, _I_NAG, _I_NLEAK, _I_NSPIN, _I_REFRESH = range(8)
-(_F_DT, _F_VMAX, _F_SPEED, _F_KP, _F_NOISE, _F_LAND, _F_CLEAR, _F_ALT, _F_THR, _F_TOL,
- _F_LOOK, _F_H, _F_KAPPA) = range(13)
-_C = {k: i for i, k in enumerate(COLUMNS)}
-_C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
-_C_SCORE, _C_LOC, _C_DET = (_C[k] for k in METRICS)
+_C_SCORE, _C_LOC, _C_DET = (len(STANDARD) + i for i in range(len(METRICS)))
 
 
 # ------------------------------------------------------------------------------ geometry
@@ -275,7 +258,8 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     dict
         ``poly`` (E, V, 2) pipeline vertices [x, z] m (V = legs + 1); ``leaks`` (E, n_leaks, 2)
         [x, z] m; ``leak_rate`` (E, n_leaks) kg s-1; ``sections`` (E, N, 2) arc-length
-        range of each agent's section, m; ``pos0`` (E, N, 3) m; ``t0`` (E,) s.
+        range of each agent's section, m; ``pos0`` (E, N, 3) m; ``psi0`` (E, N) initial
+        heading (0: north), rad; ``t0`` (E,) s.
 
     Raises
     ------
@@ -311,7 +295,8 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
         sections.append(np.stack([cuts[:-1], cuts[1:]], axis=1))
         pos0.append(p0)
     return {"poly": np.array(polys), "leaks": np.array(leaks), "leak_rate": np.array(rates),
-            "sections": np.array(sections), "pos0": np.array(pos0), "t0": t0}
+            "sections": np.array(sections), "pos0": np.array(pos0),
+            "psi0": np.zeros((n_episodes, n_agents)), "t0": t0}
 
 
 # ------------------------------------------------------------------------------ kernels
@@ -366,226 +351,6 @@ def _field_step(C, params, uf, vf, land, work, leak_loc, rate, e, n_leak, h, s0,
                    pol.OPEN_ALL, work[e])
 
 
-@hot_kernel(inline="always")
-def _peak_estimate(reads, nread, peak, est, e, q):
-    """Leak ``q``'s estimate: where the largest reading near it was taken (heuristic)."""
-    for m in range(nread[e, q]):
-        if reads[e, q, m, 2] >= peak[e, q]:
-            est[e, q, 0] = reads[e, q, m, 0]
-            est[e, q, 1] = reads[e, q, m, 1]
-            return
-
-
-@hot_kernel(inline="always")
-def _onset_estimate(reads, nread, peak, est, e, q):
-    """Leak ``q``'s position estimate from the readings taken near it.
-
-    A point source sits at the upstream edge of its plume. With ``b`` the smallest reading
-    near the leak (the background: upstream water, possibly carrying other leaks' plumes) and
-    ``lim = b + ONSET_FRAC (peak - b)``, the estimate is the concentration-weighted centroid
-    of the readings >= ``lim`` lying within ``ONSET_BAND_M`` (along the probed current) of
-    the most upstream of them: the plume's peak in a cross-current, its onset in an along-pipe
-    current."""
-    n = nread[e, q]
-    b = peak[e, q]
-    for m in range(n):
-        if reads[e, q, m, 2] < b:
-            b = reads[e, q, m, 2]
-    lim = b + ONSET_FRAC * (peak[e, q] - b)
-    d_min = 1e300
-    for m in range(n):
-        if reads[e, q, m, 2] >= lim and reads[e, q, m, 3] < d_min:
-            d_min = reads[e, q, m, 3]
-    wx = 0.0
-    wz = 0.0
-    ws = 0.0
-    for m in range(n):
-        r = reads[e, q, m, 2] - b
-        if reads[e, q, m, 2] >= lim and reads[e, q, m, 3] <= d_min + ONSET_BAND_M:
-            wx += r * reads[e, q, m, 0]
-            wz += r * reads[e, q, m, 1]
-            ws += r
-    if ws > 0.0:
-        est[e, q, 0] = wx / ws
-        est[e, q, 1] = wz / ws
-    else:  # flat signal: the position of the peak-level readings
-        for m in range(n):
-            if reads[e, q, m, 2] >= lim:
-                est[e, q, 0] = reads[e, q, m, 0]
-                est[e, q, 1] = reads[e, q, m, 1]
-                break
-
-
-@hot_kernel
-def _episode(grid, vp, ipar, fpar, wps, wcount, leaks, leak_loc, rate, frame, t0, state, cmd,
-             widx, C, params, uf, vf, land, work, peak, nread, reads, org, est, obs, act, res, e):
-    """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``).
-
-    Scratch per leak: ``peak`` (E, n_leaks) largest reading >= threshold near it (-1: none);
-    ``nread`` (E, n_leaks) and ``reads`` (E, n_leaks, MAX_READS, 4) the readings within
-    ``DETECT_RADIUS_M`` ``[x, z, value, downstream coordinate]`` (origin ``org`` (E, n_leaks,
-    2): the first reading near the leak); ``est`` (E, n_leaks, 2) the final estimate.
-    """
-    model = ipar[_I_MODEL]
-    method = ipar[_I_METHOD]
-    n_steps = ipar[_I_STEPS]
-    seed = ipar[_I_SEED]
-    n_ag = ipar[_I_NAG]
-    n_leak = ipar[_I_NLEAK]
-    n_spin = ipar[_I_NSPIN]
-    refresh = ipar[_I_REFRESH]
-    dt = fpar[_F_DT]
-    v_max = fpar[_F_VMAX]
-    speed = fpar[_F_SPEED]
-    kp = fpar[_F_KP]
-    noise = fpar[_F_NOISE]
-    land_thr = fpar[_F_LAND]
-    clearance = fpar[_F_CLEAR]
-    alt_c = fpar[_F_ALT]
-    thr = fpar[_F_THR]
-    tol = fpar[_F_TOL]
-    look = fpar[_F_LOOK]
-    h = fpar[_F_H]
-    kappa = fpar[_F_KAPPA]
-    nz = C.shape[2]
-    nx = C.shape[3]
-    ox = frame[e, 0]
-    oz = frame[e, 1]
-    ca = frame[e, 2]
-    sa = frame[e, 3]
-    s0 = frame[e, 4]
-    n0 = frame[e, 5]
-    dtf = FIELD_EVERY * dt
-    inv_scale = 1.0 / PLUME_SCALE_M
-    # ---- spin-up: the leaks have been emitting for n_spin field steps
-    for j in range(nz):
-        for i in range(nx):
-            C[e, 0, j, i] = 0.0
-    for k in range(n_spin):
-        t = t0[e] - (n_spin - k) * dtf
-        if k % refresh == 0:
-            _refresh_faces(grid, frame, uf, vf, e, nx, nz, h, t)
-        _field_step(C, params, uf, vf, land, work, leak_loc, rate, e, n_leak, h, s0, n0, dtf,
-                    kappa)
-    for q in range(n_leak):
-        peak[e, q] = -1.0
-        nread[e, q] = 0
-        est[e, q, 0] = math.nan
-        est[e, q, 1] = math.nan
-    for i in range(n_ag):
-        widx[e, i] = 0
-    energy = 0.0
-    viol = 0
-    n_coll = 0
-    k = 0
-    while k < n_steps:
-        t = t0[e] + k * dt
-        if k % FIELD_EVERY == 0:
-            if (k // FIELD_EVERY) % refresh == 0:
-                _refresh_faces(grid, frame, uf, vf, e, nx, nz, h, t)
-            _field_step(C, params, uf, vf, land, work, leak_loc, rate, e, n_leak, h, s0, n0,
-                        dtf, kappa)
-        active = 0
-        for i in range(n_ag):
-            s = state[e, i]
-            c = cmd[e, i]
-            px = s[0]
-            py = s[1]
-            pz = s[2]
-            ce, cn = current_at(grid, px, py, pz, t)
-            fe, fn = sensed_current(method, ce, cn, noise, seed, e, 2 * (k * n_ag + i))
-            budget = speed if method == HEURISTIC else v_max
-            gx, gz, w = waypoint_carrot(wps, widx, wcount, e, i, px, pz, look, WP_TOL_M)
-            if w < wcount[e, i]:
-                active += 1
-            gy = -sample_elevation(grid, gx, gz) - alt_c
-            if gy < MIN_DEPTH_M:
-                gy = MIN_DEPTH_M
-            ax, ay, az = seek_max(px, py, pz, gx, gy, gz, budget, kp, fe, fn)
-            if k < obs.shape[1]:  # the sensor reading here, before the move
-                a0 = max(-sample_elevation(grid, px, pz) - py, 0.0)
-                l0s, l0n = _to_local(px, pz, ox, oz, ca, sa)
-                r0 = (pol.probe(C[e], 0, l0s, l0n, s0, n0, h) * math.exp(-a0 * inv_scale)
-                      * inv_scale)
-                observe(obs, act, e, k, i, grid, state, gx, gy, gz, fe, fn, r0, ax, ay, az)
-            set_velocity_cmd(c, ax, ay, az)
-            en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr,
-                                     clearance)
-            energy += en
-            if code != OK:
-                viol += 1
-            # ---- sensing: a reading above the threshold is attributed to the nearest leak
-            alt = -sample_elevation(grid, s[0], s[2]) - s[1]
-            if alt < 0.0:
-                alt = 0.0
-            ls, ln = _to_local(s[0], s[2], ox, oz, ca, sa)
-            r = pol.probe(C[e], 0, ls, ln, s0, n0, h) * math.exp(-alt * inv_scale) * inv_scale
-            q_min = -1
-            d_min = DETECT_RADIUS_M * DETECT_RADIUS_M
-            for q in range(n_leak):
-                d2 = (leaks[e, q, 0] - s[0]) ** 2 + (leaks[e, q, 1] - s[2]) ** 2
-                if d2 <= d_min:
-                    d_min = d2
-                    q_min = q
-            if q_min >= 0:
-                if r >= thr and r > peak[e, q_min]:
-                    peak[e, q_min] = r
-                m = nread[e, q_min]
-                if m == 0:  # origin of the downstream coordinate near this leak
-                    org[e, q_min, 0] = s[0]
-                    org[e, q_min, 1] = s[2]
-                if m < reads.shape[2]:
-                    # downstream coordinate along the agent's current knowledge (the oracle's
-                    # estimator uses it)
-                    cs = math.sqrt(fe * fe + fn * fn)
-                    dn = 0.0
-                    if cs > MIN_CURRENT_MS:
-                        dn = ((s[0] - org[e, q_min, 0]) * fe
-                              + (s[2] - org[e, q_min, 1]) * fn) / cs
-                    reads[e, q_min, m, 0] = s[0]
-                    reads[e, q_min, m, 1] = s[2]
-                    reads[e, q_min, m, 2] = r
-                    reads[e, q_min, m, 3] = dn
-                    nread[e, q_min] = m + 1
-        if n_ag > 1 and min_pairwise_distance(state[e]) <= R_COLL_M:
-            n_coll += 1
-        k += 1
-        if active == 0:
-            break  # every section inspected: the report is final
-    n_loc = 0
-    n_det = 0
-    err = 0.0
-    for q in range(n_leak):
-        if peak[e, q] >= 0.0:
-            if method == HEURISTIC:
-                _peak_estimate(reads, nread, peak, est, e, q)
-            else:
-                _onset_estimate(reads, nread, peak, est, e, q)
-            n_det += 1
-            d = math.sqrt((est[e, q, 0] - leaks[e, q, 0]) ** 2
-                          + (est[e, q, 1] - leaks[e, q, 1]) ** 2)
-            err += d
-            if d <= tol:
-                n_loc += 1
-    success = n_loc == n_leak
-    res[e, _C_SUCCESS] = 1.0 if success else 0.0
-    res[e, _C_T] = k * dt if success else n_steps * dt
-    res[e, _C_E] = energy
-    res[e, _C_COLL] = n_coll / k if (n_ag > 1 and k > 0) else 0.0
-    res[e, _C_VIOL] = viol
-    res[e, _C_SCORE] = n_loc / n_leak
-    res[e, _C_LOC] = err / n_det if n_det > 0 else math.nan
-    res[e, _C_DET] = n_det / n_leak
-
-
-@njit(parallel=True, cache=True)
-def _kernel(grid, vp, ipar, fpar, wps, wcount, leaks, leak_loc, rate, frame, t0, state, cmd,
-            widx, C, params, uf, vf, land, work, peak, nread, reads, org, est, obs, act, res):
-    for e in prange(res.shape[0]):
-        _episode(grid, vp, ipar, fpar, wps, wcount, leaks, leak_loc, rate, frame, t0, state,
-                 cmd, widx, C, params, uf, vf, land, work, peak, nread, reads, org, est, obs, act,
-                 res, e)
-
 
 def _field_land(grid, frame_e, nx, nz, h) -> np.ndarray:
     """Land flags (nz, nx) uint8 of one episode's field cells: 1 where the bilinear land mask
@@ -606,42 +371,55 @@ def _field_land(grid, frame_e, nx, nz, h) -> np.ndarray:
     return ((~inside) | (land >= DEFAULT_LAND_THRESHOLD)).astype(np.uint8)
 
 
-def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
-            seed: int, *, scratch: dict | None = None, record: bool = False) -> dict:
-    """Run every episode of ``init`` (from :func:`reset`) with one method.
+class PIParams(NamedTuple):
+    n_leak: int             # leaks per episode
+    n_spin: int             # spin-up field steps before the start
+    refresh: int            # face currents refreshed every this many field steps
+    dt: float               # agent step, s (the field steps FIELD_EVERY dt)
+    thr: float              # detection threshold, kg m-3
+    tol: float              # localisation tolerance, m
+    h: float                # field cell size, m
+    kappa: float            # diffusivity, m2 s-1
+    tracer: np.ndarray      # (n_params,) the field's step_field params (tracer, no decay)
 
-    Parameters
-    ----------
-    grid : Grid
-        Forcing already applied (``run_cell`` sets the tier's ``current_gain``).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        Output of :func:`reset`.
-    method : {"heuristic", "oracle"}
-    dyn_name : {"kinematic", "3dof", "4dof", "6dof"}
-    vehicle : Vehicle
-    seed : int
-        Run seed (probe-noise streams).
-    scratch : dict, optional
-        If given, filled with the kernel's final work arrays (diagnostics).
 
-    Returns
-    -------
-    dict of (E,) arrays
-        ``success`` (bool), ``T_s`` (s), ``E`` (m2 s-1), ``coll_ratio``, ``violations`` (int)
-        and ``METRICS``.
-    """
+class PIWork(NamedTuple):
+    # ---- env: the episode, the plume field, the reading log, the report
+    t0: np.ndarray          # (E,) start times, s (the spin-up ends there)
+    leaks: np.ndarray       # (E, n_leaks, 2) leak positions [x, z], m
+    leak_loc: np.ndarray    # (E, n_leaks, 2) the same in the field's local frame, m
+    rate: np.ndarray        # (E, n_leaks) emission rates, kg s-1
+    frame: np.ndarray       # (E, 6) field frame: origin x, z, cos, sin, cell (0, 0) s, n
+    C: np.ndarray           # (E, 1, nz, nx) column mass, kg m-2
+    uf: np.ndarray          # (E, nz, nx + 1) face currents along the chord, m s-1
+    vf: np.ndarray          # (E, nz + 1, nx) face currents across the chord, m s-1
+    land: np.ndarray        # (E, nz, nx) uint8 land / outside flags of the field's cells
+    work: np.ndarray        # (E, work_size) step_field scratch
+    peak: np.ndarray        # (E, n_leaks) largest reading >= threshold near a leak (-1: none)
+    nread: np.ndarray       # (E, n_leaks) int64 readings logged near a leak
+    reads: np.ndarray       # (E, n_leaks, MAX_READS, 4) [x, z, value, downstream coordinate]
+    org: np.ndarray         # (E, n_leaks, 2) first reading near a leak (downstream origin), m
+    est: np.ndarray         # (E, n_leaks, 2) the method's final estimates, m (NaN: none)
+    # ---- policy (plan tokens and memory; see oneocean.methods.heuristic.pi)
+    wps: np.ndarray         # (E, N, V, 2) survey waypoints [x, z], m
+    wcount: np.ndarray      # (E, N) int64 waypoints of each agent
+    widx: np.ndarray        # (E, N) int64 waypoint being followed
+    tgt: np.ndarray         # (E, N, 3) the step's carrot (the observation's goal cue), m
+    flow: np.ndarray        # (E, N, 2) current the agent sensed at its step, m s-1
+    done: np.ndarray        # (E, N) int64 1: the agent has finished its section
+    estimator: np.ndarray   # (E,) int64 the report the method files (its PEAK / ONSET)
+
+
+def make(grid, tier: dict, init: dict):
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); the
+    survey waypoints are the method's plan (:func:`oneocean.methods.heuristic.pi.survey`)."""
     need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
-    mid = method_id(method)
     dt = float(tier["dt_s"])
     poly = np.asarray(init["poly"], dtype=np.float64)
     n_ep = poly.shape[0]
-    pos0 = np.ascontiguousarray(init["pos0"], dtype=np.float64)
-    n_ag = pos0.shape[1]
+    n_ag = init["pos0"].shape[1]
     leaks = np.ascontiguousarray(init["leaks"], dtype=np.float64)
     n_leak = leaks.shape[1]
-    v_max = float(vehicle.v_max)
     h = FIELD_H_M
     # per-episode field frames (same shape for every episode: the largest one)
     frames = [field_frame(poly[e], h, FIELD_MARGIN_M) for e in range(n_ep)]
@@ -660,50 +438,190 @@ def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
         leak_loc[e, :, 0] = dx * ax_[0] + dz * ax_[1]
         leak_loc[e, :, 1] = -dx * ax_[1] + dz * ax_[0]
         land[e] = _field_land(grid, frame[e], nx, nz, h)
-    # waypoints: each agent's section of the polyline
-    secs = [[sub_polyline(poly[e], *init["sections"][e, i]) for i in range(n_ag)]
-            for e in range(n_ep)]
-    n_max = max(len(s) for row in secs for s in row)
-    wps = np.zeros((n_ep, n_ag, n_max, 2))
-    wcount = np.zeros((n_ep, n_ag), dtype=np.int64)
-    for e in range(n_ep):
-        for i in range(n_ag):
-            wps[e, i, :len(secs[e][i])] = secs[e][i]
-            wcount[e, i] = len(secs[e][i])
+    wps, wcount = POLICY.survey(init)
     dtf = FIELD_EVERY * dt
-    ipar = np.array([dyn.model_id(dyn_name), mid, episode_steps(tier),
-                     int(seed), n_ag, n_leak, int(round(SPINUP_S / dtf)),
-                     max(1, int(round(FIELD_REFRESH_S / dtf)))], dtype=np.int64)
-    fpar = np.array([dt, v_max, CRUISE_FRAC * v_max, KP, float(tier["probe_noise_ms"]),
-                     DEFAULT_LAND_THRESHOLD, CLEARANCE_M,
-                     ALT_HEURISTIC_M if mid == HEURISTIC else ALT_ORACLE_M,
-                     float(tier["detect_threshold_kg_m3"]), float(tier["loc_tolerance_m"]),
-                     LOOKAHEAD_M, h, KAPPA_M2_S])
-    state = dyn.new_state(n_ep, n_ag, pos0)
-    cmd = np.zeros((n_ep, n_ag, dyn.CMD_DIM))
-    widx = np.zeros((n_ep, n_ag), dtype=np.int64)
-    C = np.zeros((n_ep, 1, nz, nx))
-    _, params = pol.field_params(pol.KIND_TRACER, 1)
-    uf = np.zeros((n_ep, nz, nx + 1))
-    vf = np.zeros((n_ep, nz + 1, nx))
-    work = np.zeros((n_ep, pol.work_size(1, nz, nx)))
-    peak = np.zeros((n_ep, n_leak))
-    nread = np.zeros((n_ep, n_leak), dtype=np.int64)
-    reads = np.zeros((n_ep, n_leak, MAX_READS, 4))
-    org = np.zeros((n_ep, n_leak, 2))
-    est = np.zeros((n_ep, n_leak, 2))
-    res = np.zeros((n_ep, len(COLUMNS)))
-    obs, act = obs_buffers(tier, init, record)
-    _kernel(grid, vehicle.params, ipar, fpar, wps, wcount, leaks, leak_loc,
-            np.ascontiguousarray(init["leak_rate"], dtype=np.float64), frame,
-            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, widx, C,
-            params, uf, vf, land, work, peak, nread, reads, org, est, obs, act, res)
-    if scratch is not None:  # diagnostics: final field, per-leak peaks and estimates, states
-        scratch.update(C=C, peak=peak, est=est, nread=nread, reads=reads, state=state,
-                       frame=frame, leak_loc=leak_loc)
-    return rollout_results(res, COLUMNS, obs, act, record)
+    _, tracer = pol.field_params(pol.KIND_TRACER, 1)
+    P = PIParams(n_leak, int(round(SPINUP_S / dtf)), max(1, int(round(FIELD_REFRESH_S / dtf))),
+                 dt, float(tier["detect_threshold_kg_m3"]), float(tier["loc_tolerance_m"]), h,
+                 KAPPA_M2_S, tracer)
+    W = PIWork(np.ascontiguousarray(init["t0"], dtype=np.float64), leaks, leak_loc,
+               np.ascontiguousarray(init["leak_rate"], dtype=np.float64), frame,
+               np.zeros((n_ep, 1, nz, nx)), np.zeros((n_ep, nz, nx + 1)),
+               np.zeros((n_ep, nz + 1, nx)), land, np.zeros((n_ep, pol.work_size(1, nz, nx))),
+               np.zeros((n_ep, n_leak)), np.zeros((n_ep, n_leak), dtype=np.int64),
+               np.zeros((n_ep, n_leak, MAX_READS, 4)), np.zeros((n_ep, n_leak, 2)),
+               np.zeros((n_ep, n_leak, 2)),
+               wps, wcount, np.zeros((n_ep, n_ag), dtype=np.int64), np.zeros((n_ep, n_ag, 3)),
+               np.zeros((n_ep, n_ag, 2)), np.zeros((n_ep, n_ag), dtype=np.int64),
+               np.zeros(n_ep, dtype=np.int64))
+    return P, W
 
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer or
-# the model changes.
-fresh_cache(_kernel, __file__, pol.__file__)
+@hot_kernel(inline="always")
+def begin(grid, P, W, state, e):
+    """Spin-up (the leaks have been emitting for ``n_spin`` field steps); empty logs."""
+    C = W.C
+    nz = C.shape[2]
+    nx = C.shape[3]
+    n_spin = P.n_spin
+    h = P.h
+    dtf = FIELD_EVERY * P.dt
+    s0 = W.frame[e, 4]
+    n0 = W.frame[e, 5]
+    for j in range(nz):
+        for i in range(nx):
+            C[e, 0, j, i] = 0.0
+    for k in range(n_spin):
+        t = W.t0[e] - (n_spin - k) * dtf
+        if k % P.refresh == 0:
+            _refresh_faces(grid, W.frame, W.uf, W.vf, e, nx, nz, h, t)
+        _field_step(C, P.tracer, W.uf, W.vf, W.land, W.work, W.leak_loc, W.rate, e, P.n_leak,
+                    h, s0, n0, dtf, P.kappa)
+    for q in range(P.n_leak):
+        W.peak[e, q] = -1.0
+        W.nread[e, q] = 0
+        W.est[e, q, 0] = math.nan
+        W.est[e, q, 1] = math.nan
+    return False
+
+
+@hot_kernel(inline="always")
+def pre_step(grid, P, W, state, e, k, t):
+    """The field: emit and transport every FIELD_EVERY steps (faces refreshed on schedule)."""
+    if k % FIELD_EVERY == 0:
+        C = W.C
+        nz = C.shape[2]
+        nx = C.shape[3]
+        h = P.h
+        if (k // FIELD_EVERY) % P.refresh == 0:
+            _refresh_faces(grid, W.frame, W.uf, W.vf, e, nx, nz, h, t)
+        _field_step(C, P.tracer, W.uf, W.vf, W.land, W.work, W.leak_loc, W.rate, e, P.n_leak,
+                    h, W.frame[e, 4], W.frame[e, 5], FIELD_EVERY * P.dt, P.kappa)
+
+
+@hot_kernel(inline="always")
+def _reading(grid, P, W, e, x, z, alt):
+    """The sensor's concentration (kg m-3) at ``(x, z)``, ``alt`` m above the seafloor."""
+    inv_scale = 1.0 / PLUME_SCALE_M
+    ls, ln = _to_local(x, z, W.frame[e, 0], W.frame[e, 1], W.frame[e, 2], W.frame[e, 3])
+    return (pol.probe(W.C[e], 0, ls, ln, W.frame[e, 4], W.frame[e, 5], P.h)
+            * math.exp(-alt * inv_scale) * inv_scale)
+
+
+@hot_kernel(inline="always")
+def cue(grid, P, W, state, e, k, i):
+    """Goal cue: the agent's carrot (plan token ``tgt``); probe: the reading before the move."""
+    s = state[e, i]
+    px = s[0]
+    py = s[1]
+    pz = s[2]
+    a0 = max(-sample_elevation(grid, px, pz) - py, 0.0)
+    r0 = _reading(grid, P, W, e, px, pz, a0)
+    return W.tgt[e, i, 0], W.tgt[e, i, 1], W.tgt[e, i, 2], r0
+
+
+@hot_kernel(inline="always")
+def after_agent(grid, P, W, state, e, k, i, code):
+    """The reading after the move: attributed to the nearest leak within DETECT_RADIUS_M
+    (detection when >= the threshold), logged with its downstream coordinate along the
+    current the agent sensed (``flow``)."""
+    s = state[e, i]
+    alt = -sample_elevation(grid, s[0], s[2]) - s[1]
+    if alt < 0.0:
+        alt = 0.0
+    r = _reading(grid, P, W, e, s[0], s[2], alt)
+    leaks = W.leaks
+    peak = W.peak
+    org = W.org
+    reads = W.reads
+    q_min = -1
+    d_min = DETECT_RADIUS_M * DETECT_RADIUS_M
+    for q in range(P.n_leak):
+        d2 = (leaks[e, q, 0] - s[0]) ** 2 + (leaks[e, q, 1] - s[2]) ** 2
+        if d2 <= d_min:
+            d_min = d2
+            q_min = q
+    if q_min >= 0:
+        if r >= P.thr and r > peak[e, q_min]:
+            peak[e, q_min] = r
+        m = W.nread[e, q_min]
+        if m == 0:  # origin of the downstream coordinate near this leak
+            org[e, q_min, 0] = s[0]
+            org[e, q_min, 1] = s[2]
+        if m < reads.shape[2]:
+            # downstream coordinate along the agent's current knowledge (the oracle's
+            # estimator uses it)
+            fe = W.flow[e, i, 0]
+            fn = W.flow[e, i, 1]
+            cs = math.sqrt(fe * fe + fn * fn)
+            dn = 0.0
+            if cs > MIN_CURRENT_MS:
+                dn = ((s[0] - org[e, q_min, 0]) * fe
+                      + (s[2] - org[e, q_min, 1]) * fn) / cs
+            reads[e, q_min, m, 0] = s[0]
+            reads[e, q_min, m, 1] = s[2]
+            reads[e, q_min, m, 2] = r
+            reads[e, q_min, m, 3] = dn
+            W.nread[e, q_min] = m + 1
+
+
+@hot_kernel(inline="always")
+def post_step(grid, P, W, state, prev, e, k, t):
+    """The report is final once every agent has finished its section (``done``)."""
+    for i in range(state.shape[1]):
+        if W.done[e, i] == 0:
+            return False
+    return True
+
+
+@hot_kernel(inline="always")
+def finish(grid, P, W, state, e, k, row):
+    """The method's estimate of every detected leak (:func:`POLICY.estimate`), scored."""
+    n_leak = P.n_leak
+    leaks = W.leaks
+    est = W.est
+    n_loc = 0
+    n_det = 0
+    err = 0.0
+    for q in range(n_leak):
+        if W.peak[e, q] >= 0.0:
+            POLICY.estimate(W, e, q)
+            n_det += 1
+            d = math.sqrt((est[e, q, 0] - leaks[e, q, 0]) ** 2
+                          + (est[e, q, 1] - leaks[e, q, 1]) ** 2)
+            err += d
+            if d <= P.tol:
+                n_loc += 1
+    row[_C_SCORE] = n_loc / n_leak
+    row[_C_LOC] = err / n_det if n_det > 0 else math.nan
+    row[_C_DET] = n_det / n_leak
+    return n_loc == n_leak
+
+
+# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
+@hot_kernel
+def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
+    run_episode(begin, pre_step, cue, after_agent, post_step, finish, POLICY.plan, POLICY.act,
+                grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
+
+
+@njit(parallel=True, cache=True)
+def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop):
+    for e in prange(state.shape[0]):
+        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
+
+
+@hot_kernel
+def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
+    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+
+
+@njit(parallel=True, cache=True)
+def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact):
+    for e in prange(state.shape[0]):
+        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
+
+
+# numba keys a cache entry on this file only; drop it when the engine, the task layer, the
+# policy or the plume model changes.
+fresh_cache(_kernel, __file__, POLICY.__file__, pol.__file__)
