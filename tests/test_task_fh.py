@@ -15,6 +15,7 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.models.fish import fish_params, init_school, step_school
 from oneocean.tasks import fh, run_cell
+from oneocean.tasks.episodes import rollout
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
@@ -38,7 +39,7 @@ def _tier(i):
 
 
 def _roll(grid, tier, init, method="oracle", dyn="kinematic", vehicle=None, seed=0):
-    return fh.rollout(grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
+    return rollout(fh, grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
 
 
 def _hand_init(zone, n_fish=60, n_ep=1, ring=40.0):

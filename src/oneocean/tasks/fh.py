@@ -9,12 +9,15 @@ Objective
     the school to the zone (``CORRIDOR_HALF_WIDTH_M`` either side), the zone and every fish are in
     valid water ``ROUTE_CLEARANCE_M`` above the seafloor.
 Fish physics (the environment)
-    Every step the current is sampled at each fish (:func:`~oneocean.tasks.common.current_at`
-    at ``FISH_DEPTH_M``) and :func:`oneocean.models.fish.step_school` advances the school
-    (vehicles' horizontal positions scare it). A fish whose new position is infeasible (land,
-    outside the grid, or less than ``FISH_CLEARANCE_M`` above the seafloor at its depth) stays
-    at its previous position with zero swim velocity (fish do not beach). The jitter stream of
-    episode ``e`` is keyed by ``hash64(seed, e, PURPOSE_TASK_NOISE, 0)``.
+    Every step, before the agents move (``pre_step``), the current is sampled at each fish
+    (:func:`~oneocean.tasks.common.current_at` at ``FISH_DEPTH_M``) and
+    :func:`oneocean.models.fish.step_school` advances the school (the vehicles' horizontal
+    positions at the start of the step scare it). A fish whose new position is infeasible
+    (land, outside the grid, or less than ``FISH_CLEARANCE_M`` above the seafloor at its depth)
+    stays at its previous position with zero swim velocity (fish do not beach). The jitter
+    stream of episode ``e`` is keyed by ``hash64(seed, e, PURPOSE_TASK_NOISE, 0)`` (``seed``:
+    the run seed). After the moves (``post_step``) the school's centroid and its velocity over
+    the step (``W.school``, what the methods see of the school) are updated.
 Success
     The school's centroid stays inside the safe zone (distance <= ``zone_radius_m``) for
     ``hold_s`` consecutive seconds (checked after every step; the episode stops when the hold
@@ -24,47 +27,39 @@ Metrics
     centre at the end, m), ``fraction_inside`` (fraction of fish inside the zone at the end),
     ``school_spread_m`` (RMS distance of the fish from their centroid at the end, m).
 Methods (task logic; the environment above does not depend on it)
-    Steer from behind: the school should move toward the zone centre at the planned ground
-    velocity ``v = min(PUSH_SPEED_MS, KP_PUSH * distance)``; the needed swim is ``w``. The eight
-    agents take slots on an arc of ``ARC_RAD`` centred behind the school (opposite to ``w``)
-    at ``standoff + SPREAD_GAIN * spread`` from the centroid, where the standoff shrinks from
-    ``BACKOFF_M`` (no push needed) to ``STANDOFF_M`` (``|w| >= PUSH_SPEED_MS``). Agents are
-    matched to slots in angular order around the school (no crossings) and travel around it
-    (waypoints at most 45 degrees of arc ahead on the slot circle), not through it. Each agent
-    seeks its waypoint with P-control, feed-forward of the school's velocity (centroid
-    displacement over the last step) and of its current probe. The push direction is frozen
-    while the centroid is within ``DEADBAND_FRAC * zone_radius_m`` of the centre.
-    ``heuristic``: ``w = v`` (the school's drift is ignored); the arc re-aims at once; cruise
-    ``CRUISE_FRAC * v_max``; noisy probe (``probe_noise_ms``).
-    ``oracle``: ``w = v - c`` with the exact current ``c`` at the centroid, where ``v`` is the
-    fastest ground velocity toward the zone with ``|w| <= ORACLE_SWIM_MS`` (the school crabs
-    across the current; same ramp); the arc turns at most ``SLEW_RAD_S``; within
-    ``ORACLE_I_ZONE`` zone radii an integral action on the school's measured ground-velocity
-    error adapts the standoff (removes the steady offset a drifting school settles at); full
-    ``v_max``, exact current, crab steering of the vehicles.
+    :mod:`oneocean.methods.heuristic.fh` (herding from behind on an arc around the school;
+    heuristic: cruise budget, noisy probe, push toward the zone ignoring the drift; oracle:
+    full speed, exact current, the school crabbed across the current, integral standoff).
+    The observation's goal cue is the agent's herding waypoint (``W.tgt``, written by the
+    method's ``plan``; the zone centre for external policies).
+
+Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
+    ``TASK_ID``, ``METRICS``; ``reset``; ``FHParams`` / ``FHWork`` and ``make``; the env hooks
+    ``begin``, ``pre_step`` (the fish step), ``cue``, ``post_step``, ``finish``; ``POLICY``;
+    ``_kernel`` and ``_observe_kernel``. ``_episode`` also derives the episode's fish-jitter
+    key (``W.fseed``) from the run seed, which the env hooks do not see.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
-from ..engine import dynamics as dyn
 from ..engine import status as st
 from ..engine._jit import hot_kernel
-from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility, \
-    min_pairwise_distance
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility
 from ..engine.rng import hash64
 from ..errors import ConfigError
+from ..methods.heuristic import fh as POLICY
 from ..models import fish as _fish
 from ..models.fish import (fish_params, fraction_inside_circle, init_school, school_centroid,
                            school_spread, step_school)
-from .common import (HEURISTIC, OK, PURPOSE_TASK_NOISE, STANDARD, advance_agent, current_at,
-                     episode_generators, episode_steps, fresh_cache, method_id, need_tier,
-                     obs_buffers, observe, path_clear, rollout_results, sample_route, seek,
-                     seek_max, sensed_current, set_velocity_cmd, start_times)
+from .common import (PURPOSE_TASK_NOISE, STANDARD, current_at, episode_generators, fresh_cache,
+                     need_tier, path_clear, sample_route, start_times)
+from .loop import noop_after_agent, observe_next, run_episode
 
 TASK_ID = "FH"
 METRICS = ("containment_success", "final_centroid_distance_m", "fraction_inside",
@@ -89,42 +84,8 @@ START_RING_M = (35.0, 50.0)
 START_SEPARATION_M = 5.0
 #: Seafloor clearance of the vehicles' feasibility check, m (engine default).
 CLEARANCE_M = 1.0
-#: Heuristic cruise speed as a fraction of v_max.
-CRUISE_FRAC = 0.75
-#: Slot-tracking proportional gain, s-1.
-KP = 0.5
-#: Herding arc: total angle (rad), standoff (m) and its growth with the school's spread.
-ARC_RAD = math.radians(200.0)
-STANDOFF_M = 6.0
-SPREAD_GAIN = 1.5
-#: Standoff when no push is needed (the school is where it should be), m.
-BACKOFF_M = 14.0
-#: Planned school ground speed toward the zone centre: min(PUSH_SPEED_MS, KP_PUSH * distance).
-PUSH_SPEED_MS = 0.7
-KP_PUSH = 0.05
-#: The push direction is frozen while the centroid is within this fraction of the zone radius
-#: (heuristic, oracle).
-DEADBAND_FRAC = (0.5, 0.25)
-#: Largest turn rate of the push direction, rad s-1 (heuristic: none, the arc re-aims at once;
-#: oracle: the arc rotates around the school).
-SLEW_RAD_S = (math.inf, 0.2)
-#: Oracle: largest swim speed (relative to the water) it plans for the school, m s-1 (the
-#: fish swim at most 1 m s-1).
-ORACLE_SWIM_MS = 0.85
-#: Oracle: rate of its standoff adaptation to the school's swim-speed error, m per m s-1 per s.
-ORACLE_KS = 3.0
-#: Oracle: smallest adapted standoff, m.
-ORACLE_STANDOFF_MIN_M = 3.0
-#: Oracle: its integral action is on within this many zone radii of the zone centre.
-ORACLE_I_ZONE = 3.0
 
-_I_MODEL, _I_METHOD, _I_STEPS, _I_SEED = range(4)
-(_F_DT, _F_VMAX, _F_SPEED, _F_KP, _F_NOISE, _F_LAND, _F_CLEAR, _F_ZONE_R, _F_HOLD, _F_ARC,
- _F_STAND, _F_SGAIN, _F_BACK, _F_PUSH, _F_OSWIM, _F_KPP, _F_DEADB, _F_OKS, _F_SMIN,
- _F_SLEW) = range(20)
-_C = {k: i for i, k in enumerate(COLUMNS)}
-_C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
-_C_CONT, _C_DIST, _C_FRAC, _C_SPREAD = (_C[k] for k in METRICS)
+_C_CONT, _C_DIST, _C_FRAC, _C_SPREAD = (len(STANDARD) + i for i in range(len(METRICS)))
 
 _TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "fish_count",
               "zone_distance_m", "zone_radius_m", "hold_s")
@@ -227,15 +188,54 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     return {"fish0": fish0, "zone": zone, "pos0": pos0, "psi0": psi0, "t0": t0}
 
 
-@hot_kernel(inline="always")
-def _wrap(a):
-    return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
 
-@hot_kernel
-def _current(grid, x, y, z, t):
-    """:func:`~oneocean.tasks.common.current_at`, not inlined (once per step)."""
-    return current_at(grid, x, y, z, t)
+class FHParams(NamedTuple):
+    zone_r: float           # safe-zone radius, m
+    hold: float             # hold time inside the zone for success, s
+    dt: float               # step, s
+    depth: float            # depth of the school and of the vehicles, m
+    land_thr: float         # land-mask threshold of the fish feasibility check
+    fp: np.ndarray          # fish-model parameters (models.fish.fish_params)
+
+
+class FHWork(NamedTuple):
+    zone: np.ndarray        # (E, 2) zone centre (x, z), m
+    fish: np.ndarray        # (E, 2, 4, F) fish state double buffer (x, z, vx, vz)
+    fcur: np.ndarray        # (E,) int64 index of the current buffer of ``fish``
+    fc: np.ndarray          # (E, 2, F) currents at the fish, m s-1
+    apos: np.ndarray        # (E, 2, 8) agent x/z seen by the fish, m
+    fseed: np.ndarray       # (E,) uint64 fish-jitter key (set by _episode from the run seed)
+    school: np.ndarray      # (E, 5) centroid x, z (m), its velocity over the last step
+                            #   (m s-1), time inside the zone (s)
+    done: np.ndarray        # (E,) int64 1 once the hold is complete
+    # method state (oneocean.methods.heuristic.fh)
+    herd: np.ndarray        # (E, 3) angle behind the school (rad), integral standoff (m),
+                            #   slot radius (m)
+    order: np.ndarray       # (E, 8) int64 agents in angular order around the school
+    keys: np.ndarray        # (E, 8) angle of each agent relative to the arc centre, rad
+    rank: np.ndarray        # (E, 8) int64 arc slot of each agent
+    tgt: np.ndarray         # (E, 8, 2) waypoint (x, z) of each agent, m (plan token, goal cue)
+
+
+def make(grid, tier: dict, init: dict):
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
+    need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
+    n_ep, n = init["pos0"].shape[:2]
+    fish0 = np.asarray(init["fish0"], dtype=np.float64)
+    n_fish = fish0.shape[2]
+    zone = np.ascontiguousarray(init["zone"], dtype=np.float64)
+    fish = np.zeros((n_ep, 2, 4, n_fish))
+    fish[:, 0, :2] = fish0
+    P = FHParams(float(tier["zone_radius_m"]), float(tier["hold_s"]), float(tier["dt_s"]),
+                 FISH_DEPTH_M, DEFAULT_LAND_THRESHOLD, fish_params())
+    W = FHWork(zone, fish, np.zeros(n_ep, dtype=np.int64), np.zeros((n_ep, 2, n_fish)),
+               np.zeros((n_ep, 2, n)), np.zeros(n_ep, dtype=np.uint64), np.zeros((n_ep, 5)),
+               np.zeros(n_ep, dtype=np.int64), np.zeros((n_ep, 3)),
+               np.zeros((n_ep, n), dtype=np.int64), np.zeros((n_ep, n)),
+               np.zeros((n_ep, n), dtype=np.int64),
+               np.ascontiguousarray(np.repeat(zone[:, None, :], n, axis=1)))
+    return P, W
 
 
 @njit(cache=True)
@@ -255,278 +255,110 @@ def _fish_step(grid, fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, t, dt, land
             gvz[f] = 0.0
 
 
-@hot_kernel
-def _episode(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, keys, fa, fb,
-             fc, obs, act, res, e):
-    """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``).
 
-    Work arrays (indexed ``[e]``): ``state`` (E, 8, STATE_DIM) initial states; ``cmd``
-    (E, 8, CMD_DIM); ``cur`` (E, 8, 2) currents at the agents; ``apos`` (E, 2, 8) agent x/z
-    seen by the fish; ``order`` (E, 8) int and ``keys`` (E, 8) angular sort; ``fa``, ``fb``
-    (E, 4, F) fish state double buffer (x, z, vx, vz; ``fa`` holds the initial school);
-    ``fc`` (E, 2, F) currents at the fish.
-    """
-    model = ipar[_I_MODEL]
-    method = ipar[_I_METHOD]
-    n_steps = ipar[_I_STEPS]
-    seed = ipar[_I_SEED]
-    dt = fpar[_F_DT]
-    v_max = fpar[_F_VMAX]
-    speed = fpar[_F_SPEED]
-    kp = fpar[_F_KP]
-    noise = fpar[_F_NOISE]
-    land_thr = fpar[_F_LAND]
-    clearance = fpar[_F_CLEAR]
-    zr = fpar[_F_ZONE_R]
-    hold_s = fpar[_F_HOLD]
-    arc = fpar[_F_ARC]
-    stand = fpar[_F_STAND]
-    sgain = fpar[_F_SGAIN]
-    back = fpar[_F_BACK]
-    push = fpar[_F_PUSH]
-    oswim = fpar[_F_OSWIM]
-    kpp = fpar[_F_KPP]
-    deadband = fpar[_F_DEADB]
-    oks = fpar[_F_OKS]
-    stand_min = fpar[_F_SMIN]
-    slew = fpar[_F_SLEW]
-    n = state.shape[1]
+@hot_kernel(inline="always")
+def begin(grid, P, W, state, e):
+    F = W.fish[e, 0]
+    cx, cz = school_centroid(F[0], F[1])
+    W.fcur[e] = 0
+    W.school[e, 0] = cx
+    W.school[e, 1] = cz
+    W.school[e, 2] = 0.0
+    W.school[e, 3] = 0.0
+    W.school[e, 4] = 0.0
+    W.done[e] = 0
+    return False
+
+
+@hot_kernel(inline="always")
+def pre_step(grid, P, W, state, e, k, t):
+    """The school reacts to the vehicles' positions at time t (into the other buffer)."""
     S = state[e]
-    C = cmd[e]
-    CU = cur[e]
-    AX = apos[e, 0]
-    AZ = apos[e, 1]
-    OR = order[e]
-    KY = keys[e]
-    A = fa[e]
-    B = fb[e]
-    zx = zone[e, 0]
-    zz = zone[e, 1]
-    fseed = hash64(seed, e, PURPOSE_TASK_NOISE, 0)
-    cxs, czs = school_centroid(A[0], A[1])
-    vcx = 0.0
-    vcz = 0.0
-    th_back = 0.0
-    r_int = 0.0
-    energy = 0.0
-    viol = 0
-    n_close = 0
-    inside_s = 0.0
-    success = False
-    t_s = 0.0
-    k = 0
-    cur_is_a = True
-    while k < n_steps and not success:
-        t = t0[e] + k * dt
-        F = A if cur_is_a else B
-        G = B if cur_is_a else A
-        spread = school_spread(F[0], F[1])
-        dxz = zx - cxs
-        dzz = zz - czs
-        dist = math.sqrt(dxz * dxz + dzz * dzz)
-        # push direction (method logic): the swim ``w`` the school needs. Heuristic: move toward
-        # the zone centre at min(push, KP_PUSH * dist), the school's drift ignored. Oracle:
-        # fastest ground speed toward the zone whose swim, against the exact current at the
-        # centroid, is at most ``oswim`` (crab steering of the school), same ramp near the zone
-        vd = push if kpp * dist > push else kpp * dist
-        ux = dxz / dist if dist > 1e-9 else 0.0
-        uz = dzz / dist if dist > 1e-9 else 0.0
-        if method == HEURISTIC:
-            wx = ux * vd
-            wz = uz * vd
-        else:
-            ce, cn = _current(grid, cxs, FISH_DEPTH_M, czs, t)
-            cpar = ce * ux + cn * uz
-            qx = ce - cpar * ux
-            qz = cn - cpar * uz
-            q2 = qx * qx + qz * qz
-            if q2 >= oswim * oswim:
-                f = oswim / math.sqrt(q2)
-                wx = -qx * f
-                wz = -qz * f
-            else:
-                vg = cpar + math.sqrt(oswim * oswim - q2)
-                if vg > kpp * dist:
-                    vg = kpp * dist
-                wx = ux * vg - ce
-                wz = uz * vg - cn
-        wn = math.sqrt(wx * wx + wz * wz)
-        # compass angle of "behind the school": frozen near the zone centre (dead band) so the
-        # arc does not flip around the school when the centroid crosses the centre, and turned
-        # at most ``slew`` rad/s so the agents circle around the school, not through it
-        if k == 0:
-            th_back = math.atan2(-wx, -wz)
-        elif dist > deadband * zr:
-            dth = _wrap(math.atan2(-wx, -wz) - th_back)
-            if dth > slew * dt:
-                dth = slew * dt
-            elif dth < -slew * dt:
-                dth = -slew * dt
-            th_back = _wrap(th_back + dth)
-        # close in when a strong push is needed, back off toward the flee radius otherwise
-        g = wn / (push if method == HEURISTIC else oswim)
-        if g > 1.0:
-            g = 1.0
-        r_adj = stand + (back - stand) * (1.0 - g)
-        if method != HEURISTIC:
-            # oracle, near the zone: integral action on the school's ground-velocity error
-            # along w (closer when the school is slower than planned), removing the
-            # steady-state offset a drifting school has under the open-loop standoff
-            if dist < ORACLE_I_ZONE * zr and k > 0 and wn > 1e-9:
-                r_int += oks * ((vcx - ce - wx) * wx + (vcz - cn - wz) * wz) / wn * dt
-                if r_int < stand_min - r_adj:
-                    r_int = stand_min - r_adj
-                elif r_int > back - r_adj:
-                    r_int = back - r_adj
-            else:
-                r_int = 0.0
-            r_adj += r_int
-        r_slot = r_adj + sgain * spread
-        # match agents to arc slots in angular order around the school
-        for i in range(n):
-            OR[i] = i
-            KY[i] = _wrap(math.atan2(S[i, 0] - cxs, S[i, 2] - czs) - th_back)
-        for i in range(1, n):
-            j = i
-            while j > 0 and KY[OR[j - 1]] > KY[OR[j]]:
-                tmp = OR[j - 1]
-                OR[j - 1] = OR[j]
-                OR[j] = tmp
-                j -= 1
-        for r in range(n):
-            i = OR[r]
-            px = S[i, 0]
-            py = S[i, 1]
-            pz = S[i, 2]
-            ce, cn = current_at(grid, px, py, pz, t)
-            CU[i, 0] = ce
-            CU[i, 1] = cn
-            pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * (k * n + i))
-            delta = -0.5 * arc + arc * r / (n - 1)
-            # go around the school: at most 45 degrees of arc toward the slot per waypoint
-            ang_i = KY[i]
-            dang = delta - ang_i
-            if dang > 0.25 * math.pi:
-                dang = 0.25 * math.pi
-            elif dang < -0.25 * math.pi:
-                dang = -0.25 * math.pi
-            a = th_back + ang_i + dang
-            gx = cxs + r_slot * math.sin(a)
-            gz = czs + r_slot * math.cos(a)
-            if method == HEURISTIC:
-                ax, ay, az = seek(px, py, pz, gx, FISH_DEPTH_M, gz, speed, kp, pe - vcx,
-                                  pn - vcz)
-            else:
-                ax, ay, az = seek_max(px, py, pz, gx, FISH_DEPTH_M, gz, speed, kp, pe - vcx,
-                                      pn - vcz)
-            observe(obs, act, e, k, i, grid, state, gx, FISH_DEPTH_M, gz, pe, pn, math.nan, ax, ay,
-                    az)
-            set_velocity_cmd(C[i], ax, ay, az)
-        for i in range(n):
-            AX[i] = S[i, 0]
-            AZ[i] = S[i, 2]
-        # the school reacts to the vehicles' positions at time t
-        _fish_step(grid, F[0], F[1], F[2], F[3], AX, AZ, fc[e, 0], fc[e, 1], fp, fseed, k,
-                   t, dt, land_thr, G[0], G[1], G[2], G[3])
-        for i in range(n):
-            en, code = advance_agent(grid, model, vp, S[i], C[i], CU[i, 0], CU[i, 1], v_max,
-                                     dt, land_thr, clearance)
-            energy += en
-            if code != OK:
-                viol += 1
-        cur_is_a = not cur_is_a
-        nx, nz = school_centroid(G[0], G[1])
-        vcx = (nx - cxs) / dt
-        vcz = (nz - czs) / dt
-        cxs = nx
-        czs = nz
-        k += 1
-        if min_pairwise_distance(S) <= 2.0:
-            n_close += 1
-        if math.sqrt((cxs - zx) ** 2 + (czs - zz) ** 2) <= zr:
-            inside_s += dt
-            if inside_s >= hold_s - 1e-9:
-                success = True
-                t_s = k * dt
-        else:
-            inside_s = 0.0
-    F = A if cur_is_a else B
-    res[e, _C_SUCCESS] = 1.0 if success else 0.0
-    res[e, _C_T] = t_s if success else n_steps * dt
-    res[e, _C_E] = energy
-    res[e, _C_COLL] = n_close / k if k > 0 else 0.0
-    res[e, _C_VIOL] = viol
-    res[e, _C_CONT] = 1.0 if success else 0.0
-    res[e, _C_DIST] = math.sqrt((cxs - zx) ** 2 + (czs - zz) ** 2)
-    res[e, _C_FRAC] = fraction_inside_circle(F[0], F[1], zx, zz, zr)
-    res[e, _C_SPREAD] = school_spread(F[0], F[1])
+    AX = W.apos[e, 0]
+    AZ = W.apos[e, 1]
+    c = W.fcur[e]
+    F = W.fish[e, c]
+    G = W.fish[e, 1 - c]
+    for i in range(S.shape[0]):
+        AX[i] = S[i, 0]
+        AZ[i] = S[i, 2]
+    _fish_step(grid, F[0], F[1], F[2], F[3], AX, AZ, W.fc[e, 0], W.fc[e, 1], P.fp, W.fseed[e],
+               k, t, P.dt, P.land_thr, G[0], G[1], G[2], G[3])
+
+
+@hot_kernel(inline="always")
+def cue(grid, P, W, state, e, k, i):
+    return W.tgt[e, i, 0], P.depth, W.tgt[e, i, 1], math.nan
+
+
+@hot_kernel(inline="always")
+def post_step(grid, P, W, state, prev, e, k, t):
+    c = 1 - W.fcur[e]
+    W.fcur[e] = c
+    G = W.fish[e, c]
+    sc = W.school[e]
+    dt = P.dt
+    cxs = sc[0]
+    czs = sc[1]
+    nx, nz = school_centroid(G[0], G[1])
+    sc[2] = (nx - cxs) / dt
+    sc[3] = (nz - czs) / dt
+    sc[0] = nx
+    sc[1] = nz
+    zx = W.zone[e, 0]
+    zz = W.zone[e, 1]
+    if math.sqrt((nx - zx) ** 2 + (nz - zz) ** 2) <= P.zone_r:
+        sc[4] += dt
+        if sc[4] >= P.hold - 1e-9:
+            W.done[e] = 1
+            return True
+    else:
+        sc[4] = 0.0
+    return False
+
+
+@hot_kernel(inline="always")
+def finish(grid, P, W, state, e, k, row):
+    F = W.fish[e, W.fcur[e]]
+    zx = W.zone[e, 0]
+    zz = W.zone[e, 1]
+    cxs = W.school[e, 0]
+    czs = W.school[e, 1]
+    success = W.done[e] != 0
+    row[_C_CONT] = 1.0 if success else 0.0
+    row[_C_DIST] = math.sqrt((cxs - zx) ** 2 + (czs - zz) ** 2)
+    row[_C_FRAC] = fraction_inside_circle(F[0], F[1], zx, zz, P.zone_r)
+    row[_C_SPREAD] = school_spread(F[0], F[1])
+    return success
+
+
+# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels);
+# the fish-jitter key needs the run seed, which only the loop's params carry
+@hot_kernel
+def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
+    W.fseed[e] = hash64(LP.seed, e, PURPOSE_TASK_NOISE, 0)
+    run_episode(begin, pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
+                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
+                k_stop)
 
 
 @njit(parallel=True, cache=True)
-def _kernel(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, keys, fa, fb, fc,
-            obs, act, res):
-    for e in prange(res.shape[0]):
-        _episode(grid, vp, ipar, fpar, fp, zone, t0, state, cmd, cur, apos, order, keys, fa,
-                 fb, fc, obs, act, res, e)
+def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop):
+    for e in prange(state.shape[0]):
+        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
 
 
-def rollout(grid, tier: dict, init: dict, method: str, dyn_name: str, vehicle,
-            seed: int, *, record: bool = False) -> dict:
-    """Run every episode of ``init`` (from :func:`reset`) with one method.
-
-    Parameters
-    ----------
-    grid : Grid
-        Forcing already applied (``run_cell`` sets the tier's ``current_gain``).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        Output of :func:`reset`.
-    method : {"heuristic", "oracle"}
-    dyn_name : {"kinematic", "3dof", "4dof", "6dof"}
-    vehicle : Vehicle
-    seed : int
-        Run seed (probe-noise and fish-jitter streams).
-
-    Returns
-    -------
-    dict of (E,) arrays
-        ``success`` (bool), ``T_s`` (s), ``E`` (m2 s-1), ``coll_ratio``, ``violations``
-        (int) and ``METRICS``.
-    """
-    need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
-    dt = float(tier["dt_s"])
-    n_ep, n = init["pos0"].shape[:2]
-    n_fish = init["fish0"].shape[2]
-    v_max = float(vehicle.v_max)
-    mid = method_id(method)
-    ipar = np.array([dyn.model_id(dyn_name), mid,
-                     episode_steps(tier), int(seed)],
-                    dtype=np.int64)
-    speed = CRUISE_FRAC * v_max if mid == HEURISTIC else v_max
-    fpar = np.array([dt, v_max, speed, KP, float(tier["probe_noise_ms"]),
-                     DEFAULT_LAND_THRESHOLD, CLEARANCE_M, float(tier["zone_radius_m"]),
-                     float(tier["hold_s"]), ARC_RAD, STANDOFF_M, SPREAD_GAIN, BACKOFF_M,
-                     PUSH_SPEED_MS, ORACLE_SWIM_MS, KP_PUSH, DEADBAND_FRAC[mid], ORACLE_KS,
-                     ORACLE_STANDOFF_MIN_M, SLEW_RAD_S[mid]])
-    state = dyn.new_state(n_ep, n, init["pos0"], init["psi0"])
-    cmd = np.zeros((n_ep, n, dyn.CMD_DIM))
-    cur = np.zeros((n_ep, n, 2))
-    apos = np.zeros((n_ep, 2, n))
-    order = np.zeros((n_ep, n), dtype=np.int64)
-    keys = np.zeros((n_ep, n))
-    fa = np.zeros((n_ep, 4, n_fish))
-    fa[:, :2] = init["fish0"]
-    fb = np.zeros((n_ep, 4, n_fish))
-    fc = np.zeros((n_ep, 2, n_fish))
-    res = np.zeros((n_ep, len(COLUMNS)))
-    obs, act = obs_buffers(tier, init, record)
-    _kernel(grid, vehicle.params, ipar, fpar, fish_params(), np.ascontiguousarray(init["zone"]),
-            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, cur, apos, order,
-            keys, fa, fb, fc, obs, act, res)
-    return rollout_results(res, COLUMNS, obs, act, record)
+@hot_kernel
+def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
+    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
 
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer or
-# the model changes.
-fresh_cache(_kernel, __file__, _fish.__file__)
+@njit(parallel=True, cache=True)
+def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact):
+    for e in prange(state.shape[0]):
+        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
+
+
+# numba keys a cache entry on this file only; drop it when the engine, the task layer, the
+# method or the model changes.
+fresh_cache(_kernel, __file__, POLICY.__file__, _fish.__file__)
