@@ -15,8 +15,10 @@ from oneocean import engine as E
 from oneocean.engine import status as st
 from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
+from oneocean.methods.heuristic import as_ as pol
 from oneocean.tasks import as_, run_cell
-from oneocean.tasks.common import HEURISTIC, ORACLE, STANDARD, load_task_table
+from oneocean.tasks.common import STANDARD, load_task_table
+from oneocean.tasks.episodes import rollout
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 900.0, "probe_noise_ms": 0.1,
@@ -120,7 +122,7 @@ def test_hovering_vehicle_covers_its_altitude_footprint_only(calm):
     """A vehicle that cannot move images exactly the cells within alt * tan(half-angle)."""
     tier = {**TIER, "time_limit_s": 30.0}
     init = as_.reset(calm, tier, 1, 4, 1)
-    r = as_.rollout(calm, tier, init, "oracle", "kinematic", _still(), 0)
+    r = rollout(as_, calm, tier, init, "oracle", "kinematic", _still(), 0)
     assert not r["success"].any()
     np.testing.assert_array_equal(r["T_s"], 30.0)  # T on failure = time limit
     np.testing.assert_array_equal(r["E"], 0.0)
@@ -137,8 +139,8 @@ def test_hovering_vehicle_covers_its_altitude_footprint_only(calm):
         assert r["coverage_fraction"][e] == pytest.approx(n / (nx_ * nz_))
         assert r["mean_altitude_m"][e] == pytest.approx(alt)
     # above the sensor's maximum altitude nothing is imaged
-    r2 = as_.rollout(calm, {**tier, "max_altitude_m": 4.0}, init, "oracle", "kinematic",
-                     _still(), 0)
+    r2 = rollout(as_, calm, {**tier, "max_altitude_m": 4.0}, init, "oracle", "kinematic",
+                 _still(), 0)
     np.testing.assert_array_equal(r2["coverage_fraction"], 0.0)
     np.testing.assert_array_equal(r2["footprint_loss_frac"], 1.0)
 
@@ -146,15 +148,15 @@ def test_hovering_vehicle_covers_its_altitude_footprint_only(calm):
 def test_both_methods_complete_the_scan_in_calm_water(calm):
     init = as_.reset(calm, TIER, 1, 4, 3)
     for method in ("oracle", "heuristic"):
-        r = as_.rollout(calm, TIER, init, method, "6dof", E.load_vehicle(), 0)
+        r = rollout(as_, calm, TIER, init, method, "6dof", E.load_vehicle(), 0)
         assert r["success"].all(), method
         assert np.all(r["coverage_fraction"] >= TIER["coverage_threshold"])
         assert np.all(r["T_s"] < TIER["time_limit_s"])
         np.testing.assert_array_equal(r["violations"], 0)
         np.testing.assert_array_equal(r["footprint_loss_frac"], 0.0)
         # terrain following: the mean altitude is the method's commanded altitude
-        mid = HEURISTIC if method == "heuristic" else ORACLE
-        np.testing.assert_allclose(r["mean_altitude_m"], as_.method_altitude(TIER, mid), atol=1.5)
+        np.testing.assert_allclose(r["mean_altitude_m"], pol.method_altitude(TIER, method),
+                                   atol=1.5)
 
 
 def test_oracle_is_faster_and_a_strong_current_defeats_the_heuristic():
@@ -162,8 +164,8 @@ def test_oracle_is_faster_and_a_strong_current_defeats_the_heuristic():
     grid = _sloped(ce=1.6)
     tier = {**TIER, "time_limit_s": 1500.0}
     init = as_.reset(grid, tier, 1, 4, 5)
-    ro = as_.rollout(grid, tier, init, "oracle", "6dof", E.load_vehicle(), 0)
-    rh = as_.rollout(grid, tier, init, "heuristic", "6dof", E.load_vehicle(), 0)
+    ro = rollout(as_, grid, tier, init, "oracle", "6dof", E.load_vehicle(), 0)
+    rh = rollout(as_, grid, tier, init, "heuristic", "6dof", E.load_vehicle(), 0)
     assert ro["success"].all()
     assert not rh["success"].any()
     assert np.all(rh["coverage_fraction"] < ro["coverage_fraction"])
@@ -173,23 +175,23 @@ def test_oracle_orients_strips_across_the_current():
     box = (0.0, 0.0, 200.0, 100.0)
     east = _sloped(ce=1.2)
     north = _sloped(cn=1.2)
-    assert as_.oracle_axis(east, box, 10.0, 0.0, 600.0, 2.0, 20.0) == 1  # strips along z
-    assert as_.oracle_axis(north, box, 10.0, 0.0, 600.0, 2.0, 20.0) == 0  # strips along x
+    assert pol.oracle_axis(east, box, 10.0, 0.0, 600.0, 2.0, 20.0) == 1  # strips along z
+    assert pol.oracle_axis(north, box, 10.0, 0.0, 600.0, 2.0, 20.0) == 0  # strips along x
     # no current: the long axis (fewer turns)
-    assert as_.oracle_axis(_sloped(), box, 10.0, 0.0, 600.0, 2.0, 20.0) == 0
-    assert as_.oracle_axis(_sloped(), (0.0, 0.0, 100.0, 200.0), 10.0, 0.0, 600.0, 2.0,
+    assert pol.oracle_axis(_sloped(), box, 10.0, 0.0, 600.0, 2.0, 20.0) == 0
+    assert pol.oracle_axis(_sloped(), (0.0, 0.0, 100.0, 200.0), 10.0, 0.0, 600.0, 2.0,
                            20.0) == 1
 
 
 def test_plan_splits_strips_between_agents():
-    wps, cnt = as_.plan_lawnmower((0.0, 0.0, 200.0, 100.0), 0, 20.0, 2)
+    wps, cnt = pol.plan_lawnmower((0.0, 0.0, 200.0, 100.0), 0, 20.0, 2)
     assert list(cnt) == [6, 4]  # 5 strips: 3 + 2, two waypoints per strip
     offs = sorted({round(w[1], 6) for i in range(2) for w in wps[i, :cnt[i]]})
     np.testing.assert_allclose(offs, [10.0, 30.0, 50.0, 70.0, 90.0])
     np.testing.assert_allclose(wps[0, :2, 0], [0.0, 200.0])  # boustrophedon
     np.testing.assert_allclose(wps[0, 2:4, 0], [200.0, 0.0])
     # more agents than strips of the nominal spacing: narrower strips, one per agent
-    wps, cnt = as_.plan_lawnmower((0.0, 0.0, 200.0, 100.0), 0, 60.0, 4)  # 2 nominal strips
+    wps, cnt = pol.plan_lawnmower((0.0, 0.0, 200.0, 100.0), 0, 60.0, 4)  # 2 nominal strips
     assert list(cnt) == [2, 2, 2, 2]
     np.testing.assert_allclose(wps[:, 0, 1], [12.5, 37.5, 62.5, 87.5])  # z offsets
     np.testing.assert_allclose(wps[:, :2, 0], [[0.0, 200.0]] * 4)  # along x, same end
@@ -198,17 +200,17 @@ def test_plan_splits_strips_between_agents():
 def test_team_scans_faster_and_coll_ratio(calm):
     init1 = as_.reset(calm, TIER, 1, 3, 4)
     init3 = as_.reset(calm, TIER, 3, 3, 4)
-    r1 = as_.rollout(calm, TIER, init1, "oracle", "kinematic", E.load_vehicle(), 0)
-    r3 = as_.rollout(calm, TIER, init3, "oracle", "kinematic", E.load_vehicle(), 0)
+    r1 = rollout(as_, calm, TIER, init1, "oracle", "kinematic", E.load_vehicle(), 0)
+    r3 = rollout(as_, calm, TIER, init3, "oracle", "kinematic", E.load_vehicle(), 0)
     assert r1["success"].all() and r3["success"].all()
     assert np.all(r3["T_s"] < r1["T_s"])
     np.testing.assert_array_equal(r1["coll_ratio"], 0.0)
     assert np.all((r3["coll_ratio"] >= 0.0) & (r3["coll_ratio"] <= 1.0))
     # two vehicles that cannot move, 1.5 m apart: near-collision at every step
-    init = {**init3, "pos0": init3["pos0"][:, :2].copy()}
+    init = {**init3, "pos0": init3["pos0"][:, :2].copy(), "psi0": init3["psi0"][:, :2].copy()}
     init["pos0"][:, 1] = init["pos0"][:, 0] + np.array([1.5, 0.0, 0.0])
-    r = as_.rollout(calm, {**TIER, "time_limit_s": 20.0}, init, "oracle", "kinematic",
-                    _still(), 0)
+    r = rollout(as_, calm, {**TIER, "time_limit_s": 20.0}, init, "oracle", "kinematic",
+                _still(), 0)
     np.testing.assert_array_equal(r["coll_ratio"], 1.0)
 
 

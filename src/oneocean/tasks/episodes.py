@@ -81,6 +81,12 @@ class Episodes:
         self.act = np.full((n_ep, steps, n_ag, len(ACT_FIELDS)), np.nan)
         self.columns = STANDARD + tuple(mod.METRICS)
         self.res = np.zeros((n_ep, len(self.columns)))
+        # a method that plans in Python before the first step (e.g. AS's lawnmower) writes
+        # its plan tokens into W now; with external actions these are the heuristic's plan,
+        # the task's default mission plan, which the observation's goal cue reads
+        prepare = getattr(pol, "prepare", None)
+        if prepare is not None:
+            prepare(grid, self.P, self.W, self.M, self.t0)
 
     # ------------------------------------------------------------------ stepping
     @property
