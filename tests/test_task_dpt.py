@@ -13,6 +13,7 @@ from oneocean import engine as E
 from oneocean.errors import ConfigError
 from oneocean.tasks import dpt, run_cell
 from oneocean.tasks.common import load_task_table, path_clear
+from oneocean.tasks.episodes import rollout
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 900.0, "probe_noise_ms": 0.0, "n_waypoints": 3,
@@ -31,7 +32,7 @@ def coast():
 
 def _run(grid, tier, method, dyn="kinematic", n=4, seed=0, init=None):
     init = init if init is not None else dpt.reset(grid, tier, 1, n, seed)
-    return init, dpt.rollout(grid, tier, init, method, dyn, E.load_vehicle(), seed)
+    return init, rollout(dpt, grid, tier, init, method, dyn, E.load_vehicle(), seed)
 
 
 def _ramp(d0=5.0, d1=30.0):

@@ -16,6 +16,7 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.tasks import run_cell, sk
 from oneocean.tasks.common import load_task_table
+from oneocean.tasks.episodes import rollout
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.0,
@@ -33,7 +34,7 @@ def coast():
 
 def _run(grid, tier, method, dyn="kinematic", n=4, seed=0, vehicle=None, init=None):
     init = init if init is not None else sk.reset(grid, tier, 1, n, seed)
-    return init, sk.rollout(grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
+    return init, rollout(sk, grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
 
 
 def test_reset_geometry_is_valid(coast):

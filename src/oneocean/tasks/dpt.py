@@ -18,53 +18,51 @@ Metrics
     ``depth_error_m`` (primary: RMS depth error over the steps run, m),
     ``waypoints_reached`` (count), ``max_depth_error_m`` (m), ``cross_track_error_m``
     (mean horizontal distance to the active leg, m).
+Observation cue
+    The point ``CUE_LOOKAHEAD_M`` ahead of the agent's horizontal projection on the active leg
+    (clamped to the waypoint), at the target depth ``y*``. Before every step the env also
+    writes the agent's frame on the active leg (``profile_at``: along-track, leg length,
+    tangent, target depth, slope) into ``W.leg`` for the policy.
 Methods
-    Horizontal line-of-sight guidance (lookahead ``LOOKAHEAD_M``, cross-track current fed
-    forward first, :func:`~oneocean.tasks.common.seek_max`) with the budget left after a
-    depth loop ``w = KZ (y* - y)`` (vertical command first, at most half the budget).
-    ``heuristic``: NOISY probed current, throttle cap ``CRUISE_FRAC * v_max``, P depth loop
-    on the local target depth only (it lags on slopes by ``slope * ground speed / KZ``).
-    ``oracle``: exact current, full ``v_max``, plus feed-forward of the profile slope times
-    the along-track ground speed (preview of the planned profile).
+    :mod:`oneocean.methods.heuristic.dpt` (depth loop plus horizontal line-of-sight guidance;
+    heuristic: cruise budget, noisy probe, P depth loop; oracle: full speed, exact current,
+    slope feed-forward).
+
+Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
+    ``TASK_ID``, ``METRICS``; ``reset``; ``DPTParams`` / ``DPTWork`` and ``make``; the env
+    hooks ``begin``, ``pre_step``, ``cue``, ``post_step``, ``finish``; ``POLICY``; ``_kernel``
+    and ``_observe_kernel``.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
-from ..engine.dynamics import CMD_DIM, VX, VZ, model_id, new_state
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
-from .common import (CLEARANCE_M, CRUISE_FRAC, HEURISTIC, MIN_ALTITUDE_M, OK, STANDARD,
-                     advance_agent, current_at, episode_generators, episode_steps, fresh_cache,
-                     method_id, need_tier, obs_buffers, observe, rollout_results, sample_route,
-                     seek_max, sensed_current, set_velocity_cmd, start_times)
+from ..methods.heuristic import dpt as POLICY
+from .common import (MIN_ALTITUDE_M, STANDARD, episode_generators, fresh_cache, need_tier,
+                     sample_route, start_times)
+from .loop import noop_after_agent, observe_next, run_episode
 
 TASK_ID = "DPT"
 METRICS = ("depth_error_m", "waypoints_reached", "max_depth_error_m", "cross_track_error_m")
+INT_METRICS = ("waypoints_reached",)
 COLUMNS = STANDARD + METRICS
 
 #: Shallowest vertex depth of the target profile, m.
 PROFILE_MIN_DEPTH_M = 3.0
-#: Horizontal line-of-sight lookahead, m.
-LOOKAHEAD_M = 20.0
-#: Horizontal proportional gain toward the lookahead point, s-1.
-KP = 0.5
-#: Depth-loop gain, s-1.
-KZ = 0.3
 #: Largest heading change between consecutive legs, degrees.
 MAX_TURN_DEG = 120.0
+#: Horizontal lookahead of the observation's route cue along the active leg, m.
+CUE_LOOKAHEAD_M = 20.0
 
-_I_MODEL, _I_METHOD, _I_STEPS, _I_SEED = range(4)
-(_F_DT, _F_VMAX, _F_SPEED, _F_KP, _F_NOISE, _F_RADIUS, _F_LAND, _F_CLEAR, _F_LOOK, _F_KZ,
- _F_TOL) = range(11)
-_C = {k: i for i, k in enumerate(COLUMNS)}
-_C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
-_C_DERR, _C_WP, _C_DMAX, _C_XTE = (_C[k] for k in METRICS)
+_C_DERR, _C_WP, _C_DMAX, _C_XTE = (len(STANDARD) + i for i in range(len(METRICS)))
 
 
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
@@ -120,118 +118,148 @@ def profile_at(ax_, ay_, az_, bx, by, bz, px, pz):
     return s, ln, tx, tz, ay_ + f * (by - ay_), (by - ay_) / ln, math.sqrt(qx * qx + qz * qz)
 
 
-@hot_kernel
-def _episode(grid, vp, ipar, fpar, route, t0, state, cmd, obs, act, res, e):
-    """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``)."""
-    model = ipar[_I_MODEL]
-    method = ipar[_I_METHOD]
-    n_steps = ipar[_I_STEPS]
-    seed = ipar[_I_SEED]
-    dt = fpar[_F_DT]
-    v_max = fpar[_F_VMAX]
-    budget = fpar[_F_SPEED] if method == HEURISTIC else v_max
-    kp = fpar[_F_KP]
-    noise = fpar[_F_NOISE]
-    radius = fpar[_F_RADIUS]
-    land_thr = fpar[_F_LAND]
-    clearance = fpar[_F_CLEAR]
-    look = fpar[_F_LOOK]
-    kz = fpar[_F_KZ]
-    n_wp = route.shape[1] - 1
+@hot_kernel(inline="always")
+def profile_at(ax_, ay_, az_, bx, by, bz, px, pz):
+    """Horizontal projection of (px, pz) on leg a->b.
+
+    Returns (along-track s m, horizontal leg length m, unit horizontal tangent (tx, tz),
+    target depth at the clamped projection m, profile slope dy/ds, cross-track distance m).
+    """
+    lx = bx - ax_
+    lz = bz - az_
+    ln = math.sqrt(lx * lx + lz * lz)
+    if ln <= 1e-12:
+        return 0.0, 0.0, 0.0, 0.0, by, 0.0, math.sqrt((px - bx) ** 2 + (pz - bz) ** 2)
+    tx = lx / ln
+    tz = lz / ln
+    s = (px - ax_) * tx + (pz - az_) * tz
+    f = min(max(s / ln, 0.0), 1.0)
+    qx = ax_ + f * lx - px
+    qz = az_ + f * lz - pz
+    return s, ln, tx, tz, ay_ + f * (by - ay_), (by - ay_) / ln, math.sqrt(qx * qx + qz * qz)
+
+
+class DPTParams(NamedTuple):
+    radius: float           # horizontal waypoint radius, m
+    depth_tol: float        # bound on the RMS depth error for success, m
+    look: float             # horizontal lookahead of the observation's route cue, m
+
+
+class DPTWork(NamedTuple):
+    route: np.ndarray       # (E, W + 1, 3) route vertices (x, target depth, z), m
+    wp: np.ndarray          # (E,) int64 active waypoint (1..W; W + 1 when the route is done)
+    leg: np.ndarray         # (E, 6) agent on the active leg before the step (profile_at):
+                            #        along-track m, leg length m, tangent (x, z), y* m, slope
+    acc: np.ndarray         # (E, 3) sum of squared and max depth error, sum of cross-track, m
+
+
+def make(grid, tier: dict, init: dict):
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
+    need_tier(TASK_ID, tier, "wp_radius_m", "depth_tol_m")
+    route = np.ascontiguousarray(init["route"], dtype=np.float64)
+    n_ep = route.shape[0]
+    return (DPTParams(float(tier["wp_radius_m"]), float(tier["depth_tol_m"]), CUE_LOOKAHEAD_M),
+            DPTWork(route, np.ones(n_ep, np.int64), np.zeros((n_ep, 6)), np.zeros((n_ep, 3))))
+
+
+@hot_kernel(inline="always")
+def begin(grid, P, W, state, e):
+    W.wp[e] = 1
+    W.acc[e, 0] = 0.0
+    W.acc[e, 1] = 0.0
+    W.acc[e, 2] = 0.0
+    return W.wp[e] > W.route.shape[1] - 1
+
+
+@hot_kernel(inline="always")
+def pre_step(grid, P, W, state, e, k, t):
     s = state[e, 0]
-    c = cmd[e, 0]
-    energy = 0.0
-    viol = 0
-    sum_d2 = 0.0
-    d_max = 0.0
-    sum_x = 0.0
-    wp = 1
-    k = 0
-    while k < n_steps and wp <= n_wp:
-        t = t0[e] + k * dt
-        px = s[0]
-        py = s[1]
-        pz = s[2]
-        ce, cn = current_at(grid, px, py, pz, t)
-        pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * k)
-        a0x = route[e, wp - 1, 0]
-        a0y = route[e, wp - 1, 1]
-        a0z = route[e, wp - 1, 2]
-        b0x = route[e, wp, 0]
-        b0y = route[e, wp, 1]
-        b0z = route[e, wp, 2]
-        sh, ln, tx, tz, ytgt, slope, _ = profile_at(a0x, a0y, a0z, b0x, b0y, b0z, px, pz)
-        # depth loop first (at most half the budget), then horizontal LOS with the rest
-        w = kz * (ytgt - py)
-        if method != HEURISTIC and 0.0 <= sh <= ln:
-            w += slope * (s[VX] * tx + s[VZ] * tz)
-        wlim = 0.5 * budget
-        w = min(max(w, -wlim), wlim)
-        bh = math.sqrt(budget * budget - w * w)
-        sl = min(max(sh, 0.0) + look, ln)
-        ax, _, az = seek_max(px, 0.0, pz, a0x + sl * tx, 0.0, a0z + sl * tz, bh, kp, pe, pn)
-        observe(obs, act, e, k, 0, grid, state, a0x + sl * tx, ytgt, a0z + sl * tz, pe, pn,
-                math.nan, ax, w, az)
-        set_velocity_cmd(c, ax, w, az)
-        en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr, clearance)
-        energy += en
-        if code != OK:
-            viol += 1
-        _, _, _, _, ytgt, _, xt = profile_at(a0x, a0y, a0z, b0x, b0y, b0z, s[0], s[2])
-        de = s[1] - ytgt
-        sum_d2 += de * de
-        if abs(de) > d_max:
-            d_max = abs(de)
-        sum_x += xt
-        k += 1
-        if (s[0] - b0x) ** 2 + (s[2] - b0z) ** 2 <= radius * radius:
-            wp += 1
+    wp = W.wp[e]
+    a0 = W.route[e, wp - 1]
+    b0 = W.route[e, wp]
+    sh, ln, tx, tz, ytgt, slope, _ = profile_at(a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
+                                                s[0], s[2])
+    g = W.leg[e]
+    g[0] = sh
+    g[1] = ln
+    g[2] = tx
+    g[3] = tz
+    g[4] = ytgt
+    g[5] = slope
+
+
+@hot_kernel(inline="always")
+def cue(grid, P, W, state, e, k, i):
+    s = state[e, i]
+    wp = W.wp[e]
+    if wp > W.route.shape[1] - 1:   # route done: the last waypoint
+        g = W.route[e, wp - 1]
+        return g[0], g[1], g[2], math.nan
+    a0 = W.route[e, wp - 1]
+    b0 = W.route[e, wp]
+    sh, ln, tx, tz, ytgt, _, _ = profile_at(a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
+                                            s[0], s[2])
+    sl = min(max(sh, 0.0) + P.look, ln)
+    return a0[0] + sl * tx, ytgt, a0[2] + sl * tz, math.nan
+
+
+@hot_kernel(inline="always")
+def post_step(grid, P, W, state, prev, e, k, t):
+    s = state[e, 0]
+    wp = W.wp[e]
+    a0 = W.route[e, wp - 1]
+    b0 = W.route[e, wp]
+    _, _, _, _, ytgt, _, xt = profile_at(a0[0], a0[1], a0[2], b0[0], b0[1], b0[2], s[0], s[2])
+    de = s[1] - ytgt
+    a = W.acc[e]
+    a[0] += de * de
+    if abs(de) > a[1]:
+        a[1] = abs(de)
+    a[2] += xt
+    if (s[0] - b0[0]) ** 2 + (s[2] - b0[2]) ** 2 <= P.radius * P.radius:
+        wp += 1
+        W.wp[e] = wp
+    return wp > W.route.shape[1] - 1
+
+
+@hot_kernel(inline="always")
+def finish(grid, P, W, state, e, k, row):
+    a = W.acc[e]
+    wp = W.wp[e]
     kk = k if k > 0 else 1
-    rms = math.sqrt(sum_d2 / kk)
-    success = wp > n_wp and rms <= fpar[_F_TOL]
-    res[e, _C_SUCCESS] = 1.0 if success else 0.0
-    res[e, _C_T] = k * dt if success else n_steps * dt
-    res[e, _C_E] = energy
-    res[e, _C_COLL] = 0.0
-    res[e, _C_VIOL] = viol
-    res[e, _C_DERR] = rms
-    res[e, _C_WP] = wp - 1
-    res[e, _C_DMAX] = d_max
-    res[e, _C_XTE] = sum_x / kk
+    rms = math.sqrt(a[0] / kk)
+    row[_C_DERR] = rms
+    row[_C_WP] = wp - 1
+    row[_C_DMAX] = a[1]
+    row[_C_XTE] = a[2] / kk
+    return wp > W.route.shape[1] - 1 and rms <= P.depth_tol
+
+
+# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
+@hot_kernel
+def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
+    run_episode(begin, pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
+                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
+                k_stop)
 
 
 @njit(parallel=True, cache=True)
-def _kernel(grid, vp, ipar, fpar, route, t0, state, cmd, obs, act, res):
-    for e in prange(res.shape[0]):
-        _episode(grid, vp, ipar, fpar, route, t0, state, cmd, obs, act, res, e)
+def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop):
+    for e in prange(state.shape[0]):
+        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
 
 
-def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int, *,
-            record: bool = False) -> dict:
-    """Run every episode of ``init`` (from :func:`reset`); see :func:`.g2g.rollout`."""
-    need_tier(TASK_ID, tier, "time_limit_s", "wp_radius_m", "depth_tol_m", "probe_noise_ms",
-              "dt_s")
-    dt = float(tier["dt_s"])
-    route = np.ascontiguousarray(init["route"], dtype=np.float64)
-    n_ep = route.shape[0]
-    v_max = float(vehicle.v_max)
-    ipar = np.array([model_id(dyn), method_id(method),
-                     episode_steps(tier), int(seed)],
-                    dtype=np.int64)
-    fpar = np.array([dt, v_max, CRUISE_FRAC * v_max, KP, float(tier["probe_noise_ms"]),
-                     float(tier["wp_radius_m"]), DEFAULT_LAND_THRESHOLD, CLEARANCE_M,
-                     LOOKAHEAD_M, KZ, float(tier["depth_tol_m"])])
-    state = new_state(n_ep, 1, init["pos0"], init["psi0"])
-    cmd = np.zeros((n_ep, 1, CMD_DIM))
-    res = np.zeros((n_ep, len(COLUMNS)))
-    obs, act = obs_buffers(tier, init, record)
-    _kernel(grid, vehicle.params, ipar, fpar, route,
-            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, obs, act, res)
-    out = rollout_results(res, COLUMNS, obs, act, record)
-    out["waypoints_reached"] = out["waypoints_reached"].astype(np.int64)
-    return out
+@hot_kernel
+def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
+    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+
+
+@njit(parallel=True, cache=True)
+def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact):
+    for e in prange(state.shape[0]):
+        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
 
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer
 # changes.
-fresh_cache(_kernel, __file__)
+fresh_cache(_kernel, __file__, POLICY.__file__)

@@ -13,47 +13,47 @@ Metrics
     ``cross_track_error_m`` (primary: mean over the steps run of the distance to the route
     near the agent = the nearer of the active leg and the previous leg, as segments, m),
     ``waypoints_reached`` (count), ``max_cross_track_m`` (m).
+Observation cue
+    The route point ``CUE_LOOKAHEAD_M`` ahead of the agent's projection on the active leg
+    (clamped to the waypoint). Before every step the env also writes the agent's frame on the
+    active leg (``leg_geometry``: along-track, tangent, length) into ``W.leg`` for the policy.
 Methods
-    Both use line-of-sight guidance: aim at the point ``LOOKAHEAD_M`` ahead of the agent's
-    projection on the active leg (clamped to the waypoint) with
-    :func:`~oneocean.tasks.common.seek_max` (cross-track current fed forward first).
-    ``heuristic``: NOISY probed current, throttle cap ``CRUISE_FRAC * v_max``.
-    ``oracle``: exact current, full ``v_max``.
+    :mod:`oneocean.methods.heuristic.rf` (line-of-sight guidance; heuristic: cruise budget,
+    noisy probe; oracle: full speed, exact current).
+
+Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
+    ``TASK_ID``, ``METRICS``; ``reset``; ``RFParams`` / ``RFWork`` and ``make``; the env hooks
+    ``begin``, ``pre_step``, ``cue``, ``post_step``, ``finish``; ``POLICY``; ``_kernel`` and
+    ``_observe_kernel``.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
-from ..engine.dynamics import CMD_DIM, model_id, new_state
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
-from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
-                     STANDARD, advance_agent, current_at, episode_generators, episode_steps,
-                     fresh_cache, method_id, need_tier, obs_buffers, observe, rollout_results,
-                     sample_route, seek_max, sensed_current, set_velocity_cmd, start_times)
+from ..methods.heuristic import rf as POLICY
+from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, fresh_cache,
+                     need_tier, sample_route, start_times)
+from .loop import noop_after_agent, observe_next, run_episode
 
 TASK_ID = "RF"
 METRICS = ("cross_track_error_m", "waypoints_reached", "max_cross_track_m")
+INT_METRICS = ("waypoints_reached",)
 COLUMNS = STANDARD + METRICS
 
-#: Line-of-sight lookahead distance along the active leg, m.
-LOOKAHEAD_M = 20.0
-#: Proportional gain toward the lookahead point, s-1 (saturates: full speed on the route).
-KP = 0.5
 #: Largest heading change between consecutive legs, degrees.
 MAX_TURN_DEG = 120.0
+#: Lookahead of the observation's route cue along the active leg, m.
+CUE_LOOKAHEAD_M = 20.0
 
-_I_MODEL, _I_METHOD, _I_STEPS, _I_SEED = range(4)
-_F_DT, _F_VMAX, _F_SPEED, _F_KP, _F_NOISE, _F_RADIUS, _F_LAND, _F_CLEAR, _F_LOOK, _F_XTE = \
-    range(10)
-_C = {k: i for i, k in enumerate(COLUMNS)}
-_C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
-_C_XTE, _C_WP, _C_XMAX = (_C[k] for k in METRICS)
+_C_XTE, _C_WP, _C_XMAX = (len(STANDARD) + i for i in range(len(METRICS)))
 
 
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
@@ -106,112 +106,150 @@ def leg_geometry(ax_, ay_, az_, bx, by, bz, px, py, pz):
     return s, math.sqrt(qx * qx + qy * qy + qz * qz), tx, ty, tz, ln
 
 
-@hot_kernel
-def _episode(grid, vp, ipar, fpar, route, t0, state, cmd, obs, act, res, e):
-    """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``)."""
-    model = ipar[_I_MODEL]
-    method = ipar[_I_METHOD]
-    n_steps = ipar[_I_STEPS]
-    seed = ipar[_I_SEED]
-    dt = fpar[_F_DT]
-    v_max = fpar[_F_VMAX]
-    budget = fpar[_F_SPEED] if method == HEURISTIC else v_max
-    kp = fpar[_F_KP]
-    noise = fpar[_F_NOISE]
-    radius = fpar[_F_RADIUS]
-    land_thr = fpar[_F_LAND]
-    clearance = fpar[_F_CLEAR]
-    look = fpar[_F_LOOK]
-    xte_max = fpar[_F_XTE]
-    n_wp = route.shape[1] - 1
+@hot_kernel(inline="always")
+def leg_geometry(ax_, ay_, az_, bx, by, bz, px, py, pz):
+    """Projection of point p on segment a->b: (along-track m, cross-track distance m, unit
+    tangent (tx, ty, tz), leg length m). The cross-track distance is to the segment."""
+    lx = bx - ax_
+    ly = by - ay_
+    lz = bz - az_
+    ln = math.sqrt(lx * lx + ly * ly + lz * lz)
+    if ln <= 1e-12:
+        return 0.0, math.sqrt((px - ax_) ** 2 + (py - ay_) ** 2 + (pz - az_) ** 2), 0.0, 0.0, \
+            0.0, 0.0
+    tx = lx / ln
+    ty = ly / ln
+    tz = lz / ln
+    s = (px - ax_) * tx + (py - ay_) * ty + (pz - az_) * tz
+    sc = min(max(s, 0.0), ln)
+    qx = ax_ + sc * tx - px
+    qy = ay_ + sc * ty - py
+    qz = az_ + sc * tz - pz
+    return s, math.sqrt(qx * qx + qy * qy + qz * qz), tx, ty, tz, ln
+
+
+class RFParams(NamedTuple):
+    radius: float           # waypoint radius, m
+    xte_max: float          # bound on the mean cross-track error for success, m
+    look: float             # lookahead of the observation's route cue, m
+
+
+class RFWork(NamedTuple):
+    route: np.ndarray       # (E, W + 1, 3) route vertices, m
+    wp: np.ndarray          # (E,) int64 active waypoint (1..W; W + 1 when the route is done)
+    leg: np.ndarray         # (E, 5) agent on the active leg before the step: along-track m,
+                            #        unit tangent (x, y, z), leg length m
+    acc: np.ndarray         # (E, 2) sum and max of the cross-track error, m
+
+
+def make(grid, tier: dict, init: dict):
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
+    need_tier(TASK_ID, tier, "wp_radius_m", "xte_max_m")
+    route = np.ascontiguousarray(init["route"], dtype=np.float64)
+    n_ep = route.shape[0]
+    return (RFParams(float(tier["wp_radius_m"]), float(tier["xte_max_m"]), CUE_LOOKAHEAD_M),
+            RFWork(route, np.ones(n_ep, np.int64), np.zeros((n_ep, 5)), np.zeros((n_ep, 2))))
+
+
+@hot_kernel(inline="always")
+def begin(grid, P, W, state, e):
+    W.wp[e] = 1
+    W.acc[e, 0] = 0.0
+    W.acc[e, 1] = 0.0
+    return W.wp[e] > W.route.shape[1] - 1
+
+
+@hot_kernel(inline="always")
+def pre_step(grid, P, W, state, e, k, t):
     s = state[e, 0]
-    c = cmd[e, 0]
-    energy = 0.0
-    viol = 0
-    sum_x = 0.0
-    x_max = 0.0
-    wp = 1
-    k = 0
-    while k < n_steps and wp <= n_wp:
-        t = t0[e] + k * dt
-        px = s[0]
-        py = s[1]
-        pz = s[2]
-        ce, cn = current_at(grid, px, py, pz, t)
-        pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * k)
-        a0 = route[e, wp - 1]
-        b0 = route[e, wp]
-        al, _, tx, ty, tz, ln = leg_geometry(a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
-                                             px, py, pz)
-        sl = min(max(al, 0.0) + look, ln)
-        lx = a0[0] + sl * tx
-        ly = a0[1] + sl * ty
-        lz = a0[2] + sl * tz
-        ax, ay, az = seek_max(px, py, pz, lx, ly, lz, budget, kp, pe, pn)
-        observe(obs, act, e, k, 0, grid, state, lx, ly, lz, pe, pn, math.nan, ax, ay, az)
-        set_velocity_cmd(c, ax, ay, az)
-        en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr, clearance)
-        energy += en
-        if code != OK:
-            viol += 1
-        _, xt, _, _, _, _ = leg_geometry(a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
+    wp = W.wp[e]
+    a0 = W.route[e, wp - 1]
+    b0 = W.route[e, wp]
+    al, _, tx, ty, tz, ln = leg_geometry(a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
                                          s[0], s[1], s[2])
-        if wp >= 2:  # just past a waypoint the previous leg is still the route nearby
-            z0 = route[e, wp - 2]
-            _, xp, _, _, _, _ = leg_geometry(z0[0], z0[1], z0[2], a0[0], a0[1], a0[2],
-                                             s[0], s[1], s[2])
-            if xp < xt:
-                xt = xp
-        sum_x += xt
-        if xt > x_max:
-            x_max = xt
-        k += 1
-        if (s[0] - b0[0]) ** 2 + (s[1] - b0[1]) ** 2 + (s[2] - b0[2]) ** 2 <= radius * radius:
-            wp += 1
-    xte = sum_x / k if k > 0 else 0.0
-    done = wp > n_wp
-    success = done and xte <= xte_max
-    res[e, _C_SUCCESS] = 1.0 if success else 0.0
-    res[e, _C_T] = k * dt if success else n_steps * dt
-    res[e, _C_E] = energy
-    res[e, _C_COLL] = 0.0
-    res[e, _C_VIOL] = viol
-    res[e, _C_XTE] = xte
-    res[e, _C_WP] = wp - 1
-    res[e, _C_XMAX] = x_max
+    g = W.leg[e]
+    g[0] = al
+    g[1] = tx
+    g[2] = ty
+    g[3] = tz
+    g[4] = ln
+
+
+@hot_kernel(inline="always")
+def cue(grid, P, W, state, e, k, i):
+    s = state[e, i]
+    wp = W.wp[e]
+    if wp > W.route.shape[1] - 1:   # route done: the last waypoint
+        g = W.route[e, wp - 1]
+        return g[0], g[1], g[2], math.nan
+    a0 = W.route[e, wp - 1]
+    b0 = W.route[e, wp]
+    al, _, tx, ty, tz, ln = leg_geometry(a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
+                                         s[0], s[1], s[2])
+    sl = min(max(al, 0.0) + P.look, ln)
+    return a0[0] + sl * tx, a0[1] + sl * ty, a0[2] + sl * tz, math.nan
+
+
+@hot_kernel(inline="always")
+def post_step(grid, P, W, state, prev, e, k, t):
+    s = state[e, 0]
+    wp = W.wp[e]
+    a0 = W.route[e, wp - 1]
+    b0 = W.route[e, wp]
+    _, xt, _, _, _, _ = leg_geometry(a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
+                                     s[0], s[1], s[2])
+    if wp >= 2:  # just past a waypoint the previous leg is still the route nearby
+        z0 = W.route[e, wp - 2]
+        _, xp, _, _, _, _ = leg_geometry(z0[0], z0[1], z0[2], a0[0], a0[1], a0[2],
+                                         s[0], s[1], s[2])
+        if xp < xt:
+            xt = xp
+    a = W.acc[e]
+    a[0] += xt
+    if xt > a[1]:
+        a[1] = xt
+    if (s[0] - b0[0]) ** 2 + (s[1] - b0[1]) ** 2 + (s[2] - b0[2]) ** 2 <= P.radius * P.radius:
+        wp += 1
+        W.wp[e] = wp
+    return wp > W.route.shape[1] - 1
+
+
+@hot_kernel(inline="always")
+def finish(grid, P, W, state, e, k, row):
+    a = W.acc[e]
+    wp = W.wp[e]
+    xte = a[0] / k if k > 0 else 0.0
+    row[_C_XTE] = xte
+    row[_C_WP] = wp - 1
+    row[_C_XMAX] = a[1]
+    return wp > W.route.shape[1] - 1 and xte <= P.xte_max
+
+
+# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
+@hot_kernel
+def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
+    run_episode(begin, pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
+                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
+                k_stop)
 
 
 @njit(parallel=True, cache=True)
-def _kernel(grid, vp, ipar, fpar, route, t0, state, cmd, obs, act, res):
-    for e in prange(res.shape[0]):
-        _episode(grid, vp, ipar, fpar, route, t0, state, cmd, obs, act, res, e)
+def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop):
+    for e in prange(state.shape[0]):
+        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
 
 
-def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int, *,
-            record: bool = False) -> dict:
-    """Run every episode of ``init`` (from :func:`reset`); see :func:`.g2g.rollout`."""
-    need_tier(TASK_ID, tier, "time_limit_s", "wp_radius_m", "xte_max_m", "probe_noise_ms", "dt_s")
-    dt = float(tier["dt_s"])
-    route = np.ascontiguousarray(init["route"], dtype=np.float64)
-    n_ep = route.shape[0]
-    v_max = float(vehicle.v_max)
-    ipar = np.array([model_id(dyn), method_id(method),
-                     episode_steps(tier), int(seed)],
-                    dtype=np.int64)
-    fpar = np.array([dt, v_max, CRUISE_FRAC * v_max, KP, float(tier["probe_noise_ms"]),
-                     float(tier["wp_radius_m"]), DEFAULT_LAND_THRESHOLD, CLEARANCE_M,
-                     LOOKAHEAD_M, float(tier["xte_max_m"])])
-    state = new_state(n_ep, 1, init["pos0"], init["psi0"])
-    cmd = np.zeros((n_ep, 1, CMD_DIM))
-    res = np.zeros((n_ep, len(COLUMNS)))
-    obs, act = obs_buffers(tier, init, record)
-    _kernel(grid, vehicle.params, ipar, fpar, route,
-            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, obs, act, res)
-    out = rollout_results(res, COLUMNS, obs, act, record)
-    out["waypoints_reached"] = out["waypoints_reached"].astype(np.int64)
-    return out
+@hot_kernel
+def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
+    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+
+
+@njit(parallel=True, cache=True)
+def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact):
+    for e in prange(state.shape[0]):
+        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
 
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer
 # changes.
-fresh_cache(_kernel, __file__)
+fresh_cache(_kernel, __file__, POLICY.__file__)

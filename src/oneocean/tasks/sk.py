@@ -14,44 +14,42 @@ Metrics
     ``heading_rms_deg`` (RMS heading error over the steps run, deg), ``max_error_m``
     (largest distance, m), ``hold_s`` (longest contiguous in-radius time, s).
 Methods
-    ``heuristic``: P-control to the station plus feed-forward of the NOISY probed current with
-    the cruise throttle cap ``|a| <= CRUISE_FRAC * v_max`` (:func:`~.common.seek_max`), heading
-    commanded to the station heading. It cannot hold against a current above its cruise
-    speed, and the probe noise shakes it.
-    ``oracle``: the same controller with the exact current and the full ``v_max``.
+    :mod:`oneocean.methods.heuristic.sk` (heuristic: P-control plus current feed-forward with
+    the cruise budget, noisy probe, heading commanded to the station heading; oracle: full
+    speed, exact current).
+
+Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
+    ``TASK_ID``, ``METRICS``; ``reset``; ``SKParams`` / ``SKWork`` and ``make``; the env hooks
+    ``begin``, ``cue``, ``post_step``, ``finish``; ``POLICY``; ``_kernel`` and
+    ``_observe_kernel``.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
-from ..engine.dynamics import CMD_DIM, PSI, model_id, new_state, wrap_angle
+from ..engine.dynamics import PSI, wrap_angle
 from ..engine._jit import hot_kernel
 from ..engine.grid import sample_currents
 from ..errors import ConfigError
-from .common import (CLEARANCE_M, CRUISE_FRAC, DEPTH_RANGE_M, HEURISTIC, MIN_ALTITUDE_M, OK,
-                     STANDARD, advance_agent, current_at, episode_generators, episode_steps,
-                     fresh_cache, method_id, need_tier, obs_buffers, observe, rollout_results,
-                     sample_route, seek_max, sensed_current, start_times)
+from ..methods.heuristic import sk as POLICY
+from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, fresh_cache,
+                     need_tier, sample_route, start_times)
+from .loop import noop_after_agent, noop_pre_step, observe_next, run_episode
 
 TASK_ID = "SK"
 METRICS = ("rms_error_m", "heading_rms_deg", "max_error_m", "hold_s")
 COLUMNS = STANDARD + METRICS
 
-#: Proportional position gain, s-1 (ground-speed request = KP * error, plus feed-forward).
-KP = 0.4
 #: Below this current speed (m s-1) at the start the station heading is drawn at random.
 CALM_MS = 0.05
 
-_I_MODEL, _I_METHOD, _I_STEPS, _I_SEED, _I_HOLD = range(5)
-_F_DT, _F_VMAX, _F_SPEED, _F_KP, _F_NOISE, _F_RADIUS, _F_LAND, _F_CLEAR = range(8)
-_C = {k: i for i, k in enumerate(COLUMNS)}
-_C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
-_C_RMS, _C_HDG, _C_MAX, _C_HOLD = (_C[k] for k in METRICS)
+_C_RMS, _C_HDG, _C_MAX, _C_HOLD = (len(STANDARD) + i for i in range(len(METRICS)))
 
 
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
@@ -85,116 +83,106 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
             "heading": heading, "t0": t0}
 
 
-@hot_kernel
-def _episode(grid, vp, ipar, fpar, station, heading, t0, state, cmd, obs, act, res, e):
-    """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``)."""
-    model = ipar[_I_MODEL]
-    method = ipar[_I_METHOD]
-    n_steps = ipar[_I_STEPS]
-    seed = ipar[_I_SEED]
-    hold_steps = ipar[_I_HOLD]
-    dt = fpar[_F_DT]
-    v_max = fpar[_F_VMAX]
-    budget = fpar[_F_SPEED] if method == HEURISTIC else v_max
-    kp = fpar[_F_KP]
-    noise = fpar[_F_NOISE]
-    radius = fpar[_F_RADIUS]
-    land_thr = fpar[_F_LAND]
-    clearance = fpar[_F_CLEAR]
+class SKParams(NamedTuple):
+    radius: float           # hold radius around the station, m
+    hold_steps: int         # contiguous in-radius steps needed (ceil(hold_time_s / dt))
+    dt: float               # step, s
+
+
+class SKWork(NamedTuple):
+    station: np.ndarray     # (E, 3) station positions, m
+    heading: np.ndarray     # (E,) station heading, rad (compass)
+    acc: np.ndarray         # (E, 3) sums of squared distance and heading error, max distance
+    cnt: np.ndarray         # (E, 3) int64 current in-radius run, longest run, success flag
+
+
+def make(grid, tier: dict, init: dict):
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
+    need_tier(TASK_ID, tier, "hold_time_s", "hold_radius_m")
+    dt = float(tier["dt_s"])
+    n_ep = init["station"].shape[0]
+    return (SKParams(float(tier["hold_radius_m"]),
+                     int(math.ceil(float(tier["hold_time_s"]) / dt - 1e-9)), dt),
+            SKWork(np.ascontiguousarray(init["station"], dtype=np.float64),
+                   np.ascontiguousarray(init["heading"], dtype=np.float64),
+                   np.zeros((n_ep, 3)), np.zeros((n_ep, 3), np.int64)))
+
+
+@hot_kernel(inline="always")
+def begin(grid, P, W, state, e):
+    W.acc[e, 0] = 0.0
+    W.acc[e, 1] = 0.0
+    W.acc[e, 2] = 0.0
+    W.cnt[e, 0] = 0
+    W.cnt[e, 1] = 0
+    W.cnt[e, 2] = 0
+    return False
+
+
+@hot_kernel(inline="always")
+def cue(grid, P, W, state, e, k, i):
+    return W.station[e, 0], W.station[e, 1], W.station[e, 2], math.nan
+
+
+@hot_kernel(inline="always")
+def post_step(grid, P, W, state, prev, e, k, t):
     s = state[e, 0]
-    c = cmd[e, 0]
-    gx = station[e, 0]
-    gy = station[e, 1]
-    gz = station[e, 2]
-    psi_t = heading[e]
-    energy = 0.0
-    viol = 0
-    sum_d2 = 0.0
-    sum_h2 = 0.0
-    d_max = 0.0
-    run = 0
-    best = 0
-    success = False
-    k = 0
-    while k < n_steps and not success:
-        t = t0[e] + k * dt
-        px = s[0]
-        py = s[1]
-        pz = s[2]
-        ce, cn = current_at(grid, px, py, pz, t)
-        pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * k)
-        ax, ay, az = seek_max(px, py, pz, gx, gy, gz, budget, kp, pe, pn)
-        observe(obs, act, e, k, 0, grid, state, gx, gy, gz, pe, pn, math.nan, ax, ay, az)
-        c[0] = ax
-        c[1] = ay
-        c[2] = az
-        c[3] = psi_t
-        c[4] = 1.0
-        en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr, clearance)
-        energy += en
-        if code != OK:
-            viol += 1
-        d = math.sqrt((s[0] - gx) ** 2 + (s[1] - gy) ** 2 + (s[2] - gz) ** 2)
-        h = wrap_angle(s[PSI] - psi_t)
-        sum_d2 += d * d
-        sum_h2 += h * h
-        if d > d_max:
-            d_max = d
-        k += 1
-        if d <= radius:
-            run += 1
-            if run > best:
-                best = run
-            if run >= hold_steps:
-                success = True
-        else:
-            run = 0
+    g = W.station[e]
+    a = W.acc[e]
+    c = W.cnt[e]
+    d = math.sqrt((s[0] - g[0]) ** 2 + (s[1] - g[1]) ** 2 + (s[2] - g[2]) ** 2)
+    h = wrap_angle(s[PSI] - W.heading[e])
+    a[0] += d * d
+    a[1] += h * h
+    if d > a[2]:
+        a[2] = d
+    if d <= P.radius:
+        c[0] += 1
+        if c[0] > c[1]:
+            c[1] = c[0]
+        if c[0] >= P.hold_steps:
+            c[2] = 1
+    else:
+        c[0] = 0
+    return c[2] != 0
+
+
+@hot_kernel(inline="always")
+def finish(grid, P, W, state, e, k, row):
+    a = W.acc[e]
     kk = k if k > 0 else 1
-    res[e, _C_SUCCESS] = 1.0 if success else 0.0
-    res[e, _C_T] = k * dt if success else n_steps * dt
-    res[e, _C_E] = energy
-    res[e, _C_COLL] = 0.0
-    res[e, _C_VIOL] = viol
-    res[e, _C_RMS] = math.sqrt(sum_d2 / kk)
-    res[e, _C_HDG] = math.degrees(math.sqrt(sum_h2 / kk))
-    res[e, _C_MAX] = d_max
-    res[e, _C_HOLD] = best * dt
+    row[_C_RMS] = math.sqrt(a[0] / kk)
+    row[_C_HDG] = math.degrees(math.sqrt(a[1] / kk))
+    row[_C_MAX] = a[2]
+    row[_C_HOLD] = W.cnt[e, 1] * P.dt
+    return W.cnt[e, 2] != 0
+
+
+# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
+@hot_kernel
+def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
+    run_episode(begin, noop_pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
+                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
+                k_stop)
 
 
 @njit(parallel=True, cache=True)
-def _kernel(grid, vp, ipar, fpar, station, heading, t0, state, cmd, obs, act, res):
-    for e in prange(res.shape[0]):
-        _episode(grid, vp, ipar, fpar, station, heading, t0, state, cmd, obs, act, res, e)
+def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop):
+    for e in prange(state.shape[0]):
+        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
 
 
-def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int, *,
-            record: bool = False) -> dict:
-    """Run every episode of ``init`` (from :func:`reset`); see :func:`.g2g.rollout`.
+@hot_kernel
+def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
+    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
 
-    Returns
-    -------
-    dict of (E,) arrays: ``STANDARD`` columns and ``METRICS``.
-    """
-    need_tier(TASK_ID, tier, "time_limit_s", "hold_time_s", "hold_radius_m", "probe_noise_ms",
-              "dt_s")
-    dt = float(tier["dt_s"])
-    n_ep = init["station"].shape[0]
-    v_max = float(vehicle.v_max)
-    ipar = np.array([model_id(dyn), method_id(method),
-                     episode_steps(tier), int(seed),
-                     int(math.ceil(float(tier["hold_time_s"]) / dt - 1e-9))], dtype=np.int64)
-    fpar = np.array([dt, v_max, CRUISE_FRAC * v_max, KP, float(tier["probe_noise_ms"]),
-                     float(tier["hold_radius_m"]), DEFAULT_LAND_THRESHOLD, CLEARANCE_M])
-    state = new_state(n_ep, 1, init["pos0"], init["psi0"])
-    cmd = np.zeros((n_ep, 1, CMD_DIM))
-    res = np.zeros((n_ep, len(COLUMNS)))
-    obs, act = obs_buffers(tier, init, record)
-    _kernel(grid, vehicle.params, ipar, fpar, np.ascontiguousarray(init["station"]),
-            np.ascontiguousarray(init["heading"], dtype=np.float64),
-            np.ascontiguousarray(init["t0"], dtype=np.float64), state, cmd, obs, act, res)
-    return rollout_results(res, COLUMNS, obs, act, record)
+
+@njit(parallel=True, cache=True)
+def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact):
+    for e in prange(state.shape[0]):
+        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
 
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer
 # changes.
-fresh_cache(_kernel, __file__)
+fresh_cache(_kernel, __file__, POLICY.__file__)

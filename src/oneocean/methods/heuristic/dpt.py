@@ -1,0 +1,71 @@
+"""DPT heuristic and oracle: horizontal line-of-sight guidance with a depth loop.
+
+A depth loop ``w = KZ (y* - y)`` goes first (at most half the budget), then horizontal
+line-of-sight guidance with the rest: aim at the point ``LOOKAHEAD_M`` ahead of the agent's
+horizontal projection on the active leg (the env's leg frame ``W.leg``, updated before every
+step) with :func:`~oneocean.tasks.common.seek_max` (cross-track current fed forward first,
+P-control ``KP``). ``heuristic``: NOISY probed current, throttle cap ``CRUISE_FRAC * v_max``,
+P depth loop on the local target depth only (it lags on slopes by ``slope * ground speed /
+KZ``). ``oracle``: exact current, full ``v_max``, plus feed-forward of the profile slope times
+the along-track ground speed (preview of the planned profile).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from ...engine._jit import hot_kernel
+from ...engine.dynamics import VX, VZ
+from ...tasks.common import CRUISE_FRAC, seek_max
+from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision)
+from . import SENSING  # noqa: F401
+
+#: Horizontal line-of-sight lookahead, m.
+LOOKAHEAD_M = 20.0
+#: Horizontal proportional gain toward the lookahead point, s-1.
+KP = 0.5
+#: Depth-loop gain, s-1.
+KZ = 0.3
+
+
+class DPTPolicy(NamedTuple):
+    budget: float   # speed budget through the water, m s-1
+    kp: float       # horizontal gain toward the lookahead point, s-1
+    look: float     # horizontal lookahead along the active leg, m
+    kz: float       # depth-loop gain, s-1
+    preview: int    # 1: feed the profile slope times the along-track ground speed forward
+
+
+def params(method: str, tier: dict, vehicle) -> DPTPolicy:
+    v_max = float(vehicle.v_max)
+    heuristic = method == "heuristic"
+    return DPTPolicy(CRUISE_FRAC * v_max if heuristic else v_max, KP, LOOKAHEAD_M, KZ,
+                     0 if heuristic else 1)
+
+
+@hot_kernel(inline="always")
+def act(grid, P, W, M, state, e, k, i, t, pe, pn):
+    s = state[e, i]
+    px = s[0]
+    py = s[1]
+    pz = s[2]
+    g = W.leg[e]        # along-track, leg length, tangent (x, z), target depth, slope
+    sh = g[0]
+    ln = g[1]
+    tx = g[2]
+    tz = g[3]
+    wp = W.wp[e]
+    a0x = W.route[e, wp - 1, 0]
+    a0z = W.route[e, wp - 1, 2]
+    budget = M.budget
+    # depth loop first (at most half the budget), then horizontal LOS with the rest
+    w = M.kz * (g[4] - py)
+    if M.preview != 0 and 0.0 <= sh <= ln:
+        w += g[5] * (s[VX] * tx + s[VZ] * tz)
+    wlim = 0.5 * budget
+    w = min(max(w, -wlim), wlim)
+    bh = math.sqrt(budget * budget - w * w)
+    sl = min(max(sh, 0.0) + M.look, ln)
+    ax, _, az = seek_max(px, 0.0, pz, a0x + sl * tx, 0.0, a0z + sl * tz, bh, M.kp, pe, pn)
+    return ax, w, az, math.nan
