@@ -16,6 +16,8 @@ from oneocean.errors import ConfigError
 from oneocean.models import pollution as pol
 from oneocean.tasks import run_cell, spc
 from oneocean.tasks.common import STANDARD, load_task_table
+from oneocean.tasks.episodes import rollout
+from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.1,
@@ -25,7 +27,7 @@ TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.1,
 
 
 def _grid(ce=0.0, cn=0.0, depth=30.0, n=21):
-    return E.load_grid(E.uniform_grid(ce, cn, depth_m=depth, nx=n, ny=n, dx_m=100.0))
+    return E.load_grid(uniform_grid(ce, cn, depth_m=depth, nx=n, ny=n, dx_m=100.0))
 
 
 @pytest.fixture(scope="module")
@@ -35,12 +37,12 @@ def calm():
 
 @pytest.fixture(scope="module")
 def coast():
-    return E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 def _run(grid, tier, method, n_agents=4, n=4, seed=0, dyn="kinematic", vehicle=None):
     init = spc.reset(grid, tier, n_agents, n, seed)
-    return init, spc.rollout(grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
+    return init, rollout(spc, grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
 
 
 def test_reset_geometry_is_valid(coast):
@@ -161,16 +163,16 @@ def test_hand_made_success_threshold(calm):
     p[P_VMAX] = 0.0
     still = dataclasses.replace(veh, params=p)
     tier = {**TIER, "kappa_m2s": 0.0, "time_limit_s": 50.0}
-    r = spc.rollout(calm, tier, init, "oracle", "kinematic", still, 0)
+    r = rollout(spc, calm, tier, init, "oracle", "kinematic", still, 0)
     got = r["cleanup_rate"][0]
     assert 0.0 < got < 1.0 and not r["success"][0]
     assert r["coll_ratio"][0] == 0.0  # 6 m apart
-    r2 = spc.rollout(calm, {**tier, "target_fraction": got * 0.9}, init, "oracle", "kinematic",
-                     still, 0)
+    r2 = rollout(spc, calm, {**tier, "target_fraction": got * 0.9}, init, "oracle", "kinematic",
+                 still, 0)
     assert r2["success"][0] and r2["T_s"][0] < 50.0
     # parked 1 m apart: every step is a near collision
     init["pos0"][0, 1, 0] = c[0] - 2.0
-    r3 = spc.rollout(calm, tier, init, "oracle", "kinematic", still, 0)
+    r3 = rollout(spc, calm, tier, init, "oracle", "kinematic", still, 0)
     assert r3["coll_ratio"][0] == 1.0
 
 

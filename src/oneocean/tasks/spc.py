@@ -31,51 +31,45 @@ Metrics
     (left the local grid / initial), ``remaining_fraction`` (still on the grid / initial),
     ``time_to_target_s`` (time at which the target fraction was reached; the time limit on
     failure, like ``T_s``).
-Methods (one fixed task logic)
-    Targets come from a coarse "aerial" map: the field summed over blocks of
-    ``BLOCK_CELLS x BLOCK_CELLS`` cells (mass and mass centroid per block). Justification: oil
-    spill response relies on periodic surveillance overflights (aircraft / drone SLAR, IR);
-    a surface vehicle's own sensor only sees the concentration under it. Assignment (greedy,
-    distinct targets first): N times, take the block with the largest ``mass / (1 + number of
-    agents already on it)`` and give it to the nearest unassigned agent; its target is the
-    block's mass centroid. Between maps each agent moves its target with the current it
-    probes (the spill drifts with the water). Steering: through-water velocity
-    ``KP * (target - position)`` capped at the speed budget, plus a teammate repulsion inside
-    ``SEP_M`` (keeps >= 3 m apart), realised against the (probed) current by
-    :func:`~oneocean.tasks.common.steer`; depth held at ``SURFACE_Y_M``.
-    ``heuristic``: knows only the spill's reported initial centroid until the first overflight
-    (targets on a ring of radius ``spill_radius_m / 2`` around the report), then gets the
-    aerial map every ``aerial_period_s``; NOISY probed current (std ``probe_noise_ms``);
-    budget ``CRUISE_FRAC * v_max``.
-    ``oracle``: the exact map every step, exact current, full ``v_max``.
+Observation
+    The goal cue is the point the agent steers to, ``W.aim`` (E, N, 2) (x, z) at
+    ``SURFACE_Y_M``: written by the fused policy every step (its target drifted with the
+    probed current); for external policies it stays at the spill's reported initial centroid.
+    The pollution probe is the surface concentration under the vehicle, kg m-2.
+Methods
+    :mod:`oneocean.methods.heuristic.spc` (aerial map and greedy block assignment as the
+    team-level ``plan``; heuristic: stale periodic map, cruise budget, noisy probe; oracle:
+    the exact map every step, full speed, exact current).
 
-Module layout: as :mod:`oneocean.tasks.g2g` (``reset`` / ``_episode`` / ``_kernel`` /
-``rollout``); the per-episode field, land mask, face velocities, map and work vectors are
-allocated in ``rollout`` with a leading episode axis.
+Module layout: as :mod:`oneocean.tasks.g2g` (``reset``; ``SPCParams`` / ``SPCWork`` and
+``make``: the per-episode field, land mask, face velocities, mass accumulators and the
+policy's plan tokens and map scratch with a leading episode axis; env hooks ``begin``,
+``pre_step`` (face refresh), ``cue``, ``post_step`` (removal in agent order, field step,
+success), ``finish``; ``POLICY``; ``_kernel`` / ``_observe_kernel``).
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from ..engine import status as st
-from ..engine.constraints import (DEFAULT_LAND_THRESHOLD, feasibility, min_pairwise_distance,
-                                  spawn_positions)
-from ..engine.dynamics import CMD_DIM, model_id, new_state
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD, feasibility, spawn_positions
 from ..engine.grid import sample_current_data, sample_currents
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
+from ..methods.heuristic import spc as POLICY
 from ..models import pollution as pol
-from .common import (HEURISTIC, OK, STANDARD, advance_agent, current_at, episode_generators,
-                     episode_steps, fresh_cache, method_id, need_tier, obs_buffers, observe,
-                     path_clear, rollout_results, sensed_current, set_velocity_cmd, start_times,
-                     steer)
+from .common import (STANDARD, current_at, episode_generators, episode_steps, fresh_cache,
+                     need_tier, path_clear, start_times)
+from .loop import noop_after_agent, observe_next, run_episode
 
 TASK_ID = "SPC"
 METRICS = ("cleanup_rate", "escaped_fraction", "remaining_fraction", "time_to_target_s")
+#: Result-matrix columns written by the kernel (standard columns first).
 COLUMNS = STANDARD + METRICS
 
 #: Field cell size, m.
@@ -88,16 +82,6 @@ SURFACE_Y_M = 0.5
 CLEARANCE_M = 1.0
 #: Face velocities are re-sampled from the product every this many steps.
 FACE_REFRESH_STEPS = 30
-#: Aerial-map block size, cells (BLOCK_CELLS * FIELD_H_M = 40 m blocks).
-BLOCK_CELLS = 4
-#: Heuristic throttle cap (fraction of v_max), as every task's heuristic.
-CRUISE_FRAC = 0.6
-#: Target-approach gain, s-1; depth-hold gain, s-1.
-KP = 0.5
-KP_DEPTH = 0.5
-#: Teammate repulsion: active below SEP_M, speed SEP_GAIN * (SEP_M - d) (m s-1).
-SEP_M = 4.5
-SEP_GAIN = 1.0
 #: Staging cluster spacing, m.
 STAGING_SPACING_M = 6.0
 #: The staging point's bearing from the spill is up-current (opposite the data surface current
@@ -105,15 +89,8 @@ STAGING_SPACING_M = 6.0
 STAGING_SPREAD_RAD = math.pi / 4
 #: The spill centre must have surface-feasible water on rings up to this many spill radii.
 CLEAR_RADII = 1.5
-#: Blocks lighter than this fraction of the mapped mass are not targets.
-MIN_BLOCK_FRAC = 1e-4
 
-_I_MODEL, _I_METHOD, _I_STEPS, _I_SEED, _I_AERIAL, _I_REFRESH, _I_BLOCK = range(7)
-(_F_DT, _F_VMAX, _F_SPEED, _F_KP, _F_NOISE, _F_LAND, _F_CLEAR, _F_H, _F_KAPPA, _F_RAD,
- _F_EFF, _F_TARGET, _F_Y, _F_KPY, _F_SEP, _F_SEPG, _F_RCOLL, _F_RING) = range(18)
-_C = {k: i for i, k in enumerate(COLUMNS)}
-_C_SUCCESS, _C_T, _C_E, _C_COLL, _C_VIOL = (_C[k] for k in STANDARD)
-_C_CLEAN, _C_ESC, _C_REM, _C_TTT = (_C[k] for k in METRICS)
+_C_CLEAN, _C_ESC, _C_REM, _C_TTT = (len(STANDARD) + i for i in range(len(METRICS)))
 
 _TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "spill_radius_m",
               "target_fraction", "staging_distance_m", "removal_radius_m", "removal_rate_s",
@@ -274,249 +251,141 @@ def _refresh_faces(grid, uf, vf, x0, z0, h, y, t):
             vf[j, i] = cn
 
 
-@hot_kernel
-def _aerial_map(C, x0, z0, h, bsz, bm, bx, bz):
-    """Block masses (kg) and mass centroids (m) of the field; returns the total mass (kg)."""
-    nz = C.shape[1]
-    nx = C.shape[2]
-    nbx = (nx + bsz - 1) // bsz
-    nb = bm.shape[0]
-    for b in range(nb):
-        bm[b] = 0.0
-        bx[b] = 0.0
-        bz[b] = 0.0
-    for j in range(nz):
-        for i in range(nx):
-            c = C[0, j, i]
-            if c > 0.0:
-                b = (j // bsz) * nbx + i // bsz
-                bm[b] += c
-                bx[b] += c * (x0 + i * h)
-                bz[b] += c * (z0 + j * h)
-    tot = 0.0
-    for b in range(nb):
-        if bm[b] > 0.0:
-            bx[b] /= bm[b]
-            bz[b] /= bm[b]
-            tot += bm[b]
-        bm[b] *= h * h
-    return tot * h * h
 
 
-@hot_kernel
-def _assign(S, bm, bx, bz, cnt, tgt, done, tot):
-    """Greedy assignment: N times, the block with max mass/(1+count) -> nearest free agent."""
-    n_ag = S.shape[0]
-    nb = bm.shape[0]
-    for b in range(nb):
-        cnt[b] = 0
-    for i in range(n_ag):
-        done[i] = 0
-    for _ in range(n_ag):
-        best = -1
-        score = 0.0
-        for b in range(nb):
-            if bm[b] > MIN_BLOCK_FRAC * tot:
-                sc = bm[b] / (1.0 + cnt[b])
-                if sc > score:
-                    score = sc
-                    best = b
-        if best < 0:
-            return
-        ia = -1
-        dmin = np.inf
-        for i in range(n_ag):
-            if done[i] == 0:
-                d = (S[i, 0] - bx[best]) ** 2 + (S[i, 2] - bz[best]) ** 2
-                if d < dmin:
-                    dmin = d
-                    ia = i
-        done[ia] = 1
-        cnt[best] += 1
-        tgt[ia, 0] = bx[best]
-        tgt[ia, 1] = bz[best]
+class SPCParams(NamedTuple):
+    dt: float           # step, s
+    n_steps: int        # episode length, steps (the time limit)
+    h: float            # field cell size, m
+    y: float            # operating depth, m
+    kappa: float        # diffusivity, m2 s-1
+    rad: float          # removal radius, m
+    eff: float          # removal rate, s-1
+    target: float       # success: removed fraction of the initial mass
+    refresh: int        # face velocities re-sampled every this many steps
 
 
-@hot_kernel
-def _episode(grid, vp, ipar, fpar, dparams, t0, origin, report, C, land, uf, vf, work, bm, bx,
-             bz, cnt, done, tgt, state, cmd, obs, act, res, e):
-    """Run episode ``e`` (serial) and write row ``e`` of ``res`` (see ``COLUMNS``)."""
-    model = ipar[_I_MODEL]
-    method = ipar[_I_METHOD]
-    n_steps = ipar[_I_STEPS]
-    seed = ipar[_I_SEED]
-    aerial = ipar[_I_AERIAL]
-    refresh = ipar[_I_REFRESH]
-    bsz = ipar[_I_BLOCK]
-    dt = fpar[_F_DT]
-    v_max = fpar[_F_VMAX]
-    budget = fpar[_F_SPEED] if method == HEURISTIC else v_max
-    kp = fpar[_F_KP]
-    noise = fpar[_F_NOISE]
-    land_thr = fpar[_F_LAND]
-    clearance = fpar[_F_CLEAR]
-    h = fpar[_F_H]
-    kappa = fpar[_F_KAPPA]
-    rad = fpar[_F_RAD]
-    eff = fpar[_F_EFF]
-    target = fpar[_F_TARGET]
-    y_op = fpar[_F_Y]
-    kpy = fpar[_F_KPY]
-    sep = fpar[_F_SEP]
-    sep_gain = fpar[_F_SEPG]
-    r_coll = fpar[_F_RCOLL]
-    ring = fpar[_F_RING]
-    S = state[e]
-    Ce = C[e]
-    x0 = origin[e, 0]
-    z0 = origin[e, 1]
-    n_ag = S.shape[0]
-    m0 = pol.total_mass(Ce, h)
-    removed = 0.0
-    escaped = 0.0
-    energy = 0.0
-    viol = 0
-    coll = 0
-    t_map = t0[e]
-    # before the first map: a ring around the reported centroid (the oracle maps at k = 0)
-    for i in range(n_ag):
-        a = 2.0 * math.pi * i / n_ag
-        tgt[e, i, 0] = report[e, 0] + ring * math.sin(a)
-        tgt[e, i, 1] = report[e, 1] + ring * math.cos(a)
-    success = removed >= target * m0
-    t_s = 0.0
-    k = 0
-    while k < n_steps and not success:
-        t = t0[e] + k * dt
-        if k % refresh == 0:
-            _refresh_faces(grid, uf[e], vf[e], x0, z0, h, y_op, t)
-        if (method == HEURISTIC and k > 0 and k % aerial == 0) or method != HEURISTIC:
-            tot = _aerial_map(Ce, x0, z0, h, bsz, bm[e], bx[e], bz[e])
-            _assign(S, bm[e], bx[e], bz[e], cnt[e], tgt[e], done[e], tot)
-            t_map = t
-        age = t - t_map
-        for i in range(n_ag):
-            s = S[i]
-            px = s[0]
-            py = s[1]
-            pz = s[2]
-            ce, cn = current_at(grid, px, py, pz, t)
-            pe, pn = sensed_current(method, ce, cn, noise, seed, e, 2 * (k * n_ag + i))
-            # through-water velocity toward the (drifting) target
-            wx = kp * (tgt[e, i, 0] + pe * age - px)
-            wz = kp * (tgt[e, i, 1] + pn * age - pz)
-            w = math.sqrt(wx * wx + wz * wz)
-            if w > budget:
-                wx *= budget / w
-                wz *= budget / w
-            for j in range(n_ag):
-                if j != i:
-                    dx = px - S[j, 0]
-                    dz = pz - S[j, 2]
-                    d = math.sqrt(dx * dx + dz * dz)
-                    if d < sep:
-                        if d > 1e-6:
-                            wx += sep_gain * (sep - d) * dx / d
-                            wz += sep_gain * (sep - d) * dz / d
-                        else:
-                            wx += sep_gain * sep * (1.0 if i > j else -1.0)
-            ax, ay, az = steer(wx + pe, kpy * (y_op - py), wz + pn, budget, pe, pn)
-            if k < obs.shape[1]:  # surface concentration under the vehicle, kg m-2
-                observe(obs, act, e, k, i, grid, state, tgt[e, i, 0] + pe * age, y_op,
-                        tgt[e, i, 1] + pn * age, pe, pn, pol.probe(Ce, 0, px, pz, x0, z0, h), ax,
-                        ay, az)
-            c = cmd[e, i]
-            set_velocity_cmd(c, ax, ay, az)
-            en, code = advance_agent(grid, model, vp, s, c, ce, cn, v_max, dt, land_thr,
-                                     clearance)
-            energy += en
-            if code != OK:
-                viol += 1
-        for i in range(n_ag):
-            removed += pol.remove_in_radius(Ce, S[i, 0], S[i, 2], rad, eff, dt, x0, z0, h)
-        escaped += pol.step_field(Ce, pol.KIND_TRACER, dparams, uf[e], vf[e], land[e], h, dt,
-                                  kappa, pol.OPEN_ALL, work[e])
-        if min_pairwise_distance(S) <= r_coll:
-            coll += 1
-        k += 1
-        if removed >= target * m0:
-            success = True
-            t_s = k * dt
-    remaining = pol.total_mass(Ce, h)
-    res[e, _C_SUCCESS] = 1.0 if success else 0.0
-    res[e, _C_T] = t_s if success else n_steps * dt
-    res[e, _C_E] = energy
-    res[e, _C_COLL] = coll / k if k > 0 else 0.0
-    res[e, _C_VIOL] = viol
-    res[e, _C_CLEAN] = removed / m0
-    res[e, _C_ESC] = escaped / m0
-    res[e, _C_REM] = remaining / m0
-    res[e, _C_TTT] = res[e, _C_T]
+class SPCWork(NamedTuple):
+    origin: np.ndarray  # (E, 2) world (x, z) of cell (0, 0) centre, m
+    report: np.ndarray  # (E, 2) reported initial spill centroid (x, z), m
+    C: np.ndarray       # (E, 1, nz, nx) field, kg m-2 (a copy of init C0)
+    land: np.ndarray    # (E, nz, nx) uint8 frozen cells
+    uf: np.ndarray      # (E, nz, nx + 1) x-face velocities, m s-1
+    vf: np.ndarray      # (E, nz + 1, nx) z-face velocities, m s-1
+    work: np.ndarray    # (E, work_size) field-step scratch
+    fpar: np.ndarray    # (E, 1) field-kind parameters (tracer: unused)
+    acc: np.ndarray     # (E, 3) initial mass, removed, escaped, kg
+    aim: np.ndarray     # (E, N, 2) goal cue: the point each agent steers to (x, z), m
+    # the policy's plan tokens and map scratch (methods.heuristic.spc)
+    tgt: np.ndarray     # (E, N, 2) targets (x, z) at the map time, m
+    tmap: np.ndarray    # (E,) map time, s
+    bm: np.ndarray      # (E, nb) block masses, kg
+    bx: np.ndarray      # (E, nb) block mass centroids x, m
+    bz: np.ndarray      # (E, nb) block mass centroids z, m
+    cnt: np.ndarray     # (E, nb) int64 agents per block
+    done: np.ndarray    # (E, N) int64 agent assigned
 
 
-@njit(parallel=True, cache=True)
-def _kernel(grid, vp, ipar, fpar, dparams, t0, origin, report, C, land, uf, vf, work, bm, bx,
-            bz, cnt, done, tgt, state, cmd, obs, act, res):
-    for e in prange(res.shape[0]):
-        _episode(grid, vp, ipar, fpar, dparams, t0, origin, report, C, land, uf, vf, work, bm,
-                 bx, bz, cnt, done, tgt, state, cmd, obs, act, res, e)
-
-
-def rollout(grid, tier: dict, init: dict, method: str, dyn: str, vehicle,
-            seed: int, *, record: bool = False) -> dict:
-    """Run every episode of ``init`` (from :func:`reset`) with one method.
-
-    Parameters
-    ----------
-    grid : Grid
-        Forcing already applied (``run_cell`` sets the tier's ``current_gain``).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        Output of :func:`reset` (its ``C0`` is copied, never modified).
-    method : {"heuristic", "oracle"}
-    dyn : {"kinematic", "3dof", "4dof", "6dof"}
-    vehicle : Vehicle
-    seed : int
-        Run seed (probe-noise streams).
-
-    Returns
-    -------
-    dict of (E,) arrays
-        ``success`` (bool), ``T_s`` (s), ``E`` (m2 s-1), ``coll_ratio``, ``violations`` (int)
-        and ``METRICS``.
-    """
+def make(grid, tier: dict, init: dict):
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); the
+    field is a copy of ``init["C0"]`` (never modified)."""
     need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
-    dt = float(tier["dt_s"])
     C = np.ascontiguousarray(init["C0"], dtype=np.float64).copy()
     n_ep, _, nz, nx = C.shape
     n_ag = init["pos0"].shape[1]
-    v_max = float(vehicle.v_max)
-    aerial = max(1, int(round(float(tier["aerial_period_s"]) / dt)))
-    ipar = np.array([model_id(dyn), method_id(method),
-                     episode_steps(tier), int(seed),
-                     aerial, FACE_REFRESH_STEPS, BLOCK_CELLS], dtype=np.int64)
-    fpar = np.array([dt, v_max, CRUISE_FRAC * v_max, KP, float(tier["probe_noise_ms"]),
-                     DEFAULT_LAND_THRESHOLD, CLEARANCE_M, FIELD_H_M, float(tier["kappa_m2s"]),
-                     float(tier["removal_radius_m"]), float(tier["removal_rate_s"]),
-                     float(tier["target_fraction"]), SURFACE_Y_M, KP_DEPTH, SEP_M, SEP_GAIN,
-                     R_COLL_M, 0.5 * float(tier["spill_radius_m"])])
-    nb = ((nx + BLOCK_CELLS - 1) // BLOCK_CELLS) * ((nz + BLOCK_CELLS - 1) // BLOCK_CELLS)
-    state = new_state(n_ep, n_ag, init["pos0"], init["psi0"])
-    cmd = np.zeros((n_ep, n_ag, CMD_DIM))
-    res = np.zeros((n_ep, len(COLUMNS)))
-    obs, act = obs_buffers(tier, init, record)
-    _kernel(grid, vehicle.params, ipar, fpar, np.zeros(1), np.ascontiguousarray(init["t0"],
-            dtype=np.float64), np.ascontiguousarray(init["origin"], dtype=np.float64),
-            np.ascontiguousarray(init["report"], dtype=np.float64), C,
-            np.ascontiguousarray(init["land"], dtype=np.uint8), np.zeros((n_ep, nz, nx + 1)),
-            np.zeros((n_ep, nz + 1, nx)), np.zeros((n_ep, pol.work_size(1, nz, nx))),
-            np.zeros((n_ep, nb)), np.zeros((n_ep, nb)), np.zeros((n_ep, nb)),
-            np.zeros((n_ep, nb), dtype=np.int64), np.zeros((n_ep, n_ag), dtype=np.int64),
-            np.zeros((n_ep, n_ag, 2)), state, cmd, obs, act, res)
-    return rollout_results(res, COLUMNS, obs, act, record)
+    nb = POLICY.n_blocks(nz, nx)
+    report = np.ascontiguousarray(init["report"], dtype=np.float64)
+    P = SPCParams(float(tier["dt_s"]), episode_steps(tier), FIELD_H_M, SURFACE_Y_M,
+                  float(tier["kappa_m2s"]), float(tier["removal_radius_m"]),
+                  float(tier["removal_rate_s"]), float(tier["target_fraction"]),
+                  FACE_REFRESH_STEPS)
+    W = SPCWork(np.ascontiguousarray(init["origin"], dtype=np.float64), report, C,
+                np.ascontiguousarray(init["land"], dtype=np.uint8),
+                np.zeros((n_ep, nz, nx + 1)), np.zeros((n_ep, nz + 1, nx)),
+                np.zeros((n_ep, pol.work_size(1, nz, nx))), np.zeros((n_ep, 1)),
+                np.zeros((n_ep, 3)), np.repeat(report[:, None, :], n_ag, axis=1),
+                np.zeros((n_ep, n_ag, 2)), np.zeros(n_ep), np.zeros((n_ep, nb)),
+                np.zeros((n_ep, nb)), np.zeros((n_ep, nb)), np.zeros((n_ep, nb), np.int64),
+                np.zeros((n_ep, n_ag), np.int64))
+    return P, W
 
 
-# numba keys a cache entry on this file only; drop it when the engine, the task layer or
-# the model changes.
-fresh_cache(_kernel, __file__, pol.__file__)
+@hot_kernel(inline="always")
+def begin(grid, P, W, state, e):
+    m0 = pol.total_mass(W.C[e], P.h)
+    W.acc[e, 0] = m0
+    W.acc[e, 1] = 0.0
+    W.acc[e, 2] = 0.0
+    return 0.0 >= P.target * m0
+
+
+@hot_kernel(inline="always")
+def pre_step(grid, P, W, state, e, k, t):
+    if k % P.refresh == 0:
+        _refresh_faces(grid, W.uf[e], W.vf[e], W.origin[e, 0], W.origin[e, 1], P.h, P.y, t)
+
+
+@hot_kernel(inline="always")
+def cue(grid, P, W, state, e, k, i):
+    s = state[e, i]
+    # surface concentration under the vehicle, kg m-2
+    return (W.aim[e, i, 0], P.y, W.aim[e, i, 1],
+            pol.probe(W.C[e], 0, s[0], s[2], W.origin[e, 0], W.origin[e, 1], P.h))
+
+
+@hot_kernel(inline="always")
+def post_step(grid, P, W, state, prev, e, k, t):
+    S = state[e]
+    Ce = W.C[e]
+    x0 = W.origin[e, 0]
+    z0 = W.origin[e, 1]
+    a = W.acc[e]
+    removed = a[1]
+    for i in range(S.shape[0]):  # in agent order, after every agent moved
+        removed += pol.remove_in_radius(Ce, S[i, 0], S[i, 2], P.rad, P.eff, P.dt, x0, z0, P.h)
+    a[1] = removed
+    a[2] += pol.step_field(Ce, pol.KIND_TRACER, W.fpar[e], W.uf[e], W.vf[e], W.land[e], P.h,
+                           P.dt, P.kappa, pol.OPEN_ALL, W.work[e])
+    return removed >= P.target * a[0]
+
+
+@hot_kernel(inline="always")
+def finish(grid, P, W, state, e, k, row):
+    a = W.acc[e]
+    m0 = a[0]
+    success = a[1] >= P.target * m0
+    row[_C_CLEAN] = a[1] / m0
+    row[_C_ESC] = a[2] / m0
+    row[_C_REM] = pol.total_mass(W.C[e], P.h) / m0
+    row[_C_TTT] = k * P.dt if success else P.n_steps * P.dt
+    return success
+
+
+# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
+@hot_kernel
+def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
+    run_episode(begin, pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
+                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
+                k_stop)
+
+
+@njit(parallel=True, cache=True)
+def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop):
+    for e in prange(state.shape[0]):
+        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
+
+
+@hot_kernel
+def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
+    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+
+
+@njit(parallel=True, cache=True)
+def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact):
+    for e in prange(state.shape[0]):
+        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
+
+
+# numba keys a cache entry on this file only; drop it when the engine, the task layer, the
+# policy or the pollution model changes.
+fresh_cache(_kernel, __file__, POLICY.__file__, pol.__file__)
