@@ -1,4 +1,7 @@
-"""Vehicle dynamics: closed forms, physical invariants and the reference's failure modes."""
+"""Vehicle dynamics: closed forms, physical invariants and the reference's failure modes.
+
+Rollouts run on the one episode loop with external actions (``task_helpers.drive``); what the
+loop cannot command (thrust off, a heading) is stepped with ``dynamics.step_agent`` directly."""
 
 from __future__ import annotations
 
@@ -11,6 +14,9 @@ from oneocean import engine as E
 from oneocean.engine import dynamics as D
 from oneocean.engine.reference import reference_run
 from oneocean.errors import ConfigError
+from oneocean.tasks.loop import C_COLL, C_E, C_VIOL
+from oneocean.testing import make_test_grid, uniform_grid
+from task_helpers import drive, external_episodes, goal_control
 
 RIGID = ("3dof", "4dof", "6dof")
 
@@ -21,7 +27,7 @@ def vehicle():
 
 
 def still_grid(ce=0.0, cn=0.0):
-    return E.load_grid(E.uniform_grid(ce, cn, depth_m=200.0, nx=41, ny=41, dx_m=200.0))
+    return E.load_grid(uniform_grid(ce, cn, depth_m=200.0, nx=41, ny=41, dx_m=200.0))
 
 
 def test_unknown_model_and_bad_vehicle():
@@ -54,51 +60,63 @@ def test_sincos_and_wrap():
 
 def test_kinematic_matches_closed_form_exactly():
     # spatially and temporally varying currents: p_{t+1} = p_t + (a_t + c(p_t, t)) dt, bit for bit
-    g = E.load_grid(E.make_test_grid(), tide={"amplitude_ms": 0.2, "period_s": 5000.0})
+    g = E.load_grid(make_test_grid(), tide={"amplitude_ms": 0.2, "period_s": 5000.0})
     rng = np.random.default_rng(0)
     steps, dt = 60, 2.0
     p0 = np.array([[[800.0, 4.0, 200.0]]])
     acts = rng.uniform(-0.8, 0.8, (steps, 1, 1, 3))
     acts[..., 1] *= 0.05
-    b = E.init_batch(p0, t0=500.0)
-    E.run(g, b, E.open_loop_controller(acts), steps, dt=dt, v_max=10.0)
+    ep = external_episodes(g, p0, steps, dt=dt, t0=500.0,
+                           vehicle=D.load_vehicle(overrides={"speed_limit_ms": 10.0}))
+    drive(ep, acts)
     p = p0[0, 0].copy()
     for k in range(steps):
         ce, cn = E.sample_current(g, p[0], p[1], p[2], 500.0 + k * dt)
         a = acts[k, 0, 0]
         p = np.array([p[0] + (a[0] + ce) * dt, p[1] + a[1] * dt, p[2] + (a[2] + cn) * dt])
-    assert b.violations.sum() == 0
-    np.testing.assert_array_equal(b.positions[0, 0], p)
+    assert ep.res[0, C_VIOL] == 0
+    np.testing.assert_array_equal(ep.state[0, 0, :3], p)
 
 
 @pytest.mark.parametrize("model", RIGID)
 def test_zero_current_zero_action_stays_exactly_still(model, vehicle):
     g = still_grid()
     p0 = np.array([[[10.0, 30.0, -20.0]]])
-    b = E.init_batch(p0, heading=0.7)
-    E.run(g, b, E.open_loop_controller(np.zeros((300, 1, 1, 3))), 300, dynamics=model,
-          vehicle=vehicle)
+    ep = external_episodes(g, p0, 300, dyn=model, vehicle=vehicle, psi0=0.7).run()
     expect = D.new_state(1, 1, p0, 0.7)
-    np.testing.assert_array_equal(b.state, expect)
+    np.testing.assert_array_equal(ep.state, expect)
 
 
 @pytest.mark.parametrize("model", ("kinematic",) + RIGID)
 def test_unactuated_vehicle_drifts_with_the_current(model, vehicle):
     ce, cn = 0.4, -0.3
+    m = D.model_id(model)
+    s = D.new_state(1, 1, np.array([[[0.0, 30.0, 0.0]]]), 1.0)[0, 0]
+    cmd = D.make_cmd(thrust=False)
+    for _ in range(200):
+        D.step_agent(m, vehicle.params, s, cmd, ce, cn, 1.0)
+    assert abs(s[D.VX] - ce) < 1e-6 and abs(s[D.VZ] - cn) < 1e-6
+    # the displacement over the next 100 steps is the current's
+    p = s[:3].copy()
+    for _ in range(100):
+        D.step_agent(m, vehicle.params, s, cmd, ce, cn, 1.0)
+    d = s[:3] - p
+    assert d[0] == pytest.approx(100 * ce, abs=1e-3)
+    assert d[2] == pytest.approx(100 * cn, abs=1e-3)
+
+
+@pytest.mark.parametrize("model", ("kinematic",) + RIGID)
+def test_zero_action_drifts_with_the_current_at_no_energy(model, vehicle):
+    # in the loop (thrust on): a zero request through the water is carried by the current
+    ce, cn = 0.4, -0.3
     g = still_grid(ce, cn)
-    b = E.init_batch(np.array([[[0.0, 30.0, 0.0]]]), heading=1.0)
-    E.run(g, b, E.drift_controller(1, 1), 200, dynamics=model, vehicle=vehicle,
-          allow_time_clamp=True)
+    ep = external_episodes(g, [[[0.0, 30.0, 0.0]]], 300, dyn=model, vehicle=vehicle, psi0=1.0)
+    traj = drive(ep, np.zeros((300, 1, 1, 3)))
     c32 = np.float32(ce), np.float32(cn)
-    vx, vz = b.state[0, 0, D.VX], b.state[0, 0, D.VZ]
-    assert abs(vx - c32[0]) < 1e-6 and abs(vz - c32[1]) < 1e-6
-    assert b.energy.sum() == 0.0
-    # the displacement over the last 100 steps is the current's
-    b2 = E.init_batch(b.positions.copy())
-    b2.state[:] = b.state
-    E.run(g, b2, E.drift_controller(1, 1), 100, dynamics=model, vehicle=vehicle,
-          allow_time_clamp=True)
-    d = b2.positions[0, 0] - b.positions[0, 0]
+    s = ep.state[0, 0]
+    assert abs(s[D.VX] - c32[0]) < 1e-6 and abs(s[D.VZ] - c32[1]) < 1e-6
+    assert ep.res[0, C_E] == 0.0 and ep.res[0, C_VIOL] == 0
+    d = traj[300, 0, 0] - traj[200, 0, 0]
     assert d[0] == pytest.approx(100 * c32[0], abs=1e-3)
     assert d[2] == pytest.approx(100 * c32[1], abs=1e-3)
 
@@ -141,27 +159,24 @@ def test_station_keeping_settles_and_stays(model, current, vehicle):
     g = still_grid(*current)
     goal = np.array([[[0.0, 30.0, 0.0]]])
     off = np.array([4.0, 0.0 if model == "3dof" else 2.0, -3.0])  # 3dof holds its depth
-    b = E.init_batch(goal + off, record_every=1, max_steps=400)
-    E.run(g, b, E.goal_controller(goal, kp=0.3), 400, dynamics=model, vehicle=vehicle,
-          allow_time_clamp=True)
-    traj = b.traj[0, 0].astype(float)
+    ep = external_episodes(g, goal + off, 400, dyn=model, vehicle=vehicle)
+    traj = drive(ep, goal_control(goal, kp=0.3))[:, 0, 0]
     err = np.linalg.norm(traj - goal[0, 0], axis=1)
     assert err[0] >= 5
     assert err[-150:].max() < 0.05, err[-150:].max()
     speed = np.linalg.norm(np.diff(traj[-150:], axis=0), axis=1)
     assert speed.max() < 1e-3
-    assert np.linalg.norm(b.state[0, 0, D.VX:D.VZ + 1]) < 1e-3
+    assert np.linalg.norm(ep.state[0, 0, D.VX:D.VZ + 1]) < 1e-3
 
 
 def test_yaw_convention_compass_heading(vehicle):
     g = still_grid()
     for name, act, psi in (("east", (1.0, 0, 0), math.pi / 2), ("north", (0, 0, 1.0), 0.0),
                            ("south-west", (-1.0, 0, -1.0), -3 * math.pi / 4)):
-        acts = np.tile(np.array(act, dtype=float), (80, 1, 1, 1))
-        b = E.init_batch(np.array([[[0.0, 30.0, 0.0]]]), heading=0.3)
-        E.run(g, b, E.open_loop_controller(acts), 80, dynamics="6dof", vehicle=vehicle,
-              allow_time_clamp=True)
-        s = b.state[0, 0]
+        ep = external_episodes(g, [[[0.0, 30.0, 0.0]]], 80, dyn="6dof", vehicle=vehicle,
+                               psi0=0.3)
+        ep.set_actions(np.array([[act]], dtype=float))
+        s = ep.run().state[0, 0]
         assert abs(D.wrap_angle(s[D.PSI] - psi)) < 1e-3, name
         # facing the direction of travel: all speed is surge
         assert s[D.U] == pytest.approx(np.linalg.norm(act), abs=1e-3), name
@@ -170,16 +185,18 @@ def test_yaw_convention_compass_heading(vehicle):
 
 
 def test_commanded_heading_is_held(vehicle):
-    g = still_grid()
-    goal = np.array([[[0.0, 30.0, 0.0, -2.0]]])
-    b = E.init_batch(goal[..., :3] + np.array([3.0, 0.0, 0.0]))
-    E.run(g, b, E.goal_controller(goal, kp=0.3), 200, dynamics="4dof", vehicle=vehicle,
-          allow_time_clamp=True)
-    assert b.state[0, 0, D.PSI] == pytest.approx(-2.0, abs=1e-4)
+    # a heading command (the loop's external actions leave the heading free)
+    goal = np.array([0.0, 30.0, 0.0])
+    s = D.new_state(1, 1, (goal + [3.0, 0.0, 0.0])[None, None], 0.0)[0, 0]
+    m = D.model_id("4dof")
+    for _ in range(200):
+        a = 0.3 * (goal - s[:3])
+        D.step_agent(m, vehicle.params, s, D.make_cmd(*a, psi=-2.0), 0.0, 0.0, 1.0)
+    assert s[D.PSI] == pytest.approx(-2.0, abs=1e-4)
 
 
 def test_six_dof_converges_to_kinematic_path_as_time_constants_shrink(vehicle):
-    g = E.load_grid(E.make_test_grid())
+    g = E.load_grid(make_test_grid())
     p0 = np.array([[[1500.0, 5.0, 0.0]]])
     goal = p0 + np.array([[[-300.0, 3.0, 250.0]]])
     steps = 150
@@ -188,9 +205,9 @@ def test_six_dof_converges_to_kinematic_path_as_time_constants_shrink(vehicle):
         # start facing the goal: the shrinking quantities are time constants, not thrust
         # limits (a sideways start saturates sway thrust, which is physics, not lag)
         d = goal[0, 0] - p0[0, 0]
-        b = E.init_batch(p0, record_every=1, max_steps=steps, heading=math.atan2(d[0], d[2]))
-        E.run(g, b, E.goal_controller(goal, kp=0.02), steps, dynamics=model, vehicle=veh)
-        return b.traj[0, 0].astype(np.float64)
+        ep = external_episodes(g, p0, steps, dyn=model, vehicle=veh,
+                               psi0=math.atan2(d[0], d[2]))
+        return drive(ep, goal_control(goal, kp=0.02))[:, 0, 0]
 
     kin = path("kinematic", vehicle)
     errs = []
@@ -210,38 +227,37 @@ def test_six_dof_converges_to_kinematic_path_as_time_constants_shrink(vehicle):
 def test_surface_is_a_boundary_not_a_violation(vehicle):
     g = still_grid()
     for model in ("kinematic", "4dof", "6dof"):
-        acts = np.tile(np.array([0.0, -1.0, 0.0]), (40, 1, 1, 1))
-        b = E.init_batch(np.array([[[0.0, 3.0, 0.0]]]))
-        E.run(g, b, E.open_loop_controller(acts), 40, dynamics=model, vehicle=vehicle,
-              allow_time_clamp=True)
-        assert b.state[0, 0, D.Y] == 0.0 and b.violations.sum() == 0, model
-        assert b.state[0, 0, D.VY] == 0.0
+        ep = external_episodes(g, [[[0.0, 3.0, 0.0]]], 40, dyn=model, vehicle=vehicle)
+        ep.set_actions(np.array([[[0.0, -1.0, 0.0]]]))
+        s = ep.run().state[0, 0]
+        assert s[D.Y] == 0.0 and ep.res[0, C_VIOL] == 0, model
+        assert s[D.VY] == 0.0
 
 
 def test_depth_is_held_by_3dof(vehicle):
     g = still_grid()
-    acts = np.tile(np.array([0.5, 0.7, 0.2]), (30, 1, 1, 1))
-    b = E.init_batch(np.array([[[0.0, 12.5, 0.0]]]))
-    E.run(g, b, E.open_loop_controller(acts), 30, dynamics="3dof", vehicle=vehicle,
-          allow_time_clamp=True)
-    assert b.state[0, 0, D.Y] == 12.5
+    ep = external_episodes(g, [[[0.0, 12.5, 0.0]]], 30, dyn="3dof", vehicle=vehicle)
+    ep.set_actions(np.array([[[0.5, 0.7, 0.2]]]))
+    s = ep.run().state[0, 0]
+    assert s[D.Y] == 12.5 and s[D.X] > 10.0
 
 
 @pytest.mark.parametrize("model", ("kinematic",) + RIGID)
 def test_engine_matches_the_plain_numpy_reference(model, vehicle):
-    # an independent implementation (searchsorted, full matrices, np.linalg.solve); the
-    # scenario includes land rejections and near-collisions
-    g = E.load_grid(E.make_test_grid(), tide={"amplitude_ms": 0.1, "period_s": 3600.0})
+    # an independent implementation (searchsorted, full matrices, np.linalg.solve) against
+    # the one loop (FT, external P-control actions); the scenario includes land rejections
+    # and near-collisions
+    g = E.load_grid(make_test_grid(), tide={"amplitude_ms": 0.1, "period_s": 3600.0})
     pos = np.array([[[-2600.0, 3.0, 0.0], [-2598.5, 3.0, 0.5]],
                     [[1000.0, 4.0, 100.0], [1010.0, 6.0, 90.0]]])
     goals = pos + np.array([[[-900.0, 0.0, 40.0], [-900.0, 0.0, 40.0]],
                             [[60.0, 3.0, -50.0], [40.0, -2.0, -30.0]]])
-    b = E.init_batch(pos, t0=100.0)
-    E.run(g, b, E.goal_controller(goals, kp=0.2), 60, dynamics=model, vehicle=vehicle)
+    ep = external_episodes(g, pos, 60, dyn=model, vehicle=vehicle, t0=100.0)
+    drive(ep, goal_control(goals, kp=0.2))
     r = reference_run(g, pos, goals, 60, dynamics=model, vehicle=vehicle, kp=0.2, t0=100.0)
-    assert b.violations[0].sum() > 0 and b.coll_steps[0] > 0  # the scenario bites
-    np.testing.assert_allclose(b.state, r["state"], rtol=0, atol=1e-9)
-    np.testing.assert_allclose(b.energy, r["energy"], rtol=1e-12)
-    np.testing.assert_array_equal(b.violations, r["violations"])
-    np.testing.assert_array_equal(b.status, r["status"])
-    np.testing.assert_array_equal(b.coll_steps, r["coll_steps"])
+    assert r["violations"][0].sum() > 0 and r["coll_steps"][0] > 0  # the scenario bites
+    np.testing.assert_allclose(ep.state, r["state"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ep.res[:, C_E], r["energy"].sum(axis=1), rtol=1e-12)
+    np.testing.assert_array_equal(ep.res[:, C_VIOL], r["violations"].sum(axis=1))
+    np.testing.assert_array_equal(ep.LS.coll, r["coll_steps"])
+    np.testing.assert_array_equal(ep.res[:, C_COLL], r["coll_steps"] / 60)

@@ -10,11 +10,12 @@ from oneocean.engine import grid as G
 from oneocean.engine import status as st
 from oneocean.errors import ConfigError, DataError
 from oneocean.io import write_npz_atomic
+from oneocean.testing import make_test_grid
 
 
 @pytest.fixture(scope="module")
 def export():
-    return G.make_test_grid()
+    return make_test_grid()
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +88,7 @@ def test_bad_forcing_config(export):
 
 def _linear_grid():
     """Currents linear in x, z, depth and time on an irregular depth axis (interp is exact)."""
-    d = G.make_test_grid(nt=4, nz=4, ny=6, nx=7, dx_m=50.0, dz_m=70.0, dt_s=600.0,
+    d = make_test_grid(nt=4, nz=4, ny=6, nx=7, dx_m=50.0, dz_m=70.0, dt_s=600.0,
                          depths=[0.0, 3.0, 10.0, 40.0], has_tide=True, land=False)
     x = float(d["x0_m"]) + 50.0 * np.arange(7)
     z = float(d["z0_m"]) + 70.0 * np.arange(6)

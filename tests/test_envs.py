@@ -15,13 +15,14 @@ from oneocean.errors import ConfigError
 from oneocean.evaluate import evaluate, load_policy
 from oneocean.tasks import run_cell
 from oneocean.tasks.common import OBS_DIM, OBS_FIELDS
+from oneocean.testing import make_test_grid
 
 METRIC_COLS = ["success", "T_s", "E", "coll_ratio", "violations", "primary"]
 
 
 @pytest.fixture(scope="module")
 def coast():
-    return E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 class Replay:
@@ -122,7 +123,7 @@ def test_cli_evaluate_writes_the_cell_table(tmp_path, coast):
     from oneocean.io import write_npz_atomic
 
     grid = tmp_path / "grid.npz"
-    write_npz_atomic(grid, E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+    write_npz_atomic(grid, make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
     pol = tmp_path / "mypolicy.py"
     pol.write_text("import numpy as np\n"
                    "def act(obs):\n"

@@ -14,11 +14,12 @@ from oneocean.errors import ConfigError
 from oneocean.tasks import Cell
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.tasks.loop import FINISHED
+from oneocean.testing import make_test_grid
 
 
 @pytest.fixture(scope="module")
 def coast():
-    return E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 def _episodes(cell, method, n=4, seed=1, record=False):
@@ -72,8 +73,9 @@ def test_task_kernel_loads_from_the_cache_in_a_new_process(coast):
     can cache it: a second process loads it instead of compiling it again."""
     code = textwrap.dedent("""
         from oneocean import engine as E
+        from oneocean.testing import make_test_grid
         from oneocean.tasks import run_cell, g2g
-        g = E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+        g = E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
         run_cell(g, "G2G", 1, "heuristic", episodes=2, seed=0)
         print(sum(g2g._kernel.stats.cache_hits.values()),
               sum(g2g._kernel.stats.cache_misses.values()))
@@ -82,3 +84,29 @@ def test_task_kernel_loads_from_the_cache_in_a_new_process(coast):
                           check=True).stdout.split() for _ in range(2)]
     hits, misses = map(int, out[1])
     assert hits == 1 and misses == 0, out
+
+
+def test_python_planner_between_segments_drives_the_fused_policy(coast):
+    """The planner kind: a Python planner writes the plan tokens between K-step segments and
+    the fused low-level policy follows them. Replaying the fused plan hook from Python every
+    step reproduces the fused rollout exactly; planning every 5 steps changes it."""
+    cell = Cell(coast, "FT", 1, n_agents=4)
+    fused = _episodes(cell, "heuristic", n=3).run()
+
+    def replay(ep):
+        pol = ep.mod.POLICY
+        for e in range(ep.n_episodes):
+            if not ep.done[e]:
+                k = int(ep.k[e])
+                pol.plan(ep.grid, ep.P, ep.W, ep.M, ep.state, e, k, ep.t0[e] + k * ep.dt)
+
+    def make():
+        return Episodes(cell.mod, cell.grid, cell.params, cell.reset(3, 1), "heuristic",
+                        "6dof", cell.vehicle, 1, fused_plan=False)
+
+    planned = make().run_planned(replay, every=1)
+    np.testing.assert_array_equal(planned.res, fused.res)
+    sparse = make().run_planned(replay, every=5)
+    assert not np.array_equal(sparse.res, fused.res)
+    with pytest.raises(ConfigError, match="every must be"):
+        make().run_planned(replay, every=0)

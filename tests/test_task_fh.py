@@ -17,6 +17,7 @@ from oneocean.models.fish import fish_params, init_school, step_school
 from oneocean.tasks import fh, run_cell
 from oneocean.tasks.episodes import rollout
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
+from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 600.0, "probe_noise_ms": 0.1, "fish_count": 60,
@@ -26,12 +27,12 @@ N = fh.N_AGENTS
 
 @pytest.fixture(scope="module")
 def calm():
-    return E.load_grid(E.uniform_grid(0.0, 0.0, depth_m=30.0, nx=21, ny=21, dx_m=100.0))
+    return E.load_grid(uniform_grid(0.0, 0.0, depth_m=30.0, nx=21, ny=21, dx_m=100.0))
 
 
 @pytest.fixture(scope="module")
 def coast():
-    return E.load_grid(E.make_test_grid(nt=4, nz=3, ny=30, nx=40, dt_s=3600.0))
+    return E.load_grid(make_test_grid(nt=4, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 def _tier(i):
@@ -80,7 +81,7 @@ def test_reset_raises_when_impossible(calm):
         fh.reset(calm, TIER, 5, 2, 0)
     with pytest.raises(ConfigError, match="< 50"):
         fh.reset(calm, {**TIER, "fish_count": 40}, N, 2, 0)
-    shallow = E.load_grid(E.uniform_grid(0.0, 0.0, depth_m=4.0))  # fish need >= 5 m of water
+    shallow = E.load_grid(uniform_grid(0.0, 0.0, depth_m=4.0))  # fish need >= 5 m of water
     with pytest.raises(ConfigError, match="FH"):
         fh.reset(shallow, TIER, N, 2, 0)
     with pytest.raises(ConfigError, match="FH"):  # 5 km to the zone in a 2 km grid
@@ -89,7 +90,7 @@ def test_reset_raises_when_impossible(calm):
 
 def test_fish_never_enter_land():
     # a 1 m/s westward current pushes the school onto a coast 80 m west of it
-    g = E.uniform_grid(-1.0, 0.0, depth_m=30.0, nx=21, ny=21, dx_m=100.0)
+    g = uniform_grid(-1.0, 0.0, depth_m=30.0, nx=21, ny=21, dx_m=100.0)
     g["land_mask"][:, :10] = 1.0
     g["elevation"][:, :10] = 5.0
     g["valid_mask"][:, :, :10] = 0
@@ -150,7 +151,7 @@ def test_do_nothing_fails_with_time_limit(calm):
 
 def test_strong_current_away_from_the_zone_defeats_herding():
     # fish swim at most 1 m/s: a 1.5 m/s current away from the zone cannot be beaten
-    grid = E.load_grid(E.uniform_grid(-1.5, 0.0, depth_m=30.0, nx=41, ny=21, dx_m=100.0))
+    grid = E.load_grid(uniform_grid(-1.5, 0.0, depth_m=30.0, nx=41, ny=21, dx_m=100.0))
     init = _hand_init((80.0, 0.0), ring=60.0)
     for method in ("oracle", "heuristic"):
         r = _roll(grid, {**TIER, "time_limit_s": 200.0}, init, method=method)

@@ -16,6 +16,7 @@ from oneocean.errors import ConfigError
 from oneocean.tasks import g2g, run_cell
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear
 from oneocean.tasks.episodes import rollout
+from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone
 
 TIER = {"current_gain": 1.0, "time_limit_s": 600.0, "probe_noise_ms": 0.1,
@@ -24,12 +25,12 @@ TIER = {"current_gain": 1.0, "time_limit_s": 600.0, "probe_noise_ms": 0.1,
 
 @pytest.fixture(scope="module")
 def calm():
-    return E.load_grid(E.uniform_grid(0.0, 0.0, depth_m=60.0, nx=21, ny=21, dx_m=100.0))
+    return E.load_grid(uniform_grid(0.0, 0.0, depth_m=60.0, nx=21, ny=21, dx_m=100.0))
 
 
 @pytest.fixture(scope="module")
 def coast():
-    return E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 def _run(grid, tier, method, dyn="kinematic", n=6, seed=0, vehicle=None):
@@ -58,7 +59,7 @@ def test_reset_geometry_is_valid(coast):
 def test_reset_raises_when_impossible(calm):
     with pytest.raises(ConfigError, match="G2G"):  # 2 km grid, 5 km goal distance
         g2g.reset(calm, {**TIER, "goal_distance_m": 5000.0}, 1, 2, 0)
-    shallow = E.load_grid(E.uniform_grid(0.0, 0.0, depth_m=8.0))
+    shallow = E.load_grid(uniform_grid(0.0, 0.0, depth_m=8.0))
     with pytest.raises(ConfigError, match="G2G"):  # cannot keep 5 m altitude at 2-10 m depth
         g2g.reset(shallow, TIER, 1, 2, 0)
     with pytest.raises(ConfigError, match="single-agent"):
@@ -99,7 +100,7 @@ def test_do_nothing_fails_with_time_limit(calm):
 
 def test_current_stronger_than_vmax_defeats_both_methods():
     # goal 500 m upstream of a uniform 3 m/s current (> v_max = 2 m/s): unreachable
-    grid = E.load_grid(E.uniform_grid(-3.0, 0.0, depth_m=60.0, nx=41, ny=41, dx_m=100.0))
+    grid = E.load_grid(uniform_grid(-3.0, 0.0, depth_m=60.0, nx=41, ny=41, dx_m=100.0))
     init = {"pos0": np.array([[[0.0, 5.0, 0.0]]]), "goal": np.array([[500.0, 5.0, 0.0]]),
             "psi0": np.array([[math.pi / 2]]), "t0": np.zeros(1)}
     tier = {**TIER, "time_limit_s": 200.0}
@@ -116,7 +117,7 @@ def test_current_stronger_than_vmax_defeats_both_methods():
 
 def test_head_current_separates_heuristic_from_oracle():
     # 1 m/s current everywhere: the oracle (2 m/s budget) always makes >= 1 m/s of headway...
-    grid = E.load_grid(E.uniform_grid(1.0, 0.0, depth_m=60.0, nx=41, ny=41, dx_m=100.0))
+    grid = E.load_grid(uniform_grid(1.0, 0.0, depth_m=60.0, nx=41, ny=41, dx_m=100.0))
     tier = {**TIER, "time_limit_s": 560.0}
     _, ro = _run(grid, tier, "oracle", n=12)
     _, rh = _run(grid, tier, "heuristic", n=12)

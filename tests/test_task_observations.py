@@ -11,6 +11,7 @@ import pytest
 from oneocean import engine as E
 from oneocean.tasks import run_cell, task_module
 from oneocean.tasks.common import ACT_FIELDS, N_MATES, OBS_DIM, OBS_FIELDS, tier_params
+from oneocean.testing import make_test_grid
 from oneocean.vocab import TASK_IDS
 
 #: (n_agents, tier) per task on the test grid: team tasks with several agents.
@@ -23,7 +24,7 @@ COL = {k: i for i, k in enumerate(OBS_FIELDS)}
 
 @pytest.fixture(scope="module")
 def coast():
-    return E.load_grid(E.make_test_grid(nt=5, nz=5, ny=40, nx=50, max_depth_m=60.0))
+    return E.load_grid(make_test_grid(nt=5, nz=5, ny=40, nx=50, max_depth_m=60.0))
 
 
 def test_layout():

@@ -20,6 +20,7 @@ from oneocean.models import pollution as pol
 from oneocean.tasks import pi, run_cell
 from oneocean.tasks.common import STANDARD, load_task_table
 from oneocean.tasks.episodes import Episodes, rollout
+from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 900.0, "probe_noise_ms": 0.1,
@@ -30,7 +31,7 @@ TIER = {"current_gain": 1.0, "time_limit_s": 900.0, "probe_noise_ms": 0.1,
 
 def _sloped(ce=0.0, cn=0.0, nx=21, ny=21, dx=100.0):
     """Land-free grid, uniform current, seafloor deepening eastward 40 -> 80 m."""
-    g = E.uniform_grid(ce, cn, depth_m=80.0, nx=nx, ny=ny, dx_m=dx)
+    g = uniform_grid(ce, cn, depth_m=80.0, nx=nx, ny=ny, dx_m=dx)
     x = np.arange(nx) / (nx - 1)
     g["elevation"] = np.tile(-(40.0 + 40.0 * x), (ny, 1)).astype(np.float32)
     return E.load_grid(g)
@@ -43,7 +44,7 @@ def calm():
 
 @pytest.fixture(scope="module")
 def coast():
-    return E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 def _still():

@@ -14,6 +14,7 @@ from oneocean.errors import ConfigError
 from oneocean.tasks import rf, run_cell
 from oneocean.tasks.common import load_task_table, path_clear
 from oneocean.tasks.episodes import rollout
+from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 900.0, "probe_noise_ms": 0.0, "n_waypoints": 3,
@@ -21,12 +22,12 @@ TIER = {"current_gain": 1.0, "time_limit_s": 900.0, "probe_noise_ms": 0.0, "n_wa
 
 
 def _grid(ce=0.0, cn=0.0, depth=60.0, n=31):
-    return E.load_grid(E.uniform_grid(ce, cn, depth_m=depth, nx=n, ny=n, dx_m=100.0))
+    return E.load_grid(uniform_grid(ce, cn, depth_m=depth, nx=n, ny=n, dx_m=100.0))
 
 
 @pytest.fixture(scope="module")
 def coast():
-    return E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 def _run(grid, tier, method, dyn="kinematic", n=4, seed=0, init=None):

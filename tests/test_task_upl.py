@@ -16,6 +16,7 @@ from oneocean.errors import ConfigError
 from oneocean.tasks import run_cell, upl
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
 from oneocean.tasks.episodes import rollout
+from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.1, "site_depth_m": 40.0,
@@ -27,7 +28,7 @@ N = upl.N_SLOTS
 
 def _flat(floor_m, deepest_m=80.0, ce=0.0):
     """Flat ``floor_m`` seafloor, no land, uniform current; current levels 0 and ``deepest_m``."""
-    g = E.uniform_grid(ce, 0.0, depth_m=floor_m, nx=21, ny=21, dx_m=100.0)
+    g = uniform_grid(ce, 0.0, depth_m=floor_m, nx=21, ny=21, dx_m=100.0)
     g["depth"] = np.array([0.0, float(deepest_m)])
     return E.load_grid(g)
 
@@ -41,7 +42,7 @@ def calm():
 @pytest.fixture(scope="module")
 def coast():
     """Sloping seafloor to 75 m with a coast, currents, tides; deepest level 60 m."""
-    return E.load_grid(E.make_test_grid(nt=4, nz=5, ny=40, nx=50, max_depth_m=60.0))
+    return E.load_grid(make_test_grid(nt=4, nz=5, ny=40, nx=50, max_depth_m=60.0))
 
 
 def _tier(i):

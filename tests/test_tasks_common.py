@@ -15,14 +15,15 @@ from oneocean.engine import status as st
 from oneocean.errors import ConfigError
 from oneocean.tasks import g2g, run_cell
 from oneocean.tasks import sk
-from oneocean.tasks.common import (STANDARD, HEURISTIC, ORACLE, path_clear, sample_route,
-                                   seek_max, sensed_current, start_times, steer,
+from oneocean.tasks.common import (STANDARD, path_clear, sample_route,
+                                   seek_max, start_times, steer,
                                    episode_generators, waypoint_carrot)
+from oneocean.testing import make_test_grid
 
 
 @pytest.fixture(scope="module")
 def coast():
-    return E.load_grid(E.make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 # ----------------------------------------------------------------------------- steering
@@ -202,10 +203,13 @@ def test_currents_off_replays_the_same_episodes(coast, monkeypatch):
 
 
 def test_sensed_current_noisy_for_heuristic_exact_for_oracle():
-    assert sensed_current(ORACLE, 0.3, -0.2, 0.5, 1, 0, 0) == (0.3, -0.2)
-    a = sensed_current(HEURISTIC, 0.3, -0.2, 0.5, 1, 0, 0)
-    assert a != (0.3, -0.2) and a == sensed_current(HEURISTIC, 0.3, -0.2, 0.5, 1, 0, 0)
-    assert sensed_current(HEURISTIC, 0.3, -0.2, 0.0, 1, 0, 0) == (0.3, -0.2)
+    from oneocean.methods.heuristic import SENSING
+    from oneocean.tasks.loop import sense
+
+    assert sense(SENSING["oracle"], 0.3, -0.2, 0.5, 1, 0, 0) == (0.3, -0.2)
+    a = sense(SENSING["heuristic"], 0.3, -0.2, 0.5, 1, 0, 0)
+    assert a != (0.3, -0.2) and a == sense(SENSING["heuristic"], 0.3, -0.2, 0.5, 1, 0, 0)
+    assert sense(SENSING["heuristic"], 0.3, -0.2, 0.0, 1, 0, 0) == (0.3, -0.2)
 
 
 def test_waypoint_carrot_transit_legs_and_hold():

@@ -37,9 +37,10 @@ def hot_kernel(*args, **kwargs):
 # ----------------------------------------------------------------------------- cache hygiene
 #
 # numba keys a cached function on its own source file's timestamp only. Engine kernels are
-# inlined into (and linked with) kernels of other engine modules, so editing dynamics.py would
-# leave rollout.py's cached kernel running the old dynamics. ``ensure_fresh_cache`` therefore
-# fingerprints the engine sources and drops this package's cache entries when it changes.
+# inlined into (and linked with) kernels of other modules, so editing dynamics.py would leave
+# a cached kernel that inlines it (a task's episode loop) running the old dynamics.
+# ``ensure_fresh_cache`` therefore fingerprints the engine sources and drops this package's
+# cache entries when it changes.
 
 import hashlib  # noqa: E402
 import os  # noqa: E402

@@ -6,8 +6,10 @@ matrices ``M``, ``C(nu)``, ``D(nu)`` and ``np.linalg.solve``) so that it serves 
 * a correctness oracle: the tests check that the jitted engine reproduces it;
 * the denominator of the benchmark's speed-up (the "plain per-step loop of the same model").
 
-Only the GOAL controller is implemented. Semantics are those of
-:func:`oneocean.engine.rollout.run` (clip, energy, dynamics, feasibility, collisions).
+Only a proportional go-to-goal controller is implemented. Semantics per step are those of
+the episode loop (:func:`oneocean.tasks.loop.run_episode` with
+:func:`oneocean.engine.advance_agent`): current at the agent, clip, energy, dynamics,
+feasibility, near-collisions.
 """
 
 from __future__ import annotations
@@ -221,9 +223,11 @@ def reference_run(grid: Grid, positions, goals, steps: int, *, dynamics: str = "
                   feedforward: bool = True, thrust: bool = True, v_max: float | None = None,
                   land_threshold: float = 0.5, clearance: float = 1.0, r_coll: float = 2.0,
                   t0: float = 0.0, heading: float = 0.0) -> dict:
-    """Roll out the GOAL controller with a per-step Python loop.
+    """Roll out a proportional go-to-goal controller with a per-step Python loop.
 
-    Parameters mirror :func:`oneocean.engine.rollout.run` with a :func:`goal_controller`.
+    The action is ``kp (goal - p)``, minus the current at the agent when ``feedforward``,
+    clipped to ``v_max``; ``goals`` (E, A, 3) or (E, A, 4) with a heading command (rad,
+    NaN = free) in the last column.
     Returns ``{"state" (E, A, STATE_DIM), "energy" (E, A), "violations" (E, A),
     "status" (E, A), "coll_steps" (E,)}``.
     """

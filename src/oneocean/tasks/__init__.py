@@ -1,9 +1,11 @@
 """The canonical 10-task ladder (G2G, SK, RF, DPT, AS, PI, FT, SPC, UPL, FH).
 
-Each task is one module (see ``docs/tasks_design.md``) exposing ``TASK_ID``, ``METRICS``
-(``METRICS[0]`` is the primary metric), ``reset(...)`` and ``rollout(...)``; its tier table is
-data in ``oneocean/data/tasks/<ID>.yaml``. :func:`run_cell` runs one
-(task, tier, method) cell of episodes on a grid export and returns one row per episode.
+Each task is one module, the environment (see ``docs/tasks_design.md``; ``g2g.py`` is the
+template): ``TASK_ID``, ``METRICS`` (``METRICS[0]`` is the primary metric), ``reset(...)``,
+``make(...)`` and the hooks of the one episode loop (:mod:`.loop`); its tier table, with its
+registry spec, is data in ``oneocean/data/tasks/<ID>.yaml``; its heuristic and oracle are in
+:mod:`oneocean.methods.heuristic`. :func:`run_cell` runs one (task, tier, method) cell of
+episodes on a grid export and returns one row per episode.
 """
 
 from __future__ import annotations
@@ -14,9 +16,8 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError
-from ..vocab import TASK_IDS, validate_choice
-from .common import (ACT_FIELDS, OBS_FIELDS, STANDARD, load_task_table, method_id,  # noqa: F401
-                     tier_params)
+from .common import ACT_FIELDS, OBS_FIELDS, STANDARD, load_task_table, tier_params  # noqa: F401
+
 
 def task_module(task_id: str):
     """The module implementing ``task_id`` (``oneocean.registry.task_spec(id).module``)."""
@@ -73,7 +74,8 @@ class Cell:
 def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: int = 50,
              seed: int = 0, dynamics: str = "6dof", currents: bool = True,
              n_agents: int | None = None, vehicle=None, observations: bool = False):
-    """Run ``episodes`` episodes of one (task, tier, method) cell, batched in one kernel call.
+    """Run ``episodes`` episodes of one (task, tier, method) cell on the one episode loop,
+    batched in one kernel call (a fused method: the task's heuristic or oracle).
 
     Parameters
     ----------
@@ -93,17 +95,14 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     NaN after an episode ended.
     """
     cell = Cell(grid, task, tier, n_agents=n_agents, currents=currents, vehicle=vehicle)
-    method_id(method)
+    from ..registry import method_spec
+    from .episodes import rollout
+
+    method_spec(method)   # an unknown method is a one-line ConfigError
     mod, n = cell.mod, cell.n_agents
     init = cell.reset(episodes, seed)
-    if hasattr(mod, "make"):   # a task on the one episode loop
-        from .episodes import rollout
-
-        res = rollout(mod, cell.grid, cell.params, init, method, dynamics, cell.vehicle,
-                      int(seed), record=observations)
-    else:
-        res = mod.rollout(cell.grid, cell.params, init, method, dynamics, cell.vehicle,
-                          int(seed), record=observations)
+    res = rollout(mod, cell.grid, cell.params, init, method, dynamics, cell.vehicle, int(seed),
+                  record=observations)
     df = cell_frame(mod, res, tier, method, n, dynamics, currents, episodes, seed)
     if observations:
         return df, res["obs"], res["act"]

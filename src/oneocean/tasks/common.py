@@ -1,8 +1,9 @@
-"""Pieces every task shares: the per-agent step, probes, seeds, start times and result columns.
+"""Pieces every task shares: probes, seeds, start times, steering helpers, observation
+recording, tier tables and result columns.
 
-Task kernels (one ``@njit(parallel=True, cache=True)`` rollout per task, ``prange`` over
-episodes) call :func:`advance_agent` for every agent and step, so dynamics, feasibility
-(eq. 3), the energy proxy (eq. 7) and violation counting are identical across tasks.
+The per-agent step (:func:`oneocean.engine.step.advance_agent`: clip, energy, dynamics,
+feasibility) and everything else every episode shares is in the one episode loop
+(:mod:`oneocean.tasks.loop`); task modules hold only their own world.
 """
 
 from __future__ import annotations
@@ -16,15 +17,9 @@ import yaml
 
 from ..engine import status as st
 from ..engine._jit import hot_kernel
-from ..engine.rollout import advance_agent  # noqa: F401  (re-exported: every task kernel's step)
 from ..engine.grid import Grid, sample_current_data, sample_elevation, synthetic_tide
 from ..engine.rng import PURPOSE_TASK, normal
 from ..errors import ConfigError
-from ..vocab import validate_choice
-
-#: Methods a task kernel understands (``method`` int inside the kernels).
-HEURISTIC, ORACLE = 0, 1
-METHOD_IDS = {"heuristic": HEURISTIC, "oracle": ORACLE}
 
 #: Random-stream purposes of the task layer (counter-based: ``normal(seed, ep, purpose, k)``).
 PURPOSE_PROBE = PURPOSE_TASK + 1
@@ -64,10 +59,6 @@ MIN_ALTITUDE_M = 5.0
 CLEARANCE_M = 1.0
 
 
-def method_id(method: str) -> int:
-    return METHOD_IDS[validate_choice(method, tuple(METHOD_IDS), "method")]
-
-
 @hot_kernel(inline="always")
 def current_at(grid, x, y, z, t):
     """True current (ce, cn) m s-1 at world (x, y, z) m, time t s (gain and tides included)."""
@@ -86,15 +77,6 @@ def probe(ce, cn, noise_std, seed, episode, counter):
         return ce, cn
     return (ce + noise_std * normal(seed, episode, PURPOSE_PROBE, counter),
             cn + noise_std * normal(seed, episode, PURPOSE_PROBE, counter + 1))
-
-
-@hot_kernel(inline="always")
-def sensed_current(method, ce, cn, noise_std, seed, episode, counter):
-    """The current a method knows at its agent: the heuristic's noisy :func:`probe`, the
-    oracle's exact ``(ce, cn)``."""
-    if method == HEURISTIC:
-        return probe(ce, cn, noise_std, seed, episode, counter)
-    return ce, cn
 
 
 @hot_kernel(inline="always")

@@ -118,27 +118,6 @@ def profile_at(ax_, ay_, az_, bx, by, bz, px, pz):
     return s, ln, tx, tz, ay_ + f * (by - ay_), (by - ay_) / ln, math.sqrt(qx * qx + qz * qz)
 
 
-@hot_kernel(inline="always")
-def profile_at(ax_, ay_, az_, bx, by, bz, px, pz):
-    """Horizontal projection of (px, pz) on leg a->b.
-
-    Returns (along-track s m, horizontal leg length m, unit horizontal tangent (tx, tz),
-    target depth at the clamped projection m, profile slope dy/ds, cross-track distance m).
-    """
-    lx = bx - ax_
-    lz = bz - az_
-    ln = math.sqrt(lx * lx + lz * lz)
-    if ln <= 1e-12:
-        return 0.0, 0.0, 0.0, 0.0, by, 0.0, math.sqrt((px - bx) ** 2 + (pz - bz) ** 2)
-    tx = lx / ln
-    tz = lz / ln
-    s = (px - ax_) * tx + (pz - az_) * tz
-    f = min(max(s / ln, 0.0), 1.0)
-    qx = ax_ + f * lx - px
-    qz = az_ + f * lz - pz
-    return s, ln, tx, tz, ay_ + f * (by - ay_), (by - ay_) / ln, math.sqrt(qx * qx + qz * qz)
-
-
 class DPTParams(NamedTuple):
     radius: float           # horizontal waypoint radius, m
     depth_tol: float        # bound on the RMS depth error for success, m

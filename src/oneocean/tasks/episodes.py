@@ -44,10 +44,14 @@ class Episodes:
         Run seed (probe-noise streams).
     record : bool
         Record every agent's per-step observation and action.
+    fused_plan : bool
+        Call the fused policy's ``plan`` hook every step (default). ``False``: the plan
+        tokens in ``W`` are written by a Python planner between segments
+        (:meth:`run_planned`), and the fused ``act`` follows them.
     """
 
     def __init__(self, mod, grid, tier: dict, init: dict, method: str | None, dyn: str,
-                 vehicle, seed: int, *, record: bool = False):
+                 vehicle, seed: int, *, record: bool = False, fused_plan: bool = True):
         need_tier(mod.TASK_ID, tier, "time_limit_s", "dt_s")
         pol = mod.POLICY
         if method is not None and method not in pol.SENSING:
@@ -66,8 +70,9 @@ class Episodes:
         self.M = pol.params(method or "heuristic", tier, vehicle)
         noisy = pol.SENSING[method] if method is not None else 1
         self.LP = LoopParams(model_id(dyn), FUSED if method is not None else EXTERNAL,
-                             int(noisy), self.n_steps, int(seed), dt, float(vehicle.v_max),
-                             float(tier.get("probe_noise_ms", 0.0)), DEFAULT_LAND_THRESHOLD,
+                             int(bool(fused_plan)), int(noisy), self.n_steps, int(seed), dt,
+                             float(vehicle.v_max), float(tier.get("probe_noise_ms", 0.0)),
+                             DEFAULT_LAND_THRESHOLD,
                              float(getattr(mod, "CLEARANCE_M", CLEARANCE_M)),
                              float(getattr(mod, "R_COLL_M", DEFAULT_R_COLL_M)))
         self.LS = new_loop_state(n_ep, n_ag)
@@ -105,6 +110,21 @@ class Episodes:
         self.mod._kernel(self.grid, self.vehicle.params, self.LP, self.P, self.W, self.M,
                          self.LS, self.t0, self.state, self.cmd, self.ext, self.obs, self.act,
                          self.res, k_stop)
+        return self
+
+    def run_planned(self, planner, every: int) -> "Episodes":
+        """Run to the end in segments of ``every`` steps, calling ``planner(self)`` before
+        each segment (the planner kind of method: it reads the batch, e.g. ``W`` and
+        ``state``, and writes plan tokens into ``W``; build the batch with
+        ``fused_plan=False``). Planner and segments see the same step counter ``k``."""
+        every = int(every)
+        if every < 1:
+            raise ConfigError(f"run_planned: every must be >= 1, got {every}")
+        self.run(0)
+        while not self.done.all():
+            planner(self)
+            live = ~self.done
+            self.run(int(self.k[live].max()) + every)
         return self
 
     def set_actions(self, actions) -> None:

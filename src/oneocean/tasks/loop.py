@@ -11,7 +11,8 @@ segments of steps (``k_stop``), so a Python planner or a step API can act betwee
 Per step ``k`` of episode ``e`` (``t = t0[e] + k dt``)::
 
     env.pre_step                      task physics before the agents act (e.g. face velocities)
-    policy.plan                       the method's team-level decision (assignment, map)
+    policy.plan                       the method's team-level decision (assignment, map);
+                                      skipped when a Python planner writes the plan tokens
     for every agent i:
         c   = true current at the agent (gain and tides included)
         c~  = what the method senses (noisy probe or exact)
@@ -66,7 +67,7 @@ import numpy as np
 
 from ..engine.constraints import min_pairwise_distance
 from ..engine._jit import hot_kernel
-from ..engine.rollout import advance_agent
+from ..engine.step import advance_agent
 from .common import OK, current_at, observe, probe
 
 #: Policy kinds inside the loop: the task's fused policy (heuristic, oracle, ...) or an
@@ -82,6 +83,8 @@ class LoopParams(NamedTuple):
     """Scalars of the loop (one rollout, all episodes)."""
     model: int          # dynamics model id (engine.dynamics.model_id)
     policy: int         # FUSED or EXTERNAL
+    plan: int           # 1: call the fused policy's plan hook every step; 0: the plan tokens
+                        # in W come from a Python planner between segments
     noisy: int          # 1: the method senses the current through the noisy probe
     n_steps: int        # episode length, steps (the time limit)
     seed: int           # run seed (probe-noise streams)
@@ -157,7 +160,7 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
     while k < n_steps and k < k_stop and not stop:
         t = t0[e] + k * dt
         pre_step(grid, P, W, state, e, k, t)
-        if LP.policy == FUSED:
+        if LP.policy == FUSED and LP.plan != 0:
             plan(grid, P, W, M, state, e, k, t)
         for i in range(n_ag):
             s = S[i]

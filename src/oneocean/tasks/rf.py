@@ -106,28 +106,6 @@ def leg_geometry(ax_, ay_, az_, bx, by, bz, px, py, pz):
     return s, math.sqrt(qx * qx + qy * qy + qz * qz), tx, ty, tz, ln
 
 
-@hot_kernel(inline="always")
-def leg_geometry(ax_, ay_, az_, bx, by, bz, px, py, pz):
-    """Projection of point p on segment a->b: (along-track m, cross-track distance m, unit
-    tangent (tx, ty, tz), leg length m). The cross-track distance is to the segment."""
-    lx = bx - ax_
-    ly = by - ay_
-    lz = bz - az_
-    ln = math.sqrt(lx * lx + ly * ly + lz * lz)
-    if ln <= 1e-12:
-        return 0.0, math.sqrt((px - ax_) ** 2 + (py - ay_) ** 2 + (pz - az_) ** 2), 0.0, 0.0, \
-            0.0, 0.0
-    tx = lx / ln
-    ty = ly / ln
-    tz = lz / ln
-    s = (px - ax_) * tx + (py - ay_) * ty + (pz - az_) * tz
-    sc = min(max(s, 0.0), ln)
-    qx = ax_ + sc * tx - px
-    qy = ay_ + sc * ty - py
-    qz = az_ + sc * tz - pz
-    return s, math.sqrt(qx * qx + qy * qy + qz * qz), tx, ty, tz, ln
-
-
 class RFParams(NamedTuple):
     radius: float           # waypoint radius, m
     xte_max: float          # bound on the mean cross-track error for success, m

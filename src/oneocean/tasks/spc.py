@@ -19,7 +19,7 @@ Objective
     ``min_drift_ms``: harder tiers are spills in moving water (a spill in slack water is no
     response challenge); the currents-off ablation replays the same sites.
 Physics (identical for every method)
-    Each step every vehicle moves (:func:`~oneocean.tasks.common.advance_agent`), then removes
+    Each step every vehicle moves (:func:`~oneocean.engine.step.advance_agent`), then removes
     the fraction ``removal_rate_s * dt`` of the concentration of every field cell whose centre
     is within ``removal_radius_m`` of it (:func:`~oneocean.models.pollution.remove_in_radius`,
     in agent order), then the field advances by ``dt``.

@@ -15,7 +15,7 @@ Physics (the environment; identical for every method)
       slot (slots are >= 3.5 m apart, so at most one is in reach). An attached agent detaches
       (and must attach again) when it is more than ``detach_radius_m`` from its slot.
     * Lift: while at least ``quorum`` agents are attached, the object and the attached agents
-      form one assembly. After every agent's own step (:func:`~oneocean.tasks.common.advance_agent`:
+      form one assembly. After every agent's own step (:func:`~oneocean.engine.step.advance_agent`:
       dynamics, current, feasibility, energy), the assembly moves by the attached agents' mean
       displacement plus the sink of the object's net weight, ``w_load dt`` downward with
       ``w_load = sink_speed_ms * N_SLOTS / n_attached`` (the weight is shared by the attached
