@@ -14,7 +14,8 @@ rule rollout_cell:
         "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}.tsv"
     params:
         run=lambda wc: {k: config["rollouts"][k] for k in ("episodes", "seed", "dynamics")},
-        code=code_version("oneocean.tasks", "oneocean.engine", "oneocean.models", "oneocean.data"),
+        code=code_version("oneocean.tasks", "oneocean.methods", "oneocean.engine", "oneocean.models",
+                          "oneocean.data"),
     threads: lambda wc: config["rollouts"]["threads"]
     script:
         "../scripts/rollout_cell.py"
