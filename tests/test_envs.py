@@ -109,6 +109,24 @@ def test_pettingzoo_parallel_api(coast):
     assert list(obs) == ["vehicle_0"] and obs["vehicle_0"].shape == (OBS_DIM,)
 
 
+def test_pettingzoo_multi_agent_team(coast):
+    """A team task (FT, 3 vehicles) as a PettingZoo parallel env: one observation and one
+    action per vehicle, teammates' offsets in every observation."""
+    from pettingzoo.test import parallel_api_test
+
+    from oneocean.envs import parallel_env
+
+    env = parallel_env("FT", 1, coast, n_agents=3)
+    parallel_api_test(env, num_cycles=30)
+    obs, _ = env.reset(seed=2)
+    assert list(obs) == ["vehicle_0", "vehicle_1", "vehicle_2"]
+    mates = OBS_FIELDS.index("mate1_dx_m")
+    for a in obs.values():
+        assert a.shape == (OBS_DIM,) and np.hypot(*a[mates:mates + 2]) > 0  # a teammate
+    out = env.step({a: np.zeros(3) for a in env.agents})
+    assert all(set(d) == set(obs) for d in out)
+
+
 def test_bad_policy_specs_fail_in_one_line():
     for spec, what in (("nomodule", "expected 'module:callable'"),
                        ("no_such_pkg_xyz:act", "cannot import"),

@@ -430,7 +430,10 @@ def obs_buffers(tier: dict, init: dict, record: bool):
     return (np.full((n_ep, steps, n_ag, OBS_DIM), np.nan),
             np.full((n_ep, steps, n_ag, len(ACT_FIELDS)), np.nan))
 
-@hot_kernel(inline="always")
+# not inlined: it runs only while observations are recorded, and one compiled copy (cached
+# once, shared by every task kernel) instead of one inlined copy per kernel cuts each task's
+# compile time (measured G2G 64 -> 54 s, SK 84 -> 49 s from a cold cache)
+@hot_kernel
 def observe(obs, act, e, k, i, grid, state, gx, gy, gz, pe, pn, pollution, ax, ay, az):
     """Record agent ``i``'s observation (``OBS_FIELDS``) and action (``ACT_FIELDS``) at step
     ``k`` of episode ``e``, from its pre-step state; a no-op when ``k >= obs.shape[1]`` (the
