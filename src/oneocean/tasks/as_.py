@@ -39,7 +39,7 @@ Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.task
     ``finish`` (``hot_kernel``, no allocation); ``POLICY`` (the fused heuristic/oracle
     module, whose Python planner ``POLICY.prepare`` writes the plan tokens before the first
     segment, :class:`~oneocean.tasks.episodes.Episodes` calls it); ``_kernel`` and
-    ``_observe_kernel`` (``njit(parallel=True, cache=True)``: the one loop in ``prange`` over
+    ``_observe_kernel`` (``njit(cache=True, nogil=True)``: the one loop over a block of
     episodes, specialised to these hooks).
 
 Default team size: N = 1, as in the paper's Table V (so SRs are comparable); any N in
@@ -52,7 +52,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..engine._jit import hot_kernel
 from ..engine.constraints import spawn_positions
@@ -318,9 +318,9 @@ def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k
                 k_stop)
 
 
-@njit(parallel=True, cache=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop):
-    for e in prange(state.shape[0]):
+@njit(cache=True, nogil=True)
+def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
+    for e in range(e_lo, e_hi):
         _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
 
 
@@ -329,9 +329,9 @@ def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
     observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
 
 
-@njit(parallel=True, cache=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact):
-    for e in prange(state.shape[0]):
+@njit(cache=True, nogil=True)
+def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
+    for e in range(e_lo, e_hi):
         _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
 
 

@@ -3,12 +3,15 @@
 :class:`Episodes` holds everything a rollout needs (the loop's params and state, the task's
 params ``P`` and work arrays ``W``, the method's params ``M``, agent states, buffers) and
 advances all episodes together with the task's kernel (:func:`oneocean.tasks.loop.run_episode`
-in ``prange``). ``run()`` runs to the end; ``run(k_stop)`` stops every episode before step
-``k_stop`` so a planner or the step API can act in between (``observe`` gives the next
-observation, ``set_actions`` the external actions of the next segment).
+for each episode; blocks of episodes on numba's thread count: :func:`over_episodes`).
+``run()`` runs to the end; ``run(k_stop)`` stops every episode before step ``k_stop`` so a
+planner or the step API can act in between (``observe`` gives the next observation,
+``set_actions`` the external actions of the next segment).
 """
 
 from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -18,6 +21,30 @@ from ..errors import ConfigError
 from .common import (ACT_FIELDS, CLEARANCE_M, OBS_DIM, STANDARD, episode_steps, need_tier,
                      rollout_results)
 from .loop import EXTERNAL, FUSED, FINISHED, LoopParams, new_loop_state
+
+
+def over_episodes(kernel, n_episodes: int, *args) -> None:
+    """Run ``kernel(*args, e_lo, e_hi)`` over episodes ``0 .. n_episodes-1`` on
+    ``numba.get_num_threads()`` threads, each a contiguous block of episodes.
+
+    Task kernels are serial ``njit(cache=True, nogil=True)`` loops over a block of episodes,
+    so threads run them without the GIL. This replaces ``prange``: numba's parfor pass more
+    than doubled every task kernel's compile time (G2G cold: 91 s with ``prange``, 37 s
+    without, same machine and load). Every episode is still computed by one thread with
+    counter-based random streams, so results do not depend on the thread count (tested).
+    """
+    import numba
+
+    n_thr = max(1, min(int(numba.get_num_threads()), int(n_episodes)))
+    if n_thr == 1:
+        kernel(*args, 0, int(n_episodes))
+        return
+    bounds = np.linspace(0, int(n_episodes), n_thr + 1).astype(np.int64)
+    with ThreadPoolExecutor(max_workers=n_thr) as pool:
+        futures = [pool.submit(kernel, *args, int(bounds[j]), int(bounds[j + 1]))
+                   for j in range(n_thr)]
+        for f in futures:
+            f.result()
 
 
 class Episodes:
@@ -107,9 +134,9 @@ class Episodes:
     def run(self, k_stop: int | None = None) -> "Episodes":
         """Advance every running episode up to step ``k_stop`` (default: to its end)."""
         k_stop = self.n_steps if k_stop is None else int(k_stop)
-        self.mod._kernel(self.grid, self.vehicle.params, self.LP, self.P, self.W, self.M,
-                         self.LS, self.t0, self.state, self.cmd, self.ext, self.obs, self.act,
-                         self.res, k_stop)
+        over_episodes(self.mod._kernel, self.n_episodes, self.grid, self.vehicle.params,
+                      self.LP, self.P, self.W, self.M, self.LS, self.t0, self.state, self.cmd,
+                      self.ext, self.obs, self.act, self.res, k_stop)
         return self
 
     def run_planned(self, planner, every: int) -> "Episodes":
@@ -140,8 +167,8 @@ class Episodes:
         finished episodes are not cleared: check :attr:`done`)."""
         nobs = np.full((self.n_episodes, 1, self.n_agents, OBS_DIM), np.nan)
         nact = np.zeros((self.n_episodes, 1, self.n_agents, len(ACT_FIELDS)))
-        self.mod._observe_kernel(self.grid, self.LP, self.P, self.W, self.LS, self.t0,
-                                 self.state, nobs, nact)
+        over_episodes(self.mod._observe_kernel, self.n_episodes, self.grid, self.LP, self.P,
+                      self.W, self.LS, self.t0, self.state, nobs, nact)
         return nobs[:, 0]
 
     def results(self) -> dict:

@@ -21,8 +21,8 @@ Module layout (the template every task module follows; the contract is
     :func:`~oneocean.tasks.common.episode_generators`); ``Params`` / ``Work`` and ``make``
     (the env's typed scalars and per-episode arrays); the env hooks ``begin``, ``cue``,
     ``post_step``, ``finish`` (``hot_kernel``, no allocation); ``POLICY`` (the task's fused
-    heuristic/oracle module); ``_kernel`` and ``_observe_kernel`` (``njit(parallel=True,
-    cache=True)``: the one loop in ``prange`` over episodes, specialised to these hooks).
+    heuristic/oracle module); ``_kernel`` and ``_observe_kernel`` (``njit(cache=True,
+    nogil=True)``: the one loop over a block of episodes, specialised to these hooks).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from typing import NamedTuple
 
@@ -157,9 +157,9 @@ def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k
                 k_stop)
 
 
-@njit(parallel=True, cache=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop):
-    for e in prange(state.shape[0]):
+@njit(cache=True, nogil=True)
+def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
+    for e in range(e_lo, e_hi):
         _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
 
 
@@ -168,9 +168,9 @@ def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
     observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
 
 
-@njit(parallel=True, cache=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact):
-    for e in prange(state.shape[0]):
+@njit(cache=True, nogil=True)
+def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
+    for e in range(e_lo, e_hi):
         _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
 
 

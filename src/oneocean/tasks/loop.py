@@ -27,17 +27,19 @@ Per step ``k`` of episode ``e`` (``t = t0[e] + k dt``)::
 Hooks are plain ``@hot_kernel`` functions of the task module (the env) and of its method
 module (the policy). The task module passes them to :func:`run_episode` (``inline="always"``)
 from its own serial ``_episode`` (``hot_kernel``), which its kernel ``_kernel``
-(``njit(parallel=True, cache=True)``) runs in ``prange`` over episodes; ``_observe`` /
-``_observe_kernel`` do the same for :func:`observe_next`. Two numba facts shape this
-(numba 0.6x; ``tests/test_loop.py`` checks that the kernels cache and that the loop
-state is written back):
+(``njit(cache=True, nogil=True)``) runs for a block of episodes ``[e_lo, e_hi)``;
+:func:`oneocean.tasks.episodes.over_episodes` runs the blocks on numba's thread count (no
+``prange``: the parfor pass more than doubled every task kernel's compile time). ``_observe``
+/ ``_observe_kernel`` do the same for :func:`observe_next`. Two numba facts shape this
+(numba 0.6x; ``tests/test_loop.py`` checks that the kernels cache and that the loop state is
+written back):
 
 * functions must reach the loop as module globals of the caller and the loop must be
   inlined there: a kernel that receives functions as run-time arguments embeds their
   addresses and cannot be cached ("uses dynamic globals"), so it recompiles in every process;
 * code inlined directly into a ``prange`` body loses stores into arrays held by a
-  heterogeneous NamedTuple (such as :class:`LoopState` or a task's work arrays): hence the
-  serial ``_episode`` between the ``prange`` and the inlined loop.
+  heterogeneous NamedTuple (such as :class:`LoopState` or a task's work arrays): keep the
+  serial ``_episode`` between any parallel loop and the inlined loop.
 
 NamedTuple classes crossing into a kernel need package-unique names (numba's parfor lowering
 resolves them by name: two classes both called ``Params`` collide), so they carry the task id.
@@ -142,7 +144,7 @@ def observe_next(grid, cue, P, W, LP, state, t0, e, k, nobs, nact):
 def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
                 grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act_rec, res, e, k_stop):
     """Advance episode ``e`` up to step ``k_stop`` (or its end); write ``res[e]`` when it
-    ends. Serial; the per-task kernel runs it for every episode in ``prange``."""
+    ends. Serial; the per-task kernel runs it for every episode of its block."""
     if LS.status[e] == FINISHED:
         return
     n_ag = state.shape[1]

@@ -30,7 +30,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine.dynamics import PSI, wrap_angle
@@ -166,9 +166,9 @@ def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k
                 k_stop)
 
 
-@njit(parallel=True, cache=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop):
-    for e in prange(state.shape[0]):
+@njit(cache=True, nogil=True)
+def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
+    for e in range(e_lo, e_hi):
         _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
 
 
@@ -177,9 +177,9 @@ def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
     observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
 
 
-@njit(parallel=True, cache=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact):
-    for e in prange(state.shape[0]):
+@njit(cache=True, nogil=True)
+def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
+    for e in range(e_lo, e_hi):
         _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
 
 
