@@ -25,6 +25,7 @@ def grid(export):
 
 def test_test_grid_has_exactly_the_contract_keys(export):
     assert set(export) == set(G.REQUIRED_KEYS)
+    assert set(G.OPTIONAL_KEYS) == {"current_mask"}
 
 
 def test_load_from_npz_path_equals_load_from_dict(tmp_path, export, grid):
@@ -132,10 +133,15 @@ def test_gain_tide_layers_and_synthetic_tide():
     u0, v0 = G.sample_current(base, x, y, z, t)
     ue, ve = _exact(x, y, z, t, tide=False)
     assert abs(u0 - ue) < 2e-6 and abs(v0 - ve) < 2e-6
+    # paper eq. 1: g scales the data currents only, the tide layers are added unscaled
     g2 = G.load_grid(d, current_gain=2.0)
     u2, v2 = G.sample_current(g2, x, y, z, t)
     ut, vt = _exact(x, y, z, t, tide=True)
-    assert abs(u2 - 2 * ut) < 4e-6 and abs(v2 - 2 * vt) < 4e-6
+    assert abs(u2 - (2 * ue + (ut - ue))) < 4e-6 and abs(v2 - (2 * ve + (vt - ve))) < 4e-6
+    u1, v1 = G.sample_current(G.load_grid(d), x, y, z, t)
+    assert u2 - u1 == pytest.approx(ue, abs=4e-6) and v2 - v1 == pytest.approx(ve, abs=4e-6)
+    g0 = G.with_forcing(g2, current_gain=0.0)                   # tide layers only
+    assert G.sample_current(g0, x, y, z, t) == pytest.approx((ut - ue, vt - ve), abs=2e-6)
     # tide layers are ignored when the export says it has none
     u3, _ = G.sample_current(G.load_grid(dict(d, has_tide=np.int8(0))), x, y, z, t)
     assert u3 == u0
@@ -200,3 +206,103 @@ def test_lonlat_roundtrip(grid):
     lon, lat = G.world_to_lonlat(grid, np.array([123.0]), np.array([-456.0]))
     x, z = G.lonlat_to_world(grid, lon, lat)
     assert x[0] == pytest.approx(123.0) and z[0] == pytest.approx(-456.0)
+
+
+def test_hold_levels():
+    valid = np.array([[1, 0, 1, 0], [1, 1, 0, 0], [0, 1, 0, 0], [0, 0, 0, 0]])[:, None, :]
+    src = G.hold_levels(valid)[:, 0, :]
+    # col 0: valid to 1 m -> held below; col 1: first level missing -> takes level 1;
+    # col 2: only the first level; col 3: no current (reads 0, zeroed by fill_columns)
+    np.testing.assert_array_equal(src, [[0, 1, 0, 0], [1, 1, 0, 0], [1, 2, 0, 0],
+                                        [1, 2, 0, 0]])
+    a = np.arange(2 * 4 * 1 * 4, dtype=np.float32).reshape(2, 4, 1, 4) + 1
+    f = G.fill_columns(a, valid)
+    np.testing.assert_array_equal(f[:, :, 0, 0], a[:, [0, 1, 1, 1], 0, 0])
+    np.testing.assert_array_equal(f[:, :, 0, 1], a[:, [1, 1, 2, 2], 0, 1])
+    assert (f[:, :, 0, 3] == 0).all()
+
+
+def _boundary_grid():
+    """A 4-level grid with u = 0.4, v = -0.2 wherever defined: a land node, water without
+    currents (a 2 x 2 block in the south-east), and a column whose bed is at 32.5 m."""
+    d = make_test_grid(nt=2, nz=4, ny=8, nx=8, dx_m=100.0, dz_m=100.0,
+                       depths=[0.5, 10.0, 20.0, 40.0], has_tide=True, land=False)
+    elev = np.full((8, 8), -60.0, np.float32)
+    elev[5, 2] = 3.0                                  # land
+    elev[3, 4] = -32.5                                # shallow column: no 40 m level
+    valid = np.ones((4, 8, 8), np.uint8)
+    valid[:, 5, 2] = 0
+    valid[3, 3, 4] = 0
+    valid[:, 0:2, 6:8] = 0                            # water without currents
+    d.update(elevation=elev, land_mask=(elev >= 0).astype(np.float32), valid_mask=valid)
+    shape = d["u"].shape
+    d["u"] = np.where(valid[None] == 1, np.full(shape, 0.4, np.float32), 0).astype(np.float32)
+    d["v"] = np.where(valid[None] == 1, np.full(shape, -0.2, np.float32), 0).astype(np.float32)
+    d["u_tide"] = np.full(d["u_tide"].shape, 0.1, np.float32)
+    d["v_tide"] = np.zeros(d["v_tide"].shape, np.float32)
+    return d
+
+
+def test_nan_aware_sampling_next_to_land_above_the_bed_and_without_currents():
+    d = _boundary_grid()
+    g = G.load_grid(d, use_tide_layers=False)
+    node = lambda j, i: (g.x0 + i * g.dx, g.z0 + j * g.dz)  # noqa: E731
+    # next to land (node (5, 2)), three defined corners: renormalised while the land node
+    # carries less than half of the weight (before: 0.4 * (1 - w_land)), then fading
+    x, z = node(5, 2)
+    for fx, fz in ((0.5, 0.5), (0.75, 0.4), (-0.5, -0.6), (0.3, -0.5)):
+        assert G.sample_current(g, x + fx * g.dx, 3.0, z + fz * g.dz, 0.0) == \
+            pytest.approx((0.4, -0.2), abs=1e-7), (fx, fz)
+    assert G.sample_current(g, x + 0.25 * g.dx, 3.0, z + 0.25 * g.dz, 0.0) == \
+        pytest.approx((0.4 * (1 - 0.75 ** 2) / 0.5, -0.2 * (1 - 0.75 ** 2) / 0.5), abs=1e-7)
+    # 2.5 m above a 32.5 m bed: the 20 m value held down (was half of it before)
+    x, z = node(3, 4)
+    assert G.sample_current(g, x, 30.0, z, 0.0) == pytest.approx((0.4, -0.2), abs=1e-7)
+    # water without currents: exactly 0, and it fades linearly below half of the weight
+    x, z = node(0, 7)
+    assert G.sample_current(g, x, 3.0, z, 0.0) == (0.0, 0.0)
+    assert G.current_coverage(g, [[x, z]])[0] == 0.0 and G.sample_land(g, x, z) == 0.0
+    x5, z0 = node(0, 5)
+    for fx, want in ((0.25, 0.4), (0.5, 0.4), (0.75, 0.2), (0.9, 0.08)):
+        got = G.sample_current(g, x5 + fx * g.dx, 3.0, z0, 0.0)[0]
+        assert got == pytest.approx(want, abs=1e-7), fx
+        assert G.current_coverage(g, [[x5 + fx * g.dx, 0.0, z0]])[0] == pytest.approx(1 - fx)
+    # the tide layers share the weights; the gain scales u, v only
+    gt = G.load_grid(d, current_gain=3.0)
+    x, z = node(5, 2)
+    assert G.sample_current(gt, x + 50.0, 3.0, z + 50.0, 0.0) == \
+        pytest.approx((3 * 0.4 + 0.1, 3 * -0.2), abs=1e-6)
+    assert G.sample_current(gt, *node(0, 7)[:1], 3.0, node(0, 7)[1], 0.0) == (0.0, 0.0)
+
+
+def test_current_mask_is_carried_and_checked(tmp_path):
+    d = _boundary_grid()
+    g = G.load_grid(d)
+    cm = (d["valid_mask"] == 1).any(axis=0)
+    np.testing.assert_array_equal(g.current_mask, cm.astype(np.float32))
+    assert g.current_mask.dtype == np.float32 and g.current_mask.shape == (8, 8)
+    # an export with the mask and held values loads to the same Grid (idempotent)
+    held = dict(d, current_mask=cm.astype(np.uint8), u=G.fill_columns(d["u"], d["valid_mask"]),
+                v=G.fill_columns(d["v"], d["valid_mask"]))
+    assert held["u"][0, 3, 3, 4] == np.float32(0.4)
+    g2 = G.load_grid(held)
+    for name, a, b in zip(G.Grid._fields, g, g2):
+        if isinstance(a, np.ndarray):
+            np.testing.assert_array_equal(a, b, err_msg=name)
+    bad = cm.astype(np.uint8)
+    bad[0, 7] = 1
+    with pytest.raises(DataError, match="'current_mask' disagrees with any\\(valid_mask\\)"):
+        G.load_grid(dict(d, current_mask=bad))
+    with pytest.raises(DataError, match="'current_mask' must be numeric"):
+        G.load_grid(dict(d, current_mask=bad[:-1]))
+
+
+def test_spawn_can_keep_away_from_water_without_currents():
+    g = G.load_grid(_boundary_grid())
+    pos = C.spawn_positions(g, 3, 200, {"y": (1.0, 5.0)}, min_current_defined=1.0)
+    assert (G.current_coverage(g, pos) == 1.0).all()
+    assert (G.current_coverage(g, C.spawn_positions(g, 3, 200, {"y": (1.0, 5.0)})) < 1).any()
+    block = {"x": (g.x0 + 6.2 * g.dx, g.x_max), "z": (g.z0, g.z0 + 0.8 * g.dz), "y": (1, 2)}
+    with pytest.raises(ConfigError, match="no current: "):
+        C.spawn_positions(g, 0, 1, block, min_current_defined=0.5, max_candidates=500)
+    assert C.spawn_positions(g, 0, 1, block).shape == (1, 3)     # water: feasible without it

@@ -138,14 +138,20 @@ def test_variant_settings_applied(built):
             assert ds["depth"].values.max() <= vc["max_depth_m"]
 
 
-def test_land_mask_consistent_with_elevation_and_currents(built):
+def test_land_mask_from_bathymetry_and_current_mask_from_currents(built):
     with _open(built, "scene") as ds:
         elev = ds["elevation"].values
-        surface_nan = np.isnan(ds["u"].isel(depth=0).values).all(axis=0)
-        expected = (elev >= 0) | surface_nan
-        np.testing.assert_array_equal(ds["land_mask"].values == 1, expected)
+        np.testing.assert_array_equal(ds["land_mask"].values == 1, elev >= 0)
         assert 0.1 < ds["land_mask"].values.mean() < 0.6
         assert (elev >= 0).any() and (elev < 0).any()
+        any_finite = np.isfinite(ds["u"].values).any(axis=(0, 1))
+        assert ds["current_mask"].dtype == np.int8
+        assert ds["current_mask"].dims == ("latitude", "longitude")
+        np.testing.assert_array_equal(ds["current_mask"].values == 1, any_finite)
+        np.testing.assert_array_equal(ds["current_mask"].values == 1,
+                                      (ds["valid_mask"].values == 1).any(axis=0))
+        assert not ((ds["current_mask"] == 1) & (ds["land_mask"] == 1)).any()
+        assert ds["current_mask"].attrs["flag_meanings"] == "no_current current_defined"
 
 
 def test_valid_mask_consistent_with_nans(built):
@@ -288,6 +294,8 @@ def test_summarise_product_matches_the_data(built):
         tot = np.hypot(u + ds["u_tide"].values, v + ds["v_tide"].values)
         assert s["max_total_speed_ms"] == pytest.approx(np.nanmax(tot), rel=1e-6)
         assert s["ocean_fraction"] == pytest.approx(1.0 - ds["land_mask"].values.mean())
+        assert s["current_fraction"] == pytest.approx(ds["current_mask"].values.mean())
+        assert 0.0 < s["current_fraction"] <= s["ocean_fraction"]
         assert (s["ny"], s["nx"], s["n_depths"]) == (ds.sizes["latitude"],
                                                      ds.sizes["longitude"], ds.sizes["depth"])
     assert s["extent"]["west"] == pytest.approx(built["cfg"]["region"]["bbox"]["west"])

@@ -6,6 +6,17 @@ and record the product's path, sha256 and the indices used for the extraction.
 Metres mapping: an equirectangular local tangent plane at the centre of the product grid,
 ``x = (lon - origin_lon) * m_per_deg_lon`` (east), ``z = (lat - origin_lat) * m_per_deg_lat``
 (north), with a spherical Earth of radius :data:`EARTH_RADIUS_M`.
+
+Boundaries (one rule for both backends; the engine's ``sample_current*`` give the temporal
+export's value at the same point):
+
+* vertical: each node's column holds its deepest valid value below it (a level above the
+  shallowest valid one takes that one), :func:`oneocean.engine.grid.hold_levels`; depth is
+  linear between the bracketing levels, clamped to the first level above it;
+* horizontal: the bilinear weights of the four corners, restricted to corners with currents
+  (``current_mask``) and renormalised; the temporal export needs at least half of the weight
+  on such corners (the engine fades to 0 below that);
+* the tide layers use the same corner weights.
 """
 
 from __future__ import annotations
@@ -64,17 +75,26 @@ def _open(product_path) -> xr.Dataset:
 def export_grid(product_path, out_path, meta: dict | None = None) -> None:
     """Write the core backend's grid export (contracts §3): every time and depth of the product.
 
+    Currents are boundary-ready for the engine: at a node with currents, a level without one
+    holds the column's deepest valid value (:func:`oneocean.engine.grid.hold_levels`); nodes
+    without currents (``current_mask == 0``: land, or water the currents do not cover) are 0,
+    tide layers included.
+
     Parameters
     ----------
     product_path : path
         A product NetCDF (contracts §2).
     out_path : path
-        Output ``.npz``; ``u, v`` (nt, nz, ny, nx) float32 m s-1, zero where ``valid_mask == 0``;
-        ``u_tide, v_tide`` (nt, ny, nx) float32, zero on land or without tide; axes, masks, the
-        lat/lon <-> metres mapping and ``meta_json`` (see contracts §3).
+        Output ``.npz``; ``u, v`` (nt, nz, ny, nx) float32 m s-1, held below the deepest valid
+        level, zero where ``current_mask == 0``; ``u_tide, v_tide`` (nt, ny, nx) float32, zero
+        where ``current_mask == 0`` or without tide; axes, ``land_mask``, ``valid_mask``,
+        ``current_mask`` (ny, nx) uint8, the lat/lon <-> metres mapping and ``meta_json``
+        (see contracts §3).
     meta : dict, optional
         Extra fields for ``meta_json`` (e.g. region, variant).
     """
+    from .engine.grid import fill_columns
+
     with _open(product_path) as ds:
         lat = ds["latitude"].values.astype(np.float64)
         lon = ds["longitude"].values.astype(np.float64)
@@ -83,6 +103,7 @@ def export_grid(product_path, out_path, meta: dict | None = None) -> None:
         valid = ds["valid_mask"].values.astype(np.uint8)
         land = ds["land_mask"].values.astype(np.float32)
         elev = ds["elevation"].values.astype(np.float32)
+        current = valid.any(axis=0)
         nt, nz, ny, nx = times.size, depth.size, lat.size, lon.size
         u = np.zeros((nt, nz, ny, nx), np.float32)
         v = np.zeros_like(u)
@@ -91,11 +112,13 @@ def export_grid(product_path, out_path, meta: dict | None = None) -> None:
         has_tide = int(ds.attrs.get("has_tide", 0)) == 1 and "u_tide" in ds
         keep = valid.astype(bool)
         for k in range(nt):                       # one time step in memory at a time
-            u[k] = np.where(keep, np.nan_to_num(ds["u"][k].values), 0.0)
-            v[k] = np.where(keep, np.nan_to_num(ds["v"][k].values), 0.0)
+            u[k] = fill_columns(np.where(keep, ds["u"][k].values, 0.0).astype(np.float32),
+                                keep)
+            v[k] = fill_columns(np.where(keep, ds["v"][k].values, 0.0).astype(np.float32),
+                                keep)
             if has_tide:
-                ut[k] = np.nan_to_num(ds["u_tide"][k].values)
-                vt[k] = np.nan_to_num(ds["v_tide"][k].values)
+                ut[k] = np.where(current, np.nan_to_num(ds["u_tide"][k].values), 0.0)
+                vt[k] = np.where(current, np.nan_to_num(ds["v_tide"][k].values), 0.0)
         res = float(ds.attrs.get("resolution_deg", np.nan))
         info = _source_meta(product_path, ds, meta)
     origin_lat, origin_lon = 0.5 * (lat[0] + lat[-1]), 0.5 * (lon[0] + lon[-1])
@@ -117,6 +140,7 @@ def export_grid(product_path, out_path, meta: dict | None = None) -> None:
         "origin_lat": np.array(origin_lat), "origin_lon": np.array(origin_lon),
         "m_per_deg_lat": np.array(m_lat), "m_per_deg_lon": np.array(m_lon),
         "elevation": elev, "land_mask": land, "valid_mask": valid,
+        "current_mask": current.astype(np.uint8),
         "meta_json": np.array(json.dumps(info, sort_keys=True)),
     }
     write_npz_atomic(out_path, arrays)
@@ -146,76 +170,112 @@ def _bracket(axis: np.ndarray, x: float) -> tuple[int, int, float]:
     return i0, i0 + 1, w
 
 
-def point_weights(glat: np.ndarray, glon: np.ndarray, depth: np.ndarray, land: np.ndarray,
-                  valid: np.ndarray, lat: float, lon: float, depth_m: float,
-                  where: str = "product") -> dict:
-    """Interpolation indices and weights of a point on a product grid.
+def _cell_bottom(depth: np.ndarray) -> float:
+    """Bottom of the deepest level's cell: half the last spacing below it (a single level at
+    ``d`` stands for the layer [0, 2 d])."""
+    return float(depth[-1] + (0.5 * (depth[-1] - depth[-2]) if depth.size > 1 else depth[0]))
 
-    Bilinear in space with the product's NaN rule (only valid corners, renormalised; at least
-    half of the bilinear weight must be valid), linear in depth between the bracketing levels
-    (a depth shallower than the first level takes the first level).
+
+def point_weights(glat: np.ndarray, glon: np.ndarray, depth: np.ndarray, land: np.ndarray,
+                  valid: np.ndarray, lat: float, lon: float, depth_m: float | None,
+                  where: str = "product", elevation: np.ndarray | None = None) -> dict:
+    """Interpolation indices and weights of a point on a product grid (the engine's rule).
+
+    Horizontal: the bilinear weights of the four corners, restricted to corners with currents
+    (``current_mask = any(valid)``) and renormalised; at least half of the weight must be on
+    such corners. Vertical: linear between the bracketing levels (a depth above the first level
+    takes the first level; one below the deepest level but within its cell takes the deepest
+    level), each corner's column holding its deepest valid value below it
+    (:func:`oneocean.engine.grid.hold_levels`). The tide layers use the same corner weights.
 
     Parameters
     ----------
     glat, glon : (ny,), (nx,) float64, ascending grid axes (degrees)
     depth : (nz,) float64, ascending levels (m, positive down)
-    land : (ny, nx) int, 1 = land
+    land : (ny, nx) int, 1 = land (from the bathymetry)
     valid : (nz, ny, nx) int, 1 = valid current
-    lat, lon, depth_m : float
-        The point (degrees, degrees, m).
+    lat, lon : float
+        The point (degrees).
+    depth_m : float or None
+        Depth (m, positive down); None = the first level.
     where : str
         Names the product in error messages.
+    elevation : (ny, nx) float, optional
+        Bathymetry (m, positive up): the depth must not lie below its bilinear seafloor.
 
     Returns
     -------
     dict
         ``latitude_index``/``longitude_index``/``depth_index`` [lo, hi] and their ``*_weight``
-        (of hi); ``depth_weights`` {k: w}; ``corner_weights`` {k: [(j, i, w)]} per used level
-        (summing to 1); ``tide_weights`` [(j, i, w)] over water corners.
+        (of hi); ``depth_m`` (the depth used); ``depth_weights`` {k: w}; ``corner_weights``
+        [(j, i, w)] over the corners with currents (summing to 1); ``source_levels``
+        {k: [ks per corner]} (the product level each corner reads at level k);
+        ``tide_weights`` (= ``corner_weights``); ``current_weight`` (the defined share).
 
     Raises
     ------
     DataError
-        Outside the grid or below the deepest level, on land (more than half of the bilinear
-        weight on land nodes), or without a valid current (below the seafloor).
+        Outside the grid or below the deepest level's cell, on land (more than half of the
+        bilinear weight on land nodes), without currents (less than half of it on nodes with
+        currents: outside the currents' coverage) or below the seafloor.
     """
     eps = 1e-9
     if not (glat[0] - eps <= lat <= glat[-1] + eps and glon[0] - eps <= lon <= glon[-1] + eps):
         raise DataError(f"{where}: point ({lat}, {lon}) is outside the product grid "
                         f"lat [{glat[0]}, {glat[-1]}], lon [{glon[0]}, {glon[-1]}]")
-    if depth_m > depth[-1] + eps:
-        raise DataError(f"{where}: depth {depth_m} m is below the deepest level {depth[-1]} m")
+    depth_m = float(depth[0]) if depth_m is None else float(depth_m)
+    if not np.isfinite(depth_m) or depth_m > _cell_bottom(depth) + eps:
+        raise DataError(f"{where}: depth {depth_m} m is below the deepest level {depth[-1]} m "
+                        f"(its cell ends at {_cell_bottom(depth):.6g} m)")
     j0, j1, wy = _bracket(glat, lat)
     i0, i1, wx = _bracket(glon, lon)
-    k0, k1, wz = _bracket(depth, max(depth_m, depth[0]))
+    k0, k1, wz = _bracket(depth, min(max(depth_m, depth[0]), depth[-1]))
     corners = [(j0, i0, (1 - wy) * (1 - wx)), (j0, i1, (1 - wy) * wx),
                (j1, i0, wy * (1 - wx)), (j1, i1, wy * wx)]
-    water = [(j, i, w) for j, i, w in corners if land[j, i] == 0]
-    water_weight = sum(w for _, _, w in water)
+    water_weight = sum(w for j, i, w in corners if land[j, i] == 0)
     if water_weight < 0.5:
         raise DataError(f"{where}: point ({lat}, {lon}) is on land")
+    if elevation is not None:
+        floor = -sum(w * float(elevation[j, i]) for j, i, w in corners)
+        if depth_m > floor + eps:
+            raise DataError(f"{where}: depth {depth_m} m at ({lat}, {lon}) is below the "
+                            f"seafloor ({floor:.6g} m)")
+    ok = np.asarray(valid).astype(bool)
+    current = ok.any(axis=0)
+    defined = [(j, i, w) for j, i, w in corners if current[j, i] and w > 0.0]
+    total = sum(w for _, _, w in defined)
+    if total < 0.5 - 1e-12:
+        raise DataError(f"{where}: no current defined at ({lat}, {lon}) (only "
+                        f"{total:.3f} of the bilinear weight on nodes with currents: outside "
+                        "the currents' coverage or next to land)")
+    weights = [(j, i, w / total) for j, i, w in defined]
     zw = {k0: 1.0 - wz, k1: wz} if k1 != k0 else {k0: 1.0}
     zw = {k: w for k, w in zw.items() if w > 0.0}
-    per_level = {}
-    for k in sorted(zw):
-        ok = [(j, i, w) for j, i, w in corners if valid[k, j, i] == 1]
-        total = sum(w for _, _, w in ok)
-        if total < 0.5 - 1e-12:
-            raise DataError(f"{where}: no valid current at ({lat}, {lon}) and {depth[k]} m "
-                            "(below the seafloor or next to land)")
-        per_level[k] = [(j, i, w / total) for j, i, w in ok]
+    held = {}
+    for j, i, _ in weights:
+        col = hold_column(ok[:, j, i])
+        for k in zw:
+            held.setdefault(k, []).append(int(col[k]))
     return {"latitude_index": [j0, j1], "latitude_weight": wy,
             "longitude_index": [i0, i1], "longitude_weight": wx,
-            "depth_index": [k0, k1], "depth_weight": wz, "depth_weights": zw,
-            "corner_weights": per_level,
-            "tide_weights": [(j, i, w / water_weight) for j, i, w in water]}
+            "depth_index": [k0, k1], "depth_weight": wz, "depth_m": depth_m,
+            "depth_weights": zw, "corner_weights": weights, "source_levels": held,
+            "current_weight": total, "tide_weights": weights}
+
+
+def hold_column(valid_column: np.ndarray) -> np.ndarray:
+    """:func:`oneocean.engine.grid.hold_levels` of one column (nz,) -> (nz,) source levels."""
+    from .engine.grid import hold_levels
+
+    return hold_levels(np.asarray(valid_column).reshape(-1, 1, 1))[:, 0, 0]
 
 
 def export_temporal(product_path, out_path, lat: float | None, lon: float | None,
-                    depth_m: float, meta: dict | None = None) -> None:
+                    depth_m: float | None = None, meta: dict | None = None) -> None:
     """Write the scene backend's temporal export (contracts §4): a current time series at a point.
 
-    Interpolation as in :func:`point_weights`.
+    Interpolation as in :func:`point_weights` (the engine's rule: the grid export sampled by
+    ``oneocean.engine.sample_current_data`` with gain 1 gives ``u + u_tide`` at the same point).
 
     Parameters
     ----------
@@ -226,40 +286,47 @@ def export_temporal(product_path, out_path, lat: float | None, lon: float | None
         float64 (nt,) m s-1, ``lat, lon, depth`` float64 (), ``indices_json``, ``meta_json``.
     lat, lon : float or None
         Point (degrees); None for :func:`default_point`.
-    depth_m : float
-        Depth (m, positive down).
+    depth_m : float or None
+        Depth (m, positive down); None = the product's first level (works for surface-only
+        products). A depth above the first level takes the first level; one below the deepest
+        level but within its cell (half the last spacing; [0, 2 d] for a single level d) takes
+        the deepest level.
     meta : dict, optional
         Extra fields for ``meta_json``.
 
     Raises
     ------
     DataError
-        The point lies outside the grid or below the deepest level, on land, or where the
-        currents are not defined (below the seafloor).
+        The point lies outside the grid or below the deepest level's cell, on land, outside the
+        currents' coverage, or below the seafloor.
     """
     with _open(product_path) as ds:
         glat, glon = ds["latitude"].values, ds["longitude"].values
         depth = ds["depth"].values.astype(float)
         if lat is None or lon is None:
             lat, lon = default_point(ds)
-        lat, lon, depth_m = float(lat), float(lon), float(depth_m)
+        lat, lon = float(lat), float(lon)
+        requested = None if depth_m is None else float(depth_m)
         pw = point_weights(glat, glon, depth, ds["land_mask"].values, ds["valid_mask"].values,
-                           lat, lon, depth_m, str(product_path))
-        zw, weights = pw["depth_weights"], pw["corner_weights"]
+                           lat, lon, requested, str(product_path),
+                           elevation=ds["elevation"].values.astype(np.float64))
+        depth_m = pw["depth_m"]
+        zw, weights, held = pw["depth_weights"], pw["corner_weights"], pw["source_levels"]
         j0, i0 = pw["latitude_index"][0], pw["longitude_index"][0]
         j1, i1 = pw["latitude_index"][1], pw["longitude_index"][1]
         times = ds["time"].values
         nt = times.size
-        klo, khi = min(zw), max(zw)
+        klo = min(min(v) for v in held.values())
+        khi = max(max(v) for v in held.values())
         box = {"depth": slice(klo, khi + 1), "latitude": slice(j0, j1 + 1),
                "longitude": slice(i0, i1 + 1)}
-        ub = ds["u"].isel(box).values.astype(np.float64)      # (nt, <=2, <=2, <=2)
+        ub = ds["u"].isel(box).values.astype(np.float64)      # (nt, levels, <=2, <=2)
         vb = ds["v"].isel(box).values.astype(np.float64)
         u, v = np.zeros(nt), np.zeros(nt)
         for k, wk in zw.items():
-            for j, i, w in weights[k]:
-                u += wk * w * ub[:, k - klo, j - j0, i - i0]
-                v += wk * w * vb[:, k - klo, j - j0, i - i0]
+            for (j, i, w), ks in zip(weights, held[k]):
+                u += wk * w * ub[:, ks - klo, j - j0, i - i0]
+                v += wk * w * vb[:, ks - klo, j - j0, i - i0]
         ut, vt = np.zeros(nt), np.zeros(nt)
         has_tide = int(ds.attrs.get("has_tide", 0)) == 1 and "u_tide" in ds
         if has_tide:
@@ -270,6 +337,8 @@ def export_temporal(product_path, out_path, lat: float | None, lon: float | None
                 ut += w * utb[:, j - j0, i - i0]
                 vt += w * vtb[:, j - j0, i - i0]
         info = _source_meta(product_path, ds, meta)
+    if not (np.isfinite(u).all() and np.isfinite(v).all()):
+        raise DataError(f"{product_path}: NaN current at a valid node near ({lat}, {lon})")
     _, time_s = _time_axis(times)
     indices = {**pw, "time_index": [0, nt], "has_tide": has_tide}
     arrays = {
@@ -278,7 +347,8 @@ def export_temporal(product_path, out_path, lat: float | None, lon: float | None
         "lat": np.array(lat), "lon": np.array(lon), "depth": np.array(depth_m),
         "indices_json": np.array(json.dumps(indices, sort_keys=True)),
         "meta_json": np.array(json.dumps({**info, "point": {"lat": lat, "lon": lon,
-                                                             "depth_m": depth_m}},
+                                                             "depth_m": depth_m,
+                                                             "depth_m_requested": requested}},
                                          sort_keys=True)),
     }
     write_npz_atomic(out_path, arrays)

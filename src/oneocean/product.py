@@ -2,8 +2,8 @@
 
 The product (contracts §2) is a CF-1.11 NetCDF with ``u, v`` (time, depth, latitude,
 longitude), optional ``u_tide, v_tide`` (time, latitude, longitude), ``elevation``,
-``land_mask`` and ``valid_mask``, written atomically, chunk by chunk (one time step at a time),
-with no write-time attributes so two runs give byte-identical files.
+``land_mask``, ``current_mask`` and ``valid_mask``, written atomically, chunk by chunk (one
+time step at a time), with no write-time attributes so two runs give byte-identical files.
 
 Regridding rule (NaN-aware bilinear, "normalised convolution")
 -----------------------------------------------------------------
@@ -18,6 +18,11 @@ masked (NaN) where the product's bathymetry says land (``elevation >= 0``) or th
 deeper than the local water depth, so no current is invented on land or below the seafloor.
 Target nodes may lie up to half a source cell outside the outermost source nodes (the area
 covered by cell-centred grids); they take the edge values.
+
+Masks: ``land_mask`` comes from the bathymetry only (``elevation >= 0``); ``current_mask``
+marks the nodes whose column has a current at one level or more (``any(valid_mask)``). Water
+with ``current_mask == 0`` (e.g. outside a CMEMS subset polygon, or shallower than the first
+level) is water without currents, not land.
 """
 
 from __future__ import annotations
@@ -289,9 +294,14 @@ def _var_attrs(name: str) -> dict:
         return {"standard_name": CF[name], "long_name": "height above mean sea level "
                 "(negative = water depth)", "units": "m", "positive": "up"}
     if name == "land_mask":
-        return {"standard_name": CF[name], "long_name": "land (elevation >= 0 or no surface "
-                "currents)", "units": "1", "flag_values": np.array([0, 1], np.int8),
+        return {"standard_name": CF[name], "long_name": "land from the bathymetry "
+                "(elevation >= 0)", "units": "1", "flag_values": np.array([0, 1], np.int8),
                 "flag_meanings": "water land"}
+    if name == "current_mask":
+        return {"standard_name": CF.get(name, "status_flag"),
+                "long_name": "water column with currents defined at one depth level or more",
+                "units": "1", "flag_values": np.array([0, 1], np.int8),
+                "flag_meanings": "no_current current_defined"}
     return {"standard_name": CF[name], "long_name": "water with currents defined at all times",
             "units": "1", "flag_values": np.array([0, 1], np.int8),
             "flag_meanings": "invalid valid"}
@@ -341,7 +351,8 @@ def _provenance(cfg: dict, variant: str, cur: xr.Dataset, bat: xr.Dataset, paths
         "input_files": json.dumps([str(p) for p in paths]),
         "has_tide": np.int8(1 if has_tide else 0),
         "regridding": "NaN-aware bilinear (normalised by the valid weight, >= 0.5); currents "
-                      "masked on land and below the seafloor",
+                      "masked on land and below the seafloor; land_mask from the bathymetry "
+                      "only, current_mask = any(valid_mask)",
     }
     for key, ds in (("currents", cur), ("bathymetry", bat)):
         if "request" in ds.attrs:
@@ -426,7 +437,8 @@ def _build(currents_path, bathymetry_path, cfg, variant, out_path, metadata_path
     if not valid.any():
         raise DataError(f"{currents_path}: no valid (finite, wet) current in the variant "
                         "extent and window")
-    land = (elev >= 0.0) | ~valid[0]
+    land = elev >= 0.0
+    current = valid.any(axis=0)
 
     data = {}
     for n in names:
@@ -440,6 +452,7 @@ def _build(currents_path, bathymetry_path, cfg, variant, out_path, metadata_path
                    da.map_blocks(fn, src[n], dtype=np.float32, chunks=chunks), _var_attrs(n))
     data["elevation"] = (_DIMS2, elev.astype(np.float32), _var_attrs("elevation"))
     data["land_mask"] = (_DIMS2, land.astype(np.int8), _var_attrs("land_mask"))
+    data["current_mask"] = (_DIMS2, current.astype(np.int8), _var_attrs("current_mask"))
     data["valid_mask"] = (("depth",) + _DIMS2, valid.astype(np.int8), _var_attrs("valid_mask"))
     coords = {"time": times, "depth": depth, "latitude": lat, "longitude": lon}
     attrs = {**_provenance(cfg, variant, cur, bat, (currents_path, bathymetry_path), has_tide),
@@ -493,7 +506,8 @@ def summarise_product(path) -> dict:
         water and all times: ``mean_speed_ms``, ``max_speed_ms`` (ocean currents, no tide),
         ``max_tide_speed_ms`` and ``max_total_speed_ms`` (currents + tide; equals
         ``max_speed_ms`` without tide); ``ocean_fraction`` (share of nodes with
-        ``land_mask == 0``).
+        ``land_mask == 0``); ``current_fraction`` (share of nodes with currents,
+        ``current_mask == 1``; water without currents = ocean - current fraction).
     """
     with netcdf_chunk_cache(), xr.open_dataset(path) as ds:
         lat, lon = ds["latitude"].values, ds["longitude"].values
@@ -517,6 +531,8 @@ def summarise_product(path) -> dict:
         if not has_tide:
             totmax = smax
         land = ds["land_mask"].values
+        current = (ds["current_mask"].values if "current_mask" in ds
+                   else ds["valid_mask"].values.any(axis=0))
         res = float(ds.attrs.get("resolution_deg",
                                  lon[1] - lon[0] if lon.size > 1 else np.nan))
         return {
@@ -536,4 +552,5 @@ def summarise_product(path) -> dict:
             "mean_speed_ms": ssum / scount if scount else None,
             "max_speed_ms": smax, "max_tide_speed_ms": tmax, "max_total_speed_ms": totmax,
             "ocean_fraction": float(np.mean(land == 0)),
+            "current_fraction": float(np.mean(current != 0)),
         }

@@ -4,7 +4,7 @@
 
 * ``_nrt=False``: no reference counting of array arguments. The hot kernels never allocate,
   and atomic incref/decref pairs on every array passed down the call chain (the grid alone holds
-  13 arrays) cost more than the arithmetic they guard (measured: 17-37 ns vs 2-7 ns per O(1)
+  15 arrays) cost more than the arithmetic they guard (measured: 17-37 ns vs 2-7 ns per O(1)
   axis lookup). Any attempt to allocate inside such a kernel fails at compile time.
   ``_nrt`` is a numba-internal option (stable in 0.59-0.68); if a numba upgrade drops it,
   removing it here only costs speed.
@@ -14,7 +14,7 @@
 
 No ``fastmath``: NaN tests must stay honest.
 
-Small kernels that take the :class:`~oneocean.engine.grid.Grid` (13 arrays + 20 scalars,
+Small kernels that take the :class:`~oneocean.engine.grid.Grid` (15 arrays + 20 scalars,
 ~1 KB when flattened) or many arrays are declared ``inline="always"``: numba passes such
 structs by value, and an out-of-line call copies them on every call (measured ~70 ns per
 ``sample_current`` call before inlining).

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from . import status as st
-from .grid import Grid, _bilinear2d, _hcell, sample_elevation_points
+from .grid import Grid, _bilinear2d, _hcell, current_coverage, sample_elevation_points
 from ._jit import hot_kernel
 
 DEFAULT_LAND_THRESHOLD = 0.5
@@ -134,7 +134,8 @@ def _region_box(grid: Grid, region) -> tuple:
 def spawn_positions(grid: Grid, rng, n: int, region=None, *,
                     land_threshold: float = DEFAULT_LAND_THRESHOLD,
                     clearance: float = DEFAULT_CLEARANCE_M, min_separation: float = 0.0,
-                    max_candidates: int = 200_000) -> np.ndarray:
+                    max_candidates: int = 200_000, min_current_defined: float = 0.0
+                    ) -> np.ndarray:
     """Draw ``n`` feasible positions (n, 3) m by vectorised rejection sampling, or fail loudly.
 
     Parameters
@@ -154,6 +155,10 @@ def spawn_positions(grid: Grid, rng, n: int, region=None, *,
         Minimum distance between the returned positions, m (accepted greedily).
     max_candidates : int
         Give up after this many candidates.
+    min_current_defined : float
+        Also reject candidates where less than this share of the bilinear weight lies on nodes
+        with currents (:func:`oneocean.engine.grid.current_defined`; 1.0 = fully inside the
+        currents' coverage, away from water without currents). 0 (default) = no check.
 
     Raises
     ------
@@ -168,7 +173,8 @@ def spawn_positions(grid: Grid, rng, n: int, region=None, *,
     out = np.empty((n, 3))
     got = 0
     tried = 0
-    reasons = {st.OUTSIDE: 0, st.LAND: 0, st.SEAFLOOR: 0, "separation": 0}
+    reasons = {st.OUTSIDE: 0, st.LAND: 0, st.SEAFLOOR: 0, "no current": 0, "separation": 0}
+    min_cur = float(min_current_defined)
     sep2 = float(min_separation) ** 2
     while got < n and tried < max_candidates:
         m = int(min(max(64, 4 * (n - got)), max_candidates - tried))
@@ -186,6 +192,11 @@ def spawn_positions(grid: Grid, rng, n: int, region=None, *,
         for code in (st.OUTSIDE, st.LAND, st.SEAFLOOR, st.NONFINITE):
             if code in reasons:
                 reasons[code] += int(np.sum(codes == code))
+        if min_cur > 0.0:
+            ok = codes == st.OK
+            short = ok & (current_coverage(grid, cand[:, [0, 2]]) < min_cur - 1e-12)
+            reasons["no current"] += int(short.sum())
+            codes = np.where(short, -1, codes)
         for c in cand[codes == st.OK]:
             if sep2 > 0 and got and np.min(np.sum((out[:got] - c) ** 2, axis=1)) < sep2:
                 reasons["separation"] += 1

@@ -7,13 +7,25 @@ regular; depth and time may be irregular and are located through a precomputed l
 whose bins are no wider than the smallest spacing (at most one correction step). Outside an
 axis the sample is clamped to the edge value.
 
-The disturbance of the task contract is::
+The disturbance of the task contract (paper eq. 1) is::
 
-    c(x, y, z, t) = g * ([u, 0, v] + [u_tide, 0, v_tide]) + A [sin(w t + phi), 0, cos(w t + phi)]
+    c(x, y, z, t) = g [u, 0, v] + [u_tide, 0, v_tide] + A [sin(w t + phi), 0, cos(w t + phi)]
 
-with the product's real tide layers included only when the export has them (``has_tide``) and
-the synthetic tide term (amplitude ``A``, angular frequency ``w``, phase ``phi``) only when
-asked for (robustness ablations).
+the gain ``g`` scaling the data currents only; the product's real tide layers are included
+only when the export has them (``has_tide``) and the synthetic tide term (amplitude ``A``,
+angular frequency ``w``, phase ``phi``) only when asked for (robustness ablations).
+
+Boundaries (the same rule as the temporal export, :func:`oneocean.exports.point_weights`):
+
+* a node's column with currents at one level or more (``current_mask == 1``) holds its deepest
+  valid value below it (down to the seafloor and beyond; a level above the shallowest valid
+  one takes that one), done once by :func:`load_grid` (:func:`hold_levels`);
+* horizontally only current-defined nodes count: the bilinear weights of the four corners are
+  renormalised by their current-defined share ``s = sum w_k m_k`` when ``s >= 1/2``; below
+  that the value fades linearly to 0 (divided by 1/2 instead of ``s``), so the current is
+  continuous and exactly 0 in water where the product has no current at all (e.g. outside
+  a CMEMS subset polygon, or water shallower than the first level). Tide layers use the same
+  weights. :func:`current_defined` (the bilinear ``current_mask``) flags such water.
 """
 
 from __future__ import annotations
@@ -35,6 +47,13 @@ REQUIRED_KEYS = (
     "x0_m", "dx_m", "z0_m", "dz_m", "origin_lat", "origin_lon", "m_per_deg_lat",
     "m_per_deg_lon", "elevation", "land_mask", "valid_mask", "meta_json",
 )
+#: Keys written by the export stage since issue #9 that older exports (and analytic test
+#: grids) may lack; :func:`load_grid` derives them (``current_mask = any(valid_mask)``).
+OPTIONAL_KEYS = ("current_mask",)
+
+#: Minimum current-defined share of the bilinear weight for a renormalised value (the same
+#: threshold as the product's regridding and the temporal export).
+MIN_CURRENT_WEIGHT = 0.5
 
 _LUT_MAX = 1 << 16
 
@@ -45,12 +64,20 @@ class Grid(NamedTuple):
     Attributes
     ----------
     uv : (nt, nz, ny, nx, 2) float32, m s-1
-        Eastward / northward current (u, v interleaved for cache locality), 0 off water.
+        Eastward / northward current (u, v interleaved for cache locality); levels without a
+        current hold the column's deepest valid value (:func:`hold_levels`); 0 where
+        ``current_mask == 0``.
     uv_tide : (nt, ny, nx, 2) float32, m s-1
-        Tidal current (zeros when the export has none).
+        Tidal current (zeros when the export has none, or where ``current_mask == 0``).
     elevation : (ny, nx) float32, m, positive up.
-    land : (ny, nx) float32, 1 = land, 0 = water.
-    valid : (nz, ny, nx) uint8, 1 = water with defined currents.
+    land : (ny, nx) float32, 1 = land, 0 = water (from the bathymetry).
+    valid : (nz, ny, nx) uint8, 1 = the product defines a current at this level and node.
+    current_mask : (ny, nx) float32
+        1 = currents defined at the node (at one level or more), 0 = land or water without
+        currents (sampled as 0; see :func:`current_defined`).
+    cell_full : (ny, nx) uint8
+        1 where the cell with lower-left node (j, i) has currents at all four corners (the
+        sampling kernel's fast path: there the weights are plain bilinear); derived.
     time_s, time_inv : (nt,) float64
         Time axis (s since ``time0_unix_s``) and inverse spacings (1 / s, last entry 0).
     time_lut : (nlut,) int64 ; time_lut_inv_h : float
@@ -60,7 +87,8 @@ class Grid(NamedTuple):
     x0, dx, inv_dx, x_max, nx ; z0, dz, inv_dz, z_max, ny
         Regular horizontal axes: ``x = x0 + i dx`` (east), ``z = z0 + j dz`` (north), metres.
     gain : float
-        Current gain g applied to the data currents (and real tide layers).
+        Current gain g applied to the data currents u, v (not to the tide layers or the
+        synthetic tide term).
     tide_layers : int
         1 if the real tide layers are added.
     tide_amp, tide_omega, tide_phase : float
@@ -74,6 +102,8 @@ class Grid(NamedTuple):
     elevation: np.ndarray
     land: np.ndarray
     valid: np.ndarray
+    current_mask: np.ndarray
+    cell_full: np.ndarray
     time_s: np.ndarray
     time_inv: np.ndarray
     time_lut: np.ndarray
@@ -121,6 +151,46 @@ def _axis_lut(ax: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     edges = ax[0] + h * np.arange(nb)
     lut = np.clip(np.searchsorted(ax, edges, side="right") - 1, 0, n - 2).astype(np.int64)
     return inv, lut, 1.0 / h
+
+
+def hold_levels(valid: np.ndarray) -> np.ndarray:
+    """Source level of every (level, node) under the hold rule, (nz, ny, nx) int64.
+
+    A valid level reads itself; an invalid one reads the nearest valid level above it (so the
+    deepest valid value is held down to the bottom of the column), or, above the shallowest
+    valid level, that level. Columns without any valid level read level 0 (their values are
+    zeroed by the callers).
+
+    Parameters
+    ----------
+    valid : (nz, ny, nx) bool or int
+        1 = the product defines a current at this level and node.
+    """
+    ok = np.asarray(valid).astype(bool)
+    nz = ok.shape[0]
+    k = np.arange(nz).reshape((nz,) + (1,) * (ok.ndim - 1))
+    above = np.maximum.accumulate(np.where(ok, k, -1), axis=0)
+    below = np.minimum.accumulate(np.where(ok, k, nz)[::-1], axis=0)[::-1]
+    src = np.where(above >= 0, above, below)
+    return np.where(src < nz, src, 0).astype(np.int64)
+
+
+def fill_columns(a: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``a`` (..., nz, ny, nx) with every column held by :func:`hold_levels` of ``valid``
+    (nz, ny, nx) and zeroed where the column has no valid level (a new array, ``a``'s dtype)."""
+    ok = np.asarray(valid).astype(bool)
+    src = hold_levels(ok).reshape((1,) * (a.ndim - 3) + ok.shape)
+    out = np.take_along_axis(np.asarray(a), src, axis=a.ndim - 3)
+    out[..., ~ok.any(axis=0)] = 0
+    return out
+
+
+def _cell_full(cmask: np.ndarray) -> np.ndarray:
+    """(ny, nx) uint8: 1 where the cell (j..j+1, i..i+1) has currents at all four corners (the
+    sampling kernel's fast path; the last row and column are 0)."""
+    full = np.zeros(cmask.shape, np.uint8)
+    full[:-1, :-1] = cmask[:-1, :-1] & cmask[1:, :-1] & cmask[:-1, 1:] & cmask[1:, 1:]
+    return full
 
 
 def _as_mapping(src) -> tuple[Mapping, str]:
@@ -177,9 +247,11 @@ def load_grid(src, current_gain: float = 1.0, tide=None, use_tide_layers: bool =
     ----------
     src : path-like or mapping
         A ``grid.npz`` written by the export stage, or an in-memory mapping with the same keys
-        (e.g. :func:`oneocean.testing.make_test_grid`).
+        (e.g. :func:`oneocean.testing.make_test_grid`); ``current_mask`` is optional (derived
+        from ``valid_mask``; checked against it when present). Currents at invalid levels may
+        be 0 or already held (the export's layout): they are re-derived from the valid levels.
     current_gain : float
-        Gain g on the data currents (and the real tide layers), dimensionless.
+        Gain g on the data currents u, v (not on the tide layers), dimensionless.
     tide : None, mapping or (A, w, phi)
         Optional synthetic tide term: ``{"amplitude_ms": A, "period_s": P | "omega_rad_s": w,
         "phase_rad": phi}``.
@@ -194,7 +266,8 @@ def load_grid(src, current_gain: float = 1.0, tide=None, use_tide_layers: bool =
     ------
     DataError
         Missing fields (all named), inconsistent shapes, irregular lat/lon, non-ascending axes,
-        NaN currents inside valid water, NaN elevation or land mask.
+        NaN currents inside valid water, NaN elevation or land mask, a ``current_mask`` that
+        disagrees with ``valid_mask``.
     ConfigError
         Bad ``current_gain`` or ``tide``.
     """
@@ -247,6 +320,17 @@ def load_grid(src, current_gain: float = 1.0, tide=None, use_tide_layers: bool =
     elev = arr("elevation", 2, np.float32)
     land = arr("land_mask", 2, np.float32)
     valid = arr("valid_mask", 3, np.uint8)
+    if np.any(valid > 1):
+        raise DataError(f"{name}: field 'valid_mask' must be 0 or 1")
+    cmask = (valid == 1).any(axis=0)
+    if "current_mask" in d:
+        given = np.asarray(d["current_mask"])
+        if given.shape != (ny, nx) or given.dtype.kind not in "fiub":
+            raise DataError(f"{name}: field 'current_mask' must be numeric ({ny}, {nx}), got "
+                            f"{given.dtype} {given.shape}")
+        if not np.array_equal(given != 0, cmask):
+            raise DataError(f"{name}: field 'current_mask' disagrees with any(valid_mask) at "
+                            f"{int(((given != 0) != cmask).sum())} nodes")
     has_tide = int(scalar("has_tide"))
     sc = {k: scalar(k) for k in ("time0_unix_s", "x0_m", "dx_m", "z0_m", "dz_m", "origin_lat",
                                  "origin_lon", "m_per_deg_lat", "m_per_deg_lon")}
@@ -297,19 +381,26 @@ def load_grid(src, current_gain: float = 1.0, tide=None, use_tide_layers: bool =
     if has_tide not in (0, 1):
         raise DataError(f"{name}: field 'has_tide' must be 0 or 1, got {has_tide}")
 
+    # boundaries: hold each column's deepest valid value below it; 0 without currents (one
+    # time step at a time: no full-size temporaries)
     uv = np.empty((nt, nz, ny, nx, 2), dtype=np.float32)
-    uv[..., 0] = u
-    uv[..., 1] = v
+    src_k = hold_levels(valid)
+    for ti in range(nt):
+        for c, a in ((0, u), (1, v)):
+            f = np.take_along_axis(a[ti], src_k, axis=0)
+            f[:, ~cmask] = 0
+            uv[ti, ..., c] = f
     tide_on = int(has_tide == 1 and use_tide_layers)
     uv_tide = np.zeros((nt, ny, nx, 2), dtype=np.float32)
     if tide_on:
-        uv_tide[..., 0] = u_t
-        uv_tide[..., 1] = v_t
+        uv_tide[..., 0] = np.where(cmask, u_t, 0.0)
+        uv_tide[..., 1] = np.where(cmask, v_t, 0.0)
     t_inv, t_lut, t_lut_h = _axis_lut(time_s)
     d_inv, d_lut, d_lut_h = _axis_lut(depth)
     dx, dz = sc["dx_m"], sc["dz_m"]
     return Grid(
         uv=uv, uv_tide=uv_tide, elevation=elev, land=land, valid=valid,
+        current_mask=cmask.astype(np.float32), cell_full=_cell_full(cmask),
         time_s=time_s, time_inv=t_inv, time_lut=t_lut, time_lut_inv_h=float(t_lut_h),
         depth=depth, depth_inv=d_inv, depth_lut=d_lut, depth_lut_inv_h=float(d_lut_h),
         x0=sc["x0_m"], dx=dx, inv_dx=1.0 / dx, x_max=sc["x0_m"] + (nx - 1) * dx, nx=int(nx),
@@ -412,8 +503,9 @@ def locate_time(grid, t):
 
 @hot_kernel(inline="always")
 def sample_current_data(grid, x, y, z, t):
-    """Data part of the current, ``g * (u + u_tide, v + v_tide)`` (m s-1), without the synthetic
-    tide term. Bilinear in (x, z), linear in depth ``y`` and time ``t``, clamped at the edges.
+    """Data part of the current, ``(g u + u_tide, g v + v_tide)`` (m s-1), without the synthetic
+    tide term. Bilinear in (x, z) over current-defined nodes (renormalised, see the module
+    docstring), linear in depth ``y`` and time ``t`` (held columns), clamped at the edges.
     """
     t0, t1, wt = locate_time(grid, t)
     return sample_current_at(grid, x, y, z, t0, t1, wt)
@@ -429,6 +521,16 @@ def sample_current_at(grid, x, y, z, t0, t1, wt):
     a10 = wx * (1.0 - wz)
     a01 = (1.0 - wx) * wz
     a11 = wx * wz
+    # next to nodes without currents (their arrays are 0): renormalise by the defined share
+    # of the weight (>= 1/2), fade to 0 below it; inside the coverage nothing changes
+    if grid.cell_full[j, i] == 0:
+        m = grid.current_mask
+        r = 1.0 / max((a00 * m[j, i] + a10 * m[j, i + 1])
+                      + (a01 * m[j + 1, i] + a11 * m[j + 1, i + 1]), MIN_CURRENT_WEIGHT)
+        a00 *= r
+        a10 *= r
+        a01 *= r
+        a11 *= r
     uv = grid.uv
     # four (time, depth) slabs, each bilinear in (x, z); summed as a tree (no long chains)
     u00, v00 = _slab(uv, t0, k0, j, i, a00, a10, a01, a11)
@@ -437,15 +539,16 @@ def sample_current_at(grid, x, y, z, t0, t1, wt):
     u11, v11 = _slab(uv, t1, k1, j, i, a00, a10, a01, a11)
     wt0 = 1.0 - wt
     wk0 = 1.0 - wk
-    ue = wt0 * (wk0 * u00 + wk * u01) + wt * (wk0 * u10 + wk * u11)
-    vn = wt0 * (wk0 * v00 + wk * v01) + wt * (wk0 * v10 + wk * v11)
+    g = grid.gain
+    ue = g * (wt0 * (wk0 * u00 + wk * u01) + wt * (wk0 * u10 + wk * u11))
+    vn = g * (wt0 * (wk0 * v00 + wk * v01) + wt * (wk0 * v10 + wk * v11))
     if grid.tide_layers == 1:
         tt = grid.uv_tide
         ut0, vt0 = _slab2(tt, t0, j, i, a00, a10, a01, a11)
         ut1, vt1 = _slab2(tt, t1, j, i, a00, a10, a01, a11)
         ue += wt0 * ut0 + wt * ut1
         vn += wt0 * vt0 + wt * vt1
-    return grid.gain * ue, grid.gain * vn
+    return ue, vn
 
 
 @hot_kernel(inline="always")
@@ -461,10 +564,12 @@ def synthetic_tide(grid, t):
 def sample_current(grid, x, y, z, t):
     """Current (ce, cn) in m s-1 at world (x, y, z) m and time t (s since time0).
 
-    Bilinear in (x, z), linear in depth ``y`` and time, clamped outside the grid; includes the
-    gain, the real tide layers (if used) and the synthetic tide term. The vertical component
-    of the current is zero. (Loops over many agents at one time may call
-    :func:`sample_current_data` per agent and :func:`synthetic_tide` once.)
+    ``g (u, v) + (u_tide, v_tide) + A (sin, cos)(w t + phi)``: bilinear in (x, z) over
+    current-defined nodes (renormalised; fades to 0 where less than half of the weight is
+    defined), linear in depth ``y`` (each column holding its deepest valid value below it) and
+    time, clamped outside the grid. The vertical component of the current is zero. (Loops
+    over many agents at one time may call :func:`sample_current_data` per agent and
+    :func:`synthetic_tide` once.)
     """
     ce, cn = sample_current_data(grid, x, y, z, t)
     te, tn = synthetic_tide(grid, t)
@@ -505,6 +610,34 @@ def sample_land(grid, x, z):
     """Land mask m_land(x, z) in [0, 1], bilinear, clamped at the edges."""
     i, j, wx, wz = _hcell(grid, x, z)
     return _bilinear2d(grid.land, i, j, wx, wz)
+
+
+@hot_kernel(inline="always")
+def current_defined(grid, x, z):
+    """Share of the bilinear weight at (x, z) on nodes with currents (``current_mask``), 0..1.
+
+    1 = fully inside the currents' coverage; < 0.5 = the sampled current fades toward 0 (water
+    without currents, e.g. outside a CMEMS subset polygon, or land). Clamped at the edges.
+    """
+    i, j, wx, wz = _hcell(grid, x, z)
+    return _bilinear2d(grid.current_mask, i, j, wx, wz)
+
+
+@hot_kernel
+def current_defined_points(grid, xz, out):
+    """Vectorised :func:`current_defined`: ``xz`` (n, 2) [x, z] m -> ``out`` (n,)."""
+    for n in range(xz.shape[0]):
+        out[n] = current_defined(grid, xz[n, 0], xz[n, 1])
+    return out
+
+
+def current_coverage(grid: Grid, xz) -> np.ndarray:
+    """:func:`current_defined` (n,) at points ``xz`` (n, 2) [x, z] m (or (n, 3) [x, y, z])."""
+    xz = np.atleast_2d(np.asarray(xz, dtype=np.float64))
+    if xz.shape[1] == 3:
+        xz = xz[:, [0, 2]]
+    xz = np.ascontiguousarray(xz)
+    return current_defined_points(grid, xz, np.empty(xz.shape[0]))
 
 
 @hot_kernel

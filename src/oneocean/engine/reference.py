@@ -49,17 +49,21 @@ def current(grid: Grid, x: float, y: float, z: float, t: float) -> tuple[float, 
     """(ce, cn) m s-1, same definition as :func:`oneocean.engine.grid.sample_current`."""
     i, j, wx, wz = _cell(grid, x, z)
     w2 = np.array([[(1 - wz) * (1 - wx), (1 - wz) * wx], [wz * (1 - wx), wz * wx]])
+    # only nodes with currents count: renormalised by their share (>= 1/2), fading below it
+    share = float(np.sum(w2 * grid.current_mask[j:j + 2, i:i + 2]))
+    w2 = w2 / max(share, 0.5)
     k0, k1, wk = _axis(grid.depth, y)
     t0, t1, wt = _axis(grid.time_s, t)
     out = np.zeros(2)
+    tide = np.zeros(2)
     for ti, a in ((t0, 1 - wt), (t1, wt)):
         for ki, b in ((k0, 1 - wk), (k1, wk)):
             block = grid.uv[ti, ki, j:j + 2, i:i + 2, :].astype(np.float64)
             out += a * b * np.einsum("ab,abc->c", w2, block)
         if grid.tide_layers:
             block = grid.uv_tide[ti, j:j + 2, i:i + 2, :].astype(np.float64)
-            out += a * np.einsum("ab,abc->c", w2, block)
-    out *= grid.gain
+            tide += a * np.einsum("ab,abc->c", w2, block)
+    out = grid.gain * out + tide            # paper eq. 1: g scales u, v only
     if grid.tide_amp != 0.0:
         ph = grid.tide_omega * t + grid.tide_phase
         out += grid.tide_amp * np.array([math.sin(ph), math.cos(ph)])
