@@ -19,9 +19,10 @@ def assert_tier_table_monotone(table: dict) -> None:
     assert sorted(tiers) == [1, 2, 3]
     for key, way in table["harder"].items():
         assert way in ("up", "down")
-        vals = [float(tiers[t][key]) for t in (1, 2, 3)]
         sign = 1.0 if way == "up" else -1.0
-        assert all(sign * (b - a) >= 0 for a, b in zip(vals, vals[1:])), (key, vals)
+        # a list-valued parameter (e.g. current_band [q_lo, q_hi]) is monotone elementwise
+        vals = [np.atleast_1d(np.asarray(tiers[t][key], dtype=float)) for t in (1, 2, 3)]
+        assert all(np.all(sign * (b - a) >= 0) for a, b in zip(vals, vals[1:])), (key, vals)
     for t in (1, 2, 3):
         assert set(tiers[t]) == set(table["harder"]), t
 

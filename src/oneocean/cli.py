@@ -1,10 +1,13 @@
-"""Command-line entry point: ``oneocean verify [results/]``, ``oneocean evaluate ...``."""
+"""Command-line entry point: ``oneocean verify [results/]``, ``oneocean evaluate ...``,
+``oneocean ladder-readme <region> ...``."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
+
+from .vocab import EVALUATION_SEED
 
 
 def _verify(args) -> int:
@@ -50,6 +53,22 @@ def _evaluate(args) -> int:
     return 0
 
 
+def _ladder_readme(args) -> int:
+    from .errors import ConfigError
+    from .ladder import splice_readme
+
+    try:
+        for region in args.regions:
+            changed = splice_readme(args.readme, Path("results/tables") / region / "ladder.md",
+                                    region)
+            print(f"oneocean ladder-readme: {region}: "
+                  f"{'updated' if changed else 'unchanged'} in {args.readme}")
+    except ConfigError as exc:
+        print(f"oneocean ladder-readme: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="oneocean", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -67,11 +86,17 @@ def main(argv=None) -> int:
     p.add_argument("--out", required=True, help="output Parquet path")
     p.add_argument("--name", default=None, help="method name in the table (default: callable)")
     p.add_argument("--episodes", type=int, default=50)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=EVALUATION_SEED,
+                   help=f"evaluation seed (default {EVALUATION_SEED}, held out from calibration)")
     p.add_argument("--dynamics", default="6dof")
     p.add_argument("--n-agents", type=int, default=None)
     p.add_argument("--currents-off", action="store_true", help="the currents-off ablation")
     p.set_defaults(func=_evaluate)
+    p = sub.add_parser("ladder-readme", help="copy the workflow's ladder tables "
+                       "(results/tables/<region>/ladder.md) into the README's ladder blocks")
+    p.add_argument("regions", nargs="+", help="region names, e.g. synthetic_coast")
+    p.add_argument("--readme", default="README.md")
+    p.set_defaults(func=_ladder_readme)
     args = parser.parse_args(argv)
     return args.func(args)
 

@@ -39,6 +39,7 @@ def load_schema(path: str | Path | None = None) -> dict:
         rollouts["tasks"].setdefault("default", list(registry.builtin_task_ids()))
     if "methods" in rollouts:
         rollouts["methods"]["items"] = {"enum": list(registry.method_names())}
+        rollouts["methods"].setdefault("default", list(registry.builtin_method_names()))
     return schema
 
 
@@ -120,6 +121,20 @@ def _check_semantics(cfg: dict) -> None:
     if src["tides"] and src["currents"] == "files" and not cfg["files"]["tides"]:
         raise ConfigError("config key 'files.tides' is required when sources.tides is true and "
                           "sources.currents is 'files' (or set sources.tides: false)")
+    _check_held_out(cfg["rollouts"])
+
+
+def _check_held_out(rollouts: dict) -> None:
+    """The evaluation seed must not be a calibration seed of any task it evaluates."""
+    from .tasks.common import load_task_table
+
+    seed = int(rollouts["seed"])
+    for task in rollouts["tasks"]:
+        cal = load_task_table(task).get("calibration") or {}
+        if seed in [int(s) for s in cal.get("seeds", [])]:
+            raise ConfigError(f"config key 'rollouts.seed': {seed} is a calibration seed of "
+                              f"task {task} (its tier table's calibration.seeds "
+                              f"{cal['seeds']}); evaluate on held-out seeds")
 
 
 def load_config(*paths: str | Path, overrides: dict | None = None) -> dict:

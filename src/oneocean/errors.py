@@ -20,3 +20,9 @@ class ConfigError(OneOceanError):
 
 class CredentialsError(OneOceanError):
     """Credentials for a remote data service are missing."""
+
+
+class NotApplicable(ConfigError):
+    """A region cannot host a task cell (e.g. no water deep enough, no site in the tier's
+    current regime). Not a crash: the workflow writes the cell as not applicable with this
+    one-line reason and the tables show it so."""

@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import ConfigError
+from .vocab import EVALUATION_SEED
 
 
 def load_policy(spec: str):
@@ -48,7 +49,8 @@ def load_policy(spec: str):
     return obj
 
 
-def evaluate(policy, task: str, tier: int, grid, *, episodes: int = 50, seed: int = 0,
+def evaluate(policy, task: str, tier: int, grid, *, episodes: int = 50,
+             seed: int = EVALUATION_SEED,
              dynamics: str = "6dof", n_agents: int | None = None, currents: bool = True,
              vehicle=None, name: str = "user") -> pd.DataFrame:
     """Run ``policy`` on ``episodes`` episodes of a (task, tier) cell through the step API's
@@ -70,8 +72,10 @@ def evaluate(policy, task: str, tier: int, grid, *, episodes: int = 50, seed: in
         act = np.where(np.isfinite(act), act, 0.0)
         obs, *_ = env.step(act)
     res = b.results()
-    return cell_frame(b.mod, res, tier, name, b.n_agents, dynamics, currents, int(episodes),
-                      int(seed))
+    df = cell_frame(b.mod, res, tier, name, b.n_agents, dynamics, currents, int(episodes),
+                    int(seed))
+    df.insert(df.columns.get_loc("seed") + 1, "candidate", b.candidate)
+    return df
 
 
 def evaluate_to_file(policy_spec: str, out_path, task: str, tier: int, grid_path, *,

@@ -368,6 +368,11 @@ def method_names() -> tuple[str, ...]:
     return tuple(_methods)
 
 
+def builtin_method_names() -> tuple[str, ...]:
+    """The packaged methods (the config's default ``rollouts.methods``)."""
+    return tuple(m for m in _methods if m in _builtin_methods)
+
+
 def method_spec(name: str) -> MethodSpec:
     """The spec of method ``name``; unknown is a one-line ConfigError listing valid names."""
     if name not in _methods:

@@ -14,9 +14,9 @@ Best = Literal["max", "min"]
 
 def to_booktabs(df: pd.DataFrame, caption: str, label: str,
                 best: Mapping[str, Best] | None = None, precision: int = 2,
-                column_format: str | None = None) -> str:
+                column_format: str | None = None, na_rep: str = "--") -> str:
     """Render ``df`` as a booktabs table; columns in ``best`` get their best value in bold."""
-    styler = df.style.format(precision=precision, na_rep="--")
+    styler = df.style.format(precision=precision, na_rep=na_rep)
     for col, how in (best or {}).items():
         if col in df.columns and pd.api.types.is_numeric_dtype(df[col]) and df[col].notna().any():
             target = df[col].max() if how == "max" else df[col].min()
@@ -79,11 +79,23 @@ def task_success_frame(cell_files) -> pd.DataFrame:
     registered is a ConfigError (never silently dropped).
     """
     from . import registry
+    from .engine.recording import read_metrics_meta
 
-    cells = pd.concat([pd.read_parquet(f) for f in cell_files], ignore_index=True)
+    frames, n = [], {}
+    for f in cell_files:
+        meta = read_metrics_meta(f)
+        df = pd.read_parquet(f)
+        if meta.get("currents", True) is False:
+            continue                      # the ablation cells have their own table
+        if not len(df):                   # a cell the region cannot host: n/a, not 0 %
+            df = pd.DataFrame({"task": [meta["task"]], "method": [meta["method"]],
+                               "tier": [int(meta["tier"])], "success": [float("nan")]})
+        n[df["task"].iloc[0]] = int(meta.get("n_agents", df.get("n_agents", [0])[0]))
+        frames.append(df[["task", "method", "tier", "success"]].astype({"success": float}))
+    cells = pd.concat(frames, ignore_index=True)
     sr = (cells.groupby(["task", "method", "tier"])["success"].mean() * 100.0).unstack(
         ["method", "tier"])
-    n = cells.groupby("task")["n_agents"].first()
+    n = pd.Series(n)
     specs = {t: registry.task_spec(t) for t in sr.index}            # unknown task: error
     methods = {m: registry.method_spec(m) for m in sr.columns.get_level_values(0)}
     sr = sr.loc[[t for t in registry.task_ids() if t in specs]]
@@ -103,8 +115,9 @@ def task_success_table(cell_files, out_tex) -> None:
     body = df.copy()
     body["N"] = body["N"].map(lambda v: "" if pd.isna(v) else str(int(v)))
     tex = to_booktabs(
-        body, caption="Per-task success rate (\\%) by tier on the default region (core "
-        "backend, 50 episodes per cell unless stated in the manifest). Macro is the "
-        "unweighted mean over tasks.", label="tab:task_success", precision=1,
-        column_format="llr" + "r" * len(sr_cols))
+        body, caption="Per-task success rate (\\%) by tier (core backend, evaluation seed; "
+        "episodes per cell in the manifest). n/a: the region cannot host the cell (reason in "
+        "the cell file and the ladder table). Macro is the unweighted mean over the tasks "
+        "the region hosts.", label="tab:task_success", precision=1,
+        column_format="llr" + "r" * len(sr_cols), na_rep="n/a")
     write_text_atomic(out_tex, tex)

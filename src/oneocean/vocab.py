@@ -92,3 +92,7 @@ def validate_choice(value, options, name: str):
         opts = ", ".join(repr(o) for o in options)
         raise ConfigError(f"{name}: invalid value {value!r}. Valid options are ({opts}).")
     return value
+
+#: The default evaluation seed (``rollouts.seed``; ``oneocean evaluate --seed``): held out from
+#: every tier table's ``calibration.seeds`` (checked by the config validation).
+EVALUATION_SEED = 1000

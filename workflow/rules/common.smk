@@ -89,6 +89,19 @@ def rollout_targets():
     )
 
 
+def currents_off_targets():
+    r = config["rollouts"]
+    off = r["currents_off"]
+    return expand(
+        "results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_currents-off.parquet",
+        region=REGION,
+        variant=r["variant"],
+        task=r["tasks"],
+        tier=[t for t in off["tiers"] if t in r["tiers"]],
+        method=[m for m in off["methods"] if m in r["methods"]],
+    )
+
+
 def provenance_targets():
     """Every job's provenance file in the paper DAG (collected into results/manifest.json)."""
     stages = [
@@ -107,7 +120,8 @@ def provenance_targets():
         p.replace("results/rollouts/", "results/provenance/rollouts/").replace(
             ".parquet", ".json"
         )
-        for p in rollout_targets()
+        for p in rollout_targets() + currents_off_targets()
     ]
+    stages.append(f"results/provenance/tables/{REGION}/ladder.json")
     stages.append("results/provenance/tables/task_success_by_tier.json")
     return stages

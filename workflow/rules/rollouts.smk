@@ -2,6 +2,15 @@
 # batched inside one numba kernel.
 
 
+def _rollout_params(currents):
+    def fn(wc):
+        r = config["rollouts"]
+        return {**{k: r[k] for k in ("episodes", "seed", "dynamics", "current_gain", "tide")},
+                "currents": currents}
+
+    return fn
+
+
 rule rollout_cell:
     input:
         grid=rules.export_grid.output.npz,
@@ -13,12 +22,43 @@ rule rollout_cell:
     benchmark:
         "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}.tsv"
     params:
-        run=lambda wc: {k: config["rollouts"][k] for k in ("episodes", "seed", "dynamics")},
+        run=_rollout_params(True),
         code=code_version("oneocean.tasks", "oneocean.methods", "oneocean.engine", "oneocean.models",
                           "oneocean.data"),
     threads: lambda wc: config["rollouts"]["threads"]
     script:
         "../scripts/rollout_cell.py"
+
+
+# The currents-off ablation (g = 0, no tides): the same episodes as the cell above.
+use rule rollout_cell as rollout_cell_currents_off with:
+    output:
+        parquet="results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_currents-off.parquet",
+        prov="results/provenance/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_currents-off.json",
+    log:
+        "logs/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_currents-off.log",
+    benchmark:
+        "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_currents-off.tsv"
+    params:
+        run=_rollout_params(False),
+        code=code_version("oneocean.tasks", "oneocean.methods", "oneocean.engine", "oneocean.models",
+                          "oneocean.data"),
+
+
+rule table_ladder:
+    input:
+        cells=rollout_targets() + currents_off_targets(),
+    output:
+        md="results/tables/{region}/ladder.md",
+        prov="results/provenance/tables/{region}/ladder.json",
+    log:
+        "logs/tables/{region}/ladder.log",
+    params:
+        seed=lambda wc: config["rollouts"]["seed"],
+        code=code_version("oneocean.ladder", "oneocean.registry"),
+    threads: 1
+    script:
+        "../scripts/table_ladder.py"
 
 
 rule table_task_success:

@@ -25,6 +25,7 @@ rule paper_tables:
     input:
         "results/tables/dataset_variants.tex",
         "results/tables/task_success_by_tier.tex",
+        f"results/tables/{REGION}/ladder.md",
         figure_targets(),
         export_targets(),
         "results/manifest.json",

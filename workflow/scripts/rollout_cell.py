@@ -7,5 +7,6 @@ smk.run(
         s.input.grid, s.output.parquet, s.wildcards.task, int(s.wildcards.tier),
         s.wildcards.method, s.params.run["episodes"], s.params.run["seed"],
         s.params.run["dynamics"], threads=s.threads,
+        current_gain=s.params.run["current_gain"], tide=s.params.run["tide"],
     ),
 )

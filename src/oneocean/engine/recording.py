@@ -40,15 +40,38 @@ def _entry(path: Path, kind: str, table: pa.Table, meta: Mapping | None) -> dict
     return entry
 
 
+#: Parquet schema-metadata key of a cell file's own record (:func:`write_metrics`).
+CELL_META_KEY = b"oneocean"
+
+
 def write_metrics(df: pd.DataFrame, path, *, meta: Mapping | None = None) -> dict:
     """Write per-episode metrics to Parquet atomically; return the manifest entry.
 
     ``meta`` (JSON-able; e.g. ``{"dynamics": "6dof", "vehicle": vehicle.spec, "dt_s": 1.0}``)
-    is copied into the entry.
+    is copied into the entry and stored in the file itself (schema metadata
+    :data:`CELL_META_KEY`, sorted-key JSON: the bytes stay deterministic), so a rollout file
+    records its own configuration (:func:`read_metrics_meta`).
     """
+    import json
+
     import pyarrow as pa
 
     path = Path(path)
     table = pa.Table.from_pandas(df, preserve_index=False)
+    if meta:
+        md = dict(table.schema.metadata or {})
+        md[CELL_META_KEY] = json.dumps(meta, sort_keys=True, default=str).encode()
+        table = table.replace_schema_metadata(md)
     _write_table(table, path)
     return _entry(path, "episode_metrics", table, meta)
+
+
+def read_metrics_meta(path) -> dict:
+    """The record :func:`write_metrics` stored in a cell file (``{}`` if none)."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    md = pq.read_schema(path).metadata or {}
+    raw = md.get(CELL_META_KEY)
+    return json.loads(raw) if raw else {}

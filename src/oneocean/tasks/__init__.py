@@ -15,7 +15,7 @@ import importlib
 import numpy as np
 import pandas as pd
 
-from ..errors import ConfigError
+from ..errors import ConfigError, NotApplicable
 from .common import ACT_FIELDS, OBS_FIELDS, STANDARD, load_task_table, tier_params  # noqa: F401
 
 
@@ -41,39 +41,98 @@ def n_agents_for(task_id: str, n_agents: int | None) -> int:
 class Cell:
     """One (task, tier) on one grid, ready to sample episodes and run them.
 
-    ``grid_reset`` carries the tier's forcing (``current_gain``); ``grid`` is what the
-    rollout sees: the same, or with the current switched off (``currents=False``, tides
-    dropped: the ablation). Episodes are always sampled on ``grid_reset``, so the ablation
-    replays the same episodes (geometry, start times).
+    ``grid_reset`` carries the run's forcing (``current_gain`` g on the data u, v, default 1:
+    the data as they are; an optional synthetic tide term ``tide``: the c_tide ablation;
+    a tier's own ``current_gain``, if its table has one, multiplies g); ``grid`` is what the
+    rollout sees: the same, or with the current switched off (``currents=False``: g = 0, no
+    tide layers, no synthetic tide: the ablation). Episodes are always sampled on
+    ``grid_reset``, so the ablation replays the same episodes (geometry, start times).
+    The vehicle is the task table's ``vehicle`` unless one is given; its speed limit reaches
+    ``reset``/``make`` as ``params["v_max"]``.
     """
 
     def __init__(self, grid, task: str, tier: int, *, n_agents: int | None = None,
-                 currents: bool = True, vehicle=None):
+                 currents: bool = True, vehicle=None, current_gain: float = 1.0, tide=None):
         from ..engine import load_grid, load_vehicle
         from ..engine.grid import Grid, with_forcing
 
         self.task, self.tier = task, int(tier)
         self.mod = task_module(task)
         grid = grid if isinstance(grid, Grid) else load_grid(grid)
+        table = load_task_table(task)
+        self.vehicle = vehicle if vehicle is not None else load_vehicle(table.get("vehicle"))
         params = tier_params(task, self.tier)
-        self.params = {**params, "dt_s": float(load_task_table(task)["dt_s"])}
+        self.params = {**params, "dt_s": float(table["dt_s"]), "v_max": self.vehicle.v_max}
         self.n_agents = n_agents_for(task, n_agents)
-        self.grid_reset = with_forcing(grid,
-                                       current_gain=float(params.get("current_gain", 1.0)))
+        self.current_gain = float(current_gain) * float(params.get("current_gain", 1.0))
+        self.grid_reset = with_forcing(grid, current_gain=self.current_gain, tide=tide)
         self.grid = self.grid_reset if currents else self.grid_reset._replace(
             gain=0.0, tide_layers=0, tide_amp=0.0)
         self.currents = bool(currents)
-        self.vehicle = vehicle if vehicle is not None else load_vehicle()
 
     def reset(self, episodes: int, seed: int) -> dict:
-        """The task's episodes ``0 .. episodes-1`` of ``seed`` (its ``reset`` output)."""
-        return self.mod.reset(self.grid_reset, self.params, self.n_agents, int(episodes),
-                              int(seed))
+        """The task's episodes of ``seed`` (its ``reset`` output, ``episodes`` rows).
+
+        Without a ``current_band`` in the tier these are the task's candidates
+        ``0 .. episodes-1``. With one, candidates are drawn in order and the first
+        ``episodes`` whose episode current (:func:`~.common.site_speed` at the candidate's
+        ``regime_points``, else its start positions, over ``[t0, t0 + time_limit_s]``) lies in
+        the tier's :class:`~.common.Regime` are kept; ``init["candidate"]`` records which.
+        Raises :class:`~oneocean.errors.NotApplicable` (naming the cell) when the region
+        cannot host it."""
+        try:
+            return self._reset(int(episodes), int(seed))
+        except NotApplicable as exc:
+            raise NotApplicable(f"{self.task} tier {self.tier}: {exc}") from None
+
+    def _reset(self, episodes: int, seed: int) -> dict:
+        from ..engine.grid import current_coverage
+        from .common import current_regime, site_speed
+
+        band = self.params.get("current_band")
+        duration = float(self.params["time_limit_s"])
+        n_cand = (episodes if band is None else
+                  int(np.ceil(2.0 * episodes / max(float(band[1]) - float(band[0]), 0.05))))
+        regime = None
+        for _ in range(REGIME_DRAWS):
+            init = self.mod.reset(self.grid_reset, self.params, self.n_agents, n_cand, seed)
+            pts = np.asarray(init.pop("regime_points", init["pos0"]), dtype=np.float64)
+            # episodes only where the product defines currents (never in water it does not
+            # cover, where the engine's current is 0: docs/contracts.md §5)
+            ok = np.array([bool(np.all(current_coverage(self.grid_reset, pts[c]) >= 1.0))
+                           for c in range(n_cand)])
+            if band is not None:
+                regime = current_regime(self.grid_reset, self.params,
+                                        float(np.median(pts[..., 1])))
+                speed = np.array([site_speed(self.grid_reset, pts[c], init["t0"][c], duration)
+                                  if ok[c] else np.nan for c in range(n_cand)])
+                ok &= (speed >= regime.lo) & (speed <= regime.hi)
+            keep = np.flatnonzero(ok)[:episodes]
+            if keep.size == episodes:
+                break
+            n_cand *= 2
+        else:
+            what = ("in water with currents" if regime is None else
+                    f"in the tier's current regime (speed quantiles {band[0]:g}-{band[1]:g} of "
+                    f"the region: {regime.lo:.2f}-{regime.hi:.2f} m/s)")
+            raise NotApplicable(f"only {keep.size} of {n_cand} candidate episodes lie {what}; "
+                                f"{episodes} needed")
+        self.regime = regime
+        out = {k: (v[keep] if isinstance(v, np.ndarray) and v.ndim and v.shape[0] == n_cand
+                   else v) for k, v in init.items()}
+        out["candidate"] = keep.astype(np.int64)
+        return out
+
+
+#: Candidate draws (each twice the last) before a tier's current regime is declared not
+#: applicable in a region.
+REGIME_DRAWS = 3
 
 
 def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: int = 50,
              seed: int = 0, dynamics: str = "6dof", currents: bool = True,
-             n_agents: int | None = None, vehicle=None, observations: bool = False):
+             n_agents: int | None = None, vehicle=None, observations: bool = False,
+             current_gain: float = 1.0, tide=None):
     """Run ``episodes`` episodes of one (task, tier, method) cell on the one episode loop,
     batched in one kernel call (a fused method: the task's heuristic or oracle).
 
@@ -85,6 +144,8 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
         ablation; ``reset`` always sees the tier's forcing, so both replay the same episodes).
     observations : bool
         Also return every agent's per-step observation and action (for learning methods).
+    current_gain, tide
+        The run's forcing (:class:`Cell`): g on the data u, v and the synthetic tide term.
 
     Returns
     -------
@@ -94,7 +155,8 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     (E, n_steps, N, 3) float64 (:data:`oneocean.tasks.common.OBS_FIELDS`, ``ACT_FIELDS``),
     NaN after an episode ended.
     """
-    cell = Cell(grid, task, tier, n_agents=n_agents, currents=currents, vehicle=vehicle)
+    cell = Cell(grid, task, tier, n_agents=n_agents, currents=currents, vehicle=vehicle,
+                current_gain=current_gain, tide=tide)
     from ..registry import method_spec
     from .episodes import rollout
 
@@ -104,6 +166,7 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     res = rollout(mod, cell.grid, cell.params, init, method, dynamics, cell.vehicle, int(seed),
                   record=observations)
     df = cell_frame(mod, res, tier, method, n, dynamics, currents, episodes, seed)
+    df.insert(df.columns.get_loc("seed") + 1, "candidate", init["candidate"])
     if observations:
         return df, res["obs"], res["act"]
     return df
@@ -132,20 +195,45 @@ def cell_frame(mod, res: dict, tier: int, method: str, n_agents: int, dynamics: 
     return df
 
 
+def na_frame(mod, tier: int, method: str, n_agents: int, dynamics: str,
+             currents: bool, seed: int) -> pd.DataFrame:
+    """The zero-episode cell table of a cell the region cannot host (same columns and
+    dtypes as :func:`cell_frame`; the reason travels in the file's record)."""
+    res = {k: np.zeros(0, dtype=bool if k == "success" else np.float64)
+           for k in STANDARD + tuple(mod.METRICS)}
+    res["violations"] = np.zeros(0, dtype=np.int64)
+    df = cell_frame(mod, res, tier, method, n_agents, dynamics, currents, 0, seed)
+    df.insert(df.columns.get_loc("seed") + 1, "candidate", np.zeros(0, dtype=np.int64))
+    return df
+
+
 def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, episodes: int,
-                    seed: int, dynamics: str, threads: int = 1, currents: bool = True) -> dict:
+                    seed: int, dynamics: str, threads: int = 1, currents: bool = True,
+                    current_gain: float = 1.0, tide=None) -> dict:
     """Run one cell on a grid export file and write its per-episode Parquet table atomically.
 
+    The file records its configuration (``oneocean.engine.recording.read_metrics_meta``):
+    tier parameters, vehicle, dynamics, seed, forcing, and ``applicable``. A cell the region
+    cannot host (:class:`~oneocean.errors.NotApplicable`) is written with zero episodes,
+    ``applicable: false`` and the one-line ``reason``; it is never a crash.
     Returns the manifest entry of :func:`oneocean.engine.write_metrics`.
     """
     import numba
 
-    from ..engine import load_grid, load_vehicle, write_metrics
+    from ..engine import load_grid, write_metrics
 
     numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
     grid = load_grid(grid_path)
-    vehicle = load_vehicle()
-    df = run_cell(grid, task, tier, method, episodes, seed, dynamics, currents=currents,
-                  vehicle=vehicle)
-    return write_metrics(df, out_path, meta={"dynamics": dynamics, "vehicle": vehicle.name,
-                                             "tier_params": tier_params(task, int(tier))})
+    cell = Cell(grid, task, tier, currents=currents, current_gain=current_gain, tide=tide)
+    meta = {"task": task, "tier": int(tier), "method": method, "dynamics": dynamics,
+            "vehicle": cell.vehicle.name, "v_max_ms": cell.vehicle.v_max,
+            "n_agents": cell.n_agents, "episodes": int(episodes), "seed": int(seed),
+            "current_gain": cell.current_gain, "tide": tide, "currents": bool(currents),
+            "tier_params": tier_params(task, int(tier)), "applicable": True, "reason": ""}
+    try:
+        df = run_cell(grid, task, tier, method, episodes, seed, dynamics, currents=currents,
+                      vehicle=cell.vehicle, current_gain=current_gain, tide=tide)
+    except NotApplicable as exc:
+        df = na_frame(cell.mod, tier, method, cell.n_agents, dynamics, currents, seed)
+        meta.update(applicable=False, reason=str(exc))
+    return write_metrics(df, out_path, meta=meta)

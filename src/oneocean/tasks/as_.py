@@ -57,7 +57,7 @@ from numba import njit
 from ..engine._jit import hot_kernel
 from ..engine.constraints import spawn_positions
 from ..engine.grid import sample_elevation, sample_elevation_points
-from ..errors import ConfigError
+from ..errors import ConfigError, NotApplicable
 from ..methods.heuristic import as_ as POLICY
 from .common import STANDARD, episode_generators, fresh_cache, need_tier, start_times
 from .loop import noop_pre_step, observe_next, run_episode
@@ -143,7 +143,7 @@ def sample_region(grid, rng, tier, tries: int = 3000, what: str = "region"):
             box = (c[0] - hx, c[1] - hz, c[0] + hx, c[1] + hz)
             if _region_ok(grid, *box, tier):
                 return (*box, axis)
-    raise ConfigError(
+    raise NotApplicable(
         f"{what}: no {L:g} x {W:g} m region with seafloor depth in "
         f"[{tier['seafloor_min_m']:g}, {tier['seafloor_max_m']:g}] m and relief >= "
         f"{tier['min_relief_m']:g} m found in {tries} tries; the grid has no such shelf")
@@ -182,8 +182,16 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
                  "altitude": SPAWN_ALTITUDE_M}
         pos0[e] = spawn_positions(grid, rng, n_agents, spawn, clearance=CLEARANCE_M,
                                   min_separation=SPAWN_SEPARATION_M)
+    # the current regime is judged over the scan region (its centre and corners, at the
+    # agents' start depth)
+    y = pos0[:, :1, 1]
+    xs = np.stack([region[:, 0], region[:, 2], region[:, 0], region[:, 2],
+                   0.5 * (region[:, 0] + region[:, 2])], axis=1)
+    zs = np.stack([region[:, 1], region[:, 1], region[:, 3], region[:, 3],
+                   0.5 * (region[:, 1] + region[:, 3])], axis=1)
+    pts = np.stack([xs, np.broadcast_to(y, xs.shape), zs], axis=-1)
     return {"region": region, "long_axis": axis, "pos0": pos0,
-            "psi0": np.zeros((n_episodes, n_agents)), "t0": t0}
+            "psi0": np.zeros((n_episodes, n_agents)), "t0": t0, "regime_points": pts}
 
 
 # ------------------------------------------------------------------------------ env

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from importlib import resources
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import yaml
@@ -19,7 +20,7 @@ from ..engine import status as st
 from ..engine._jit import hot_kernel
 from ..engine.grid import Grid, sample_current_data, sample_elevation, synthetic_tide
 from ..engine.rng import PURPOSE_TASK, normal
-from ..errors import ConfigError
+from ..errors import ConfigError, NotApplicable
 
 #: Random-stream purposes of the task layer (counter-based: ``normal(seed, ep, purpose, k)``).
 PURPOSE_PROBE = PURPOSE_TASK + 1
@@ -133,6 +134,16 @@ def load_task_table(task_id: str, path: str | Path | None = None) -> dict:
         if undeclared:
             raise ConfigError(f"{f}: tier {tier} parameter '{undeclared[0]}' has no 'harder' "
                               "direction")
+    if "vehicle" in doc and not isinstance(doc["vehicle"], str):
+        raise ConfigError(f"{f}: 'vehicle' must be a vehicle name (data/vehicles.yaml), got "
+                          f"{doc['vehicle']!r}")
+    cal = doc.get("calibration")
+    if cal is not None:
+        seeds = cal.get("seeds") if isinstance(cal, dict) else None
+        if not (isinstance(seeds, list) and seeds
+                and all(isinstance(x, int) and not isinstance(x, bool) for x in seeds)):
+            raise ConfigError(f"{f}: 'calibration.seeds' must be a non-empty list of integer "
+                              f"seeds, got {seeds!r}")
     return doc
 
 
@@ -164,6 +175,76 @@ def start_times(grid: Grid, rngs, duration_s: float) -> np.ndarray:
     if t_hi <= t_lo:
         return np.full(len(rngs), t_lo)
     return np.array([r.uniform(t_lo, t_hi) for r in rngs])
+
+
+# ------------------------------------------------------------------------------ current regime
+
+class Regime(NamedTuple):
+    """A tier's current regime on one region: episodes are accepted where the mean current
+    speed over the episode lies in ``[lo, hi]`` m s-1, the region's own speed quantiles
+    ``band = (q_lo, q_hi)`` (tier key ``current_band``) at the reference depth ``depth_m``.
+
+    The quantiles are taken over every water node of the grid level nearest ``depth_m`` and
+    every time of the grid (the current as the rollout sees it: gain, tide layers, synthetic
+    tide), so "Tier 3 = the fastest third of this region's water" means the same in a calm
+    region and in a tidal one.
+    """
+
+    band: tuple
+    lo: float
+    hi: float
+    depth_m: float
+
+
+def current_regime(grid: Grid, tier: dict, depth_m: float) -> Regime | None:
+    """The :class:`Regime` of a tier's ``current_band`` on ``grid`` (None without the key)."""
+    from ..engine.grid import sample_currents
+
+    band = tier.get("current_band")
+    if band is None:
+        return None
+    try:
+        q_lo, q_hi = (float(b) for b in band)
+    except (TypeError, ValueError):
+        raise ConfigError(f"current_band: expected [q_lo, q_hi], got {band!r}") from None
+    if not 0.0 <= q_lo < q_hi <= 1.0:
+        raise ConfigError(f"current_band: need 0 <= q_lo < q_hi <= 1, got {band!r}")
+    k = int(np.argmin(np.abs(np.asarray(grid.depth) - float(depth_m))))
+    water = (np.asarray(grid.valid[k]) == 1) & (np.asarray(grid.land) < 0.5)
+    jj, ii = np.nonzero(water)
+    if jj.size == 0:
+        raise NotApplicable(f"no water with currents at {depth_m:g} m")
+    stride = max(1, jj.size // 20000)
+    jj, ii = jj[::stride], ii[::stride]
+    times = np.asarray(grid.time_s, dtype=np.float64)
+    xyz = np.column_stack([grid.x0 + ii * grid.dx, np.full(ii.size, float(depth_m)),
+                           grid.z0 + jj * grid.dz])
+    pts = np.tile(xyz, (times.size, 1))
+    t = np.repeat(times, xyz.shape[0])
+    c = sample_currents(grid, pts, t)
+    speed = np.hypot(c[:, 0], c[:, 1])
+    lo, hi = np.quantile(speed, [q_lo, q_hi])
+    return Regime((q_lo, q_hi), float(lo), float(hi) if q_hi < 1.0 else math.inf,
+                  float(depth_m))
+
+
+def site_speed(grid: Grid, points, t0: float, duration_s: float, n_times: int = 5) -> float:
+    """Mean current speed (m s-1) over ``points`` (n, 3) world m and ``n_times`` times
+    evenly spread over ``[t0, t0 + duration_s]``: the current an episode there meets."""
+    from ..engine.grid import sample_currents
+
+    pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
+    ts = np.linspace(float(t0), float(t0) + float(duration_s), int(n_times))
+    c = sample_currents(grid, np.tile(pts, (ts.size, 1)), np.repeat(ts, pts.shape[0]))
+    return float(np.mean(np.hypot(c[:, 0], c[:, 1])))
+
+
+def in_regime(grid: Grid, regime: Regime | None, points, t0: float, duration_s: float) -> bool:
+    """True if an episode at ``points`` from ``t0`` lies in the tier's current regime."""
+    if regime is None:
+        return True
+    s = site_speed(grid, points, t0, duration_s)
+    return regime.lo <= s <= regime.hi
 
 
 # ------------------------------------------------------------------------------ nav helpers
@@ -250,8 +331,9 @@ def sample_route(grid: Grid, rng: np.random.Generator, n_legs: int, leg_m: float
 
     Raises
     ------
-    ConfigError
-        If no valid route was found in ``tries`` attempts (never a silent fallback).
+    NotApplicable
+        If no valid route was found in ``tries`` attempts (never a silent fallback): the
+        region cannot host this cell.
     """
     from ..engine.constraints import spawn_positions
 
@@ -267,7 +349,7 @@ def sample_route(grid: Grid, rng: np.random.Generator, n_legs: int, leg_m: float
         except ConfigError as exc:
             spawn_fails += 1
             if spawn_fails >= 5:   # no valid water at these depths: fail now, loudly
-                raise ConfigError(f"{what}: {exc}") from None
+                raise NotApplicable(f"{what}: {exc}") from None
             continue
         heading = rng.uniform(-math.pi, math.pi)
         ok = True
@@ -283,9 +365,9 @@ def sample_route(grid: Grid, rng: np.random.Generator, n_legs: int, leg_m: float
             out[leg + 1] = p
         if ok:
             return out
-    raise ConfigError(f"{what}: no {n_legs}-leg route of {leg_m:g} m legs at depths "
-                      f"[{lo:g}, {hi:g}] m with {clearance:g} m clearance found in {tries} tries; "
-                      "the grid is too small or too shallow for this tier")
+    raise NotApplicable(f"{what}: no {n_legs}-leg route of {leg_m:g} m legs at depths "
+                        f"[{lo:g}, {hi:g}] m with {clearance:g} m clearance found in {tries} "
+                        "tries; the region cannot host this tier")
 
 
 @hot_kernel(inline="always")

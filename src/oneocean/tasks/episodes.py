@@ -104,6 +104,8 @@ class Episodes:
                              float(getattr(mod, "R_COLL_M", DEFAULT_R_COLL_M)))
         self.LS = new_loop_state(n_ep, n_ag)
         self.t0 = np.ascontiguousarray(init["t0"], dtype=np.float64)
+        #: which of the task's candidate episodes these are (:meth:`oneocean.tasks.Cell.reset`)
+        self.candidate = np.asarray(init.get("candidate", np.arange(n_ep)), dtype=np.int64)
         self.state = new_state(n_ep, n_ag, pos0, init["psi0"])
         self.cmd = np.zeros((n_ep, n_ag, CMD_DIM))
         self.ext = np.zeros((n_ep, n_ag, len(ACT_FIELDS)))

@@ -52,7 +52,7 @@ from ..engine import status as st
 from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility
 from ..engine.rng import hash64
-from ..errors import ConfigError
+from ..errors import ConfigError, NotApplicable
 from ..methods.heuristic import fh as POLICY
 from ..models import fish as _fish
 from ..models.fish import (fish_params, fraction_inside_circle, init_school, school_centroid,
@@ -178,14 +178,19 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
             if found is not None:
                 break
         if found is None:
-            raise ConfigError(f"task {TASK_ID} reset (episode {e}): no school/zone geometry with "
+            raise NotApplicable(f"task {TASK_ID} reset (episode {e}): no school/zone geometry with "
                               f"a {2 * CORRIDOR_HALF_WIDTH_M:g} m wide water corridor of "
                               f"{dist:g} m and a {radius:g} m zone found in 200 draws")
         fish0[e, 0], fish0[e, 1], zone[e], pos0[e] = found
     cx = fish0[:, 0].mean(axis=1)
     cz = fish0[:, 1].mean(axis=1)
     psi0 = np.arctan2(cx[:, None] - pos0[..., 0], cz[:, None] - pos0[..., 2])
-    return {"fish0": fish0, "zone": zone, "pos0": pos0, "psi0": psi0, "t0": t0}
+    # the current regime is judged where the school drifts: its centroid and the zone
+    y = float(pos0[0, 0, 1]) if n_episodes else 0.0
+    pts = np.stack([np.column_stack([cx, np.full_like(cx, y), cz]),
+                    np.column_stack([zone[:, 0], np.full_like(cx, y), zone[:, 1]])], axis=1)
+    return {"fish0": fish0, "zone": zone, "pos0": pos0, "psi0": psi0, "t0": t0,
+            "regime_points": pts}
 
 
 

@@ -2,8 +2,9 @@
 
 Objective
     A polluting object rests on the seafloor (centre ``OBJ_HALF_HEIGHT_M`` above it) at a site
-    whose seafloor depth lies in ``[site_depth_m - SITE_DEPTH_SPAN_M, site_depth_m]`` (never
-    below the grid's deepest current level). It carries ``N_SLOTS = 5`` attachment slots on a
+    whose seafloor depth lies in ``[site_depth_m - SITE_DEPTH_SPAN_M, site_depth_m]`` (below
+    the product's deepest current level the engine holds that level's current down to the
+    seafloor, docs/contracts.md §5). It carries ``N_SLOTS = 5`` attachment slots on a
     ring of radius ``SLOT_RING_M``, ``SLOT_RISE_M`` above its centre (adjacent slots 3.5 m
     apart). The five vehicles start APART from it: near the surface (``START_DEPTH_M``), at
     ``[START_RING_FRAC * start_distance_m, start_distance_m]`` horizontally from the site, each
@@ -66,7 +67,7 @@ from ..engine import status as st
 from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility
 from ..engine.grid import sample_elevation, sample_elevation_points
-from ..errors import ConfigError
+from ..errors import ConfigError, NotApplicable
 from ..methods.heuristic import upl as POLICY
 from .common import (OK, STANDARD, current_at, episode_generators, episode_steps, fresh_cache,
                      need_tier, path_clear, start_times)
@@ -132,9 +133,6 @@ def check_reachable(tier: dict, grid=None) -> None:
         raise ConfigError(f"task {TASK_ID}: quorum={q} outside [1, {N_SLOTS}]")
     if float(tier["detach_radius_m"]) < float(tier["attach_radius_m"]):
         raise ConfigError(f"task {TASK_ID}: detach_radius_m < attach_radius_m")
-    if grid is not None and float(tier["site_depth_m"]) > float(grid.depth[-1]):
-        raise ConfigError(f"task {TASK_ID}: site_depth_m={tier['site_depth_m']} m is below the "
-                          f"grid's deepest current level ({float(grid.depth[-1]):g} m)")
 
 
 def _site_candidates(grid, rng, lo: float, hi: float, n: int = 4096) -> np.ndarray:
@@ -224,14 +222,19 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
             if found is not None:
                 break
         if found is None:
-            raise ConfigError(f"task {TASK_ID} reset (episode {e}): no site with seafloor depth "
+            raise NotApplicable(f"task {TASK_ID} reset (episode {e}): no site with seafloor depth "
                               f"in [{lo:g}, {hi:g}] m, feasible slots and clear descents from "
                               f"{dist:g} m found; the grid has no such water for this tier")
         obj0[e], phase, pos0[e] = found
         slot_off[e] = slot_offsets(phase)
     d = obj0[:, None, :] - pos0
     psi0 = np.arctan2(d[..., 0], d[..., 2])
-    return {"obj0": obj0, "slot_off": slot_off, "pos0": pos0, "psi0": psi0, "t0": t0}
+    # the current regime is judged at the object: its site, and the water column it rises in
+    col = np.repeat(obj0[:, None, :], 3, axis=1)
+    col[:, 1, 1] *= 0.5
+    col[:, 2, 1] = float(tier["success_depth_m"])
+    return {"obj0": obj0, "slot_off": slot_off, "pos0": pos0, "psi0": psi0, "t0": t0,
+            "regime_points": col}
 
 
 @hot_kernel  # not inlined: called once per step, keeps the episode kernel's compile time down

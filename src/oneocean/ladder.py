@@ -1,0 +1,266 @@
+"""The difficulty ladder: success rates with 95 % intervals per (task, tier, method), the
+macro aggregates, and the protocol's checks, from per-episode cell tables.
+
+Pure functions of the cell files the workflow writes (``results/rollouts/...parquet``, each
+with its own record, :func:`oneocean.engine.recording.read_metrics_meta`); the workflow's
+``table_ladder`` rule and ``benchmarks/ladder.py`` both go through :func:`ladder_frame`,
+:func:`macro_frame` and :func:`run_checks`, so the README's ladder table is the workflow's own
+output (``oneocean ladder-readme`` splices it in).
+
+Intervals: Wilson score interval for a rate (per cell); for a macro (the unweighted mean of the
+tasks' success rates) a stratified bootstrap that resamples episodes within each task (seeded,
+so the table bytes are reproducible). A cell the region cannot host (``applicable: false``)
+has no rate: it is shown as n/a with its reason and left out of the macros, which then say how
+many tasks they average.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+#: Two-sided 95 % normal quantile.
+Z95 = 1.959963984540054
+#: Bootstrap replicates and seed of the macro intervals.
+N_BOOT = 2000
+BOOT_SEED = 20250101
+
+
+def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
+    """Wilson score interval (lo, hi) of ``k`` successes in ``n`` trials, as fractions."""
+    if n <= 0:
+        return (math.nan, math.nan)
+    p = k / n
+    den = 1.0 + z * z / n
+    mid = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return (max(0.0, mid - half), min(1.0, mid + half))
+
+
+def load_cells(files) -> pd.DataFrame:
+    """One row per cell file: ``task, tier, method, currents, applicable, reason, n, k`` and
+    the episodes' success vector (``success``, a numpy bool array)."""
+    from .engine.recording import read_metrics_meta
+
+    rows = []
+    for f in files:
+        df = pd.read_parquet(f)
+        meta = read_metrics_meta(f)
+        app = bool(meta.get("applicable", True))
+        rows.append({"task": meta.get("task", df["task"].iloc[0] if len(df) else None),
+                     "tier": int(meta.get("tier", df["tier"].iloc[0] if len(df) else -1)),
+                     "method": meta.get("method", df["method"].iloc[0] if len(df) else None),
+                     "currents": bool(meta.get("currents", True)),
+                     "applicable": app, "reason": meta.get("reason", ""),
+                     "vehicle": meta.get("vehicle", ""),
+                     "n": int(len(df)), "k": int(df["success"].sum()) if len(df) else 0,
+                     "success": df["success"].to_numpy(dtype=bool)})
+    return pd.DataFrame(rows)
+
+
+@dataclass(frozen=True)
+class Rate:
+    """A success rate in percent with its 95 % interval (NaN when not applicable)."""
+
+    sr: float
+    lo: float
+    hi: float
+    n: int
+
+
+def cell_rate(k: int, n: int) -> Rate:
+    lo, hi = wilson(k, n)
+    return Rate(100.0 * k / n if n else math.nan, 100.0 * lo, 100.0 * hi, n)
+
+
+def ladder_frame(cells: pd.DataFrame) -> pd.DataFrame:
+    """Per (task, method, currents, tier): ``sr, lo, hi, n, applicable, reason``."""
+    out = []
+    for _, c in cells.iterrows():
+        r = cell_rate(c["k"], c["n"]) if c["applicable"] else Rate(math.nan, math.nan,
+                                                                   math.nan, 0)
+        out.append({"task": c["task"], "method": c["method"], "currents": c["currents"],
+                    "tier": c["tier"], "sr": r.sr, "lo": r.lo, "hi": r.hi, "n": r.n,
+                    "applicable": c["applicable"], "reason": c["reason"],
+                    "vehicle": c["vehicle"]})
+    return pd.DataFrame(out)
+
+
+def macro_rate(cells: pd.DataFrame, method: str, tier: int, currents: bool = True) -> dict:
+    """Macro success rate (%) of one (method, tier, currents) over the applicable tasks, with
+    a stratified-bootstrap 95 % interval (episodes resampled within each task)."""
+    sel = cells[(cells["method"] == method) & (cells["tier"] == tier)
+                & (cells["currents"] == currents)]
+    app = sel[sel["applicable"] & (sel["n"] > 0)]
+    if app.empty:
+        return {"sr": math.nan, "lo": math.nan, "hi": math.nan, "tasks": 0,
+                "na": int(len(sel))}
+    succ = [np.asarray(s, dtype=np.float64) for s in app["success"]]
+    point = 100.0 * float(np.mean([s.mean() for s in succ]))
+    rng = np.random.default_rng(BOOT_SEED)
+    boots = np.zeros(N_BOOT)
+    for s in succ:
+        idx = rng.integers(0, s.size, size=(N_BOOT, s.size))
+        boots += s[idx].mean(axis=1)
+    boots *= 100.0 / len(succ)
+    lo, hi = np.quantile(boots, [0.025, 0.975])
+    return {"sr": point, "lo": float(lo), "hi": float(hi), "tasks": len(succ),
+            "na": int(len(sel) - len(app))}
+
+
+@dataclass(frozen=True)
+class Check:
+    name: str
+    measured: str
+    target: str
+    passed: bool | None   # None: could not be evaluated (missing cells)
+
+
+def run_checks(cells: pd.DataFrame) -> list[Check]:
+    """The protocol's checks on the evaluation cells, reported as measured (issue #9):
+    heuristic Tier-2 macro SR in [60, 90] %, Tier-3 macro in [20, 50] %, heuristic SR
+    non-increasing T1 -> T3 per task, oracle >= 90 % in every cell with a 95 % Wilson lower
+    bound >= 80 %, currents off raising the heuristic's Tier-3 macro by >= 15 points."""
+    out: list[Check] = []
+    lad = ladder_frame(cells)
+    h = lad[(lad["method"] == "heuristic") & lad["currents"]]
+    for tier, (a, b) in ((2, (60.0, 90.0)), (3, (20.0, 50.0))):
+        m = macro_rate(cells, "heuristic", tier)
+        ok = None if m["tasks"] == 0 else bool(a <= m["sr"] <= b)
+        out.append(Check(f"heuristic Tier-{tier} macro SR", _fmt_macro(m), f"{a:g}-{b:g} %",
+                         ok))
+    bad, seen = [], 0
+    for task, g in h.groupby("task", sort=False):
+        g = g[g["applicable"]].sort_values("tier")
+        if len(g) < 2:
+            continue
+        seen += 1
+        srs = g["sr"].to_numpy()
+        if np.any(np.diff(srs) > 1e-9):
+            bad.append(f"{task} " + "/".join(f"{v:.0f}" for v in srs))
+    out.append(Check("heuristic SR non-increasing T1->T3 per task",
+                     "all" if not bad else "; ".join(bad), f"{seen} tasks",
+                     None if seen == 0 else not bad))
+    o = lad[(lad["method"] == "oracle") & lad["currents"] & lad["applicable"]]
+    if o.empty:
+        out.append(Check("oracle >= 90 % and Wilson lower bound >= 80 % in every cell",
+                         "no oracle cells", "every cell", None))
+    else:
+        fails = o[(o["sr"] < 90.0) | (o["lo"] < 80.0)]
+        what = ("all" if fails.empty else "; ".join(
+            f"{r.task} T{r.tier} {r.sr:.0f} [{r.lo:.0f}]" for r in fails.itertuples()))
+        out.append(Check("oracle >= 90 % and Wilson lower bound >= 80 % in every cell",
+                         f"{len(o) - len(fails)}/{len(o)} cells pass" + (
+                             "" if fails.empty else f" (fail: {what})"), "every cell",
+                         fails.empty))
+    on = macro_rate(cells, "heuristic", 3, True)
+    off = macro_rate(cells, "heuristic", 3, False)
+    if off["tasks"] == 0 or on["tasks"] == 0:
+        out.append(Check("currents off raises heuristic Tier-3 macro", "no currents-off cells",
+                         ">= +15 points", None))
+    else:
+        d = off["sr"] - on["sr"]
+        out.append(Check("currents off raises heuristic Tier-3 macro",
+                         f"{d:+.1f} points ({on['sr']:.1f} -> {off['sr']:.1f} %)",
+                         ">= +15 points", bool(d >= 15.0)))
+    return out
+
+
+def _fmt_macro(m: dict) -> str:
+    if m["tasks"] == 0:
+        return "n/a"
+    s = f"{m['sr']:.1f} % [{m['lo']:.1f}, {m['hi']:.1f}]"
+    return s + (f" over {m['tasks']} tasks ({m['na']} n/a)" if m["na"] else "")
+
+
+def _fmt_cell(r) -> str:
+    if not r["applicable"]:
+        return "n/a"
+    return f"{r['sr']:.0f} [{r['lo']:.0f}, {r['hi']:.0f}]"
+
+
+def ladder_markdown(cells: pd.DataFrame, region: str, seed: int | None = None) -> str:
+    """The ladder as a Markdown table (SR % [95 % Wilson CI] per task x tier x method, macro
+    rows with bootstrap intervals), the n/a reasons, and the checks' verdicts."""
+    from . import registry
+
+    lad = ladder_frame(cells)
+    methods = [m for m in registry.method_names() if m in set(lad["method"])]
+    tiers = sorted(set(lad["tier"]))
+    order = [t for t in registry.task_ids() if t in set(lad["task"])]
+    cols = [(m, t, True) for m in methods for t in tiers]
+    off_tiers = sorted(set(lad.loc[~lad["currents"], "tier"]))
+    cols += [(m, t, False) for m in methods for t in off_tiers
+             if ((lad["method"] == m) & (lad["tier"] == t) & ~lad["currents"]).any()]
+    head = ["Task", "Vehicle"] + [f"{m} T{t}" + ("" if cur else " (currents off)")
+                                  for m, t, cur in cols]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    notes = []
+    for task in order:
+        row = [task, ""]
+        for m, t, cur in cols:
+            sel = lad[(lad["task"] == task) & (lad["method"] == m) & (lad["tier"] == t)
+                      & (lad["currents"] == cur)]
+            if sel.empty:
+                row.append("")
+                continue
+            r = sel.iloc[0]
+            row[1] = r["vehicle"] or row[1]
+            row.append(_fmt_cell(r))
+            if not r["applicable"]:
+                notes.append(f"{task} T{t} {m}: {r['reason']}")
+        lines.append("| " + " | ".join(row) + " |")
+    macro = ["Macro", ""]
+    for m, t, cur in cols:
+        macro.append(_fmt_macro(macro_rate(cells, m, t, cur)))
+    lines.append("| " + " | ".join(macro) + " |")
+    out = [f"Region `{region}`" + (f", evaluation seed {seed}" if seed is not None else "")
+           + ": success rate % [95 % CI] (Wilson per cell; macro: stratified bootstrap).", "",
+           *lines, ""]
+    if notes:
+        out += ["Not applicable in this region:", ""] + [f"- {n}" for n in sorted(set(notes))]
+        out.append("")
+    out += ["| Check | Measured | Target | Verdict |", "|---|---|---|---|"]
+    for c in run_checks(cells):
+        v = "n/a" if c.passed is None else ("pass" if c.passed else "FAIL")
+        out.append(f"| {c.name} | {c.measured} | {c.target} | {v} |")
+    return "\n".join(out) + "\n"
+
+
+def write_ladder(cell_files, out_md, region: str, seed: int | None = None) -> None:
+    """Write :func:`ladder_markdown` of the cell files atomically (the workflow's
+    ``table_ladder`` rule)."""
+    from .io import write_text_atomic
+
+    write_text_atomic(out_md, ladder_markdown(load_cells(list(cell_files)), region, seed))
+
+
+def readme_markers(region: str) -> tuple[str, str]:
+    return (f"<!-- ladder:{region}:begin (generated: oneocean ladder-readme) -->",
+            f"<!-- ladder:{region}:end -->")
+
+
+def splice_readme(readme, ladder_md, region: str) -> bool:
+    """Replace the README's block between :func:`readme_markers` of ``region`` with the
+    workflow's ``results/tables/<region>/ladder.md``; returns True if the README changed."""
+    from .errors import ConfigError
+    from .io import write_text_atomic
+    from pathlib import Path
+
+    readme, ladder_md = Path(readme), Path(ladder_md)
+    text = readme.read_text()
+    begin, end = readme_markers(region)
+    if begin not in text or end not in text:
+        raise ConfigError(f"{readme}: no ladder block for region {region!r} (add the lines "
+                          f"{begin!r} and {end!r})")
+    if not ladder_md.is_file():
+        raise ConfigError(f"{ladder_md}: not found (run snakemake {ladder_md} first)")
+    head, rest = text.split(begin, 1)
+    _, tail = rest.split(end, 1)
+    new = head + begin + "\n" + ladder_md.read_text().rstrip("\n") + "\n" + end + tail
+    if new != text:
+        write_text_atomic(readme, new)
+    return new != text

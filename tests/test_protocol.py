@@ -1,0 +1,152 @@
+"""The evaluation protocol (issue #9): held-out seeds, region-relative current regimes,
+not-applicable cells, Wilson / bootstrap intervals and the ladder checks."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from oneocean.config import validate_config
+from oneocean.engine import load_grid
+from oneocean.engine.recording import read_metrics_meta
+from oneocean.errors import ConfigError, NotApplicable
+from oneocean.ladder import (Check, ladder_markdown, load_cells, macro_rate, run_checks,
+                             wilson)
+from oneocean.registry import task_ids
+from oneocean.tasks import Cell, rollout_to_file, run_cell
+from oneocean.tasks.common import current_regime, load_task_table, site_speed
+from oneocean.testing import make_test_grid, uniform_grid
+
+
+# ------------------------------------------------------------------------------ seeds
+
+def test_evaluation_seed_is_held_out_from_every_calibration():
+    cfg = validate_config({})
+    seed = cfg["rollouts"]["seed"]
+    for task in task_ids():
+        cal = load_task_table(task).get("calibration")
+        assert cal is not None, f"{task}: tier table records no calibration seeds"
+        assert seed not in cal["seeds"], task
+
+
+def test_config_refuses_a_calibration_seed_as_evaluation_seed():
+    cal = load_task_table("G2G")["calibration"]["seeds"]
+    with pytest.raises(ConfigError, match=r"rollouts\.seed.*calibration seed of task G2G"):
+        validate_config({"rollouts": {"seed": cal[0], "tasks": ["G2G"]}})
+
+
+# ------------------------------------------------------------------------------ intervals
+
+def test_wilson_interval_values():
+    lo, hi = wilson(45, 50)
+    assert lo == pytest.approx(0.7864, abs=5e-4) and hi == pytest.approx(0.9565, abs=5e-4)
+    lo, hi = wilson(50, 50)            # a perfect cell still has a lower bound below 1
+    assert lo == pytest.approx(0.9287, abs=5e-4) and hi == 1.0
+    assert wilson(0, 20)[0] == 0.0 and wilson(0, 20)[1] == pytest.approx(0.1611, abs=5e-4)
+    assert all(math.isnan(v) for v in wilson(0, 0))
+
+
+def _cells(rates: dict, n: int = 50, currents=True) -> pd.DataFrame:
+    """A cells frame with ``k`` successes per (task, method, tier) among ``n`` episodes."""
+    rows = []
+    for (task, method, tier), k in rates.items():
+        s = np.zeros(n, dtype=bool)
+        s[:k] = True
+        rows.append({"task": task, "tier": tier, "method": method, "currents": currents,
+                     "applicable": k is not None, "reason": "", "vehicle": "v",
+                     "n": n, "k": k, "success": s})
+    return pd.DataFrame(rows)
+
+
+def test_macro_bootstrap_is_seeded_and_brackets_the_mean():
+    cells = _cells({("G2G", "heuristic", 2): 40, ("SK", "heuristic", 2): 20})
+    a = macro_rate(cells, "heuristic", 2)
+    b = macro_rate(cells, "heuristic", 2)
+    assert a == b                                        # reproducible bytes
+    assert a["sr"] == pytest.approx(60.0)
+    assert a["lo"] < 60.0 < a["hi"]
+    assert 50.0 < a["lo"] and a["hi"] < 70.0             # ~ +-7 points for 2 x 50 episodes
+    assert a["tasks"] == 2
+
+
+def test_checks_report_pass_and_fail_as_measured():
+    rates = {}
+    for task, (t1, t2, t3) in {"G2G": (50, 40, 20), "SK": (45, 35, 15)}.items():
+        rates.update({(task, "heuristic", 1): t1, (task, "heuristic", 2): t2,
+                      (task, "heuristic", 3): t3})
+        rates.update({(task, "oracle", t): 50 for t in (1, 2, 3)})
+    rates[("SK", "oracle", 3)] = 44                     # 88 %: fails the oracle bound
+    cells = pd.concat([_cells(rates), _cells({("G2G", "heuristic", 3): 40,
+                                              ("SK", "heuristic", 3): 35}, currents=False)],
+                      ignore_index=True)
+    got = {c.name: c for c in run_checks(cells)}
+    assert got["heuristic Tier-2 macro SR"].passed is True         # 75 %
+    assert got["heuristic Tier-3 macro SR"].passed is True         # 35 %
+    assert got["heuristic SR non-increasing T1->T3 per task"].passed is True
+    orc = got["oracle >= 90 % and Wilson lower bound >= 80 % in every cell"]
+    assert orc.passed is False and "SK T3 88" in orc.measured
+    cur = got["currents off raises heuristic Tier-3 macro"]
+    assert cur.passed is True and cur.measured.startswith("+40.0 points")
+    # a non-monotone task is named
+    rates[("G2G", "heuristic", 3)] = 45
+    got = {c.name: c for c in run_checks(_cells(rates))}
+    mono = got["heuristic SR non-increasing T1->T3 per task"]
+    assert mono.passed is False and "G2G 100/80/90" in mono.measured
+    assert got["currents off raises heuristic Tier-3 macro"].passed is None
+
+
+# ------------------------------------------------------------------------------ regimes
+
+@pytest.fixture(scope="module")
+def tidal_grid():
+    return load_grid(make_test_grid(nt=25, speed_ms=0.6, tide_ms=0.5, land=False))
+
+
+def test_current_regime_selects_episodes_by_the_regions_own_speed_quantiles(tidal_grid):
+    cell = Cell(tidal_grid, "G2G", 1)
+    T = float(cell.params["time_limit_s"])
+    init = {}
+    for band in ([0.0, 0.34], [0.66, 1.0]):
+        cell.params["current_band"] = band
+        init[tuple(band)] = cell.reset(20, 7)
+        reg = cell.regime
+        sp = [site_speed(tidal_grid, init[tuple(band)]["pos0"][e], init[tuple(band)]["t0"][e], T)
+              for e in range(20)]
+        assert all(reg.lo <= s <= reg.hi for s in sp), band
+    slow, fast = init[(0.0, 0.34)], init[(0.66, 1.0)]
+    assert not set(slow["candidate"]) & set(fast["candidate"])
+    r = current_regime(tidal_grid, {"current_band": [0.66, 1.0]}, 6.0)
+    assert r.lo > current_regime(tidal_grid, {"current_band": [0.0, 0.34]}, 6.0).hi
+    with pytest.raises(ConfigError, match="current_band"):
+        current_regime(tidal_grid, {"current_band": [0.5, 0.2]}, 6.0)
+
+
+def test_currents_off_replays_the_same_episodes(tidal_grid):
+    on = run_cell(tidal_grid, "G2G", 3, "heuristic", 8, 5)
+    off = run_cell(tidal_grid, "G2G", 3, "heuristic", 8, 5, currents=False)
+    assert (on["candidate"].to_numpy() == off["candidate"].to_numpy()).all()
+
+
+# ------------------------------------------------------------------------------ n/a cells
+
+def test_a_cell_the_region_cannot_host_is_written_not_applicable(tmp_path):
+    shallow = uniform_grid(0.1, 0.0, depth_m=12.0)         # UPL needs sites 30-60 m deep
+    with pytest.raises(NotApplicable, match="UPL tier 1"):
+        Cell(load_grid(shallow), "UPL", 1).reset(5, 1)
+    out = tmp_path / "UPL.parquet"
+    entry = rollout_to_file(shallow, out, "UPL", 1, "heuristic", 5, 1, "kinematic")
+    meta = read_metrics_meta(out)
+    assert meta["applicable"] is False and "UPL tier 1" in meta["reason"]
+    assert entry["rows"] == 0 and meta["vehicle"] and meta["tier_params"]
+    df = pd.read_parquet(out)
+    assert len(df) == 0 and {"success", "T_s", "lift_success"} <= set(df.columns)
+    cells = load_cells([out])
+    md = ladder_markdown(cells, "shallow")
+    assert "| UPL |" in md and "n/a" in md and "Not applicable in this region" in md
+
+
+def test_checks_are_named():
+    assert all(isinstance(c, Check) for c in run_checks(_cells({("G2G", "heuristic", 2): 30})))
