@@ -14,9 +14,9 @@ Act (``act``, every agent and step)
     first); teammates closer than ``SEP_M`` repel each other (their positions are observed).
     The carrot is written to ``W.tgt`` (the observation's goal cue).
 
-``heuristic``: strips along the region's long axis (fewest turns), speed budget
-``CRUISE_FRAC * v_max`` through the water, feed-forward of the NOISY probed current (std
-``probe_noise_ms``). ``oracle``: exact current, full ``v_max``, a higher altitude
+Both use the full speed budget ``v_max`` through the water. ``heuristic``: strips along the
+region's long axis (fewest turns), feed-forward of the NOISY probed current (std
+``probe_noise_ms``). ``oracle``: exact current, a higher altitude
 (``ALT_FRAC_ORACLE``) and less overlap (``OVERLAP_ORACLE``: wider strips), and it orients the
 strips across the current (:func:`oracle_axis`: it predicts the scan time of both orientations
 from the true currents over the episode and takes the faster one).
@@ -35,8 +35,6 @@ from ...tasks.common import seek_max, waypoint_carrot
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python)
 from . import SENSING
 
-#: Heuristic speed budget through the water as a fraction of v_max.
-CRUISE_FRAC = 0.75
 #: Commanded altitude as a fraction of the sensor's maximum altitude (heuristic, oracle):
 #: the oracle's exact terrain-following and current knowledge let it fly closer to the limit.
 ALT_FRAC = 0.6
@@ -82,7 +80,7 @@ def strip_spacing(tier: dict, method: str) -> float:
 
 def params(method: str, tier: dict, vehicle) -> ASPolicy:
     v_max = float(vehicle.v_max)
-    return ASPolicy(CRUISE_FRAC * v_max if method == "heuristic" else v_max, KP, LOOKAHEAD_M,
+    return ASPolicy(v_max, KP, LOOKAHEAD_M,
                     method_altitude(tier, method), strip_spacing(tier, method),
                     0 if method == "heuristic" else 1, v_max)
 

@@ -4,9 +4,9 @@ A depth loop ``w = KZ (y* - y)`` goes first (at most half the budget), then hori
 line-of-sight guidance with the rest: aim at the point ``LOOKAHEAD_M`` ahead of the agent's
 horizontal projection on the active leg (the env's leg frame ``W.leg``, updated before every
 step) with :func:`~oneocean.tasks.common.seek_max` (cross-track current fed forward first,
-P-control ``KP``). ``heuristic``: NOISY probed current, throttle cap ``CRUISE_FRAC * v_max``,
+P-control ``KP``), both with the full ``v_max``. ``heuristic``: NOISY probed current,
 P depth loop on the local target depth only (it lags on slopes by ``slope * ground speed /
-KZ``). ``oracle``: exact current, full ``v_max``, plus feed-forward of the profile slope times
+KZ``). ``oracle``: exact current, plus feed-forward of the profile slope times
 the along-track ground speed (preview of the planned profile).
 """
 
@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 from ...engine._jit import hot_kernel
 from ...engine.dynamics import VX, VZ
-from ...tasks.common import CRUISE_FRAC, seek_max
+from ...tasks.common import seek_max
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision)
 from . import SENSING  # noqa: F401
 
@@ -40,7 +40,7 @@ class DPTPolicy(NamedTuple):
 def params(method: str, tier: dict, vehicle) -> DPTPolicy:
     v_max = float(vehicle.v_max)
     heuristic = method == "heuristic"
-    return DPTPolicy(CRUISE_FRAC * v_max if heuristic else v_max, KP, LOOKAHEAD_M, KZ,
+    return DPTPolicy(v_max, KP, LOOKAHEAD_M, KZ,
                      0 if heuristic else 1)
 
 

@@ -12,7 +12,7 @@ last step, ``W.school``) and of its current probe. The push direction is frozen 
 centroid is within ``deadband * zone_radius_m`` of the centre.
 
 ``heuristic``: ``w = v`` (the school's drift is ignored); the arc re-aims at once
-(``DEADBAND_FRAC_HEURISTIC``, no slew limit); cruise ``CRUISE_FRAC * v_max``
+(``DEADBAND_FRAC_HEURISTIC``, no slew limit); full ``v_max`` as every method
 (:func:`~oneocean.tasks.common.seek`); noisy probe (``probe_noise_ms``).
 ``oracle``: ``w = v - c`` with the exact current ``c`` at the centroid, where ``v`` is the
 fastest ground velocity toward the zone with ``|w| <= ORACLE_SWIM_MS`` (the school crabs across
@@ -37,8 +37,6 @@ from ...models.fish import school_spread
 from ...tasks.common import current_at, seek, seek_max
 from . import SENSING  # noqa: F401
 
-#: Heuristic cruise speed as a fraction of v_max.
-CRUISE_FRAC = 0.75
 #: Slot-tracking proportional gain, s-1.
 KP = 0.5
 #: Herding arc: total angle (rad), standoff (m) and its growth with the school's spread.
@@ -89,7 +87,7 @@ class FHPolicy(NamedTuple):
 def params(method: str, tier: dict, vehicle) -> FHPolicy:
     v_max = float(vehicle.v_max)
     oracle = method != "heuristic"
-    return FHPolicy(int(oracle), v_max if oracle else CRUISE_FRAC * v_max, KP, ARC_RAD,
+    return FHPolicy(int(oracle), v_max, KP, ARC_RAD,
                     STANDOFF_M, SPREAD_GAIN, BACKOFF_M, PUSH_SPEED_MS, ORACLE_SWIM_MS, KP_PUSH,
                     DEADBAND_FRAC_ORACLE if oracle else DEADBAND_FRAC_HEURISTIC, ORACLE_KS,
                     ORACLE_STANDOFF_MIN_M,

@@ -8,8 +8,7 @@ virtual centre at the start of the step) with feed-forward of the virtual centre
 over the step plus P-control ``KP`` (capped at ``P_CAP_MS``) through
 :func:`~oneocean.tasks.common.steer`.
 
-``heuristic``: NOISY probed current, throttle cap ``budget = CRUISE_FRAC * v_max``.
-``oracle``: exact current, ``budget = v_max``.
+Both: ``budget = v_max``. ``heuristic``: NOISY probed current. ``oracle``: exact current.
 
 The virtual centre is the plan token: ``plan`` writes its position at the start of the step
 (``W.vc``, the observation's goal cue is the agent's slot around it), its velocity over the
@@ -22,7 +21,7 @@ import math
 from typing import NamedTuple
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import CRUISE_FRAC, steer
+from ...tasks.common import steer
 from . import SENSING  # noqa: F401
 
 #: Virtual-centre nominal speed as a fraction of the method's speed budget.
@@ -48,7 +47,7 @@ class FTPolicy(NamedTuple):
 
 def params(method: str, tier: dict, vehicle) -> FTPolicy:
     v_max = float(vehicle.v_max)
-    budget = CRUISE_FRAC * v_max if method == "heuristic" else v_max
+    budget = v_max
     return FTPolicy(budget, V_NOM_FRAC * budget, KP, P_CAP_MS, PACE_E0_M, PACE_E1_M,
                     float(tier["dt_s"]))
 

@@ -1,11 +1,10 @@
 """G2G heuristic and oracle: best-effort transit to the goal with current feed-forward.
 
-``heuristic``: a transit at cruise speed through the water, ``|a| <= CRUISE_FRAC * v_max``
-(an economical survey-AUV cruise, 1.2 m s-1), compensating the NOISY probed current by
-crabbing: the cross-track current is fed forward first and the rest of the cruise budget goes
-along the goal bearing, with P-control (``KP``) of the approach
-(:func:`~oneocean.tasks.common.seek_max`). ``oracle``: the same steering with the exact current
-and the full ``v_max``.
+Both spend the vehicle's full speed budget ``v_max`` through the water (no method is
+throttled), compensating the sensed current by crabbing: the cross-track current is fed forward
+first and the rest of the budget goes along the goal bearing, with P-control (``KP``) of the
+approach (:func:`~oneocean.tasks.common.seek_max`). ``heuristic``: the NOISY local probe.
+``oracle``: the exact current. They differ in information only.
 """
 
 from __future__ import annotations
@@ -14,7 +13,7 @@ import math
 from typing import NamedTuple
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import CRUISE_FRAC, seek_max
+from ...tasks.common import seek_max
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision)
 from . import SENSING  # noqa: F401
 
@@ -29,7 +28,7 @@ class G2GPolicy(NamedTuple):
 
 def params(method: str, tier: dict, vehicle) -> G2GPolicy:
     v_max = float(vehicle.v_max)
-    return G2GPolicy(CRUISE_FRAC * v_max if method == "heuristic" else v_max, KP)
+    return G2GPolicy(v_max, KP)
 
 
 @hot_kernel(inline="always")

@@ -3,8 +3,8 @@
 Both aim at the point ``LOOKAHEAD_M`` ahead of the agent's projection on the active leg
 (clamped to the waypoint; the env's leg frame ``W.leg``, updated before every step) with
 :func:`~oneocean.tasks.common.seek_max` (cross-track current fed forward first, P-control
-``KP`` toward the point). ``heuristic``: NOISY probed current, throttle cap
-``CRUISE_FRAC * v_max``. ``oracle``: exact current, full ``v_max``.
+``KP`` toward the point), both with the full ``v_max``. ``heuristic``: NOISY probed current.
+``oracle``: exact current.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import math
 from typing import NamedTuple
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import CRUISE_FRAC, seek_max
+from ...tasks.common import seek_max
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision)
 from . import SENSING  # noqa: F401
 
@@ -31,7 +31,7 @@ class RFPolicy(NamedTuple):
 
 def params(method: str, tier: dict, vehicle) -> RFPolicy:
     v_max = float(vehicle.v_max)
-    return RFPolicy(CRUISE_FRAC * v_max if method == "heuristic" else v_max, KP, LOOKAHEAD_M)
+    return RFPolicy(v_max, KP, LOOKAHEAD_M)
 
 
 @hot_kernel(inline="always")

@@ -10,8 +10,8 @@ site, ``KP_HOLD``, capped at ``HOLD_SPEED_MS``; computed once per step by ``plan
 upward speed; the horizontal part (incl. the current feed-forward) has priority and the
 vertical part gets the rest of the speed budget.
 
-``heuristic``: speed budget ``CRUISE_FRAC * v_max``, probed current with noise
-``probe_noise_ms``. ``oracle``: exact current, full ``v_max``, same logic.
+Both: speed budget ``v_max``. ``heuristic``: probed current with noise ``probe_noise_ms``.
+``oracle``: exact current, same logic.
 
 Policy state lives in the task's work arrays (:class:`oneocean.tasks.upl.UPLWork`):
 ``target`` (E, 5) the slot assigned to every agent, ``hold`` (E, 2) the step's hold velocity.
@@ -28,8 +28,6 @@ from ...engine._jit import hot_kernel
 from ...tasks.common import seek, seek_max
 from . import SENSING  # noqa: F401
 
-#: Heuristic speed budget as a fraction of v_max.
-CRUISE_FRAC = 0.75
 #: Slot-tracking proportional gain, s-1.
 KP = 0.6
 #: Hold (object over the site) proportional gain, s-1, and its speed cap, m s-1.
@@ -48,7 +46,7 @@ class UPLPolicy(NamedTuple):
 def params(method: str, tier: dict, vehicle) -> UPLPolicy:
     v_max = float(vehicle.v_max)
     heur = method == "heuristic"
-    return UPLPolicy(0 if heur else 1, CRUISE_FRAC * v_max if heur else v_max, KP, KP_HOLD,
+    return UPLPolicy(0 if heur else 1, v_max, KP, KP_HOLD,
                      HOLD_SPEED_MS)
 
 
