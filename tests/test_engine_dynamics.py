@@ -23,7 +23,9 @@ RIGID = ("3dof", "4dof", "6dof")
 
 @pytest.fixture(scope="module")
 def vehicle():
-    return D.load_vehicle()
+    # the engine's invariants on the fully actuated test vehicle (the plain-NumPy reference
+    # implements its holonomic controller); tests/test_vehicles.py covers the real vehicles
+    return D.load_vehicle("generic_auv")
 
 
 def still_grid(ce=0.0, cn=0.0):
@@ -34,7 +36,7 @@ def test_unknown_model_and_bad_vehicle():
     with pytest.raises(ConfigError, match=r"dynamics: invalid value '5dof'.*'kinematic', '3dof'"):
         D.model_id("5dof")
     with pytest.raises(ConfigError, match="unknown override keys: mass"):
-        D.load_vehicle(overrides={"mass": 3.0})
+        D.load_vehicle("generic_auv", overrides={"mass": 3.0})
     with pytest.raises(ConfigError, match="max_substep_s"):
         D.load_vehicle(overrides={"max_substep_s": 1.0})
     with pytest.raises(ConfigError, match="added_mass"):
@@ -67,7 +69,8 @@ def test_kinematic_matches_closed_form_exactly():
     acts = rng.uniform(-0.8, 0.8, (steps, 1, 1, 3))
     acts[..., 1] *= 0.05
     ep = external_episodes(g, p0, steps, dt=dt, t0=500.0,
-                           vehicle=D.load_vehicle(overrides={"speed_limit_ms": 10.0}))
+                           vehicle=D.load_vehicle("generic_auv",
+                                                  overrides={"speed_limit_ms": 10.0}))
     drive(ep, acts)
     p = p0[0, 0].copy()
     for k in range(steps):
@@ -131,7 +134,7 @@ def _mech_energy(model, vp, s, ce, cn):
 def test_dissipation_never_adds_energy(model, current, buoyancy):
     # thrust off: kinetic energy relative to the water + restoring potential energy
     # (net buoyancy, BG roll/pitch) never increases, at the benchmark dt and below
-    vp = D.load_vehicle(overrides={"net_buoyancy_n": buoyancy}).params
+    vp = D.load_vehicle("generic_auv", overrides={"net_buoyancy_n": buoyancy}).params
     ce, cn = current
     s = np.zeros(D.STATE_DIM)
     s[D.Y] = 50.0
@@ -213,7 +216,7 @@ def test_six_dof_converges_to_kinematic_path_as_time_constants_shrink(vehicle):
     errs = []
     for s in (1.0, 0.1, 0.01, 0.001):
         spec = vehicle.spec
-        veh = D.load_vehicle(overrides={
+        veh = D.load_vehicle("generic_auv", overrides={
             "mass_kg": spec["mass_kg"] * s,
             "inertia_kg_m2": [v * s for v in spec["inertia_kg_m2"]],
             "added_mass": [v * s for v in spec["added_mass"]],

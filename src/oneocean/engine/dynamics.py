@@ -9,7 +9,7 @@ Fossen NED frame with axes relabelled: ``(north, east, down) = (z, x, y)``. Atti
 Fossen's zyx Euler angles (roll phi, pitch theta, yaw psi) and the body frame x forward,
 y starboard, z down. **Yaw psi is the compass heading: measured from north (+z) clockwise
 toward east (+x)**; a vehicle with heading psi points along world ``(sin psi, 0, cos psi)``
-and ``dpsi/dt = r`` when level.
+and ``dpsi/dt = r`` when level. Pitch theta > 0 is nose up.
 
 State vector (one row per agent, :data:`STATE_DIM` float64)
 -----------------------------------------------------------
@@ -29,23 +29,54 @@ Rigid-body models
 -----------------
 ``M nu_r' + C(nu_r) nu_r + D(nu_r) nu_r + g(eta) = tau`` with ``nu_r = nu - nu_c`` (Fossen's
 relative-velocity form for an irrotational current, frozen over one step), diagonal
-``M = M_RB + M_A``, the Kirchhoff-form ``C`` of that ``M`` (skew-symmetric), linear + quadratic
-damping ``D``, restoring ``g`` (net buoyancy and BG roll/pitch moments). The low-level
-controller (model feed-forward + P on velocity) produces, per actuated DOF,
-``tau_i = D_i(|nu_r,i|) c_i + [C(nu_r) nu_r]_i + g_i + K_i (c_i - nu_r,i)`` with ``K_i = M_i / T_i``,
-clipped to ``thrust_max``; ``c`` is the body-frame image of the commanded relative velocity
-plus the rate commands of the heading loop (yaw) and of the levelling loops (roll, pitch).
-3-DoF = surge/sway/yaw at constant depth; 4-DoF adds heave; 6-DoF adds roll and pitch
-(passively stable through BG, levelled when thrust is on).
+``M = M_RB + M_A``, the Kirchhoff-form ``C`` of that ``M`` (skew-symmetric; it contains the
+Munk moments ``(M_22 - M_11) u v`` etc.), damping ``D`` = diagonal linear + quadratic terms plus
+the linear-in-speed lift terms of a finned hull (``Y_uv u v + Y_ur u r``, ``N_uv u v +
+N_ur u r`` and their heave/pitch mirror images; the part symmetric in (v, r) is scaled by
+``|u_r|`` and must be dissipative, the skew part by ``u_r``), restoring ``g`` (net buoyancy and
+BG roll/pitch moments). 3-DoF = surge/sway/yaw at constant depth; 4-DoF adds heave; 6-DoF adds
+roll and pitch (passively stable through BG).
+
+Actuators and low-level controller
+----------------------------------
+Per actuated DOF the controller is model feed-forward + P on velocity,
+``tau_i = D_i(|nu_r|) c_i + [C(nu_r) nu_r + lift couplings]_i + g_i + K_i (c_i - nu_r,i)``
+with ``K_i = M_i / T_i`` (feedback linearisation: the loops see decoupled DOFs). A thruster
+cancels its row's couplings at the new velocities (implicitly, inside the substep's solve, so
+a small-inertia DOF such as the ROV's yaw is not kicked by the ``h C`` splitting of fast
+sway/surge changes); a fin uses the couplings of the substep's start. The limits:
+
+* thrusters: ``|tau_i| <= thrust_max_i`` (box), or, for a group of four vectored thrusters
+  (``thrust_coupling``), the exact capacity set of four thrusters with a common per-thruster
+  limit: with ``a_i = tau_i / thrust_max_i`` of the group's three DOFs,
+  ``|a_1| + |a_2| <= 1, |a_1| + |a_3| <= 1, |a_2| + |a_3| <= 1``; a demand outside is scaled
+  down along its direction;
+* control fins (torpedo): rudder (yaw) and stern planes (pitch) whose moment is limited to
+  ``|N_uudr| u_r^2 delta_max`` (``|M_uuds| u_r^2 delta_max``) -- no authority at rest -- and
+  whose lift also pushes the hull sideways (``Y_uudr / N_uudr`` newton per newton metre).
+
+The commanded body velocity ``c`` depends on the guidance law of the vehicle:
+
+* ``holonomic`` (ROV, test vehicle): ``c`` = body-frame image of the commanded relative
+  velocity, plus the heading-loop yaw-rate command and levelling roll/pitch-rate commands;
+* ``torpedo`` (underactuated AUV, propeller + fins): surge speed = commanded relative speed
+  (body-x projection when a heading is commanded), heading toward the commanded horizontal
+  direction, pitch reference ``atan2(-a_down, |a_horizontal|)`` limited to ``pitch_max_deg``
+  (it dives by pitching, only with forward speed; 3-DoF/4-DoF torpedoes cannot change depth);
+  sway and heave are not actuated, so it cannot crab.
 
 Integration: a step ``dt`` is split into ``ceil(dt / max_substep_s)`` substeps ``h``
-(``max_substep_s <= 0.5``); each is linearly implicit in damping (lagged coefficient), controller
-gain, Coriolis (``C(nu_r,k) nu_r,k+1``) and the roll/pitch restoring stiffness, then ``eta`` is
-advanced with the new velocity (symplectic Euler). With skew ``C`` and non-negative damping the
-mechanical energy relative to the water (kinetic + restoring potential) never increases when
-thrust is off, for any ``h`` (tested). Thrust saturation is handled by an active set: saturated
-DOFs get the clipped thrust explicitly and the system is solved again, so thrust always stays
-within its limits. The current is sampled once per step and frozen over its substeps.
+(``max_substep_s <= 0.5``); each is linearly implicit in damping and lift (lagged coefficients),
+controller gain, Coriolis (``C(nu_r,k) nu_r,k+1``) and the roll/pitch restoring stiffness, then
+``eta`` is advanced with the new velocity (symplectic Euler; over ground ``R nu_r + v_c``). The
+substeps carry ``nu_r`` itself, whose equation does not depend on a uniform current (Fossen
+2011, Property 10.1; tested); the velocity over ground stored in the state is ``nu_r`` plus the
+current in the final body frame. With skew ``C`` and dissipative
+damping the mechanical energy relative to the water (kinetic + restoring potential) never
+increases when thrust is off, for any ``h`` (tested). Actuator limits are handled by an active
+set: saturated DOFs (or thruster groups) get their limited force explicitly and the system is
+solved again, so actuator forces always stay within their limits (tested with
+:func:`step_agent_traced`). The current is sampled once per step and frozen over its substeps.
 """
 
 from __future__ import annotations
@@ -82,18 +113,34 @@ P_HMAX = 1     # largest substep, s
 P_M = 2        # 6 total masses (M_RB + M_A diagonal): kg | kg m2
 P_DL = 8       # 6 linear damping
 P_DQ = 14      # 6 quadratic damping
-P_TMAX = 20    # 6 thrust limits (0 = unactuated)
+P_TMAX = 20    # 6 thruster limits (0 = no thruster on that DOF)
 P_K = 26       # 6 velocity-loop gains K_i = M_i / T_i (N s m-1 | N m s rad-1)
 P_WB = 32      # W - B, N (positive: heavier than water)
 P_BGB = 33     # BG * B, N m (roll/pitch restoring coefficient)
 P_KPSI = 34    # heading gain, s-1
-P_RMAX = 35    # yaw-rate command limit, rad s-1
+P_RMAX = 35    # yaw-rate (and roll/pitch-rate) command limit, rad s-1
 P_VYAW = 36    # heading update threshold, m s-1
-P_KATT = 37    # roll/pitch levelling gain, s-1
-PARAM_DIM = 38
+P_KATT = 37    # roll/pitch attitude gain, s-1
+P_GUIDE = 38   # guidance law: 0 holonomic, 1 torpedo
+P_PMAX = 39    # pitch-reference limit, rad (0: keep level)
+P_FINQ = 40    # stern-plane moment capacity per u_r^2: |M_uuds| delta_max, kg (N m s2 m-2)
+P_FINR = 41    # rudder moment capacity per u_r^2: |N_uudr| delta_max, kg
+P_FINZ = 42    # heave force per stern-plane pitch moment: Z_uuds / M_uuds, m-1
+P_FINY = 43    # sway force per rudder yaw moment: Y_uudr / N_uudr, m-1
+P_LIFT = 44    # 8 lift-damping terms (LHS, per unit u_r): sway/yaw s_vv, s_rr, s_vr, k_vr;
+#                heave/pitch s_ww, s_qq, s_wq, k_wq (s: times |u_r|, symmetric; k: times u_r)
+P_CPL = 52     # 2 thrust-coupling flags: (surge, sway, yaw) group, (heave, roll, pitch) group
+P_RTURN = 54   # smallest commanded turn radius, m (yaw-rate limit |u_r| / R; 0: none)
+PARAM_DIM = 55
+
+#: Guidance laws (``guidance`` key of a vehicle), in parameter-vector order.
+GUIDANCE = ("holonomic", "torpedo")
 
 #: Upper bound on the integration substep, s (see data/vehicles.yaml).
 MAX_SUBSTEP_S = 0.5
+
+#: Length of the actuator trace written by :func:`step_agent_traced`.
+TRACE_DIM = 14
 
 _VEHICLE_KEYS = {
     "description": str, "mass_kg": float, "inertia_kg_m2": 3, "added_mass": 6,
@@ -101,6 +148,16 @@ _VEHICLE_KEYS = {
     "net_buoyancy_n": float, "metacentric_height_m": float, "gravity_ms2": float,
     "velocity_time_constant_s": 6, "heading_gain_per_s": float, "yaw_rate_max_rad_s": float,
     "heading_min_speed_ms": float, "max_substep_s": float, "attitude_gain_per_s": float,
+    "guidance": str, "pitch_max_deg": float, "thrust_coupling": 2, "lift_coefficients": 8,
+    "fin_coefficients": 4, "fin_angle_max_deg": float, "turn_radius_min_m": float,
+}
+
+#: Keys that may be left out of a vehicle spec, with the value they then take (a vehicle
+#: without lift, fins or thruster coupling, steered holonomically and kept level).
+_VEHICLE_DEFAULTS = {
+    "guidance": "holonomic", "pitch_max_deg": 0.0, "thrust_coupling": [0.0, 0.0],
+    "lift_coefficients": [0.0] * 8, "fin_coefficients": [0.0] * 4, "fin_angle_max_deg": 0.0,
+    "turn_radius_min_m": 0.0,
 }
 
 
@@ -133,12 +190,13 @@ def _vehicles_file() -> Path:
 
 def vehicle_params(spec: Mapping, name: str = "vehicle") -> np.ndarray:
     """Validate a vehicle spec (see ``data/vehicles.yaml``) and build its parameter vector."""
-    missing = [k for k in _VEHICLE_KEYS if k not in spec]
+    missing = [k for k in _VEHICLE_KEYS if k not in spec and k not in _VEHICLE_DEFAULTS]
     unknown = [k for k in spec if k not in _VEHICLE_KEYS]
     if missing:
         raise ConfigError(f"vehicle '{name}': missing keys: {', '.join(missing)}")
     if unknown:
         raise ConfigError(f"vehicle '{name}': unknown keys: {', '.join(unknown)}")
+    spec = {**_VEHICLE_DEFAULTS, **spec}
     vals = {}
     for k, kind in _VEHICLE_KEYS.items():
         if kind is str:
@@ -152,8 +210,10 @@ def vehicle_params(spec: Mapping, name: str = "vehicle") -> np.ndarray:
             what = "a number" if not want else f"a list of {kind} numbers"
             raise ConfigError(f"vehicle '{name}': '{k}' must be {what} (finite), got {spec[k]!r}")
         vals[k] = a
+    guidance = validate_choice(spec["guidance"], GUIDANCE, f"vehicle '{name}': guidance")
     for k in ("inertia_kg_m2", "added_mass", "linear_damping", "quadratic_damping",
-              "thrust_max", "velocity_time_constant_s"):
+              "thrust_max", "velocity_time_constant_s", "pitch_max_deg", "fin_angle_max_deg",
+              "turn_radius_min_m"):
         if np.any(vals[k] < 0):
             raise ConfigError(f"vehicle '{name}': '{k}' must be >= 0, got {spec[k]!r}")
     for k in ("mass_kg", "speed_limit_ms", "gravity_ms2", "max_substep_s"):
@@ -164,13 +224,49 @@ def vehicle_params(spec: Mapping, name: str = "vehicle") -> np.ndarray:
                           f"(heading-loop accuracy), got {spec['max_substep_s']!r}")
     if vals["metacentric_height_m"] < 0:
         raise ConfigError(f"vehicle '{name}': 'metacentric_height_m' must be >= 0")
-    tc = vals["velocity_time_constant_s"]
+    if not vals["pitch_max_deg"] < 80.0:
+        raise ConfigError(f"vehicle '{name}': 'pitch_max_deg' must be < 80")
+    if not vals["fin_angle_max_deg"] <= 45.0:
+        raise ConfigError(f"vehicle '{name}': 'fin_angle_max_deg' must be <= 45")
+    cpl = vals["thrust_coupling"]
+    if not np.all((cpl == 0.0) | (cpl == 1.0)):
+        raise ConfigError(f"vehicle '{name}': 'thrust_coupling' entries must be 0 or 1, "
+                          f"got {spec['thrust_coupling']!r}")
     tmax = vals["thrust_max"]
-    act = tmax > 0
+    # fins: [Y_uudr, N_uudr, Z_uuds, M_uuds]; a fin-steered DOF has no thruster
+    y_dr, n_dr, z_ds, m_ds = vals["fin_coefficients"]
+    dmax = math.radians(float(vals["fin_angle_max_deg"]))
+    fin_r = abs(n_dr) * dmax
+    fin_q = abs(m_ds) * dmax
+    for dof, mom, force, label in ((5, n_dr, y_dr, "rudder (N_uudr, Y_uudr)"),
+                                   (4, m_ds, z_ds, "stern planes (M_uuds, Z_uuds)")):
+        if force != 0.0 and mom == 0.0:
+            raise ConfigError(f"vehicle '{name}': {label}: a fin force needs a fin moment")
+        if mom != 0.0 and tmax[dof] > 0.0:
+            raise ConfigError(f"vehicle '{name}': {label}: a fin-steered DOF must have "
+                              f"thrust_max 0 (got {tmax[dof]})")
+    if (fin_r > 0 or fin_q > 0) and not dmax > 0:
+        raise ConfigError(f"vehicle '{name}': fins need 'fin_angle_max_deg' > 0")
+    tc = vals["velocity_time_constant_s"]
+    act = (tmax > 0) | (np.array([0, 0, 0, 0, fin_q, fin_r]) > 0)
     if np.any(act & ~(tc > 0)):
         raise ConfigError(f"vehicle '{name}': 'velocity_time_constant_s' must be > 0 for every "
-                          "actuated DOF (thrust_max > 0), got "
+                          "actuated DOF (thrust_max > 0 or fin-steered), got "
                           f"{spec['velocity_time_constant_s']!r}")
+    if guidance == "torpedo" and not tmax[0] > 0:
+        raise ConfigError(f"vehicle '{name}': a torpedo needs surge thrust (thrust_max[0] > 0)")
+    # lift: [Y_uv, Y_ur, N_uv, N_ur, Z_uw, Z_uq, M_uw, M_uq] (force on the hull, RHS sign)
+    lift = vals["lift_coefficients"]
+    lift_p = np.zeros(8)
+    for j, (yv, yr, nv, nr) in enumerate((lift[:4], lift[4:])):
+        s_vv, s_rr, s_vr, k_vr = -yv, -nr, -0.5 * (yr + nv), -0.5 * (yr - nv)
+        if s_vv < 0 or s_rr < 0 or s_vr * s_vr > s_vv * s_rr * (1 + 1e-12):
+            plane = ("sway/yaw", "heave/pitch")[j]
+            raise ConfigError(
+                f"vehicle '{name}': lift_coefficients of the {plane} plane are not "
+                "dissipative: their part symmetric in the two velocities must be negative "
+                f"semi-definite (got {list(lift[4 * j:4 * j + 4])})")
+        lift_p[4 * j:4 * j + 4] = s_vv, s_rr, s_vr, k_vr
     m = float(vals["mass_kg"])
     mass = np.concatenate([[m, m, m], vals["inertia_kg_m2"]]) + vals["added_mass"]
     if np.any(mass <= 0):
@@ -191,6 +287,15 @@ def vehicle_params(spec: Mapping, name: str = "vehicle") -> np.ndarray:
     p[P_RMAX] = vals["yaw_rate_max_rad_s"]
     p[P_VYAW] = vals["heading_min_speed_ms"]
     p[P_KATT] = vals["attitude_gain_per_s"]
+    p[P_GUIDE] = GUIDANCE.index(guidance)
+    p[P_PMAX] = math.radians(float(vals["pitch_max_deg"]))
+    p[P_FINQ] = fin_q
+    p[P_FINR] = fin_r
+    p[P_FINZ] = z_ds / m_ds if m_ds != 0.0 else 0.0
+    p[P_FINY] = y_dr / n_dr if n_dr != 0.0 else 0.0
+    p[P_LIFT:P_LIFT + 8] = lift_p
+    p[P_CPL:P_CPL + 2] = cpl
+    p[P_RTURN] = vals["turn_radius_min_m"]
     return p
 
 
@@ -224,6 +329,12 @@ def load_vehicle(name: str | None = None, overrides: Mapping | None = None,
         spec.update({k: (list(v) if isinstance(v, (list, tuple, np.ndarray)) else v)
                      for k, v in overrides.items()})
     return Vehicle(name=name, spec=spec, params=vehicle_params(spec, name))
+
+
+def vehicle_names(path: str | Path | None = None) -> tuple[str, ...]:
+    """Names of the vehicles in ``data/vehicles.yaml`` (or ``path``), file order."""
+    f = Path(path) if path is not None else _vehicles_file()
+    return tuple(yaml.safe_load(f.read_text())["vehicles"])
 
 
 # ----------------------------------------------------------------------------- kernels
@@ -290,83 +401,111 @@ def _nsub(vp, dt):
 
 
 # Explicit signatures: the DOF index is passed as a literal constant, which would otherwise make
-# numba compile one specialisation per value. (LLVM inlines these small functions.)
-@hot_kernel("UniTuple(float64, 2)(int64, boolean, float64[::1], float64, float64, float64, "
-            "float64, float64, int64, float64)")
-def _dof_terms(i, thrust_on, vp, h, nur, c, g, fc, sat, ts):
-    """Diagonal ``d`` and rhs ``b`` of DOF ``i`` for one substep ``h``.
 
-    Damping (lagged quadratic coefficient) is implicit; an actuated DOF adds the controller
-    ``tau = ff + K (c - x)`` implicitly, or the saturated thrust ``ts`` explicitly when bit
-    ``i`` of ``sat`` is set. ``ff = D(|nu_r|) c + g + fc`` is the model feed-forward (the
-    damping coefficient at the current relative speed, so that with vanishing inertia the DOF
-    reaches ``c`` within one substep; at steady state it equals ``D(c) c``).
+
+@hot_kernel(inline="always")
+def _dof(thrust_on, m, dk, k, cap, h, x, c, g, fc, sat, ts):
+    """Diagonal ``d`` and rhs ``b`` of one DOF for a substep ``h``.
+
+    ``x`` is the DOF's relative velocity at the start of the substep, ``dk`` its (lagged)
+    damping coefficient. Damping is implicit; an actuated DOF (``cap > 0``) adds the
+    controller ``tau = dk c + g + fc + k (c - x)`` implicitly, or the limited force ``ts``
+    explicitly when ``sat`` is set. ``fc`` is the feed-forward of the coupling terms: the
+    lagged ``[C(nu_r,k) nu_r,k]_i`` for a fin, 0 for a thruster, whose controller cancels the
+    row's couplings implicitly (the solvers drop that row's off-diagonal terms). With vanishing
+    inertia the DOF reaches ``c`` within one substep; at steady state ``tau`` = ``D(c) c`` +
+    couplings + ``g``.
     """
-    m = vp[P_M + i]
-    dk = vp[P_DL + i] + vp[P_DQ + i] * abs(nur)  # damping coefficient, lagged
     d = m + h * dk
-    b = m * nur - h * g
-    if thrust_on and vp[P_TMAX + i] > 0.0:
-        if (sat >> i) & 1:
+    b = m * x - h * g
+    if thrust_on and cap > 0.0:
+        if sat:
             b += h * ts
         else:
-            k = vp[P_K + i]
             d += h * k
             b += h * (dk * c + g + fc + k * c)
     return d, b
 
 
-@hot_kernel("Tuple((int64, float64))(int64, boolean, float64[::1], float64, float64, float64, "
-            "float64, float64, int64, float64)")
-def _check_thrust(i, thrust_on, vp, nur, c, g, fc, x, sat, ts):
-    """Thrust of DOF ``i`` implied by solution ``x``; returns (sat, ts), saturating if over."""
-    tmax = vp[P_TMAX + i]
-    if not thrust_on or tmax <= 0.0 or (sat >> i) & 1:
-        return sat, ts
-    tau = (vp[P_DL + i] + vp[P_DQ + i] * abs(nur)) * c + g + fc + vp[P_K + i] * (c - x)
-    if tau > tmax:
-        return sat | (1 << i), tmax
-    if tau < -tmax:
-        return sat | (1 << i), -tmax
+@hot_kernel(inline="always")
+def _tau(dk, k, c, g, fc, x):
+    """Controller force of an unsaturated DOF for the solution ``x``."""
+    return dk * c + g + fc + k * (c - x)
+
+
+@hot_kernel(inline="always")
+def _box(cap, tau, sat, bit, ts):
+    """Saturate a DOF whose force ``tau`` exceeds ``cap``: returns (sat, ts)."""
+    if tau > cap:
+        return sat | bit, cap
+    if tau < -cap:
+        return sat | bit, -cap
     return sat, ts
 
 
+@hot_kernel(inline="always")
+def _group_load(a, b, c):
+    """Load of a four-thruster group, normalised demands a, b, c (feasible iff <= 1)."""
+    aa = abs(a)
+    bb = abs(b)
+    cc = abs(c)
+    return max(aa + bb, max(aa + cc, bb + cc))
+
+
 @hot_kernel
-def _solve3(d0, d1, d5, b0, b1, b5, al, be):
-    """Solve [[d0,0,al],[0,d1,be],[-al,-be,d5]] x = b (surge, sway, yaw block)."""
+def _solve3(d0, d1, d5, b0, b1, b5, u0, u1, l0, l1):
+    """Solve [[d0, 0, u0], [0, d1, u1], [l0, l1, d5]] x = b (surge, sway, yaw block)."""
     i0 = 1.0 / d0
     i1 = 1.0 / d1
-    x5 = (b5 + al * b0 * i0 + be * b1 * i1) / (d5 + al * al * i0 + be * be * i1)
-    return (b0 - al * x5) * i0, (b1 - be * x5) * i1, x5
+    x5 = (b5 - l0 * b0 * i0 - l1 * b1 * i1) / (d5 - l0 * u0 * i0 - l1 * u1 * i1)
+    return (b0 - u0 * x5) * i0, (b1 - u1 * x5) * i1, x5
 
 
 @hot_kernel
-def _solve6(h, d0, d1, d2, d3, d4, d5, b0, b1, b2, b3, b4, b5, a1, a2, a3, c1, c2, c3):
-    """Solve (diag(d) + h C) x = b with C the Kirchhoff Coriolis matrix of momenta a, c.
+def _solve6(h, d0, d1, d2, d3, d4, d5, b0, b1, b2, b3, b4, b5, a1, a2, a3, c1, c2, c3,
+            e15, e51, e24, e42, f15, f24, z0, z1, z2, z3, z4, z5):
+    """Solve (diag(d) + Z (h C + E) + F) x = b.
 
-    ``C = [[0, -S(a)], [-S(a), -S(c)]]`` (skew). Schur complement on the diagonal linear
-    block, then Cramer's rule on the 3 x 3 angular system.
+    ``C`` is the Kirchhoff Coriolis matrix of momenta a, c, ``C = [[0, -S(a)], [-S(a), -S(c)]]``
+    (skew), ``E`` the lift couplings sway-yaw (``e15`` in the sway row, ``e51`` in the yaw
+    row) and heave-pitch (``e24``, ``e42``), ``Z = diag(z)`` keeps (1) or drops (0) each row's
+    couplings (a thruster's controller cancels them), ``F`` the fin side forces (``f15``,
+    ``f24``). The linear block stays diagonal: Schur complement on it, then Cramer's rule on
+    the 3 x 3 angular system.
     """
     i0 = 1.0 / d0
     i1 = 1.0 / d1
     i2 = 1.0 / d2
-    hh = h * h
-    # P = h * (-S(a)) = h [[0, a3, -a2], [-a3, 0, a1], [a2, -a1, 0]];  S = A22 + P D1^-1 P^T
-    s00 = d3 + hh * (a3 * a3 * i1 + a2 * a2 * i2)
-    s11 = d4 + hh * (a3 * a3 * i0 + a1 * a1 * i2)
-    s22 = d5 + hh * (a2 * a2 * i0 + a1 * a1 * i1)
-    q01 = -hh * a1 * a2 * i2
-    q02 = -hh * a1 * a3 * i1
-    q12 = -hh * a2 * a3 * i0
-    s01 = q01 + h * c3
-    s10 = q01 - h * c3
-    s02 = q02 - h * c2
-    s20 = q02 + h * c2
-    s12 = q12 + h * c1
-    s21 = q12 - h * c1
-    r0 = b3 - h * (a3 * b1 * i1 - a2 * b2 * i2)
-    r1 = b4 - h * (-a3 * b0 * i0 + a1 * b2 * i2)
-    r2 = b5 - h * (a2 * b0 * i0 - a1 * b1 * i1)
+    ha1 = h * a1
+    ha2 = h * a2
+    ha3 = h * a3
+    # U (rows surge, sway, heave; columns roll, pitch, yaw), L (rows roll, pitch, yaw; columns
+    # surge, sway, heave): h (-S(a)) = h [[0, a3, -a2], [-a3, 0, a1], [a2, -a1, 0]] plus E, F
+    u01 = z0 * ha3
+    u02 = -z0 * ha2
+    u10 = -z1 * ha3
+    u12 = z1 * (ha1 + e15) + f15
+    u20 = z2 * ha2
+    u21 = z2 * (e24 - ha1) + f24
+    l01 = z3 * ha3
+    l02 = -z3 * ha2
+    l10 = -z4 * ha3
+    l12 = z4 * (ha1 + e42)
+    l20 = z5 * ha2
+    l21 = z5 * (e51 - ha1)
+    # S = A22 - L D1^-1 U with A22 = diag(d3, d4, d5) + Z h (-S(c))
+    s00 = d3 - l01 * u10 * i1 - l02 * u20 * i2
+    s01 = z3 * h * c3 - l02 * u21 * i2
+    s02 = -z3 * h * c2 - l01 * u12 * i1
+    s10 = -z4 * h * c3 - l12 * u20 * i2
+    s11 = d4 - l10 * u01 * i0 - l12 * u21 * i2
+    s12 = z4 * h * c1 - l10 * u02 * i0
+    s20 = z5 * h * c2 - l21 * u10 * i1
+    s21 = -z5 * h * c1 - l20 * u01 * i0
+    s22 = d5 - l20 * u02 * i0 - l21 * u12 * i1
+    r0 = b3 - l01 * b1 * i1 - l02 * b2 * i2
+    r1 = b4 - l10 * b0 * i0 - l12 * b2 * i2
+    r2 = b5 - l20 * b0 * i0 - l21 * b1 * i1
     m00 = s11 * s22 - s12 * s21
     m01 = s02 * s21 - s01 * s22
     m02 = s01 * s12 - s02 * s11
@@ -377,9 +516,9 @@ def _solve6(h, d0, d1, d2, d3, d4, d5, b0, b1, b2, b3, b4, b5, a1, a2, a3, c1, c
           + r2 * (s02 * s10 - s00 * s12)) * idet
     x5 = (r0 * (s10 * s21 - s11 * s20) + r1 * (s01 * s20 - s00 * s21)
           + r2 * (s00 * s11 - s01 * s10)) * idet
-    x0 = (b0 - h * (a3 * x4 - a2 * x5)) * i0
-    x1 = (b1 - h * (-a3 * x3 + a1 * x5)) * i1
-    x2 = (b2 - h * (a2 * x3 - a1 * x4)) * i2
+    x0 = (b0 - u01 * x4 - u02 * x5) * i0
+    x1 = (b1 - u10 * x3 - u12 * x5) * i1
+    x2 = (b2 - u20 * x3 - u21 * x4) * i2
     return x0, x1, x2, x3, x4, x5
 
 
@@ -415,8 +554,12 @@ def _step_kinematic(s, cmd, ce, cn, dt):
     _surface(s)
 
 
+_HGROUP = (1 << 0) | (1 << 1) | (1 << 5)
+_VGROUP = (1 << 2) | (1 << 3) | (1 << 4)
+
+
 @hot_kernel
-def _step_rigid(model, vp, s, cmd, ce, cn, dt):
+def _step_rigid(model, vp, s, cmd, ce, cn, dt, trace, record):
     nsub = _nsub(vp, dt)
     h = dt / nsub
     thrust_on = cmd[C_THRUST] != 0.0
@@ -425,15 +568,24 @@ def _step_rigid(model, vp, s, cmd, ce, cn, dt):
     ad = cmd[C_AY]
     six = model == DOF6
     heave = model != DOF3
-    if not heave:
-        ad = 0.0
+    torpedo = vp[P_GUIDE] != 0.0
+    if not heave or (torpedo and not six):
+        ad = 0.0  # no heave DOF, or a torpedo without pitch: it cannot change depth
+    ah2 = an * an + ae * ae
+    psi_free = cmd[C_PSI] != cmd[C_PSI]  # NaN
     # heading reference: explicit command, else direction of the commanded horizontal velocity
     psi_ref = s[PSI_REF]
-    if cmd[C_PSI] == cmd[C_PSI]:  # not NaN
+    if not psi_free:
         psi_ref = cmd[C_PSI]
-    elif thrust_on and an * an + ae * ae >= vp[P_VYAW] * vp[P_VYAW]:
+    elif thrust_on and ah2 >= vp[P_VYAW] * vp[P_VYAW]:
         psi_ref = math.atan2(ae, an)
     s[PSI_REF] = psi_ref
+    # torpedo: surge speed = commanded relative speed; pitch toward the commanded direction
+    spd = math.sqrt(ah2 + ad * ad)
+    pmax = vp[P_PMAX]
+    th_ref = 0.0
+    if six and pmax > 0.0:
+        th_ref = min(max(math.atan2(-ad, math.sqrt(ah2)), -pmax), pmax)
     n = s[Z]
     e = s[X]
     dd = s[Y]
@@ -464,12 +616,42 @@ def _step_rigid(model, vp, s, cmd, ce, cn, dt):
     m3 = vp[P_M + 3]
     m4 = vp[P_M + 4]
     m5 = vp[P_M + 5]
+    k0 = vp[P_K]
+    k1 = vp[P_K + 1]
+    k2 = vp[P_K + 2]
+    k3 = vp[P_K + 3]
+    k4 = vp[P_K + 4]
+    k5 = vp[P_K + 5]
+    cap0 = vp[P_TMAX]
+    cap1 = vp[P_TMAX + 1]
+    tmax2 = vp[P_TMAX + 2]
+    tmax3 = vp[P_TMAX + 3]
+    tmax4 = vp[P_TMAX + 4]
+    tmax5 = vp[P_TMAX + 5]
+    fin_q = vp[P_FINQ]
+    fin_r = vp[P_FINR]
+    fin_z = vp[P_FINZ]
+    fin_y = vp[P_FINY]
+    svv = vp[P_LIFT]
+    srr = vp[P_LIFT + 1]
+    svr = vp[P_LIFT + 2]
+    kvr = vp[P_LIFT + 3]
+    sww = vp[P_LIFT + 4]
+    sqq = vp[P_LIFT + 5]
+    swq = vp[P_LIFT + 6]
+    kwq = vp[P_LIFT + 7]
+    has_lift = (svv != 0.0 or srr != 0.0 or svr != 0.0 or kvr != 0.0 or sww != 0.0
+                or sqq != 0.0 or swq != 0.0 or kwq != 0.0)
+    cpl_h = vp[P_CPL] != 0.0
+    cpl_v = vp[P_CPL + 1] != 0.0
+    rturn = vp[P_RTURN]
     cph = 1.0
     sph = 0.0
     cth = 1.0
     sth = 0.0
     r00 = r01 = r02 = r10 = r11 = r12 = r20 = r21 = r22 = 0.0
-    for _ in range(nsub):
+    ur = vr = wr = 0.0
+    for k in range(nsub):
         sps, cps = sincos(psi)
         if six:
             sph, cph = sincos(phi)
@@ -484,20 +666,26 @@ def _step_rigid(model, vp, s, cmd, ce, cn, dt):
         r20 = -sth
         r21 = cth * sph
         r22 = cth * cph
-        # current in body frame (NED current = (cn, ce, 0)) and relative velocity
-        ncu = r00 * cn + r10 * ce
-        ncv = r01 * cn + r11 * ce
-        ncw = r02 * cn + r12 * ce
-        ur = u - ncu
-        vr = v - ncv
-        wr = w - ncw
+        if k == 0:
+            # relative velocity nu_r = nu - R^T v_c (NED current v_c = (cn, ce, 0)); the
+            # substeps then carry nu_r itself, whose equation does not depend on a uniform
+            # current (Fossen 2011, Property 10.1)
+            ur = u - (r00 * cn + r10 * ce)
+            vr = v - (r01 * cn + r11 * ce)
+            wr = w - (r02 * cn + r12 * ce)
         # commanded relative velocity in body frame; rate commands of the attitude loops
-        cu = r00 * an + r10 * ae + r20 * ad
+        if torpedo and psi_free:
+            cu = spd
+        else:
+            cu = r00 * an + r10 * ae + r20 * ad
         cv = r01 * an + r11 * ae + r21 * ad
         cw = r02 * an + r12 * ae + r22 * ad
         pc = min(max(-katt * phi, -rmax), rmax)
-        qc = min(max(-katt * th, -rmax), rmax)
-        rc = min(max(kpsi * wrap_angle(psi_ref - psi), -rmax), rmax)
+        qc = min(max(katt * (th_ref - th), -rmax), rmax)
+        rlim = rmax
+        if rturn > 0.0:  # a turn no tighter than rturn: yaw rate <= |u_r| / rturn
+            rlim = min(rmax, abs(ur) / rturn)
+        rc = min(max(kpsi * wrap_angle(psi_ref - psi), -rlim), rlim)
         # momenta for the Coriolis term C(nu_r) nu_r (implicit: C(nu_r,k) nu_r,k+1)
         a1 = m0 * ur
         a2 = m1 * vr
@@ -505,14 +693,42 @@ def _step_rigid(model, vp, s, cmd, ce, cn, dt):
         c1 = m3 * p
         c2 = m4 * q
         c3 = m5 * r
-        # controller feed-forward of C(nu_r,k) nu_r,k (feedback linearisation: cancels the
-        # Coriolis/Munk terms the vehicle actually feels, so the loops see decoupled DOFs)
-        f0 = q * a3 - r * a2
-        f1 = r * a1 - p * a3
-        f2 = p * a2 - q * a1
-        f3 = vr * a3 - wr * a2 + q * c3 - r * c2
-        f4 = wr * a1 - ur * a3 + r * c1 - p * c3
-        f5 = ur * a2 - vr * a1 + p * c2 - q * c1
+        # lift of a finned hull (LHS coefficients, lagged in u_r): symmetric part x |u_r|
+        # (dissipative), skew part x u_r
+        au = abs(ur)
+        l15 = l51 = l24 = l42 = ld1 = ld2 = ld4 = ld5 = 0.0
+        if has_lift:
+            l15 = au * svr + ur * kvr
+            l51 = au * svr - ur * kvr
+            l24 = au * swq + ur * kwq
+            l42 = au * swq - ur * kwq
+            ld1 = au * svv
+            ld2 = au * sww
+            ld4 = au * sqq
+            ld5 = au * srr
+        # couplings C(nu_r,k) nu_r,k + lift cross terms of pitch and yaw at the substep's
+        # start: the feed-forward of a fin-steered DOF (feedback linearisation: it cancels
+        # the Coriolis/Munk/lift terms the vehicle actually feels, within the fin's authority)
+        f4 = wr * a1 - ur * a3 + r * c1 - p * c3 + l42 * wr
+        f5 = ur * a2 - vr * a1 + p * c2 - q * c1 + l51 * vr
+        # damping coefficients (lagged), including the lift diagonal, and actuator capacities
+        # (thrusters, plus fins whose lift grows with u_r^2), of the model's DOFs
+        u2 = ur * ur
+        dk0 = vp[P_DL] + vp[P_DQ] * au
+        dk1 = vp[P_DL + 1] + vp[P_DQ + 1] * abs(vr) + ld1
+        dk5 = vp[P_DL + 5] + vp[P_DQ + 5] * abs(r) + ld5
+        cap5 = tmax5 + fin_r * u2
+        dk2 = dk3 = dk4 = cap2 = cap3 = cap4 = 0.0
+        if heave:
+            dk2 = vp[P_DL + 2] + vp[P_DQ + 2] * abs(wr) + ld2
+            cap2 = tmax2
+        if six:
+            dk3 = vp[P_DL + 3] + vp[P_DQ + 3] * abs(p)
+            dk4 = vp[P_DL + 4] + vp[P_DQ + 4] * abs(q) + ld4
+            cap3 = tmax3
+            cap4 = tmax4 + fin_q * u2
+        fin5 = thrust_on and fin_y != 0.0 and cap5 > 0.0
+        fin4 = thrust_on and fin_z != 0.0 and cap4 > 0.0
         # restoring forces (body), Fossen g(eta) with r_g = 0, r_b = (0, 0, -BG)
         g0 = wb * sth
         g1 = -wb * cth * sph
@@ -520,61 +736,175 @@ def _step_rigid(model, vp, s, cmd, ce, cn, dt):
         g3 = bgb * cth * sph
         g4 = bgb * sth
         kst = h * h * bgb * cth * cph  # linearised roll/pitch restoring stiffness
+        # a thruster DOF's controller cancels its row's couplings implicitly (fins, weak and
+        # often saturated, use the lagged feed-forward f_i)
+        th0 = thrust_on and cap0 > 0.0
+        th1 = thrust_on and cap1 > 0.0
+        th2 = thrust_on and cap2 > 0.0
+        th3 = thrust_on and cap3 > 0.0
+        th4 = thrust_on and tmax4 > 0.0 and six
+        th5 = thrust_on and tmax5 > 0.0
+        fc4 = 0.0 if th4 else f4
+        fc5 = 0.0 if th5 else f5
         sat = 0
         ts0 = ts1 = ts2 = ts3 = ts4 = ts5 = 0.0
+        t0 = t1 = t2 = t3 = t4 = t5 = 0.0
         x0 = x1 = x2 = x3 = x4 = x5 = 0.0
         for _pass in range(7):  # active set: each pass saturates >= 1 more DOF or stops
-            d0, b0 = _dof_terms(0, thrust_on, vp, h, ur, cu, g0, f0, sat, ts0)
-            d1, b1 = _dof_terms(1, thrust_on, vp, h, vr, cv, g1, f1, sat, ts1)
-            d5, b5 = _dof_terms(5, thrust_on, vp, h, r, rc, 0.0, f5, sat, ts5)
+            d0, b0 = _dof(thrust_on, m0, dk0, k0, cap0, h, ur, cu, g0, 0.0, sat & 1, ts0)
+            d1, b1 = _dof(thrust_on, m1, dk1, k1, cap1, h, vr, cv, g1, 0.0, sat & 2, ts1)
+            d5, b5 = _dof(thrust_on, m5, dk5, k5, cap5, h, r, rc, 0.0, fc5, sat & 32, ts5)
+            z0 = 0.0 if th0 and not sat & 1 else 1.0
+            z1 = 0.0 if th1 and not sat & 2 else 1.0
+            z5 = 0.0 if th5 and not sat & 32 else 1.0
+            f15 = 0.0
+            if fin5:  # rudder lift also pushes the stern sideways: F_y = fin_y * tau_yaw
+                if sat & 32:
+                    b1 += h * fin_y * ts5
+                else:
+                    f15 = h * fin_y * k5
+                    b1 += h * fin_y * (dk5 * rc + f5 + k5 * rc)
             if six:
-                d2, b2 = _dof_terms(2, thrust_on, vp, h, wr, cw, g2, f2, sat, ts2)
-                d3, b3 = _dof_terms(3, thrust_on, vp, h, p, pc, g3, f3, sat, ts3)
-                d4, b4 = _dof_terms(4, thrust_on, vp, h, q, qc, g4, f4, sat, ts4)
+                d2, b2 = _dof(thrust_on, m2, dk2, k2, cap2, h, wr, cw, g2, 0.0, sat & 4, ts2)
+                d3, b3 = _dof(thrust_on, m3, dk3, k3, cap3, h, p, pc, g3, 0.0, sat & 8, ts3)
+                d4, b4 = _dof(thrust_on, m4, dk4, k4, cap4, h, q, qc, g4, fc4, sat & 16, ts4)
                 if kst > 0.0:
                     d3 += kst
                     d4 += kst
-                x0, x1, x2, x3, x4, x5 = _solve6(h, d0, d1, d2, d3, d4, d5, b0, b1, b2, b3,
-                                                 b4, b5, a1, a2, a3, c1, c2, c3)
+                z2 = 0.0 if th2 and not sat & 4 else 1.0
+                z3 = 0.0 if th3 and not sat & 8 else 1.0
+                z4 = 0.0 if th4 and not sat & 16 else 1.0
+                f24 = 0.0
+                if fin4:  # stern-plane lift: F_z = fin_z * tau_pitch
+                    if sat & 16:
+                        b2 += h * fin_z * ts4
+                    else:
+                        f24 = h * fin_z * k4
+                        b2 += h * fin_z * (dk4 * qc + g4 + f4 + k4 * qc)
+                if z0 + z1 + z2 + z3 + z4 + z5 == 0.0:  # fully actuated: decoupled
+                    x0 = b0 / d0
+                    x1 = b1 / d1
+                    x2 = b2 / d2
+                    x3 = b3 / d3
+                    x4 = b4 / d4
+                    x5 = b5 / d5
+                else:
+                    x0, x1, x2, x3, x4, x5 = _solve6(h, d0, d1, d2, d3, d4, d5, b0, b1, b2,
+                                                     b3, b4, b5, a1, a2, a3, c1, c2, c3,
+                                                     h * l15, h * l51, h * l24, h * l42,
+                                                     f15, f24, z0, z1, z2, z3, z4, z5)
             else:
-                x0, x1, x5 = _solve3(d0, d1, d5, b0, b1, b5, -h * a2, h * a1)
+                if z0 + z1 + z5 == 0.0:  # fully actuated: decoupled
+                    x0 = b0 / d0
+                    x1 = b1 / d1
+                    x5 = b5 / d5
+                else:
+                    x0, x1, x5 = _solve3(d0, d1, d5, b0, b1, b5, -z0 * h * a2,
+                                         z1 * h * (a1 + l15) + f15, z5 * h * a2,
+                                         z5 * h * (l51 - a1))
                 if heave:
-                    d2, b2 = _dof_terms(2, thrust_on, vp, h, wr, cw, g2, f2, sat, ts2)
+                    d2, b2 = _dof(thrust_on, m2, dk2, k2, cap2, h, wr, cw, g2, 0.0, sat & 4,
+                                  ts2)
                     x2 = b2 / d2
             if not thrust_on:
                 break
             s0 = sat
-            sat, ts0 = _check_thrust(0, thrust_on, vp, ur, cu, g0, f0, x0, sat, ts0)
-            sat, ts1 = _check_thrust(1, thrust_on, vp, vr, cv, g1, f1, x1, sat, ts1)
-            sat, ts5 = _check_thrust(5, thrust_on, vp, r, rc, 0.0, f5, x5, sat, ts5)
+            # actuator forces implied by x: thrusters with their couplings at the new
+            # velocities (momenta lagged), fins with the lagged feed-forward
+            t0 = _tau(dk0, k0, cu, g0, a3 * x4 - a2 * x5, x0) if th0 else 0.0
+            t1 = _tau(dk1, k1, cv, g1, (a1 + l15) * x5 - a3 * x3, x1) if th1 else 0.0
+            if th5:
+                t5 = _tau(dk5, k5, rc, 0.0, a2 * x0 + (l51 - a1) * x1 + c2 * x3 - c1 * x4, x5)
+            else:
+                t5 = _tau(dk5, k5, rc, 0.0, f5, x5) if cap5 > 0.0 else 0.0
+            # (surge, sway, yaw): box limits, or one group of four vectored thrusters
+            if cpl_h:
+                if not sat & _HGROUP:
+                    load = _group_load(t0 / cap0 if cap0 > 0.0 else 0.0,
+                                       t1 / cap1 if cap1 > 0.0 else 0.0,
+                                       t5 / cap5 if cap5 > 0.0 else 0.0)
+                    if load > 1.0:
+                        ts0 = t0 / load
+                        ts1 = t1 / load
+                        ts5 = t5 / load
+                        sat |= _HGROUP
+            else:
+                if not sat & 1:
+                    sat, ts0 = _box(cap0, t0, sat, 1, ts0)
+                if not sat & 2:
+                    sat, ts1 = _box(cap1, t1, sat, 2, ts1)
+                if not sat & 32:
+                    sat, ts5 = _box(cap5, t5, sat, 32, ts5)
+            # (heave, roll, pitch)
             if heave:
-                sat, ts2 = _check_thrust(2, thrust_on, vp, wr, cw, g2, f2, x2, sat, ts2)
-            if six:
-                sat, ts3 = _check_thrust(3, thrust_on, vp, p, pc, g3, f3, x3, sat, ts3)
-                sat, ts4 = _check_thrust(4, thrust_on, vp, q, qc, g4, f4, x4, sat, ts4)
+                t2 = _tau(dk2, k2, cw, g2, a2 * x3 + (l24 - a1) * x4, x2) if th2 else 0.0
+                t3 = (_tau(dk3, k3, pc, g3, a3 * x1 - a2 * x2 + c3 * x4 - c2 * x5, x3)
+                      if th3 else 0.0)
+                if th4:
+                    t4 = _tau(dk4, k4, qc, g4,
+                              (a1 + l42) * x2 - a3 * x0 + c1 * x5 - c3 * x3, x4)
+                else:
+                    t4 = _tau(dk4, k4, qc, g4, f4, x4) if cap4 > 0.0 else 0.0
+                if cpl_v:
+                    if not sat & _VGROUP:
+                        load = _group_load(t2 / cap2 if cap2 > 0.0 else 0.0,
+                                           t3 / cap3 if cap3 > 0.0 else 0.0,
+                                           t4 / cap4 if cap4 > 0.0 else 0.0)
+                        if load > 1.0:
+                            ts2 = t2 / load
+                            ts3 = t3 / load
+                            ts4 = t4 / load
+                            sat |= _VGROUP
+                else:
+                    if not sat & 4:
+                        sat, ts2 = _box(cap2, t2, sat, 4, ts2)
+                    if not sat & 8:
+                        sat, ts3 = _box(cap3, t3, sat, 8, ts3)
+                    if not sat & 16:
+                        sat, ts4 = _box(cap4, t4, sat, 16, ts4)
             if sat == s0:
                 break
-        # back to velocity over ground, then advance the pose (symplectic Euler)
-        u = x0 + ncu
-        v = x1 + ncv
+        if record:
+            _trace(trace, thrust_on, sat, t0, t1, t2, t3, t4, t5, ts0, ts1, ts2, ts3, ts4, ts5,
+                   cap0, cap1, cap2, cap3, cap4, cap5, fin5, fin4, fin_y, fin_z)
+        # advance the pose with the new velocity (symplectic Euler): over ground = R nu_r + v_c
+        ur = x0
+        vr = x1
         if heave:
-            w = x2 + ncw
+            wr = x2
         r = x5
-        n += h * (r00 * u + r01 * v + r02 * w)
-        e += h * (r10 * u + r11 * v + r12 * w)
+        n += h * (r00 * ur + r01 * vr + r02 * wr + cn)
+        e += h * (r10 * ur + r11 * vr + r12 * wr + ce)
         if six:
             p = x3
             q = x4
-            dd += h * (r20 * u + r21 * v + r22 * w)
+            dd += h * (r20 * ur + r21 * vr + r22 * wr)
             tth = sth / cth
             phi += h * (p + sph * tth * q + cph * tth * r)
             th += h * (cph * q - sph * r)
             psi += h * (sph * q + cph * r) / cth
         else:
             if heave:
-                dd += h * w
+                dd += h * wr
             psi += h * r
         psi = wrap_angle(psi)
+    # velocity over ground in the final body frame: nu = nu_r + R^T v_c
+    sps, cps = sincos(psi)
+    if six:
+        sph, cph = sincos(phi)
+        sth, cth = sincos(th)
+    r00 = cps * cth
+    r01 = -sps * cph + cps * sth * sph
+    r02 = sps * sph + cps * cph * sth
+    r10 = sps * cth
+    r11 = cps * cph + sph * sth * sps
+    r12 = -cps * sph + sth * sps * cph
+    r20 = -sth
+    r21 = cth * sph
+    r22 = cth * cph
+    u = ur + r00 * cn + r10 * ce
+    v = vr + r01 * cn + r11 * ce
+    w = wr + r02 * cn + r12 * ce
     s[X] = e
     s[Y] = dd
     s[Z] = n
@@ -596,6 +926,23 @@ def _step_rigid(model, vp, s, cmd, ce, cn, dt):
         s[U] = u - vd * r20
         s[V] = v - vd * r21
         s[W] = w - vd * r22
+
+
+@hot_kernel
+def _trace(out, thrust_on, sat, t0, t1, t2, t3, t4, t5, ts0, ts1, ts2, ts3, ts4, ts5,
+           cap0, cap1, cap2, cap3, cap4, cap5, fin5, fin4, fin_y, fin_z):
+    """Actuator forces of a substep (see :func:`step_agent_traced`)."""
+    ts = (t0, t1, t2, t3, t4, t5)
+    tss = (ts0, ts1, ts2, ts3, ts4, ts5)
+    caps = (cap0, cap1, cap2, cap3, cap4, cap5)
+    for i in range(6):
+        tau = 0.0
+        if thrust_on and caps[i] > 0.0:
+            tau = tss[i] if (sat >> i) & 1 else ts[i]
+        out[i] = tau
+        out[6 + i] = caps[i] if thrust_on else 0.0
+    out[12] = fin_y * out[5] if fin5 else 0.0
+    out[13] = fin_z * out[4] if fin4 else 0.0
 
 
 @hot_kernel(inline="always")
@@ -626,7 +973,21 @@ def step_agent(model, vp, s, cmd, ce, cn, dt):
     if model == KINEMATIC:
         _step_kinematic(s, cmd, ce, cn, dt)
     else:
-        _step_rigid(model, vp, s, cmd, ce, cn, dt)
+        _step_rigid(model, vp, s, cmd, ce, cn, dt, s, False)
+
+
+@hot_kernel
+def step_agent_traced(model, vp, s, cmd, ce, cn, dt, trace):
+    """:func:`step_agent` of a rigid-body model that also writes its actuator forces.
+
+    ``trace`` (:data:`TRACE_DIM` float64) receives, for the **last substep** of the step:
+    ``[0:6]`` the actuator generalized force per DOF (thruster force / moment, or fin moment
+    for a fin-steered DOF; N | N m), ``[6:12]`` its limit in that substep (thrust_max, or the
+    fin capacity at the substep's u_r; for a coupled thruster group the pure-axis capacity),
+    ``[12]`` the fin sway force and ``[13]`` the fin heave force (N). Use ``dt <=
+    max_substep_s`` to see every substep. For tests and diagnostics.
+    """
+    _step_rigid(model, vp, s, cmd, ce, cn, dt, trace, True)
 
 
 @hot_kernel

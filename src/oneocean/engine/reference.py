@@ -164,7 +164,9 @@ def step(model: int, vp: np.ndarray, s: np.ndarray, cmd: np.ndarray, ce: float, 
                       -wb * math.cos(th) * math.cos(phi), bgb * math.cos(th) * math.sin(phi),
                       bgb * math.sin(th), 0.0])
         cmat = coriolis(mass, nu_r)
-        ff = (dl + dq * np.abs(nu_r)) * cvec + g + cmat @ nu_r
+        # feed-forward without C: a thruster's controller cancels its row of C(nu_r,k) at the
+        # new velocities (the row's coupling terms are dropped from the implicit system)
+        ff = (dl + dq * np.abs(nu_r)) * cvec + g
         a_base = np.diag(mass + h * (dl + dq * np.abs(nu_r))) + h * cmat
         kst = h * h * bgb * math.cos(th) * math.cos(phi)
         if six and kst > 0:
@@ -180,7 +182,9 @@ def step(model: int, vp: np.ndarray, s: np.ndarray, cmd: np.ndarray, ce: float, 
                     if i in sat:
                         bvec[i] += h * sat[i]
                     else:
-                        amat[i, i] += h * kgain[i]
+                        diag = amat[i, i]
+                        amat[i, :] = 0.0
+                        amat[i, i] = diag + h * kgain[i]
                         bvec[i] += h * (ff[i] + kgain[i] * cvec[i])
             x = np.zeros(6)
             x[act] = np.linalg.solve(amat[np.ix_(act, act)], bvec[act])
@@ -189,16 +193,16 @@ def step(model: int, vp: np.ndarray, s: np.ndarray, cmd: np.ndarray, ce: float, 
             new = False
             for i in act:
                 if tmax[i] > 0 and i not in sat:
-                    tau = ff[i] + kgain[i] * (cvec[i] - x[i])
+                    tau = ff[i] + cmat[i] @ x + kgain[i] * (cvec[i] - x[i])
                     if abs(tau) > tmax[i]:
                         sat[i] = math.copysign(tmax[i], tau)
                         new = True
             if not new:
                 break
-        nu = x + nu_c
-        if not heave:
-            nu[2] = 0.0
-        eta[:3] += h * (rmat @ nu[:3])
+        # over ground = R nu_r + v_c; the relative velocity carries over to the next substep
+        # (its equation does not depend on a uniform current: Fossen 2011, Property 10.1)
+        eta[:3] += h * (rmat @ x[:3] + v_c)
+        nu = x
         if not heave:
             eta[2] = s[1]
         if six:
@@ -209,6 +213,10 @@ def step(model: int, vp: np.ndarray, s: np.ndarray, cmd: np.ndarray, ce: float, 
         else:
             eta[5] += h * nu[5]
         eta[5] = (eta[5] + math.pi) % (2 * math.pi) - math.pi
+        rmat = rotation(*eta[3:])
+        nu = x + np.concatenate([rmat.T @ v_c, np.zeros(3)])
+        if not heave:
+            nu[2] = 0.0
     v_world_ned = rmat @ nu[:3]
     s[0], s[1], s[2] = eta[1], eta[2], eta[0]
     s[3:6] = eta[3:]
