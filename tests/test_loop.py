@@ -49,6 +49,29 @@ def test_segments_resume_exactly(coast, method):
     assert (whole.LS.energy == whole.res[:, 2]).all() and (whole.LS.energy > 0).all()
 
 
+def test_reached_runs_to_the_metric_horizon_with_standard_metrics_frozen(coast):
+    """A post_step returning REACHED (SPC: the target fraction removed) latches success and
+    the episode runs on to its time limit; T, E, violations and Coll are those at the
+    success step (a run stopped there gives the same numbers), segments resume bit for bit,
+    and a task whose post_step returns a bool never latches."""
+    cell = Cell(coast, "SPC", 1, n_agents=4)
+    whole = _episodes(cell, "oracle", n=3).run()
+    r = whole.results()
+    assert r["success"].all()
+    np.testing.assert_array_equal(whole.LS.k, whole.n_steps)
+    np.testing.assert_array_equal(whole.LS.k_succ * whole.dt, r["T_s"])
+    parts = _episodes(cell, "oracle", n=3)
+    for e in range(3):
+        parts.run(int(whole.LS.k_succ[e]))
+        assert parts.LS.energy[e] == r["E"][e]
+        assert parts.LS.coll[e] == whole.LS.coll[e] and parts.LS.viol[e] == r["violations"][e]
+    parts.run()
+    np.testing.assert_array_equal(parts.res, whole.res)
+    np.testing.assert_array_equal(parts.state, whole.state)
+    g = _episodes(Cell(coast, "G2G", 1), "oracle").run()
+    assert (g.LS.k_succ == -1).all() and np.isinf(g.LS.dmin).all()   # one agent: no pairs
+
+
 def test_results_need_every_episode_to_end(coast):
     ep = _episodes(Cell(coast, "G2G", 1), "heuristic").run(3)
     with pytest.raises(RuntimeError, match="before every episode ended"):

@@ -1,4 +1,5 @@
-"""SPC (surface pollution cleanup): reset geometry, mass budget, success rule, determinism."""
+"""SPC (surface pollution cleanup): reset geometry, mass budget, success rule, the cleanup
+rate over the fixed metric horizon, near-collisions, determinism."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from oneocean.errors import ConfigError
 from oneocean.models import pollution as pol
 from oneocean.tasks import run_cell, spc
 from oneocean.tasks.common import STANDARD, load_task_table
-from oneocean.tasks.episodes import rollout
+from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
@@ -123,18 +124,118 @@ def test_mass_budget_closes(method):
 def test_oracle_cleans_calm_water_and_success_rule(calm):
     _, r = _run(calm, TIER, "oracle")
     assert r["success"].all()
-    # stopped at the first step with removed >= target: just above the target fraction
-    assert np.all(r["cleanup_rate"] >= TIER["target_fraction"])
-    assert np.all(r["cleanup_rate"] < TIER["target_fraction"] + 0.05)
+    # T is the time to success; the episode ran on to the metric horizon (the time limit),
+    # so the cleanup rate is the removal over the whole horizon, beyond the target
     assert np.all(r["T_s"] < TIER["time_limit_s"])
     np.testing.assert_array_equal(r["T_s"], r["time_to_target_s"])
-    # calm water: only diffusion reaches the open sides, 150 m from a 40 m spill
-    np.testing.assert_allclose(r["escaped_fraction"], 0.0, atol=1e-6)
+    assert np.all(r["cleanup_rate"] > TIER["target_fraction"] + 0.2)
+    # calm water: only diffusion reaches the open sides, 150 m from a 40 m spill (over the
+    # whole 400 s horizon: < 1e-3)
+    np.testing.assert_allclose(r["escaped_fraction"], 0.0, atol=1e-3)
     np.testing.assert_array_equal(r["violations"], 0)
-    assert np.all(r["coll_ratio"] == 0.0)  # repulsion keeps them apart
-    # the heuristic is slower (cruise budget, stale map) but also succeeds in calm water
+    # the heuristic (same speed; stale map, ring targets before the first map) is never
+    # faster and also succeeds in calm water
     _, rh = _run(calm, TIER, "heuristic")
-    assert rh["success"].all() and np.all(rh["T_s"] > r["T_s"])
+    assert rh["success"].all() and np.all(rh["T_s"] >= r["T_s"])
+    assert rh["T_s"].mean() > r["T_s"].mean()
+
+
+def test_runs_to_the_metric_horizon_with_standard_metrics_frozen_at_success(calm):
+    """After success the episode runs on to the time limit (the loop's REACHED); T, E,
+    violations and coll_ratio are what a run stopped at success reports: running in segments
+    up to the success step gives the final E exactly, and later steps add nothing."""
+    init = spc.reset(calm, TIER, 4, 3, 0)
+    veh = E.load_vehicle()
+    whole = Episodes(spc, calm, TIER, init, "oracle", "kinematic", veh, 0).run()
+    r = whole.results()
+    assert r["success"].all()
+    n_steps = int(TIER["time_limit_s"])
+    np.testing.assert_array_equal(whole.LS.k, n_steps)          # ran to the horizon
+    np.testing.assert_array_equal(whole.LS.k_succ * 1.0, r["T_s"])  # T = time to success
+    seg = Episodes(spc, calm, TIER, init, "oracle", "kinematic", veh, 0)
+    for e in range(3):
+        seg.run(int(whole.LS.k_succ[e]))
+        assert seg.LS.energy[e] == r["E"][e] and seg.LS.coll[e] == whole.LS.coll[e]
+    seg.run()
+    np.testing.assert_array_equal(seg.res, whole.res)           # resumable, bit for bit
+    assert np.all(seg.LS.energy == r["E"])
+
+
+def test_cleanup_rate_is_removed_mass_over_the_fixed_horizon(calm):
+    """Hand-checkable: two agents parked on a spill that does not move (calm water, no
+    diffusion) remove the fraction f = removal_rate_s dt of every cell within removal_radius_m
+    at every step (twice where both footprints cover it), so after K steps
+    removed / initial = sum_c C_c (1 - (1 - f)^(m_c K)) / sum_c C_c. Success comes at the
+    first step that reaches the target; the cleanup rate is the value at K = the horizon."""
+    init = spc.reset(calm, TIER, 2, 1, 0)
+    n, half = spc.field_frame(TIER["domain_m"])
+    c = init["origin"][0] + half
+    init["pos0"][0] = [[c[0] - 3.0, spc.SURFACE_Y_M, c[1]], [c[0] + 3.0, spc.SURFACE_Y_M, c[1]]]
+    veh = E.load_vehicle()
+    p = veh.params.copy()
+    p[P_VMAX] = 0.0
+    still = dataclasses.replace(veh, params=p)
+    K = 120
+    tier = {**TIER, "kappa_m2s": 0.0, "time_limit_s": float(K), "removal_rate_s": 0.02}
+    ci = np.arange(n) * spc.FIELD_H_M
+    X, Z = np.meshgrid(init["origin"][0, 0] + ci, init["origin"][0, 1] + ci)
+    m = sum((np.hypot(X - a[0], Z - a[2]) <= tier["removal_radius_m"]).astype(int)
+            for a in init["pos0"][0])
+    C0 = init["C0"][0, 0]
+    f = tier["removal_rate_s"] * tier["dt_s"]
+    frac = lambda k: float(np.sum(C0 * (1.0 - (1.0 - f) ** (m * k))) / C0.sum())  # noqa: E731
+    assert 0.1 < frac(K) < 0.9   # (the footprints cover part of the spill)
+    target = 0.5 * frac(K)
+    k_hit = next(k for k in range(1, K + 1) if frac(k) >= target)
+    r = rollout(spc, calm, {**tier, "target_fraction": target}, init, "oracle", "kinematic",
+                still, 0)
+    assert r["success"][0]
+    assert r["T_s"][0] == r["time_to_target_s"][0] == k_hit * tier["dt_s"]
+    assert r["cleanup_rate"][0] == pytest.approx(frac(K), rel=1e-9)
+    assert r["cleanup_rate"][0] > 1.9 * target            # beyond the target fraction
+    assert r["escaped_fraction"][0] == pytest.approx(0.0, abs=1e-12)
+    assert r["remaining_fraction"][0] == pytest.approx(1.0 - frac(K), rel=1e-9)
+    # the same horizon without a reachable target: the same cleanup rate, no success
+    r2 = rollout(spc, calm, {**tier, "target_fraction": 0.99}, init, "oracle", "kinematic",
+                 still, 0)
+    assert not r2["success"][0] and r2["T_s"][0] == K
+    assert r2["cleanup_rate"][0] == r["cleanup_rate"][0]
+
+
+def test_near_collisions_on_a_head_on_pass(calm):
+    """Coll (eq. 4) through the SPC kernel: two vehicles 20 m apart driven head-on at 1 m/s
+    each (external actions, kinematic, calm water) are within r_coll = 2 m after steps 9, 10
+    and 11 of 30 (distances 2, 0, 2 m): Coll = 3 / 30; the closest distance is 0."""
+    init = spc.reset(calm, TIER, 2, 1, 0)
+    half = spc.field_frame(TIER["domain_m"])[1]
+    c = init["origin"][0] + half + [0.0, 100.0]   # off the spill: nothing to remove
+    init["pos0"][0] = [[c[0] - 10.0, spc.SURFACE_Y_M, c[1]],
+                       [c[0] + 10.0, spc.SURFACE_Y_M, c[1]]]
+    tier = {**TIER, "time_limit_s": 30.0, "target_fraction": 0.99}
+    ep = Episodes(spc, calm, tier, init, None, "kinematic", E.load_vehicle(), 0)
+    ep.set_actions(np.array([[[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]]))
+    r = ep.run().results()
+    assert r["coll_ratio"][0] == pytest.approx(3.0 / 30.0)
+    assert ep.LS.coll[0] == 3 and ep.LS.dmin[0] == pytest.approx(0.0, abs=1e-9)
+    # 2.5 m apart at the closest (parallel lanes 2.5 m apart): never
+    init["pos0"][0, 1, 2] += 2.5
+    ep = Episodes(spc, calm, tier, init, None, "kinematic", E.load_vehicle(), 0)
+    ep.set_actions(np.array([[[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]]))
+    r = ep.run().results()
+    assert r["coll_ratio"][0] == 0.0 and ep.LS.dmin[0] == pytest.approx(2.5)
+
+
+def test_fused_teams_closest_distance_and_coll_agree(coast):
+    """The fused teams start on a 6 m lattice and steer away from teammates closer than SEP_M
+    (4.5 m), which is why Coll is rare; the loop records every episode's closest pair
+    distance up to success (LoopState.dmin) and Coll > 0 exactly when it was <= 2 m."""
+    init = spc.reset(coast, TIER, 6, 4, 1)
+    for method in ("heuristic", "oracle"):
+        ep = Episodes(spc, coast, TIER, init, method, "6dof", E.load_vehicle(), 1).run()
+        r = ep.results()
+        assert np.all(np.isfinite(ep.LS.dmin)) and np.all(ep.LS.dmin > 0.0)
+        assert np.all(ep.LS.dmin < spc.STAGING_SPACING_M)
+        np.testing.assert_array_equal(r["coll_ratio"] > 0, ep.LS.dmin <= spc.R_COLL_M)
 
 
 def test_do_nothing_fails(calm):

@@ -5,8 +5,9 @@ says what the agents do. This loop owns everything they share, so no task re-imp
 time, current sampling at every agent, the method's sensing (the heuristic's noisy probe or
 the exact current), observation recording, the action (through :func:`advance_agent`:
 clipping to ``v_max``, dynamics, feasibility), the energy proxy (eq. 7), rejected moves,
-near-collisions (eq. 4, one ``r_coll``), termination, success and ``T`` — in resumable
-segments of steps (``k_stop``), so a Python planner or a step API can act between them.
+near-collisions (eq. 4, one ``r_coll``), termination, success and ``T``, and the metric
+horizon (below) — in resumable segments of steps (``k_stop``), so a Python planner or a step
+API can act between them.
 
 Per step ``k`` of episode ``e`` (``t = t0[e] + k dt``)::
 
@@ -19,10 +20,22 @@ Per step ``k`` of episode ``e`` (``t = t0[e] + k dt``)::
         a   = policy.act(..., c~)     or the external action ext[e, i] (step API)
         record observation (env.cue) and action when asked
         advance_agent(a, c); env.after_agent
-    near-collision count
-    stop = env.post_step              task physics after the moves, metrics, termination
+    near-collision count (eq. 4) and the closest pair distance
+    code = env.post_step              task physics after the moves, metrics, termination
     k += 1
-    at the end: success = env.finish(...); T = k dt on success, else the time limit
+    at the end: success = env.finish(...); T = k dt on success (k_succ dt after REACHED),
+    else the time limit
+
+Termination and the metric horizon. ``post_step`` returns a stop code: ``GO`` (0 / False:
+continue), ``STOP`` (1 / True: the episode ends now: success or a terminal failure, as
+``finish`` then says) or ``REACHED`` (2: the task's success was reached at this step, but the
+episode runs on to its time limit, the task's fixed *metric horizon*, for metrics measured
+over that horizon, e.g. SPC's cleanup rate). The loop latches the first ``REACHED`` step in
+``LoopState.k_succ``; from then on the standard metrics are frozen: ``T`` is ``k_succ dt``
+(time to success), and ``E``, ``violations``, the near-collision ratio (``coll / k_succ``)
+and the closest pair distance ``LoopState.dmin`` cover the steps up to success, exactly what
+a run that stopped there would report. Everything else (the world, the agents, the task's own
+accumulators) runs to the horizon, and ``finish`` sees the final step.
 
 Hooks are plain ``@hot_kernel`` functions of the task module (the env) and of its method
 module (the policy). The task module passes them to :func:`run_episode` (``inline="always"``)
@@ -50,7 +63,8 @@ Env hooks (``P``: the task's params NamedTuple, ``W``: its per-episode work arra
     pre_step(grid, P, W, state, e, k, t)
     cue(grid, P, W, state, e, k, i) -> (gx, gy, gz, probe)   observation's goal cue, probe
     after_agent(grid, P, W, state, e, k, i, code)  right after agent i moved
-    post_step(grid, P, W, state, prev, e, k, t) -> stop   (prev: positions before the step)
+    post_step(grid, P, W, state, prev, e, k, t) -> GO | STOP | REACHED  (prev: positions
+                                                   before the step; a bool is GO / STOP)
     finish(grid, P, W, state, e, k, row) -> success        writes the task's metric columns
 
 Policy hooks (``M``: the method's params NamedTuple)::
@@ -106,15 +120,22 @@ class LoopState(NamedTuple):
     viol: np.ndarray        # (E,) int64 rejected moves (team)
     coll: np.ndarray        # (E,) int64 steps with a near-collision
     prev: np.ndarray        # (E, N, 3) positions before the current step, m
+    k_succ: np.ndarray      # (E,) int64 steps to the REACHED success (-1: not reached)
+    dmin: np.ndarray        # (E,) float64 smallest pair distance after a step, m (inf: N < 2)
 
 
 NEW, RUNNING, FINISHED = 0, 1, 2
+
+#: Stop codes of the env's ``post_step`` (a bool return is GO / STOP): continue; end the
+#: episode now; success reached at this step, run on to the metric horizon (the time limit).
+GO, STOP, REACHED = 0, 1, 2
 
 
 def new_loop_state(n_episodes: int, n_agents: int) -> LoopState:
     return LoopState(np.zeros(n_episodes, np.int64), np.zeros(n_episodes, np.int64),
                      np.zeros(n_episodes), np.zeros(n_episodes, np.int64),
-                     np.zeros(n_episodes, np.int64), np.zeros((n_episodes, n_agents, 3)))
+                     np.zeros(n_episodes, np.int64), np.zeros((n_episodes, n_agents, 3)),
+                     np.full(n_episodes, -1, np.int64), np.full(n_episodes, np.inf))
 
 
 @hot_kernel(inline="always")
@@ -158,6 +179,8 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
     energy = LS.energy[e]
     viol = LS.viol[e]
     coll = LS.coll[e]
+    dmin = LS.dmin[e]
+    counting = LS.k_succ[e] < 0   # standard metrics accumulate up to success (REACHED)
     S = state[e]
     while k < n_steps and k < k_stop and not stop:
         t = t0[e] + k * dt
@@ -192,26 +215,39 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
             c[4] = 1.0
             en, code = advance_agent(grid, LP.model, vp, s, c, ce, cn, LP.v_max, dt,
                                      LP.land_thr, LP.clearance)
-            energy += en
-            if code != OK:
-                viol += 1
+            if counting:
+                energy += en
+                if code != OK:
+                    viol += 1
             after_agent(grid, P, W, state, e, k, i, code)
-        if n_ag > 1 and min_pairwise_distance(S) <= LP.r_coll:
-            coll += 1
-        stop = post_step(grid, P, W, state, LS.prev, e, k, t)
+        if n_ag > 1 and counting:
+            d = min_pairwise_distance(S)
+            if d <= LP.r_coll:
+                coll += 1
+            if d < dmin:
+                dmin = d
+        rc = int(post_step(grid, P, W, state, LS.prev, e, k, t))
         k += 1
+        if rc == REACHED:
+            if counting:
+                LS.k_succ[e] = k
+                counting = False
+        elif rc != GO:
+            stop = True
     LS.k[e] = k
     LS.energy[e] = energy
     LS.viol[e] = viol
     LS.coll[e] = coll
+    LS.dmin[e] = dmin
     if stop or k >= n_steps:
         LS.status[e] = FINISHED
         row = res[e]
         success = finish(grid, P, W, state, e, k, row)
+        k_end = LS.k_succ[e] if LS.k_succ[e] >= 0 else k   # the steps the metrics cover
         row[C_SUCCESS] = 1.0 if success else 0.0
-        row[C_T] = k * dt if success else n_steps * dt
+        row[C_T] = k_end * dt if success else n_steps * dt
         row[C_E] = energy
-        row[C_COLL] = coll / k if k > 0 else 0.0
+        row[C_COLL] = coll / k_end if k_end > 0 else 0.0
         row[C_VIOL] = viol
 
 

@@ -21,39 +21,51 @@ Plume physics (the environment; identical for every method)
     The sensor reads the concentration at the vehicle: ``C(x, z) exp(-a / PLUME_SCALE_M) /
     PLUME_SCALE_M`` (kg m-3) at altitude ``a`` (an exponential vertical profile holding the
     column mass ``C``), so flying high weakens the signal.
-Detection and scoring
-    Readings are taken after every step. A reading at or above ``detect_threshold_kg_m3``
-    within ``DETECT_RADIUS_M`` of a leak *detects* it (the evaluator attributes every reading
-    to the nearest leak within that radius) and is logged for that leak with its
-    *downstream coordinate* (the distance from the leak's first logged reading along the
-    current the agent sensed at its step; 0 below ``MIN_CURRENT_MS``). The agent reports a
-    position *estimate* for the leak from its readings logged near it (method-specific,
-    below); the leak is *localised* if the estimate lies within ``loc_tolerance_m`` (the
-    field resolves ``FIELD_H_M``; the oracle's estimator stays within ~10 m on the default
-    region, the heuristic's peak within ~35 m). The inspection report is final when every
-    agent has finished its section, or at the time limit.
+Sensing (the environment)
+    After every agent's move the env takes the agent's reading and hands it to the method
+    (``W.sense[e, i]``: position and value; the reading at the start position after the
+    spin-up before step 0). Nothing else about the leaks reaches the method: it is never told
+    which reading is near which leak.
+Claims (the method's report)
+    The method files *leak claims*: positions it asserts are leaks, in ``W.claims[e, :n]``
+    (``n = W.nclaim[e]``; columns x, z and the method's own strength, unused by the score).
+    The fused heuristic and oracle detect plume events in each agent's own reading series
+    and claim one position per event (:mod:`oneocean.methods.heuristic.pi`); a method driven
+    from Python (step API, planner) writes ``W.claims`` / ``W.nclaim`` itself before the
+    episode ends. Claims with a non-finite position are ignored.
+Scoring (:func:`match_claims`, ground truth enters only here)
+    Claims are matched one-to-one to the true leaks, greedily by increasing distance, among
+    pairs closer than the detection gate ``DETECT_GATE_M``: repeatedly the closest unmatched
+    (claim, leak) pair within the gate is matched. (Every tier's leaks are >= 200 m of a
+    pipeline turning <= ``MAX_TURN_DEG`` per leg apart, more than two gates, so a claim is
+    within the gate of at most one leak and the greedy matching is the optimal one.) A leak is *detected* if a claim is matched to it and
+    *localised* if that claim lies within ``loc_tolerance_m``; an unmatched claim is a *false
+    claim* (a second claim near an already matched leak is one too). The report is final when
+    every agent has finished its section, or at the time limit.
 Success
-    Every leak localised (team) when the report is final; ``T_s`` is then the time at which
-    the last agent finished its section (the time limit on failure).
+    Every leak localised and no false claim when the report is final; ``T_s`` is then the time
+    at which the last agent finished its section (the time limit on failure).
 Metrics
-    ``inspection_score`` (primary: localised / total leaks), ``localisation_error_m`` (mean
-    over detected leaks of the estimate's distance to the leak, m; NaN if none was detected),
-    ``detection_rate`` (detected / total).
+    ``inspection_score`` (primary: localised / (leaks + false claims): 1 only for a perfect
+    report, equal to localised / leaks without false claims; claiming everywhere does not
+    pay), ``localisation_error_m`` (mean distance of the matched claims to their leaks, m,
+    <= ``DETECT_GATE_M`` by construction; NaN if no claim was matched),
+    ``detection_rate`` (detected / leaks), ``false_claims`` (count of unmatched claims).
 Methods
     :mod:`oneocean.methods.heuristic.pi` (both follow their section's polyline low over the
-    seafloor; heuristic: ``ALT_HEURISTIC_M``, cruise budget, noisy probe, reports the plume's
-    peak; oracle: ``ALT_ORACLE_M``, full speed, exact current, reports the plume's upstream
-    edge). The survey waypoints are the method's plan (``survey``, stored in the work arrays);
-    the leak estimate is the method's report (``estimate``), computed when the episode ends
-    from the readings the env logged near each leak, and scored here.
+    seafloor at the full ``v_max``, detect plume events in their own readings and claim one
+    position per event; heuristic: ``ALT_HEURISTIC_M``, noisy probe, claims the event's peak
+    reading; oracle: ``ALT_ORACLE_M``, exact current, claims the event's upstream edge along
+    the current). The survey waypoints are the method's plan (``survey``, stored in the work
+    arrays); the claims are its report, scored here.
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset``; ``PIParams`` / ``PIWork`` and ``make``; the env hooks
-    ``begin`` (plume spin-up), ``pre_step`` (the field's emit and transport), ``cue`` (the
-    agent's carrot and the reading before the move), ``after_agent`` (the reading after the
-    move: detection and the per-leak reading log), ``post_step`` (the report is final when
-    every agent has finished its section), ``finish`` (the method's estimates, scored);
-    ``POLICY``; ``_kernel`` and ``_observe_kernel``.
+    ``begin`` (plume spin-up, the first readings), ``pre_step`` (the field's emit and
+    transport), ``cue`` (the agent's carrot and the reading before the move), ``after_agent``
+    (the reading after the move, handed to the method), ``post_step`` (the report is final
+    when every agent has finished its section), ``finish`` (the method's claims, scored by
+    :func:`match_claims`); ``POLICY``; ``_kernel`` and ``_observe_kernel``.
 """
 
 from __future__ import annotations
@@ -75,7 +87,8 @@ from .common import (STANDARD, current_at, episode_generators, fresh_cache, need
 from .loop import observe_next, run_episode
 
 TASK_ID = "PI"
-METRICS = ("inspection_score", "localisation_error_m", "detection_rate")
+METRICS = ("inspection_score", "localisation_error_m", "detection_rate", "false_claims")
+INT_METRICS = ("false_claims",)
 COLUMNS = STANDARD + METRICS
 
 # ---- geometry
@@ -107,13 +120,11 @@ NEAR_BOTTOM_M = 2.0
 #: Vertical scale of the near-bottom plume layer, m.
 PLUME_SCALE_M = 5.0
 # ---- scoring
-#: A reading above the threshold is attributed to the nearest leak within this distance, m.
-DETECT_RADIUS_M = 50.0
-#: Below this sensed current speed (m s-1) a reading's downstream coordinate is 0 (the
-#: direction is undefined).
-MIN_CURRENT_MS = 0.05
-#: Readings kept per leak (later ones are dropped; 1024 s of readings inside the 100 m zone).
-MAX_READS = 1024
+#: Detection gate: a claim is matched to a leak only if it lies within this distance, m
+#: (a 2.5-cell plume neighbourhood; every tier's leaks are >= 2 gates apart).
+DETECT_GATE_M = 50.0
+#: Room for the team's claims per episode (a method filing more has the rest dropped).
+MAX_CLAIMS = 32
 #: Seafloor clearance of the feasibility check, m; near-collision distance, m.
 CLEARANCE_M = 1.0
 R_COLL_M = 2.0
@@ -122,7 +133,7 @@ _TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "pipeline_length
               "n_leaks", "leak_spacing_m", "leak_rate_kg_s", "detect_threshold_kg_m3",
               "loc_tolerance_m", "seafloor_min_m", "seafloor_max_m")
 
-_C_SCORE, _C_LOC, _C_DET = (len(STANDARD) + i for i in range(len(METRICS)))
+_C_SCORE, _C_LOC, _C_DET, _C_FALSE = (len(STANDARD) + i for i in range(len(METRICS)))
 
 
 # ------------------------------------------------------------------------------ geometry
@@ -376,17 +387,18 @@ class PIParams(NamedTuple):
     n_spin: int             # spin-up field steps before the start
     refresh: int            # face currents refreshed every this many field steps
     dt: float               # agent step, s (the field steps FIELD_EVERY dt)
-    thr: float              # detection threshold, kg m-3
+    thr: float              # the sensor's detection threshold, kg m-3
     tol: float              # localisation tolerance, m
+    gate: float             # detection gate of the claim matching, m
     h: float                # field cell size, m
     kappa: float            # diffusivity, m2 s-1
     tracer: np.ndarray      # (n_params,) the field's step_field params (tracer, no decay)
 
 
 class PIWork(NamedTuple):
-    # ---- env: the episode, the plume field, the reading log, the report
+    # ---- env: the episode and the plume field (truth: the method never reads these)
     t0: np.ndarray          # (E,) start times, s (the spin-up ends there)
-    leaks: np.ndarray       # (E, n_leaks, 2) leak positions [x, z], m
+    leaks: np.ndarray       # (E, n_leaks, 2) leak positions [x, z], m (scoring only)
     leak_loc: np.ndarray    # (E, n_leaks, 2) the same in the field's local frame, m
     rate: np.ndarray        # (E, n_leaks) emission rates, kg s-1
     frame: np.ndarray       # (E, 6) field frame: origin x, z, cos, sin, cell (0, 0) s, n
@@ -395,19 +407,23 @@ class PIWork(NamedTuple):
     vf: np.ndarray          # (E, nz + 1, nx) face currents across the chord, m s-1
     land: np.ndarray        # (E, nz, nx) uint8 land / outside flags of the field's cells
     work: np.ndarray        # (E, work_size) step_field scratch
-    peak: np.ndarray        # (E, n_leaks) largest reading >= threshold near a leak (-1: none)
-    nread: np.ndarray       # (E, n_leaks) int64 readings logged near a leak
-    reads: np.ndarray       # (E, n_leaks, MAX_READS, 4) [x, z, value, downstream coordinate]
-    org: np.ndarray         # (E, n_leaks, 2) first reading near a leak (downstream origin), m
-    est: np.ndarray         # (E, n_leaks, 2) the method's final estimates, m (NaN: none)
+    # ---- env -> method: the sensor
+    sense: np.ndarray       # (E, N, 3) the agent's latest reading [x, z, value (kg m-3)]
+    # ---- method -> env: the report (scored by finish)
+    claims: np.ndarray      # (E, MAX_CLAIMS, 3) the team's leak claims [x, z, strength], m
+    nclaim: np.ndarray      # (E,) int64 claims filed
     # ---- policy (plan tokens and memory; see oneocean.methods.heuristic.pi)
     wps: np.ndarray         # (E, N, V, 2) survey waypoints [x, z], m
     wcount: np.ndarray      # (E, N) int64 waypoints of each agent
     widx: np.ndarray        # (E, N) int64 waypoint being followed
     tgt: np.ndarray         # (E, N, 3) the step's carrot (the observation's goal cue), m
-    flow: np.ndarray        # (E, N, 2) current the agent sensed at its step, m s-1
     done: np.ndarray        # (E, N) int64 1: the agent has finished its section
-    estimator: np.ndarray   # (E,) int64 the report the method files (its PEAK / ONSET)
+    ev_on: np.ndarray       # (E, N) int64 1: a plume event is open
+    ev_lvl: np.ndarray      # (E, N, 3) trough since the last event, event background, peak
+    ev_pos: np.ndarray      # (E, N, 4) event origin [x, z] and peak position [x, z], m
+    ev_n: np.ndarray        # (E, N) int64 readings in the event buffer
+    ev_buf: np.ndarray      # (E, N, MAX_EVENT, 4) [x, z, value, downstream coordinate]
+    ev_claim: np.ndarray    # (E, N) int64 the claim the open event files into (-1: none yet)
 
 
 def make(grid, tier: dict, init: dict):
@@ -420,6 +436,8 @@ def make(grid, tier: dict, init: dict):
     n_ag = init["pos0"].shape[1]
     leaks = np.ascontiguousarray(init["leaks"], dtype=np.float64)
     n_leak = leaks.shape[1]
+    if n_leak > 62:
+        raise ConfigError(f"task {TASK_ID}: at most 62 leaks per episode, got {n_leak}")
     h = FIELD_H_M
     # per-episode field frames (same shape for every episode: the largest one)
     frames = [field_frame(poly[e], h, FIELD_MARGIN_M) for e in range(n_ep)]
@@ -442,24 +460,29 @@ def make(grid, tier: dict, init: dict):
     dtf = FIELD_EVERY * dt
     _, tracer = pol.field_params(pol.KIND_TRACER, 1)
     P = PIParams(n_leak, int(round(SPINUP_S / dtf)), max(1, int(round(FIELD_REFRESH_S / dtf))),
-                 dt, float(tier["detect_threshold_kg_m3"]), float(tier["loc_tolerance_m"]), h,
-                 KAPPA_M2_S, tracer)
+                 dt, float(tier["detect_threshold_kg_m3"]), float(tier["loc_tolerance_m"]),
+                 DETECT_GATE_M, h, KAPPA_M2_S, tracer)
+    ev_lvl = np.zeros((n_ep, n_ag, 3))
+    ev_lvl[..., 0] = np.inf
     W = PIWork(np.ascontiguousarray(init["t0"], dtype=np.float64), leaks, leak_loc,
                np.ascontiguousarray(init["leak_rate"], dtype=np.float64), frame,
                np.zeros((n_ep, 1, nz, nx)), np.zeros((n_ep, nz, nx + 1)),
                np.zeros((n_ep, nz + 1, nx)), land, np.zeros((n_ep, pol.work_size(1, nz, nx))),
-               np.zeros((n_ep, n_leak)), np.zeros((n_ep, n_leak), dtype=np.int64),
-               np.zeros((n_ep, n_leak, MAX_READS, 4)), np.zeros((n_ep, n_leak, 2)),
-               np.zeros((n_ep, n_leak, 2)),
+               np.zeros((n_ep, n_ag, 3)),
+               np.full((n_ep, MAX_CLAIMS, 3), np.nan), np.zeros(n_ep, dtype=np.int64),
                wps, wcount, np.zeros((n_ep, n_ag), dtype=np.int64), np.zeros((n_ep, n_ag, 3)),
-               np.zeros((n_ep, n_ag, 2)), np.zeros((n_ep, n_ag), dtype=np.int64),
-               np.zeros(n_ep, dtype=np.int64))
+               np.zeros((n_ep, n_ag), dtype=np.int64),
+               np.zeros((n_ep, n_ag), dtype=np.int64), ev_lvl, np.zeros((n_ep, n_ag, 4)),
+               np.zeros((n_ep, n_ag), dtype=np.int64),
+               np.zeros((n_ep, n_ag, POLICY.MAX_EVENT, 4)),
+               np.full((n_ep, n_ag), -1, dtype=np.int64))
     return P, W
 
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
-    """Spin-up (the leaks have been emitting for ``n_spin`` field steps); empty logs."""
+    """Spin-up (the leaks have been emitting for ``n_spin`` field steps); every agent's first
+    reading, at its start position."""
     C = W.C
     nz = C.shape[2]
     nx = C.shape[3]
@@ -477,11 +500,8 @@ def begin(grid, P, W, state, e):
             _refresh_faces(grid, W.frame, W.uf, W.vf, e, nx, nz, h, t)
         _field_step(C, P.tracer, W.uf, W.vf, W.land, W.work, W.leak_loc, W.rate, e, P.n_leak,
                     h, s0, n0, dtf, P.kappa)
-    for q in range(P.n_leak):
-        W.peak[e, q] = -1.0
-        W.nread[e, q] = 0
-        W.est[e, q, 0] = math.nan
-        W.est[e, q, 1] = math.nan
+    for i in range(state.shape[1]):
+        _take_reading(grid, P, W, state, e, i)
     return False
 
 
@@ -521,48 +541,21 @@ def cue(grid, P, W, state, e, k, i):
 
 
 @hot_kernel(inline="always")
-def after_agent(grid, P, W, state, e, k, i, code):
-    """The reading after the move: attributed to the nearest leak within DETECT_RADIUS_M
-    (detection when >= the threshold), logged with its downstream coordinate along the
-    current the agent sensed (``flow``)."""
+def _take_reading(grid, P, W, state, e, i):
+    """The sensor: agent ``i``'s reading at its position, handed to the method (``sense``)."""
     s = state[e, i]
     alt = -sample_elevation(grid, s[0], s[2]) - s[1]
     if alt < 0.0:
         alt = 0.0
-    r = _reading(grid, P, W, e, s[0], s[2], alt)
-    leaks = W.leaks
-    peak = W.peak
-    org = W.org
-    reads = W.reads
-    q_min = -1
-    d_min = DETECT_RADIUS_M * DETECT_RADIUS_M
-    for q in range(P.n_leak):
-        d2 = (leaks[e, q, 0] - s[0]) ** 2 + (leaks[e, q, 1] - s[2]) ** 2
-        if d2 <= d_min:
-            d_min = d2
-            q_min = q
-    if q_min >= 0:
-        if r >= P.thr and r > peak[e, q_min]:
-            peak[e, q_min] = r
-        m = W.nread[e, q_min]
-        if m == 0:  # origin of the downstream coordinate near this leak
-            org[e, q_min, 0] = s[0]
-            org[e, q_min, 1] = s[2]
-        if m < reads.shape[2]:
-            # downstream coordinate along the agent's current knowledge (the oracle's
-            # estimator uses it)
-            fe = W.flow[e, i, 0]
-            fn = W.flow[e, i, 1]
-            cs = math.sqrt(fe * fe + fn * fn)
-            dn = 0.0
-            if cs > MIN_CURRENT_MS:
-                dn = ((s[0] - org[e, q_min, 0]) * fe
-                      + (s[2] - org[e, q_min, 1]) * fn) / cs
-            reads[e, q_min, m, 0] = s[0]
-            reads[e, q_min, m, 1] = s[2]
-            reads[e, q_min, m, 2] = r
-            reads[e, q_min, m, 3] = dn
-            W.nread[e, q_min] = m + 1
+    W.sense[e, i, 0] = s[0]
+    W.sense[e, i, 1] = s[2]
+    W.sense[e, i, 2] = _reading(grid, P, W, e, s[0], s[2], alt)
+
+
+@hot_kernel(inline="always")
+def after_agent(grid, P, W, state, e, k, i, code):
+    """The reading after the move (the method processes it at its next decision)."""
+    _take_reading(grid, P, W, state, e, i)
 
 
 @hot_kernel(inline="always")
@@ -574,28 +567,87 @@ def post_step(grid, P, W, state, prev, e, k, t):
     return True
 
 
+@hot_kernel
+def match_claims(claims, n_claims, leaks, n_leak, gate, tol):
+    """Score a report: claims ``claims[:n_claims]`` ([x, z, ...] m; non-finite positions are
+    ignored) against the true leaks ``leaks[:n_leak]`` ([x, z] m).
+
+    One-to-one greedy matching by increasing distance among pairs within ``gate``: the
+    closest unmatched (claim, leak) pair is matched, repeatedly. Returns ``(n_detected,
+    n_localised, n_false, err_sum)``: matched leaks, matched claims within ``tol``, unmatched
+    (finite) claims, and the summed distance of the matched pairs, m. At most 62 claims and
+    62 leaks (bit masks)."""
+    used_c = 0
+    used_l = 0
+    n_valid = 0
+    for c in range(n_claims):
+        if math.isfinite(claims[c, 0]) and math.isfinite(claims[c, 1]):
+            n_valid += 1
+    n_det = 0
+    n_loc = 0
+    err = 0.0
+    while True:
+        best = gate
+        bc = -1
+        bl = -1
+        for c in range(n_claims):
+            if ((used_c >> c) & 1) != 0:
+                continue
+            if not (math.isfinite(claims[c, 0]) and math.isfinite(claims[c, 1])):
+                continue
+            for q in range(n_leak):
+                if ((used_l >> q) & 1) != 0:
+                    continue
+                d = math.sqrt((claims[c, 0] - leaks[q, 0]) ** 2
+                              + (claims[c, 1] - leaks[q, 1]) ** 2)
+                if d <= best:
+                    best = d
+                    bc = c
+                    bl = q
+        if bc < 0:
+            break
+        used_c |= 1 << bc
+        used_l |= 1 << bl
+        n_det += 1
+        err += best
+        if best <= tol:
+            n_loc += 1
+    return n_det, n_loc, n_valid - n_det, err
+
+
+def score_claims(claims, leaks, tol: float, gate: float = DETECT_GATE_M) -> dict:
+    """:func:`match_claims` on plain arrays (claims (n, >=2), leaks (m, 2), m) as the
+    metric columns of one episode: ``inspection_score``, ``localisation_error_m``,
+    ``detection_rate``, ``false_claims``, plus ``detected``, ``localised`` and ``success``."""
+    c = np.ascontiguousarray(np.atleast_2d(np.asarray(claims, dtype=np.float64)))
+    lk = np.ascontiguousarray(np.atleast_2d(np.asarray(leaks, dtype=np.float64)))
+    if c.size == 0:
+        c = np.zeros((0, 2))
+    n_leak = lk.shape[0]
+    if c.shape[0] > 62 or n_leak > 62 or n_leak < 1:
+        raise ConfigError(f"score_claims: need 1..62 leaks and at most 62 claims, got "
+                          f"{n_leak} and {c.shape[0]}")
+    n_det, n_loc, n_false, err = match_claims(c, c.shape[0], lk, n_leak, float(gate),
+                                              float(tol))
+    return {"inspection_score": n_loc / (n_leak + n_false),
+            "localisation_error_m": err / n_det if n_det else math.nan,
+            "detection_rate": n_det / n_leak, "false_claims": int(n_false),
+            "detected": int(n_det), "localised": int(n_loc),
+            "success": bool(n_loc == n_leak and n_false == 0)}
+
+
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
-    """The method's estimate of every detected leak (:func:`POLICY.estimate`), scored."""
+    """The method's claims (``W.claims``), matched to the true leaks (:func:`match_claims`)."""
     n_leak = P.n_leak
-    leaks = W.leaks
-    est = W.est
-    n_loc = 0
-    n_det = 0
-    err = 0.0
-    for q in range(n_leak):
-        if W.peak[e, q] >= 0.0:
-            POLICY.estimate(W, e, q)
-            n_det += 1
-            d = math.sqrt((est[e, q, 0] - leaks[e, q, 0]) ** 2
-                          + (est[e, q, 1] - leaks[e, q, 1]) ** 2)
-            err += d
-            if d <= P.tol:
-                n_loc += 1
-    row[_C_SCORE] = n_loc / n_leak
+    n_claims = min(W.nclaim[e], W.claims.shape[1])
+    n_det, n_loc, n_false, err = match_claims(W.claims[e], n_claims, W.leaks[e], n_leak,
+                                              P.gate, P.tol)
+    row[_C_SCORE] = n_loc / (n_leak + n_false)
     row[_C_LOC] = err / n_det if n_det > 0 else math.nan
     row[_C_DET] = n_det / n_leak
-    return n_loc == n_leak
+    row[_C_FALSE] = n_false
+    return n_loc == n_leak and n_false == 0
 
 
 # the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)

@@ -23,12 +23,18 @@ Physics (identical for every method)
     the fraction ``removal_rate_s * dt`` of the concentration of every field cell whose centre
     is within ``removal_radius_m`` of it (:func:`~oneocean.models.pollution.remove_in_radius`,
     in agent order), then the field advances by ``dt``.
-Success
-    ``removed >= target_fraction * initial mass`` (team total), checked after every step; the
-    episode stops there. Mass budget: removed + escaped + remaining = initial (round-off).
-Metrics
-    ``cleanup_rate`` (primary: removed / initial mass at the end), ``escaped_fraction``
-    (left the local grid / initial), ``remaining_fraction`` (still on the grid / initial),
+Success and the metric horizon
+    Success: ``removed >= target_fraction * initial mass`` (team total), checked after every
+    step; ``T_s`` is the time at which it was first reached (the time limit on failure). The
+    episode does NOT stop there: it runs to the fixed metric horizon, the tier's
+    ``time_limit_s``, the same for every method and episode (``post_step`` returns the loop's
+    ``REACHED``; :mod:`oneocean.tasks.loop`), so the cleanup rate measures removal over one
+    fixed response time and can exceed the target. ``E``, ``violations`` and ``coll_ratio``
+    cover the steps up to success (what a run stopped there reports). Mass budget at the
+    horizon: removed + escaped + remaining = initial (round-off).
+Metrics (fractions of the initial mass, at the metric horizon)
+    ``cleanup_rate`` (primary: removed / initial mass), ``escaped_fraction`` (left the local
+    grid / initial), ``remaining_fraction`` (still on the grid / initial),
     ``time_to_target_s`` (time at which the target fraction was reached; the time limit on
     failure, like ``T_s``).
 Observation
@@ -45,7 +51,7 @@ Module layout: as :mod:`oneocean.tasks.g2g` (``reset``; ``SPCParams`` / ``SPCWor
 ``make``: the per-episode field, land mask, face velocities, mass accumulators and the
 policy's plan tokens and map scratch with a leading episode axis; env hooks ``begin``,
 ``pre_step`` (face refresh), ``cue``, ``post_step`` (removal in agent order, field step,
-success), ``finish``; ``POLICY``; ``_kernel`` / ``_observe_kernel``).
+success reached), ``finish``; ``POLICY``; ``_kernel`` / ``_observe_kernel``).
 """
 
 from __future__ import annotations
@@ -65,7 +71,7 @@ from ..methods.heuristic import spc as POLICY
 from ..models import pollution as pol
 from .common import (STANDARD, current_at, episode_generators, episode_steps, fresh_cache,
                      need_tier, path_clear, start_times)
-from .loop import noop_after_agent, observe_next, run_episode
+from .loop import GO, REACHED, noop_after_agent, observe_next, run_episode
 
 TASK_ID = "SPC"
 METRICS = ("cleanup_rate", "escaped_fraction", "remaining_fraction", "time_to_target_s")
@@ -275,6 +281,7 @@ class SPCWork(NamedTuple):
     work: np.ndarray    # (E, work_size) field-step scratch
     fpar: np.ndarray    # (E, 1) field-kind parameters (tracer: unused)
     acc: np.ndarray     # (E, 3) initial mass, removed, escaped, kg
+    k_hit: np.ndarray   # (E,) int64 steps to the target fraction (-1: not reached)
     aim: np.ndarray     # (E, N, 2) goal cue: the point each agent steers to (x, z), m
     # the policy's plan tokens and map scratch (methods.heuristic.spc)
     tgt: np.ndarray     # (E, N, 2) targets (x, z) at the map time, m
@@ -303,7 +310,8 @@ def make(grid, tier: dict, init: dict):
                 np.ascontiguousarray(init["land"], dtype=np.uint8),
                 np.zeros((n_ep, nz, nx + 1)), np.zeros((n_ep, nz + 1, nx)),
                 np.zeros((n_ep, pol.work_size(1, nz, nx))), np.zeros((n_ep, 1)),
-                np.zeros((n_ep, 3)), np.repeat(report[:, None, :], n_ag, axis=1),
+                np.zeros((n_ep, 3)), np.full(n_ep, -1, np.int64),
+                np.repeat(report[:, None, :], n_ag, axis=1),
                 np.zeros((n_ep, n_ag, 2)), np.zeros(n_ep), np.zeros((n_ep, nb)),
                 np.zeros((n_ep, nb)), np.zeros((n_ep, nb)), np.zeros((n_ep, nb), np.int64),
                 np.zeros((n_ep, n_ag), np.int64))
@@ -316,7 +324,11 @@ def begin(grid, P, W, state, e):
     W.acc[e, 0] = m0
     W.acc[e, 1] = 0.0
     W.acc[e, 2] = 0.0
-    return 0.0 >= P.target * m0
+    W.k_hit[e] = -1
+    if 0.0 >= P.target * m0:   # nothing to remove: success at step 0, the episode ends
+        W.k_hit[e] = 0
+        return True
+    return False
 
 
 @hot_kernel(inline="always")
@@ -346,18 +358,24 @@ def post_step(grid, P, W, state, prev, e, k, t):
     a[1] = removed
     a[2] += pol.step_field(Ce, pol.KIND_TRACER, W.fpar[e], W.uf[e], W.vf[e], W.land[e], P.h,
                            P.dt, P.kappa, pol.OPEN_ALL, W.work[e])
-    return removed >= P.target * a[0]
+    if removed >= P.target * a[0]:
+        if W.k_hit[e] < 0:
+            W.k_hit[e] = k + 1
+        return REACHED   # success; the episode runs on to the metric horizon
+    return GO
 
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
+    """Fractions at the metric horizon (the end of the episode); success = the target was
+    reached at some step (``W.k_hit``; removal only grows, so it still holds here)."""
     a = W.acc[e]
     m0 = a[0]
-    success = a[1] >= P.target * m0
+    success = W.k_hit[e] >= 0
     row[_C_CLEAN] = a[1] / m0
     row[_C_ESC] = a[2] / m0
     row[_C_REM] = pol.total_mass(W.C[e], P.h) / m0
-    row[_C_TTT] = k * P.dt if success else P.n_steps * P.dt
+    row[_C_TTT] = W.k_hit[e] * P.dt if success else P.n_steps * P.dt
     return success
 
 

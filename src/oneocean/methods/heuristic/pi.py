@@ -1,33 +1,53 @@
-"""PI heuristic and oracle: follow one's pipeline section low over the seafloor, then report
-every leak from the readings taken near it.
+"""PI heuristic and oracle: follow one's pipeline section low over the seafloor, detect plume
+events in one's own readings and claim a leak position for each.
 
 Survey plan (:func:`survey`, the waypoints; ``act``): agent ``i`` follows the pipeline polyline
 of its section (the i-th of N equal arc-length sections) with line-of-sight guidance (carrot
 ``LOOKAHEAD_M`` ahead, :func:`~oneocean.tasks.common.waypoint_carrot`), terrain-following at a
-low commanded altitude (never shallower than ``MIN_DEPTH_M``), crabbing against the current
-(:func:`~oneocean.tasks.common.seek_max`, approach gain ``KP``). Past its last waypoint the
-agent holds there and declares its section finished.
+low commanded altitude (never shallower than ``MIN_DEPTH_M``), crabbing against the sensed
+current (:func:`~oneocean.tasks.common.seek_max`, approach gain ``KP``) with the vehicle's full
+speed budget ``v_max``. Past its last waypoint the agent holds there and declares its section
+finished.
 
-``heuristic``: altitude ``ALT_HEURISTIC_M`` (a safe bottom-following altitude), speed budget
-``CRUISE_FRAC * v_max``, NOISY probed current (``probe_noise_ms``); it reports where its
-largest reading near the leak was taken (:func:`peak_estimate`: the plume's peak, which an
-along-pipe current carries 1-2 cells downstream of the source).
+Event detection (:func:`detect`; both methods, from the agent's own readings only: the env
+hands each reading over in ``W.sense``, and the method never reads the leaks or the field).
+While surveying (from the section's first waypoint until the section is finished), each
+agent processes the reading at its position at every decision if it is within ``ALT_BAND_M``
+of its commanded altitude (the plume's vertical profile is steep: the descent to the survey
+altitude inside a plume would look like a rise). Idle, it
+tracks the trough (smallest reading since its last event); a reading ``r >= thr`` (the
+sensor's detection threshold) that rises at least ``RISE_FRAC * thr`` above the trough opens an
+*event* (background ``b`` = the trough). The event logs its readings (position, value,
+downstream coordinate: the distance from its first reading along the current the agent sensed
+at that step, 0 below ``MIN_CURRENT_MS``) and closes when the reading falls back by
+``DROP_FRAC`` of its prominence (``r <= peak - DROP_FRAC (peak - b)``) or the agent is more
+than ``CLOSE_M`` from the event's peak (a plume carried along the pipe stays high past its
+source); the trough restarts at the closing reading, so the next leak's rise on top of a
+decaying plume opens a new event.
 
-``oracle``: altitude ``ALT_ORACLE_M`` (stronger signal), exact current, full ``v_max``; it
-reports the plume's *upstream edge* (:func:`onset_estimate`): with ``b`` the background
-(smallest reading near the leak: upstream water, possibly carrying an upstream leak's plume),
-the weighted centroid (weights ``reading - b``) of the readings >= ``b + ONSET_FRAC (peak -
-b)`` lying within ``ONSET_BAND_M`` (along the current) of the most upstream such reading --
-the plume's peak in a cross-current, its onset in an along-pipe current.
+Claims (:func:`file_claim`): every event files one claim in the team's report ``W.claims``
+(x, z, strength = the event's peak reading), updated at every reading while it is open. An
+event whose first estimate lies within ``MERGE_M`` of a claim already filed (a teammate's at a
+section boundary, or its own earlier event) files into that claim instead of a new one; a
+claim keeps the estimate of its strongest event.
 
-Policy state lives in the task's work arrays (:class:`oneocean.tasks.pi.PIWork`): the plan
-tokens ``wps`` / ``wcount`` (each agent's survey waypoints, from :func:`survey`), ``widx``
-(the waypoint being followed), ``tgt`` (the step's carrot: the observation's goal cue),
-``flow`` (the current the agent sensed at its step: the direction of the reading log's
-downstream coordinate), ``done`` (section finished: the env ends the survey when every agent's
-is) and ``estimator`` (which report the method files: ``PEAK`` / ``ONSET``; the env's
-``finish`` calls :func:`estimate` on every detected leak, as the loop has no end-of-episode
-policy hook).
+``heuristic``: altitude ``ALT_HEURISTIC_M`` (a safe bottom-following altitude), NOISY probed
+current (``probe_noise_ms``); it claims where the event's largest reading was taken
+(:func:`peak_estimate`: the plume's peak, which an along-pipe current carries 1-2 cells
+downstream of the source).
+
+``oracle``: altitude ``ALT_ORACLE_M`` (stronger signal), exact current; it claims the event's
+*upstream edge* (:func:`onset_estimate`): with ``b`` the event's background, the weighted
+centroid (weights ``reading - b``) of the readings >= ``b + ONSET_FRAC (peak - b)`` lying
+within ``ONSET_BAND_M`` (along the current) of the most upstream such reading -- the plume's
+peak in a cross-current, its onset in an along-pipe current.
+
+Both spend the full ``v_max``: they differ in information (probe noise), altitude and
+estimator, never in speed. Policy state lives in the task's work arrays
+(:class:`oneocean.tasks.pi.PIWork`): the plan tokens ``wps`` / ``wcount`` (each agent's survey
+waypoints, from :func:`survey`), ``widx`` (the waypoint being followed), ``tgt`` (the step's
+carrot: the observation's goal cue), ``done`` (section finished: the env ends the survey when
+every agent's is), the event memory ``ev_*`` and the report ``claims`` / ``nclaim``.
 """
 
 from __future__ import annotations
@@ -42,22 +62,34 @@ from ...engine.grid import sample_elevation
 from ...tasks.common import seek_max, waypoint_carrot
 from . import SENSING  # noqa: F401
 
-#: Heuristic speed budget through the water as a fraction of v_max.
-CRUISE_FRAC = 0.75
 #: Commanded altitude above the seafloor, m (heuristic, oracle).
 ALT_HEURISTIC_M = 6.0
 ALT_ORACLE_M = 2.5
+#: Readings count for detection only within this band around the commanded altitude, m.
+ALT_BAND_M = 0.5
 #: Line-of-sight lookahead, m; approach gain, s-1; waypoint tolerance, m; shallowest
 #: commanded depth, m.
 LOOKAHEAD_M = 12.0
 KP = 0.5
 WP_TOL_M = 1.0
 MIN_DEPTH_M = 1.0
+#: Event detection: an event opens at a reading >= thr rising RISE_FRAC * thr above the
+#: trough; it closes when the reading falls DROP_FRAC of the event's prominence below its
+#: peak, or CLOSE_M (m) past the peak's position.
+RISE_FRAC = 0.5
+DROP_FRAC = 0.5
+CLOSE_M = 60.0
+#: Readings an event keeps for its estimate (later ones still move its peak and close it).
+MAX_EVENT = 512
+#: An event whose first estimate lies within MERGE_M (m) of a filed claim files into it.
+MERGE_M = 50.0
+#: Below this sensed current speed (m s-1) a reading's downstream coordinate is 0.
+MIN_CURRENT_MS = 0.05
 #: Oracle's estimator: readings >= b + ONSET_FRAC (peak - b) whose downstream coordinate is
 #: within ONSET_BAND_M (m) of the most upstream one are averaged, weights reading - b.
 ONSET_FRAC = 0.5
 ONSET_BAND_M = 10.0
-#: Leak estimators (``PIPolicy.estimator``, ``PIWork.estimator``).
+#: Leak estimators (``PIPolicy.estimator``).
 PEAK, ONSET = 0, 1
 
 
@@ -70,11 +102,9 @@ class PIPolicy(NamedTuple):
 
 
 def params(method: str, tier: dict, vehicle) -> PIPolicy:
-    v_max = float(vehicle.v_max)
     heur = method == "heuristic"
-    return PIPolicy(CRUISE_FRAC * v_max if heur else v_max, KP,
-                    ALT_HEURISTIC_M if heur else ALT_ORACLE_M, LOOKAHEAD_M,
-                    PEAK if heur else ONSET)
+    return PIPolicy(float(vehicle.v_max), KP, ALT_HEURISTIC_M if heur else ALT_ORACLE_M,
+                    LOOKAHEAD_M, PEAK if heur else ONSET)
 
 
 def survey(init: dict):
@@ -106,8 +136,7 @@ def survey(init: dict):
 
 @hot_kernel(inline="always")
 def plan(grid, P, W, M, state, e, k, t):
-    if k == 0:  # the report this method files at the end (read by the env's finish)
-        W.estimator[e] = M.estimator
+    return
 
 
 @hot_kernel(inline="always")
@@ -116,6 +145,13 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     px = s[0]
     py = s[1]
     pz = s[2]
+    # on the survey (past the transit to the section start, not finished) at the survey
+    # altitude: the reading at this position (readings are comparable only at one altitude:
+    # the plume's vertical profile is steep)
+    if (W.widx[e, i] >= 1 and W.done[e, i] == 0
+            and abs(-sample_elevation(grid, px, pz) - py - M.alt) <= ALT_BAND_M):
+        detect(W, e, i, W.sense[e, i, 0], W.sense[e, i, 1], W.sense[e, i, 2], pe, pn, P.thr,
+               M.estimator)
     gx, gz, w = waypoint_carrot(W.wps, W.widx, W.wcount, e, i, px, pz, M.look, WP_TOL_M)
     W.done[e, i] = 0 if w < W.wcount[e, i] else 1
     gy = -sample_elevation(grid, gx, gz) - M.alt
@@ -124,67 +160,123 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     W.tgt[e, i, 0] = gx
     W.tgt[e, i, 1] = gy
     W.tgt[e, i, 2] = gz
-    W.flow[e, i, 0] = pe
-    W.flow[e, i, 1] = pn
     ax, ay, az = seek_max(px, py, pz, gx, gy, gz, M.budget, M.kp, pe, pn)
     return ax, ay, az, math.nan
 
 
 @hot_kernel(inline="always")
-def peak_estimate(reads, nread, peak, est, e, q):
-    """Leak ``q``'s estimate: where the largest reading near it was taken (heuristic)."""
-    for m in range(nread[e, q]):
-        if reads[e, q, m, 2] >= peak[e, q]:
-            est[e, q, 0] = reads[e, q, m, 0]
-            est[e, q, 1] = reads[e, q, m, 1]
+def detect(W, e, i, x, z, r, fe, fn, thr, estimator):
+    """Agent ``i``'s event detector: one reading ``r`` at ``(x, z)`` with the current
+    ``(fe, fn)`` it senses there (module doc). Opens, extends and closes events; an open
+    event's estimate is filed as a claim at every reading (:func:`file_claim`)."""
+    lvl = W.ev_lvl[e, i]   # trough, background, peak
+    pos = W.ev_pos[e, i]   # origin x, z; peak x, z
+    if W.ev_on[e, i] == 0:
+        if r < lvl[0]:
+            lvl[0] = r
+        if not (r >= thr and r - lvl[0] >= RISE_FRAC * thr):
             return
+        W.ev_on[e, i] = 1
+        W.ev_n[e, i] = 0
+        W.ev_claim[e, i] = -1
+        lvl[1] = lvl[0]
+        lvl[2] = r
+        pos[0] = x
+        pos[1] = z
+        pos[2] = x
+        pos[3] = z
+    n = W.ev_n[e, i]
+    if n < W.ev_buf.shape[2]:
+        cs = math.sqrt(fe * fe + fn * fn)
+        dn = 0.0
+        if cs > MIN_CURRENT_MS:
+            dn = ((x - pos[0]) * fe + (z - pos[1]) * fn) / cs
+        b = W.ev_buf[e, i, n]
+        b[0] = x
+        b[1] = z
+        b[2] = r
+        b[3] = dn
+        W.ev_n[e, i] = n + 1
+    if r > lvl[2]:
+        lvl[2] = r
+        pos[2] = x
+        pos[3] = z
+    if estimator == ONSET:
+        ex, ez = onset_estimate(W.ev_buf[e, i], W.ev_n[e, i], lvl[1], lvl[2])
+    else:
+        ex = pos[2]
+        ez = pos[3]
+    file_claim(W, e, i, ex, ez, lvl[2])
+    if (r <= lvl[2] - DROP_FRAC * (lvl[2] - lvl[1])
+            or (x - pos[2]) ** 2 + (z - pos[3]) ** 2 > CLOSE_M * CLOSE_M):
+        W.ev_on[e, i] = 0
+        lvl[0] = r
 
 
 @hot_kernel(inline="always")
-def onset_estimate(reads, nread, peak, est, e, q):
-    """Leak ``q``'s position estimate from the readings taken near it (oracle).
+def file_claim(W, e, i, x, z, strength):
+    """File (or update) the claim of agent ``i``'s open event in the team's report: its first
+    estimate joins the nearest claim within ``MERGE_M`` or opens a new one (dropped when the
+    report is full); a claim keeps the estimate of its strongest event."""
+    j = W.ev_claim[e, i]
+    claims = W.claims[e]
+    if j < 0:
+        d_best = MERGE_M * MERGE_M
+        for c in range(W.nclaim[e]):
+            d = (claims[c, 0] - x) ** 2 + (claims[c, 1] - z) ** 2
+            if d <= d_best:
+                d_best = d
+                j = c
+        if j < 0:
+            j = W.nclaim[e]
+            if j >= claims.shape[0]:
+                return
+            W.nclaim[e] = j + 1
+            claims[j, 2] = -math.inf
+        W.ev_claim[e, i] = j
+    if strength >= claims[j, 2]:
+        claims[j, 0] = x
+        claims[j, 1] = z
+        claims[j, 2] = strength
 
-    A point source sits at the upstream edge of its plume. With ``b`` the smallest reading
-    near the leak (the background: upstream water, possibly carrying other leaks' plumes) and
-    ``lim = b + ONSET_FRAC (peak - b)``, the estimate is the concentration-weighted centroid
-    of the readings >= ``lim`` lying within ``ONSET_BAND_M`` (along the probed current) of
-    the most upstream of them: the plume's peak in a cross-current, its onset in an along-pipe
-    current."""
-    n = nread[e, q]
-    b = peak[e, q]
-    for m in range(n):
-        if reads[e, q, m, 2] < b:
-            b = reads[e, q, m, 2]
-    lim = b + ONSET_FRAC * (peak[e, q] - b)
+
+@hot_kernel(inline="always")
+def peak_estimate(buf, n):
+    """Where the largest of the ``n`` readings ``buf[:n]`` ([x, z, value, downstream]) was
+    taken (the first of equal ones)."""
+    m_best = 0
+    for m in range(1, n):
+        if buf[m, 2] > buf[m_best, 2]:
+            m_best = m
+    return buf[m_best, 0], buf[m_best, 1]
+
+
+@hot_kernel(inline="always")
+def onset_estimate(buf, n, b, peak):
+    """A source's position from the ``n`` readings ``buf[:n]`` ([x, z, value, downstream
+    coordinate]) of its plume event, background ``b``, peak ``peak`` (oracle).
+
+    A point source sits at the upstream edge of its plume. With ``lim = b + ONSET_FRAC (peak -
+    b)``, the estimate is the weighted centroid (weights ``reading - b``) of the readings >=
+    ``lim`` lying within ``ONSET_BAND_M`` (along the sensed current) of the most upstream of
+    them: the plume's peak in a cross-current, its onset in an along-pipe current."""
+    lim = b + ONSET_FRAC * (peak - b)
     d_min = 1e300
     for m in range(n):
-        if reads[e, q, m, 2] >= lim and reads[e, q, m, 3] < d_min:
-            d_min = reads[e, q, m, 3]
+        if buf[m, 2] >= lim and buf[m, 3] < d_min:
+            d_min = buf[m, 3]
     wx = 0.0
     wz = 0.0
     ws = 0.0
     for m in range(n):
-        r = reads[e, q, m, 2] - b
-        if reads[e, q, m, 2] >= lim and reads[e, q, m, 3] <= d_min + ONSET_BAND_M:
-            wx += r * reads[e, q, m, 0]
-            wz += r * reads[e, q, m, 1]
+        r = buf[m, 2] - b
+        if buf[m, 2] >= lim and buf[m, 3] <= d_min + ONSET_BAND_M:
+            wx += r * buf[m, 0]
+            wz += r * buf[m, 1]
             ws += r
     if ws > 0.0:
-        est[e, q, 0] = wx / ws
-        est[e, q, 1] = wz / ws
-    else:  # flat signal: the position of the peak-level readings
-        for m in range(n):
-            if reads[e, q, m, 2] >= lim:
-                est[e, q, 0] = reads[e, q, m, 0]
-                est[e, q, 1] = reads[e, q, m, 1]
-                break
-
-
-@hot_kernel(inline="always")
-def estimate(W, e, q):
-    """Write ``W.est[e, q]``: the method's position estimate of leak ``q`` from the readings
-    the env logged near it (``W.reads``), with the estimator it declared (``W.estimator``)."""
-    if W.estimator[e] == ONSET:
-        onset_estimate(W.reads, W.nread, W.peak, W.est, e, q)
-    else:
-        peak_estimate(W.reads, W.nread, W.peak, W.est, e, q)
+        return wx / ws, wz / ws
+    for m in range(n):   # flat signal: the first peak-level reading
+        if buf[m, 2] >= lim:
+            return buf[m, 0], buf[m, 1]
+    return buf[0, 0], buf[0, 1]

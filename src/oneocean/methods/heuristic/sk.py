@@ -1,10 +1,10 @@
 """SK heuristic and oracle: dynamic positioning on the station with current feed-forward.
 
-``heuristic``: P-control (``KP``) to the station plus feed-forward of the NOISY probed current
-with the cruise throttle cap ``|a| <= CRUISE_FRAC * v_max``
-(:func:`~oneocean.tasks.common.seek_max`), heading commanded to the station heading. It cannot
-hold against a current above its cruise speed, and the probe noise shakes it. ``oracle``: the
-same controller with the exact current and the full ``v_max``.
+Both: P-control (``KP``) to the station plus feed-forward of the sensed current within the
+vehicle's full speed budget ``|a| <= v_max`` (:func:`~oneocean.tasks.common.seek_max`), heading
+commanded to the station heading. They differ in information only: ``heuristic`` feeds forward
+the NOISY local probe (``probe_noise_ms``), which shakes it off the station; ``oracle`` the
+exact current. Neither can hold against a current above ``v_max``.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import CRUISE_FRAC, seek_max
+from ...tasks.common import seek_max
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision)
 from . import SENSING  # noqa: F401
 
@@ -26,8 +26,7 @@ class SKPolicy(NamedTuple):
 
 
 def params(method: str, tier: dict, vehicle) -> SKPolicy:
-    v_max = float(vehicle.v_max)
-    return SKPolicy(CRUISE_FRAC * v_max if method == "heuristic" else v_max, KP)
+    return SKPolicy(float(vehicle.v_max), KP)
 
 
 @hot_kernel(inline="always")

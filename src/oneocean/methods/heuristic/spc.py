@@ -15,9 +15,10 @@ current by :func:`~oneocean.tasks.common.steer`; depth held at the task's operat
 
 ``heuristic``: knows only the spill's reported initial centroid until the first overflight
 (targets on a ring of radius ``spill_radius_m / 2`` around the report), then gets the aerial
-map every ``aerial_period_s`` (tier); NOISY probed current (std ``probe_noise_ms``); budget
-``CRUISE_FRAC * v_max``. ``oracle``: the exact map every step (from step 0), exact current,
-full ``v_max``.
+map every ``aerial_period_s`` (tier); NOISY probed current (std ``probe_noise_ms``).
+``oracle``: the exact map every step (from step 0), exact current. Both spend the vehicle's
+full speed budget ``v_max``: they differ in information (stale map and noisy probe vs the
+true field and current), never in speed.
 
 The team-level decision (ring before the first map, aerial map and assignment) is
 :func:`plan`; its plan tokens live in the task's work arrays ``W``: ``tgt`` (E, N, 2) targets
@@ -34,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import CRUISE_FRAC, steer
+from ...tasks.common import steer
 from . import SENSING  # noqa: F401
 
 #: Aerial-map block size, cells (with the task's 10 m cells: 40 m blocks).
@@ -71,8 +72,7 @@ def params(method: str, tier: dict, vehicle) -> SPCPolicy:
     ring = 0.5 * float(tier["spill_radius_m"])
     if method == "heuristic":
         every = max(1, int(round(float(tier["aerial_period_s"]) / float(tier["dt_s"]))))
-        return SPCPolicy(CRUISE_FRAC * v_max, KP, KP_DEPTH, SEP_M, SEP_GAIN, ring, every, 1,
-                         BLOCK_CELLS)
+        return SPCPolicy(v_max, KP, KP_DEPTH, SEP_M, SEP_GAIN, ring, every, 1, BLOCK_CELLS)
     return SPCPolicy(v_max, KP, KP_DEPTH, SEP_M, SEP_GAIN, ring, 1, 0, BLOCK_CELLS)
 
 
