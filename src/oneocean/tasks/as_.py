@@ -25,8 +25,8 @@ Metrics
     ``mean_altitude_m`` (mean altitude over agent-steps, m).
 Methods
     :mod:`oneocean.methods.heuristic.as_` (a lawnmower: strips at a commanded altitude,
-    terrain following, current feed-forward; heuristic: strips along the long axis, cruise
-    budget, noisy probe; oracle: strips across the current, full speed, exact current). Its
+    terrain following, current feed-forward, full speed for both; heuristic: strips along the
+    long axis, noisy probe; oracle: strips across the current, exact current). Its
     plan (the waypoint lists per agent) is made in Python before the episode's first step and
     kept in ``W`` (``wps``, ``wcount``, ``widx``: the plan tokens); the observation's goal cue
     is the carrot the method follows (``W.tgt``).
@@ -80,7 +80,7 @@ CLEARANCE_M = 1.0
 #: Near-collision distance for coll_ratio, m (engine default).
 R_COLL_M = 2.0
 
-_TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "region_long_m",
+_TIER_KEYS = ("current_band", "time_limit_s", "probe_noise_ms", "region_long_m",
               "region_short_m", "coverage_threshold", "max_altitude_m", "half_angle_deg",
               "cell_m", "seafloor_min_m", "seafloor_max_m", "min_relief_m")
 

@@ -5,9 +5,14 @@ waypoint arrays of the task's work ``W``: ``wps``, ``wcount``, ``widx``)
     Strips at commanded altitude ``a_c = ALT_FRAC * max_altitude_m`` (so the footprint
     survives terrain-following errors), spacing at most ``2 a_c tan(half_angle) (1 - OVERLAP)``
     spread evenly over the region's width (:func:`plan_lawnmower`); the strips are split into
-    contiguous blocks, one per agent (boustrophedon inside a block).
+    contiguous blocks, one per agent (boustrophedon inside a block). Each agent's list starts
+    with a run-in waypoint ``RUNIN_M`` before its first strip, on the strip's line
+    (:func:`with_runin`), so a torpedo AUV enters the region aligned with the strip.
 Act (``act``, every agent and step)
-    Strips are tracked with line-of-sight guidance (a carrot ``LOOKAHEAD_M`` ahead of the
+    The transit to the run-in waypoint ends within ``ARRIVE_M`` (wider than the vehicle's
+    turning diameter: an underactuated torpedo cannot close on a point inside its turning
+    circles and would orbit it). Strips are tracked with line-of-sight guidance (a carrot
+    ``LOOKAHEAD_M`` ahead of the
     projection on the strip, :func:`~oneocean.tasks.common.waypoint_carrot`), terrain-following
     in depth (the carrot's depth is the seafloor depth there minus ``a_c``), crabbing against
     the current (:func:`~oneocean.tasks.common.seek_max`: the cross-track current is cancelled
@@ -48,6 +53,14 @@ LOOKAHEAD_M = 12.0
 KP = 0.5
 #: A strip waypoint counts as reached this far (m) before its along-track end.
 WP_TOL_M = 1.0
+#: Transit to the plan's first waypoint ends within this distance (m). A torpedo AUV
+#: (remus100: turns no tighter than a 5 m radius) cannot close on a point inside its turning
+#: circles: with :func:`~oneocean.tasks.common.waypoint_carrot`'s own 2 m arrival it orbits
+#: the waypoint at ~5 m for ever, so the tolerance is larger than the turning diameter.
+ARRIVE_M = 12.0
+#: Run-in: the plan's first waypoint lies this far (m) before the first strip's start, on the
+#: strip's line, so the vehicle is aligned with the strip when it enters the region.
+RUNIN_M = 20.0
 #: Shallowest commanded depth, m (stay submerged).
 MIN_DEPTH_M = 1.0
 #: Teammate avoidance: repulsion inside SEP_M (m), up to K_REP_MS (m s-1) at contact.
@@ -135,7 +148,7 @@ def max_waypoints(tier: dict, region, n_agents: int) -> int:
     sides = np.concatenate([region[:, 2] - region[:, 0], region[:, 3] - region[:, 1]])
     width = float(sides.max()) if sides.size else 0.0
     n = max(_n_strips(width, strip_spacing(tier, m), n_agents) for m in SENSING)
-    return 2 * (-(-n // int(n_agents)))
+    return 2 * (-(-n // int(n_agents))) + 1
 
 
 def _along_speed(ce: float, cn: float, ux: float, uz: float, v: float) -> float:
@@ -190,7 +203,22 @@ def plan_episode(grid, M: ASPolicy, box, long_axis: int, t0: float, duration: fl
             np.empty(1))[0]) - M.alt
         axis = oracle_axis(grid, box, max(depth, MIN_DEPTH_M), float(t0), duration, M.v_max,
                            M.spacing)
-    return plan_lawnmower(box, axis, M.spacing, n_agents)
+    wps, cnt = plan_lawnmower(box, axis, M.spacing, n_agents)
+    return with_runin(wps, cnt)
+
+
+def with_runin(wps, count, runin: float = RUNIN_M):
+    """``wps`` with a run-in waypoint prepended per agent: ``runin`` m before the first
+    strip's start, on the strip's line (outside the region, inside its water margin)."""
+    n_ag, n_max, _ = wps.shape
+    out = np.zeros((n_ag, n_max + 1, 2))
+    out[:, 1:] = wps
+    for i in range(n_ag):
+        a, b = wps[i, 0], wps[i, 1]
+        d = b - a
+        L = float(np.hypot(d[0], d[1]))
+        out[i, 0] = a - d / L * runin if L > 1e-9 else a
+    return out, count + 1
 
 
 def prepare(grid, P, W, M: ASPolicy, t0) -> None:
@@ -249,6 +277,11 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     px = s[0]
     py = s[1]
     pz = s[2]
+    if W.widx[e, i] == 0:  # transit: arrived within ARRIVE_M (see there: no orbiting)
+        dx = W.wps[e, i, 0, 0] - px
+        dz = W.wps[e, i, 0, 1] - pz
+        if dx * dx + dz * dz <= ARRIVE_M * ARRIVE_M:
+            W.widx[e, i] = 1
     gx, gz, w = waypoint_carrot(W.wps, W.widx, W.wcount, e, i, px, pz, M.look, WP_TOL_M)
     # terrain following: the carrot's depth is the seafloor there minus a_c
     gy = -sample_elevation(grid, gx, gz) - M.alt
