@@ -49,9 +49,6 @@ ACT_FIELDS = ("ax_ms", "ay_ms", "az_ms")
 OK = st.OK
 
 # shared by the single-vehicle navigation tasks (G2G, SK, RF, DPT) and FT
-#: Heuristic throttle cap: its speed through the water is at most CRUISE_FRAC * v_max
-#: (1.2 m s-1 for the default vehicle, an economical survey-AUV cruise).
-CRUISE_FRAC = 0.6
 #: Depth range of starts, goals and routes, m (positive down).
 DEPTH_RANGE_M = (2.0, 10.0)
 #: Minimum altitude above the seafloor of starts, goals and the segments between them, m.
@@ -259,7 +256,7 @@ def seek_max(px, py, pz, gx, gy, gz, v_max, kp, ce, cn):
     goal whenever ``|c_perp| < v_max``; the ground speed is ``min(kp * d, c_par +
     sqrt(v_max^2 - |c_perp|^2))``. At the goal it holds station (``-c``, clipped).
     The navigation tasks' steering: the oracle calls it with the exact current and the full
-    ``v_max``, the heuristic with its noisy probe and its cruise budget.
+    ``v_max``, the heuristic with its noisy probe (both with the full ``v_max``).
     """
     if not v_max > 0.0:
         return 0.0, 0.0, 0.0

@@ -25,7 +25,7 @@ Observation cue
     tangent, target depth, slope) into ``W.leg`` for the policy.
 Methods
     :mod:`oneocean.methods.heuristic.dpt` (depth loop plus horizontal line-of-sight guidance;
-    heuristic: cruise budget, noisy probe, P depth loop; oracle: full speed, exact current,
+    both at full speed; heuristic: noisy probe, P depth loop; oracle: exact current,
     slope feed-forward).
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)

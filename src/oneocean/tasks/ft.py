@@ -44,7 +44,7 @@ from numba import njit
 
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, DEFAULT_R_COLL_M
 from ..engine._jit import hot_kernel
-from ..errors import ConfigError
+from ..errors import ConfigError, NotApplicable
 from ..methods.heuristic import ft as POLICY
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, fresh_cache,
                      need_tier, path_clear, sample_route, start_times)
@@ -125,7 +125,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
                               DEFAULT_LAND_THRESHOLD) for i in range(n)):
                 break
         else:
-            raise ConfigError(f"task {TASK_ID} reset (episode {e}): no {route_m:g} m route "
+            raise NotApplicable(f"task {TASK_ID} reset (episode {e}): no {route_m:g} m route "
                               f"clear for all {n} slots found in {tries} tries; the grid is too "
                               "small or too shallow for this tier")
         start[e] = c0
@@ -134,7 +134,8 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
         pos0[e] = c0 + o
         psi[e] = h
     return {"pos0": pos0, "offsets": offsets, "start": start, "goal": goal,
-            "psi0": np.repeat(psi[:, None], n, axis=1), "t0": t0}
+            "psi0": np.repeat(psi[:, None], n, axis=1), "t0": t0,
+            "regime_points": np.stack([start, 0.5 * (start + goal), goal], axis=1)}
 
 
 class FTParams(NamedTuple):

@@ -12,8 +12,8 @@ Metrics
     ``final_error_m`` (primary: distance to the goal when the episode ends, m),
     ``min_error_m`` (closest approach, m), ``path_length_m`` (ground track length, m).
 Methods
-    :mod:`oneocean.methods.heuristic.g2g` (heuristic: cruise budget, noisy probe; oracle:
-    full speed, exact current).
+    :mod:`oneocean.methods.heuristic.g2g` (both at full speed; heuristic: noisy probe;
+    oracle: exact current).
 
 Module layout (the template every task module follows; the contract is
 :mod:`oneocean.tasks.loop`)

@@ -18,8 +18,8 @@ Observation cue
     (clamped to the waypoint). Before every step the env also writes the agent's frame on the
     active leg (``leg_geometry``: along-track, tangent, length) into ``W.leg`` for the policy.
 Methods
-    :mod:`oneocean.methods.heuristic.rf` (line-of-sight guidance; heuristic: cruise budget,
-    noisy probe; oracle: full speed, exact current).
+    :mod:`oneocean.methods.heuristic.rf` (line-of-sight guidance at full speed; heuristic:
+    noisy probe; oracle: exact current).
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset``; ``RFParams`` / ``RFWork`` and ``make``; the env hooks

@@ -15,9 +15,10 @@ Objective
     of the spill (bearing opposite the data surface current at the centre at t0, gain and tides
     ignored so currents-off episodes share the geometry, +- ``STAGING_SPREAD_RAD``): the slick
     drifts away from the response base and the team has to catch it. The spill site's mean
-    surface current over the episode (:func:`site_drift`, the tier's forcing) is at least
-    ``min_drift_ms``: harder tiers are spills in moving water (a spill in slack water is no
-    response challenge); the currents-off ablation replays the same sites.
+    surface current over the episode lies in the tier's ``current_band`` (quantiles of the
+    region's own surface speeds, :class:`oneocean.tasks.Cell`): harder tiers are spills in
+    moving water (a spill in slack water is no response challenge); the currents-off ablation
+    replays the same sites.
 Physics (identical for every method)
     Each step every vehicle moves (:func:`~oneocean.engine.step.advance_agent`), then removes
     the fraction ``removal_rate_s * dt`` of the concentration of every field cell whose centre
@@ -44,8 +45,8 @@ Observation
     The pollution probe is the surface concentration under the vehicle, kg m-2.
 Methods
     :mod:`oneocean.methods.heuristic.spc` (aerial map and greedy block assignment as the
-    team-level ``plan``; heuristic: stale periodic map, cruise budget, noisy probe; oracle:
-    the exact map every step, full speed, exact current).
+    team-level ``plan``; both at full speed; heuristic: stale periodic map, noisy probe;
+    oracle: the exact map every step, exact current).
 
 Module layout: as :mod:`oneocean.tasks.g2g` (``reset``; ``SPCParams`` / ``SPCWork`` and
 ``make``: the per-episode field, land mask, face velocities, mass accumulators and the
@@ -66,7 +67,7 @@ from ..engine import status as st
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, feasibility, spawn_positions
 from ..engine.grid import sample_current_data, sample_currents
 from ..engine._jit import hot_kernel
-from ..errors import ConfigError
+from ..errors import ConfigError, NotApplicable
 from ..methods.heuristic import spc as POLICY
 from ..models import pollution as pol
 from .common import (STANDARD, current_at, episode_generators, episode_steps, fresh_cache,
@@ -98,9 +99,9 @@ CLEAR_RADII = 1.5
 
 _C_CLEAN, _C_ESC, _C_REM, _C_TTT = (len(STANDARD) + i for i in range(len(METRICS)))
 
-_TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "spill_radius_m",
+_TIER_KEYS = ("current_band", "time_limit_s", "probe_noise_ms", "spill_radius_m",
               "target_fraction", "staging_distance_m", "removal_radius_m", "removal_rate_s",
-              "kappa_m2s", "domain_m", "aerial_period_s", "min_drift_ms")
+              "kappa_m2s", "domain_m", "aerial_period_s")
 #: Near-collision radius, m (task contract).
 R_COLL_M = 2.0
 
@@ -164,7 +165,6 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     need_tier(TASK_ID, tier, *_TIER_KEYS)
     R = float(tier["spill_radius_m"])
     dist = float(tier["staging_distance_m"])
-    min_drift = float(tier["min_drift_ms"])
     T = float(tier["time_limit_s"])
     n, half = field_frame(float(tier["domain_m"]))
     if 2.0 * R > half:
@@ -192,13 +192,11 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
                                     land_threshold=DEFAULT_LAND_THRESHOLD,
                                     clearance=CLEARANCE_M, max_candidates=4096)[0]
             except ConfigError as exc:
-                raise ConfigError(f"task {TASK_ID} reset (episode {e}): {exc}") from None
+                raise NotApplicable(f"task {TASK_ID} reset (episode {e}): {exc}") from None
             cxz = np.array([c[0], c[2]])
             if not _surface_ok(grid, cxz + rings).all():
                 continue
             # the response base lies up-current of the spill: the slick drifts away from it
-            if min_drift > 0.0 and not site_drift(grid, c, t0[e], T) >= min_drift:
-                continue  # (also rejects NaN)
             ue, un = sample_current_data(raw, c[0], SURFACE_Y_M, c[2], t0[e])
             a = rng.uniform(-STAGING_SPREAD_RAD, STAGING_SPREAD_RAD)
             if math.isfinite(ue) and math.isfinite(un) and ue * ue + un * un > 1e-6:
@@ -218,10 +216,9 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
             found = True
             break
         if not found:
-            raise ConfigError(f"task {TASK_ID} reset (episode {e}): no spill site clear of land "
-                              f"within {CLEAR_RADII * R:g} m, with a surface drift >= "
-                              f"{min_drift:g} m/s and a clear staging point {dist:g} m away; "
-                              f"the grid has no such water for this tier")
+            raise NotApplicable(f"task {TASK_ID} reset (episode {e}): no spill site clear of "
+                                f"land within {CLEAR_RADII * R:g} m with a clear staging point "
+                                f"{dist:g} m away; the grid has no such water for this tier")
         x0, z0 = cxz[0] - half, cxz[1] - half
         X, Z = np.meshgrid(x0 + ci, z0 + ci)
         ok = _surface_ok(grid, np.stack([X.ravel(), Z.ravel()], 1)).reshape(n, n)
@@ -236,8 +233,10 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
         pos0[e, :, 2] = starts[:, 1]
     d = report[:, None, :] - pos0[:, :, [0, 2]]
     psi0 = np.arctan2(d[..., 0], d[..., 1])
+    # the current regime is judged where the slick drifts: the spill's centre at the surface
+    site = np.column_stack([report[:, 0], np.full(n_episodes, SURFACE_Y_M), report[:, 1]])
     return {"pos0": pos0, "psi0": psi0, "t0": t0, "C0": C0, "land": land, "origin": origin,
-            "report": report}
+            "report": report, "regime_points": site[:, None, :]}
 
 
 @hot_kernel

@@ -42,7 +42,7 @@ Metrics
     ``object_drift_m`` (horizontal distance of the object from the site at the end, m).
 Methods
     :mod:`oneocean.methods.heuristic.upl` (greedy slot assignment, slot seeking, held lift;
-    heuristic: cruise budget, noisy probe; oracle: full speed, exact current). The environment
+    both at full speed; heuristic: noisy probe; oracle: exact current). The environment
     above does not depend on the method.
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
@@ -101,7 +101,7 @@ SLOT_MARGIN_M = 0.5
 
 _C_LIFT, _C_DEPTH, _C_ATT_T, _C_DRIFT = (len(STANDARD) + i for i in range(len(METRICS)))
 
-_TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "site_depth_m",
+_TIER_KEYS = ("current_band", "time_limit_s", "probe_noise_ms", "site_depth_m",
               "start_distance_m", "attach_radius_m", "attach_dwell_s", "detach_radius_m",
               "sink_speed_ms", "quorum", "hold_radius_m", "success_depth_m")
 

@@ -3,7 +3,8 @@
 A virtual centre advances along the route (start centroid to goal) at
 ``pace * V_NOM_FRAC * budget``, where ``pace = clip(1 - (e_max - PACE_E0_M) / PACE_E1_M, 0, 1)``
 slows it when the worst agent lags (``e_max`` = largest distance of an agent to its slot
-around the virtual centre at the start of the step). Each agent tracks its slot (around the
+around the virtual centre at the start of the step); for a vehicle that cannot hover (torpedo
+guidance) the pace never drops below ``PACE_MIN_TORPEDO``. Each agent tracks its slot (around the
 virtual centre at the start of the step) with feed-forward of the virtual centre's velocity
 over the step plus P-control ``KP`` (capped at ``P_CAP_MS``) through
 :func:`~oneocean.tasks.common.steer`.
@@ -30,6 +31,10 @@ V_NOM_FRAC = 0.8
 #: PACE_E0_M + PACE_E1_M, m.
 PACE_E0_M = 1.0
 PACE_E1_M = 3.0
+#: Least pace for a vehicle that cannot hover (torpedo guidance): a stopped virtual centre
+#: leaves a lagging torpedo orbiting its slot on its turning circle (>= 5 m for the REMUS,
+#: beyond PACE_E0_M + PACE_E1_M), which would stop the centre for good.
+PACE_MIN_TORPEDO = 0.4
 #: Slot-tracking gain (s-1) and cap of the P part of the ground-velocity request (m s-1).
 KP = 0.3
 P_CAP_MS = 0.6
@@ -43,13 +48,15 @@ class FTPolicy(NamedTuple):
     e0: float       # pacing: lag where the virtual centre starts slowing, m
     e1: float       # pacing: extra lag where it stops, m
     dt: float       # step, s
+    pace_min: float  # least pace (0: may stop; > 0 for vehicles that cannot hover)
 
 
 def params(method: str, tier: dict, vehicle) -> FTPolicy:
     v_max = float(vehicle.v_max)
     budget = v_max
+    torpedo = vehicle.spec.get("guidance", "holonomic") == "torpedo"
     return FTPolicy(budget, V_NOM_FRAC * budget, KP, P_CAP_MS, PACE_E0_M, PACE_E1_M,
-                    float(tier["dt_s"]))
+                    float(tier["dt_s"]), PACE_MIN_TORPEDO if torpedo else 0.0)
 
 
 @hot_kernel(inline="always")
@@ -80,7 +87,7 @@ def plan(grid, P, W, M, state, e, k, t):
                       + (st_e[i, 2] - vcz - offsets[e, i, 2]) ** 2)
         if d > lag:
             lag = d
-    pace = min(max(1.0 - (lag - M.e0) / M.e1, 0.0), 1.0)
+    pace = min(max(1.0 - (lag - M.e0) / M.e1, M.pace_min), 1.0)
     step = min(pace * M.v_nom * dt, length - sigma)
     W.sigma[e] = sigma + step
     W.vc[e, 0] = vcx
