@@ -74,9 +74,9 @@ def test_approaching_vehicle_pushes_the_school_away(direction):
     ux, uz = direction
     start = 30.0
 
-    def vehicle(t):  # comes from -direction, heading through the school at 1.5 m/s
-        s = -start + 1.5 * t
-        return np.array([s * ux]), np.array([s * uz])
+    def vehicle(t):  # comes from -direction at 1.5 m/s and holds 2 m short of the centre
+        s = min(-start + 1.5 * t, -2.0)  # (a graded avoidance, w_flee 0.5 m s-2, lets a
+        return np.array([s * ux]), np.array([s * uz])  # vehicle driving through split it)
 
     fx, fz, _, _ = _run(steps=40, agents=vehicle)
     cx, cz = F.school_centroid(fx, fz)

@@ -20,7 +20,7 @@ from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_pa
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
-TIER = {"current_gain": 1.0, "time_limit_s": 600.0, "probe_noise_ms": 0.1, "fish_count": 60,
+TIER = {"current_band": [0.0, 1.0], "time_limit_s": 600.0, "probe_noise_ms": 0.1, "fish_count": 60,
         "zone_distance_m": 100.0, "zone_radius_m": 10.0, "hold_s": 20.0, "dt_s": 1.0}
 N = fh.N_AGENTS
 
@@ -150,7 +150,7 @@ def test_do_nothing_fails_with_time_limit(calm):
 
 
 def test_strong_current_away_from_the_zone_defeats_herding():
-    # fish swim at most 1 m/s: a 1.5 m/s current away from the zone cannot be beaten
+    # fish swim at most 0.8 m/s: a 1.5 m/s current away from the zone cannot be beaten
     grid = E.load_grid(uniform_grid(-1.5, 0.0, depth_m=30.0, nx=41, ny=21, dx_m=100.0))
     init = _hand_init((80.0, 0.0), ring=60.0)
     for method in ("oracle", "heuristic"):

@@ -64,10 +64,18 @@ FISH_PARAM_NAMES: tuple[str, ...] = (
     "max_speed", "perception_radius", "separation_radius", "w_cohesion", "w_cohesion_global",
     "w_separation", "w_alignment", "damping", "flee_radius", "w_flee", "jitter", "max_accel",
 )
-#: Defaults: a loitering school (RMS radius ~3 m at N = 50, ~6 m at N = 200) that flees at
-#: up to 1 m/s, so a vehicle faster than that can herd it.
+#: Defaults: a loitering school (RMS radius ~3 m at N = 50, ~6 m at N = 200) that avoids
+#: vehicles within 15 m. ``max_speed`` 0.8 m/s: the sustained (aerobic) swimming speed of
+#: 20-30 cm schooling fish is ~2-3 body lengths/s, 0.5-0.9 m/s (Beamish 1978, "Swimming
+#: capacity", Fish Physiology VII; Videler 1993, "Fish Swimming"); the model's cap stands for a
+#: sustained avoidance, not the second-long burst escape (~10 body lengths/s). ``w_flee``
+#: 0.5 m/s2: a graded avoidance of a slow, quiet electric vehicle (one vehicle at 10 m drives
+#: ~0.5 m/s rather than an all-out escape at the edge of the reaction distance; fish mostly
+#: show weak or gradual avoidance of ROVs: Stoner et al. 2008, Rev. Fish Biol. Fish. 18:1-20).
+#: With these a ~0.85 m/s ROV team can herd a school (it is slightly faster than the school's
+#: sustained flee), as a herder must be.
 FISH_PARAM_DEFAULTS: dict[str, float] = {
-    "max_speed": 1.0,
+    "max_speed": 0.8,
     "perception_radius": 6.0,
     "separation_radius": 1.5,
     "w_cohesion": 0.05,
@@ -76,7 +84,7 @@ FISH_PARAM_DEFAULTS: dict[str, float] = {
     "w_alignment": 0.3,
     "damping": 0.3,
     "flee_radius": 15.0,
-    "w_flee": 2.0,
+    "w_flee": 0.5,
     "jitter": 0.1,
     "max_accel": 3.0,
 }

@@ -2,7 +2,7 @@
 
 Objective
     A school of ``fish_count`` fish (:mod:`oneocean.models.fish`, default parameters: flee
-    vehicles within 15 m at up to 1 m/s, cohere, drift with the current) loiters at
+    vehicles within 15 m at up to 0.8 m/s, cohere, drift with the current) loiters at
     ``FISH_DEPTH_M``; a circular safe zone of radius ``zone_radius_m`` lies
     ``zone_distance_m`` away. The eight vehicles start on a ring ``START_RING_M`` around the
     school at the same depth and must herd the school into the zone. The straight corridor from
@@ -28,8 +28,9 @@ Metrics
     ``school_spread_m`` (RMS distance of the fish from their centroid at the end, m).
 Methods (task logic; the environment above does not depend on it)
     :mod:`oneocean.methods.heuristic.fh` (herding from behind on an arc around the school;
-    heuristic: cruise budget, noisy probe, push toward the zone ignoring the drift; oracle:
-    full speed, exact current, the school crabbed across the current, integral standoff).
+    both at the vehicle's full speed; heuristic: noisy probe, push toward the zone ignoring
+    the drift, standoff adapted to the school's ground speed near the zone; oracle: exact
+    current, the school crabbed across the current, standoff adapted to its swim speed).
     The observation's goal cue is the agent's herding waypoint (``W.tgt``, written by the
     method's ``plan``; the zone centre for external policies).
 
@@ -87,7 +88,7 @@ CLEARANCE_M = 1.0
 
 _C_CONT, _C_DIST, _C_FRAC, _C_SPREAD = (len(STANDARD) + i for i in range(len(METRICS)))
 
-_TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "fish_count",
+_TIER_KEYS = ("current_band", "time_limit_s", "probe_noise_ms", "fish_count",
               "zone_distance_m", "zone_radius_m", "hold_s")
 
 

@@ -11,16 +11,29 @@ waypoint with P-control, feed-forward of the school's velocity (centroid displac
 last step, ``W.school``) and of its current probe. The push direction is frozen while the
 centroid is within ``deadband * zone_radius_m`` of the centre.
 
-``heuristic``: ``w = v`` (the school's drift is ignored); the arc re-aims at once
-(``DEADBAND_FRAC_HEURISTIC``, no slew limit); full ``v_max`` as every method
+Both methods: within ``I_ZONE`` (heuristic) / ``I_ZONE_ORACLE`` (oracle) zone radii an
+integral action on the school's measured velocity error along ``w`` adapts the standoff
+(``STANDOFF_KS``, at least ``STANDOFF_MIN_M``): further back when the school runs ahead of
+the plan, closer when it lags.
+
+``heuristic``: ``w = v`` (the school's drift is ignored; its integral acts on the ground
+velocity, so near the zone it partly corrects the along-track drift only); the arc re-aims at
+once (``DEADBAND_FRAC_HEURISTIC``, no slew limit); full ``v_max`` as every method
 (:func:`~oneocean.tasks.common.seek`); noisy probe (``probe_noise_ms``).
 ``oracle``: ``w = v - c`` with the exact current ``c`` at the centroid, where ``v`` is the
 fastest ground velocity toward the zone with ``|w| <= ORACLE_SWIM_MS`` (the school crabs across
 the current; same ramp); the arc turns at most ``SLEW_RAD_S_ORACLE``
-(``DEADBAND_FRAC_ORACLE``); within ``ORACLE_I_ZONE`` zone radii an integral action on the
-school's measured ground-velocity error adapts the standoff (removes the steady offset a
-drifting school settles at); full ``v_max``, exact current, crab steering of the vehicles
+(``DEADBAND_FRAC_ORACLE``); its integral acts on the swim (ground velocity minus the exact
+current); full ``v_max``, exact current, crab steering of the vehicles
 (:func:`~oneocean.tasks.common.seek_max`).
+
+Constants (calibrated for the BlueROV2 Heavy, 0.85 m/s, and the fish model's 0.8 m/s
+sustained flee with a 15 m reaction radius): the school is pushed gently (``PUSH_SPEED_MS``
+0.3 m/s, ramp ``KP_PUSH`` 0.02 s-1 so it slows from 15 m out) so the vehicles keep ~0.5 m/s
+for repositioning and can get ahead of it; the slots sit at the edge of the flee radius
+(``STANDOFF_M`` 8 m + ``SPREAD_GAIN`` x spread, so the arc stays outside the whole school and
+does not split it) and back off to ``BACKOFF_M`` 20 m (outside the 15 m flee radius) when
+no push is needed.
 
 The waypoints are the plan token: ``plan`` writes every agent's waypoint ``W.tgt`` (the
 observation's goal cue) from the arc state ``W.herd`` (angle behind the school, integral
@@ -41,13 +54,13 @@ from . import SENSING  # noqa: F401
 KP = 0.5
 #: Herding arc: total angle (rad), standoff (m) and its growth with the school's spread.
 ARC_RAD = math.radians(200.0)
-STANDOFF_M = 6.0
-SPREAD_GAIN = 1.5
+STANDOFF_M = 8.0
+SPREAD_GAIN = 1.0
 #: Standoff when no push is needed (the school is where it should be), m.
-BACKOFF_M = 14.0
+BACKOFF_M = 20.0
 #: Planned school ground speed toward the zone centre: min(PUSH_SPEED_MS, KP_PUSH * distance).
-PUSH_SPEED_MS = 0.7
-KP_PUSH = 0.05
+PUSH_SPEED_MS = 0.3
+KP_PUSH = 0.02
 #: The push direction is frozen while the centroid is within this fraction of the zone radius.
 DEADBAND_FRAC_HEURISTIC = 0.5
 DEADBAND_FRAC_ORACLE = 0.25
@@ -56,14 +69,17 @@ DEADBAND_FRAC_ORACLE = 0.25
 SLEW_RAD_S_HEURISTIC = math.inf
 SLEW_RAD_S_ORACLE = 0.2
 #: Oracle: largest swim speed (relative to the water) it plans for the school, m s-1 (the
-#: fish swim at most 1 m s-1).
-ORACLE_SWIM_MS = 0.85
-#: Oracle: rate of its standoff adaptation to the school's swim-speed error, m per m s-1 per s.
-ORACLE_KS = 3.0
-#: Oracle: smallest adapted standoff, m.
-ORACLE_STANDOFF_MIN_M = 3.0
-#: Oracle: its integral action is on within this many zone radii of the zone centre.
-ORACLE_I_ZONE = 3.0
+#: fish swim at most 0.8 m s-1).
+ORACLE_SWIM_MS = 0.75
+#: Rate of the standoff adaptation to the school's speed error along the planned push, m per
+#: m s-1 per s (heuristic: ground-velocity error, the drift unknown; oracle: swim error).
+STANDOFF_KS = 3.0
+#: Smallest adapted standoff, m.
+STANDOFF_MIN_M = 8.0
+#: The integral action is on within this many zone radii of the zone centre (heuristic;
+#: oracle).
+I_ZONE = 2.0
+I_ZONE_ORACLE = 3.0
 
 
 class FHPolicy(NamedTuple):
@@ -78,10 +94,10 @@ class FHPolicy(NamedTuple):
     oswim: float        # oracle: largest planned school swim, m s-1
     kpp: float          # push ramp gain, s-1
     deadband: float     # push direction frozen within this fraction of the zone radius
-    oks: float          # oracle: standoff adaptation rate
-    stand_min: float    # oracle: smallest adapted standoff, m
+    oks: float          # standoff adaptation rate
+    stand_min: float    # smallest adapted standoff, m
     slew: float         # largest turn rate of the push direction, rad s-1
-    i_zone: float       # oracle: integral action within this many zone radii
+    i_zone: float       # integral action within this many zone radii
 
 
 def params(method: str, tier: dict, vehicle) -> FHPolicy:
@@ -89,9 +105,10 @@ def params(method: str, tier: dict, vehicle) -> FHPolicy:
     oracle = method != "heuristic"
     return FHPolicy(int(oracle), v_max, KP, ARC_RAD,
                     STANDOFF_M, SPREAD_GAIN, BACKOFF_M, PUSH_SPEED_MS, ORACLE_SWIM_MS, KP_PUSH,
-                    DEADBAND_FRAC_ORACLE if oracle else DEADBAND_FRAC_HEURISTIC, ORACLE_KS,
-                    ORACLE_STANDOFF_MIN_M,
-                    SLEW_RAD_S_ORACLE if oracle else SLEW_RAD_S_HEURISTIC, ORACLE_I_ZONE)
+                    DEADBAND_FRAC_ORACLE if oracle else DEADBAND_FRAC_HEURISTIC, STANDOFF_KS,
+                    STANDOFF_MIN_M,
+                    SLEW_RAD_S_ORACLE if oracle else SLEW_RAD_S_HEURISTIC,
+                    I_ZONE_ORACLE if oracle else I_ZONE)
 
 
 @hot_kernel(inline="always")
@@ -183,19 +200,19 @@ def plan(grid, P, W, M, state, e, k, t):
     if g > 1.0:
         g = 1.0
     r_adj = stand + (back - stand) * (1.0 - g)
-    if M.oracle != 0:
-        # oracle, near the zone: integral action on the school's ground-velocity error
-        # along w (closer when the school is slower than planned), removing the
-        # steady-state offset a drifting school has under the open-loop standoff
-        if dist < M.i_zone * zr and k > 0 and wn > 1e-9:
-            r_int += M.oks * ((vcx - ce - wx) * wx + (vcz - cn - wz) * wz) / wn * dt
-            if r_int < M.stand_min - r_adj:
-                r_int = M.stand_min - r_adj
-            elif r_int > back - r_adj:
-                r_int = back - r_adj
-        else:
-            r_int = 0.0
-        r_adj += r_int
+    # integral action on the school's velocity error along w (closer when the school is
+    # slower than planned, further back when it runs ahead): the oracle on the swim
+    # (ground velocity minus the exact current), the heuristic on the ground velocity (it
+    # does not know the drift)
+    if dist < M.i_zone * zr and k > 0 and wn > 1e-9:
+        r_int += M.oks * ((vcx - ce - wx) * wx + (vcz - cn - wz) * wz) / wn * dt
+        if r_int < M.stand_min - r_adj:
+            r_int = M.stand_min - r_adj
+        elif r_int > back - r_adj:
+            r_int = back - r_adj
+    else:
+        r_int = 0.0
+    r_adj += r_int
     r_slot = r_adj + M.sgain * spread
     H[0] = th_back
     H[1] = r_int
