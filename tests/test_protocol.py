@@ -150,3 +150,53 @@ def test_a_cell_the_region_cannot_host_is_written_not_applicable(tmp_path):
 
 def test_checks_are_named():
     assert all(isinstance(c, Check) for c in run_checks(_cells({("G2G", "heuristic", 2): 30})))
+
+
+def test_forcing_from_config_gain_scales_data_only_and_c_tide_is_reachable(tmp_path):
+    """rollouts.current_gain / rollouts.tide reach the rollout (the paper's ablations) and are
+    recorded in the cell file; g scales u, v but not the synthetic tide."""
+    grid = uniform_grid(0.3, 0.0)
+    tide = {"amplitude_ms": 0.4, "period_s": 44712.0}
+    cell = Cell(load_grid(grid), "G2G", 1, current_gain=2.0, tide=tide)
+    assert cell.grid.gain == 2.0 and cell.grid.tide_amp == 0.4
+    from oneocean.engine import sample_currents
+    ce, cn = sample_currents(cell.grid, np.array([[500.0, 5.0, 500.0]]), np.array([0.0]))[0]
+    assert ce == pytest.approx(2.0 * 0.3) and cn == pytest.approx(0.4)   # A cos(0) unscaled
+    outs = {}
+    for name, kw in {"data": {}, "tide": {"tide": tide}}.items():
+        out = tmp_path / f"{name}.parquet"
+        rollout_to_file(grid, out, "G2G", 1, "heuristic", 6, 3, "kinematic", **kw)
+        outs[name] = pd.read_parquet(out)
+        assert read_metrics_meta(out)["tide"] == kw.get("tide")
+    assert not np.array_equal(outs["data"]["path_length_m"], outs["tide"]["path_length_m"])
+    assert (outs["data"]["candidate"] == outs["tide"]["candidate"]).all()
+
+
+def test_readme_ladder_blocks_are_the_workflows_output(tmp_path):
+    """The README's ladder tables are spliced in from results/tables/<region>/ladder.md by
+    `oneocean ladder-readme` (never hand-typed): each block has the generator's header for
+    the evaluation seed, a row per task and every check."""
+    from pathlib import Path
+
+    from oneocean.ladder import readme_markers, splice_readme
+    from oneocean.vocab import EVALUATION_SEED
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    names = [c.name for c in run_checks(_cells({("G2G", "heuristic", 2): 30}))]
+    for region in ("synthetic_coast", "dover_strait_files"):
+        begin, end = readme_markers(region)
+        block = readme.split(begin)[1].split(end)[0].strip()
+        assert block.startswith(f"Region `{region}`, evaluation seed {EVALUATION_SEED}"), region
+        for task in task_ids():
+            assert f"\n| {task} | " in block, (region, task)
+        for name in names:
+            assert f"| {name} |" in block, (region, name)
+    # the splice itself: replaces exactly the block, idempotent
+    md = tmp_path / "ladder.md"
+    md.write_text("Region `r`: table\n")
+    doc = tmp_path / "README.md"
+    b, e = readme_markers("r")
+    doc.write_text(f"intro\n{b}\nold\n{e}\noutro\n")
+    assert splice_readme(doc, md, "r") is True
+    assert doc.read_text() == f"intro\n{b}\nRegion `r`: table\n{e}\noutro\n"
+    assert splice_readme(doc, md, "r") is False

@@ -25,7 +25,7 @@ SMALL_CONFIG = {
                    "max_depth_m": 40},
     },
     "rollouts": {"variant": "public", "tasks": ["G2G", "FT"], "tiers": [1, 3],
-                 "methods": ["heuristic"], "episodes": 4, "seed": 0, "dynamics": "6dof"},
+                 "methods": ["heuristic"], "episodes": 4, "seed": 1000, "dynamics": "6dof"},
 }
 
 

@@ -41,12 +41,13 @@ def n_agents_for(task_id: str, n_agents: int | None) -> int:
 class Cell:
     """One (task, tier) on one grid, ready to sample episodes and run them.
 
-    ``grid_reset`` carries the run's forcing (``current_gain`` g on the data u, v, default 1:
-    the data as they are; an optional synthetic tide term ``tide``: the c_tide ablation;
-    a tier's own ``current_gain``, if its table has one, multiplies g); ``grid`` is what the
-    rollout sees: the same, or with the current switched off (``currents=False``: g = 0, no
-    tide layers, no synthetic tide: the ablation). Episodes are always sampled on
-    ``grid_reset``, so the ablation replays the same episodes (geometry, start times).
+    ``grid`` is what the rollout sees: the run's forcing (``current_gain`` g on the data u, v,
+    default 1: the data as they are; an optional synthetic tide term ``tide``: the c_tide
+    ablation; a tier's own ``current_gain``, if its table has one, multiplies g), or the
+    current switched off (``currents=False``: g = 0, no tide layers, no synthetic tide).
+    Episodes are always sampled on ``grid_reset``, the data as the tier defines them (no
+    run forcing), so every forcing ablation replays the same episodes (geometry, start
+    times, current regime).
     The vehicle is the task table's ``vehicle`` unless one is given; its speed limit reaches
     ``reset``/``make`` as ``params["v_max"]``.
     """
@@ -64,10 +65,14 @@ class Cell:
         params = tier_params(task, self.tier)
         self.params = {**params, "dt_s": float(table["dt_s"]), "v_max": self.vehicle.v_max}
         self.n_agents = n_agents_for(task, n_agents)
-        self.current_gain = float(current_gain) * float(params.get("current_gain", 1.0))
-        self.grid_reset = with_forcing(grid, current_gain=self.current_gain, tide=tide)
-        self.grid = self.grid_reset if currents else self.grid_reset._replace(
-            gain=0.0, tide_layers=0, tide_amp=0.0)
+        tier_gain = float(params.get("current_gain", 1.0))
+        self.current_gain = float(current_gain) * tier_gain
+        # episodes are drawn on the data as the tier defines them; the run's forcing
+        # ablations (g, c_tide, currents off) replay exactly the same episodes
+        self.grid_reset = with_forcing(grid, current_gain=tier_gain)
+        forced = with_forcing(grid, current_gain=self.current_gain, tide=tide)
+        self.grid = forced if currents else forced._replace(gain=0.0, tide_layers=0,
+                                                            tide_amp=0.0)
         self.currents = bool(currents)
 
     def reset(self, episodes: int, seed: int) -> dict:

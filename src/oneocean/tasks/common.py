@@ -182,9 +182,9 @@ class Regime(NamedTuple):
     ``band = (q_lo, q_hi)`` (tier key ``current_band``) at the reference depth ``depth_m``.
 
     The quantiles are taken over every water node of the grid level nearest ``depth_m`` and
-    every time of the grid (the current as the rollout sees it: gain, tide layers, synthetic
-    tide), so "Tier 3 = the fastest third of this region's water" means the same in a calm
-    region and in a tidal one.
+    every time of the grid (the data current with its tide layers, as ``Cell.grid_reset``
+    holds it: no run forcing, so forcing ablations replay the same episodes), so "Tier 3 = the
+    fastest third of this region's water" means the same in a calm region and in a tidal one.
     """
 
     band: tuple

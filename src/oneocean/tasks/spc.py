@@ -99,7 +99,7 @@ CLEAR_RADII = 1.5
 
 _C_CLEAN, _C_ESC, _C_REM, _C_TTT = (len(STANDARD) + i for i in range(len(METRICS)))
 
-_TIER_KEYS = ("current_band", "time_limit_s", "probe_noise_ms", "spill_radius_m",
+_TIER_KEYS = ("time_limit_s", "probe_noise_ms", "spill_radius_m",
               "target_fraction", "staging_distance_m", "removal_radius_m", "removal_rate_s",
               "kappa_m2s", "domain_m", "aerial_period_s")
 #: Near-collision radius, m (task contract).

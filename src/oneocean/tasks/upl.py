@@ -101,7 +101,7 @@ SLOT_MARGIN_M = 0.5
 
 _C_LIFT, _C_DEPTH, _C_ATT_T, _C_DRIFT = (len(STANDARD) + i for i in range(len(METRICS)))
 
-_TIER_KEYS = ("current_band", "time_limit_s", "probe_noise_ms", "site_depth_m",
+_TIER_KEYS = ("time_limit_s", "probe_noise_ms", "site_depth_m",
               "start_distance_m", "attach_radius_m", "attach_dwell_s", "detach_radius_m",
               "sink_speed_ms", "quorum", "hold_radius_m", "success_depth_m")
 
