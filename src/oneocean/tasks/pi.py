@@ -79,7 +79,7 @@ from numba import njit
 from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, spawn_positions
 from ..engine.grid import sample_elevation, sample_elevation_points
-from ..errors import ConfigError
+from ..errors import ConfigError, NotApplicable
 from ..methods.heuristic import pi as POLICY
 from ..models import pollution as pol
 from .common import (STANDARD, current_at, episode_generators, fresh_cache, need_tier,
@@ -129,7 +129,7 @@ MAX_CLAIMS = 32
 CLEARANCE_M = 1.0
 R_COLL_M = 2.0
 
-_TIER_KEYS = ("current_gain", "time_limit_s", "probe_noise_ms", "pipeline_length_m",
+_TIER_KEYS = ("current_band", "time_limit_s", "probe_noise_ms", "pipeline_length_m",
               "n_leaks", "leak_spacing_m", "leak_rate_kg_s", "detect_threshold_kg_m3",
               "loc_tolerance_m", "seafloor_min_m", "seafloor_max_m")
 
@@ -201,7 +201,7 @@ def sample_pipeline(grid, rng, tier, tries: int = 3000, what: str = "pipeline") 
             poly = np.array(poly)
             if _corridor_ok(grid, poly, tier):
                 return poly
-    raise ConfigError(
+    raise NotApplicable(
         f"{what}: no {L:g} m pipeline with seafloor depth in [{tier['seafloor_min_m']:g}, "
         f"{tier['seafloor_max_m']:g}] m found in {tries} tries; the grid has no such shelf")
 

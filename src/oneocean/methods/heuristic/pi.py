@@ -6,8 +6,9 @@ of its section (the i-th of N equal arc-length sections) with line-of-sight guid
 ``LOOKAHEAD_M`` ahead, :func:`~oneocean.tasks.common.waypoint_carrot`), terrain-following at a
 low commanded altitude (never shallower than ``MIN_DEPTH_M``), crabbing against the sensed
 current (:func:`~oneocean.tasks.common.seek_max`, approach gain ``KP``) with the vehicle's full
-speed budget ``v_max``. Past its last waypoint the agent holds there and declares its section
-finished.
+speed budget ``v_max``. The transit to the section start ends within ``ARRIVE_M`` (beyond a
+torpedo's turning circle: closer arrival radii make it orbit the start for ever). Past its last
+waypoint the agent holds there and declares its section finished.
 
 Event detection (:func:`detect`; both methods, from the agent's own readings only: the env
 hands each reading over in ``W.sense``, and the method never reads the leaks or the field).
@@ -25,11 +26,18 @@ than ``CLOSE_M`` from the event's peak (a plume carried along the pipe stays hig
 source); the trough restarts at the closing reading, so the next leak's rise on top of a
 decaying plume opens a new event.
 
-Claims (:func:`file_claim`): every event files one claim in the team's report ``W.claims``
-(x, z, strength = the event's peak reading), updated at every reading while it is open. An
-event whose first estimate lies within ``MERGE_M`` of a claim already filed (a teammate's at a
-section boundary, or its own earlier event) files into that claim instead of a new one; a
-claim keeps the estimate of its strongest event.
+Claims (:func:`file_claim`, :func:`close_event`): every event files its own claim in the
+team's report ``W.claims`` (x, z, strength = the event's peak reading), updated at every
+reading while it is open. When the event closes (or the agent's section is finished), a claim
+whose final estimate lies within ``MERGE_M`` of another claim (the same plume seen twice: a
+teammate's event at a section boundary, or the agent's own event re-opened on one plume)
+merges into it, keeping the stronger event's estimate, and the report is compacted. The
+merge is decided on the final estimate, not the first: an event that opens on the decaying
+tail of one leak's plume, near that leak's claim, and climbs to the next leak keeps its
+own claim. An event still open when the agent's section ends whose estimate lies within
+``END_M`` of the agent is withdrawn (the plume was still rising where the survey stopped: its
+source lies beyond the section); every agent but the first starts its survey ``OVERLAP_M``
+before its section, so a leak just past a boundary is seen rising by the next agent.
 
 ``heuristic``: altitude ``ALT_HEURISTIC_M`` (a safe bottom-following altitude), NOISY probed
 current (``probe_noise_ms``); it claims where the event's largest reading was taken
@@ -73,6 +81,13 @@ LOOKAHEAD_M = 12.0
 KP = 0.5
 WP_TOL_M = 1.0
 MIN_DEPTH_M = 1.0
+#: Transit to the section's first waypoint ends within this distance (m). A torpedo AUV
+#: (remus100: turns no tighter than a 5 m radius) cannot close on a point inside its turning
+#: circles: with :func:`~oneocean.tasks.common.waypoint_carrot`'s own ``2 WP_TOL_M`` arrival it
+#: orbits the section start at ~6 m for ever and never surveys, so the arrival radius is
+#: larger than the turning diameter (leaks lie >= ``LEAK_ARC_FRAC`` of the length, >= 64 m,
+#: from the pipeline's ends, so nothing is missed by starting the survey this far out).
+ARRIVE_M = 12.0
 #: Event detection: an event opens at a reading >= thr rising RISE_FRAC * thr above the
 #: trough; it closes when the reading falls DROP_FRAC of the event's prominence below its
 #: peak, or CLOSE_M (m) past the peak's position.
@@ -81,8 +96,13 @@ DROP_FRAC = 0.5
 CLOSE_M = 60.0
 #: Readings an event keeps for its estimate (later ones still move its peak and close it).
 MAX_EVENT = 512
-#: An event whose first estimate lies within MERGE_M (m) of a filed claim files into it.
+#: A closing event whose final estimate lies within MERGE_M (m) of another claim merges into it.
 MERGE_M = 50.0
+#: A claim still within END_M (m) of the agent when its section ends (the plume rising where
+#: the survey stops) is withdrawn; a teammate's survey starts OVERLAP_M (m) before its
+#: section so that it sees the rise of a leak just past the boundary.
+END_M = 20.0
+OVERLAP_M = 60.0
 #: Below this sensed current speed (m s-1) a reading's downstream coordinate is 0.
 MIN_CURRENT_MS = 0.05
 #: Oracle's estimator: readings >= b + ONSET_FRAC (peak - b) whose downstream coordinate is
@@ -108,7 +128,8 @@ def params(method: str, tier: dict, vehicle) -> PIPolicy:
 
 
 def survey(init: dict):
-    """The survey plan of every agent: its section of the pipeline polyline as waypoints.
+    """The survey plan of every agent: its section of the pipeline polyline as waypoints,
+    from ``OVERLAP_M`` before the section's start (but the first agent's) to its end.
 
     Returns
     -------
@@ -122,8 +143,9 @@ def survey(init: dict):
     poly = np.asarray(init["poly"], dtype=np.float64)
     sections = init["sections"]
     n_ep, n_ag = sections.shape[:2]
-    secs = [[sub_polyline(poly[e], *sections[e, i]) for i in range(n_ag)]
-            for e in range(n_ep)]
+    secs = [[sub_polyline(poly[e], max(float(sections[e, i, 0]) - OVERLAP_M, 0.0)
+                          if i > 0 else float(sections[e, i, 0]), float(sections[e, i, 1]))
+             for i in range(n_ag)] for e in range(n_ep)]
     n_max = max(len(s) for row in secs for s in row)
     wps = np.zeros((n_ep, n_ag, n_max, 2))
     wcount = np.zeros((n_ep, n_ag), dtype=np.int64)
@@ -152,8 +174,13 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
             and abs(-sample_elevation(grid, px, pz) - py - M.alt) <= ALT_BAND_M):
         detect(W, e, i, W.sense[e, i, 0], W.sense[e, i, 1], W.sense[e, i, 2], pe, pn, P.thr,
                M.estimator)
+    if (W.widx[e, i] == 0 and (px - W.wps[e, i, 0, 0]) ** 2 + (pz - W.wps[e, i, 0, 1]) ** 2
+            <= ARRIVE_M * ARRIVE_M):
+        W.widx[e, i] = 1   # arrived at the section start (ARRIVE_M: the turning circle)
     gx, gz, w = waypoint_carrot(W.wps, W.widx, W.wcount, e, i, px, pz, M.look, WP_TOL_M)
     W.done[e, i] = 0 if w < W.wcount[e, i] else 1
+    if W.done[e, i] == 1 and W.ev_on[e, i] == 1:
+        close_event(W, e, i, px, pz, True)   # the section is finished: the claim is final
     gy = -sample_elevation(grid, gx, gz) - M.alt
     if gy < MIN_DEPTH_M:
         gy = MIN_DEPTH_M
@@ -209,35 +236,90 @@ def detect(W, e, i, x, z, r, fe, fn, thr, estimator):
     file_claim(W, e, i, ex, ez, lvl[2])
     if (r <= lvl[2] - DROP_FRAC * (lvl[2] - lvl[1])
             or (x - pos[2]) ** 2 + (z - pos[3]) ** 2 > CLOSE_M * CLOSE_M):
-        W.ev_on[e, i] = 0
+        close_event(W, e, i, x, z, False)
         lvl[0] = r
 
 
 @hot_kernel(inline="always")
 def file_claim(W, e, i, x, z, strength):
-    """File (or update) the claim of agent ``i``'s open event in the team's report: its first
-    estimate joins the nearest claim within ``MERGE_M`` or opens a new one (dropped when the
-    report is full); a claim keeps the estimate of its strongest event."""
+    """File (or update) the claim of agent ``i``'s open event in the team's report: the
+    event's own claim (a new one at its first reading, dropped when the report is full) holds
+    its latest estimate (a claim keeps the estimate of its strongest event)."""
     j = W.ev_claim[e, i]
     claims = W.claims[e]
     if j < 0:
-        d_best = MERGE_M * MERGE_M
-        for c in range(W.nclaim[e]):
-            d = (claims[c, 0] - x) ** 2 + (claims[c, 1] - z) ** 2
-            if d <= d_best:
-                d_best = d
-                j = c
-        if j < 0:
-            j = W.nclaim[e]
-            if j >= claims.shape[0]:
-                return
-            W.nclaim[e] = j + 1
-            claims[j, 2] = -math.inf
+        j = W.nclaim[e]
+        if j >= claims.shape[0]:
+            return
+        W.nclaim[e] = j + 1
+        claims[j, 2] = -math.inf
         W.ev_claim[e, i] = j
     if strength >= claims[j, 2]:
         claims[j, 0] = x
         claims[j, 1] = z
         claims[j, 2] = strength
+
+
+@hot_kernel(inline="always")
+def close_event(W, e, i, px, pz, at_end):
+    """Close agent ``i``'s open event (the agent is at ``(px, pz)``). Its claim, at the
+    event's final estimate, merges into the nearest other final claim (not an open event's)
+    within ``MERGE_M`` if there is one (the same plume seen twice: a teammate's at a section
+    boundary, or its own event re-opened on one plume), keeping the stronger event's
+    estimate. ``at_end`` (the section is finished with the event open): a claim within
+    ``END_M`` of the agent is withdrawn -- the plume was still rising where the survey
+    stopped, so its source lies beyond the section (a teammate's, whose survey overlaps
+    ``OVERLAP_M``), not where the readings stop. The report is kept compact."""
+    W.ev_on[e, i] = 0
+    j = W.ev_claim[e, i]
+    W.ev_claim[e, i] = -1
+    if j < 0:
+        return
+    claims = W.claims[e]
+    if at_end and (claims[j, 0] - px) ** 2 + (claims[j, 1] - pz) ** 2 <= END_M * END_M:
+        drop_claim(W, e, j)
+        return
+    c_best = -1
+    d_best = MERGE_M * MERGE_M
+    for c in range(W.nclaim[e]):
+        if c == j:
+            continue
+        open_ = False
+        for a in range(W.ev_claim.shape[1]):
+            if W.ev_claim[e, a] == c:
+                open_ = True
+        if open_:
+            continue
+        d = (claims[c, 0] - claims[j, 0]) ** 2 + (claims[c, 1] - claims[j, 1]) ** 2
+        if d <= d_best:
+            d_best = d
+            c_best = c
+    if c_best < 0:
+        return
+    if claims[j, 2] > claims[c_best, 2]:
+        claims[c_best, 0] = claims[j, 0]
+        claims[c_best, 1] = claims[j, 1]
+        claims[c_best, 2] = claims[j, 2]
+    drop_claim(W, e, j)
+
+
+@hot_kernel(inline="always")
+def drop_claim(W, e, j):
+    """Remove claim ``j`` from the report: the last claim moves into its slot (an open event
+    filing into it follows)."""
+    claims = W.claims[e]
+    last = W.nclaim[e] - 1
+    if j != last:
+        claims[j, 0] = claims[last, 0]
+        claims[j, 1] = claims[last, 1]
+        claims[j, 2] = claims[last, 2]
+        for a in range(W.ev_claim.shape[1]):
+            if W.ev_claim[e, a] == last:
+                W.ev_claim[e, a] = j
+    claims[last, 0] = math.nan
+    claims[last, 1] = math.nan
+    claims[last, 2] = math.nan
+    W.nclaim[e] = last
 
 
 @hot_kernel(inline="always")
