@@ -32,7 +32,13 @@ SCRIPT = textwrap.dedent("""\
     assert table["agents"]["range"] == [2, 10] and set(table["tiers"]) == {1, 2, 3}
     assert registry.task_spec("UPL").primary == "lift_success"
     vehicle = load_vehicle()
-    assert vehicle.name == "generic_auv" and vehicle.spec and vehicle.params.size > 0
+    assert vehicle.name == "remus100" and vehicle.spec and vehicle.params.size > 0
+    assert vehicle.v_max == 2.5
+    # every vehicle a tier table names is in the installed vehicles file
+    for task in list(registry.task_ids())[:10]:
+        name = load_task_table(task)["vehicle"]
+        assert load_vehicle(name).name == name, (task, name)
+    assert load_vehicle("bluerov2_heavy").v_max == 0.85
     print("OK", oneocean.__file__)
     """)
 

@@ -42,10 +42,16 @@ def test_toy_task_runs_through_run_cell_and_the_step_api(toy):
     h = run_cell(grid, "TOY", 1, "heuristic", episodes=4, seed=0)
     assert h["success"].all() and (h["final_depth_error_m"] <= 0.5).all()
     assert (h["task"] == "TOY").all() and (h["primary"] == h["final_depth_error_m"]).all()
-    # Tier 3 (8 s to rise 9-11 m): the heuristic's half-speed climb cannot make it
+    # the table's current band picks the episodes (candidates recorded); the vehicle is the
+    # table's (generic_auv, 2 m/s). Tier 3 (8 s to rise 9-11 m): the toy heuristic's
+    # half-speed climb (1 m/s: 8 m) cannot make it, the oracle's 2 m/s can
     h3 = run_cell(grid, "TOY", 3, "heuristic", episodes=4, seed=0, dynamics="kinematic")
     o3 = run_cell(grid, "TOY", 3, "oracle", episodes=4, seed=0, dynamics="kinematic")
     assert not h3["success"].any() and o3["success"].all()
+    np.testing.assert_array_equal(h3["candidate"], o3["candidate"])
+    assert np.all(np.diff(h3["candidate"]) > 0)
+    from oneocean.tasks import Cell
+    assert Cell(grid, "TOY", 3).vehicle.name == "generic_auv"
     # a user's policy through the step API: climb straight up at 1 m/s
     up = evaluate(lambda obs: np.broadcast_to([0.0, -1.0, 0.0], obs.shape[:2] + (3,)),
                   "TOY", 1, grid, episodes=4, seed=0)

@@ -17,7 +17,7 @@ from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, external_episodes, on_one_thread
 
-TIER = {"current_gain": 1.0, "time_limit_s": 700.0, "probe_noise_ms": 0.0, "route_m": 400.0,
+TIER = {"time_limit_s": 700.0, "probe_noise_ms": 0.0, "route_m": 400.0,
         "goal_radius_m": 5.0, "slot_tol_m": 1.5, "max_error_m": 5.0, "dt_s": 1.0}
 
 

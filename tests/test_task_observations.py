@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 
 from oneocean import engine as E
-from oneocean.tasks import run_cell, task_module
-from oneocean.tasks.common import ACT_FIELDS, N_MATES, OBS_DIM, OBS_FIELDS, tier_params
+from oneocean.tasks import Cell, run_cell
+from oneocean.tasks.common import ACT_FIELDS, N_MATES, OBS_DIM, OBS_FIELDS
 from oneocean.testing import make_test_grid
 from oneocean.vocab import TASK_IDS
 
@@ -43,9 +43,9 @@ def test_observations_and_actions(coast, task):
     n = int(df["n_agents"].iloc[0])
     assert obs.shape[:3] == act.shape[:3] and obs.shape[0] == 2 and obs.shape[2] == n
     assert obs.shape[3] == OBS_DIM and act.shape[3] == 3
-    gain = tier_params(task, tier).get("current_gain", 1.0)
-    init = task_module(task).reset(E.with_forcing(coast, current_gain=gain),
-                                   {**tier_params(task, tier), "dt_s": 1.0}, n, 2, 3)
+    # the cell's episodes: the candidates its current band kept (recorded in the table)
+    init = Cell(coast, task, tier, n_agents=n_agents).reset(2, 3)
+    np.testing.assert_array_equal(df["candidate"], init["candidate"])
     for e in range(2):
         o0 = obs[e, 0]
         # step 0 is recorded for every agent, from the start state
@@ -78,9 +78,10 @@ def test_observations_and_actions(coast, task):
         assert np.isfinite(act[e, :m]).all() and not np.isfinite(act[e, m:]).any()
 
 def test_goal_cue_points_at_the_goal(coast):
-    tier = {**tier_params("G2G", 1), "dt_s": 1.0}
-    init = task_module("G2G").reset(coast, tier, 1, 2, 1)
     df, obs, _ = run_cell(coast, "G2G", 1, "oracle", episodes=2, seed=1, observations=True)
+    # the episodes run_cell kept (the tier's current band selects among the candidates)
+    init = Cell(coast, "G2G", 1).reset(2, 1)
+    np.testing.assert_array_equal(df["candidate"], init["candidate"])
     np.testing.assert_allclose(obs[:, 0, 0, :3], init["goal"] - init["pos0"][:, 0, :])
     # the goal's depth is fixed: cue + depth is constant along every episode
     for e in range(2):

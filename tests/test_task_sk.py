@@ -20,7 +20,7 @@ from oneocean.tasks.episodes import rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
-TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.0,
+TIER = {"time_limit_s": 400.0, "probe_noise_ms": 0.0,
         "hold_time_s": 200.0, "hold_radius_m": 2.0, "dt_s": 1.0}
 
 
@@ -139,10 +139,14 @@ def test_do_nothing_drifts_off_and_fails():
 
 
 def test_probe_noise_degrades_heuristic_only(coast):
-    tier = {**TIER, "probe_noise_ms": 0.3, "current_gain": 0.5}
-    init = sk.reset(coast, tier, 1, 6, 3)
-    _, rh = _run(coast, tier, "heuristic", dyn="6dof", init=init)
-    _, ro = _run(coast, tier, "oracle", dyn="6dof", init=init)
+    # the coast's currents at half gain (the run's forcing, not a tier key), 6dof, on the
+    # task's own vehicle (the BlueROV2 Heavy, 0.85 m/s)
+    half = E.with_forcing(coast, current_gain=0.5)
+    rov = E.load_vehicle(load_task_table("SK")["vehicle"])
+    tier = {**TIER, "probe_noise_ms": 0.3}
+    init = sk.reset(half, tier, 1, 6, 3)
+    _, rh = _run(half, tier, "heuristic", dyn="6dof", init=init, vehicle=rov)
+    _, ro = _run(half, tier, "oracle", dyn="6dof", init=init, vehicle=rov)
     assert np.all(rh["final_rms_m"] > ro["final_rms_m"])
     held = rh["success"] & ro["success"]
     assert held.any() and np.all(rh["rms_error_m"][held] > ro["rms_error_m"][held])
@@ -165,5 +169,8 @@ def test_tier_table_monotone_and_declared():
     for t in (1, 2, 3):
         assert set(tiers[t]) == set(table["harder"])
         assert tiers[t]["hold_time_s"] <= tiers[t]["time_limit_s"]
+        assert {"current_band", "time_limit_s", "probe_noise_ms"} <= set(tiers[t])
+    # station keeping is an ROV's job (a torpedo cannot hover or crab)
+    assert table["vehicle"] == "bluerov2_heavy"
     assert table["agents"] == {"default": 1, "range": [1, 1]}
     assert math.isclose(table["dt_s"], 1.0)

@@ -12,18 +12,20 @@ import pytest
 from oneocean import engine as E
 from oneocean.engine import status as st
 from oneocean.engine.dynamics import P_VMAX
-from oneocean.errors import ConfigError
+from oneocean.errors import ConfigError, NotApplicable
 from oneocean.tasks import run_cell, upl
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
 from oneocean.tasks.episodes import rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
-TIER = {"current_gain": 1.0, "time_limit_s": 400.0, "probe_noise_ms": 0.1, "site_depth_m": 40.0,
+TIER = {"time_limit_s": 400.0, "probe_noise_ms": 0.1, "site_depth_m": 40.0,
         "start_distance_m": 60.0, "attach_radius_m": 1.0, "attach_dwell_s": 5.0,
         "detach_radius_m": 2.5, "sink_speed_ms": 0.3, "quorum": 5, "hold_radius_m": 30.0,
         "success_depth_m": 2.5, "dt_s": 1.0}
 N = upl.N_SLOTS
+#: The task's vehicle (its tier table): the BlueROV2 Heavy, 0.85 m/s.
+VEHICLE = E.load_vehicle(load_task_table("UPL")["vehicle"])
 
 
 def _flat(floor_m, deepest_m=80.0, ce=0.0):
@@ -60,7 +62,7 @@ def _at_slots(depth_floor=40.0, n_ep=1, offset=0.0):
 
 
 def _roll(grid, tier, init, method="oracle", dyn="kinematic", vehicle=None, seed=0):
-    return rollout(upl, grid, tier, init, method, dyn, vehicle or E.load_vehicle(), seed)
+    return rollout(upl, grid, tier, init, method, dyn, vehicle or VEHICLE, seed)
 
 
 def test_reset_geometry_is_valid(coast):
@@ -73,7 +75,6 @@ def test_reset_geometry_is_valid(coast):
     np.testing.assert_allclose(obj[:, 1], floor - upl.OBJ_HALF_HEIGHT_M)
     lo = tier["site_depth_m"] - upl.SITE_DEPTH_SPAN_M
     assert np.all((floor >= lo) & (floor <= tier["site_depth_m"]))
-    assert np.all(floor <= coast.depth[-1])
     slots = obj[:, None, :] + off
     assert np.all(E.feasibility(coast, slots.reshape(-1, 3), 0.5, upl.CLEARANCE_M) == st.OK)
     # agents start apart (not attached), in valid water, with a clear descent to the site
@@ -98,8 +99,14 @@ def test_reset_raises_when_impossible(calm, coast):
         upl.reset(calm, {**TIER, "site_depth_m": 60.0}, N, 2, 0)
     with pytest.raises(ConfigError, match="no site"):  # starts 5 km away: outside the 2 km grid
         upl.reset(calm, {**TIER, "start_distance_m": 5000.0}, N, 2, 0)
-    with pytest.raises(ConfigError, match="deepest current level"):  # coast's deepest: 60 m
-        upl.reset(coast, {**TIER, "site_depth_m": 70.0}, N, 2, 0)
+    with pytest.raises(NotApplicable, match="no site"):  # coast's seafloor ends at 75 m
+        upl.reset(coast, {**TIER, "site_depth_m": 120.0, "start_distance_m": 60.0}, N, 2, 0)
+    # below the product's deepest current level (60 m) the engine holds that level's current
+    # down to the seafloor: such sites are hosted, not refused
+    deep = upl.reset(coast, {**TIER, "site_depth_m": 75.0}, N, 3, 0)
+    floor = deep["obj0"][:, 1] + upl.OBJ_HALF_HEIGHT_M
+    assert np.all((floor >= 75.0 - upl.SITE_DEPTH_SPAN_M) & (floor <= 75.0))
+    assert np.any(floor > coast.depth[-1])
     with pytest.raises(ConfigError, match="missing"):
         upl.reset(calm, {k: v for k, v in TIER.items() if k != "quorum"}, N, 2, 0)
 
@@ -128,20 +135,21 @@ def test_every_tier_is_solvable_in_calm_water(coast, tier):
 
 def test_lift_rate_is_team_pull_minus_sink(calm):
     # agents start on their slots: attach after the dwell, then the assembly rises at
-    # v_max - sink (kinematic, all five pulling at v_max = 2 m/s)
+    # v_max - sink (kinematic, all five ROVs pulling at v_max = 0.85 m/s)
+    assert VEHICLE.v_max == 0.85
     tier = {**TIER, "sink_speed_ms": 0.5, "attach_dwell_s": 3.0}
     r = _roll(calm, tier, _at_slots())
     assert r["success"][0]
     assert r["attach_time_s"][0] == 3.0
     depth0 = 40.0 - upl.OBJ_HALF_HEIGHT_M
-    lift_steps = np.ceil((depth0 - tier["success_depth_m"]) / (2.0 - 0.5))
+    lift_steps = np.ceil((depth0 - tier["success_depth_m"]) / (VEHICLE.v_max - 0.5))
     assert abs(r["T_s"][0] - (3.0 + lift_steps)) <= 1.0
     assert r["final_object_depth_m"][0] <= tier["success_depth_m"]
     assert r["object_drift_m"][0] < 1e-6
 
 
 def test_too_heavy_object_is_never_lifted(calm):
-    tier = {**TIER, "sink_speed_ms": 2.5, "time_limit_s": 60.0}  # sink > v_max
+    tier = {**TIER, "sink_speed_ms": 1.0, "time_limit_s": 60.0}  # sink > v_max = 0.85
     r = _roll(calm, tier, _at_slots())
     assert not r["success"][0]
     assert r["T_s"][0] == 60.0
@@ -155,7 +163,7 @@ def test_object_moves_only_with_the_quorum(calm):
     r5 = _roll(calm, {**tier, "quorum": 5}, init)
     r4 = _roll(calm, {**tier, "quorum": 4}, init)
     assert r4["attach_time_s"][0] == tier["attach_dwell_s"]
-    assert r5["attach_time_s"][0] > 60.0  # waits for the far agent (>= 150 m at 2 m/s)
+    assert r5["attach_time_s"][0] > 150.0  # waits for the far agent (>= 150 m at 0.85 m/s)
     assert r4["success"][0] and r5["success"][0]
     assert r4["T_s"][0] < r5["T_s"][0]
 
@@ -186,7 +194,8 @@ def test_metrics_are_consistent(coast):
     assert (df.loc[~df.success, "T_s"] == lim).all()
     assert (df.loc[df.success, "T_s"] <= lim).all()
     assert (df["coll_ratio"].between(0.0, 1.0)).all()
-    assert (df["E"] > 0).all() and (df["E"] <= N * 2.0 ** 2 * df["T_s"] + 1e-9).all()
+    # E = sum ||a||^2 dt over the clipped action: at most N v_max^2 T (the ROV's 0.85 m/s)
+    assert (df["E"] > 0).all() and (df["E"] <= N * VEHICLE.v_max ** 2 * df["T_s"] + 1e-9).all()
     ok = df[df.success]
     assert (ok["final_object_depth_m"] <= 2.5).all()
     assert (ok["object_drift_m"] <= _tier(2)["hold_radius_m"]).all()
@@ -217,6 +226,9 @@ def test_tier_table_monotone_and_declared():
     tiers = table["tiers"]
     assert_tier_table_monotone(table)
     for t in (1, 2, 3):
-        assert set(tiers[t]) == set(table["harder"]) == set(upl._TIER_KEYS)
+        # the current band is the Cell's (region-relative regime), not the task module's
+        assert set(tiers[t]) == set(table["harder"]) == set(upl._TIER_KEYS) | {"current_band"}
+    # attaching to and lifting an object: the hovering ROV
+    assert table["vehicle"] == "bluerov2_heavy"
     assert table["agents"] == {"default": 5, "range": [5, 5]}
     assert table["dt_s"] == 1.0

@@ -3,9 +3,12 @@
 import json
 import shutil
 
+import pandas as pd
 import pytest
 
 from oneocean.cli import main as cli
+from oneocean.engine.recording import read_metrics_meta
+from oneocean.tasks.common import load_task_table
 from oneocean.vocab import VARIANTS
 from workflow_helpers import SMALL_CONFIG, run_workflow
 
@@ -34,6 +37,50 @@ def test_paper_tables_produces_every_artifact(two_runs):
     assert "\\toprule" in tex and "\\bottomrule" in tex
     for v in VARIANTS:
         assert v in tex
+
+
+def test_rollout_cells_currents_off_and_the_ladder(two_runs):
+    """The configured cells only (methods [heuristic]: no oracle cells), the currents-off cells
+    of the config default (tier 3, heuristic) on the same episodes, every cell file recording
+    its configuration (evaluation seed 1000, the task's vehicle), and the ladder table."""
+    a, _ = two_runs
+    r = SMALL_CONFIG["rollouts"]
+    root = a / "results/rollouts" / REGION / r["variant"]
+    cells = {f"{t}/tier{k}/{m}.parquet" for t in r["tasks"] for k in r["tiers"]
+             for m in r["methods"]}
+    off = {f"{t}/tier3/heuristic_currents-off.parquet" for t in r["tasks"]}
+    got = {p.relative_to(root).as_posix() for p in root.rglob("*.parquet")}
+    assert got == cells | off
+    for rel in sorted(got):
+        meta = read_metrics_meta(root / rel)
+        df = pd.read_parquet(root / rel)
+        task = rel.split("/")[0]
+        assert meta["task"] == task and meta["seed"] == r["seed"] == 1000
+        assert meta["vehicle"] == load_task_table(task)["vehicle"]
+        assert meta["currents"] is (not rel.endswith("_currents-off.parquet"))
+        assert (df["seed"] == 1000).all()
+        cols = list(df.columns)
+        assert cols[cols.index("seed") + 1] == "candidate"
+        if meta["applicable"]:
+            assert len(df) == r["episodes"] and meta["reason"] == ""
+        else:
+            assert len(df) == 0 and meta["reason"]
+        prov = a / "results/provenance/rollouts" / REGION / r["variant"] / rel
+        assert prov.with_suffix(".json").is_file(), rel
+    # the currents-off ablation replays exactly the same episodes
+    for t in r["tasks"]:
+        on = pd.read_parquet(root / f"{t}/tier3/heuristic.parquet")
+        no = pd.read_parquet(root / f"{t}/tier3/heuristic_currents-off.parquet")
+        pd.testing.assert_series_equal(on["candidate"], no["candidate"])
+        assert not no["currents"].any() and on["currents"].all()
+    ladder = a / f"results/tables/{REGION}/ladder.md"
+    md = ladder.read_text()
+    assert f"Region `{REGION}`, evaluation seed 1000" in md
+    assert "heuristic T1" in md and "heuristic T3 (currents off)" in md and "oracle" not in md
+    for t in r["tasks"]:
+        assert f"| {t} | {load_task_table(t)['vehicle']} |" in md, t
+    assert "| Check | Measured | Target | Verdict |" in md
+    assert (a / f"results/provenance/tables/{REGION}/ladder.json").is_file()
 
 
 def test_manifest_tracks_every_artifact_and_verifies(two_runs, monkeypatch):
