@@ -76,7 +76,7 @@ def test_rollout_cells_currents_off_and_the_ladder(two_runs):
     ladder = a / f"results/tables/{REGION}/ladder.md"
     md = ladder.read_text()
     assert f"Region `{REGION}`, evaluation seed 1000" in md
-    assert "heuristic T1" in md and "heuristic T3 (currents off)" in md and "oracle" not in md
+    assert "heuristic T1" in md and "heuristic T3 (currents off)" in md and "| oracle T" not in md
     for t in r["tasks"]:
         assert f"| {t} | {load_task_table(t)['vehicle']} |" in md, t
     assert "| Check | Measured | Target | Verdict |" in md
