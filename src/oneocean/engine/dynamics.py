@@ -452,6 +452,30 @@ def _group_load(a, b, c):
     return max(aa + bb, max(aa + cc, bb + cc))
 
 
+@hot_kernel(inline="always")
+def _limit3(coupled, bit_a, bit_b, bit_c, sat, t_a, t_b, t_c, cap_a, cap_b, cap_c,
+            ts_a, ts_b, ts_c):
+    """Limit the forces (t_a, t_b, t_c) of three DOFs: one group of four vectored thrusters
+    (``coupled``: scaled down together along their direction when the group's load exceeds 1)
+    or box limits per DOF. Returns (sat, ts_a, ts_b, ts_c)."""
+    if coupled:
+        group = bit_a | bit_b | bit_c
+        if not sat & group:
+            load = _group_load(t_a / cap_a if cap_a > 0.0 else 0.0,
+                               t_b / cap_b if cap_b > 0.0 else 0.0,
+                               t_c / cap_c if cap_c > 0.0 else 0.0)
+            if load > 1.0:
+                return sat | group, t_a / load, t_b / load, t_c / load
+        return sat, ts_a, ts_b, ts_c
+    if not sat & bit_a:
+        sat, ts_a = _box(cap_a, t_a, sat, bit_a, ts_a)
+    if not sat & bit_b:
+        sat, ts_b = _box(cap_b, t_b, sat, bit_b, ts_b)
+    if not sat & bit_c:
+        sat, ts_c = _box(cap_c, t_c, sat, bit_c, ts_c)
+    return sat, ts_a, ts_b, ts_c
+
+
 @hot_kernel
 def _solve3(d0, d1, d5, b0, b1, b5, u0, u1, l0, l1):
     """Solve [[d0, 0, u0], [0, d1, u1], [l0, l1, d5]] x = b (surge, sway, yaw block)."""
@@ -554,8 +578,6 @@ def _step_kinematic(s, cmd, ce, cn, dt):
     _surface(s)
 
 
-_HGROUP = (1 << 0) | (1 << 1) | (1 << 5)
-_VGROUP = (1 << 2) | (1 << 3) | (1 << 4)
 
 
 @hot_kernel
@@ -818,23 +840,8 @@ def _step_rigid(model, vp, s, cmd, ce, cn, dt, trace, record):
             else:
                 t5 = _tau(dk5, k5, rc, 0.0, f5, x5) if cap5 > 0.0 else 0.0
             # (surge, sway, yaw): box limits, or one group of four vectored thrusters
-            if cpl_h:
-                if not sat & _HGROUP:
-                    load = _group_load(t0 / cap0 if cap0 > 0.0 else 0.0,
-                                       t1 / cap1 if cap1 > 0.0 else 0.0,
-                                       t5 / cap5 if cap5 > 0.0 else 0.0)
-                    if load > 1.0:
-                        ts0 = t0 / load
-                        ts1 = t1 / load
-                        ts5 = t5 / load
-                        sat |= _HGROUP
-            else:
-                if not sat & 1:
-                    sat, ts0 = _box(cap0, t0, sat, 1, ts0)
-                if not sat & 2:
-                    sat, ts1 = _box(cap1, t1, sat, 2, ts1)
-                if not sat & 32:
-                    sat, ts5 = _box(cap5, t5, sat, 32, ts5)
+            sat, ts0, ts1, ts5 = _limit3(cpl_h, 1, 2, 32, sat, t0, t1, t5, cap0, cap1, cap5,
+                                         ts0, ts1, ts5)
             # (heave, roll, pitch)
             if heave:
                 t2 = _tau(dk2, k2, cw, g2, a2 * x3 + (l24 - a1) * x4, x2) if th2 else 0.0
@@ -845,23 +852,8 @@ def _step_rigid(model, vp, s, cmd, ce, cn, dt, trace, record):
                               (a1 + l42) * x2 - a3 * x0 + c1 * x5 - c3 * x3, x4)
                 else:
                     t4 = _tau(dk4, k4, qc, g4, f4, x4) if cap4 > 0.0 else 0.0
-                if cpl_v:
-                    if not sat & _VGROUP:
-                        load = _group_load(t2 / cap2 if cap2 > 0.0 else 0.0,
-                                           t3 / cap3 if cap3 > 0.0 else 0.0,
-                                           t4 / cap4 if cap4 > 0.0 else 0.0)
-                        if load > 1.0:
-                            ts2 = t2 / load
-                            ts3 = t3 / load
-                            ts4 = t4 / load
-                            sat |= _VGROUP
-                else:
-                    if not sat & 4:
-                        sat, ts2 = _box(cap2, t2, sat, 4, ts2)
-                    if not sat & 8:
-                        sat, ts3 = _box(cap3, t3, sat, 8, ts3)
-                    if not sat & 16:
-                        sat, ts4 = _box(cap4, t4, sat, 16, ts4)
+                sat, ts2, ts3, ts4 = _limit3(cpl_v, 4, 8, 16, sat, t2, t3, t4, cap2, cap3,
+                                             cap4, ts2, ts3, ts4)
             if sat == s0:
                 break
         if record:
