@@ -41,22 +41,28 @@ def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
 
 
 def load_cells(files) -> pd.DataFrame:
-    """One row per cell file: ``task, tier, method, currents, applicable, reason, n, k`` and
-    the episodes' success vector (``success``, a numpy bool array)."""
+    """One row per cell file: ``task, tier, method, currents, applicable, reason, vehicle,
+    n_agents, n, k`` and the episodes' success vector (``success``, a numpy bool array).
+
+    The cell's identity comes from the file's own record (a workflow cell), else from its
+    columns (e.g. a user's ``oneocean evaluate`` file)."""
     from .engine.recording import read_metrics_meta
 
     rows = []
     for f in files:
         df = pd.read_parquet(f)
         meta = read_metrics_meta(f)
-        app = bool(meta.get("applicable", True))
-        rows.append({"task": meta.get("task", df["task"].iloc[0] if len(df) else None),
-                     "tier": int(meta.get("tier", df["tier"].iloc[0] if len(df) else -1)),
-                     "method": meta.get("method", df["method"].iloc[0] if len(df) else None),
-                     "currents": bool(meta.get("currents", True)),
-                     "applicable": app, "reason": meta.get("reason", ""),
-                     "vehicle": meta.get("vehicle", ""),
-                     "n": int(len(df)), "k": int(df["success"].sum()) if len(df) else 0,
+        first = df.iloc[0] if len(df) else {}
+
+        def get(key, default=None):
+            return meta[key] if key in meta else first.get(key, default)
+
+        rows.append({"task": get("task"), "tier": int(get("tier", -1)),
+                     "method": get("method"), "currents": bool(get("currents", True)),
+                     "applicable": bool(meta.get("applicable", True)),
+                     "reason": meta.get("reason", ""), "vehicle": meta.get("vehicle", ""),
+                     "n_agents": int(get("n_agents", 0)),
+                     "n": int(len(df)), "k": int(df["success"].sum()),
                      "success": df["success"].to_numpy(dtype=bool)})
     return pd.DataFrame(rows)
 

@@ -79,23 +79,15 @@ def task_success_frame(cell_files) -> pd.DataFrame:
     registered is a ConfigError (never silently dropped).
     """
     from . import registry
-    from .engine.recording import read_metrics_meta
+    from .ladder import load_cells
 
-    frames, n = [], {}
-    for f in cell_files:
-        meta = read_metrics_meta(f)
-        df = pd.read_parquet(f)
-        if meta.get("currents", True) is False:
-            continue                      # the ablation cells have their own table
-        if not len(df):                   # a cell the region cannot host: n/a, not 0 %
-            df = pd.DataFrame({"task": [meta["task"]], "method": [meta["method"]],
-                               "tier": [int(meta["tier"])], "success": [float("nan")]})
-        n[df["task"].iloc[0]] = int(meta.get("n_agents", df.get("n_agents", [0])[0]))
-        frames.append(df[["task", "method", "tier", "success"]].astype({"success": float}))
-    cells = pd.concat(frames, ignore_index=True)
-    sr = (cells.groupby(["task", "method", "tier"])["success"].mean() * 100.0).unstack(
-        ["method", "tier"])
-    n = pd.Series(n)
+    cells = load_cells(cell_files)
+    cells = cells[cells["currents"]]          # the ablation cells have their own table
+    # a cell the region cannot host is n/a (NaN), never 0 %
+    hits = cells.assign(k=cells["k"].where(cells["applicable"]))
+    g = hits.groupby(["task", "method", "tier"])
+    sr = (g["k"].sum(min_count=1) / g["n"].sum() * 100.0).unstack(["method", "tier"])
+    n = cells.groupby("task")["n_agents"].first()
     specs = {t: registry.task_spec(t) for t in sr.index}            # unknown task: error
     methods = {m: registry.method_spec(m) for m in sr.columns.get_level_values(0)}
     sr = sr.loc[[t for t in registry.task_ids() if t in specs]]

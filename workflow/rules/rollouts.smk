@@ -2,6 +2,12 @@
 # batched inside one numba kernel.
 
 
+# hashed once per workflow parse (shared by the data and the currents-off rules)
+ROLLOUT_CODE = code_version(
+    "oneocean.tasks", "oneocean.methods", "oneocean.engine", "oneocean.models", "oneocean.data"
+)
+
+
 def _rollout_params(currents):
     def fn(wc):
         r = config["rollouts"]
@@ -23,8 +29,7 @@ rule rollout_cell:
         "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}.tsv"
     params:
         run=_rollout_params(True),
-        code=code_version("oneocean.tasks", "oneocean.methods", "oneocean.engine", "oneocean.models",
-                          "oneocean.data"),
+        code=ROLLOUT_CODE,
     threads: lambda wc: config["rollouts"]["threads"]
     script:
         "../scripts/rollout_cell.py"
@@ -41,8 +46,7 @@ use rule rollout_cell as rollout_cell_currents_off with:
         "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_currents-off.tsv"
     params:
         run=_rollout_params(False),
-        code=code_version("oneocean.tasks", "oneocean.methods", "oneocean.engine", "oneocean.models",
-                          "oneocean.data"),
+        code=ROLLOUT_CODE,
 
 
 rule table_ladder:
@@ -70,7 +74,7 @@ rule table_task_success:
     log:
         "logs/tables/task_success_by_tier.log",
     params:
-        code=code_version("oneocean.tables", "oneocean.registry", "oneocean.data"),
+        code=code_version("oneocean.tables", "oneocean.ladder", "oneocean.registry", "oneocean.data"),
     threads: 1
     script:
         "../scripts/table_task_success.py"

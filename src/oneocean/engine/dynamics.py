@@ -580,6 +580,28 @@ def _step_kinematic(s, cmd, ce, cn, dt):
 
 
 
+@hot_kernel(inline="always")
+def _rotation(psi, phi, th, six):
+    """Roll/pitch sines and cosines and the body -> NED rotation (Fossen zyx) at attitude
+    (phi, th, psi); without roll/pitch (``six`` False) the vehicle is level.
+
+    Returns ``(sph, cph, sth, cth, r00, r01, r02, r10, r11, r12, r20, r21, r22)``.
+    """
+    sps, cps = sincos(psi)
+    if six:
+        sph, cph = sincos(phi)
+        sth, cth = sincos(th)
+    else:
+        sph = 0.0
+        cph = 1.0
+        sth = 0.0
+        cth = 1.0
+    return (sph, cph, sth, cth,
+            cps * cth, -sps * cph + cps * sth * sph, sps * sph + cps * cph * sth,
+            sps * cth, cps * cph + sph * sth * sps, -cps * sph + sth * sps * cph,
+            -sth, cth * sph, cth * cph)
+
+
 @hot_kernel
 def _step_rigid(model, vp, s, cmd, ce, cn, dt, trace, record):
     nsub = _nsub(vp, dt)
@@ -667,27 +689,10 @@ def _step_rigid(model, vp, s, cmd, ce, cn, dt, trace, record):
     cpl_h = vp[P_CPL] != 0.0
     cpl_v = vp[P_CPL + 1] != 0.0
     rturn = vp[P_RTURN]
-    cph = 1.0
-    sph = 0.0
-    cth = 1.0
-    sth = 0.0
-    r00 = r01 = r02 = r10 = r11 = r12 = r20 = r21 = r22 = 0.0
     ur = vr = wr = 0.0
     for k in range(nsub):
-        sps, cps = sincos(psi)
-        if six:
-            sph, cph = sincos(phi)
-            sth, cth = sincos(th)
-        # rotation body -> NED (Fossen zyx)
-        r00 = cps * cth
-        r01 = -sps * cph + cps * sth * sph
-        r02 = sps * sph + cps * cph * sth
-        r10 = sps * cth
-        r11 = cps * cph + sph * sth * sps
-        r12 = -cps * sph + sth * sps * cph
-        r20 = -sth
-        r21 = cth * sph
-        r22 = cth * cph
+        sph, cph, sth, cth, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation(
+            psi, phi, th, six)
         if k == 0:
             # relative velocity nu_r = nu - R^T v_c (NED current v_c = (cn, ce, 0)); the
             # substeps then carry nu_r itself, whose equation does not depend on a uniform
@@ -881,19 +886,8 @@ def _step_rigid(model, vp, s, cmd, ce, cn, dt, trace, record):
             psi += h * r
         psi = wrap_angle(psi)
     # velocity over ground in the final body frame: nu = nu_r + R^T v_c
-    sps, cps = sincos(psi)
-    if six:
-        sph, cph = sincos(phi)
-        sth, cth = sincos(th)
-    r00 = cps * cth
-    r01 = -sps * cph + cps * sth * sph
-    r02 = sps * sph + cps * cph * sth
-    r10 = sps * cth
-    r11 = cps * cph + sph * sth * sps
-    r12 = -cps * sph + sth * sps * cph
-    r20 = -sth
-    r21 = cth * sph
-    r22 = cth * cph
+    sph, cph, sth, cth, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation(
+        psi, phi, th, six)
     u = ur + r00 * cn + r10 * ce
     v = vr + r01 * cn + r11 * ce
     w = wr + r02 * cn + r12 * ce

@@ -63,6 +63,7 @@ class Cell:
         table = load_task_table(task)
         self.vehicle = vehicle if vehicle is not None else load_vehicle(table.get("vehicle"))
         params = tier_params(task, self.tier)
+        self.tier_params = params
         self.params = {**params, "dt_s": float(table["dt_s"]), "v_max": self.vehicle.v_max}
         self.n_agents = n_agents_for(task, n_agents)
         tier_gain = float(params.get("current_gain", 1.0))
@@ -80,7 +81,7 @@ class Cell:
 
         Without a ``current_band`` in the tier these are the task's candidates
         ``0 .. episodes-1``. With one, candidates are drawn in order and the first
-        ``episodes`` whose episode current (:func:`~.common.site_speed` at the candidate's
+        ``episodes`` whose episode current (:func:`~.common.site_speeds` at the candidate's
         ``regime_points``, else its start positions, over ``[t0, t0 + time_limit_s]``) lies in
         the tier's :class:`~.common.Regime` are kept; ``init["candidate"]`` records which.
         Raises :class:`~oneocean.errors.NotApplicable` (naming the cell) when the region
@@ -92,7 +93,7 @@ class Cell:
 
     def _reset(self, episodes: int, seed: int) -> dict:
         from ..engine.grid import current_coverage
-        from .common import current_regime, site_speed
+        from .common import current_regime, site_speeds
 
         band = self.params.get("current_band")
         duration = float(self.params["time_limit_s"])
@@ -104,13 +105,13 @@ class Cell:
             pts = np.asarray(init.pop("regime_points", init["pos0"]), dtype=np.float64)
             # episodes only where the product defines currents (never in water it does not
             # cover, where the engine's current is 0: docs/contracts.md §5)
-            ok = np.array([bool(np.all(current_coverage(self.grid_reset, pts[c]) >= 1.0))
-                           for c in range(n_cand)])
+            ok = (current_coverage(self.grid_reset, pts.reshape(-1, 3)) >= 1.0).reshape(
+                n_cand, -1).all(axis=1)
             if band is not None:
                 regime = current_regime(self.grid_reset, self.params,
                                         float(np.median(pts[..., 1])))
-                speed = np.array([site_speed(self.grid_reset, pts[c], init["t0"][c], duration)
-                                  if ok[c] else np.nan for c in range(n_cand)])
+                speed = np.full(n_cand, np.nan)
+                speed[ok] = site_speeds(self.grid_reset, pts[ok], init["t0"][ok], duration)
                 ok &= (speed >= regime.lo) & (speed <= regime.hi)
             keep = np.flatnonzero(ok)[:episodes]
             if keep.size == episodes:
@@ -129,6 +130,25 @@ class Cell:
         return out
 
 
+    def run(self, method: str, episodes: int, seed: int, dynamics: str,
+            observations: bool = False):
+        """Sample ``episodes`` episodes of ``seed`` and run them with a fused ``method``;
+        the cell table (see :func:`run_cell`)."""
+        from ..registry import method_spec
+        from .episodes import rollout
+
+        method_spec(method)   # an unknown method is a one-line ConfigError
+        init = self.reset(episodes, seed)
+        res = rollout(self.mod, self.grid, self.params, init, method, dynamics, self.vehicle,
+                      int(seed), record=observations)
+        df = cell_frame(self.mod, res, self.tier, method, self.n_agents, dynamics,
+                        self.currents, episodes, seed)
+        df.insert(df.columns.get_loc("seed") + 1, "candidate", init["candidate"])
+        if observations:
+            return df, res["obs"], res["act"]
+        return df
+
+
 #: Candidate draws (each twice the last) before a tier's current regime is declared not
 #: applicable in a region.
 REGIME_DRAWS = 3
@@ -144,9 +164,9 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     Parameters
     ----------
     grid : Grid
-        A loaded grid export (:func:`oneocean.engine.load_grid`); the tier's ``current_gain``
-        is applied here (``currents=False`` sets it to 0 and drops tides in the rollout: the
-        ablation; ``reset`` always sees the tier's forcing, so both replay the same episodes).
+        A loaded grid export (:func:`oneocean.engine.load_grid`).
+    currents : bool
+        False: the currents-off ablation (g = 0, no tides; the same episodes, :class:`Cell`).
     observations : bool
         Also return every agent's per-step observation and action (for learning methods).
     current_gain, tide
@@ -154,27 +174,15 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
 
     Returns
     -------
-    DataFrame, one row per episode: ``episode, seed, success, T_s, E, coll_ratio,
+    DataFrame, one row per episode: ``episode, seed, candidate, success, T_s, E, coll_ratio,
     violations, primary`` and the task's metric columns. With ``observations=True`` a tuple
     ``(df, obs, act)``: ``obs`` (E, n_steps, N, len(OBS_FIELDS)) and ``act``
     (E, n_steps, N, 3) float64 (:data:`oneocean.tasks.common.OBS_FIELDS`, ``ACT_FIELDS``),
     NaN after an episode ended.
     """
-    cell = Cell(grid, task, tier, n_agents=n_agents, currents=currents, vehicle=vehicle,
-                current_gain=current_gain, tide=tide)
-    from ..registry import method_spec
-    from .episodes import rollout
-
-    method_spec(method)   # an unknown method is a one-line ConfigError
-    mod, n = cell.mod, cell.n_agents
-    init = cell.reset(episodes, seed)
-    res = rollout(mod, cell.grid, cell.params, init, method, dynamics, cell.vehicle, int(seed),
-                  record=observations)
-    df = cell_frame(mod, res, tier, method, n, dynamics, currents, episodes, seed)
-    df.insert(df.columns.get_loc("seed") + 1, "candidate", init["candidate"])
-    if observations:
-        return df, res["obs"], res["act"]
-    return df
+    return Cell(grid, task, tier, n_agents=n_agents, currents=currents, vehicle=vehicle,
+                current_gain=current_gain, tide=tide).run(method, episodes, seed, dynamics,
+                                                          observations)
 
 
 def cell_frame(mod, res: dict, tier: int, method: str, n_agents: int, dynamics: str,
@@ -234,10 +242,9 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
             "vehicle": cell.vehicle.name, "v_max_ms": cell.vehicle.v_max,
             "n_agents": cell.n_agents, "episodes": int(episodes), "seed": int(seed),
             "current_gain": cell.current_gain, "tide": tide, "currents": bool(currents),
-            "tier_params": tier_params(task, int(tier)), "applicable": True, "reason": ""}
+            "tier_params": cell.tier_params, "applicable": True, "reason": ""}
     try:
-        df = run_cell(grid, task, tier, method, episodes, seed, dynamics, currents=currents,
-                      vehicle=cell.vehicle, current_gain=current_gain, tide=tide)
+        df = cell.run(method, episodes, seed, dynamics)
     except NotApplicable as exc:
         df = na_frame(cell.mod, tier, method, cell.n_agents, dynamics, currents, seed)
         meta.update(applicable=False, reason=str(exc))

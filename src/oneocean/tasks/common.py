@@ -49,6 +49,9 @@ ACT_FIELDS = ("ax_ms", "ay_ms", "az_ms")
 OK = st.OK
 
 # shared by the single-vehicle navigation tasks (G2G, SK, RF, DPT) and FT
+#: Transit arrival radius of the lawnmower followers (:func:`waypoint_carrot`), m: wider than
+#: the REMUS 100's 10 m turning diameter, so a torpedo never orbits its first waypoint.
+ARRIVE_M = 12.0
 #: Depth range of starts, goals and routes, m (positive down).
 DEPTH_RANGE_M = (2.0, 10.0)
 #: Minimum altitude above the seafloor of starts, goals and the segments between them, m.
@@ -225,23 +228,26 @@ def current_regime(grid: Grid, tier: dict, depth_m: float) -> Regime | None:
                   float(depth_m))
 
 
-def site_speed(grid: Grid, points, t0: float, duration_s: float, n_times: int = 5) -> float:
-    """Mean current speed (m s-1) over ``points`` (n, 3) world m and ``n_times`` times
-    evenly spread over ``[t0, t0 + duration_s]``: the current an episode there meets."""
+def site_speeds(grid: Grid, points, t0, duration_s: float, n_times: int = 5) -> np.ndarray:
+    """Mean current speed (m s-1) of each candidate episode ``c``: over its ``points[c]``
+    (C, P, 3) world m at ``n_times`` times evenly spread over ``[t0[c], t0[c] + duration_s]``
+    (the current an episode there meets); one vectorised sample for all candidates."""
     from ..engine.grid import sample_currents
 
+    pts = np.asarray(points, dtype=np.float64)
+    t0 = np.asarray(t0, dtype=np.float64)
+    n_c, n_p = pts.shape[0], pts.shape[1]
+    ts = np.linspace(t0, t0 + float(duration_s), int(n_times), axis=1)        # (C, T)
+    xyz = np.broadcast_to(pts[:, None], (n_c, ts.shape[1], n_p, 3)).reshape(-1, 3)
+    t = np.broadcast_to(ts[:, :, None], (n_c, ts.shape[1], n_p)).reshape(-1)
+    c = sample_currents(grid, xyz, t)
+    return np.hypot(c[:, 0], c[:, 1]).reshape(n_c, -1).mean(axis=1)
+
+
+def site_speed(grid: Grid, points, t0: float, duration_s: float, n_times: int = 5) -> float:
+    """:func:`site_speeds` of one episode at ``points`` (n, 3) from ``t0``."""
     pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
-    ts = np.linspace(float(t0), float(t0) + float(duration_s), int(n_times))
-    c = sample_currents(grid, np.tile(pts, (ts.size, 1)), np.repeat(ts, pts.shape[0]))
-    return float(np.mean(np.hypot(c[:, 0], c[:, 1])))
-
-
-def in_regime(grid: Grid, regime: Regime | None, points, t0: float, duration_s: float) -> bool:
-    """True if an episode at ``points`` from ``t0`` lies in the tier's current regime."""
-    if regime is None:
-        return True
-    s = site_speed(grid, points, t0, duration_s)
-    return regime.lo <= s <= regime.hi
+    return float(site_speeds(grid, pts[None], [float(t0)], duration_s, n_times)[0])
 
 
 # ------------------------------------------------------------------------------ nav helpers
@@ -426,17 +432,24 @@ def los_carrot(px, pz, ax_, az_, bx, bz, look):
 
 
 @hot_kernel(inline="always")
-def waypoint_carrot(wps, widx, wcount, e, i, px, pz, look, tol):
+def waypoint_carrot(wps, widx, wcount, e, i, px, pz, look, tol, arrive=0.0):
     """Follow agent ``i``'s waypoint list (AS and PI lawnmowers), in the horizontal plane.
 
     ``wps[e, i, :wcount[e, i]]`` are (x, z) waypoints and ``widx[e, i]`` the current one:
     0 = transit to the first (reached within ``2 tol``), then each leg w-1 -> w is followed
     with a line-of-sight carrot ``look`` m ahead (:func:`los_carrot`), advancing when the
     along-track end is within ``tol``; past the last waypoint the agent holds there.
+    ``arrive > 0`` ends the transit as soon as the agent is within ``arrive`` m, checked
+    before the leg is followed (a vehicle that cannot close on a point inside its turning
+    circle, e.g. a torpedo, would orbit a 2 ``tol`` target: :data:`ARRIVE_M`).
     ``widx`` is updated in place. Returns ``(gx, gz, w)``: the carrot and the waypoint index
-    this step used (before a transit arrival is counted).
+    this step used (before a ``2 tol`` transit arrival is counted).
     """
     w = widx[e, i]
+    if (w == 0 and arrive > 0.0
+            and (px - wps[e, i, 0, 0]) ** 2 + (pz - wps[e, i, 0, 1]) ** 2 <= arrive * arrive):
+        w = 1
+        widx[e, i] = 1
     nw = wcount[e, i]
     gx = 0.0
     gz = 0.0

@@ -65,7 +65,7 @@ from numba import njit
 
 from ..engine import status as st
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, feasibility, spawn_positions
-from ..engine.grid import sample_current_data, sample_currents
+from ..engine.grid import sample_current_data
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError, NotApplicable
 from ..methods.heuristic import spc as POLICY
@@ -125,15 +125,6 @@ def field_frame(domain_m: float) -> tuple[int, float]:
     return n, 0.5 * (n - 1) * FIELD_H_M
 
 
-def site_drift(grid, c, t0: float, duration: float, n_times: int = 3) -> float:
-    """Mean surface current speed (m s-1) at spill centre ``c`` (x, y, z) over the episode:
-    the tier's forcing (gain, product tides, synthetic tide) at ``n_times`` instants."""
-    ts = t0 + np.linspace(0.0, duration, n_times)
-    xyz = np.tile([c[0], SURFACE_Y_M, c[2]], (n_times, 1))
-    cur = sample_currents(grid, xyz, ts)
-    return float(np.hypot(cur[:, 0], cur[:, 1]).mean())
-
-
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the spill, its local field, the staging point and the start time per episode.
 
@@ -165,7 +156,6 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     need_tier(TASK_ID, tier, *_TIER_KEYS)
     R = float(tier["spill_radius_m"])
     dist = float(tier["staging_distance_m"])
-    T = float(tier["time_limit_s"])
     n, half = field_frame(float(tier["domain_m"]))
     if 2.0 * R > half:
         raise ConfigError(f"task {TASK_ID}: spill_radius_m={R:g} too large for domain_m="

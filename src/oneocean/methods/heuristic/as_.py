@@ -36,7 +36,7 @@ import numpy as np
 
 from ...engine._jit import hot_kernel
 from ...engine.grid import sample_elevation, sample_elevation_points
-from ...tasks.common import seek_max, waypoint_carrot
+from ...tasks.common import ARRIVE_M, seek_max, waypoint_carrot
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python)
 from . import SENSING
 
@@ -53,11 +53,9 @@ LOOKAHEAD_M = 12.0
 KP = 0.5
 #: A strip waypoint counts as reached this far (m) before its along-track end.
 WP_TOL_M = 1.0
-#: Transit to the plan's first waypoint ends within this distance (m). A torpedo AUV
-#: (remus100: turns no tighter than a 5 m radius) cannot close on a point inside its turning
-#: circles: with :func:`~oneocean.tasks.common.waypoint_carrot`'s own 2 m arrival it orbits
-#: the waypoint at ~5 m for ever, so the tolerance is larger than the turning diameter.
-ARRIVE_M = 12.0
+# The transit to the plan's first waypoint ends within tasks.common.ARRIVE_M: a torpedo AUV
+# (remus100: turns no tighter than a 5 m radius) cannot close on a point inside its turning
+# circle; with a 2 m arrival it orbited the waypoint at ~5 m for ever.
 #: Run-in: the plan's first waypoint lies this far (m) before the first strip's start, on the
 #: strip's line, so the vehicle is aligned with the strip when it enters the region.
 RUNIN_M = 20.0
@@ -277,12 +275,8 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     px = s[0]
     py = s[1]
     pz = s[2]
-    if W.widx[e, i] == 0:  # transit: arrived within ARRIVE_M (see there: no orbiting)
-        dx = W.wps[e, i, 0, 0] - px
-        dz = W.wps[e, i, 0, 1] - pz
-        if dx * dx + dz * dz <= ARRIVE_M * ARRIVE_M:
-            W.widx[e, i] = 1
-    gx, gz, w = waypoint_carrot(W.wps, W.widx, W.wcount, e, i, px, pz, M.look, WP_TOL_M)
+    gx, gz, w = waypoint_carrot(W.wps, W.widx, W.wcount, e, i, px, pz, M.look, WP_TOL_M,
+                                ARRIVE_M)
     # terrain following: the carrot's depth is the seafloor there minus a_c
     gy = -sample_elevation(grid, gx, gz) - M.alt
     if gy < MIN_DEPTH_M:

@@ -67,7 +67,7 @@ import numpy as np
 
 from ...engine._jit import hot_kernel
 from ...engine.grid import sample_elevation
-from ...tasks.common import seek_max, waypoint_carrot
+from ...tasks.common import ARRIVE_M, seek_max, waypoint_carrot
 from . import SENSING  # noqa: F401
 
 #: Commanded altitude above the seafloor, m (heuristic, oracle).
@@ -81,13 +81,11 @@ LOOKAHEAD_M = 12.0
 KP = 0.5
 WP_TOL_M = 1.0
 MIN_DEPTH_M = 1.0
-#: Transit to the section's first waypoint ends within this distance (m). A torpedo AUV
-#: (remus100: turns no tighter than a 5 m radius) cannot close on a point inside its turning
-#: circles: with :func:`~oneocean.tasks.common.waypoint_carrot`'s own ``2 WP_TOL_M`` arrival it
-#: orbits the section start at ~6 m for ever and never surveys, so the arrival radius is
-#: larger than the turning diameter (leaks lie >= ``LEAK_ARC_FRAC`` of the length, >= 64 m,
-#: from the pipeline's ends, so nothing is missed by starting the survey this far out).
-ARRIVE_M = 12.0
+# The transit to the section's first waypoint ends within tasks.common.ARRIVE_M: a torpedo AUV
+# (remus100: turns no tighter than a 5 m radius) cannot close on a point inside its turning
+# circle; with a ``2 WP_TOL_M`` arrival it orbited the section start at ~6 m for ever and never
+# surveyed (leaks lie >= ``LEAK_ARC_FRAC`` of the length, >= 64 m, from the pipeline's ends,
+# so nothing is missed by starting the survey this far out).
 #: Event detection: an event opens at a reading >= thr rising RISE_FRAC * thr above the
 #: trough; it closes when the reading falls DROP_FRAC of the event's prominence below its
 #: peak, or CLOSE_M (m) past the peak's position.
@@ -174,10 +172,8 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
             and abs(-sample_elevation(grid, px, pz) - py - M.alt) <= ALT_BAND_M):
         detect(W, e, i, W.sense[e, i, 0], W.sense[e, i, 1], W.sense[e, i, 2], pe, pn, P.thr,
                M.estimator)
-    if (W.widx[e, i] == 0 and (px - W.wps[e, i, 0, 0]) ** 2 + (pz - W.wps[e, i, 0, 1]) ** 2
-            <= ARRIVE_M * ARRIVE_M):
-        W.widx[e, i] = 1   # arrived at the section start (ARRIVE_M: the turning circle)
-    gx, gz, w = waypoint_carrot(W.wps, W.widx, W.wcount, e, i, px, pz, M.look, WP_TOL_M)
+    gx, gz, w = waypoint_carrot(W.wps, W.widx, W.wcount, e, i, px, pz, M.look, WP_TOL_M,
+                                ARRIVE_M)
     W.done[e, i] = 0 if w < W.wcount[e, i] else 1
     if W.done[e, i] == 1 and W.ev_on[e, i] == 1:
         close_event(W, e, i, px, pz, True)   # the section is finished: the claim is final
