@@ -1,0 +1,253 @@
+"""An OpenAI-compatible chat-completions client using only the standard library.
+
+Works against any endpoint speaking ``POST {base_url}/chat/completions`` (vLLM, llama.cpp
+server, Ollama, hosted APIs). The API key is read from the environment variable *named* in the
+configuration (the key itself is never part of the configuration). Every request uses the
+configured temperature (0 by default), timeout and output-token limit.
+
+Failures of the endpoint -- HTTP errors, timeouts, refused connections, malformed responses --
+become an :class:`LLMError` with a one-line message and a ``kind``; the caller (the planner)
+turns those into its fallback and never crashes. Bad *configuration* is a
+:class:`~oneocean.errors.ConfigError`, raised when the client is built.
+"""
+
+from __future__ import annotations
+
+import http.client
+import json
+import os
+import time
+import urllib.error
+import urllib.request
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+from oneocean.errors import ConfigError
+
+from .cache import ResponseCache, cache_key
+
+#: ``LLMError.kind`` values: what went wrong talking to the endpoint.
+ERROR_KINDS = ("http", "timeout", "connection", "bad_response")
+
+
+class LLMError(RuntimeError):
+    """The endpoint gave no usable reply. ``str(err)`` is one line; ``kind`` is one of
+    :data:`ERROR_KINDS`; ``latency_s`` is the wall time spent before giving up."""
+
+    def __init__(self, kind: str, message: str, latency_s: float = 0.0):
+        assert kind in ERROR_KINDS, kind
+        super().__init__(" ".join(str(message).split()))
+        self.kind = kind
+        self.latency_s = latency_s
+
+
+@dataclass(frozen=True)
+class ClientConfig:
+    """Where and how to ask.
+
+    ``base_url`` is the API root including its version prefix (e.g.
+    ``http://127.0.0.1:8000/v1``); ``api_key_env`` names the environment variable holding the
+    key (empty: send no key, as local servers usually need none); ``timeout_s`` bounds each
+    socket operation (connect, each read); ``max_tokens`` bounds the output.
+    """
+
+    base_url: str
+    model: str
+    api_key_env: str = ""
+    temperature: float = 0.0
+    timeout_s: float = 30.0
+    max_tokens: int = 256
+
+    def __post_init__(self):
+        check_config(self)
+
+
+def _is_number(value) -> bool:
+    """True for an int or float that is not a bool."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def check_config(cfg: ClientConfig) -> None:
+    """Raise a one-line :class:`ConfigError` if ``cfg`` cannot work."""
+    url, model, env = cfg.base_url, cfg.model, cfg.api_key_env
+    if not isinstance(url, str) or not url.startswith(("http://", "https://")):
+        raise ConfigError(f"llm.base_url must be an http(s) URL, got {url!r}")
+    if not isinstance(model, str) or not model.strip():
+        raise ConfigError(f"llm.model must be a non-empty string, got {model!r}")
+    if not isinstance(env, str):
+        raise ConfigError(f"llm.api_key_env must name an environment variable, got {env!r}")
+    if not _is_number(cfg.temperature) or cfg.temperature < 0:
+        raise ConfigError(f"llm.temperature must be a number >= 0, got {cfg.temperature!r}")
+    if not _is_number(cfg.timeout_s) or cfg.timeout_s <= 0:
+        raise ConfigError(f"llm.timeout_s must be a number > 0, got {cfg.timeout_s!r}")
+    if not isinstance(cfg.max_tokens, int) or isinstance(cfg.max_tokens, bool) \
+            or cfg.max_tokens < 1:
+        raise ConfigError(f"llm.max_tokens must be an integer >= 1, got {cfg.max_tokens!r}")
+
+
+def read_api_key(env_name: str, environ: dict | None = None) -> str | None:
+    """The API key from the environment variable ``env_name`` (None if ``env_name`` is empty).
+
+    A non-empty name whose variable is unset or empty is a one-line :class:`ConfigError` naming
+    the variable (never showing any value)."""
+    if not env_name:
+        return None
+    environ = os.environ if environ is None else environ
+    key = environ.get(env_name, "")
+    if not key:
+        raise ConfigError(f"llm.api_key_env names the environment variable {env_name}, "
+                          f"which is not set (export it, or set llm.api_key_env to '' for no key)")
+    return key
+
+
+@dataclass(frozen=True)
+class Reply:
+    """One chat completion: the assistant's ``text``, token counts from the API's ``usage``
+    (None where the endpoint gave none), wall ``latency_s`` (0 for a cache hit) and ``cached``.
+    A cache hit carries the usage recorded when the reply was first fetched."""
+
+    text: str
+    prompt_tokens: int | None
+    completion_tokens: int | None
+    latency_s: float
+    cached: bool
+
+
+def endpoint_url(base_url: str) -> str:
+    """``{base_url}/chat/completions`` with exactly one slash between."""
+    return base_url.rstrip("/") + "/chat/completions"
+
+
+def request_body(cfg: ClientConfig, messages: Sequence[dict]) -> dict:
+    """The JSON body of a chat-completions request for ``messages``."""
+    return {
+        "model": cfg.model,
+        "messages": [dict(m) for m in messages],
+        "temperature": float(cfg.temperature),
+        "max_tokens": int(cfg.max_tokens),
+        "stream": False,
+    }
+
+
+def _usage_count(usage: Any, name: str) -> int | None:
+    """``usage[name]`` if it is a non-negative integer, else None."""
+    if not isinstance(usage, dict):
+        return None
+    value = usage.get(name)
+    if isinstance(value, int) and not isinstance(value, bool) and value >= 0:
+        return value
+    return None
+
+
+def parse_response(raw: bytes) -> tuple[str, int | None, int | None]:
+    """``(text, prompt_tokens, completion_tokens)`` from a chat-completions response body.
+
+    Raises :class:`LLMError` (kind ``bad_response``) if the body is not the expected JSON."""
+    try:
+        data = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise LLMError("bad_response", f"llm: response body is not JSON ({err})") from None
+    try:
+        text = data["choices"][0]["message"]["content"]
+    except (KeyError, IndexError, TypeError):
+        raise LLMError("bad_response",
+                       "llm: response has no choices[0].message.content") from None
+    if not isinstance(text, str):
+        raise LLMError("bad_response",
+                       f"llm: choices[0].message.content is {type(text).__name__}, not a string")
+    usage = data.get("usage") if isinstance(data, dict) else None
+    return text, _usage_count(usage, "prompt_tokens"), _usage_count(usage, "completion_tokens")
+
+
+def _snippet(raw: bytes, limit: int = 160) -> str:
+    """The first ``limit`` characters of an error body, on one line."""
+    text = " ".join(raw.decode("utf-8", "replace").split())
+    return text[:limit] + ("..." if len(text) > limit else "")
+
+
+def post_json(url: str, body: dict, headers: dict, timeout_s: float) -> bytes:
+    """POST ``body`` as JSON and return the response body; every failure is an
+    :class:`LLMError` (kinds ``http``, ``timeout``, ``connection``, ``bad_response``)."""
+    data = json.dumps(body).encode("utf-8")
+    req = urllib.request.Request(url, data=data, method="POST",
+                                 headers={"Content-Type": "application/json", **headers})
+    try:
+        with urllib.request.urlopen(req, timeout=timeout_s) as resp:
+            return resp.read()
+    except urllib.error.HTTPError as err:
+        try:
+            detail = _snippet(err.read())
+        except Exception:  # noqa: BLE001 - the status alone is the message then
+            detail = ""
+        suffix = f": {detail}" if detail else ""
+        raise LLMError("http", f"llm: HTTP {err.code} from {url}{suffix}") from None
+    except urllib.error.URLError as err:
+        if isinstance(err.reason, TimeoutError):
+            raise LLMError("timeout", f"llm: no answer from {url} within {timeout_s:g} s") from None
+        raise LLMError("connection", f"llm: cannot reach {url}: {err.reason}") from None
+    except TimeoutError:
+        raise LLMError("timeout", f"llm: no answer from {url} within {timeout_s:g} s") from None
+    except http.client.HTTPException as err:
+        raise LLMError("bad_response", f"llm: bad HTTP response from {url}: "
+                                       f"{type(err).__name__} {err}") from None
+    except OSError as err:
+        raise LLMError("connection", f"llm: connection to {url} failed: {err}") from None
+
+
+class LLMClient:
+    """Chat completions against one configured endpoint, optionally through a
+    :class:`~oneocean.methods.llm.cache.ResponseCache`.
+
+    The key is read once, when the client is built (a missing variable is a
+    :class:`ConfigError` then, not mid-episode), and never appears in ``repr``."""
+
+    def __init__(self, config: ClientConfig, cache: ResponseCache | None = None,
+                 environ: dict | None = None):
+        self.config = config
+        self.cache = cache
+        self._api_key = read_api_key(config.api_key_env, environ)
+
+    def __repr__(self) -> str:
+        return (f"LLMClient(model={self.config.model!r}, base_url={self.config.base_url!r}, "
+                f"cache={self.cache!r})")
+
+    def headers(self) -> dict:
+        """Request headers beyond Content-Type: ``Authorization: Bearer`` when a key is set."""
+        return {"Authorization": f"Bearer {self._api_key}"} if self._api_key else {}
+
+    def key(self, messages: Sequence[dict]) -> str:
+        """The cache key of ``messages`` under this client's model and sampling settings."""
+        cfg = self.config
+        return cache_key(cfg.model, messages, cfg.temperature, cfg.max_tokens)
+
+    def complete(self, messages: Sequence[dict]) -> Reply:
+        """The reply to ``messages``: from the cache if present (no HTTP call, latency 0),
+        else from the endpoint (stored in the cache). Raises only :class:`LLMError`."""
+        key = self.key(messages) if self.cache is not None else None
+        if key is not None:
+            hit = self.cache.get(key)
+            if hit is not None:
+                return Reply(hit["text"], hit["prompt_tokens"], hit["completion_tokens"],
+                             latency_s=0.0, cached=True)
+        cfg = self.config
+        t0 = time.perf_counter()
+        try:
+            raw = post_json(endpoint_url(cfg.base_url), request_body(cfg, messages),
+                            self.headers(), cfg.timeout_s)
+            text, n_prompt, n_out = parse_response(raw)
+        except LLMError as err:
+            err.latency_s = time.perf_counter() - t0
+            raise
+        latency = time.perf_counter() - t0
+        if key is not None:
+            self.cache.put(key, {
+                "model": cfg.model,
+                "messages": [dict(m) for m in messages],
+                "temperature": float(cfg.temperature),
+                "max_tokens": int(cfg.max_tokens),
+                "text": text,
+                "prompt_tokens": n_prompt,
+                "completion_tokens": n_out,
+                "latency_s": latency,
+            })
+        return Reply(text, n_prompt, n_out, latency_s=latency, cached=False)
