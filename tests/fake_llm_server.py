@@ -7,11 +7,17 @@ JSON body) *before* the behaviour runs. Behaviours are built by the small functi
 
     with FakeLLMServer([answer('{"assignment": [1, 0]}'), status(500)]) as srv:
         ...  # srv.base_url == "http://127.0.0.1:<port>/v1"
+
+``rotate(shift)`` answers from the prompt itself: it reads "Assign each of the N agents ...
+in [0, K)" from the last message and assigns agent i -> (i + shift) % K, with usage counted
+from the request (:func:`prompt_words`, :func:`words`), so a test can recompute every token
+the planner should have accounted for from ``requests``.
 """
 
 from __future__ import annotations
 
 import json
+import re
 import threading
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -28,6 +34,36 @@ def answer(content: str, prompt_tokens: int | None = 50, completion_tokens: int 
 def assignment(values, **kw) -> dict:
     """A 200 chat completion whose content is ``{"assignment": values}``."""
     return answer(json.dumps({"assignment": list(values)}), **kw)
+
+
+_ASK = re.compile(r"Assign each of the (\d+) agents .*? in \[0, (\d+)\)", re.DOTALL)
+
+
+def rotate(shift: int = 1) -> dict:
+    """A 200 chat completion computed from the request: agent i -> (i + shift) % K for the
+    N agents and K targets the last message asks for (``{"assignment": []}`` if it asks for
+    none); usage: ``prompt_tokens`` = :func:`prompt_words` of the request,
+    ``completion_tokens`` = :func:`words` of the answer."""
+    return {"kind": "rotate", "shift": int(shift)}
+
+
+def words(text: str) -> int:
+    """Whitespace-separated words of ``text`` (the fake server's token count)."""
+    return len(text.split())
+
+
+def prompt_words(body: dict) -> int:
+    """The fake server's prompt-token count of a request body: words over all messages."""
+    return sum(words(m.get("content", "")) for m in body.get("messages", []))
+
+
+def rotated(body: dict, shift: int = 1) -> str:
+    """The content :func:`rotate` answers to the request ``body``."""
+    m = _ASK.search(body["messages"][-1]["content"])
+    if m is None:
+        return json.dumps({"assignment": []})
+    n, k = int(m.group(1)), int(m.group(2))
+    return json.dumps({"assignment": [(i + shift) % k for i in range(n)]})
 
 
 def status(code: int, body: str = '{"error": {"message": "scripted failure"}}') -> dict:
@@ -80,6 +116,10 @@ class _Handler(BaseHTTPRequestHandler):
         if b["kind"] == "raw":
             body = b["body"].encode() if isinstance(b["body"], str) else b["body"]
             return self._send(b["code"], body, "text/plain")
+        if b["kind"] == "rotate":
+            content = rotated(request or {}, b["shift"])
+            b = answer(content, prompt_tokens=prompt_words(request or {}),
+                       completion_tokens=words(content))
         response = {
             "id": "chatcmpl-fake",
             "object": "chat.completion",

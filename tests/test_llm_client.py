@@ -4,6 +4,7 @@ client, response cache, plan validation, fallback and per-episode accounting."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import socket
 
@@ -95,7 +96,7 @@ def test_second_identical_call_is_a_cache_hit_without_a_request(tmp_path):
         assert len(srv.requests) == 1  # nothing reached the server
     assert first == second == [1, 2, 0, 1]
     assert rec1.cached is False and rec2.cached is True
-    assert rec2.latency_s == 0.0
+    assert rec1.latency_s > 0 and rec2.latency_s == rec1.latency_s  # the fetch-time latency
     assert (rec2.prompt_tokens, rec2.completion_tokens) == (90, 11)  # the stored usage
     assert rec2.valid
 
@@ -108,6 +109,19 @@ def test_cache_survives_a_new_client_and_a_new_server_url(tmp_path):
     got, rec = make_planner(f"http://127.0.0.1:{closed_port()}/v1", tmp_path / "cache") \
         .plan(SUMMARY, N, K, FALLBACK)
     assert got == [2, 1, 0, 0] and rec.cached and rec.valid
+    stored = json.loads(next((tmp_path / "cache").glob("*.json")).read_text())
+    assert rec.latency_s == stored["latency_s"] > 0  # replayed exactly from the file
+
+
+def test_cache_record_without_a_valid_latency_is_a_miss(tmp_path):
+    cache = ResponseCache(tmp_path / "cache")
+    base = {"text": "x", "prompt_tokens": 1, "completion_tokens": 1}
+    for i, extra in enumerate([{}, {"latency_s": -1.0}, {"latency_s": True},
+                               {"latency_s": "0.5"}]):
+        cache.put(f"{i:064d}", {**base, **extra})
+        assert cache.get(f"{i:064d}") is None, extra
+    cache.put("f" * 64, {**base, "latency_s": 0.25})
+    assert cache.get("f" * 64)["latency_s"] == 0.25
 
 
 def test_changed_prompt_misses_and_files_are_written_atomically(tmp_path):
@@ -257,7 +271,8 @@ def test_episode_accounting_totals_are_exact(tmp_path):
     assert outs == [[0, 1, 2, 0], [0, 1, 2, 0], FALLBACK, FALLBACK, [2, 2, 2, 2], FALLBACK,
                     FALLBACK]
     totals = planner.totals()
-    uncached = [r for r in planner.records if not r.cached]
+    rec = planner.records
+    assert rec[1].cached and rec[1].latency_s == rec[0].latency_s  # hit: the fetch latency
     assert totals == {
         "calls": 7,
         "valid": 3,
@@ -267,8 +282,9 @@ def test_episode_accounting_totals_are_exact(tmp_path):
         "fallback_reasons": {"http": 1, "not_json": 1, "schema": 1, "timeout": 1},
         "cached_calls": 1,
         "uncached_calls": 6,
-        "latency_s": pytest.approx(sum(r.latency_s for r in uncached), abs=0),
-        "mean_latency_s": pytest.approx(sum(r.latency_s for r in uncached) / 6, rel=1e-12),
+        # every call's latency, the cache hit at its fetch-time latency: same on a rerun
+        "latency_s": math.fsum(r.latency_s for r in rec),
+        "mean_latency_s": pytest.approx(math.fsum(r.latency_s for r in rec) / 7, rel=1e-12),
         # replies 1, 2 (cached copy of 1), 3 and 6 carry usage; 5 has none; 4 and 7 no reply
         "prompt_tokens": 100 + 100 + 80 + 70,
         "output_tokens": 12 + 12 + 5 + 9,

@@ -4,7 +4,9 @@ The key is the sha256 of a canonical JSON of what determines the answer -- the m
 the base URL: the same model behind another server gives the same cached answer), the
 messages, the temperature, the output-token limit and :data:`CACHE_SCHEMA` -- so a rerun of
 the same prompts makes no HTTP call and reproduces the same plans, and any change of prompt or
-setting misses. Files are written atomically (temporary file in the same directory, then
+setting misses. A record keeps the reply's text, its token usage and the latency measured
+when it was fetched, so a rerun from the cache reports the same accounting. Files are written
+atomically (temporary file in the same directory, then
 ``os.replace``), so a crash never leaves a half-written entry under a valid key.
 """
 
@@ -12,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -23,7 +26,7 @@ from oneocean.errors import ConfigError
 CACHE_SCHEMA = 1
 
 #: Fields a stored record must have to count as a hit.
-RECORD_FIELDS = ("text", "prompt_tokens", "completion_tokens")
+RECORD_FIELDS = ("text", "prompt_tokens", "completion_tokens", "latency_s")
 
 
 def canonical_json(obj) -> str:
@@ -45,12 +48,17 @@ def cache_key(model: str, messages: Sequence[dict], temperature: float, max_toke
 
 
 def _is_record(obj) -> bool:
-    """True if ``obj`` is a stored reply (text string, token counts int or None)."""
+    """True if ``obj`` is a stored reply (text string, token counts int or None, fetch latency
+    a finite number >= 0)."""
     if not isinstance(obj, dict) or not all(f in obj for f in RECORD_FIELDS):
         return False
     counts_ok = all(obj[f] is None or (isinstance(obj[f], int) and not isinstance(obj[f], bool))
                     for f in ("prompt_tokens", "completion_tokens"))
-    return isinstance(obj["text"], str) and counts_ok and obj.get("schema") == CACHE_SCHEMA
+    lat = obj["latency_s"]
+    latency_ok = (isinstance(lat, (int, float)) and not isinstance(lat, bool)
+                  and math.isfinite(lat) and lat >= 0)
+    return (isinstance(obj["text"], str) and counts_ok and latency_ok
+            and obj.get("schema") == CACHE_SCHEMA)
 
 
 class ResponseCache:

@@ -4,6 +4,9 @@ Works against any endpoint speaking ``POST {base_url}/chat/completions`` (vLLM, 
 server, Ollama, hosted APIs). The API key is read from the environment variable *named* in the
 configuration (the key itself is never part of the configuration). Every request uses the
 configured temperature (0 by default), timeout and output-token limit.
+:class:`CachedClient` puts the response cache in front of any backend (this endpoint client,
+:class:`~oneocean.methods.llm.local.LocalClient`): a hit replays the reply with the usage and
+latency recorded when it was fetched.
 
 Failures of the endpoint -- HTTP errors, timeouts, refused connections, malformed responses --
 become an :class:`LLMError` with a one-line message and a ``kind``; the caller (the planner)
@@ -103,8 +106,11 @@ def read_api_key(env_name: str, environ: dict | None = None) -> str | None:
 @dataclass(frozen=True)
 class Reply:
     """One chat completion: the assistant's ``text``, token counts from the API's ``usage``
-    (None where the endpoint gave none), wall ``latency_s`` (0 for a cache hit) and ``cached``.
-    A cache hit carries the usage recorded when the reply was first fetched."""
+    (None where the endpoint gave none), ``latency_s`` and ``cached``.
+
+    ``latency_s`` is the wall time of the request that fetched the reply: a cache hit carries
+    the latency (and the usage) recorded when the reply was first fetched, so a rerun from the
+    cache reports the same numbers (``cached`` tells the two apart)."""
 
     text: str
     prompt_tokens: int | None
@@ -147,6 +153,13 @@ def parse_response(raw: bytes) -> tuple[str, int | None, int | None]:
         data = json.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as err:
         raise LLMError("bad_response", f"llm: response body is not JSON ({err})") from None
+    return parse_completion(data)
+
+
+def parse_completion(data: Any) -> tuple[str, int | None, int | None]:
+    """``(text, prompt_tokens, completion_tokens)`` from a decoded chat completion (the
+    OpenAI layout: ``choices[0].message.content`` and ``usage``); :class:`LLMError` (kind
+    ``bad_response``) if it has no string content."""
     try:
         text = data["choices"][0]["message"]["content"]
     except (KeyError, IndexError, TypeError):
@@ -194,9 +207,61 @@ def post_json(url: str, body: dict, headers: dict, timeout_s: float) -> bytes:
         raise LLMError("connection", f"llm: connection to {url} failed: {err}") from None
 
 
-class LLMClient:
+class CachedClient:
+    """Chat completions through an optional :class:`~oneocean.methods.llm.cache.ResponseCache`.
+
+    A subclass sets ``config`` (anything with ``model``, ``temperature`` and ``max_tokens``)
+    and ``cache`` and implements :meth:`fetch`; :meth:`complete` looks the messages up in the
+    cache, else fetches, times and stores the reply."""
+
+    config: Any
+    cache: ResponseCache | None = None
+
+    def key(self, messages: Sequence[dict]) -> str:
+        """The cache key of ``messages`` under this client's model and sampling settings."""
+        cfg = self.config
+        return cache_key(cfg.model, messages, cfg.temperature, cfg.max_tokens)
+
+    def fetch(self, messages: Sequence[dict]) -> tuple[str, int | None, int | None]:
+        """``(text, prompt_tokens, completion_tokens)`` from the model; raises only
+        :class:`LLMError`."""
+        raise NotImplementedError
+
+    def complete(self, messages: Sequence[dict]) -> Reply:
+        """The reply to ``messages``: from the cache if present (no request; the latency and
+        usage recorded when it was fetched, ``cached=True``), else from the model (timed and
+        stored in the cache). Raises only :class:`LLMError` (its ``latency_s`` set)."""
+        key = self.key(messages) if self.cache is not None else None
+        if key is not None:
+            hit = self.cache.get(key)
+            if hit is not None:
+                return Reply(hit["text"], hit["prompt_tokens"], hit["completion_tokens"],
+                             latency_s=float(hit["latency_s"]), cached=True)
+        cfg = self.config
+        t0 = time.perf_counter()
+        try:
+            text, n_prompt, n_out = self.fetch(messages)
+        except LLMError as err:
+            err.latency_s = time.perf_counter() - t0
+            raise
+        latency = time.perf_counter() - t0
+        if key is not None:
+            self.cache.put(key, {
+                "model": cfg.model,
+                "messages": [dict(m) for m in messages],
+                "temperature": float(cfg.temperature),
+                "max_tokens": int(cfg.max_tokens),
+                "text": text,
+                "prompt_tokens": n_prompt,
+                "completion_tokens": n_out,
+                "latency_s": latency,
+            })
+        return Reply(text, n_prompt, n_out, latency_s=latency, cached=False)
+
+
+class LLMClient(CachedClient):
     """Chat completions against one configured endpoint, optionally through a
-    :class:`~oneocean.methods.llm.cache.ResponseCache`.
+    :class:`~oneocean.methods.llm.cache.ResponseCache` (:class:`CachedClient`).
 
     The key is read once, when the client is built (a missing variable is a
     :class:`ConfigError` then, not mid-episode), and never appears in ``repr``."""
@@ -215,39 +280,9 @@ class LLMClient:
         """Request headers beyond Content-Type: ``Authorization: Bearer`` when a key is set."""
         return {"Authorization": f"Bearer {self._api_key}"} if self._api_key else {}
 
-    def key(self, messages: Sequence[dict]) -> str:
-        """The cache key of ``messages`` under this client's model and sampling settings."""
+    def fetch(self, messages: Sequence[dict]) -> tuple[str, int | None, int | None]:
+        """One POST to the endpoint; ``(text, prompt_tokens, completion_tokens)``."""
         cfg = self.config
-        return cache_key(cfg.model, messages, cfg.temperature, cfg.max_tokens)
-
-    def complete(self, messages: Sequence[dict]) -> Reply:
-        """The reply to ``messages``: from the cache if present (no HTTP call, latency 0),
-        else from the endpoint (stored in the cache). Raises only :class:`LLMError`."""
-        key = self.key(messages) if self.cache is not None else None
-        if key is not None:
-            hit = self.cache.get(key)
-            if hit is not None:
-                return Reply(hit["text"], hit["prompt_tokens"], hit["completion_tokens"],
-                             latency_s=0.0, cached=True)
-        cfg = self.config
-        t0 = time.perf_counter()
-        try:
-            raw = post_json(endpoint_url(cfg.base_url), request_body(cfg, messages),
-                            self.headers(), cfg.timeout_s)
-            text, n_prompt, n_out = parse_response(raw)
-        except LLMError as err:
-            err.latency_s = time.perf_counter() - t0
-            raise
-        latency = time.perf_counter() - t0
-        if key is not None:
-            self.cache.put(key, {
-                "model": cfg.model,
-                "messages": [dict(m) for m in messages],
-                "temperature": float(cfg.temperature),
-                "max_tokens": int(cfg.max_tokens),
-                "text": text,
-                "prompt_tokens": n_prompt,
-                "completion_tokens": n_out,
-                "latency_s": latency,
-            })
-        return Reply(text, n_prompt, n_out, latency_s=latency, cached=False)
+        raw = post_json(endpoint_url(cfg.base_url), request_body(cfg, messages),
+                        self.headers(), cfg.timeout_s)
+        return parse_response(raw)

@@ -2,7 +2,7 @@
 and per-episode accounting.
 
 A plan is an assignment of integers, ``{"assignment": [i_0, ..., i_{N-1}]}`` with exactly N
-entries each in ``[0, K)`` (a source per agent for SPC, a waypoint or cell per agent for AS and
+entries each in ``[0, K)`` (a source per agent for SPC, a waypoint offset per agent for AS and
 PI). :class:`Planner` asks the model, validates the answer and, if the answer is invalid or
 never came (:class:`~oneocean.methods.llm.client.LLMError`: HTTP error, timeout, refused
 connection, malformed response), returns the caller's deterministic fallback instead -- never
@@ -137,8 +137,9 @@ class CallRecord:
     answer failed validation) or ``"error"`` (no answer: :class:`LLMError`).
     ``fallback_reason``: None when valid, else a value of :data:`INVALID_REASONS` or
     :data:`~oneocean.methods.llm.client.ERROR_KINDS`; ``error`` is its one-line message.
-    ``latency_s`` is the wall time of the request (0 for a cache hit, the time until giving up
-    for an error); token counts come from the API's ``usage`` (None if absent or no answer).
+    ``latency_s`` is the wall time of the request that fetched the reply (for a cache hit:
+    the latency recorded when it was fetched; for an error: the time until giving up); token
+    counts come from the API's ``usage`` (None if absent or no answer).
     """
 
     outcome: str
@@ -173,7 +174,8 @@ def check_fallback(fallback: Sequence[int], n_agents: int, n_targets: int) -> tu
 
 
 class Planner:
-    """Asks an :class:`LLMClient` for assignments; keeps this episode's :class:`CallRecord` s.
+    """Asks a client (:class:`LLMClient`, or any :class:`~.client.CachedClient` such as the
+    local model's) for assignments; keeps this episode's :class:`CallRecord` s.
 
     :meth:`plan` never raises for anything the endpoint or the model does; :meth:`totals`
     sums the records (:func:`episode_totals`) and :meth:`reset` starts a new episode."""
@@ -221,11 +223,14 @@ def episode_totals(records: Iterable[CallRecord]) -> dict:
     """Cost-table totals of one episode's calls.
 
     ``calls = valid + invalid + errors``; ``fallbacks = invalid + errors``;
-    ``cached_calls + uncached_calls = calls``. ``mean_latency_s`` is over uncached calls only
-    (None if there were none): a cache hit costs nothing. Token totals are over every call
-    that returned a reply, cached ones included (a hit carries the usage recorded when it was
-    fetched), so they are the same on a rerun; ``replies_without_usage`` counts replies whose
-    endpoint gave no usage (their tokens are not in the totals).
+    ``cached_calls + uncached_calls = calls``. ``latency_s`` sums every call's latency, cached
+    ones included at the latency recorded when the reply was fetched (errors at the time until
+    giving up); ``mean_latency_s = latency_s / calls`` (None without calls). Token totals are
+    over every call that returned a reply, cached ones included (a hit carries the usage
+    recorded when it was fetched). So the totals of a rerun served from the cache equal those
+    of the run that filled it, but for ``cached_calls`` / ``uncached_calls`` (errors are never
+    cached: a rerun asks again). ``replies_without_usage`` counts replies whose endpoint gave
+    no usage (their tokens are not in the totals).
     """
     records = list(records)
     uncached = [r for r in records if not r.cached]
@@ -236,7 +241,7 @@ def episode_totals(records: Iterable[CallRecord]) -> dict:
     for r in records:
         if r.fallback_reason is not None:
             reasons[r.fallback_reason] = reasons.get(r.fallback_reason, 0) + 1
-    latency = math.fsum(r.latency_s for r in uncached)
+    latency = math.fsum(r.latency_s for r in records)
     return {
         "calls": sum(r.calls for r in records),
         "valid": sum(r.outcome == "valid" for r in records),
@@ -247,7 +252,7 @@ def episode_totals(records: Iterable[CallRecord]) -> dict:
         "cached_calls": sum(r.calls for r in records if r.cached),
         "uncached_calls": sum(r.calls for r in uncached),
         "latency_s": latency,
-        "mean_latency_s": latency / len(uncached) if uncached else None,
+        "mean_latency_s": latency / len(records) if records else None,
         "prompt_tokens": prompt,
         "output_tokens": output,
         "total_tokens": prompt + output,

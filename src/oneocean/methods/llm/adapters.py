@@ -1,0 +1,303 @@
+"""Task adapters of the LLM planner: what the model is asked, and how its answer becomes plan
+tokens the fused heuristic ``act`` follows.
+
+The planner works only at the high level. Before each K-step segment of a batch
+(:meth:`oneocean.tasks.episodes.Episodes.run_planned`, built with ``fused_plan=False``), for
+every live episode ``e`` at its step ``k`` (``t = t0[e] + k dt``) the task's adapter
+
+1. :meth:`~Adapter.decide`: writes the deterministic fallback -- what the fused heuristic
+   would plan now -- into the work arrays ``W`` (so it is in place whatever the model does) and
+   returns a :class:`Decision` (summary text, agents, targets, the fallback as ints) if there
+   is a choice to make now, else None (no call);
+2. :meth:`~Adapter.apply`: writes a *valid* assignment into the plan tokens of ``W``.
+
+An assignment is one integer per agent in ``[0, n_targets)`` (:mod:`.plan`). The summaries hold
+only what the heuristic itself knows (its aerial map, its own positions, waypoints and
+report), never the task's hidden truth.
+
+``SPC`` (source assignment; :class:`SPCAdapter`)
+    At the heuristic's map steps (``k >= map_from``, ``k % map_every == 0``) its plan hook
+    maps the slick into blocks and assigns them greedily (``W.tgt``, ``W.tmap``). Targets:
+    the mapped blocks heavier than ``MIN_BLOCK_FRAC`` of the mapped mass, heaviest first (ties
+    by block index), at most ``N + EXTRA_CANDIDATES``; the fallback gives each agent the
+    candidate its greedy target is (the greedy picks among the N heaviest, so it is listed).
+    Applying sets ``W.tgt[e, i]`` to candidate ``a[i]``'s centroid, ``W.tmap[e] = t``. Step 0
+    (the ring around the report) and other steps are no decision. K must be a multiple of the
+    map period (default: the map period, so every map step is a planning step).
+``AS``, ``PI`` (waypoint skipping; :class:`WaypointAdapter`)
+    Each agent follows its list ``W.wps[e, i, :W.wcount[e, i]]``; ``W.widx[e, i]`` is the
+    waypoint it heads for. Target ``j`` of an agent = offset ``j`` from ``widx``: head for
+    waypoint ``widx + j`` next, skipping the ``j`` before it (0 = the heuristic's order, the
+    fallback, which writes nothing). ``n_targets`` = the fewest remaining waypoints over the
+    agents, at most ``HORIZON``; with fewer than 2 there is no choice, so no call (an agent
+    that has finished its list has none left). PI: an agent still in transit to its section
+    start (``widx == 0``: detection is off until it arrives, ``waypoint_carrot``'s arrival
+    logic moves it to 1) has no choice either -- skipping the start would survey from the
+    transit -- and a finished section (``W.done``) has nothing left. Default K: 30 steps.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple, Sequence
+
+import numpy as np
+from numba import njit
+
+from ...errors import ConfigError
+from ...tasks import spc as SPC_TASK
+from ...tasks.common import fresh_cache
+from ..heuristic import spc as SPC_POLICY
+
+#: SPC: candidate blocks offered beyond the team size.
+EXTRA_CANDIDATES = 6
+#: AS, PI: waypoints ahead an agent may choose among (offsets 0 .. HORIZON-1 from ``widx``).
+HORIZON = 4
+#: AS, PI: default planning period, steps.
+WAYPOINT_EVERY = 30
+
+
+class Decision(NamedTuple):
+    """A choice to put to the model for one episode now.
+
+    ``options`` is what :meth:`Adapter.apply` needs to turn an assignment into plan tokens
+    (SPC: the candidates' centroids (n_targets, 2) m; AS/PI: unused, empty)."""
+
+    summary: str
+    n_agents: int
+    n_targets: int
+    fallback: tuple[int, ...]
+    options: np.ndarray
+
+
+def _now(ep, e: int) -> tuple[int, float]:
+    """Step ``k`` and time ``t = t0[e] + k dt`` (s) of episode ``e`` (as the loop computes it)."""
+    k = int(ep.k[e])
+    return k, float(ep.t0[e] + k * ep.dt)
+
+
+def _xz(x: float, z: float) -> str:
+    """A horizontal position rounded to 1 m."""
+    return f"({x:.0f}, {z:.0f})"
+
+
+def _check_assignment(assignment: Sequence[int], d: Decision) -> list[int]:
+    """``assignment`` as ints; ``ValueError`` unless it has ``d.n_agents`` entries in
+    ``[0, d.n_targets)`` (the planner validated it: a violation is a caller's bug)."""
+    a = [int(v) for v in assignment]
+    if len(a) != d.n_agents or not all(0 <= v < d.n_targets for v in a):
+        raise ValueError(f"assignment {a} is not {d.n_agents} targets in [0, {d.n_targets})")
+    return a
+
+
+class Adapter:
+    """The interface of a task adapter (module doc)."""
+
+    task = ""
+
+    def default_every(self, params: dict, vehicle) -> int:
+        """The planning period K (steps) when none is given."""
+        return WAYPOINT_EVERY
+
+    def every(self, params: dict, vehicle, every: int | None) -> int:
+        """The planning period to use: ``every`` (checked) or :meth:`default_every`."""
+        if every is None:
+            return self.default_every(params, vehicle)
+        if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
+            raise ConfigError(f"llm planner: every must be an integer >= 1 (steps), got "
+                              f"{every!r}")
+        return int(every)
+
+    def decide(self, ep, e: int) -> Decision | None:
+        raise NotImplementedError
+
+    def apply(self, ep, e: int, d: Decision, assignment: Sequence[int]) -> None:
+        raise NotImplementedError
+
+
+# ------------------------------------------------------------------------------ SPC
+
+@njit(cache=True)
+def _spc_plan(grid, P, W, M, state, e, k, t, bm, bx, bz):
+    """The fused heuristic's plan hook for episode ``e`` at step ``k`` (writes ``W``); at a
+    map step also the mapped mass (kg, the greedy's threshold base), else -1. ``bm``/``bx``/
+    ``bz`` are scratch of the block map (``W``'s own map is left as the hook wrote it)."""
+    SPC_POLICY.plan(grid, P, W, M, state, e, k, t)
+    if k >= M.map_from and k % M.map_every == 0:
+        return SPC_POLICY._aerial_map(W.C[e], W.origin[e, 0], W.origin[e, 1], P.h, M.block,
+                                      bm, bx, bz)
+    return -1.0
+
+
+def spc_candidates(bm: np.ndarray, total: float, n_agents: int) -> np.ndarray:
+    """Block indices offered as targets: mass > ``MIN_BLOCK_FRAC * total``, heaviest first
+    (ties by block index), the first ``n_agents + EXTRA_CANDIDATES``."""
+    valid = np.flatnonzero(bm > SPC_POLICY.MIN_BLOCK_FRAC * total)
+    order = valid[np.lexsort((valid, -bm[valid]))]
+    return order[:n_agents + EXTRA_CANDIDATES]
+
+
+def spc_summary(t_rel: float, k: int, report, pos, cents, masses) -> str:
+    """The SPC state as the heuristic knows it: time, the spill report, the aerial map's
+    candidate blocks, the agents' positions."""
+    lines = [f"Task: surface oil-spill cleanup with {len(pos)} surface vehicles. Time "
+             f"{t_rel:.0f} s since the start (step {k}). The slick drifts with the current; "
+             "each vehicle removes oil around itself.",
+             f"Spill reported at start at (x, z) = {_xz(*report)} m (x east, z north).",
+             f"Aerial map now: {len(cents)} candidate target blocks "
+             "(index: mass centroid (x, z) m, oil mass kg), heaviest first:"]
+    lines += [f"  {j}: {_xz(c[0], c[1])} {m:.1f} kg" for j, (c, m) in enumerate(zip(cents, masses))]
+    lines.append("Agents (index: position (x, z) m):")
+    lines += [f"  {i}: {_xz(p[0], p[1])}" for i, p in enumerate(pos)]
+    lines.append("Target = the candidate block an agent heads for (several agents may share "
+                 "one).")
+    return "\n".join(lines)
+
+
+class SPCAdapter(Adapter):
+    """Source assignment at the aerial map steps (module doc)."""
+
+    task = "SPC"
+
+    def default_every(self, params: dict, vehicle) -> int:
+        return int(SPC_POLICY.params("heuristic", params, vehicle).map_every)
+
+    def every(self, params: dict, vehicle, every: int | None) -> int:
+        k = super().every(params, vehicle, every)
+        period = self.default_every(params, vehicle)
+        if k % period:
+            raise ConfigError(f"llm planner: SPC plans at the aerial map steps, so every must "
+                              f"be a multiple of the map period ({period} steps), got {k}")
+        return k
+
+    def decide(self, ep, e: int) -> Decision | None:
+        k, t = _now(ep, e)
+        W, M = ep.W, ep.M
+        nb = W.bm.shape[1]
+        bm, bx, bz = np.zeros(nb), np.zeros(nb), np.zeros(nb)
+        total = _spc_plan(ep.grid, ep.P, W, M, ep.state, e, k, t, bm, bx, bz)
+        if total < 0.0:   # step 0 (the ring) or no map now: nothing to choose
+            return None
+        n_ag = ep.n_agents
+        if not (W.done[e] == 1).all():   # the greedy left an agent without a target
+            return None
+        cand = spc_candidates(W.bm[e], total, n_ag)
+        cents = np.column_stack([W.bx[e, cand], W.bz[e, cand]])
+        fallback = []
+        for i in range(n_ag):
+            hit = np.flatnonzero((cents[:, 0] == W.tgt[e, i, 0]) & (cents[:, 1] == W.tgt[e, i, 1]))
+            if hit.size == 0:
+                return None   # cannot happen (module doc); keep the heuristic's plan
+            fallback.append(int(hit[0]))
+        summary = spc_summary(t - float(ep.t0[e]), k, W.report[e], ep.state[e][:, [0, 2]],
+                              cents, W.bm[e, cand])
+        return Decision(summary, n_ag, len(cand), tuple(fallback), cents)
+
+    def apply(self, ep, e: int, d: Decision, assignment: Sequence[int]) -> None:
+        a = _check_assignment(assignment, d)
+        _, t = _now(ep, e)
+        ep.W.tgt[e] = d.options[a]
+        ep.W.tmap[e] = t
+
+
+# ------------------------------------------------------------------------------ AS, PI
+
+class WaypointAdapter(Adapter):
+    """Waypoint skipping along each agent's list (module doc); subclasses say what the team
+    knows of its progress and which agents have no choice."""
+
+    label = ""
+
+    def choices(self, W, e: int) -> np.ndarray:
+        """(N,) waypoints each agent may head for next: its remaining ones, at most
+        ``HORIZON`` (0: list finished; 1: no choice)."""
+        return np.clip(W.wcount[e] - W.widx[e], 0, HORIZON)
+
+    def progress(self, ep, e: int) -> list[str]:
+        """Task-level lines of the summary (what the team knows of its progress)."""
+        return []
+
+    def decide(self, ep, e: int) -> Decision | None:
+        W = ep.W
+        left = self.choices(W, e)
+        n_t = int(left.min())
+        if n_t < 2:   # some agent has no choice: the only valid assignment is the fallback
+            return None
+        k, t = _now(ep, e)
+        lines = [f"Task: {self.label} with {ep.n_agents} vehicle(s), each following its "
+                 f"planned waypoint list. Time {t - float(ep.t0[e]):.0f} s since the start "
+                 f"(step {k}).", *self.progress(ep, e),
+                 "Agents (position (x, z) m, x east, z north, and depth m; waypoints reached "
+                 "of the list; next waypoints as offset: (x, z) m):"]
+        for i in range(ep.n_agents):
+            s = ep.state[e, i]
+            w, nw = int(W.widx[e, i]), int(W.wcount[e, i])
+            nxt = ", ".join(f"{j}: {_xz(*W.wps[e, i, w + j])}" for j in range(int(left[i])))
+            lines.append(f"  {i}: at {_xz(s[0], s[2])} depth {s[1]:.0f}; reached {w} of {nw}; "
+                         f"next {nxt}")
+        lines.append("Target = the offset of the waypoint an agent heads for next: 0 keeps "
+                     "the planned order, j skips the j waypoints before it.")
+        return Decision("\n".join(lines), ep.n_agents, n_t, (0,) * ep.n_agents,
+                        np.zeros((0, 2)))
+
+    def apply(self, ep, e: int, d: Decision, assignment: Sequence[int]) -> None:
+        a = _check_assignment(assignment, d)
+        for i, j in enumerate(a):
+            if j > 0:
+                ep.W.widx[e, i] += j
+
+
+class ASAdapter(WaypointAdapter):
+    """AS: skip along the lawnmower (run-in waypoint, then the strips' ends)."""
+
+    task = "AS"
+    label = "area scan (lawnmower survey imaging the seafloor of a region)"
+
+    def progress(self, ep, e: int) -> list[str]:
+        W = ep.W
+        x0, z0, x1, z1 = W.region[e]
+        n_cells = int(W.ncell[e, 0] * W.ncell[e, 1])
+        return [f"Survey region: x {x0:.0f}..{x1:.0f} m, z {z0:.0f}..{z1:.0f} m. Seafloor "
+                f"imaged so far: {100.0 * W.cnt[e, 0] / n_cells:.1f}% of the region (success "
+                f"at {100.0 * ep.P.thr:.0f}%)."]
+
+
+class PIAdapter(WaypointAdapter):
+    """PI: skip along one's pipeline section; no choice in transit to the section start
+    (``widx == 0``) nor once the section is finished (``W.done``)."""
+
+    task = "PI"
+    label = ("pipeline inspection for leaks (each vehicle surveys its section of the "
+             "pipeline)")
+
+    def choices(self, W, e: int) -> np.ndarray:
+        left = super().choices(W, e)
+        left = np.where(W.widx[e] == 0, np.minimum(left, 1), left)
+        return np.where(W.done[e] == 1, 0, left)
+
+    def progress(self, ep, e: int) -> list[str]:
+        W = ep.W
+        n = int(W.nclaim[e])
+        claims = "; ".join(_xz(W.claims[e, j, 0], W.claims[e, j, 1]) for j in range(n))
+        return [f"Leak claims filed so far: {n}" + (f", at {claims} m." if n else ".")]
+
+
+#: The adapter of each task the LLM planner drives.
+ADAPTERS: dict[str, Adapter] = {
+    "SPC": SPCAdapter(),
+    "AS": ASAdapter(),
+    "PI": PIAdapter(),
+}
+
+
+def adapter_for(task: str) -> Adapter:
+    """The adapter of ``task``; a one-line :class:`ConfigError` for a task without one."""
+    try:
+        return ADAPTERS[task]
+    except KeyError:
+        raise ConfigError(f"llm planner: no adapter for task {task!r}; tasks: "
+                          f"{', '.join(sorted(ADAPTERS))}") from None
+
+
+# numba keys a cache entry on this file only; drop it when the heuristic's plan hook (or the
+# task's work arrays, the engine, the loop) changes.
+fresh_cache(_spc_plan, __file__, SPC_POLICY.__file__, SPC_TASK.__file__)
