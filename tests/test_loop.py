@@ -81,6 +81,9 @@ def test_results_need_every_episode_to_end(coast):
 def test_unknown_method_is_a_config_error(coast):
     cell = Cell(coast, "G2G", 1)
     with pytest.raises(ConfigError, match="no fused policy"):
+        rollout(cell.mod, cell.grid, cell.params, cell.reset(2, 0), "llm_x", "6dof",
+                cell.vehicle, 0)
+    with pytest.raises(ConfigError, match="trained weights"):   # bc without its network
         rollout(cell.mod, cell.grid, cell.params, cell.reset(2, 0), "bc", "6dof",
                 cell.vehicle, 0)
 

@@ -117,7 +117,7 @@ def test_vocab_views_follow_the_registry(clean_registry, tmp_path):
     from oneocean.vocab import METHODS, TASK_IDS
 
     assert tuple(TASK_IDS) == PAPER and TASK_IDS == PAPER and list(METHODS) == [
-        "heuristic", "oracle"]
+        "heuristic", "oracle", "bc"]
     registry.register_task(toy_yaml(tmp_path / "toy.yaml"))
     registry.register_method(registry.MethodSpec("mine", "Mine", "callable", "obs", "test"))
     assert TASK_IDS[-1] == "TOY" and len(TASK_IDS) == 11 and "TOY" in vocab.TASK_IDS
@@ -125,7 +125,7 @@ def test_vocab_views_follow_the_registry(clean_registry, tmp_path):
 
 
 @pytest.mark.parametrize("func, bad, what", [(registry.task_spec, "G2X", "task"),
-                                             (registry.method_spec, "bc", "method"),
+                                             (registry.method_spec, "mpc", "method"),
                                              (registry.family_label, "swarm", "family")])
 def test_unknown_name_is_a_one_line_error_listing_valid_ones(func, bad, what):
     msg = one_line_error(func, bad)
@@ -211,7 +211,7 @@ def test_registered_method_is_accepted(clean_registry):
     registry.register_method(spec)
     assert registry.method_spec("mpc") is spec and registry.method_names()[-1] == "mpc"
     enum = load_schema()["properties"]["rollouts"]["properties"]["methods"]["items"]["enum"]
-    assert enum == ["heuristic", "oracle", "mpc"]
+    assert enum == ["heuristic", "oracle", "bc", "mpc"]
     cfg = load_config(DEFAULT, overrides={"rollouts": {"methods": ["heuristic", "mpc"]}})
     assert cfg["rollouts"]["methods"] == ["heuristic", "mpc"]
     clash = registry.MethodSpec("mpc", "MPC2", "planner", "true current field", "other")

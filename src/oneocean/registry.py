@@ -38,10 +38,11 @@ BUILTIN_FAMILIES = {
     "coordination": "Coordination / Pollution",
 }
 
-#: Method kinds: ``fused`` = jitted per-agent policy inside the episode loop, ``planner`` = a
-#: Python planner called between K-step segments, ``callable`` = Python obs -> action through
-#: the step API.
-METHOD_KINDS = ("fused", "planner", "callable")
+#: Method kinds: ``fused`` = jitted per-agent policy inside the episode loop, ``learned`` = a
+#: trained network evaluated inside the loop (weights as arrays), ``planner`` = a Python
+#: planner called between K-step segments, ``callable`` = Python obs -> action through the
+#: step API.
+METHOD_KINDS = ("fused", "learned", "planner", "callable")
 
 #: ``better:`` values of a metric in a task spec.
 DIRECTIONS = {"higher": True, "lower": False}
@@ -146,11 +147,16 @@ class MethodSpec:
 BUILTIN_METHODS = (
     MethodSpec("heuristic", "Heuristic", "fused", "noisy local current probe",
                "The paper's baseline: per-task logic plus a velocity controller toward the "
-               "current target at a cruise speed below v_max, with feed-forward of the locally "
+               "current target within the vehicle's v_max, with feed-forward of the locally "
                "probed current (probe noise from the tier table).", short="Heur"),
     MethodSpec("oracle", "Oracle", "fused", "true current field",
                "A privileged solvability check: exact current knowledge (no probe noise), full "
                "v_max and the same (or a better) task logic. Not a baseline."),
+    MethodSpec("bc", "Behaviour cloning", "learned", "noisy local current probe",
+               "An MLP trained by MSE on the heuristic teacher's actions (training seeds "
+               "disjoint from the evaluation seed), mapping each agent's observation features "
+               "to its through-water velocity; the heuristic's mission layer (plan, target "
+               "point) is kept, the network replaces its velocity law.", short="BC"),
 )
 
 _tasks: dict[str, TaskSpec] | None = None     # id -> spec, canonical order (lazy)

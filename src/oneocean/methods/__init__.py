@@ -1,6 +1,6 @@
 """Methods: what the agents do. A method is a policy; a task (``oneocean.tasks``) is the world.
 
-Three kinds (``oneocean.registry.MethodSpec.kind``):
+Four kinds (``oneocean.registry.MethodSpec.kind``):
 
 * ``fused``: jitted per-agent policies run inside the episode loop at full speed. The
   built-in ``heuristic`` and ``oracle`` of every task live in :mod:`oneocean.methods.heuristic`
@@ -8,9 +8,12 @@ Three kinds (``oneocean.registry.MethodSpec.kind``):
   ``params(method, tier, vehicle)``); they differ in the information they use (the heuristic
   senses the current through a noisy local probe, the oracle knows the true field) and, where
   a task has it, in planning.
+* ``learned``: a trained network evaluated inside the loop with its weights as arrays:
+  ``bc`` (:mod:`oneocean.methods.bc`), behaviour cloning of the heuristic's velocity law.
 * ``planner``: Python called between K-step segments of the loop, writing plan tokens a
-  low-level fused policy follows.
-* ``callable``: any Python function ``obs -> action`` (:mod:`oneocean.methods.external`),
+  low-level fused policy follows: the LLM planners ``llm_<name>``
+  (:mod:`oneocean.methods.llm`, one per configured model).
+* ``callable``: any Python function ``obs -> action`` (:mod:`oneocean.evaluate`),
   stepped through the loop's external-action path; this is how a user scores their own policy
   (:func:`oneocean.evaluate.evaluate`, ``oneocean evaluate``).
 """

@@ -131,16 +131,16 @@ class Cell:
 
 
     def run(self, method: str, episodes: int, seed: int, dynamics: str,
-            observations: bool = False):
-        """Sample ``episodes`` episodes of ``seed`` and run them with a fused ``method``;
-        the cell table (see :func:`run_cell`)."""
+            observations: bool = False, net: dict | None = None):
+        """Sample ``episodes`` episodes of ``seed`` and run them with a fused ``method`` (or
+        ``bc`` with its network ``net``); the cell table (see :func:`run_cell`)."""
         from ..registry import method_spec
         from .episodes import rollout
 
         method_spec(method)   # an unknown method is a one-line ConfigError
         init = self.reset(episodes, seed)
         res = rollout(self.mod, self.grid, self.params, init, method, dynamics, self.vehicle,
-                      int(seed), record=observations)
+                      int(seed), record=observations, net=net)
         df = cell_frame(self.mod, res, self.tier, method, self.n_agents, dynamics,
                         self.currents, episodes, seed)
         df.insert(df.columns.get_loc("seed") + 1, "candidate", init["candidate"])
@@ -157,7 +157,7 @@ REGIME_DRAWS = 3
 def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: int = 50,
              seed: int = 0, dynamics: str = "6dof", currents: bool = True,
              n_agents: int | None = None, vehicle=None, observations: bool = False,
-             current_gain: float = 1.0, tide=None):
+             current_gain: float = 1.0, tide=None, net: dict | None = None):
     """Run ``episodes`` episodes of one (task, tier, method) cell on the one episode loop,
     batched in one kernel call (a fused method: the task's heuristic or oracle).
 
@@ -171,6 +171,8 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
         Also return every agent's per-step observation and action (for learning methods).
     current_gain, tide
         The run's forcing (:class:`Cell`): g on the data u, v and the synthetic tide term.
+    net : dict
+        Method ``bc`` only: the trained network (:func:`oneocean.methods.bc.load_weights`).
 
     Returns
     -------
@@ -182,7 +184,7 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     """
     return Cell(grid, task, tier, n_agents=n_agents, currents=currents, vehicle=vehicle,
                 current_gain=current_gain, tide=tide).run(method, episodes, seed, dynamics,
-                                                          observations)
+                                                          observations, net)
 
 
 def cell_frame(mod, res: dict, tier: int, method: str, n_agents: int, dynamics: str,
@@ -222,13 +224,14 @@ def na_frame(mod, tier: int, method: str, n_agents: int, dynamics: str,
 
 def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, episodes: int,
                     seed: int, dynamics: str, threads: int = 1, currents: bool = True,
-                    current_gain: float = 1.0, tide=None) -> dict:
+                    current_gain: float = 1.0, tide=None, weights=None) -> dict:
     """Run one cell on a grid export file and write its per-episode Parquet table atomically.
 
     The file records its configuration (``oneocean.engine.recording.read_metrics_meta``):
     tier parameters, vehicle, dynamics, seed, forcing, and ``applicable``. A cell the region
     cannot host (:class:`~oneocean.errors.NotApplicable`) is written with zero episodes,
     ``applicable: false`` and the one-line ``reason``; it is never a crash.
+    ``weights``: method ``bc``'s weights file (:mod:`oneocean.methods.bc`), recorded by hash.
     Returns the manifest entry of :func:`oneocean.engine.write_metrics`.
     """
     import numba
@@ -243,8 +246,15 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
             "n_agents": cell.n_agents, "episodes": int(episodes), "seed": int(seed),
             "current_gain": cell.current_gain, "tide": tide, "currents": bool(currents),
             "tier_params": cell.tier_params, "applicable": True, "reason": ""}
+    net = None
+    if weights is not None:
+        from ..io import sha256_file
+        from ..methods.bc import load_weights
+
+        net = load_weights(weights)
+        meta["weights_sha256"] = sha256_file(weights)
     try:
-        df = cell.run(method, episodes, seed, dynamics)
+        df = cell.run(method, episodes, seed, dynamics, net=net)
     except NotApplicable as exc:
         df = na_frame(cell.mod, tier, method, cell.n_agents, dynamics, currents, seed)
         meta.update(applicable=False, reason=str(exc))

@@ -20,7 +20,7 @@ from ..engine.dynamics import CMD_DIM, model_id, new_state
 from ..errors import ConfigError
 from .common import (ACT_FIELDS, CLEARANCE_M, OBS_DIM, STANDARD, episode_steps, need_tier,
                      rollout_results)
-from .loop import EXTERNAL, FUSED, FINISHED, LoopParams, new_loop_state
+from .loop import EXTERNAL, FUSED, FINISHED, LEARNED, LoopParams, new_loop_state
 
 
 def over_episodes(kernel, n_episodes: int, *args) -> None:
@@ -62,7 +62,8 @@ class Episodes:
     init : dict
         The task's ``reset`` output (``pos0`` (E, N, 3), ``psi0`` (E, N), ``t0`` (E,), ...).
     method : str
-        A fused method the task's policy module knows (``heuristic``, ``oracle``), or
+        A fused method the task's policy module knows (``heuristic``, ``oracle``), ``bc``
+        (the heuristic's mission layer with the action from ``net``; noisy probe), or
         ``None`` for external actions (the step API; sensing is then the noisy probe).
     dyn : str
         Dynamics model name.
@@ -75,12 +76,22 @@ class Episodes:
         Call the fused policy's ``plan`` hook every step (default). ``False``: the plan
         tokens in ``W`` are written by a Python planner between segments
         (:meth:`run_planned`), and the fused ``act`` follows them.
+    net : dict
+        ``bc`` only: the network's arrays (:func:`oneocean.methods.bc.load_weights`).
     """
 
     def __init__(self, mod, grid, tier: dict, init: dict, method: str | None, dyn: str,
-                 vehicle, seed: int, *, record: bool = False, fused_plan: bool = True):
+                 vehicle, seed: int, *, record: bool = False, fused_plan: bool = True,
+                 net: dict | None = None):
+        from ..methods.bc.kernel import make_net, no_net
+
         need_tier(mod.TASK_ID, tier, "time_limit_s", "dt_s")
         pol = mod.POLICY
+        learned = method == "bc"
+        if learned:
+            if net is None:
+                raise ConfigError(f"task {mod.TASK_ID}: method 'bc' needs its trained weights")
+            method = "heuristic"   # the mission layer it keeps (and its noisy probe)
         if method is not None and method not in pol.SENSING:
             raise ConfigError(f"task {mod.TASK_ID}: method {method!r} has no fused policy "
                               f"here; fused methods: {', '.join(sorted(pol.SENSING))}")
@@ -96,12 +107,14 @@ class Episodes:
         self.P, self.W = mod.make(grid, tier, init)
         self.M = pol.params(method or "heuristic", tier, vehicle)
         noisy = pol.SENSING[method] if method is not None else 1
-        self.LP = LoopParams(model_id(dyn), FUSED if method is not None else EXTERNAL,
+        kind = LEARNED if learned else FUSED if method is not None else EXTERNAL
+        self.LP = LoopParams(model_id(dyn), kind,
                              int(bool(fused_plan)), int(noisy), self.n_steps, int(seed), dt,
                              float(vehicle.v_max), float(tier.get("probe_noise_ms", 0.0)),
                              DEFAULT_LAND_THRESHOLD,
                              float(getattr(mod, "CLEARANCE_M", CLEARANCE_M)),
-                             float(getattr(mod, "R_COLL_M", DEFAULT_R_COLL_M)))
+                             float(getattr(mod, "R_COLL_M", DEFAULT_R_COLL_M)),
+                             make_net(net, mod.TASK_ID, n_ep, n_ag) if learned else no_net())
         self.LS = new_loop_state(n_ep, n_ag)
         self.t0 = np.ascontiguousarray(init["t0"], dtype=np.float64)
         #: which of the task's candidate episodes these are (:meth:`oneocean.tasks.Cell.reset`)
@@ -185,8 +198,9 @@ class Episodes:
 
 
 def rollout(mod, grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int, *,
-            record: bool = False) -> dict:
+            record: bool = False, net: dict | None = None) -> dict:
     """Run every episode of ``init`` (the task's ``reset`` output) to its end with one fused
-    method; returns the per-episode columns (``STANDARD`` + the task's ``METRICS``, plus
-    ``obs``/``act`` when ``record``)."""
-    return Episodes(mod, grid, tier, init, method, dyn, vehicle, seed, record=record).run().results()
+    method (or ``bc`` with its ``net``); returns the per-episode columns (``STANDARD`` + the
+    task's ``METRICS``, plus ``obs``/``act`` when ``record``)."""
+    return Episodes(mod, grid, tier, init, method, dyn, vehicle, seed, record=record,
+                    net=net).run().results()

@@ -84,11 +84,14 @@ import numpy as np
 from ..engine.constraints import min_pairwise_distance
 from ..engine._jit import hot_kernel
 from ..engine.step import advance_agent
+from ..methods.bc.kernel import BCNet, bc_act
 from .common import OK, current_at, observe, probe
 
-#: Policy kinds inside the loop: the task's fused policy (heuristic, oracle, ...) or an
-#: external action per agent and step (``ext``; the step API and Python callables).
-FUSED, EXTERNAL = 0, 1
+#: Policy kinds inside the loop: the task's fused policy (heuristic, oracle, ...), an
+#: external action per agent and step (``ext``; the step API and Python callables), or a
+#: learned controller (``bc``: the fused policy's mission layer -- its plan and target point --
+#: with the action replaced by the network's, :mod:`oneocean.methods.bc`).
+FUSED, EXTERNAL, LEARNED = 0, 1, 2
 
 #: Columns every task writes first in its result row (then its metrics).
 N_STANDARD = 5
@@ -96,9 +99,9 @@ C_SUCCESS, C_T, C_E, C_COLL, C_VIOL = range(N_STANDARD)
 
 
 class LoopParams(NamedTuple):
-    """Scalars of the loop (one rollout, all episodes)."""
+    """Parameters of the loop (one rollout, all episodes)."""
     model: int          # dynamics model id (engine.dynamics.model_id)
-    policy: int         # FUSED or EXTERNAL
+    policy: int         # FUSED, EXTERNAL or LEARNED
     plan: int           # 1: call the fused policy's plan hook every step; 0: the plan tokens
                         # in W come from a Python planner between segments
     noisy: int          # 1: the method senses the current through the noisy probe
@@ -110,6 +113,7 @@ class LoopParams(NamedTuple):
     land_thr: float     # land-mask threshold of the feasibility check
     clearance: float    # seafloor clearance of the feasibility check, m
     r_coll: float       # near-collision radius, m
+    net: BCNet          # the learned controller (LEARNED; methods.bc.kernel.no_net otherwise)
 
 
 class LoopState(NamedTuple):
@@ -185,7 +189,7 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
     while k < n_steps and k < k_stop and not stop:
         t = t0[e] + k * dt
         pre_step(grid, P, W, state, e, k, t)
-        if LP.policy == FUSED and LP.plan != 0:
+        if LP.policy != EXTERNAL and LP.plan != 0:
             plan(grid, P, W, M, state, e, k, t)
         for i in range(n_ag):
             s = S[i]
@@ -197,8 +201,16 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
             LS.prev[e, i, 2] = pz
             ce, cn = current_at(grid, px, py, pz, t)
             pe, pn = sense(LP.noisy, ce, cn, LP.noise, LP.seed, e, 2 * (k * n_ag + i))
-            if LP.policy == FUSED:
+            if LP.policy != EXTERNAL:
                 ax, ay, az, psi = act(grid, P, W, M, state, e, k, i, t, pe, pn)
+                if LP.policy == LEARNED:
+                    # the fused policy ran for its mission layer (plan, target point, claims);
+                    # the network maps the observation to the action
+                    gx, gy, gz, pr = cue(grid, P, W, state, e, k, i)
+                    observe(LP.net.obs, LP.net.act, e, 0, i, grid, state, gx, gy, gz, pe, pn,
+                            pr, math.nan, math.nan, math.nan)
+                    ax, ay, az = bc_act(LP.net, e, i, LP.v_max)
+                    psi = math.nan
             else:
                 ax = ext[e, i, 0]
                 ay = ext[e, i, 1]

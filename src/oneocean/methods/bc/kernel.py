@@ -1,0 +1,187 @@
+"""Behaviour cloning inside the fused loop: the feature map and the MLP's forward pass.
+
+Both are plain ``hot_kernel`` functions on arrays, used twice: by the episode loop
+(:func:`oneocean.tasks.loop.run_episode`, method kind ``LEARNED``) for every agent and step,
+and by :mod:`.dataset` / :mod:`.train` (through :func:`features_rows`) on the observations the
+teacher's rollouts recorded -- one implementation, so the features a network is trained on are
+the features it acts on.
+
+Features (:data:`FEATURES`, from one observation row, :data:`oneocean.tasks.common.OBS_FIELDS`,
+plus the task one-hot). The paper's set -- normalised goal delta, depth, pollution probe, local
+current, task one-hot -- plus what a fair team policy needs: the altitude above the seafloor
+(every task constrains it) and the nearest teammates' offsets (collision avoidance and
+formation keeping are part of FT, SPC, UPL, FH). Every input is something the heuristic also
+sees: the current is the same noisy probe, the goal cue is the task's target point.
+
+* ``goal_u{x,y,z}``: the goal offset ``g / (|g| + 1 m)`` (a unit vector far away, the offset
+  itself in metres close in) and ``goal_log_dist = log(1 + |g|)``;
+* ``current_{e,n}_ms``: the sensed current;
+* ``depth_m``, ``altitude_m`` (NaN -> 0);
+* ``pollution_log = log(1 + max(p, 0))`` and ``has_pollution`` (0 where the task has no field);
+* per teammate ``m`` (nearest first): ``mate{m}_u{x,z}`` (offset / (d + 1 m)) and
+  ``mate{m}_close = 1 / (1 + d)``; all 0 when there is no such teammate;
+* ``task_<ID>``: one-hot over the tasks the network was trained on.
+
+The network's target is the teacher's through-water velocity request divided by the
+vehicle's ``v_max`` (a REMUS 100 and a BlueROV2 share one network); the loop multiplies the
+output back by ``v_max``. Features are standardised with the training set's mean and
+standard deviation (:class:`BCNet` ``mu``, ``sd``), then ``relu`` hidden layers and an
+identity output, exactly scikit-learn's ``MLPRegressor`` (``activation="relu"``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ...engine._jit import hot_kernel
+from ...tasks.common import N_MATES, OBS_DIM
+
+#: Feature names before the task one-hot (see the module docstring).
+BASE_FEATURES = (("goal_ux", "goal_uy", "goal_uz", "goal_log_dist", "current_e_ms",
+                  "current_n_ms", "depth_m", "altitude_m", "pollution_log", "has_pollution")
+                 + tuple(f"mate{m + 1}_{c}" for m in range(N_MATES)
+                         for c in ("ux", "uz", "close")))
+N_BASE = len(BASE_FEATURES)
+
+
+def feature_names(tasks) -> tuple[str, ...]:
+    """Every feature, the task one-hot over ``tasks`` last."""
+    return BASE_FEATURES + tuple(f"task_{t}" for t in tasks)
+
+
+class BCNet(NamedTuple):
+    """An MLP as arrays for the loop (``L`` layers, widths ``dims``), plus its scratch.
+
+    ``w[l, :dims[l], :dims[l+1]]`` and ``b[l, :dims[l+1]]`` are layer ``l``'s weights and bias
+    (scikit-learn's ``coefs_[l]`` / ``intercepts_[l]``); ``task`` is this rollout's index in
+    the one-hot of ``n_tasks``; ``obs`` (E, 1, N, OBS_DIM), ``act`` and ``buf`` (E, 2, width) are
+    per-episode scratch (an episode is computed by one thread)."""
+    mu: np.ndarray      # (F,) feature means of the training set
+    sd: np.ndarray      # (F,) feature standard deviations (>= 1e-9)
+    w: np.ndarray       # (L, width, width) float64
+    b: np.ndarray       # (L, width) float64
+    dims: np.ndarray    # (L + 1,) int64 layer widths, dims[0] = F, dims[L] = 3
+    task: int           # index of this rollout's task in the one-hot
+    n_tasks: int        # size of the one-hot
+    obs: np.ndarray     # (E, 1, N, OBS_DIM) observation scratch
+    act: np.ndarray     # (E, 1, N, 3) scratch of observe's action slot (unused)
+    buf: np.ndarray     # (E, 2, width) activation scratch
+
+
+def no_net() -> BCNet:
+    """The placeholder the loop carries for every method that is not ``bc`` (same numba
+    type as a real network, so all methods share one compiled kernel)."""
+    return BCNet(np.zeros(1), np.ones(1), np.zeros((1, 1, 1)), np.zeros((1, 1)),
+                 np.zeros(2, np.int64), 0, 1, np.zeros((1, 1, 1, OBS_DIM)),
+                 np.zeros((1, 1, 1, 3)), np.zeros((1, 2, 1)))
+
+
+def make_net(weights: dict, task: str, n_episodes: int, n_agents: int) -> BCNet:
+    """The loop's :class:`BCNet` for ``task`` from a weights file's arrays (:mod:`.train`:
+    ``mu``, ``sd``, ``w``, ``b``, ``dims``, ``tasks``). A task the network was not trained on
+    is a one-line ``ConfigError``."""
+    from ...errors import ConfigError
+
+    tasks = [str(t) for t in weights["tasks"]]
+    if task not in tasks:
+        raise ConfigError(f"bc: the network was trained on tasks {tasks}, not on {task!r}")
+    width = int(weights["w"].shape[1])
+    return BCNet(np.ascontiguousarray(weights["mu"], dtype=np.float64),
+                 np.ascontiguousarray(weights["sd"], dtype=np.float64),
+                 np.ascontiguousarray(weights["w"], dtype=np.float64),
+                 np.ascontiguousarray(weights["b"], dtype=np.float64),
+                 np.ascontiguousarray(weights["dims"], dtype=np.int64),
+                 tasks.index(task), len(tasks),
+                 np.zeros((n_episodes, 1, n_agents, OBS_DIM)),
+                 np.zeros((n_episodes, 1, n_agents, 3)), np.zeros((n_episodes, 2, width)))
+
+
+@hot_kernel(inline="always")
+def _finite(v):
+    return v if math.isfinite(v) else 0.0
+
+
+@hot_kernel
+def featurize(o, task, n_tasks, out):
+    """The features (:func:`feature_names`) of one observation row ``o`` into ``out``."""
+    gx = _finite(o[0])
+    gy = _finite(o[1])
+    gz = _finite(o[2])
+    d = math.sqrt(gx * gx + gy * gy + gz * gz)
+    out[0] = gx / (d + 1.0)
+    out[1] = gy / (d + 1.0)
+    out[2] = gz / (d + 1.0)
+    out[3] = math.log1p(d)
+    out[4] = _finite(o[3])
+    out[5] = _finite(o[4])
+    out[6] = _finite(o[5])
+    out[7] = _finite(o[6])
+    p = o[7]
+    if math.isfinite(p):
+        out[8] = math.log1p(max(p, 0.0))
+        out[9] = 1.0
+    else:
+        out[8] = 0.0
+        out[9] = 0.0
+    for m in range(N_MATES):
+        dx = o[8 + 2 * m]
+        dz = o[9 + 2 * m]
+        j = 10 + 3 * m
+        if math.isfinite(dx) and math.isfinite(dz):
+            dm = math.sqrt(dx * dx + dz * dz)
+            out[j] = dx / (dm + 1.0)
+            out[j + 1] = dz / (dm + 1.0)
+            out[j + 2] = 1.0 / (1.0 + dm)
+        else:
+            out[j] = 0.0
+            out[j + 1] = 0.0
+            out[j + 2] = 0.0
+    for t in range(n_tasks):
+        out[N_BASE + t] = 1.0 if t == task else 0.0
+
+
+@hot_kernel
+def forward(net, x, h):
+    """The network's output (3,) for standardised features ``x`` (``h``: (2, width)
+    scratch; ``x`` may be ``h[0]``): ``relu`` hidden layers, identity output."""
+    n_layers = net.dims.shape[0] - 1
+    cur = 0
+    src = x
+    for layer in range(n_layers):
+        n_in = net.dims[layer]
+        n_out = net.dims[layer + 1]
+        dst = h[1 - cur]
+        for j in range(n_out):
+            acc = net.b[layer, j]
+            for q in range(n_in):
+                acc += src[q] * net.w[layer, q, j]
+            if layer < n_layers - 1 and acc < 0.0:
+                acc = 0.0
+            dst[j] = acc
+        src = dst
+        cur = 1 - cur
+    return src[0], src[1], src[2]
+
+
+@hot_kernel
+def bc_act(net, e, i, v_max):
+    """Agent ``i``'s action from its observation in ``net.obs[e, 0, i]`` (written by
+    :func:`oneocean.tasks.common.observe`): features, standardisation, forward pass, times
+    ``v_max``. World-frame through-water velocity request, m s-1."""
+    h = net.buf[e]
+    x = h[0]
+    featurize(net.obs[e, 0, i], net.task, net.n_tasks, x)
+    for q in range(net.dims[0]):
+        x[q] = (x[q] - net.mu[q]) / net.sd[q]
+    ax, ay, az = forward(net, x, h)
+    return ax * v_max, ay * v_max, az * v_max
+
+
+@hot_kernel
+def features_rows(obs, task, n_tasks, out):
+    """:func:`featurize` for every row of ``obs`` (R, OBS_DIM) into ``out`` (R, F)."""
+    for r in range(obs.shape[0]):
+        featurize(obs[r], task, n_tasks, out[r])

@@ -1,0 +1,196 @@
+"""Fit the BC network: scikit-learn's ``MLPRegressor`` by MSE on the teacher's actions.
+
+Why scikit-learn and not PyTorch: the network is a few thousand weights and the training set
+a few hundred thousand rows; scikit-learn (a ~10 MB wheel on top of the SciPy the package
+already needs) fits it in seconds on one core, where a CPU PyTorch wheel is ~200 MB to
+install for no gain. Determinism: the weights are a function of the dataset and ``seed``
+only -- scikit-learn's initialisation and shuffling draw from one ``RandomState(seed)``, and
+the BLAS runs on one thread during the fit (``threadpoolctl``), so the weights file is
+byte-identical for a seed whatever the machine's thread count.
+
+Protocol: the validation set is whole episodes (the last ``val_fraction`` of each (task,
+tier, seed)'s episodes), never rows of a training episode. Training runs ``epochs`` passes
+(``partial_fit``), recording the training and validation MSE after each; the weights of the
+epoch with the lowest validation MSE are kept (early stopping without a patience knob).
+Targets are actions divided by the vehicle's ``v_max`` (:mod:`.kernel`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from ...errors import ConfigError
+from ...tasks.common import ACT_FIELDS, OBS_FIELDS
+from .kernel import N_BASE, feature_names, features_rows
+
+
+def task_order(tasks) -> list[str]:
+    """Dataset tasks in the registry's canonical order (the one-hot's order)."""
+    from ...registry import task_ids
+
+    known = list(task_ids())
+    present = set(map(str, tasks))
+    return [t for t in known if t in present] + sorted(present - set(known))
+
+
+def features(df: pd.DataFrame, tasks: list[str]) -> np.ndarray:
+    """(R, F) features of the dataset rows (:func:`.kernel.features_rows`, the loop's own)."""
+    obs = np.ascontiguousarray(df[list(OBS_FIELDS)].to_numpy(np.float64))
+    out = np.zeros((len(df), N_BASE + len(tasks)))
+    task_idx = df["task"].map({t: j for j, t in enumerate(tasks)}).to_numpy(np.int64)
+    for j in range(len(tasks)):
+        rows = np.flatnonzero(task_idx == j)
+        if rows.size:
+            block = np.zeros((rows.size, out.shape[1]))
+            features_rows(np.ascontiguousarray(obs[rows]), j, len(tasks), block)
+            out[rows] = block
+    return out
+
+
+def targets(df: pd.DataFrame) -> np.ndarray:
+    """(R, 3) teacher actions / v_max."""
+    return df[list(ACT_FIELDS)].to_numpy(np.float64) / df["v_max_ms"].to_numpy(np.float64)[:, None]
+
+
+def validation_mask(df: pd.DataFrame, val_fraction: float) -> np.ndarray:
+    """True for rows of validation episodes: per (task, tier, seed) the last
+    ``ceil(val_fraction * episodes)`` episodes (at least one training episode is kept)."""
+    val = np.zeros(len(df), dtype=bool)
+    for _, g in df.groupby(["task", "tier", "seed"], sort=True):
+        eps = np.unique(g["episode"].to_numpy())
+        n_val = min(int(np.ceil(float(val_fraction) * eps.size)), eps.size - 1)
+        if n_val > 0:
+            val[g.index[np.isin(g["episode"].to_numpy(), eps[-n_val:])]] = True
+    return val
+
+
+def train(df: pd.DataFrame, *, hidden=(64, 64), epochs: int = 40, batch_size: int = 256,
+          learning_rate: float = 1e-3, alpha: float = 1e-5, val_fraction: float = 0.2,
+          seed: int = 0):
+    """Fit the network on a dataset (:mod:`.dataset`).
+
+    Returns
+    -------
+    model : sklearn.neural_network.MLPRegressor
+        Holding the kept (best-validation) weights; ``model.predict`` on standardised
+        features is what the loop computes.
+    weights : dict of arrays
+        :func:`oneocean.methods.bc.load_weights`'s layout (``mu``, ``sd``, padded ``w``,
+        ``b``, ``dims``, ``tasks``, ``features``).
+    report : dict
+        JSON-able: settings, sizes, per-epoch ``train_mse`` / ``val_mse``, ``best_epoch``,
+        per-task validation MSE.
+    """
+    from sklearn.neural_network import MLPRegressor
+    from threadpoolctl import threadpool_limits
+
+    if len(df) == 0:
+        raise ConfigError("bc train: the dataset has no rows")
+    if not 0 < float(val_fraction) < 1:
+        raise ConfigError(f"bc.val_fraction must be in (0, 1), got {val_fraction}")
+    df = df.reset_index(drop=True)
+    tasks = task_order(df["task"].unique())
+    X = features(df, tasks)
+    Y = targets(df)
+    val = validation_mask(df, val_fraction)
+    if not val.any():
+        raise ConfigError("bc train: no validation episodes (every cell has one episode); "
+                          "raise bc.episodes")
+    mu = X[~val].mean(axis=0)
+    sd = X[~val].std(axis=0)
+    sd = np.where(sd > 1e-9, sd, 1.0)
+    Z = (X - mu) / sd
+    Ztr, Ytr, Zva, Yva = Z[~val], Y[~val], Z[val], Y[val]
+    model = MLPRegressor(hidden_layer_sizes=tuple(int(h) for h in hidden), activation="relu",
+                         solver="adam", alpha=float(alpha), batch_size=int(batch_size),
+                         learning_rate_init=float(learning_rate), shuffle=True,
+                         random_state=np.random.RandomState(int(seed)))
+    train_mse, val_mse = [], []
+    best = (np.inf, -1, None, None)
+    with threadpool_limits(limits=1):
+        for epoch in range(int(epochs)):
+            model.partial_fit(Ztr, Ytr)
+            train_mse.append(float(np.mean((model.predict(Ztr) - Ytr) ** 2)))
+            val_mse.append(float(np.mean((model.predict(Zva) - Yva) ** 2)))
+            if val_mse[-1] < best[0]:
+                best = (val_mse[-1], epoch, [c.copy() for c in model.coefs_],
+                        [b.copy() for b in model.intercepts_])
+        model.coefs_, model.intercepts_ = best[2], best[3]
+        pred_va = model.predict(Zva)
+    per_task = {t: float(np.mean((pred_va[df["task"].to_numpy()[val] == t]
+                                  - Yva[df["task"].to_numpy()[val] == t]) ** 2))
+                for t in tasks if (df["task"].to_numpy()[val] == t).any()}
+    weights = export_weights(model, mu, sd, tasks)
+    report = {"method": "bc", "library": "scikit-learn MLPRegressor",
+              "tasks": tasks, "features": list(feature_names(tasks)),
+              "hidden": [int(h) for h in hidden], "activation": "relu", "epochs": int(epochs),
+              "batch_size": int(batch_size), "learning_rate": float(learning_rate),
+              "alpha": float(alpha), "seed": int(seed), "val_fraction": float(val_fraction),
+              "n_train": int((~val).sum()), "n_val": int(val.sum()),
+              "target": "teacher action / v_max (world frame, through the water)",
+              "train_mse": train_mse, "val_mse": val_mse, "best_epoch": int(best[1]) + 1,
+              "best_val_mse": float(best[0]), "val_mse_by_task": per_task}
+    return model, weights, report
+
+
+def export_weights(model, mu: np.ndarray, sd: np.ndarray, tasks: list[str]) -> dict:
+    """The fitted ``MLPRegressor``'s layers as padded arrays (:class:`.kernel.BCNet`)."""
+    if model.activation != "relu" or model.out_activation_ != "identity":
+        raise ValueError("bc: only relu hidden layers with an identity output are supported")
+    dims = [model.coefs_[0].shape[0]] + [c.shape[1] for c in model.coefs_]
+    width = max(dims)
+    n_layers = len(model.coefs_)
+    w = np.zeros((n_layers, width, width))
+    b = np.zeros((n_layers, width))
+    for layer, (c, i) in enumerate(zip(model.coefs_, model.intercepts_)):
+        w[layer, :c.shape[0], :c.shape[1]] = c
+        b[layer, :i.shape[0]] = i
+    return {"mu": np.asarray(mu, np.float64), "sd": np.asarray(sd, np.float64), "w": w, "b": b,
+            "dims": np.asarray(dims, np.int64), "tasks": np.asarray(tasks, dtype="U16"),
+            "features": np.asarray(feature_names(tasks), dtype="U32")}
+
+
+def plot_loss(report: dict, out_png) -> None:
+    """The training report's loss curves (train and validation MSE per epoch, the kept
+    epoch marked), PNG and PDF beside it, byte-stable (no time or software metadata)."""
+    from pathlib import Path
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from ...io import atomic_path
+
+    ep = np.arange(1, len(report["train_mse"]) + 1)
+    fig = Figure(figsize=(4.5, 3.0), dpi=150)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ax.semilogy(ep, report["train_mse"], label="train")
+    ax.semilogy(ep, report["val_mse"], label="validation")
+    ax.axvline(report["best_epoch"], color="0.5", ls=":", lw=1,
+               label=f"kept (epoch {report['best_epoch']})")
+    ax.set_xlabel("epoch")
+    ax.set_ylabel("MSE of action / $v_{max}$")
+    ax.set_title(f"BC training ({report['n_train']} train / {report['n_val']} val rows)",
+                 fontsize=9)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    out_png = Path(out_png)
+    with atomic_path(out_png, suffix=".png") as tmp:
+        fig.savefig(tmp, format="png", metadata={"Software": None})
+    with atomic_path(out_png.with_suffix(".pdf"), suffix=".pdf") as tmp:
+        fig.savefig(tmp, format="pdf", metadata={"Creator": None, "Producer": None,
+                                                 "CreationDate": None})
+
+
+def train_to_files(dataset_path, weights_path, report_path, figure_path, **settings) -> dict:
+    """Read a dataset file, :func:`train`, write the weights (``.npz``, byte-stable), the
+    report (JSON) and the loss figure atomically; returns the report."""
+    from ...io import write_json_atomic, write_npz_atomic
+
+    df = pd.read_parquet(dataset_path)
+    _, weights, report = train(df, **settings)
+    write_npz_atomic(weights_path, weights)
+    write_json_atomic(report_path, report)
+    plot_loss(report, figure_path)
+    return report
