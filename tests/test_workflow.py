@@ -77,10 +77,42 @@ def test_rollout_cells_currents_off_and_the_ladder(two_runs):
     md = ladder.read_text()
     assert f"Region `{REGION}`, evaluation seed 1000" in md
     assert "heuristic T1" in md and "heuristic T3 (currents off)" in md and "| oracle T" not in md
+    assert "bc T1" in md
     for t in r["tasks"]:
         assert f"| {t} | {load_task_table(t)['vehicle']} |" in md, t
     assert "| Check | Measured | Target | Verdict |" in md
     assert (a / f"results/provenance/tables/{REGION}/ladder.json").is_file()
+
+
+def test_bc_chain_dataset_weights_rollouts_and_planning_tables(two_runs):
+    """dataset -> weights -> bc cells, each step's inputs hash-tracked in the manifest; the
+    network is trained on the rollout tasks plus the planning suite's; the planning tables
+    have the heuristic and BC rows and say why LLM rows are absent."""
+    a, _ = two_runs
+    r = SMALL_CONFIG["rollouts"]
+    base = f"results/bc/{REGION}/{r['variant']}"
+    manifest = json.loads((a / "results/manifest.json").read_text())["artifacts"]
+    w = manifest[f"{base}/weights.npz"]
+    assert w["rule"] == "bc_train"
+    assert [i["path"] for i in w["inputs"]] == [f"{base}/dataset.parquet"]
+    assert w["inputs"][0]["sha256"] == manifest[f"{base}/dataset.parquet"]["sha256"]
+    cell = manifest[f"results/rollouts/{REGION}/{r['variant']}/G2G/tier1/bc.parquet"]
+    assert f"{base}/weights.npz" in [i["path"] for i in cell["inputs"]]
+    data = pd.read_parquet(a / base / "dataset.parquet")
+    assert set(data["task"]) == {"G2G", "FT", "SPC"} and set(data["seed"]) == {100}
+    assert (data["step"] % SMALL_CONFIG["bc"]["stride"] == 0).all()
+    report = json.loads((a / base / "training_report.json").read_text())
+    assert report["tasks"] == ["G2G", "FT", "SPC"] and len(report["val_mse"]) == 3
+    assert (a / f"results/figures/{REGION}/{r['variant']}/bc_training.png").stat().st_size
+    tex = (a / f"results/tables/{REGION}/planning_performance.tex").read_text()
+    assert "Heur" in tex and "BC" in tex and "no LLM rows" in tex
+    perf = pd.read_parquet(a / f"results/tables/{REGION}/planning_performance.parquet")
+    spc = pd.read_parquet(a / f"results/planning/{REGION}/{r['variant']}/SPC/heuristic.parquet")
+    heur = perf.set_index("method").loc["heuristic"]
+    assert heur["SPC_sr"] == 100.0 * spc["success"].mean()
+    assert heur["SPC_metric"] == spc["cleanup_rate"].mean()
+    assert read_metrics_meta(a / f"results/planning/{REGION}/{r['variant']}/SPC/bc.parquet")[
+        "current_gain"] == 2.0
 
 
 def test_manifest_tracks_every_artifact_and_verifies(two_runs, monkeypatch):

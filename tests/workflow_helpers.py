@@ -25,7 +25,12 @@ SMALL_CONFIG = {
                    "max_depth_m": 40},
     },
     "rollouts": {"variant": "public", "tasks": ["G2G", "FT"], "tiers": [1, 3],
-                 "methods": ["heuristic"], "episodes": 4, "seed": 1000, "dynamics": "6dof"},
+                 "methods": ["heuristic", "bc"], "episodes": 4, "seed": 1000,
+                 "dynamics": "6dof"},
+    "bc": {"train_seeds": [100], "episodes": 3, "stride": 5, "max_rows": 300,
+           "hidden": [16, 16], "epochs": 3},
+    "planning": {"tasks": ["SPC"], "tier": 1, "episodes": 3, "cost_episodes": 2,
+                 "methods": ["heuristic", "bc"]},
 }
 
 

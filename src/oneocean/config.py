@@ -122,6 +122,40 @@ def _check_semantics(cfg: dict) -> None:
         raise ConfigError("config key 'files.tides' is required when sources.tides is true and "
                           "sources.currents is 'files' (or set sources.tides: false)")
     _check_held_out(cfg["rollouts"])
+    if int(cfg["rollouts"]["seed"]) in [int(x) for x in cfg["bc"]["train_seeds"]]:
+        raise ConfigError(f"config key 'bc.train_seeds': {cfg['bc']['train_seeds']} contains "
+                          f"the evaluation seed {cfg['rollouts']['seed']} (rollouts.seed); "
+                          "training seeds must be disjoint from it")
+    for m in cfg["llm"]["models"]:
+        if not (m.get("model_path") or (m.get("base_url") and m.get("model"))):
+            raise ConfigError(f"config key 'llm.models' entry {m['name']!r}: needs base_url "
+                              "and model (an endpoint) or model_path (a local GGUF file)")
+    names = [m["name"] for m in cfg["llm"]["models"]]
+    if len(set(names)) != len(names):
+        raise ConfigError(f"config key 'llm.models': duplicate name in {names}")
+    register_llm_methods(cfg)
+
+
+def llm_method(model: dict) -> str:
+    """The method name of an ``llm.models`` entry."""
+    return f"llm_{model['name']}"
+
+
+def register_llm_methods(cfg: dict) -> list[str]:
+    """Register one ``planner`` method per ``llm.models`` entry (``llm_<name>``), so paths,
+    wildcards and tables know them; returns their names."""
+    out = []
+    for m in (cfg.get("llm") or {}).get("models") or []:
+        name = llm_method(m)
+        if name not in registry.method_names():
+            registry.register_method(registry.MethodSpec(
+                name, m.get("label") or f"LLM-{m['name']}", "planner",
+                "the heuristic's information (plan inputs summarised as text)",
+                f"LLM planner {m.get('model') or m.get('model_path')}: every K steps an "
+                "assignment from the model, validated, else the heuristic's plan; the "
+                "heuristic's low-level control.", short=m.get("label") or f"LLM-{m['name']}"))
+        out.append(name)
+    return out
 
 
 def _check_held_out(rollouts: dict) -> None:

@@ -22,6 +22,15 @@ def _plain(obj):
     return str(obj)
 
 
+def optional_input(snakemake, name: str):
+    """The path of a named input an input function may leave empty (``[]``), else None."""
+    value = getattr(snakemake.input, name, None)
+    if value is None or isinstance(value, str):
+        return value or None
+    value = list(value)
+    return str(value[0]) if value else None
+
+
 def run(snakemake, func) -> None:
     """Run ``func(snakemake)`` with logging to the job log, then write the job's provenance.
 
@@ -40,10 +49,14 @@ def run(snakemake, func) -> None:
     from .errors import OneOceanError
 
     try:
+        from .config import register_llm_methods
         from .registry import load_plugins
 
-        # the workflow's plugins (tasks/methods they register) exist in every job's process too
-        load_plugins((getattr(snakemake, "config", None) or {}).get("plugins") or [])
+        # the workflow's plugins (tasks/methods they register) and its LLM planners exist in
+        # every job's process too
+        cfg = getattr(snakemake, "config", None) or {}
+        load_plugins(cfg.get("plugins") or [])
+        register_llm_methods(cfg)
         func(snakemake)
     except OneOceanError as err:
         log.error("%s", err)

@@ -2,9 +2,10 @@
 import hashlib
 import importlib.util
 import re
+import sys
 from pathlib import Path
 
-from oneocean.config import validate_config
+from oneocean.config import llm_method, validate_config
 from oneocean.errors import ConfigError
 from oneocean.registry import method_names, task_ids
 from oneocean.vocab import TIERS, VARIANTS
@@ -122,6 +123,17 @@ def provenance_targets():
         )
         for p in rollout_targets() + currents_off_targets()
     ]
+    if "bc" in config["rollouts"]["methods"] or "bc" in config["planning"]["methods"]:
+        v = config["rollouts"]["variant"]
+        stages += [f"results/provenance/bc/{REGION}/{v}/dataset.json",
+                   f"results/provenance/bc/{REGION}/{v}/weights.json"]
+    stages += [
+        p.replace("results/planning/", "results/provenance/planning/").replace(
+            ".parquet", ".json"
+        )
+        for p in planning_targets()
+    ]
+    stages.append(f"results/provenance/tables/{REGION}/planning.json")
     stages.append(f"results/provenance/tables/{REGION}/ladder.json")
     stages.append("results/provenance/tables/task_success_by_tier.json")
     return stages

@@ -17,9 +17,15 @@ def _rollout_params(currents):
     return fn
 
 
+def bc_weights(wc):
+    """Method bc's trained weights (the bc_train rule's output); no input for other methods."""
+    return f"results/bc/{wc.region}/{wc.variant}/weights.npz" if wc.method == "bc" else []
+
+
 rule rollout_cell:
     input:
         grid=rules.export_grid.output.npz,
+        weights=bc_weights,
     output:
         parquet="results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}.parquet",
         prov="results/provenance/rollouts/{region}/{variant}/{task}/tier{tier}/{method}.json",

@@ -26,6 +26,8 @@ rule paper_tables:
         "results/tables/dataset_variants.tex",
         "results/tables/task_success_by_tier.tex",
         f"results/tables/{REGION}/ladder.md",
+        f"results/tables/{REGION}/planning_performance.tex",
+        f"results/tables/{REGION}/planning_cost.tex",
         figure_targets(),
         export_targets(),
         "results/manifest.json",

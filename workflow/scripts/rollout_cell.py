@@ -8,6 +8,6 @@ smk.run(
         s.wildcards.method, s.params.run["episodes"], s.params.run["seed"],
         s.params.run["dynamics"], threads=s.threads,
         current_gain=s.params.run["current_gain"], tide=s.params.run["tide"],
-        currents=s.params.run["currents"],
+        currents=s.params.run["currents"], weights=smk.optional_input(s, "weights"),
     ),
 )

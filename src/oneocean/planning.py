@@ -1,0 +1,254 @@
+"""The planning suite's tables (paper Tables IV and VI) from its cell files.
+
+The suite: the planning-sensitive tasks (SPC, AS, PI) at one tier with scaled currents
+(config ``planning``), methods heuristic, BC and every configured LLM planner
+(``llm_<name>``), one Parquet cell per (task, method). Rows appear only for methods whose
+cells exist: an LLM row is never invented.
+
+* :func:`performance_frame` (Table IV): per method the suite's average SR (macro over the
+  tasks, stratified-bootstrap 95 % interval), per task SR (Wilson interval) and its key
+  metric, and T and E (means over every episode, seeded-bootstrap intervals).
+* :func:`cost_frame` (Table VI): over the first ``cost_episodes`` episodes of every cell:
+  average SR, LLM calls per episode, latency per episode, ms per call, prompt / output /
+  total tokens per episode, and the share of calls that fell back to the heuristic's plan.
+  Latencies are the fetch-time latencies of each call (a rerun served from the response
+  cache reports the same numbers); methods without planner calls have zeros.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from .io import write_text_atomic
+from .ladder import BOOT_SEED, N_BOOT, wilson
+
+#: Each suite task's key metric (column, table label) and short label.
+SUITE_TASKS = {"SPC": ("cleanup_rate", "Cleanup"), "AS": ("coverage_fraction", "Scan"),
+               "PI": ("inspection_score", "Pipe")}
+METRIC_LABEL = {"SPC": "Cleanup rate", "AS": "Scan cov.", "PI": "Pipe score"}
+#: Per-episode accounting columns of a planner cell (0 for methods that make no calls).
+LLM_COLUMNS = ("llm_calls", "llm_fallbacks", "llm_latency_s", "llm_prompt_tokens",
+               "llm_output_tokens", "llm_total_tokens")
+
+
+def load_suite(files) -> pd.DataFrame:
+    """Every episode of the suite's cell files, with ``task``, ``method``, ``label`` (the
+    method's table label) and the LLM accounting columns (0 where a method has none)."""
+    from . import registry
+    from .engine.recording import read_metrics_meta
+
+    parts = []
+    for f in files:
+        df = pd.read_parquet(f)
+        meta = read_metrics_meta(f)
+        if not meta.get("applicable", True) or len(df) == 0:
+            continue
+        method = meta.get("method", df["method"].iloc[0])
+        if method in registry.method_names():
+            label = registry.method_spec(method).short
+        else:   # a planner this process did not register: the label its file records
+            label = meta.get("label") or (meta.get("model") or {}).get("label") or method
+        df = df.assign(task=meta.get("task", df["task"].iloc[0]), method=method, label=label)
+        for c in LLM_COLUMNS:
+            if c not in df:
+                df[c] = 0
+        parts.append(df)
+    if not parts:
+        return pd.DataFrame(columns=["task", "method", "label", "episode", "success"])
+    return pd.concat(parts, ignore_index=True)
+
+
+def mean_ci(x, seed: int = BOOT_SEED) -> tuple[float, float, float]:
+    """Mean and seeded percentile-bootstrap 95 % interval of ``x`` (NaN-free values)."""
+    x = np.asarray(x, dtype=np.float64)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return (math.nan, math.nan, math.nan)
+    rng = np.random.default_rng(seed)
+    boots = x[rng.integers(0, x.size, size=(N_BOOT, x.size))].mean(axis=1)
+    lo, hi = np.quantile(boots, [0.025, 0.975])
+    return (float(x.mean()), float(lo), float(hi))
+
+
+def macro_ci(groups, seed: int = BOOT_SEED) -> tuple[float, float, float]:
+    """Unweighted mean over tasks of per-task success rates (%), stratified bootstrap."""
+    succ = [np.asarray(g, dtype=np.float64) for g in groups if len(g)]
+    if not succ:
+        return (math.nan, math.nan, math.nan)
+    rng = np.random.default_rng(seed)
+    boots = np.zeros(N_BOOT)
+    for s in succ:
+        boots += s[rng.integers(0, s.size, size=(N_BOOT, s.size))].mean(axis=1)
+    boots *= 100.0 / len(succ)
+    lo, hi = np.quantile(boots, [0.025, 0.975])
+    return (100.0 * float(np.mean([s.mean() for s in succ])), float(lo), float(hi))
+
+
+def _methods(df: pd.DataFrame) -> list[str]:
+    from . import registry
+
+    order = {m: i for i, m in enumerate(registry.method_names())}
+    return sorted(df["method"].unique(), key=lambda m: (order.get(m, len(order)), m))
+
+
+def _rate(s) -> tuple[float, float, float]:
+    k, n = int(np.sum(s)), len(s)
+    lo, hi = wilson(k, n)
+    return (100.0 * k / n if n else math.nan, 100.0 * lo, 100.0 * hi)
+
+
+def performance_frame(df: pd.DataFrame, tasks=tuple(SUITE_TASKS)) -> pd.DataFrame:
+    """Table IV as numbers: one row per method; ``*_lo`` / ``*_hi`` are 95 % bounds."""
+    rows = []
+    for m in _methods(df):
+        d = df[df["method"] == m]
+        row = {"method": m, "label": d["label"].iloc[0]}
+        row["sr_avg"], row["sr_avg_lo"], row["sr_avg_hi"] = macro_ci(
+            [d.loc[d["task"] == t, "success"].to_numpy() for t in tasks])
+        for t in tasks:
+            dt = d[d["task"] == t]
+            col, _ = SUITE_TASKS[t]
+            row[f"{t}_n"] = len(dt)
+            row[f"{t}_sr"], row[f"{t}_sr_lo"], row[f"{t}_sr_hi"] = (
+                _rate(dt["success"].to_numpy()) if len(dt) else (math.nan,) * 3)
+            row[f"{t}_metric"], row[f"{t}_metric_lo"], row[f"{t}_metric_hi"] = mean_ci(
+                dt[col].to_numpy() if len(dt) else [])
+        row["T_s"], row["T_s_lo"], row["T_s_hi"] = mean_ci(d["T_s"].to_numpy())
+        row["E"], row["E_lo"], row["E_hi"] = mean_ci(d["E"].to_numpy())
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def cost_frame(df: pd.DataFrame, cost_episodes: int, tasks=tuple(SUITE_TASKS)) -> pd.DataFrame:
+    """Table VI as numbers over episodes ``0 .. cost_episodes-1`` of every cell: one row per
+    method (per-episode means; ``ms_per_call`` = total latency / total calls)."""
+    d0 = df[df["episode"] < int(cost_episodes)]
+    rows = []
+    for m in _methods(d0):
+        d = d0[d0["method"] == m]
+        row = {"method": m, "label": d["label"].iloc[0], "episodes": len(d)}
+        row["sr_avg"], row["sr_avg_lo"], row["sr_avg_hi"] = macro_ci(
+            [d.loc[d["task"] == t, "success"].to_numpy() for t in tasks])
+        calls = float(d["llm_calls"].sum())
+        row["calls"] = float(d["llm_calls"].mean())
+        row["latency_s"] = float(d["llm_latency_s"].mean())
+        row["ms_per_call"] = 1000.0 * float(d["llm_latency_s"].sum()) / calls if calls else 0.0
+        row["prompt_tokens"] = float(d["llm_prompt_tokens"].mean())
+        row["output_tokens"] = float(d["llm_output_tokens"].mean())
+        row["total_tokens"] = float(d["llm_total_tokens"].mean())
+        row["fallback_pct"] = (100.0 * float(d["llm_fallbacks"].sum()) / calls if calls
+                               else math.nan)   # no calls: nothing to fall back from
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _ci(v, lo, hi, fmt: str = "{:.1f}") -> str:
+    if not np.isfinite(v):
+        return "--"
+    return f"{fmt.format(v)} [{fmt.format(lo)}, {fmt.format(hi)}]"
+
+
+def _bold_best(values: list[float], texts: list[str], higher: bool) -> list[str]:
+    finite = [v for v in values if np.isfinite(v)]
+    if len(finite) < 2:
+        return texts
+    best = max(finite) if higher else min(finite)
+    return [f"\\textbf{{{t}}}" if np.isfinite(v) and v == best else t
+            for v, t in zip(values, texts)]
+
+
+def _latex(header: list[str], cols: list[list[str]], caption: str, label: str) -> str:
+    n = len(cols[0]) if cols else 0
+    lines = ["\\begin{table}[t]", "\\centering", "\\small",
+             f"\\caption{{{caption}}}", f"\\label{{{label}}}",
+             "\\begin{tabular}{l" + "r" * (len(header) - 1) + "}", "\\toprule",
+             " & ".join(header) + " \\\\", "\\midrule"]
+    for i in range(n):
+        lines.append(" & ".join(c[i] for c in cols) + " \\\\")
+    lines += ["\\bottomrule", "\\end{tabular}", "\\end{table}", ""]
+    return "\n".join(lines)
+
+
+def _esc(s: str) -> str:
+    return str(s).replace("_", "\\_").replace("%", "\\%")
+
+
+def performance_latex(perf: pd.DataFrame, *, tier: int, gain: float, episodes: int,
+                      note: str = "") -> str:
+    tasks = [t for t in SUITE_TASKS if f"{t}_sr" in perf]
+    header = ["Method"]
+    cols = [[_esc(v) for v in perf["label"]]]
+
+    def add(name, key, higher, fmt="{:.1f}"):
+        header.append(name)
+        vals = perf[key].tolist()
+        texts = [_ci(v, lo, hi, fmt) for v, lo, hi in
+                 zip(vals, perf[f"{key}_lo"], perf[f"{key}_hi"])]
+        cols.append(_bold_best(vals, texts, higher))
+
+    add("SR avg (\\%)", "sr_avg", True)
+    for t in tasks:
+        add(f"{SUITE_TASKS[t][1]} SR (\\%)", f"{t}_sr", True)
+        add(METRIC_LABEL[t], f"{t}_metric", True, "{:.2f}")
+    add("T (s)", "T_s", False, "{:.0f}")
+    add("E", "E", False, "{:.0f}")
+    caption = (f"Planning suite (Tier {tier}, currents $\\times${gain:g}): {episodes} episodes "
+               "per task and method on the evaluation seed. Rates with Wilson 95\\% intervals; "
+               "SR avg is the unweighted mean over the tasks (stratified bootstrap); metric, T "
+               "and E are means with seeded-bootstrap intervals. Best per column in bold."
+               + (f" {note}" if note else ""))
+    return _latex(header, cols, caption, "tab:planning_performance")
+
+
+def cost_latex(cost: pd.DataFrame, *, tier: int, gain: float, episodes: int,
+               note: str = "") -> str:
+    header = ["Method", "Avg SR (\\%)", "Calls", "Lat. (s)", "ms/call", "Prompt tok.",
+              "Output tok.", "Total tok.", "Fallback (\\%)"]
+    cols = [[_esc(v) for v in cost["label"]],
+            _bold_best(cost["sr_avg"].tolist(),
+                       [_ci(v, lo, hi) for v, lo, hi in
+                        zip(cost["sr_avg"], cost["sr_avg_lo"], cost["sr_avg_hi"])], True)]
+    for key, fmt in (("calls", "{:.2f}"), ("latency_s", "{:.2f}"), ("ms_per_call", "{:.1f}"),
+                     ("prompt_tokens", "{:.0f}"), ("output_tokens", "{:.0f}"),
+                     ("total_tokens", "{:.0f}"), ("fallback_pct", "{:.1f}")):
+        cols.append([fmt.format(v) if np.isfinite(v) else "--" for v in cost[key]])
+    caption = (f"Planning-suite cost (Tier {tier}, currents $\\times${gain:g}; the first "
+               f"{episodes} episodes of every task): planner calls, latency and tokens per "
+               "episode (latency measured when each reply was fetched; cached reruns report "
+               "the same), and the share of calls that fell back to the heuristic's plan. "
+               "Avg SR with a stratified-bootstrap 95\\% interval." + (f" {note}" if note else ""))
+    return _latex(header, cols, caption, "tab:planning_cost")
+
+
+def omitted_note(configured_llms) -> str:
+    """The caption's sentence on LLM rows."""
+    if configured_llms:
+        return ""
+    return ("No LLM endpoint is configured (config llm.models is empty), so no LLM rows: "
+            "none are invented.")
+
+
+def planning_tables(cell_files, perf_tex, cost_tex, *, tier: int, gain: float, episodes: int,
+                    cost_episodes: int, configured_llms=()) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Write Table IV and VI (LaTeX, plus the numbers as Parquet beside each ``.tex``)."""
+    from .engine.recording import write_metrics
+    from pathlib import Path
+
+    df = load_suite(cell_files)
+    perf = performance_frame(df)
+    cost = cost_frame(df, cost_episodes)
+    note = omitted_note(configured_llms)
+    write_text_atomic(perf_tex, performance_latex(perf, tier=tier, gain=gain,
+                                                  episodes=episodes, note=note))
+    write_text_atomic(cost_tex, cost_latex(cost, tier=tier, gain=gain, episodes=cost_episodes,
+                                           note=note))
+    meta = {"stage": "planning_table", "tier": int(tier), "current_gain": float(gain),
+            "configured_llms": list(configured_llms)}
+    write_metrics(perf, Path(perf_tex).with_suffix(".parquet"), meta={**meta,
+                                                                      "episodes": episodes})
+    write_metrics(cost, Path(cost_tex).with_suffix(".parquet"), meta={**meta,
+                                                                      "episodes": cost_episodes})
+    return perf, cost

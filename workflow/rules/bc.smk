@@ -1,0 +1,60 @@
+# Behaviour cloning: teacher dataset (training seeds) -> weights (+ report, loss figure).
+# The bc rollout cells (rollouts.smk) take the weights as an input, so the chain
+# dataset -> weights -> rollouts is in the DAG and the manifest, and retraining happens only
+# when the dataset, the settings or the BC code change.
+
+
+def bc_cells():
+    """The (tasks, tiers) the network is trained on: every rollout cell's, plus the planning
+    suite's when BC runs there."""
+    r, p = config["rollouts"], config["planning"]
+    tasks, tiers = list(r["tasks"]), list(r["tiers"])
+    if "bc" in p["methods"]:
+        tasks += [t for t in p["tasks"] if t not in tasks]
+        tiers += [p["tier"]] if p["tier"] not in tiers else []
+    return tasks, sorted(tiers)
+
+
+rule bc_dataset:
+    input:
+        grid=rules.export_grid.output.npz,
+    output:
+        parquet="results/bc/{region}/{variant}/dataset.parquet",
+        prov="results/provenance/bc/{region}/{variant}/dataset.json",
+    log:
+        "logs/bc/{region}/{variant}/dataset.log",
+    benchmark:
+        "results/benchmarks/bc/{region}/{variant}/dataset.tsv"
+    params:
+        tasks=lambda wc: bc_cells()[0],
+        tiers=lambda wc: bc_cells()[1],
+        dynamics=lambda wc: config["rollouts"]["dynamics"],
+        evaluation_seed=lambda wc: config["rollouts"]["seed"],
+        bc=lambda wc: {k: config["bc"][k] for k in ("train_seeds", "episodes", "stride", "max_rows")},
+        code=ROLLOUT_CODE,
+    threads: lambda wc: config["rollouts"]["threads"]
+    script:
+        "../scripts/bc_dataset.py"
+
+
+rule bc_train:
+    input:
+        dataset=rules.bc_dataset.output.parquet,
+    output:
+        weights="results/bc/{region}/{variant}/weights.npz",
+        report="results/bc/{region}/{variant}/training_report.json",
+        png="results/figures/{region}/{variant}/bc_training.png",
+        pdf="results/figures/{region}/{variant}/bc_training.pdf",
+        prov="results/provenance/bc/{region}/{variant}/weights.json",
+    log:
+        "logs/bc/{region}/{variant}/train.log",
+    benchmark:
+        "results/benchmarks/bc/{region}/{variant}/train.tsv"
+    params:
+        bc=lambda wc: {k: config["bc"][k] for k in ("hidden", "epochs", "batch_size",
+                                                     "learning_rate", "alpha", "val_fraction",
+                                                     "seed")},
+        code=code_version("oneocean.methods.bc"),
+    threads: 1
+    script:
+        "../scripts/bc_train.py"

@@ -1,0 +1,93 @@
+# The planning suite (paper Tables IV and VI): config `planning` tasks at one tier with scaled
+# currents; heuristic and BC cells (the fused loop) and one LLM-planner cell per configured
+# model (config `llm.models`; none configured: no LLM cells, and the tables say so).
+
+
+def planning_llm_methods():
+    return [llm_method(m) for m in config["llm"]["models"]]
+
+
+def planning_targets():
+    p = config["planning"]
+    return expand(
+        "results/planning/{region}/{variant}/{task}/{method}.parquet",
+        region=REGION,
+        variant=config["rollouts"]["variant"],
+        task=p["tasks"],
+        method=list(p["methods"]) + planning_llm_methods(),
+    )
+
+
+def _planning_run(wc):
+    p, r = config["planning"], config["rollouts"]
+    return {"tier": p["tier"], "episodes": p["episodes"], "seed": r["seed"],
+            "dynamics": r["dynamics"], "current_gain": p["current_gain"] * r["current_gain"]}
+
+
+if not config["llm"]["models"]:
+    print("planning suite: no LLM endpoint configured (llm.models is empty): LLM cells "
+          "skipped and their rows omitted", file=sys.stderr)
+
+
+rule planning_cell:
+    input:
+        grid=rules.export_grid.output.npz,
+        weights=bc_weights,
+    output:
+        parquet="results/planning/{region}/{variant}/{task}/{method}.parquet",
+        prov="results/provenance/planning/{region}/{variant}/{task}/{method}.json",
+    log:
+        "logs/planning/{region}/{variant}/{task}/{method}.log",
+    benchmark:
+        "results/benchmarks/planning/{region}/{variant}/{task}/{method}.tsv"
+    wildcard_constraints:
+        method="heuristic|bc",
+    params:
+        run=_planning_run,
+        code=ROLLOUT_CODE,
+    threads: lambda wc: config["rollouts"]["threads"]
+    script:
+        "../scripts/planning_cell.py"
+
+
+rule planning_llm_cell:
+    input:
+        grid=rules.export_grid.output.npz,
+    output:
+        parquet="results/planning/{region}/{variant}/{task}/{method}.parquet",
+        prov="results/provenance/planning/{region}/{variant}/{task}/{method}.json",
+    log:
+        "logs/planning/{region}/{variant}/{task}/{method}.log",
+    benchmark:
+        "results/benchmarks/planning/{region}/{variant}/{task}/{method}.tsv"
+    wildcard_constraints:
+        method="llm_[A-Za-z0-9_]+",
+    params:
+        run=_planning_run,
+        model=lambda wc: next(m for m in config["llm"]["models"] if llm_method(m) == wc.method),
+        every=lambda wc: config["llm"]["every_steps"][wc.task],
+        cache_dir=config["llm"]["cache_dir"],
+        code=ROLLOUT_CODE,
+    threads: lambda wc: config["rollouts"]["threads"]
+    script:
+        "../scripts/planning_llm_cell.py"
+
+
+rule table_planning:
+    input:
+        cells=planning_targets(),
+    output:
+        perf="results/tables/{region}/planning_performance.tex",
+        cost="results/tables/{region}/planning_cost.tex",
+        perf_parquet="results/tables/{region}/planning_performance.parquet",
+        cost_parquet="results/tables/{region}/planning_cost.parquet",
+        prov="results/provenance/tables/{region}/planning.json",
+    log:
+        "logs/tables/{region}/planning.log",
+    params:
+        planning=lambda wc: config["planning"],
+        llms=planning_llm_methods(),
+        code=code_version("oneocean.planning", "oneocean.ladder"),
+    threads: 1
+    script:
+        "../scripts/table_planning.py"
