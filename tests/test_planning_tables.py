@@ -105,3 +105,29 @@ def test_latex_tables_say_why_llm_rows_are_absent(tmp_path, suite):
     planning_tables(suite, tmp_path / "p2.tex", tmp_path / "c2.tex", tier=2, gain=2.0,
                     episodes=8, cost_episodes=4, configured_llms=["llm_fake"])
     assert "LLM-Fake" in (tmp_path / "c2.tex").read_text()
+    assert "Not applicable" not in (tmp_path / "p2.tex").read_text()
+    # a cell the region cannot host: no rows, named in the caption
+    na = tmp_path / "AS_llm_na.parquet"
+    write_metrics(pd.read_parquet(suite[2]).iloc[:0], na,
+                  meta={"task": "AS", "method": "heuristic", "applicable": False,
+                        "reason": "no shelf"})
+    planning_tables([na] + suite[:2] + suite[4:6], tmp_path / "p3.tex", tmp_path / "c3.tex",
+                    tier=2, gain=2.0, episodes=8, cost_episodes=4, configured_llms=[])
+    assert "Not applicable in this region" in (tmp_path / "p3.tex").read_text()
+    assert "AS (heuristic)" in (tmp_path / "p3.tex").read_text()
+
+
+def test_cost_episodes_are_the_first_episodes_of_the_performance_run():
+    """The cost table reads episodes 0..19 of the 40-episode cells: the same episodes and
+    results a 20-episode run gives (candidates are drawn per index; each episode is computed
+    on its own), so no separate cost run is needed."""
+    import oneocean.engine as E
+    from oneocean.tasks import Cell
+    from oneocean.testing import make_test_grid
+
+    grid = E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+    for task, n_agents in (("PI", None), ("SPC", 3)):
+        cell = Cell(grid, task, 1, n_agents=n_agents, current_gain=2.0)
+        long = cell.run("heuristic", 4, 1000, "6dof")
+        short = cell.run("heuristic", 2, 1000, "6dof")
+        pd.testing.assert_frame_equal(long.iloc[:2].reset_index(drop=True), short)

@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from .io import write_text_atomic
-from .ladder import BOOT_SEED, N_BOOT, wilson
+from .ladder import BOOT_SEED, N_BOOT, stratified_macro, wilson
 
 #: Each suite task's key metric (column, table label) and short label.
 SUITE_TASKS = {"SPC": ("cleanup_rate", "Cleanup"), "AS": ("coverage_fraction", "Scan"),
@@ -61,6 +61,18 @@ def load_suite(files) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True)
 
 
+def not_applicable(files) -> list[str]:
+    """``"<task> (<method>)"`` of every cell file the region could not host."""
+    from .engine.recording import read_metrics_meta
+
+    out = []
+    for f in files:
+        meta = read_metrics_meta(f)
+        if not meta.get("applicable", True):
+            out.append(f"{meta.get('task')} ({meta.get('method')})")
+    return out
+
+
 def mean_ci(x, seed: int = BOOT_SEED) -> tuple[float, float, float]:
     """Mean and seeded percentile-bootstrap 95 % interval of ``x`` (NaN-free values)."""
     x = np.asarray(x, dtype=np.float64)
@@ -71,20 +83,6 @@ def mean_ci(x, seed: int = BOOT_SEED) -> tuple[float, float, float]:
     boots = x[rng.integers(0, x.size, size=(N_BOOT, x.size))].mean(axis=1)
     lo, hi = np.quantile(boots, [0.025, 0.975])
     return (float(x.mean()), float(lo), float(hi))
-
-
-def macro_ci(groups, seed: int = BOOT_SEED) -> tuple[float, float, float]:
-    """Unweighted mean over tasks of per-task success rates (%), stratified bootstrap."""
-    succ = [np.asarray(g, dtype=np.float64) for g in groups if len(g)]
-    if not succ:
-        return (math.nan, math.nan, math.nan)
-    rng = np.random.default_rng(seed)
-    boots = np.zeros(N_BOOT)
-    for s in succ:
-        boots += s[rng.integers(0, s.size, size=(N_BOOT, s.size))].mean(axis=1)
-    boots *= 100.0 / len(succ)
-    lo, hi = np.quantile(boots, [0.025, 0.975])
-    return (100.0 * float(np.mean([s.mean() for s in succ])), float(lo), float(hi))
 
 
 def _methods(df: pd.DataFrame) -> list[str]:
@@ -106,7 +104,7 @@ def performance_frame(df: pd.DataFrame, tasks=tuple(SUITE_TASKS)) -> pd.DataFram
     for m in _methods(df):
         d = df[df["method"] == m]
         row = {"method": m, "label": d["label"].iloc[0]}
-        row["sr_avg"], row["sr_avg_lo"], row["sr_avg_hi"] = macro_ci(
+        row["sr_avg"], row["sr_avg_lo"], row["sr_avg_hi"] = stratified_macro(
             [d.loc[d["task"] == t, "success"].to_numpy() for t in tasks])
         for t in tasks:
             dt = d[d["task"] == t]
@@ -130,7 +128,7 @@ def cost_frame(df: pd.DataFrame, cost_episodes: int, tasks=tuple(SUITE_TASKS)) -
     for m in _methods(d0):
         d = d0[d0["method"] == m]
         row = {"method": m, "label": d["label"].iloc[0], "episodes": len(d)}
-        row["sr_avg"], row["sr_avg_lo"], row["sr_avg_hi"] = macro_ci(
+        row["sr_avg"], row["sr_avg_lo"], row["sr_avg_hi"] = stratified_macro(
             [d.loc[d["task"] == t, "success"].to_numpy() for t in tasks])
         calls = float(d["llm_calls"].sum())
         row["calls"] = float(d["llm_calls"].mean())
@@ -241,6 +239,11 @@ def planning_tables(cell_files, perf_tex, cost_tex, *, tier: int, gain: float, e
     perf = performance_frame(df)
     cost = cost_frame(df, cost_episodes)
     note = omitted_note(configured_llms)
+    na = not_applicable(cell_files)
+    if na:
+        note = (note + " " if note else "") + (
+            "Not applicable in this region (no episodes; the cell files record why): "
+            + ", ".join(_esc(c) for c in na) + "; SR avg is over the tasks it hosts.")
     write_text_atomic(perf_tex, performance_latex(perf, tier=tier, gain=gain,
                                                   episodes=episodes, note=note))
     write_text_atomic(cost_tex, cost_latex(cost, tier=tier, gain=gain, episodes=cost_episodes,

@@ -71,7 +71,8 @@ def _method_names():
 #: first (a live view of :func:`oneocean.registry.task_ids`).
 TASK_IDS: Sequence[str] = _RegistryView(_task_ids)
 #: Every registered method: the paper's heuristic baseline, a privileged oracle (solvability
-#: check), then plugins' (a live view of :func:`oneocean.registry.method_names`).
+#: check), behaviour cloning (``bc``), then the configured LLM planners' and plugins' (a live
+#: view of :func:`oneocean.registry.method_names`).
 METHODS: Sequence[str] = _RegistryView(_method_names)
 
 #: Canonical (CF) names used everywhere downstream of the readers.

@@ -476,17 +476,20 @@ def waypoint_carrot(wps, widx, wcount, e, i, px, pz, look, tol, arrive=0.0):
 def fresh_cache(kernel, module_file: str, *deps) -> bool:
     """Drop ``kernel``'s stale numba cache entries at import (:func:`ensure_fresh_cache`).
 
-    numba keys a cache entry on the kernel's own file only; a task kernel also inlines the
-    engine, this module, the episode loop (``loop.py``) and ``deps`` (e.g. its policy module,
-    a model file), so the fingerprint covers exactly those: editing one task recompiles that
+    numba keys a cache entry on the kernel's own file only; a task kernel also inlines (or
+    links) the engine, this module, the episode loop (``loop.py``) and the learned
+    controller it calls (``methods/bc/kernel.py``), and ``deps`` (e.g. its policy module, a
+    model file), so the fingerprint covers exactly those: editing one task recompiles that
     task alone.
     """
     from ..engine._jit import ensure_fresh_cache
 
     here = Path(module_file).resolve()
     mine = Path(__file__).resolve()
+    learned = mine.parents[1] / "methods" / "bc" / "kernel.py"
     return ensure_fresh_cache(kernel, (here.stem + ".",), here, mine,
-                              mine.with_name("loop.py"), *(Path(d).resolve() for d in deps))
+                              mine.with_name("loop.py"), learned,
+                              *(Path(d).resolve() for d in deps))
 
 
 

@@ -154,13 +154,21 @@ def forward(net, x, h):
         n_in = net.dims[layer]
         n_out = net.dims[layer + 1]
         dst = h[1 - cur]
+        wl = net.w[layer]
         for j in range(n_out):
-            acc = net.b[layer, j]
-            for q in range(n_in):
-                acc += src[q] * net.w[layer, q, j]
-            if layer < n_layers - 1 and acc < 0.0:
-                acc = 0.0
-            dst[j] = acc
+            dst[j] = net.b[layer, j]
+        # row by row: the inner loop runs over contiguous weights and independent outputs
+        # (vectorised), and the zeros relu leaves in the input are skipped
+        for q in range(n_in):
+            sq = src[q]
+            if sq != 0.0:
+                row = wl[q]
+                for j in range(n_out):
+                    dst[j] += sq * row[j]
+        if layer < n_layers - 1:
+            for j in range(n_out):
+                if dst[j] < 0.0:
+                    dst[j] = 0.0
         src = dst
         cur = 1 - cur
     return src[0], src[1], src[2]
