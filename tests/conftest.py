@@ -24,3 +24,17 @@ def base_config() -> dict:
     path = Path(__file__).parents[1] / "config" / "config.yaml"
     with open(path) as fh:
         return yaml.safe_load(fh)
+
+
+@pytest.fixture(autouse=True)
+def _forget_llm_methods():
+    """A config with ``llm.models`` registers ``llm_<name>`` methods in the process
+    (:func:`oneocean.config.register_llm_methods`); forget them after each test, so tests
+    that list the registry's methods do not depend on which test ran before."""
+    from oneocean import registry
+
+    before = set(registry.method_names())
+    yield
+    for name in set(registry.method_names()) - before:
+        if name.startswith("llm_"):
+            registry.unregister_method(name)
