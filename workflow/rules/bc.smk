@@ -31,7 +31,7 @@ rule bc_dataset:
         dynamics=lambda wc: config["rollouts"]["dynamics"],
         evaluation_seed=lambda wc: config["rollouts"]["seed"],
         bc=lambda wc: {k: config["bc"][k] for k in ("train_seeds", "episodes", "stride", "max_rows")},
-        code=ROLLOUT_CODE,
+        code=lambda wc: tasks_code(bc_cells()[0]),
     threads: lambda wc: config["rollouts"]["threads"]
     script:
         "../scripts/bc_dataset.py"

@@ -3,6 +3,9 @@
 # model (config `llm.models`; none configured: no LLM cells, and the tables say so).
 
 
+LLM_CODE = code_version("oneocean.methods.llm")
+
+
 def planning_llm_methods():
     return [llm_method(m) for m in config["llm"]["models"]]
 
@@ -44,7 +47,7 @@ rule planning_cell:
         method="heuristic|bc",
     params:
         run=_planning_run,
-        code=ROLLOUT_CODE,
+        code=rollout_code,
     threads: lambda wc: config["rollouts"]["threads"]
     script:
         "../scripts/planning_cell.py"
@@ -67,7 +70,7 @@ rule planning_llm_cell:
         model=lambda wc: next(m for m in config["llm"]["models"] if llm_method(m) == wc.method),
         every=lambda wc: config["llm"]["every_steps"][wc.task],
         cache_dir=config["llm"]["cache_dir"],
-        code=ROLLOUT_CODE,
+        code=lambda wc: task_code(wc.task) + LLM_CODE,
     threads: lambda wc: config["rollouts"]["threads"]
     script:
         "../scripts/planning_llm_cell.py"

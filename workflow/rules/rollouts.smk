@@ -2,17 +2,26 @@
 # batched inside one numba kernel.
 
 
-# hashed once per workflow parse (shared by the data and the currents-off rules)
-ROLLOUT_CODE = code_version(
-    "oneocean.tasks", "oneocean.methods", "oneocean.engine", "oneocean.models", "oneocean.data"
-)
+# the code a cell of one task depends on (oneocean.codeversion): editing one task's module,
+# heuristic or tier table reruns only its cells; hashed once per task and parse
+def rollout_code(wc):
+    return task_code(wc.task)
 
 
-def _rollout_params(currents):
+def _rollout_params(currents, forcing=None):
+    """The run settings of a cell: the config's, or an ablation's forcing ("gain": the
+    forcing ablation's gain on the data currents; "tide": the data plus its tide term)."""
+
     def fn(wc):
         r = config["rollouts"]
-        return {**{k: r[k] for k in ("episodes", "seed", "dynamics", "current_gain", "tide")},
-                "currents": currents}
+        run = {**{k: r[k] for k in ("episodes", "seed", "dynamics", "current_gain", "tide")},
+               "currents": currents, "n_agents": int(wc.n) if hasattr(wc, "n") else None}
+        fa = r["forcing_ablation"]
+        if forcing == "gain":
+            run["current_gain"] = fa["gain"] * r["current_gain"]
+        elif forcing == "tide":
+            run["tide"] = dict(fa["tide"])
+        return run
 
     return fn
 
@@ -35,7 +44,7 @@ rule rollout_cell:
         "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}.tsv"
     params:
         run=_rollout_params(True),
-        code=ROLLOUT_CODE,
+        code=rollout_code,
     threads: lambda wc: config["rollouts"]["threads"]
     script:
         "../scripts/rollout_cell.py"
@@ -52,7 +61,50 @@ use rule rollout_cell as rollout_cell_currents_off with:
         "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_currents-off.tsv"
     params:
         run=_rollout_params(False),
-        code=ROLLOUT_CODE,
+        code=rollout_code,
+
+
+# The currents ablation's other forcings (doubled gain, + synthetic tide): the same episodes.
+use rule rollout_cell as rollout_cell_gain with:
+    output:
+        parquet="results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_gain.parquet",
+        prov="results/provenance/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_gain.json",
+    log:
+        "logs/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_gain.log",
+    benchmark:
+        "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_gain.tsv"
+    params:
+        run=_rollout_params(True, "gain"),
+        code=rollout_code,
+
+
+use rule rollout_cell as rollout_cell_tide with:
+    output:
+        parquet="results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_tide.parquet",
+        prov="results/provenance/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_tide.json",
+    log:
+        "logs/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_tide.log",
+    benchmark:
+        "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_tide.tsv"
+    params:
+        run=_rollout_params(True, "tide"),
+        code=rollout_code,
+
+
+# Fig. 7: one task at one tier for several team sizes n.
+use rule rollout_cell as rollout_cell_team with:
+    output:
+        parquet="results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_n{n}.parquet",
+        prov="results/provenance/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_n{n}.json",
+    log:
+        "logs/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_n{n}.log",
+    benchmark:
+        "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_n{n}.tsv"
+    wildcard_constraints:
+        n=r"\d+",
+    params:
+        run=_rollout_params(True),
+        code=rollout_code,
 
 
 rule table_ladder:
@@ -69,18 +121,3 @@ rule table_ladder:
     threads: 1
     script:
         "../scripts/table_ladder.py"
-
-
-rule table_task_success:
-    input:
-        cells=rollout_targets(),
-    output:
-        tex="results/tables/task_success_by_tier.tex",
-        prov="results/provenance/tables/task_success_by_tier.json",
-    log:
-        "logs/tables/task_success_by_tier.log",
-    params:
-        code=code_version("oneocean.tables", "oneocean.ladder", "oneocean.registry", "oneocean.data"),
-    threads: 1
-    script:
-        "../scripts/table_task_success.py"

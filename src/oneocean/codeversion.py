@@ -1,0 +1,76 @@
+"""Which source files a workflow job's results depend on, and their hash (a rule's ``code``
+param: editing one of them reruns the job, editing anything else does not).
+
+A rollout cell of task ``T`` depends on the engine, the physical models, the one episode loop
+and its driver, the learned controller the loop links (``methods/bc``), ``T``'s own task
+module and heuristic, ``T``'s tier table and the vehicle table -- not on the other tasks'
+modules or tables, so editing one task reruns only its cells.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.util
+from pathlib import Path
+
+_PKG = Path(__file__).resolve().parent
+
+#: Files and folders every rollout cell depends on (relative to the package).
+ROLLOUT_SHARED = ("engine", "models", "methods/bc", "methods/heuristic/__init__.py",
+                  "tasks/__init__.py", "tasks/common.py", "tasks/loop.py", "tasks/episodes.py",
+                  "data/vehicles.yaml", "errors.py")
+
+
+def _files(entry: Path) -> list[Path]:
+    if entry.is_dir():
+        return sorted(f for pat in ("*.py", "*.yaml") for f in entry.rglob(pat))
+    return [entry]
+
+
+def module_file(module: str) -> Path:
+    """The source file of a dotted module name (not imported)."""
+    spec = importlib.util.find_spec(module)
+    if spec is None or spec.origin is None:
+        raise FileNotFoundError(f"code version: module {module} not found")
+    return Path(spec.origin).resolve()
+
+
+def task_files(task: str) -> list[Path]:
+    """The files a rollout cell of ``task`` depends on (:data:`ROLLOUT_SHARED` plus the
+    task's module, its heuristic twin ``methods/heuristic/<module>.py`` if there is one, and
+    its tier table)."""
+    from .registry import task_spec
+
+    spec = task_spec(task)
+    mod = module_file(spec.module)
+    own = [mod, Path(spec.table_path).resolve()]
+    twin = _PKG / "methods" / "heuristic" / mod.name
+    if mod.parent == _PKG / "tasks" and twin.is_file():
+        own.append(twin)
+    shared = [f for e in ROLLOUT_SHARED for f in _files(_PKG / e)]
+    return sorted(set(shared + own))
+
+
+def files_hash(files) -> str:
+    """sha256 over the files' package-relative names and bytes, in sorted order."""
+    h = hashlib.sha256()
+    for f in sorted(Path(p).resolve() for p in files):
+        try:
+            name = f.relative_to(_PKG).as_posix()
+        except ValueError:
+            name = f.name
+        h.update(name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+@functools.lru_cache(maxsize=None)
+def task_code(task: str) -> str:
+    """:func:`files_hash` of :func:`task_files` (cached per process: one workflow parse)."""
+    return files_hash(task_files(task))
+
+
+def tasks_code(tasks) -> str:
+    """The code version of a job over several tasks (e.g. the BC teacher dataset)."""
+    return files_hash(sorted({f for t in tasks for f in task_files(t)}))
