@@ -44,12 +44,14 @@ def test_provenance_record_fields(tmp_path, monkeypatch):
 def test_verify_passes_then_names_changed_artifact_and_input(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     res, prov, inp, out, nc = _make_job(tmp_path)
-    collect_manifest([prov], res / "manifest.json")
-    assert verify(res / "manifest.json", tmp_path) == []
+    man = res / "manifest" / "region.json"   # the workflow's layout: one per region
+    collect_manifest([prov], man)
+    assert verify(man, tmp_path) == []
     assert main(["verify", str(res)]) == 0
+    assert main(["verify", str(man)]) == 0
 
     write_npz_atomic(out, {"a": np.arange(5)})  # artifact bytes changed
-    problems = verify(res / "manifest.json", tmp_path)
+    problems = verify(man, tmp_path)
     assert len(problems) == 1 and "results/exports/grid.npz" in problems[0]
     assert main(["verify", str(res)]) == 1
     assert "results/exports/grid.npz" in capsys.readouterr().out

@@ -70,5 +70,5 @@ def test_toy_task_runs_through_the_workflow_and_the_table(toy, tmp_path):
     region = cfg["region"]["name"]
     df = pd.read_parquet(tmp_path / f"results/rollouts/{region}/public/TOY/tier1/heuristic.parquet")
     assert len(df) == cfg["rollouts"]["episodes"] and (df["task"] == "TOY").all()
-    tex = (tmp_path / "results/tables/task_success_by_tier.tex").read_text()
+    tex = (tmp_path / f"results/tables/{cfg['region']['name']}/task_success_by_tier.tex").read_text()
     assert "TOY" in tex and "G2G" in tex

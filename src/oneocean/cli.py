@@ -11,25 +11,34 @@ from .vocab import EVALUATION_SEED
 
 
 def _verify(args) -> int:
-    from .manifest import verify
-
-    results = Path(args.results)
-    manifest = results / "manifest.json"
-    if not manifest.is_file():
-        print(f"oneocean verify: {manifest}: no manifest (run the workflow first)", file=sys.stderr)
-        return 2
-    problems = verify(manifest, root=results.resolve().parent)
-    for line in problems:
-        print(f"MISMATCH {line}")
-    if problems:
-        print(f"oneocean verify: {len(problems)} artifact(s) do not match {manifest}",
-              file=sys.stderr)
-        return 1
+    """Verify every region's manifest in ``results/manifest/`` (or one manifest file)."""
     import json
 
-    n = len(json.loads(manifest.read_text())["artifacts"])
-    print(f"oneocean verify: all {n} artifacts in {manifest} match")
-    return 0
+    from .manifest import verify
+
+    target = Path(args.results)
+    if target.is_file():
+        manifests, results = [target], target.resolve().parents[1]
+    else:
+        results = target
+        manifests = sorted((results / "manifest").glob("*.json"))
+    if not manifests:
+        print(f"oneocean verify: {target}: no manifest in {target / 'manifest'} (run the "
+              "workflow first)", file=sys.stderr)
+        return 2
+    bad = 0
+    for manifest in manifests:
+        problems = verify(manifest, root=results.resolve().parent)
+        for line in problems:
+            print(f"MISMATCH {line}")
+        if problems:
+            bad += 1
+            print(f"oneocean verify: {len(problems)} artifact(s) do not match {manifest}",
+                  file=sys.stderr)
+            continue
+        n = len(json.loads(manifest.read_text())["artifacts"])
+        print(f"oneocean verify: all {n} artifacts in {manifest} match")
+    return 1 if bad else 0
 
 
 def _evaluate(args) -> int:
@@ -74,7 +83,8 @@ def main(argv=None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("verify", help="recompute hashes of every artifact in a results folder")
     p.add_argument("results", nargs="?", default="results",
-                   help="results folder holding manifest.json (default: results)")
+                   help="results folder (every region's manifest in results/manifest/) or "
+                        "one manifest file (default: results)")
     p.set_defaults(func=_verify)
     p = sub.add_parser("evaluate", help="score your own policy (module:callable) on a cell "
                        "and write the same Parquet table as the workflow")

@@ -1,7 +1,8 @@
 """Provenance records for every workflow output, the collected manifest, and ``verify``.
 
 Each Snakemake job writes one provenance JSON (``results/provenance/<rule>/<wildcards>.json``)
-describing its outputs; the ``manifest`` rule collects them into ``results/manifest.json``.
+describing its outputs; the ``manifest`` rule collects a region's into
+``results/manifest/<region>.json``.
 ``oneocean verify`` recomputes every hash and names artifacts whose bytes or inputs changed.
 """
 
@@ -112,7 +113,7 @@ def collect_manifest(provenance_files, out_path) -> dict:
     return manifest
 
 
-def verify(manifest_path: str | os.PathLike = "results/manifest.json",
+def verify(manifest_path: str | os.PathLike,
            root: str | os.PathLike = ".") -> list[str]:
     """Recompute every hash in the manifest; return one problem line per mismatching artifact.
 

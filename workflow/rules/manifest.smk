@@ -5,8 +5,8 @@ rule manifest:
     input:
         provenance_targets(),
     output:
-        "results/manifest.json",
+        "results/manifest/{region}.json",
     log:
-        "logs/manifest/manifest.log",
+        "logs/manifest/{region}.log",
     script:
         "../scripts/collect_manifest.py"
