@@ -33,10 +33,35 @@ def test_paper_tables_produces_every_artifact(two_runs):
                     f"exports/{REGION}/{v}/grid.npz", f"exports/{REGION}/{v}/temporal.npz",
                     f"figures/{REGION}/{v}/current_field.png"):
             assert (a / "results" / rel).stat().st_size > 0, rel
-    tex = (a / "results/tables/dataset_variants.tex").read_text()
+    tex = (a / f"results/tables/{REGION}/dataset_variants.tex").read_text()
     assert "\\toprule" in tex and "\\bottomrule" in tex
     for v in VARIANTS:
         assert v in tex
+    # every paper table (LaTeX + its numbers) and figure (PNG + PDF) of the region
+    for name in ("task_ladder", "headline", "task_success_by_tier", "difficulty_heuristic",
+                 "currents_ablation", "planning_performance", "planning_cost"):
+        assert "\\toprule" in (a / f"results/tables/{REGION}/{name}.tex").read_text(), name
+        assert len(pd.read_parquet(a / f"results/tables/{REGION}/{name}.parquet")), name
+    for name in ("pollution_species", "ladder", "team_sweep", "scene/current_field"):
+        for ext in ("png", "pdf"):
+            assert (a / f"results/figures/{REGION}/{name}.{ext}").stat().st_size > 1000
+
+
+def test_tables_state_the_numbers_of_their_cells(two_runs):
+    """Table V's and the ablation table's numbers are the cells' own (Wilson rates)."""
+    a, _ = two_runs
+    r = SMALL_CONFIG["rollouts"]
+    root = a / "results/rollouts" / REGION / r["variant"]
+    v = pd.read_parquet(a / f"results/tables/{REGION}/task_success_by_tier.parquet")
+    for t in r["tasks"]:
+        for k in r["tiers"]:
+            for m in r["methods"]:
+                df = pd.read_parquet(root / f"{t}/tier{k}/{m}.parquet")
+                row = v[(v["task"] == t) & (v["tier"] == k) & (v["method"] == m)]
+                assert len(row) == 1
+                assert row["sr"].iloc[0] == pytest.approx(100 * df["success"].mean())
+    ab = pd.read_parquet(a / f"results/tables/{REGION}/currents_ablation.parquet")
+    assert len(ab) > 0
 
 
 def test_rollout_cells_currents_off_and_the_ladder(two_runs):
@@ -49,8 +74,10 @@ def test_rollout_cells_currents_off_and_the_ladder(two_runs):
     cells = {f"{t}/tier{k}/{m}.parquet" for t in r["tasks"] for k in r["tiers"]
              for m in r["methods"]}
     off = {f"{t}/tier3/heuristic_currents-off.parquet" for t in r["tasks"]}
+    forced = {f"{t}/tier3/heuristic_{f}.parquet" for t in r["tasks"] for f in ("gain", "tide")}
+    team = {f"FT/tier1/heuristic_n{n}.parquet" for n in (2, 3)}
     got = {p.relative_to(root).as_posix() for p in root.rglob("*.parquet")}
-    assert got == cells | off
+    assert got == cells | off | forced | team
     for rel in sorted(got):
         meta = read_metrics_meta(root / rel)
         df = pd.read_parquet(root / rel)
@@ -58,6 +85,10 @@ def test_rollout_cells_currents_off_and_the_ladder(two_runs):
         assert meta["task"] == task and meta["seed"] == r["seed"] == 1000
         assert meta["vehicle"] == load_task_table(task)["vehicle"]
         assert meta["currents"] is (not rel.endswith("_currents-off.parquet"))
+        assert (meta["current_gain"] == 2.0) is rel.endswith("_gain.parquet")
+        assert (meta["tide"] is not None) is rel.endswith("_tide.parquet")
+        if "_n" in rel:
+            assert meta["n_agents"] == int(rel.split("_n")[1].split(".")[0])
         assert (df["seed"] == 1000).all()
         cols = list(df.columns)
         assert cols[cols.index("seed") + 1] == "candidate"
@@ -91,7 +122,7 @@ def test_bc_chain_dataset_weights_rollouts_and_planning_tables(two_runs):
     a, _ = two_runs
     r = SMALL_CONFIG["rollouts"]
     base = f"results/bc/{REGION}/{r['variant']}"
-    manifest = json.loads((a / "results/manifest.json").read_text())["artifacts"]
+    manifest = json.loads((a / f"results/manifest/{REGION}.json").read_text())["artifacts"]
     w = manifest[f"{base}/weights.npz"]
     assert w["rule"] == "bc_train"
     assert [i["path"] for i in w["inputs"]] == [f"{base}/dataset.parquet"]
@@ -117,10 +148,10 @@ def test_bc_chain_dataset_weights_rollouts_and_planning_tables(two_runs):
 
 def test_manifest_tracks_every_artifact_and_verifies(two_runs, monkeypatch):
     a, _ = two_runs
-    manifest = json.loads((a / "results/manifest.json").read_text())["artifacts"]
+    manifest = json.loads((a / f"results/manifest/{REGION}.json").read_text())["artifacts"]
     produced = {p.relative_to(a).as_posix() for p in (a / "results").rglob("*")
                 if p.is_file() and p.suffix in {".nc", ".npz", ".png", ".tex", ".json"}
-                and "provenance" not in p.parts and p.name != "manifest.json"}
+                and "provenance" not in p.parts and "manifest" not in p.parts}
     assert produced <= set(manifest), produced - set(manifest)
     rec = manifest[f"results/exports/{REGION}/tiny/grid.npz"]
     assert rec["rule"] == "export_grid" and rec["wildcards"]["variant"] == "tiny"
@@ -131,8 +162,8 @@ def test_manifest_tracks_every_artifact_and_verifies(two_runs, monkeypatch):
 
 def test_two_runs_are_byte_identical(two_runs):
     a, b = two_runs
-    ma = json.loads((a / "results/manifest.json").read_text())["artifacts"]
-    mb = json.loads((b / "results/manifest.json").read_text())["artifacts"]
+    ma = json.loads((a / f"results/manifest/{REGION}.json").read_text())["artifacts"]
+    mb = json.loads((b / f"results/manifest/{REGION}.json").read_text())["artifacts"]
     assert set(ma) == set(mb)
     for path, rec in ma.items():  # every artifact, NetCDF included, byte for byte
         assert rec["sha256"] == mb[path]["sha256"], f"{path} differs between runs"
@@ -153,3 +184,78 @@ def test_config_typo_fails_before_any_job(tmp_path):
     with pytest.raises(Exception, match="variants.tiny.resolution_dge"):
         run_workflow(tmp_path, config=bad)
     assert not (tmp_path / "results").exists()
+
+
+def _snakemake_cli(workdir, *args):
+    """``snakemake`` as a user runs it (a separate process group, so it can be SIGKILLed with
+    its jobs)."""
+    import subprocess
+    import sys
+
+    from workflow_helpers import REPO
+
+    cmd = [sys.executable, "-m", "snakemake", "--snakefile", str(REPO / "Snakefile"),
+           "--directory", str(workdir), "--configfile", str(REPO / "config" / "config.yaml"),
+           str(workdir / "test_config.yaml"), *args]
+    return subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+
+
+def _kill_after(proc, workdir, pattern: str, n: int, timeout: float = 600.0) -> int:
+    """SIGKILL ``proc``'s process group once ``n`` files match ``pattern`` under ``workdir``
+    (or it ended); returns how many there were."""
+    import os
+    import signal
+    import time
+
+    t0 = time.time()
+    while proc.poll() is None and time.time() - t0 < timeout:
+        if len(list(workdir.glob(pattern))) >= n:
+            break
+        time.sleep(0.2)
+    got = len(list(workdir.glob(pattern)))
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    return got
+
+
+def test_killed_runs_recover_with_unlock_and_the_readme_command(two_runs, tmp_path):
+    """SIGKILL a run mid-way, then a targeted -R rerun mid-way; `snakemake --unlock` plus the
+    README's command then ends with a complete results/ that `oneocean verify` accepts,
+    byte-identical to the uninterrupted run."""
+    import yaml
+
+    a, _ = two_runs
+    wd = tmp_path / "killed"
+    wd.mkdir()
+    (wd / "test_config.yaml").write_text(yaml.safe_dump(SMALL_CONFIG))
+    cells = "results/rollouts/**/*.parquet"
+    n1 = _kill_after(_snakemake_cli(wd, "--cores", "2", "paper_tables"), wd, cells, 3)
+    assert n1 >= 3 and not (wd / f"results/manifest/{REGION}.json").exists()
+    assert _snakemake_cli(wd, "--unlock").wait() == 0
+    assert _snakemake_cli(wd, "--cores", "2", "paper_tables").wait() == 0
+    # a targeted rerun of every rollout cell, killed after it rewrote some of them
+    before = {p: p.stat().st_mtime_ns for p in wd.glob(cells)}
+    proc = _snakemake_cli(wd, "--cores", "2", "-R", "rollout_cell", "paper_tables")
+    import time
+
+    t0 = time.time()
+    while proc.poll() is None and time.time() - t0 < 600:
+        if sum(p.stat().st_mtime_ns != m for p, m in before.items() if p.exists()) >= 2:
+            break
+        time.sleep(0.2)
+    import os
+    import signal
+
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert _snakemake_cli(wd, "--unlock").wait() == 0
+    assert _snakemake_cli(wd, "--cores", "2", "paper_tables").wait() == 0
+    assert cli(["verify", str(wd / "results")]) == 0
+    ma = json.loads((a / f"results/manifest/{REGION}.json").read_text())["artifacts"]
+    mk = json.loads((wd / f"results/manifest/{REGION}.json").read_text())["artifacts"]
+    assert set(mk) == set(ma)
+    for path, rec in ma.items():
+        assert mk[path]["sha256"] == rec["sha256"], f"{path} differs from the uninterrupted run"

@@ -1,15 +1,69 @@
-"""Paper tables: LaTeX (booktabs) via pandas ``Styler.to_latex``, best value per column in bold."""
+"""Paper tables: LaTeX (booktabs) with 95 % intervals, the numbers beside each ``.tex`` as
+Parquet.
+
+Every table of the results is a pure function of the rollout cell files (one Parquet row per
+episode, each file with its own record, :func:`oneocean.engine.recording.read_metrics_meta`):
+a ``*_frame`` function returns the numbers, a ``*_table`` function writes the LaTeX
+atomically and the same numbers as Parquet next to it (``<name>.parquet``, with a record of
+the table's protocol), and returns the frame.
+
+* :func:`ladder_spec_table` (Table II): the task ladder from the registry and tier tables.
+* :func:`headline_table` (Table III): one row per method; Tier-2/3 macro SR, E, Coll and the
+  Tier-3 key metrics.
+* :func:`task_success_table` (Table V): per task, SR of every method at every tier.
+* :func:`difficulty_table`: one method's SR per tier and the drops between tiers.
+* :func:`ablation_table`: one method's SR under each forcing condition at one tier.
+
+Intervals (95 %): a rate has its Wilson score interval (:func:`oneocean.ladder.wilson`); a
+macro (unweighted mean over tasks of their SR) the stratified bootstrap of
+:func:`oneocean.ladder.macro_rate` (episodes resampled within each task, tasks in one
+canonical order: the same numbers as the ladder table); a mean its seeded percentile
+bootstrap (:func:`oneocean.planning.mean_ci`); a mean pooled over the episodes of several
+tasks a stratified bootstrap (:func:`pooled_mean_ci`); a difference of two rates the
+bootstrap of the difference, both cells resampled independently (:func:`diff_ci`). Every
+bootstrap is seeded (:data:`oneocean.ladder.BOOT_SEED`), so the table bytes are
+reproducible. Rows follow :func:`oneocean.registry.task_ids`, methods
+:func:`oneocean.registry.method_names`.
+
+Cells: the main tables use the *data-grounded* cells only (currents on, gain g = 1 on the
+data currents, no synthetic tide); the forcing ablations (currents off, g != 1, a tide) have
+their own table. A cell the region cannot host (``applicable: false``, zero episodes) is shown
+as "n/a", never 0, and left out of the macros (which then average the tasks the region
+hosts); a cell that was not run is "--". Bold marks the best value where "best" is
+meaningful (compared as displayed; the privileged oracle, :data:`PRIVILEGED`, is not a
+competitor).
+"""
 
 from __future__ import annotations
 
 import json
+import math
+from pathlib import Path
 from typing import Literal, Mapping
 
+import numpy as np
 import pandas as pd
 
 from .io import write_text_atomic
 
 Best = Literal["max", "min"]
+
+#: Methods never marked best (the oracle is a privileged solvability check, not a baseline).
+PRIVILEGED = ("oracle",)
+
+#: Table labels of the vehicles (others: their name).
+VEHICLE_LABEL = {"remus100": "REMUS 100", "bluerov2_heavy": "BlueROV2 Heavy"}
+
+#: Table III's key metrics at its metric tier: (key, task, column, header, format).
+#: ``success`` is a rate (Wilson); the others are means (seeded bootstrap, NaN skipped).
+HEADLINE_METRICS = (
+    ("G2G_sr", "G2G", "success", "G2G SR (\\%)", "{:.1f}"),
+    ("RF_sr", "RF", "success", "RF SR (\\%)", "{:.1f}"),
+    ("SK_rms", "SK", "rms_error_m", "SK RMS (m)", "{:.2f}"),
+    ("AS_coverage", "AS", "coverage_fraction", "AS cov.", "{:.3f}"),
+    ("PI_score", "PI", "inspection_score", "PI score", "{:.2f}"),
+    ("SPC_cleanup", "SPC", "cleanup_rate", "SPC cleanup", "{:.2f}"),
+)
 
 
 def to_booktabs(df: pd.DataFrame, caption: str, label: str,
@@ -69,47 +123,889 @@ def dataset_variants_table(metadata_files, out_tex) -> None:
     write_text_atomic(out_tex, tex)
 
 
+# ------------------------------------------------------------------------------ cells
+
+#: Condition ids of the main tables' cells and of the currents-off ablation.
+DATA_GROUNDED = "data-grounded"
+CURRENTS_OFF = "currents-off"
+
+
+def _condition(currents: bool, gain: float, tide: str | None) -> tuple[str, str, tuple]:
+    """``(id, label, sort key)`` of a cell's forcing condition (``tide``: canonical JSON)."""
+    if not currents:
+        return CURRENTS_OFF, "Currents off", (1, 0, 0.0, "")
+    parts, label = [], []
+    if gain != 1.0:
+        parts.append(f"gain-{gain:g}")
+        label.append(f"Currents $\\times${gain:g}")
+    if tide is not None:
+        t = json.loads(tide)
+        a, p = float(t.get("amplitude_ms", math.nan)), float(t.get("period_s", math.nan))
+        parts.append(f"tide-{a:g}ms-{p:g}s")
+        label.append(f"+ tide ({a:g} m/s, {p / 3600.0:.3g} h)")
+    if not parts:
+        return DATA_GROUNDED, "Data-grounded", (0, 0, 1.0, "")
+    return "+".join(parts), " ".join(label), (0, int(tide is not None), float(gain), tide or "")
+
+
+def load_cell_frames(cell_files) -> pd.DataFrame:
+    """One row per cell file, in canonical order (registry task order, registry method order,
+    tier, condition): ``task, tier, method, currents, current_gain, tide, condition,
+    condition_label, applicable, reason, vehicle, n_agents, seed, n, k, success, episodes,
+    file``.
+
+    ``episodes`` is the cell's per-episode DataFrame, ``success`` its success vector (the
+    columns of :func:`oneocean.ladder.load_cells`, so its macros apply). Identity comes from
+    the file's record, else from its columns (a user's ``oneocean evaluate`` file).
+    ``current_gain`` is the run's gain g (a tier's own gain divided out), ``tide`` the
+    synthetic tide as canonical JSON (None: none). An unregistered task or method, or two files
+    for the same cell, is a ConfigError (never silently dropped or pooled).
+    """
+    from . import registry
+    from .engine.recording import read_metrics_meta
+    from .errors import ConfigError
+
+    if isinstance(cell_files, pd.DataFrame):
+        return cell_files
+    rows = []
+    for f in cell_files:
+        df = pd.read_parquet(f)
+        meta = read_metrics_meta(f)
+        first = df.iloc[0] if len(df) else {}
+
+        def get(key, default=None):
+            return meta[key] if key in meta else first.get(key, default)
+
+        currents = bool(get("currents", True))
+        tier_gain = float((meta.get("tier_params") or {}).get("current_gain", 1.0))
+        gain = float(meta.get("current_gain", 1.0)) / (tier_gain or 1.0)
+        tide = meta.get("tide")
+        tide = None if tide is None else json.dumps(tide, sort_keys=True)
+        cond, label, key = _condition(currents, gain, tide)
+        seed = get("seed")
+        rows.append({"task": get("task"), "tier": int(get("tier", -1)),
+                     "method": get("method"), "currents": currents, "current_gain": gain,
+                     "tide": tide, "condition": cond, "condition_label": label,
+                     "condition_key": key,
+                     "applicable": bool(meta.get("applicable", True)),
+                     "reason": meta.get("reason", ""), "vehicle": meta.get("vehicle", ""),
+                     "n_agents": int(get("n_agents", 0)),
+                     "seed": None if seed is None else int(seed),
+                     "n": int(len(df)), "k": int(df["success"].sum()),
+                     "success": df["success"].to_numpy(dtype=bool), "episodes": df,
+                     "file": str(f)})
+    cols = ["task", "tier", "method", "currents", "current_gain", "tide", "condition",
+            "condition_label", "condition_key", "applicable", "reason", "vehicle", "n_agents",
+            "seed", "n", "k", "success", "episodes", "file"]
+    if not rows:
+        return pd.DataFrame(columns=cols)
+    cells = pd.DataFrame(rows, columns=cols)
+    for t in cells["task"].unique():
+        registry.task_spec(t)                     # an unregistered task: one-line error
+    for m in cells["method"].unique():
+        registry.method_spec(m)
+    t_order = {t: i for i, t in enumerate(registry.task_ids())}
+    m_order = {m: i for i, m in enumerate(registry.method_names())}
+    cells["_o"] = [(t_order[t], m_order[m], k, c) for t, m, k, c in
+                   zip(cells["task"], cells["method"], cells["tier"], cells["condition_key"])]
+    cells = cells.sort_values("_o", kind="stable").drop(columns="_o").reset_index(drop=True)
+    dup = cells.duplicated(["task", "tier", "method", "condition"], keep=False)
+    if dup.any():
+        d = cells[dup]
+        raise ConfigError(f"two cell files for the same cell ({d['task'].iloc[0]} tier "
+                          f"{d['tier'].iloc[0]} {d['method'].iloc[0]}, "
+                          f"{d['condition'].iloc[0]}): {', '.join(d['file'])}")
+    return cells
+
+
+def _data_grounded(cells: pd.DataFrame) -> pd.DataFrame:
+    return cells[cells["condition"] == DATA_GROUNDED]
+
+
+def _tasks(cells: pd.DataFrame) -> list[str]:
+    return list(dict.fromkeys(cells["task"]))      # cells are in registry order
+
+
+def _methods(cells: pd.DataFrame) -> list[str]:
+    from . import registry
+
+    present = set(cells["method"])
+    return [m for m in registry.method_names() if m in present]
+
+
+def _cell(cells: pd.DataFrame, task: str, method: str, tier: int):
+    """The one cell row of (task, method, tier) in ``cells`` (None if absent)."""
+    sel = cells[(cells["task"] == task) & (cells["method"] == method) & (cells["tier"] == tier)]
+    return None if sel.empty else sel.iloc[0]
+
+
+# ------------------------------------------------------------------------------ intervals
+
+def rate_ci(success) -> tuple[float, float, float]:
+    """Success rate (%) of a success vector with its Wilson 95 % interval (NaN if empty)."""
+    from .ladder import wilson
+
+    s = np.asarray(success, dtype=bool)
+    if s.size == 0:
+        return (math.nan, math.nan, math.nan)
+    lo, hi = wilson(int(s.sum()), int(s.size))
+    return (100.0 * float(s.mean()), 100.0 * lo, 100.0 * hi)
+
+
+def mean_ci(x, seed: int | None = None) -> tuple[float, float, float]:
+    """Mean and seeded percentile-bootstrap 95 % interval of the finite values of ``x``
+    (:func:`oneocean.planning.mean_ci`; NaN when none)."""
+    from .ladder import BOOT_SEED
+    from .planning import mean_ci as _mean_ci
+
+    return _mean_ci(x, BOOT_SEED if seed is None else seed)
+
+
+def pooled_mean_ci(groups, seed: int | None = None) -> tuple[float, float, float]:
+    """Mean over every finite value of the groups (tasks) pooled, with a stratified
+    percentile-bootstrap 95 % interval (values resampled within each group, groups in the
+    given order; seeded). No finite value: NaNs."""
+    from .ladder import BOOT_SEED, N_BOOT
+
+    xs = [np.asarray(g, dtype=np.float64) for g in groups]
+    xs = [x[np.isfinite(x)] for x in xs]
+    xs = [x for x in xs if x.size]
+    if not xs:
+        return (math.nan, math.nan, math.nan)
+    rng = np.random.default_rng(BOOT_SEED if seed is None else seed)
+    total = np.zeros(N_BOOT)
+    for x in xs:
+        total += x[rng.integers(0, x.size, size=(N_BOOT, x.size))].sum(axis=1)
+    n = sum(x.size for x in xs)
+    lo, hi = np.quantile(total / n, [0.025, 0.975])
+    return (float(np.concatenate(xs).mean()), float(lo), float(hi))
+
+
+def diff_ci(pairs, seed: int | None = None) -> tuple[float, float, float]:
+    """Difference in points of success rates, ``mean over pairs of (SR(a) - SR(b))``, for
+    ``pairs = [(success_a, success_b), ...]`` (one pair: one task's drop; several: a macro
+    drop over the tasks), with a seeded percentile-bootstrap 95 % interval (every success
+    vector resampled independently, pairs in the given order). Pairs with an empty side are
+    skipped; none left: NaNs."""
+    from .ladder import BOOT_SEED, N_BOOT
+
+    pairs = [(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
+             for a, b in pairs]
+    pairs = [(a, b) for a, b in pairs if a.size and b.size]
+    if not pairs:
+        return (math.nan, math.nan, math.nan)
+    rng = np.random.default_rng(BOOT_SEED if seed is None else seed)
+    boots = np.zeros(N_BOOT)
+    for a, b in pairs:
+        boots += a[rng.integers(0, a.size, size=(N_BOOT, a.size))].mean(axis=1)
+        boots -= b[rng.integers(0, b.size, size=(N_BOOT, b.size))].mean(axis=1)
+    boots *= 100.0 / len(pairs)
+    lo, hi = np.quantile(boots, [0.025, 0.975])
+    point = 100.0 * float(np.mean([a.mean() - b.mean() for a, b in pairs]))
+    return (point, float(lo), float(hi))
+
+
+def _macro(cells: pd.DataFrame, method: str, tier: int, currents: bool = True) -> dict:
+    """:func:`oneocean.ladder.macro_rate` of ``cells`` (already one condition)."""
+    from .ladder import macro_rate
+
+    return macro_rate(cells, method, tier, currents)
+
+
+# ------------------------------------------------------------------------------ LaTeX
+
+def _num(v, fmt: str) -> str:
+    return fmt.format(v) if v is not None and np.isfinite(v) else "--"
+
+
+class _Signed:
+    """A format with an explicit sign and a math minus (``+2.0``, ``$-$2.0``)."""
+
+    @staticmethod
+    def format(v) -> str:
+        t = f"{v:+.1f}"
+        if t == "-0.0":
+            t = "+0.0"
+        return "$-$" + t[1:] if t.startswith("-") else t
+
+
+_SIGNED = _Signed()
+
+
+def _ci(v, lo, hi, fmt: str = "{:.1f}") -> str:
+    if v is None or not np.isfinite(v):
+        return "--"
+    return f"{fmt.format(v)} [{fmt.format(lo)}, {fmt.format(hi)}]"
+
+
+def _state_text(state: str, text: str) -> str:
+    return {"n/a": "n/a", "missing": "--"}.get(state, text)
+
+
+def _bold_best(values, texts, higher: bool, fmt: str, eligible=None) -> list[str]:
+    """Bold the texts whose value, as displayed (``fmt``), is the best among the eligible
+    finite values; nothing when fewer than two are eligible."""
+    eligible = [True] * len(values) if eligible is None else list(eligible)
+    shown = [float(fmt.format(v)) if ok and v is not None and np.isfinite(v) else None
+             for v, ok in zip(values, eligible)]
+    finite = [s for s in shown if s is not None]
+    if len(finite) < 2:
+        return list(texts)
+    best = max(finite) if higher else min(finite)
+    return [f"\\textbf{{{t}}}" if s is not None and s == best else t
+            for s, t in zip(shown, texts)]
+
+
+def _latex(header: list[str], rows: list, caption: str, label: str, *, align: str = "",
+           wide: bool = False) -> str:
+    """A booktabs table; ``rows`` are lists of cell texts, ``("group", text)`` a family
+    heading spanning the table, ``("rule",)`` a midrule."""
+    env = "table*" if wide else "table"
+    lines = [f"\\begin{{{env}}}[t]", "\\centering", "\\scriptsize" if wide else "\\small"]
+    if wide:
+        lines.append("\\setlength{\\tabcolsep}{3pt}")
+    lines += [f"\\caption{{{caption}}}", f"\\label{{{label}}}",
+              "\\begin{tabular}{" + (align or "l" + "r" * (len(header) - 1)) + "}",
+              "\\toprule", " & ".join(header) + " \\\\", "\\midrule"]
+    for r in rows:
+        if isinstance(r, tuple) and r[0] == "group":
+            lines.append(f"\\multicolumn{{{len(header)}}}{{l}}{{\\emph{{{r[1]}}}}} \\\\")
+        elif isinstance(r, tuple) and r[0] == "rule":
+            lines.append("\\midrule")
+        else:
+            lines.append(" & ".join(r) + " \\\\")
+    lines += ["\\bottomrule", "\\end{tabular}", f"\\end{{{env}}}", ""]
+    return "\n".join(lines)
+
+
+def _seeds_episodes(cells: pd.DataFrame) -> str:
+    """``"evaluation seed 1000, 50 episodes per cell"`` from the cells' records."""
+    seeds = sorted({int(s) for s in cells["seed"] if s is not None and not pd.isna(s)})
+    ns = sorted(set(cells.loc[cells["applicable"] & (cells["n"] > 0), "n"]))
+    parts = []
+    if seeds:
+        parts.append(("evaluation seed " if len(seeds) == 1 else "evaluation seeds ")
+                     + ", ".join(str(s) for s in seeds))
+    if ns:
+        parts.append(f"{ns[0]} episodes per cell" if len(ns) == 1
+                     else f"{ns[0]}--{ns[-1]} episodes per cell")
+    return ", ".join(parts)
+
+
+def _protocol(cells: pd.DataFrame, region: str | None, what: str) -> str:
+    head = what + (f", region {_escape(region)}" if region else "")
+    rest = _seeds_episodes(cells)
+    return head + (f" ({rest})." if rest else ".")
+
+
+def _na_note(cells: pd.DataFrame) -> str:
+    na = cells[~cells["applicable"]]
+    if na.empty:
+        return ""
+    per = {}
+    for _, c in na.iterrows():
+        per.setdefault(c["task"], set()).add(int(c["tier"]))
+    what = "; ".join(f"{t} at " + ", ".join(f"T{k}" for k in sorted(ks))
+                     for t, ks in per.items())
+    return (f" n/a: the region cannot host the cell ({what}; the reasons are recorded in the "
+            "cell files); macros average the tasks the region hosts.")
+
+
+def _hosted(macro: pd.DataFrame, total: int) -> str:
+    """``" (T2, T3: 9 of the 10 tasks)"`` for the tiers whose macros average fewer tasks
+    than the table has (``macro``: rows with ``tier`` and ``tasks``)."""
+    per: dict[int, set] = {}
+    for k, n in zip(macro["tier"], macro["tasks"]):
+        per.setdefault(int(k), set()).add(int(n))
+    short: dict[str, list[int]] = {}
+    for k, ns in sorted(per.items()):
+        if min(ns) < total:
+            short.setdefault(", ".join(map(str, sorted(ns))), []).append(k)
+    if not short:
+        return ""
+    return " (" + "; ".join(", ".join(f"T{k}" for k in ks) + f": {n} of the {total} tasks"
+                            for n, ks in short.items()) + ")"
+
+
+def _write(frame: pd.DataFrame, tex: str, out_tex, meta: dict) -> None:
+    from .engine.recording import write_metrics
+
+    write_text_atomic(out_tex, tex)
+    write_metrics(frame, Path(out_tex).with_suffix(".parquet"), meta={"stage": "paper_table",
+                                                                      **meta})
+
+
+def _label(base: str, region: str | None) -> str:
+    return base if not region else f"{base}:{region}"
+
+
+def _family_rows(tasks: list[str], body: dict[str, list[str]]) -> list:
+    """Rows grouped under family headings (tasks in the given order)."""
+    from . import registry
+
+    rows, last = [], None
+    for t in tasks:
+        fam = registry.family_label(registry.task_spec(t).family)
+        if fam != last:
+            rows.append(("group", _escape(fam)))
+            last = fam
+        rows.append(body[t])
+    return rows
+
+
+# ------------------------------------------------------------------------------ Table II
+
+def ladder_spec_frame(tasks=None) -> pd.DataFrame:
+    """Table II as data: one row per task (registry order): ``family, task, label,
+    agents_default, agents_lo, agents_hi, vehicle, primary, primary_higher`` and per tier
+    ``T<k>_time_limit_s``, ``T<k>_probe_noise_ms``, ``T<k>_band_lo``, ``T<k>_band_hi``
+    (current band, quantiles of the region's own speeds; NaN where a table lacks the key) and
+    ``T<k>_params`` (every tier parameter, canonical JSON)."""
+    from . import registry
+    from .tasks.common import load_task_table
+
+    tasks = list(registry.task_ids() if tasks is None else tasks)
+    tables = {t: load_task_table(t) for t in tasks}
+    tiers = sorted({k for tb in tables.values() for k in tb["tiers"]})
+    rows = []
+    for t in tasks:
+        s, tb = registry.task_spec(t), tables[t]
+        row = {"family": registry.family_label(s.family), "task": t, "label": s.label,
+               "agents_default": s.agents_default, "agents_lo": s.agents_range[0],
+               "agents_hi": s.agents_range[1], "vehicle": str(tb.get("vehicle", "")),
+               "primary": s.primary, "primary_higher": bool(s.higher_is_better[s.primary]),
+               "calibration_seeds": json.dumps((tb.get("calibration") or {}).get("seeds", []))}
+        for k in tiers:
+            p = tb["tiers"].get(k)
+            band = (p or {}).get("current_band") or (math.nan, math.nan)
+            row[f"T{k}_time_limit_s"] = float((p or {}).get("time_limit_s", math.nan))
+            row[f"T{k}_probe_noise_ms"] = float((p or {}).get("probe_noise_ms", math.nan))
+            row[f"T{k}_band_lo"], row[f"T{k}_band_hi"] = float(band[0]), float(band[1])
+            row[f"T{k}_params"] = "" if p is None else json.dumps(p, sort_keys=True)
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _tier_cell(row, k: int) -> str:
+    if not row[f"T{k}_params"]:
+        return "--"
+    tl, pn = row[f"T{k}_time_limit_s"], row[f"T{k}_probe_noise_ms"]
+    lo, hi = row[f"T{k}_band_lo"], row[f"T{k}_band_hi"]
+    band = "--" if not np.isfinite(lo) else f"{100 * lo:.0f}--{100 * hi:.0f}"
+    return f"{_num(tl, '{:.0f}')}; {_num(pn, '{:.2f}')}; {band}"
+
+
+def ladder_spec_latex(df: pd.DataFrame) -> str:
+    tiers = sorted(int(c[1:].split("_")[0]) for c in df.columns if c.endswith("_params"))
+    header = ["ID", "Task", "Agents", "Vehicle", "Primary metric"] + [f"Tier {k}" for k in tiers]
+    body = {}
+    for _, r in df.iterrows():
+        lo, hi, d = r["agents_lo"], r["agents_hi"], r["agents_default"]
+        agents = str(d) if lo == hi else f"{d} ({lo}--{hi})"
+        arrow = "$\\uparrow$" if r["primary_higher"] else "$\\downarrow$"
+        body[r["task"]] = [_escape(r["task"]), _escape(r["label"]), agents,
+                           _escape(VEHICLE_LABEL.get(r["vehicle"], r["vehicle"]) or "--"),
+                           f"\\texttt{{{_escape(r['primary'])}}} {arrow}"] + [
+            _tier_cell(r, k) for k in tiers]
+    seeds = sorted({s for v in df["calibration_seeds"] for s in json.loads(v)})
+    caption = ("The task ladder. Agents: default (range). Primary metric: $\\uparrow$ higher "
+               "is better, $\\downarrow$ lower. Each tier: time limit (s); std of the "
+               "heuristic's current-probe noise (m\\,s$^{-1}$); current band, the percentiles "
+               "of the region's own current speeds an episode's current must lie between (the "
+               "data are never rescaled). The task-specific stressors (tolerances, route "
+               "length or area, coordination, sensing noise) tighten monotonically with the "
+               "tier (the tier tables)."
+               + (f" Calibrated on seeds {', '.join(map(str, seeds))} only; the evaluation seed "
+                  "is held out." if seeds else ""))
+    align = "lllll" + "l" * len(tiers)
+    return _latex(header, _family_rows(list(df["task"]), body), caption, "tab:task_ladder",
+                  align=align, wide=True)
+
+
+def ladder_spec_table(out_tex, tasks=None) -> pd.DataFrame:
+    """Write Table II (no cell files needed) and its numbers as Parquet."""
+    df = ladder_spec_frame(tasks)
+    _write(df, ladder_spec_latex(df), out_tex, {"table": "task_ladder"})
+    return df
+
+
+# ------------------------------------------------------------------------------ Table V
+
+def task_success_ci_frame(cell_files) -> pd.DataFrame:
+    """Table V as data, long: one row per (task, method, tier) of the data-grounded cells
+    (registry orders, then tier): ``family, task, n_agents, method, label, tier, sr, lo, hi``
+    (percent, Wilson 95 %), ``n`` (episodes), ``applicable``, ``tasks`` (1), ``reason``; then
+    per (method, tier) a ``task == "Macro"`` row: the unweighted mean over the tasks the
+    region hosts, stratified-bootstrap interval, ``tasks`` = how many it averages."""
+    from . import registry
+
+    cells = _data_grounded(load_cell_frames(cell_files))
+    rows = []
+    for _, c in cells.iterrows():
+        sr, lo, hi = rate_ci(c["success"]) if c["applicable"] else (math.nan,) * 3
+        rows.append({"family": registry.family_label(registry.task_spec(c["task"]).family),
+                     "task": c["task"], "n_agents": c["n_agents"], "method": c["method"],
+                     "label": registry.method_spec(c["method"]).short, "tier": int(c["tier"]),
+                     "sr": sr, "lo": lo, "hi": hi, "n": int(c["n"]),
+                     "applicable": bool(c["applicable"]), "tasks": 1,
+                     "reason": str(c["reason"] or "")})
+    for m in _methods(cells):
+        for k in sorted(set(cells.loc[cells["method"] == m, "tier"])):
+            mac = _macro(cells, m, k)
+            sel = cells[(cells["method"] == m) & (cells["tier"] == k)]
+            rows.append({"family": "", "task": "Macro", "n_agents": pd.NA, "method": m,
+                         "label": registry.method_spec(m).short, "tier": int(k),
+                         "sr": mac["sr"], "lo": mac["lo"], "hi": mac["hi"],
+                         "n": int(sel["n"].sum()), "applicable": mac["tasks"] > 0,
+                         "tasks": int(mac["tasks"]), "reason": ""})
+    cols = ["family", "task", "n_agents", "method", "label", "tier", "sr", "lo", "hi", "n",
+            "applicable", "tasks", "reason"]
+    out = pd.DataFrame(rows, columns=cols)
+    out["n_agents"] = out["n_agents"].astype("Int64")
+    return out
+
+
 def task_success_frame(cell_files) -> pd.DataFrame:
-    """Per-task success rate (%) by method and tier from per-episode rollout tables, plus a
-    macro (unweighted mean over tasks) row.
+    """Per-task success rate (%) by method and tier (the point estimates of
+    :func:`task_success_ci_frame`, wide), plus a macro (unweighted mean over the tasks the
+    region hosts) row.
 
     Rows follow :func:`oneocean.registry.task_ids` (the paper's order, then registered extras)
     with the registry's family labels; columns follow the registry's method order, labelled
-    with each method's ``short`` label. A task or method in the rollouts that is not
-    registered is a ConfigError (never silently dropped).
+    with each method's ``short`` label (``"Heur T2"``). A task or method in the rollouts that
+    is not registered is a ConfigError (never silently dropped). A cell the region cannot
+    host is NaN (n/a), never 0 %.
     """
     from . import registry
-    from .ladder import load_cells
 
-    cells = load_cells(cell_files)
-    cells = cells[cells["currents"]]          # the ablation cells have their own table
-    # a cell the region cannot host is n/a (NaN), never 0 %
-    hits = cells.assign(k=cells["k"].where(cells["applicable"]))
-    g = hits.groupby(["task", "method", "tier"])
-    sr = (g["k"].sum(min_count=1) / g["n"].sum() * 100.0).unstack(["method", "tier"])
-    n = cells.groupby("task")["n_agents"].first()
-    specs = {t: registry.task_spec(t) for t in sr.index}            # unknown task: error
-    methods = {m: registry.method_spec(m) for m in sr.columns.get_level_values(0)}
-    sr = sr.loc[[t for t in registry.task_ids() if t in specs]]
+    long = task_success_ci_frame(cell_files)
+    per = long[long["task"] != "Macro"]
+    sr = per.pivot(index="task", columns=["method", "tier"], values="sr")
+    sr = sr.loc[list(dict.fromkeys(per["task"]))]
     m_order = {m: i for i, m in enumerate(registry.method_names())}
     sr = sr[sorted(sr.columns, key=lambda c: (m_order[c[0]], c[1]))]
-    sr.columns = [f"{methods[m].short} T{t}" for m, t in sr.columns]
+    sr.columns = [f"{registry.method_spec(m).short} T{t}" for m, t in sr.columns]
+    first = per.drop_duplicates("task").set_index("task")
     out = sr.reset_index().rename(columns={"task": "Task"})
-    out.insert(0, "Family", out["Task"].map(lambda t: registry.family_label(specs[t].family)))
-    out.insert(2, "N", out["Task"].map(n).astype(int))
+    out.insert(0, "Family", out["Task"].map(first["family"]))
+    out.insert(2, "N", out["Task"].map(first["n_agents"]).astype(int))
     macro = {"Family": "", "Task": "Macro", "N": pd.NA, **sr.mean(axis=0).to_dict()}
     return pd.concat([out, pd.DataFrame([macro])], ignore_index=True)
 
 
-def task_success_table(cell_files, out_tex) -> None:
-    df = task_success_frame(cell_files)
-    sr_cols = [c for c in df.columns if c not in ("Family", "Task", "N")]
-    body = df.copy()
-    body["N"] = body["N"].map(lambda v: "" if pd.isna(v) else str(int(v)))
-    tex = to_booktabs(
-        body, caption="Per-task success rate (\\%) by tier (core backend, evaluation seed; "
-        "episodes per cell in the manifest). n/a: the region cannot host the cell (reason in "
-        "the cell file and the ladder table). Macro is the unweighted mean over the tasks "
-        "the region hosts.", label="tab:task_success", precision=1,
-        column_format="llr" + "r" * len(sr_cols), na_rep="n/a")
-    write_text_atomic(out_tex, tex)
+def task_success_latex(long: pd.DataFrame, cells: pd.DataFrame, region: str | None = None,
+                       privileged=PRIVILEGED) -> str:
+    from . import registry
+
+    per = long[long["task"] != "Macro"]
+    tasks = list(dict.fromkeys(per["task"]))
+    tiers = sorted(set(long["tier"]))
+    methods = list(dict.fromkeys(long["method"]))
+    cols = [(m, k) for k in tiers for m in methods
+            if ((long["method"] == m) & (long["tier"] == k)).any()]
+    header = ["Task", "N"] + [f"{registry.method_spec(m).short} T{k}" for m, k in cols]
+    idx = long.set_index(["task", "method", "tier"])
+
+    def texts(task, fmt):
+        vals, out = [], []
+        for m, k in cols:
+            if (task, m, k) not in idx.index:
+                vals.append(math.nan)
+                out.append("--")
+                continue
+            r = idx.loc[(task, m, k)]
+            vals.append(r["sr"])
+            out.append(_ci(r["sr"], r["lo"], r["hi"], fmt) if r["applicable"] else "n/a")
+        for k in tiers:     # best non-privileged method per task and tier
+            pos = [i for i, (m, kk) in enumerate(cols) if kk == k]
+            bold = _bold_best([vals[i] for i in pos], [out[i] for i in pos], True, fmt,
+                              [cols[i][0] not in privileged for i in pos])
+            for i, t in zip(pos, bold):
+                out[i] = t
+        return out
+
+    body = {}
+    for t in tasks:
+        n = per.loc[per["task"] == t, "n_agents"].iloc[0]
+        body[t] = [_escape(t), str(int(n))] + texts(t, "{:.0f}")
+    rows = _family_rows(tasks, body)
+    if (long["task"] == "Macro").any():
+        rows += [("rule",), ["Macro", ""] + texts("Macro", "{:.1f}")]
+    over = _hosted(long[long["task"] == "Macro"], len(tasks))
+    caption = (_protocol(cells, region, "Success rate (\\%) per task, method and tier")
+               + " Each cell: SR with its Wilson 95\\% interval; N: agents. Macro: the "
+               "unweighted mean over the tasks the region hosts" + over + ", with a "
+               "stratified-bootstrap 95\\% interval (episodes resampled within each task, "
+               "seeded). Best non-oracle method per task and tier in bold (the oracle is a "
+               "privileged solvability check, not a baseline)." + _na_note(cells))
+    return _latex(header, rows, caption, _label("tab:task_success", region),
+                  align="lr" + "r" * len(cols), wide=True)
+
+
+def task_success_table(cell_files, out_tex, region: str | None = None) -> pd.DataFrame:
+    """Write Table V (the workflow's ``table_task_success`` rule) and its numbers
+    (:func:`task_success_ci_frame`) as Parquet beside the ``.tex``."""
+    cells = _data_grounded(load_cell_frames(cell_files))
+    long = task_success_ci_frame(cells)
+    _write(long, task_success_latex(long, cells, region), out_tex,
+           {"table": "task_success", "region": region})
+    return long
+
+
+# ------------------------------------------------------------------------------ Table III
+
+def _by_task(sel: pd.DataFrame, column: str, scale: float = 1.0) -> list[np.ndarray]:
+    """The applicable cells' values of ``column`` (times ``scale``), one array per task, tasks
+    in canonical (sorted id) order as the macros stratify them."""
+    app = sel[sel["applicable"] & (sel["n"] > 0)].sort_values("task", kind="stable")
+    return [c[column].to_numpy(dtype=np.float64) * scale for c in app["episodes"]]
+
+
+def headline_frame(cell_files, tiers=(2, 3), metric_tier: int = 3,
+                   metrics=HEADLINE_METRICS) -> pd.DataFrame:
+    """Table III as data: one row per method (registry order) with data-grounded cells:
+
+    * per tier k of ``tiers``: ``T<k>_sr`` (macro SR over the tasks the region hosts,
+      stratified bootstrap; ``T<k>_sr_tasks``), ``T<k>_E`` (mean E over every episode of the
+      tier, stratified bootstrap) and ``T<k>_coll`` (mean Coll = ``coll_ratio`` x 100 over the
+      episodes of the multi-agent tasks, ``n_agents > 1``; ``T<k>_coll_tasks``);
+    * at ``metric_tier``, per key metric of ``metrics`` (:data:`HEADLINE_METRICS`): a rate
+      (Wilson) or a mean of the finite values (seeded bootstrap; SK's ``rms_error_m`` is NaN
+      where the vehicle never held, so its mean is over the episodes that held), with
+      ``<key>_state``: ``ok``, ``n/a`` (the region cannot host the cell) or ``missing``.
+
+    Every value has ``_lo`` / ``_hi`` (95 %)."""
+    from . import registry
+
+    cells = _data_grounded(load_cell_frames(cell_files))
+    rows = []
+    for m in _methods(cells):
+        cm = cells[cells["method"] == m]
+        row = {"method": m, "label": registry.method_spec(m).short}
+        for k in tiers:
+            sel = cm[cm["tier"] == k]
+            mac = _macro(cells, m, k)
+            row[f"T{k}_sr"], row[f"T{k}_sr_lo"], row[f"T{k}_sr_hi"] = (
+                mac["sr"], mac["lo"], mac["hi"])
+            row[f"T{k}_sr_tasks"] = int(mac["tasks"])
+            row[f"T{k}_E"], row[f"T{k}_E_lo"], row[f"T{k}_E_hi"] = pooled_mean_ci(
+                _by_task(sel, "E"))
+            multi = sel[sel["n_agents"] > 1]
+            row[f"T{k}_coll"], row[f"T{k}_coll_lo"], row[f"T{k}_coll_hi"] = pooled_mean_ci(
+                _by_task(multi, "coll_ratio", 100.0))
+            row[f"T{k}_coll_tasks"] = int((multi["applicable"] & (multi["n"] > 0)).sum())
+        for key, task, col, _, _ in metrics:
+            c = _cell(cm, task, m, metric_tier)
+            if c is None or not c["applicable"] or c["n"] == 0:
+                state, vals = ("missing" if c is None else "n/a"), (math.nan,) * 3
+            else:
+                ep = c["episodes"]
+                state = "ok"
+                vals = (rate_ci(ep["success"].to_numpy(dtype=bool)) if col == "success"
+                        else mean_ci(ep[col].to_numpy(dtype=np.float64)))
+            row[key], row[f"{key}_lo"], row[f"{key}_hi"] = vals
+            row[f"{key}_state"] = state
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def headline_latex(df: pd.DataFrame, cells: pd.DataFrame, tiers=(2, 3), metric_tier: int = 3,
+                   metrics=HEADLINE_METRICS, region: str | None = None,
+                   privileged=PRIVILEGED) -> str:
+    from . import registry
+
+    header = ["Method"]
+    cols = [[_escape(v) for v in df["label"]]]
+    eligible = [m not in privileged for m in df["method"]]
+
+    def add(name, key, higher, fmt, state=None):
+        header.append(name)
+        vals = df[key].tolist()
+        texts = [_ci(v, lo, hi, fmt) for v, lo, hi in
+                 zip(vals, df[f"{key}_lo"], df[f"{key}_hi"])]
+        if state is not None:
+            texts = [_state_text(s, t) for s, t in zip(df[state], texts)]
+        cols.append(_bold_best(vals, texts, higher, fmt, eligible))
+
+    for k in tiers:
+        add(f"T{k} SR (\\%)", f"T{k}_sr", True, "{:.1f}")
+    for k in tiers:
+        add(f"T{k} E", f"T{k}_E", False, "{:.0f}")
+    for k in tiers:
+        add(f"T{k} Coll (\\%)", f"T{k}_coll", False, "{:.2f}")
+    for key, task, col, name, fmt in metrics:
+        higher = True if col == "success" else registry.task_spec(task).higher_is_better.get(
+            col, True)
+        add(f"T{metric_tier} {name}", key, higher, fmt, f"{key}_state")
+    n = len(df)
+    rows = [[c[i] for c in cols] for i in range(n)]
+    multi = sorted(set(cells.loc[cells["n_agents"] > 1, "task"]),
+                   key=list(registry.task_ids()).index)
+    over = _hosted(pd.DataFrame({"tier": [k for k in tiers for _ in range(n)],
+                                 "tasks": [v for k in tiers for v in df[f"T{k}_sr_tasks"]]}),
+                   len(set(cells["task"])))
+    caption = (
+        _protocol(cells, region, "Headline results per method")
+        + " SR: macro success rate, the unweighted mean over the tasks the region hosts"
+        + over + ", with a stratified-bootstrap 95\\% interval (episodes resampled within each "
+        "task). E (m$^2$\\,s$^{-1}$): mean over every episode of the tier; Coll: mean share of "
+        "steps with two agents closer than 2 m, in \\%, over the episodes of the multi-agent "
+        f"tasks only ({', '.join(multi) if multi else 'none'}); both with stratified seeded "
+        f"bootstrap 95\\% intervals. Tier-{metric_tier} key metrics: G2G and RF success rates "
+        "(Wilson 95\\%); SK station RMS (m, over the episodes that held station), AS scan "
+        "coverage, PI inspection score and SPC cleanup rate: means with seeded-bootstrap 95\\% "
+        "intervals. Best non-oracle value per column in bold (oracle: privileged, not a "
+        "baseline); currents-off and other forcing ablations excluded." + _na_note(cells))
+    return _latex(header, rows, caption, _label("tab:headline", region), wide=True)
+
+
+def headline_table(cell_files, out_tex, tiers=(2, 3), metric_tier: int = 3,
+                   region: str | None = None) -> pd.DataFrame:
+    """Write Table III and its numbers (:func:`headline_frame`) as Parquet."""
+    cells = _data_grounded(load_cell_frames(cell_files))
+    df = headline_frame(cells, tiers, metric_tier)
+    _write(df, headline_latex(df, cells, tiers, metric_tier, region=region), out_tex,
+           {"table": "headline", "tiers": list(tiers), "metric_tier": int(metric_tier),
+            "region": region})
+    return df
+
+
+# ------------------------------------------------------------------------------ difficulty
+
+def difficulty_frame(cell_files, method: str = "heuristic") -> pd.DataFrame:
+    """The difficulty ladder of one method as data: one row per task (registry order) with
+    data-grounded cells of ``method``, then a ``Macro`` row.
+
+    Per tier k: ``T<k>_sr, T<k>_lo, T<k>_hi`` (Wilson; macro: stratified bootstrap over the
+    hosted tasks, ``T<k>_tasks``), ``T<k>_n`` (episodes), ``T<k>_state`` (``ok``, ``n/a``,
+    ``missing``). Per pair of consecutive tiers a < b: ``drop_T<a>_T<b>`` = SR(a) - SR(b) in
+    points (positive: tier b is harder) with ``_lo`` / ``_hi`` from a seeded bootstrap of the
+    difference (both cells resampled independently); the macro drop is the mean over the
+    tasks hosted at both tiers (``drop_T<a>_T<b>_tasks``), a stratified bootstrap."""
+    from . import registry
+
+    cells = _data_grounded(load_cell_frames(cell_files))
+    cells = cells[cells["method"] == method]
+    tiers = sorted(set(cells["tier"]))
+    pairs = list(zip(tiers[:-1], tiers[1:]))
+    tasks = _tasks(cells)
+    rows = []
+
+    def usable(c):
+        return c is not None and c["applicable"] and c["n"] > 0
+
+    for t in tasks:
+        row = {"family": registry.family_label(registry.task_spec(t).family), "task": t}
+        for k in tiers:
+            c = _cell(cells, t, method, k)
+            row[f"T{k}_sr"], row[f"T{k}_lo"], row[f"T{k}_hi"] = (
+                rate_ci(c["success"]) if usable(c) else (math.nan,) * 3)
+            row[f"T{k}_n"] = 0 if c is None else int(c["n"])
+            row[f"T{k}_tasks"] = int(usable(c))
+            row[f"T{k}_state"] = "missing" if c is None else ("ok" if usable(c) else "n/a")
+        for a, b in pairs:
+            ca, cb = _cell(cells, t, method, a), _cell(cells, t, method, b)
+            ok = usable(ca) and usable(cb)
+            key = f"drop_T{a}_T{b}"
+            row[key], row[f"{key}_lo"], row[f"{key}_hi"] = (
+                diff_ci([(ca["success"], cb["success"])]) if ok else (math.nan,) * 3)
+            row[f"{key}_tasks"] = int(ok)
+        rows.append(row)
+    if tasks:
+        row = {"family": "", "task": "Macro"}
+        for k in tiers:
+            mac = _macro(cells, method, k)
+            row[f"T{k}_sr"], row[f"T{k}_lo"], row[f"T{k}_hi"] = mac["sr"], mac["lo"], mac["hi"]
+            row[f"T{k}_n"] = int(cells.loc[cells["tier"] == k, "n"].sum())
+            row[f"T{k}_tasks"] = int(mac["tasks"])
+            row[f"T{k}_state"] = "ok" if mac["tasks"] else "n/a"
+        for a, b in pairs:
+            both = []
+            for t in sorted(tasks):      # canonical order, as the macros stratify
+                ca, cb = _cell(cells, t, method, a), _cell(cells, t, method, b)
+                if usable(ca) and usable(cb):
+                    both.append((ca["success"], cb["success"]))
+            key = f"drop_T{a}_T{b}"
+            row[key], row[f"{key}_lo"], row[f"{key}_hi"] = diff_ci(both)
+            row[f"{key}_tasks"] = len(both)
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def difficulty_latex(df: pd.DataFrame, cells: pd.DataFrame, method: str,
+                     region: str | None = None) -> str:
+    from . import registry
+
+    tiers = sorted(int(c[1:].split("_")[0]) for c in df.columns
+                   if c.startswith("T") and c.endswith("_state"))
+    drops = [c for c in df.columns if c.startswith("drop_") and c.count("_") == 2]
+    header = ["Task"] + [f"T{k} SR (\\%)" for k in tiers] + [
+        f"$\\Delta$ T{d.split('_')[1][1:]}$\\to$T{d.split('_')[2][1:]} (pts)" for d in drops]
+    body, macro = {}, None
+    for _, r in df.iterrows():
+        fmt = "{:.1f}" if r["task"] == "Macro" else "{:.0f}"
+        line = [_escape(r["task"])] + [
+            _state_text(r[f"T{k}_state"], _ci(r[f"T{k}_sr"], r[f"T{k}_lo"], r[f"T{k}_hi"], fmt))
+            for k in tiers] + [_ci(r[d], r[f"{d}_lo"], r[f"{d}_hi"], _SIGNED)
+                               if np.isfinite(r[d]) else "n/a" for d in drops]
+        if r["task"] == "Macro":
+            macro = line
+        else:
+            body[r["task"]] = line
+    rows = _family_rows([t for t in df["task"] if t != "Macro"], body)
+    if macro is not None:
+        rows += [("rule",), macro]
+    label = registry.method_spec(method).label
+    caption = (
+        _protocol(cells[cells["method"] == method], region,
+                  f"Difficulty ladder of the {_escape(label.lower())} method")
+        + " Success rate per tier with its Wilson 95\\% interval; $\\Delta$: the drop in "
+        "success rate from one tier to the next, in percentage points (positive: the higher "
+        "tier is harder), with a seeded bootstrap 95\\% interval of the difference (both cells "
+        "resampled independently). Macro: unweighted means over the tasks the region hosts "
+        "(a macro drop over the tasks hosted at both tiers), stratified-bootstrap 95\\% "
+        "intervals." + _na_note(cells[cells["method"] == method]))
+    return _latex(header, rows, caption, _label(f"tab:difficulty_{method}", region),
+                  wide=True)
+
+
+def difficulty_table(cell_files, out_tex, method: str = "heuristic",
+                     region: str | None = None) -> pd.DataFrame:
+    """Write the difficulty-ladder table of ``method`` and its numbers as Parquet."""
+    cells = _data_grounded(load_cell_frames(cell_files))
+    df = difficulty_frame(cells, method)
+    _write(df, difficulty_latex(df, cells, method, region), out_tex,
+           {"table": "difficulty", "method": method, "region": region})
+    return df
+
+
+# ------------------------------------------------------------------------------ ablation
+
+def _condition_note(cond: str, label: str, tide: str | None, gain: float) -> str:
+    if cond == DATA_GROUNDED:
+        return "data-grounded: the product's currents as they are (g = 1)"
+    if cond == CURRENTS_OFF:
+        return "currents off: g = 0, no tides"
+    parts = []
+    if gain != 1.0:
+        parts.append(f"g = {gain:g} on the data currents u, v")
+    if tide is not None:
+        t = json.loads(tide)
+        parts.append("a synthetic tide $c_{tide}(t) = A[\\sin(\\omega t + \\phi), "
+                     f"\\cos(\\omega t + \\phi)]$ with A = {t.get('amplitude_ms')} m\\,s$^{{-1}}$, "
+                     f"period {t.get('period_s')} s, $\\phi$ = {t.get('phase_rad', 0.0)}")
+    return f"{label.lower()}: " + ", ".join(parts)
+
+
+def ablation_frame(cell_files, tier: int = 3, method: str = "heuristic") -> pd.DataFrame:
+    """The forcing ablation of ``method`` at ``tier`` as data, long: one row per (task,
+    condition) with a cell, then per condition a ``Macro`` row. Conditions come from each
+    cell's record (:func:`load_cell_frames`: ``currents`` False = currents off; the run's
+    ``current_gain`` g; ``tide``), ordered data-grounded, other gains (ascending), with tide,
+    currents off. Columns: ``family, task, condition, condition_label, current_gain, tide,
+    sr, lo, hi`` (Wilson; macro: stratified bootstrap over the hosted tasks), ``n``,
+    ``applicable``, ``tasks``, ``same_episodes`` (the cell replays the data-grounded cell's
+    episodes: equal ``candidate`` draws; None without a data-grounded cell to compare)."""
+    from . import registry
+
+    cells = load_cell_frames(cell_files)
+    cells = cells[(cells["method"] == method) & (cells["tier"] == tier)]
+    conds = (cells.drop_duplicates("condition")
+             .sort_values("condition_key", kind="stable")[
+                 ["condition", "condition_label", "condition_key", "current_gain", "tide",
+                  "currents"]])
+    rows = []
+    for _, c in cells.iterrows():
+        sr, lo, hi = rate_ci(c["success"]) if c["applicable"] else (math.nan,) * 3
+        base = cells[(cells["task"] == c["task"]) & (cells["condition"] == DATA_GROUNDED)]
+        same = None
+        if not base.empty and c["n"] and base["n"].iloc[0] and \
+                "candidate" in c["episodes"] and "candidate" in base["episodes"].iloc[0]:
+            a = c["episodes"]["candidate"].to_numpy()
+            b = base["episodes"].iloc[0]["candidate"].to_numpy()
+            same = bool(a.shape == b.shape and np.array_equal(a, b))
+        rows.append({"family": registry.family_label(registry.task_spec(c["task"]).family),
+                     "task": c["task"], "condition": c["condition"],
+                     "condition_label": c["condition_label"],
+                     "current_gain": float(c["current_gain"]), "tide": c["tide"],
+                     "sr": sr, "lo": lo, "hi": hi, "n": int(c["n"]),
+                     "applicable": bool(c["applicable"]), "tasks": 1,
+                     "same_episodes": same})
+    for _, cd in conds.iterrows():
+        sub = cells[cells["condition"] == cd["condition"]]
+        mac = _macro(sub, method, tier, bool(cd["currents"]))
+        rows.append({"family": "", "task": "Macro", "condition": cd["condition"],
+                     "condition_label": cd["condition_label"],
+                     "current_gain": float(cd["current_gain"]), "tide": cd["tide"],
+                     "sr": mac["sr"], "lo": mac["lo"], "hi": mac["hi"],
+                     "n": int(sub["n"].sum()), "applicable": mac["tasks"] > 0,
+                     "tasks": int(mac["tasks"]), "same_episodes": None})
+    cols = ["family", "task", "condition", "condition_label", "current_gain", "tide", "sr",
+            "lo", "hi", "n", "applicable", "tasks", "same_episodes"]
+    out = pd.DataFrame(rows, columns=cols)
+    out["same_episodes"] = out["same_episodes"].astype("boolean")
+    out["tide"] = out["tide"].astype("string")
+    return out
+
+
+def ablation_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: str,
+                   region: str | None = None) -> str:
+    from . import registry
+
+    conds = list(dict.fromkeys(df.loc[df["task"] == "Macro", "condition"]))
+    labels = dict(zip(df["condition"], df["condition_label"]))
+    header = ["Task"] + [f"{labels[c]} SR (\\%)" for c in conds]
+    idx = df.set_index(["task", "condition"])
+    tasks = [t for t in dict.fromkeys(df["task"]) if t != "Macro"]
+
+    def line(task, fmt):
+        out = [_escape(task)]
+        for c in conds:
+            if (task, c) not in idx.index:
+                out.append("--")
+                continue
+            r = idx.loc[(task, c)]
+            out.append(_ci(r["sr"], r["lo"], r["hi"], fmt) if r["applicable"] else "n/a")
+        return out
+
+    rows = _family_rows(tasks, {t: line(t, "{:.0f}") for t in tasks})
+    if conds:
+        rows += [("rule",), line("Macro", "{:.1f}")]
+    macro = df[df["task"] == "Macro"]
+    ntasks = dict(zip(macro["condition"], macro["tasks"]))
+    uneven = len(set(ntasks.values())) > 1
+    notes = []
+    for c in conds:
+        r = df[df["condition"] == c].iloc[0]
+        tide = None if pd.isna(r["tide"]) else str(r["tide"])
+        notes.append(_condition_note(c, labels[c], tide, float(r["current_gain"]))
+                     + (f" (macro over {ntasks[c]} tasks)" if uneven else ""))
+    same = df.loc[df["task"] != "Macro", "same_episodes"].dropna()
+    replay = ""
+    if len(same) and same.all():
+        replay = (" Every condition replays the data-grounded cells' episodes (the same "
+                  "accepted candidate draws; checked).")
+    elif len(same):
+        bad = df.loc[(df["task"] != "Macro") & (df["same_episodes"] == False), "task"]  # noqa: E712
+        replay = (" Episodes differ from the data-grounded cell's for "
+                  + ", ".join(dict.fromkeys(bad)) + ".")
+    label = registry.method_spec(method).label
+    caption = (
+        _protocol(cells[(cells["method"] == method) & (cells["tier"] == tier)], region,
+                  f"Forcing ablation of the {_escape(label.lower())} method at Tier {tier}")
+        + " Conditions: " + "; ".join(notes) + ". Success rate with its Wilson 95\\% "
+        "interval; Macro: the unweighted mean over the tasks the region hosts, "
+        "stratified-bootstrap 95\\% interval." + replay
+        + _na_note(cells[(cells["method"] == method) & (cells["tier"] == tier)]))
+    return _latex(header, rows, caption, _label(f"tab:ablation_{method}_t{tier}", region))
+
+
+def ablation_table(cell_files, out_tex, tier: int = 3, method: str = "heuristic",
+                   region: str | None = None) -> pd.DataFrame:
+    """Write the forcing-ablation table (every condition with cells of ``method`` at
+    ``tier``) and its numbers as Parquet."""
+    cells = load_cell_frames(cell_files)
+    df = ablation_frame(cells, tier, method)
+    _write(df, ablation_latex(df, cells, tier, method, region), out_tex,
+           {"table": "ablation", "tier": int(tier), "method": method, "region": region})
+    return df

@@ -5,6 +5,7 @@ import re
 import sys
 from pathlib import Path
 
+from oneocean.codeversion import task_code, tasks_code
 from oneocean.config import llm_method, validate_config
 from oneocean.errors import ConfigError
 from oneocean.registry import method_names, task_ids
@@ -103,8 +104,58 @@ def currents_off_targets():
     )
 
 
+def forcing_targets():
+    """The currents ablation's doubled-gain and tide cells."""
+    r = config["rollouts"]
+    fa = r["forcing_ablation"]
+    return expand(
+        "results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_{forcing}.parquet",
+        region=REGION,
+        variant=r["variant"],
+        task=r["tasks"],
+        tier=[t for t in fa["tiers"] if t in r["tiers"]],
+        method=[m for m in fa["methods"] if m in r["methods"]],
+        forcing=["gain", "tide"],
+    )
+
+
+def team_targets():
+    """Fig. 7's team-size sweep cells."""
+    r = config["rollouts"]
+    ts = r["team_sweep"]
+    return expand(
+        "results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_n{n}.parquet",
+        region=REGION,
+        variant=r["variant"],
+        task=ts["task"],
+        tier=ts["tier"],
+        method=ts["method"],
+        n=ts["sizes"],
+    )
+
+
+def _prov(paths):
+    return [
+        p.replace("results/", "results/provenance/", 1).replace(".parquet", ".json")
+        for p in paths
+    ]
+
+
+#: The paper's tables and figures of this region (beside the ladder and planning tables).
+PAPER_TABLES = [
+    f"results/tables/{REGION}/{name}.tex"
+    for name in ("dataset_variants", "task_ladder", "headline", "task_success_by_tier",
+                 "difficulty_heuristic", "currents_ablation")
+]
+PAPER_FIGURES = [
+    f"results/figures/{REGION}/{name}.png"
+    for name in ("pollution_species", "ladder", "team_sweep")
+]
+
+
 def provenance_targets():
-    """Every job's provenance file in the paper DAG (collected into results/manifest.json)."""
+    """Every job's provenance file in the paper DAG (collected into
+    results/manifest/<region>.json)."""
     stages = [
         f"results/provenance/fetch/{REGION}/currents.json",
         f"results/provenance/fetch/{REGION}/bathymetry.json",
@@ -116,7 +167,11 @@ def provenance_targets():
             f"results/provenance/exports/{REGION}/{v}/temporal.json",
             f"results/provenance/figures/{REGION}/{v}/current_field.json",
         ]
-    stages.append("results/provenance/tables/dataset_variants.json")
+    stages += [p.replace("results/tables/", "results/provenance/tables/").replace(".tex", ".json")
+               for p in PAPER_TABLES]
+    stages += [p.replace("results/figures/", "results/provenance/figures/").replace(".png", ".json")
+               for p in PAPER_FIGURES]
+    stages += _prov(forcing_targets() + team_targets())
     stages += [
         p.replace("results/rollouts/", "results/provenance/rollouts/").replace(
             ".parquet", ".json"
@@ -135,5 +190,5 @@ def provenance_targets():
     ]
     stages.append(f"results/provenance/tables/{REGION}/planning.json")
     stages.append(f"results/provenance/tables/{REGION}/ladder.json")
-    stages.append("results/provenance/tables/task_success_by_tier.json")
+
     return stages

@@ -4,15 +4,14 @@
 rule table_dataset_variants:
     input:
         metadata=expand(
-            "results/product/{region}/{variant}/metadata.json",
-            region=REGION,
+            "results/product/{{region}}/{variant}/metadata.json",
             variant=VARIANTS,
         ),
     output:
-        tex="results/tables/dataset_variants.tex",
-        prov="results/provenance/tables/dataset_variants.json",
+        tex="results/tables/{region}/dataset_variants.tex",
+        prov="results/provenance/tables/{region}/dataset_variants.json",
     log:
-        "logs/tables/dataset_variants.log",
+        "logs/tables/{region}/dataset_variants.log",
     params:
         region=REGION,
         code=code_version("oneocean.tables"),
@@ -21,13 +20,99 @@ rule table_dataset_variants:
         "../scripts/table_dataset_variants.py"
 
 
+TABLES_CODE = code_version("oneocean.tables", "oneocean.ladder", "oneocean.planning",
+                           "oneocean.registry", "oneocean.data")
+
+
+def _table_rule_io(name):
+    return {
+        "tex": f"results/tables/{{region}}/{name}.tex",
+        "parquet": f"results/tables/{{region}}/{name}.parquet",
+        "prov": f"results/provenance/tables/{{region}}/{name}.json",
+    }
+
+
+# Table II: the task ladder (registry and tier tables).
+rule table_task_ladder:
+    output:
+        **_table_rule_io("task_ladder"),
+    log:
+        "logs/tables/{region}/task_ladder.log",
+    params:
+        code=TABLES_CODE,
+    threads: 1
+    script:
+        "../scripts/table_paper.py"
+
+
+# Table III: per method, Tier-2/3 macro SR, E, Coll and Tier-3 key metrics.
+rule table_headline:
+    input:
+        cells=rollout_targets(),
+    output:
+        **_table_rule_io("headline"),
+    log:
+        "logs/tables/{region}/headline.log",
+    params:
+        code=TABLES_CODE,
+    threads: 1
+    script:
+        "../scripts/table_paper.py"
+
+
+# Table V: per task, every method at every tier.
+rule table_task_success:
+    input:
+        cells=rollout_targets(),
+    output:
+        **_table_rule_io("task_success_by_tier"),
+    log:
+        "logs/tables/{region}/task_success_by_tier.log",
+    params:
+        code=TABLES_CODE,
+    threads: 1
+    script:
+        "../scripts/table_paper.py"
+
+
+# The difficulty ladder of the heuristic: T1/T2/T3 and the drops.
+rule table_difficulty:
+    input:
+        cells=rollout_targets(),
+    output:
+        **_table_rule_io("difficulty_heuristic"),
+    log:
+        "logs/tables/{region}/difficulty_heuristic.log",
+    params:
+        code=TABLES_CODE,
+    threads: 1
+    script:
+        "../scripts/table_paper.py"
+
+
+# The currents ablation of the heuristic: off / data-grounded / doubled / + synthetic tide.
+rule table_currents_ablation:
+    input:
+        cells=rollout_targets() + currents_off_targets() + forcing_targets(),
+    output:
+        **_table_rule_io("currents_ablation"),
+    log:
+        "logs/tables/{region}/currents_ablation.log",
+    params:
+        tier=lambda wc: max(config["rollouts"]["forcing_ablation"]["tiers"]),
+        code=TABLES_CODE,
+    threads: 1
+    script:
+        "../scripts/table_paper.py"
+
+
 rule paper_tables:
     input:
-        "results/tables/dataset_variants.tex",
-        "results/tables/task_success_by_tier.tex",
+        PAPER_TABLES,
         f"results/tables/{REGION}/ladder.md",
         f"results/tables/{REGION}/planning_performance.tex",
         f"results/tables/{REGION}/planning_cost.tex",
         figure_targets(),
+        PAPER_FIGURES,
         export_targets(),
-        "results/manifest.json",
+        f"results/manifest/{REGION}.json",

@@ -9,5 +9,6 @@ smk.run(
         s.params.run["dynamics"], threads=s.threads,
         current_gain=s.params.run["current_gain"], tide=s.params.run["tide"],
         currents=s.params.run["currents"], weights=smk.optional_input(s, "weights"),
+        n_agents=s.params.run.get("n_agents"),
     ),
 )

@@ -224,7 +224,8 @@ def na_frame(mod, tier: int, method: str, n_agents: int, dynamics: str,
 
 def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, episodes: int,
                     seed: int, dynamics: str, threads: int = 1, currents: bool = True,
-                    current_gain: float = 1.0, tide=None, weights=None) -> dict:
+                    current_gain: float = 1.0, tide=None, weights=None,
+                    n_agents: int | None = None) -> dict:
     """Run one cell on a grid export file and write its per-episode Parquet table atomically.
 
     The file records its configuration (``oneocean.engine.recording.read_metrics_meta``):
@@ -240,7 +241,8 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
 
     numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
     grid = load_grid(grid_path)
-    cell = Cell(grid, task, tier, currents=currents, current_gain=current_gain, tide=tide)
+    cell = Cell(grid, task, tier, currents=currents, current_gain=current_gain, tide=tide,
+                n_agents=n_agents)
     meta = {"task": task, "tier": int(tier), "method": method, "dynamics": dynamics,
             "vehicle": cell.vehicle.name, "v_max_ms": cell.vehicle.v_max,
             "n_agents": cell.n_agents, "episodes": int(episodes), "seed": int(seed),

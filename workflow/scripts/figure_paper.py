@@ -1,0 +1,16 @@
+from oneocean import smk
+from oneocean import figures
+
+
+def make(s):
+    if s.rule == "figure_pollution_species":
+        figures.plot_pollution_species(s.output.png, seed=int(s.params.seed))
+    elif s.rule == "figure_ladder":
+        figures.plot_ladder(list(s.input.cells), s.output.png, method="heuristic")
+    elif s.rule == "figure_team_sweep":
+        figures.plot_team_sweep(list(s.input.cells), s.output.png)
+    else:
+        raise ValueError(f"figure_paper.py: unknown rule {s.rule}")
+
+
+smk.run(snakemake, make)
