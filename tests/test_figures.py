@@ -314,3 +314,18 @@ def test_fig7_rejects_mixed_or_duplicate_cells(sweep_cells, tmp_path):
     write_metrics(frames[2], na, meta={"task": "SPC", "tier": 2, "method": "heuristic",
                                        "n_agents": 9, "applicable": False, "currents": True})
     assert 9 not in set(team_sweep_numbers(files + [na])["n_agents"])
+
+
+def test_team_sweep_in_a_region_that_cannot_host_it_is_a_note_not_a_crash(tmp_path):
+    import pandas as pd
+
+    from oneocean.engine.recording import write_metrics
+    from oneocean.figures import plot_team_sweep
+
+    f = tmp_path / "na.parquet"
+    write_metrics(pd.DataFrame({"success": pd.Series([], dtype=bool)}), f,
+                  meta={"task": "SPC", "tier": 2, "method": "heuristic", "n_agents": 2,
+                        "applicable": False, "reason": "no water", "currents": True})
+    out = plot_team_sweep([f], tmp_path / "fig7.png")
+    assert out["sweep"].empty
+    assert (tmp_path / "fig7.png").stat().st_size > 1000 and (tmp_path / "fig7.pdf").is_file()

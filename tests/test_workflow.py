@@ -75,7 +75,7 @@ def test_rollout_cells_currents_off_and_the_ladder(two_runs):
              for m in r["methods"]}
     off = {f"{t}/tier3/heuristic_currents-off.parquet" for t in r["tasks"]}
     forced = {f"{t}/tier3/heuristic_{f}.parquet" for t in r["tasks"] for f in ("gain", "tide")}
-    team = {f"FT/tier1/heuristic_n{n}.parquet" for n in (2, 3)}
+    team = {f"SPC/tier1/heuristic_n{n}.parquet" for n in (2, 3)}
     got = {p.relative_to(root).as_posix() for p in root.rglob("*.parquet")}
     assert got == cells | off | forced | team
     for rel in sorted(got):

@@ -27,7 +27,7 @@ SMALL_CONFIG = {
     "rollouts": {"variant": "public", "tasks": ["G2G", "FT"], "tiers": [1, 3],
                  "methods": ["heuristic", "bc"], "episodes": 4, "seed": 1000,
                  "dynamics": "6dof",
-                 "team_sweep": {"task": "FT", "tier": 1, "method": "heuristic",
+                 "team_sweep": {"task": "SPC", "tier": 1, "method": "heuristic",
                                 "sizes": [2, 3]}},
     "bc": {"train_seeds": [100], "episodes": 3, "stride": 5, "max_rows": 300,
            "hidden": [16, 16], "epochs": 3},

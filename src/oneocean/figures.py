@@ -816,7 +816,20 @@ def plot_team_sweep(cell_files, out_png) -> dict:
     from matplotlib.lines import Line2D
     from matplotlib.ticker import MaxNLocator
 
-    sw = team_sweep_numbers(list(cell_files))
+    try:
+        sw = team_sweep_numbers(list(cell_files))
+    except DataError as exc:
+        if "no applicable cell" not in str(exc):
+            raise
+        # the region cannot host the sweep's cells: say so in the figure, never crash
+        with paper_style():
+            fig = new_figure(PAGE_IN, 1.2)
+            ax = fig.add_subplot()
+            ax.axis("off")
+            ax.text(0.5, 0.5, "Fig. 7: the team-size sweep's cells are not applicable in this "
+                    "region (each cell file records why)", ha="center", va="center")
+            png, pdf = save_figure(fig, out_png)
+        return {"sweep": pd.DataFrame(), "png": png, "pdf": pdf}
     N = sw["n_agents"].to_numpy()
     col = palette(10)
     with paper_style():

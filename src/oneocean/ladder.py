@@ -41,8 +41,11 @@ def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
 
 
 def load_cells(files) -> pd.DataFrame:
-    """One row per cell file: ``task, tier, method, currents, applicable, reason, vehicle,
-    n_agents, n, k`` and the episodes' success vector (``success``, a numpy bool array).
+    """One row per cell file: ``task, tier, method, currents, forcing, applicable, reason,
+    vehicle, n_agents, n, k`` and the episodes' success vector (``success``, a numpy bool
+    array). ``forcing``: ``data`` (the product's currents as they are), ``off``, ``gain``
+    (another gain on the data currents) or ``tide`` (a synthetic tide added): the ladder and
+    its macros use ``data`` and ``off`` cells only.
 
     The cell's identity comes from the file's own record (a workflow cell), else from its
     columns (e.g. a user's ``oneocean evaluate`` file)."""
@@ -57,8 +60,13 @@ def load_cells(files) -> pd.DataFrame:
         def get(key, default=None):
             return meta[key] if key in meta else first.get(key, default)
 
+        currents = bool(get("currents", True))
+        tier_gain = float((meta.get("tier_params") or {}).get("current_gain", 1.0))
+        run_gain = float(meta.get("current_gain", tier_gain)) / (tier_gain or 1.0)
+        forcing = ("off" if not currents else "tide" if meta.get("tide") is not None
+                   else "gain" if abs(run_gain - 1.0) > 1e-12 else "data")
         rows.append({"task": get("task"), "tier": int(get("tier", -1)),
-                     "method": get("method"), "currents": bool(get("currents", True)),
+                     "method": get("method"), "currents": currents, "forcing": forcing,
                      "applicable": bool(meta.get("applicable", True)),
                      "reason": meta.get("reason", ""), "vehicle": meta.get("vehicle", ""),
                      "n_agents": int(get("n_agents", 0)),
@@ -82,10 +90,17 @@ def cell_rate(k: int, n: int) -> Rate:
     return Rate(100.0 * k / n if n else math.nan, 100.0 * lo, 100.0 * hi, n)
 
 
+def _data_and_off(cells: pd.DataFrame) -> pd.DataFrame:
+    """The data-grounded and currents-off cells (all of them for a frame without
+    ``forcing``)."""
+    return cells[cells["forcing"].isin(("data", "off"))] if "forcing" in cells else cells
+
+
 def ladder_frame(cells: pd.DataFrame) -> pd.DataFrame:
-    """Per (task, method, currents, tier): ``sr, lo, hi, n, applicable, reason``."""
+    """Per (task, method, currents, tier): ``sr, lo, hi, n, applicable, reason`` (the data
+    and currents-off cells; other forcings have their own table)."""
     out = []
-    for _, c in cells.iterrows():
+    for _, c in _data_and_off(cells).iterrows():
         r = cell_rate(c["k"], c["n"]) if c["applicable"] else Rate(math.nan, math.nan,
                                                                    math.nan, 0)
         out.append({"task": c["task"], "method": c["method"], "currents": c["currents"],
@@ -98,6 +113,7 @@ def ladder_frame(cells: pd.DataFrame) -> pd.DataFrame:
 def macro_rate(cells: pd.DataFrame, method: str, tier: int, currents: bool = True) -> dict:
     """Macro success rate (%) of one (method, tier, currents) over the applicable tasks, with
     a stratified-bootstrap 95 % interval (episodes resampled within each task)."""
+    cells = _data_and_off(cells)
     sel = cells[(cells["method"] == method) & (cells["tier"] == tier)
                 & (cells["currents"] == currents)]
     # tasks in one canonical order, so the interval does not depend on the file order
