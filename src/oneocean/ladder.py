@@ -40,36 +40,48 @@ def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
     return (max(0.0, mid - half), min(1.0, mid + half))
 
 
+def read_cell(path) -> tuple[pd.DataFrame, dict]:
+    """A cell file's per-episode table and its identity: ``task, tier, method, currents,
+    run_gain`` (the run's gain g on the data currents, a tier's own gain divided out),
+    ``tide`` (the synthetic tide term or None), ``forcing`` (``data``: the product's currents
+    as they are, ``off``, ``gain``: another gain, ``tide``: a synthetic tide added),
+    ``applicable, reason, vehicle, n_agents, seed``. The identity comes from the file's own
+    record (a workflow cell), else from its columns (e.g. a user's ``oneocean evaluate``
+    file). The one reader of cell files (tables, figures and the ladder use it)."""
+    from .engine.recording import read_metrics_meta
+
+    df = pd.read_parquet(path)
+    meta = read_metrics_meta(path)
+    first = df.iloc[0] if len(df) else {}
+
+    def get(key, default=None):
+        return meta[key] if key in meta else first.get(key, default)
+
+    currents = bool(get("currents", True))
+    tier_gain = float((meta.get("tier_params") or {}).get("current_gain", 1.0))
+    run_gain = float(meta.get("current_gain", tier_gain)) / (tier_gain or 1.0)
+    tide = meta.get("tide")
+    forcing = ("off" if not currents else "tide" if tide is not None
+               else "gain" if abs(run_gain - 1.0) > 1e-12 else "data")
+    seed = get("seed")
+    return df, {"task": get("task"), "tier": int(get("tier", -1)), "method": get("method"),
+                "currents": currents, "run_gain": run_gain, "tide": tide, "forcing": forcing,
+                "applicable": bool(meta.get("applicable", True)),
+                "reason": meta.get("reason", ""), "vehicle": meta.get("vehicle", ""),
+                "n_agents": int(get("n_agents", 0)),
+                "seed": None if seed is None else int(seed), "meta": meta}
+
+
 def load_cells(files) -> pd.DataFrame:
     """One row per cell file: ``task, tier, method, currents, forcing, applicable, reason,
     vehicle, n_agents, n, k`` and the episodes' success vector (``success``, a numpy bool
-    array). ``forcing``: ``data`` (the product's currents as they are), ``off``, ``gain``
-    (another gain on the data currents) or ``tide`` (a synthetic tide added): the ladder and
-    its macros use ``data`` and ``off`` cells only.
-
-    The cell's identity comes from the file's own record (a workflow cell), else from its
-    columns (e.g. a user's ``oneocean evaluate`` file)."""
-    from .engine.recording import read_metrics_meta
-
+    array); :func:`read_cell` says what each is. The ladder and its macros use the ``data``
+    and ``off`` cells only."""
     rows = []
     for f in files:
-        df = pd.read_parquet(f)
-        meta = read_metrics_meta(f)
-        first = df.iloc[0] if len(df) else {}
-
-        def get(key, default=None):
-            return meta[key] if key in meta else first.get(key, default)
-
-        currents = bool(get("currents", True))
-        tier_gain = float((meta.get("tier_params") or {}).get("current_gain", 1.0))
-        run_gain = float(meta.get("current_gain", tier_gain)) / (tier_gain or 1.0)
-        forcing = ("off" if not currents else "tide" if meta.get("tide") is not None
-                   else "gain" if abs(run_gain - 1.0) > 1e-12 else "data")
-        rows.append({"task": get("task"), "tier": int(get("tier", -1)),
-                     "method": get("method"), "currents": currents, "forcing": forcing,
-                     "applicable": bool(meta.get("applicable", True)),
-                     "reason": meta.get("reason", ""), "vehicle": meta.get("vehicle", ""),
-                     "n_agents": int(get("n_agents", 0)),
+        df, c = read_cell(f)
+        rows.append({**{k: c[k] for k in ("task", "tier", "method", "currents", "forcing",
+                                          "applicable", "reason", "vehicle", "n_agents")},
                      "n": int(len(df)), "k": int(df["success"].sum()),
                      "success": df["success"].to_numpy(dtype=bool)})
     return pd.DataFrame(rows)

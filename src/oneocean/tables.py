@@ -162,35 +162,23 @@ def load_cell_frames(cell_files) -> pd.DataFrame:
     for the same cell, is a ConfigError (never silently dropped or pooled).
     """
     from . import registry
-    from .engine.recording import read_metrics_meta
     from .errors import ConfigError
+    from .ladder import read_cell
 
     if isinstance(cell_files, pd.DataFrame):
         return cell_files
     rows = []
     for f in cell_files:
-        df = pd.read_parquet(f)
-        meta = read_metrics_meta(f)
-        first = df.iloc[0] if len(df) else {}
-
-        def get(key, default=None):
-            return meta[key] if key in meta else first.get(key, default)
-
-        currents = bool(get("currents", True))
-        tier_gain = float((meta.get("tier_params") or {}).get("current_gain", 1.0))
-        gain = float(meta.get("current_gain", 1.0)) / (tier_gain or 1.0)
-        tide = meta.get("tide")
-        tide = None if tide is None else json.dumps(tide, sort_keys=True)
-        cond, label, key = _condition(currents, gain, tide)
-        seed = get("seed")
-        rows.append({"task": get("task"), "tier": int(get("tier", -1)),
-                     "method": get("method"), "currents": currents, "current_gain": gain,
-                     "tide": tide, "condition": cond, "condition_label": label,
-                     "condition_key": key,
-                     "applicable": bool(meta.get("applicable", True)),
-                     "reason": meta.get("reason", ""), "vehicle": meta.get("vehicle", ""),
-                     "n_agents": int(get("n_agents", 0)),
-                     "seed": None if seed is None else int(seed),
+        df, c = read_cell(f)
+        gain = float(c["meta"].get("current_gain", 1.0)) / (
+            float((c["meta"].get("tier_params") or {}).get("current_gain", 1.0)) or 1.0)
+        tide = None if c["tide"] is None else json.dumps(c["tide"], sort_keys=True)
+        cond, label, key = _condition(c["currents"], gain, tide)
+        rows.append({**{k: c[k] for k in ("task", "tier", "method", "currents")},
+                     "current_gain": gain, "tide": tide, "condition": cond,
+                     "condition_label": label, "condition_key": key,
+                     **{k: c[k] for k in ("applicable", "reason", "vehicle", "n_agents",
+                                          "seed")},
                      "n": int(len(df)), "k": int(df["success"].sum()),
                      "success": df["success"].to_numpy(dtype=bool), "episodes": df,
                      "file": str(f)})
