@@ -199,15 +199,21 @@ def ladder_cells(tmp_path):
     return files, k
 
 
-def test_fig6_plots_the_wilson_rates_of_the_cells(ladder_cells, tmp_path):
-    files, k = ladder_cells
+def _render(plot, files, tmp_path, name):
+    """``plot(files, path)`` rendered twice (byte-identical); its result as ``{"r": ...}``
+    and the PNG read back."""
     out = {}
 
     def render(path):
-        out["r"] = plot_ladder(files, path)
+        out["r"] = plot(files, path)
 
-    png = _assert_twice_identical(render, tmp_path, "ladder")
-    img = _read_png(png)
+    png = _assert_twice_identical(render, tmp_path, name)
+    return out, _read_png(png)
+
+
+def test_fig6_plots_the_wilson_rates_of_the_cells(ladder_cells, tmp_path):
+    files, k = ladder_cells
+    out, img = _render(plot_ladder, files, tmp_path, "ladder")
     assert img.shape[:2] == (round(2.7 * DPI), round(7.2 * DPI))
     rates, drops = out["r"]["rates"], out["r"]["drops"]
     # registry order, only the heuristic's applicable cells with currents on
@@ -269,13 +275,7 @@ def sweep_cells(tmp_path):
 
 def test_fig7_plots_the_per_team_size_numbers(sweep_cells, tmp_path):
     files, frames = sweep_cells
-    out = {}
-
-    def render(path):
-        out["r"] = plot_team_sweep(files, path)
-
-    png = _assert_twice_identical(render, tmp_path, "team_sweep")
-    img = _read_png(png)
+    out, img = _render(plot_team_sweep, files, tmp_path, "team_sweep")
     assert img.shape[:2] == (round(2.6 * DPI), round(7.2 * DPI))
     sw = out["r"]["sweep"]
     assert list(sw["n_agents"]) == [2, 3, 4, 5]

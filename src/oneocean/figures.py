@@ -729,21 +729,6 @@ def plot_ladder(cell_files, out_png, tasks=None, method: str = "heuristic") -> d
 # Fig. 7: the SPC team-size sweep
 # ------------------------------------------------------------------------------------------
 
-def _boot_ci(x, seed: int) -> tuple[float, float]:
-    """Seeded percentile-bootstrap 95 % interval of the mean of ``x`` (NaN-free)."""
-    from .ladder import N_BOOT
-
-    x = np.asarray(x, dtype=float)
-    if x.size == 0:
-        return (math.nan, math.nan)
-    if x.size == 1:
-        return (float(x[0]), float(x[0]))
-    rng = np.random.default_rng(seed)
-    m = x[rng.integers(0, x.size, size=(N_BOOT, x.size))].mean(axis=1)
-    lo, hi = np.quantile(m, [0.025, 0.975])
-    return float(lo), float(hi)
-
-
 def team_sweep_numbers(cell_files) -> pd.DataFrame:
     """The numbers Fig. 7 plots: one row per team size ``n_agents`` (from each cell's record,
     else its column), over the applicable cells with currents on (all of one task, tier and
@@ -752,31 +737,26 @@ def team_sweep_numbers(cell_files) -> pd.DataFrame:
     ``T_s, T_lo, T_hi`` (mean time to success, s, bootstrap), ``coll_pct`` (mean
     near-collision ratio, %), ``E`` (mean control effort) and ``task, tier, method,
     target_pct`` (the success target fraction of the cells' tier, % or NaN)."""
-    from .engine.recording import read_metrics_meta
-    from .ladder import BOOT_SEED, wilson
+    from .ladder import BOOT_SEED, read_cell, wilson
+    from .planning import mean_ci
 
     rows = []
     ident = set()
     targets = set()
     for f in cell_files:
-        meta = read_metrics_meta(f)
-        df = pd.read_parquet(f)
-        if not meta.get("applicable", True) or not len(df):
+        df, c = read_cell(f)
+        if not c["applicable"] or not len(df) or not c["currents"]:
             continue
-        first = df.iloc[0]
-        get = lambda key, d=None: meta[key] if key in meta else first.get(key, d)  # noqa: E731
-        if not bool(get("currents", True)):
-            continue
-        n_agents = int(get("n_agents", 0))
-        ident.add((str(get("task")), int(get("tier", -1)), str(get("method"))))
-        tf = (meta.get("tier_params") or {}).get("target_fraction")
+        n_agents = c["n_agents"]
+        ident.add((str(c["task"]), c["tier"], str(c["method"])))
+        tf = (c["meta"].get("tier_params") or {}).get("target_fraction")
         targets.add(float(tf) if tf is not None else math.nan)
         k, n = int(df["success"].sum()), int(len(df))
         lo, hi = wilson(k, n)
         cr = df["cleanup_rate"].to_numpy(dtype=float)
         ts = df["T_s"].to_numpy(dtype=float)
-        clo, chi = _boot_ci(cr[np.isfinite(cr)], BOOT_SEED + n_agents)
-        tlo, thi = _boot_ci(ts[np.isfinite(ts)], BOOT_SEED + 1000 + n_agents)
+        _, clo, chi = mean_ci(cr, BOOT_SEED + n_agents)
+        _, tlo, thi = mean_ci(ts, BOOT_SEED + 1000 + n_agents)
         rows.append({"n_agents": n_agents, "n": n, "k": k, "sr": 100.0 * k / n,
                      "sr_lo": 100.0 * lo, "sr_hi": 100.0 * hi,
                      "cleanup": 100.0 * float(np.nanmean(cr)), "cleanup_lo": 100.0 * clo,
