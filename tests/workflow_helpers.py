@@ -33,6 +33,7 @@ SMALL_CONFIG = {
            "hidden": [16, 16], "epochs": 3},
     "planning": {"tasks": ["SPC"], "tier": 1, "episodes": 3, "cost_episodes": 2,
                  "methods": ["heuristic", "bc"]},
+    "snapshots": {"tasks": ["SPC", "FT"], "tier": 1},
 }
 
 
@@ -57,3 +58,18 @@ def run_workflow(workdir: Path, targets=("paper_tables",), config: dict | None =
         )
         dag = wf.dag(DAGSettings(targets=set(targets), forcerun=set(forcerun)))
         dag.execute_workflow(executor="local", execution_settings=ExecutionSettings(lock=False))
+
+
+def need_tex(program: str = "pdflatex") -> None:
+    """Skip the calling test where ``program`` (TeX) is not installed, except in CI
+    (``ONEOCEAN_REQUIRE_TEX=1``, set by .ci/run after it installs Debian's TeX packages),
+    where a missing TeX fails the test."""
+    import os
+    import shutil
+
+    import pytest
+
+    if shutil.which(program) is None:
+        if os.environ.get("ONEOCEAN_REQUIRE_TEX") == "1":
+            pytest.fail(f"{program} not installed, but ONEOCEAN_REQUIRE_TEX=1")
+        pytest.skip(f"{program} not installed")

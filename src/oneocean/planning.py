@@ -167,7 +167,9 @@ def _latex(header: list[str], cols: list[list[str]], caption: str, label: str) -
     for i in range(n):
         lines.append(" & ".join(c[i] for c in cols) + " \\\\")
     lines += ["\\bottomrule", "\\end{tabular}", "\\end{table}", ""]
-    return "\n".join(lines)
+    from .tables import fit_width
+
+    return fit_width("\n".join(lines))
 
 
 def _esc(s: str) -> str:

@@ -66,6 +66,19 @@ HEADLINE_METRICS = (
 )
 
 
+#: LaTeX packages every generated table needs (``\\usepackage{...}`` in the document).
+LATEX_PACKAGES = ("booktabs", "graphicx", "amssymb")
+
+
+def fit_width(tex: str) -> str:
+    """Shrink the tabular of a table to the line width when (and only when) it is wider:
+    the tabular is set in a box, measured, and scaled with graphicx's ``\\resizebox`` if it
+    does not fit (plain LaTeX, no extra package); a narrow table is left at its size."""
+    return (tex.replace("\\begin{tabular}", "\\begingroup\\setbox0=\\hbox{\\begin{tabular}", 1)
+            .replace("\\end{tabular}", "\\end{tabular}}%\n\\ifdim\\wd0>\\linewidth"
+                     "\\resizebox{\\linewidth}{!}{\\box0}\\else\\mbox{\\box0}\\fi\\endgroup", 1))
+
+
 def to_booktabs(df: pd.DataFrame, caption: str, label: str,
                 best: Mapping[str, Best] | None = None, precision: int = 2,
                 column_format: str | None = None, na_rep: str = "--") -> str:
@@ -77,9 +90,9 @@ def to_booktabs(df: pd.DataFrame, caption: str, label: str,
             styler = styler.apply(
                 lambda s, t=target: ["font-weight: bold" if v == t else "" for v in s],
                 subset=[col])
-    return styler.hide(axis="index").to_latex(
+    return fit_width(styler.hide(axis="index").to_latex(
         hrules=True, caption=caption, label=label, convert_css=True, position="t",
-        column_format=column_format or "l" * len(df.columns))
+        column_format=column_format or "l" * len(df.columns)))
 
 
 def _escape(text: str) -> str:
@@ -363,7 +376,7 @@ def _latex(header: list[str], rows: list, caption: str, label: str, *, align: st
         else:
             lines.append(" & ".join(r) + " \\\\")
     lines += ["\\bottomrule", "\\end{tabular}", f"\\end{{{env}}}", ""]
-    return "\n".join(lines)
+    return fit_width("\n".join(lines))
 
 
 def _seeds_episodes(cells: pd.DataFrame) -> str:

@@ -1,0 +1,96 @@
+"""Compile the generated LaTeX: the paper (``paper/main.tex``) and tables on their own.
+
+TeX is optional: nothing in the default workflow needs it. The ``paper`` target and the table
+tests call :func:`compile_pdf`, which names the missing program in a one-line error when
+``latexmk``/``pdflatex`` is not installed (Debian: ``latexmk texlive-latex-base
+texlive-latex-recommended texlive-fonts-recommended``).
+
+PDFs are byte-reproducible: the build runs in a temporary folder under fixed file names with
+``SOURCE_DATE_EPOCH``/``FORCE_SOURCE_DATE`` set, so pdfTeX writes a fixed date and document
+id, and without pdfTeX's file-name records of included figures (their absolute paths); the
+PDF is renamed onto its path only when the build succeeded.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+from .errors import ConfigError
+from .io import write_bytes_atomic
+
+#: Debian packages that provide what the generated LaTeX needs.
+DEBIAN_TEX = ("latexmk", "texlive-latex-base", "texlive-latex-recommended",
+              "texlive-fonts-recommended")
+
+
+def tex_available(program: str = "latexmk") -> bool:
+    return shutil.which(program) is not None
+
+
+def _need(program: str) -> str:
+    path = shutil.which(program)
+    if path is None:
+        raise ConfigError(f"{program} not found: the PDF needs a TeX installation (Debian: "
+                          f"apt-get install {' '.join(DEBIAN_TEX)})")
+    return path
+
+
+def compile_pdf(tex_path, out_pdf, *, pretex: str = "", log_path=None,
+                engine: str = "latexmk") -> Path:
+    """Compile ``tex_path`` to ``out_pdf`` (atomically) with ``latexmk -pdf`` (or a single
+    ``pdflatex`` run: ``engine="pdflatex"``), running TeX code ``pretex`` first (e.g.
+    ``\\def\\region{...}``). Any LaTeX error is a one-line :class:`ConfigError` naming the
+    file and the first error line; the full TeX log goes to ``log_path`` if given."""
+    tex_path = Path(tex_path).resolve()
+    if not tex_path.is_file():
+        raise ConfigError(f"{tex_path}: no such LaTeX file")
+    env = {**os.environ, "SOURCE_DATE_EPOCH": "0", "FORCE_SOURCE_DATE": "1"}
+    # no /PTEX.FileName etc.: included figures' absolute paths would end up in the bytes
+    pretex = "\\ifdefined\\pdfsuppressptexinfo\\pdfsuppressptexinfo=-1\\fi" + pretex
+    with tempfile.TemporaryDirectory(prefix="oneocean-tex-") as tmp:
+        shutil.copyfile(tex_path, Path(tmp) / "main.tex")
+        if engine == "latexmk":
+            cmd = [_need("latexmk"), "-pdf", "-interaction=nonstopmode", "-halt-on-error",
+                   "-quiet"]
+            cmd += [f"-usepretex={pretex}", "main.tex"]
+        else:
+            cmd = [_need("pdflatex"), "-interaction=nonstopmode", "-halt-on-error",
+                   pretex + "\\input{main.tex}"]
+        # inputs are found relative to the .tex file's own folder, as in a hand build there
+        env["TEXINPUTS"] = f"{tex_path.parent}{os.pathsep}" + env.get("TEXINPUTS", "")
+        proc = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
+        log = Path(tmp) / "main.log"
+        text = log.read_text(errors="replace") if log.is_file() else proc.stdout + proc.stderr
+        if log_path is not None:
+            Path(log_path).parent.mkdir(parents=True, exist_ok=True)
+            Path(log_path).write_text(text)
+        pdf = Path(tmp) / "main.pdf"
+        if proc.returncode != 0 or not pdf.is_file():
+            first = next((ln for ln in text.splitlines() if ln.startswith("!")),
+                         f"exit code {proc.returncode}")
+            raise ConfigError(f"{tex_path}: LaTeX failed: {first.lstrip('! ').strip()}")
+        write_bytes_atomic(out_pdf, pdf.read_bytes())
+    return Path(out_pdf)
+
+
+def standalone_table(table_tex) -> str:
+    """A minimal document around one generated table (the packages the tables need), for
+    compiling it on its own."""
+    from .tables import LATEX_PACKAGES
+
+    path = Path(table_tex).resolve()
+    return ("\\documentclass{article}\n\\usepackage[margin=2cm]{geometry}\n"
+            + "".join(f"\\usepackage{{{p}}}\n" for p in LATEX_PACKAGES)
+            + f"\\begin{{document}}\n\\input{{{path.as_posix()}}}\n\\end{{document}}\n")
+
+
+def build_paper(tex_path, out_pdf, region: str, results_dir, log_path=None) -> Path:
+    """The paper: ``tex_path`` (``paper/main.tex``) with ``\\region`` and ``\\resultsdir``
+    set to this region and results folder."""
+    results = Path(results_dir).resolve().as_posix()
+    return compile_pdf(tex_path, out_pdf, log_path=log_path,
+                       pretex=f"\\def\\region{{{region}}}\\def\\resultsdir{{{results}}}")

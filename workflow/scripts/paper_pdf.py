@@ -1,0 +1,11 @@
+import sys
+
+from oneocean.errors import OneOceanError
+from oneocean.latex import build_paper
+
+try:
+    build_paper(snakemake.input.tex, snakemake.output.pdf, snakemake.params.region,
+                "results", log_path=snakemake.log[0])
+except OneOceanError as err:
+    print(f"paper: {err}", file=sys.stderr)
+    sys.exit(1)
