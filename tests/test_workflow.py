@@ -10,7 +10,7 @@ from oneocean.cli import main as cli
 from oneocean.engine.recording import read_metrics_meta
 from oneocean.tasks.common import load_task_table
 from oneocean.vocab import VARIANTS
-from workflow_helpers import SMALL_CONFIG, run_workflow
+from workflow_helpers import SMALL_CONFIG, need_tex, run_workflow
 
 pytestmark = pytest.mark.slow
 
@@ -42,7 +42,8 @@ def test_paper_tables_produces_every_artifact(two_runs):
                  "currents_ablation", "planning_performance", "planning_cost"):
         assert "\\toprule" in (a / f"results/tables/{REGION}/{name}.tex").read_text(), name
         assert len(pd.read_parquet(a / f"results/tables/{REGION}/{name}.parquet")), name
-    for name in ("pollution_species", "ladder", "team_sweep", "scene/current_field"):
+    for name in ("pollution_species", "snapshots", "ladder", "team_sweep",
+                 "scene/current_field"):
         for ext in ("png", "pdf"):
             assert (a / f"results/figures/{REGION}/{name}.{ext}").stat().st_size > 1000
 
@@ -96,8 +97,17 @@ def test_rollout_cells_currents_off_and_the_ladder(two_runs):
             assert len(df) == r["episodes"] and meta["reason"] == ""
         else:
             assert len(df) == 0 and meta["reason"]
-        prov = a / "results/provenance/rollouts" / REGION / r["variant"] / rel
-        assert prov.with_suffix(".json").is_file(), rel
+        # one provenance record per cell, although one job ran all the task's cells
+        prov = json.loads((a / "results/provenance/rollouts" / REGION / r["variant"] / rel)
+                          .with_suffix(".json").read_text())
+        assert prov["rule"] in {"rollout_task", "rollout_task_bc", "rollout_team"}, rel
+        assert [o["path"] for o in prov["outputs"]] == [
+            f"results/rollouts/{REGION}/{r['variant']}/{rel}"]
+        assert prov["wildcards"]["task"] == task and prov["params"]["run"]["seed"] == 1000
+        assert prov["params"]["run"]["currents"] is meta["currents"]
+        assert prov["wildcards"].get("tier", str(meta["tier"])) == str(meta["tier"])
+        assert f"results/kernels/{REGION}/{r['variant']}/{task}.json" in [
+            i["path"] for i in prov["inputs"]]
     # the currents-off ablation replays exactly the same episodes
     for t in r["tasks"]:
         on = pd.read_parquet(root / f"{t}/tier3/heuristic.parquet")
@@ -144,6 +154,45 @@ def test_bc_chain_dataset_weights_rollouts_and_planning_tables(two_runs):
     assert heur["SPC_metric"] == spc["cleanup_rate"].mean()
     assert read_metrics_meta(a / f"results/planning/{REGION}/{r['variant']}/SPC/bc.parquet")[
         "current_gain"] == 2.0
+
+
+def test_every_generated_table_compiles_standalone(two_runs, tmp_path):
+    """Each table of the paper, as the workflow wrote it, compiles on its own with pdflatex
+    and fits the line width (no overfull box)."""
+    need_tex("pdflatex")
+    from oneocean import latex
+
+    a, _ = two_runs
+    tables = sorted((a / f"results/tables/{REGION}").glob("*.tex"))
+    assert len(tables) == 8
+    for table in tables:
+        doc = tmp_path / f"{table.stem}_doc.tex"
+        doc.write_text(latex.standalone_table(table))
+        log = tmp_path / f"{table.stem}.log"
+        pdf = latex.compile_pdf(doc, tmp_path / f"{table.stem}.pdf", engine="pdflatex",
+                                log_path=log)
+        assert pdf.read_bytes().startswith(b"%PDF"), table.name
+        assert "Overfull \\hbox" not in log.read_text(), table.name
+
+
+def test_paper_target_compiles_and_report_renders(two_runs):
+    """`snakemake paper` compiles paper/main.tex with every table and figure of the region
+    (byte-identical in both runs); `snakemake --report` renders the report() outputs with
+    their captions."""
+    a, b = two_runs
+    r = _snakemake_cli(a, "--report", "report.html")
+    assert r.wait() == 0
+    html = (a / "report.html").read_text()
+    for needle in ("snapshots.png", "team_sweep.png", "headline.tex", "Fig. 5: one episode",
+                   "ladder.md"):
+        assert needle in html, needle
+    need_tex("latexmk")
+    for wd in (a, b):
+        assert _snakemake_cli(wd, "--cores", "1", "paper").wait() == 0
+    pa = (a / f"results/paper/{REGION}/main.pdf").read_bytes()
+    assert pa.startswith(b"%PDF") and pa == (b / f"results/paper/{REGION}/main.pdf").read_bytes()
+    log = (a / f"logs/paper/{REGION}/latexmk.log").read_text()
+    assert "OneOcean: missing" not in log and "Output written on main.pdf" in log
 
 
 def test_manifest_tracks_every_artifact_and_verifies(two_runs, monkeypatch):
@@ -237,7 +286,7 @@ def test_killed_runs_recover_with_unlock_and_the_readme_command(two_runs, tmp_pa
     assert _snakemake_cli(wd, "--cores", "2", "paper_tables").wait() == 0
     # a targeted rerun of every rollout cell, killed after it rewrote some of them
     before = {p: p.stat().st_mtime_ns for p in wd.glob(cells)}
-    proc = _snakemake_cli(wd, "--cores", "2", "-R", "rollout_cell", "paper_tables")
+    proc = _snakemake_cli(wd, "--cores", "2", "-R", "rollout_task", "paper_tables")
     import time
 
     t0 = time.time()

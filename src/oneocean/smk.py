@@ -31,13 +31,7 @@ def optional_input(snakemake, name: str):
     return str(value[0]) if value else None
 
 
-def run(snakemake, func) -> None:
-    """Run ``func(snakemake)`` with logging to the job log, then write the job's provenance.
-
-    The output named ``prov`` receives the provenance of every other output. A
-    :class:`~oneocean.errors.OneOceanError` is reported as its one-line message (no traceback)
-    and the job fails; Snakemake then removes the job's outputs.
-    """
+def _logger(snakemake) -> logging.Logger:
     log_path = snakemake.log[0] if len(snakemake.log) else None
     handlers = [logging.StreamHandler(sys.stderr)]
     if log_path:
@@ -45,7 +39,12 @@ def run(snakemake, func) -> None:
         handlers.append(logging.FileHandler(log_path, mode="w"))
     logging.basicConfig(level=logging.INFO, handlers=handlers, force=True,
                         format="%(levelname)s %(name)s: %(message)s")
-    log = logging.getLogger(f"oneocean.{snakemake.rule}")
+    # matplotlib's PDF backend subsets fonts through fontTools, which logs every glyph at INFO
+    logging.getLogger("fontTools").setLevel(logging.WARNING)
+    return logging.getLogger(f"oneocean.{snakemake.rule}")
+
+
+def _guarded(snakemake, log, func) -> None:
     from .errors import OneOceanError
 
     try:
@@ -64,6 +63,17 @@ def run(snakemake, func) -> None:
     except Exception:
         log.error("%s", traceback.format_exc())
         raise
+
+
+def run(snakemake, func) -> None:
+    """Run ``func(snakemake)`` with logging to the job log, then write the job's provenance.
+
+    The output named ``prov`` receives the provenance of every other output. A
+    :class:`~oneocean.errors.OneOceanError` is reported as its one-line message (no traceback)
+    and the job fails; Snakemake then removes the job's outputs.
+    """
+    log = _logger(snakemake)
+    _guarded(snakemake, log, func)
     outputs = dict(snakemake.output.items())
     prov = outputs.pop("prov")
     params = {k: _plain(v) for k, v in snakemake.params.items()}
@@ -72,3 +82,33 @@ def run(snakemake, func) -> None:
                          [str(i) for i in snakemake.input], params)
     with contextlib.suppress(Exception):
         log.info("wrote %s", ", ".join(map(str, outputs.values())))
+
+
+def run_cells(snakemake, func) -> None:
+    """A batched job: run ``func(snakemake, cell, path)`` for every cell of the job, in order.
+
+    ``snakemake.params.cells`` lists the cells (each a dict with its own ``wildcards`` and
+    ``params``), ``snakemake.output.parquet`` and ``snakemake.output.prov`` their files in the
+    same order. Each cell gets its own provenance record, as if it had been a job of its own
+    (its wildcards, its output, the job's inputs, its params), so the manifest and
+    ``oneocean verify`` see one entry per cell file. Errors are handled as in :func:`run`.
+    """
+    log = _logger(snakemake)
+    cells = list(snakemake.params.cells)
+    files, provs = list(snakemake.output.parquet), list(snakemake.output.prov)
+    if not len(cells) == len(files) == len(provs):
+        raise RuntimeError(f"rule {snakemake.rule}: {len(cells)} cells, {len(files)} outputs, "
+                           f"{len(provs)} provenance files")
+
+    def each(s):
+        for cell, path in zip(cells, files):
+            func(s, cell, path)
+
+    _guarded(snakemake, log, each)
+    wildcards = _plain(dict(snakemake.wildcards.items()))
+    inputs = [str(i) for i in snakemake.input]
+    for cell, path, prov in zip(cells, files, provs):
+        write_job_provenance(prov, snakemake.rule, {**wildcards, **_plain(cell["wildcards"])},
+                             [str(path)], inputs, _plain(cell["params"]))
+    with contextlib.suppress(Exception):
+        log.info("wrote %d cells: %s ... %s", len(files), files[0], files[-1])

@@ -3,21 +3,15 @@
 # dataset -> weights -> rollouts is in the DAG and the manifest, and retraining happens only
 # when the dataset, the settings or the BC code change.
 
-
-def bc_cells():
-    """The (tasks, tiers) the network is trained on: every rollout cell's, plus the planning
-    suite's when BC runs there."""
-    r, p = config["rollouts"], config["planning"]
-    tasks, tiers = list(r["tasks"]), list(r["tiers"])
-    if "bc" in p["methods"]:
-        tasks += [t for t in p["tasks"] if t not in tasks]
-        tiers += [p["tier"]] if p["tier"] not in tiers else []
-    return tasks, sorted(tiers)
-
-
 rule bc_dataset:
+    conda:
+        PY_ENV
+
+    priority: 20
     input:
         grid=rules.export_grid.output.npz,
+        kernels=lambda wc: expand("results/kernels/{region}/{variant}/{task}.json",
+                                  region=wc.region, variant=wc.variant, task=bc_cells()[0]),
     output:
         parquet="results/bc/{region}/{variant}/dataset.parquet",
         prov="results/provenance/bc/{region}/{variant}/dataset.json",
@@ -38,12 +32,18 @@ rule bc_dataset:
 
 
 rule bc_train:
+    conda:
+        PY_ENV
+
+
+    priority: 20
     input:
         dataset=rules.bc_dataset.output.parquet,
     output:
         weights="results/bc/{region}/{variant}/weights.npz",
         report="results/bc/{region}/{variant}/training_report.json",
-        png="results/figures/{region}/{variant}/bc_training.png",
+        png=report("results/figures/{region}/{variant}/bc_training.png",
+                   caption="../report/bc_training.rst", category="Figures"),
         pdf="results/figures/{region}/{variant}/bc_training.pdf",
         prov="results/provenance/bc/{region}/{variant}/weights.json",
     log:

@@ -20,6 +20,11 @@ except ConfigError as _err:
 
 REGION = config["region"]["name"]
 
+# Each rule's software (`snakemake --sdm conda`), pinned in workflow/envs/ (paths relative to
+# the rule files).
+PY_ENV = "../envs/oneocean.yaml"
+LATEX_ENV = "../envs/latex.yaml"
+
 
 wildcard_constraints:
     region=r"[A-Za-z0-9_-]+",
@@ -149,7 +154,7 @@ PAPER_TABLES = [
 ]
 PAPER_FIGURES = [
     f"results/figures/{REGION}/{name}.png"
-    for name in ("pollution_species", "ladder", "team_sweep")
+    for name in ("pollution_species", "snapshots", "ladder", "team_sweep")
 ]
 
 
@@ -172,6 +177,11 @@ def provenance_targets():
     stages += [p.replace("results/figures/", "results/provenance/figures/").replace(".png", ".json")
                for p in PAPER_FIGURES]
     stages += _prov(forcing_targets() + team_targets())
+    r = config["rollouts"]
+    kernel_tasks = dict.fromkeys([*r["tasks"], r["team_sweep"]["task"],
+                                  *config["planning"]["tasks"], *config["snapshots"]["tasks"]])
+    stages += [f"results/provenance/kernels/{REGION}/{r['variant']}/{t}.json"
+               for t in kernel_tasks]
     stages += [
         p.replace("results/rollouts/", "results/provenance/rollouts/").replace(
             ".parquet", ".json"
@@ -192,3 +202,159 @@ def provenance_targets():
     stages.append(f"results/provenance/tables/{REGION}/ladder.json")
 
     return stages
+
+
+# ---- input functions and params of rules/rollouts.smk
+# the code a cell of one task depends on (oneocean.codeversion): editing one task's module,
+# heuristic or tier table reruns only its cells; hashed once per task and parse
+def rollout_code(wc):
+    return task_code(wc.task)
+
+
+def _run(currents=True, forcing=None, n_agents=None):
+    """The run settings of a cell: the config's, or an ablation's forcing ("gain": the
+    forcing ablation's gain on the data currents; "tide": the data plus its tide term)."""
+    r = config["rollouts"]
+    run = {**{k: r[k] for k in ("episodes", "seed", "dynamics", "current_gain", "tide")},
+           "currents": currents, "n_agents": n_agents}
+    fa = r["forcing_ablation"]
+    if forcing == "gain":
+        run["current_gain"] = fa["gain"] * r["current_gain"]
+    elif forcing == "tide":
+        run["tide"] = dict(fa["tide"])
+    return run
+
+
+def task_cells(learned):
+    """The cells one job runs for one task: every configured (method, tier), then the
+    currents-off and forcing-ablation cells; ``learned``: method bc's cells (they wait for
+    its weights), else every other method's. The same list for every task."""
+    r = config["rollouts"]
+    off, fa = r["currents_off"], r["forcing_ablation"]
+
+    def keep(methods):
+        return [m for m in methods if m in r["methods"] and (m == "bc") == learned]
+
+    cells = [(m, t, "", _run()) for m in keep(r["methods"]) for t in r["tiers"]]
+    cells += [(m, t, "_currents-off", _run(currents=False))
+              for m in keep(off["methods"]) for t in off["tiers"] if t in r["tiers"]]
+    cells += [(m, t, f"_{f}", _run(forcing=f)) for f in ("gain", "tide")
+              for m in keep(fa["methods"]) for t in fa["tiers"] if t in r["tiers"]]
+    return [{"method": m, "tier": t, "suffix": sfx, "run": run} for m, t, sfx, run in cells]
+
+
+def _cell_files(cells, kind):
+    """Output paths of ``cells`` (region, variant and task stay wildcards)."""
+    if kind == "parquet":
+        pat = "results/rollouts/{{region}}/{{variant}}/{{task}}/tier{tier}/{method}{suffix}.parquet"
+    else:
+        pat = ("results/provenance/rollouts/{{region}}/{{variant}}/{{task}}/tier{tier}/"
+               "{method}{suffix}.json")
+    return [pat.format(**c) for c in cells]
+
+
+def _cell_params(cells):
+    """Per-cell wildcards and params (each cell's provenance record), with the task's code."""
+
+    def fn(wc):
+        code = rollout_code(wc)
+        return [{"method": c["method"], "tier": c["tier"], "run": c["run"],
+                 "wildcards": {"method": c["method"], "tier": str(c["tier"])},
+                 "params": {"code": code, "run": c["run"]}} for c in cells]
+
+    return fn
+
+
+def bc_weights(wc):
+    """Method bc's trained weights (the bc_train rule's output); no input for other methods."""
+    return f"results/bc/{wc.region}/{wc.variant}/weights.npz" if wc.method == "bc" else []
+
+
+def kernel_tiers():
+    """Every tier a task kernel runs at in this config (rollouts, planning suite, team sweep,
+    Fig. 5)."""
+    r = config["rollouts"]
+    return sorted({*r["tiers"], config["planning"]["tier"], r["team_sweep"]["tier"],
+                   config["snapshots"]["tier"]})
+
+
+def team_sizes():
+    """Fig. 7's team sizes (one cell each in the rollout_team job)."""
+    return [int(n) for n in config["rollouts"]["team_sweep"]["sizes"]]
+
+
+def _team_params(wc):
+    """Per-cell wildcards and params of the team-size sweep's job."""
+    code = rollout_code(wc)
+    return [{"method": wc.method, "tier": int(wc.tier), "run": _run(n_agents=n),
+             "wildcards": {"n": str(n)}, "params": {"code": code, "run": _run(n_agents=n)}}
+            for n in team_sizes()]
+
+
+# ---- input functions and params of rules/bc.smk
+def bc_cells():
+    """The (tasks, tiers) the network is trained on: every rollout cell's, plus the planning
+    suite's when BC runs there."""
+    r, p = config["rollouts"], config["planning"]
+    tasks, tiers = list(r["tasks"]), list(r["tiers"])
+    if "bc" in p["methods"]:
+        tasks += [t for t in p["tasks"] if t not in tasks]
+        tiers += [p["tier"]] if p["tier"] not in tiers else []
+    return tasks, sorted(tiers)
+
+
+# ---- input functions and params of rules/planning.smk
+def planning_llm_methods():
+    return [llm_method(m) for m in config["llm"]["models"]]
+
+
+def planning_targets():
+    p = config["planning"]
+    return expand(
+        "results/planning/{region}/{variant}/{task}/{method}.parquet",
+        region=REGION,
+        variant=config["rollouts"]["variant"],
+        task=p["tasks"],
+        method=list(p["methods"]) + planning_llm_methods(),
+    )
+
+
+def _planning_run(wc):
+    p, r = config["planning"], config["rollouts"]
+    return {"tier": p["tier"], "episodes": p["episodes"], "seed": r["seed"],
+            "dynamics": r["dynamics"], "current_gain": p["current_gain"] * r["current_gain"]}
+
+
+# ---- input functions and params of rules/figures.smk
+def _figure_io(name, caption):
+    """A paper figure's outputs; the PNG goes into `snakemake --report` with ``caption``
+    (workflow/report/<caption>.rst)."""
+    return {
+        "png": report(f"results/figures/{{region}}/{name}.png",
+                      caption=f"../report/{caption}.rst", category="Figures"),
+        "pdf": f"results/figures/{{region}}/{name}.pdf",
+        "prov": f"results/provenance/figures/{{region}}/{name}.json",
+    }
+
+
+# ---- input functions and params of rules/tables.smk
+def _table_rule_io(name):
+    """A paper table's outputs; the LaTeX goes into `snakemake --report`."""
+    return {
+        "tex": report(f"results/tables/{{region}}/{name}.tex", caption="../report/table.rst",
+                      category="Tables"),
+        "parquet": f"results/tables/{{region}}/{name}.parquet",
+        "prov": f"results/provenance/tables/{{region}}/{name}.json",
+    }
+
+
+# ---- input functions and params of rules/paper.smk
+def paper_inputs():
+    r = config["rollouts"]
+    figs = [p.replace(".png", ".pdf") for p in PAPER_FIGURES]
+    figs.append(f"results/figures/{REGION}/scene/current_field.pdf")
+    if "bc" in r["methods"] or "bc" in config["planning"]["methods"]:
+        figs.append(f"results/figures/{REGION}/{r['variant']}/bc_training.pdf")
+    return PAPER_TABLES + [f"results/tables/{REGION}/planning_performance.tex",
+                           f"results/tables/{REGION}/planning_cost.tex"] + figs
+

@@ -3,6 +3,11 @@
 
 
 rule export_grid:
+    conda:
+        PY_ENV
+
+
+    priority: 10
     input:
         product=rules.merge_variant.output.nc,
     output:
@@ -20,6 +25,8 @@ rule export_grid:
 
 
 rule export_temporal:
+    conda:
+        PY_ENV
     input:
         product=rules.merge_variant.output.nc,
     output:

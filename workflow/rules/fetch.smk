@@ -3,6 +3,11 @@
 
 
 rule fetch_currents:
+    conda:
+        PY_ENV
+
+
+    priority: 10
     output:
         nc="results/raw/{region}/currents.nc",
         prov="results/provenance/fetch/{region}/currents.json",
@@ -20,6 +25,11 @@ rule fetch_currents:
 
 
 rule fetch_bathymetry:
+    conda:
+        PY_ENV
+
+
+    priority: 10
     output:
         nc="results/raw/{region}/bathymetry.nc",
         prov="results/provenance/fetch/{region}/bathymetry.json",

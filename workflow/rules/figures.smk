@@ -1,15 +1,19 @@
 # Figures (PNG + PDF, byte-stable): Fig. 3 the current field over bathymetry for every
 # variant; Fig. 4 the pollution model's species; Fig. 6 the heuristic's difficulty ladder;
-# Fig. 7 the SPC team-size sweep.
+# Fig. 5 one-episode snapshots; Fig. 7 the SPC team-size sweep.
 
 FIGURES_CODE = code_version("oneocean.figures", "oneocean.ladder")
 
 
 rule figure_current_field:
+    conda:
+        PY_ENV
     input:
         product=rules.merge_variant.output.nc,
     output:
-        png="results/figures/{region}/{variant}/current_field.png",
+        png=report("results/figures/{region}/{variant}/current_field.png",
+                   caption="../report/fig3_current_field.rst", category="Figures",
+                   subcategory="Fig. 3 current field"),
         pdf="results/figures/{region}/{variant}/current_field.pdf",
         prov="results/provenance/figures/{region}/{variant}/current_field.json",
     log:
@@ -21,19 +25,12 @@ rule figure_current_field:
     script:
         "../scripts/figure_current_field.py"
 
-
-def _figure_io(name):
-    return {
-        "png": f"results/figures/{{region}}/{name}.png",
-        "pdf": f"results/figures/{{region}}/{name}.pdf",
-        "prov": f"results/provenance/figures/{{region}}/{name}.json",
-    }
-
-
 # Fig. 4: multi-species pollution fields from the reaction model (no region data).
 rule figure_pollution_species:
+    conda:
+        PY_ENV
     output:
-        **_figure_io("pollution_species"),
+        **_figure_io("pollution_species", "fig4_pollution_species"),
     log:
         "logs/figures/{region}/pollution_species.log",
     params:
@@ -46,10 +43,12 @@ rule figure_pollution_species:
 
 # Fig. 6: success per tier and the drops, heuristic cells.
 rule figure_ladder:
+    conda:
+        PY_ENV
     input:
-        cells=[p for p in rollout_targets() if p.endswith("/heuristic.parquet")],
+        cells=[p for p in rollout_targets() if Path(p).name == "heuristic.parquet"],
     output:
-        **_figure_io("ladder"),
+        **_figure_io("ladder", "fig6_ladder"),
     log:
         "logs/figures/{region}/ladder.log",
     params:
@@ -59,12 +58,39 @@ rule figure_ladder:
         "../scripts/figure_paper.py"
 
 
+# Fig. 5: one episode per task, snapshots over the bathymetry (plume, object, scan, school).
+rule figure_snapshots:
+    conda:
+        PY_ENV
+    input:
+        grid=lambda wc: f"results/exports/{wc.region}/{config['rollouts']['variant']}/grid.npz",
+        kernels=lambda wc: [f"results/kernels/{wc.region}/{config['rollouts']['variant']}/{t}.json"
+                            for t in config["snapshots"]["tasks"]],
+    output:
+        **_figure_io("snapshots", "fig5_snapshots"),
+    log:
+        "logs/figures/{region}/snapshots.log",
+    params:
+        tasks=lambda wc: config["snapshots"]["tasks"],
+        tier=lambda wc: config["snapshots"]["tier"],
+        method=lambda wc: config["snapshots"]["method"],
+        episode=lambda wc: config["snapshots"]["episode"],
+        seed=lambda wc: config["rollouts"]["seed"],
+        episodes=lambda wc: config["rollouts"]["episodes"],
+        code=FIGURES_CODE + code_version("oneocean.snapshots") + tasks_code(config["snapshots"]["tasks"]),
+    threads: 1
+    script:
+        "../scripts/figure_snapshots.py"
+
+
 # Fig. 7: SPC at Tier 2 for team sizes 2..10.
 rule figure_team_sweep:
+    conda:
+        PY_ENV
     input:
         cells=team_targets(),
     output:
-        **_figure_io("team_sweep"),
+        **_figure_io("team_sweep", "fig7_team_sweep"),
     log:
         "logs/figures/{region}/team_sweep.log",
     params:

@@ -2,6 +2,8 @@
 
 
 rule manifest:
+    conda:
+        PY_ENV
     input:
         provenance_targets(),
     output:

@@ -5,36 +5,17 @@
 
 LLM_CODE = code_version("oneocean.methods.llm")
 
-
-def planning_llm_methods():
-    return [llm_method(m) for m in config["llm"]["models"]]
-
-
-def planning_targets():
-    p = config["planning"]
-    return expand(
-        "results/planning/{region}/{variant}/{task}/{method}.parquet",
-        region=REGION,
-        variant=config["rollouts"]["variant"],
-        task=p["tasks"],
-        method=list(p["methods"]) + planning_llm_methods(),
-    )
-
-
-def _planning_run(wc):
-    p, r = config["planning"], config["rollouts"]
-    return {"tier": p["tier"], "episodes": p["episodes"], "seed": r["seed"],
-            "dynamics": r["dynamics"], "current_gain": p["current_gain"] * r["current_gain"]}
-
-
 if not config["llm"]["models"]:
     print("planning suite: no LLM endpoint configured (llm.models is empty): LLM cells "
           "skipped and their rows omitted", file=sys.stderr)
 
 
 rule planning_cell:
+    conda:
+        PY_ENV
     input:
         grid=rules.export_grid.output.npz,
+        kernel=rules.compile_kernel.output.record,
         weights=bc_weights,
     output:
         parquet="results/planning/{region}/{variant}/{task}/{method}.parquet",
@@ -54,8 +35,11 @@ rule planning_cell:
 
 
 rule planning_llm_cell:
+    conda:
+        PY_ENV
     input:
         grid=rules.export_grid.output.npz,
+        kernel=rules.compile_kernel.output.record,
     output:
         parquet="results/planning/{region}/{variant}/{task}/{method}.parquet",
         prov="results/provenance/planning/{region}/{variant}/{task}/{method}.json",
@@ -77,11 +61,15 @@ rule planning_llm_cell:
 
 
 rule table_planning:
+    conda:
+        PY_ENV
     input:
         cells=planning_targets(),
     output:
-        perf="results/tables/{region}/planning_performance.tex",
-        cost="results/tables/{region}/planning_cost.tex",
+        perf=report("results/tables/{region}/planning_performance.tex",
+                    caption="../report/table.rst", category="Tables"),
+        cost=report("results/tables/{region}/planning_cost.tex",
+                    caption="../report/table.rst", category="Tables"),
         perf_parquet="results/tables/{region}/planning_performance.parquet",
         cost_parquet="results/tables/{region}/planning_cost.parquet",
         prov="results/provenance/tables/{region}/planning.json",

@@ -2,6 +2,11 @@
 
 
 rule merge_variant:
+    conda:
+        PY_ENV
+
+
+    priority: 10
     input:
         currents=rules.fetch_currents.output.nc,
         bathymetry=rules.fetch_bathymetry.output.nc,

@@ -1,117 +1,116 @@
-# Stage 4: core-backend rollouts, one job per (variant, task, tier, method) cell; episodes are
-# batched inside one numba kernel.
+# Stage 4: core-backend rollouts. Each task's kernel is compiled once (compile_kernel); one
+# job per task runs all its cells (rollout_task; bc's after training: rollout_task_bc), each
+# cell's episodes batched inside one numba kernel call, one file per cell.
 
-
-# the code a cell of one task depends on (oneocean.codeversion): editing one task's module,
-# heuristic or tier table reruns only its cells; hashed once per task and parse
-def rollout_code(wc):
-    return task_code(wc.task)
-
-
-def _rollout_params(currents, forcing=None):
-    """The run settings of a cell: the config's, or an ablation's forcing ("gain": the
-    forcing ablation's gain on the data currents; "tide": the data plus its tide term)."""
-
-    def fn(wc):
-        r = config["rollouts"]
-        run = {**{k: r[k] for k in ("episodes", "seed", "dynamics", "current_gain", "tide")},
-               "currents": currents, "n_agents": int(wc.n) if hasattr(wc, "n") else None}
-        fa = r["forcing_ablation"]
-        if forcing == "gain":
-            run["current_gain"] = fa["gain"] * r["current_gain"]
-        elif forcing == "tide":
-            run["tide"] = dict(fa["tide"])
-        return run
-
-    return fn
-
-
-def bc_weights(wc):
-    """Method bc's trained weights (the bc_train rule's output); no input for other methods."""
-    return f"results/bc/{wc.region}/{wc.variant}/weights.npz" if wc.method == "bc" else []
-
-
-rule rollout_cell:
+# Each task's episode kernel is compiled once, into numba's on-disk cache, before any job
+# runs it: without this, every job that starts before the cache exists compiles the same
+# kernel again (30-45 s each on a cold machine).
+rule compile_kernel:
+    conda:
+        PY_ENV
+    priority: 10
     input:
         grid=rules.export_grid.output.npz,
-        weights=bc_weights,
     output:
-        parquet="results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}.parquet",
-        prov="results/provenance/rollouts/{region}/{variant}/{task}/tier{tier}/{method}.json",
+        record="results/kernels/{region}/{variant}/{task}.json",
+        prov="results/provenance/kernels/{region}/{variant}/{task}.json",
     log:
-        "logs/rollouts/{region}/{variant}/{task}/tier{tier}/{method}.log",
+        "logs/kernels/{region}/{variant}/{task}.log",
     benchmark:
-        "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}.tsv"
+        "results/benchmarks/kernels/{region}/{variant}/{task}.tsv"
     params:
-        run=_rollout_params(True),
+        tiers=lambda wc: kernel_tiers(),
+        dynamics=lambda wc: config["rollouts"]["dynamics"],
         code=rollout_code,
+    threads: 1
+    script:
+        "../scripts/compile_kernel.py"
+
+
+_BASE_CELLS = task_cells(learned=False)
+_BC_CELLS = task_cells(learned=True)
+
+if _BASE_CELLS:
+
+    # Every non-learned cell of one task (methods x tiers, the currents-off and forcing
+    # ablations: the same episodes) in one job: one process start and one kernel load for
+    # all of them. Outputs stay one Parquet file (and one provenance record) per cell.
+    rule rollout_task:
+        conda:
+            PY_ENV
+        input:
+            grid=rules.export_grid.output.npz,
+            kernel=rules.compile_kernel.output.record,
+        output:
+            parquet=_cell_files(_BASE_CELLS, "parquet"),
+            prov=_cell_files(_BASE_CELLS, "prov"),
+        log:
+            "logs/rollouts/{region}/{variant}/{task}/rollout_task.log",
+        benchmark:
+            "results/benchmarks/rollouts/{region}/{variant}/{task}/rollout_task.tsv"
+        params:
+            cells=_cell_params(_BASE_CELLS),
+        threads: lambda wc: config["rollouts"]["threads"]
+        script:
+            "../scripts/rollout_cells.py"
+
+
+if _BC_CELLS:
+
+    # Method bc's cells of one task: they wait for its trained weights.
+    rule rollout_task_bc:
+        conda:
+            PY_ENV
+        priority: 20
+        input:
+            grid=rules.export_grid.output.npz,
+            kernel=rules.compile_kernel.output.record,
+            weights="results/bc/{region}/{variant}/weights.npz",
+        output:
+            parquet=_cell_files(_BC_CELLS, "parquet"),
+            prov=_cell_files(_BC_CELLS, "prov"),
+        log:
+            "logs/rollouts/{region}/{variant}/{task}/rollout_task_bc.log",
+        benchmark:
+            "results/benchmarks/rollouts/{region}/{variant}/{task}/rollout_task_bc.tsv"
+        params:
+            cells=_cell_params(_BC_CELLS),
+        threads: lambda wc: config["rollouts"]["threads"]
+        script:
+            "../scripts/rollout_cells.py"
+
+
+# Fig. 7: one task at one tier for several team sizes n, in one job.
+rule rollout_team:
+    conda:
+        PY_ENV
+    input:
+        grid=rules.export_grid.output.npz,
+        kernel=rules.compile_kernel.output.record,
+    output:
+        parquet=[f"results/rollouts/{{region}}/{{variant}}/{{task}}/tier{{tier}}/{{method}}_n{n}.parquet"
+                 for n in team_sizes()],
+        prov=[f"results/provenance/rollouts/{{region}}/{{variant}}/{{task}}/tier{{tier}}/{{method}}_n{n}.json"
+              for n in team_sizes()],
+    log:
+        "logs/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_team.log",
+    benchmark:
+        "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_team.tsv"
+    params:
+        cells=_team_params,
     threads: lambda wc: config["rollouts"]["threads"]
     script:
-        "../scripts/rollout_cell.py"
-
-
-# The currents-off ablation (g = 0, no tides): the same episodes as the cell above.
-use rule rollout_cell as rollout_cell_currents_off with:
-    output:
-        parquet="results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_currents-off.parquet",
-        prov="results/provenance/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_currents-off.json",
-    log:
-        "logs/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_currents-off.log",
-    benchmark:
-        "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_currents-off.tsv"
-    params:
-        run=_rollout_params(False),
-        code=rollout_code,
-
-
-# The currents ablation's other forcings (doubled gain, + synthetic tide): the same episodes.
-use rule rollout_cell as rollout_cell_gain with:
-    output:
-        parquet="results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_gain.parquet",
-        prov="results/provenance/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_gain.json",
-    log:
-        "logs/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_gain.log",
-    benchmark:
-        "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_gain.tsv"
-    params:
-        run=_rollout_params(True, "gain"),
-        code=rollout_code,
-
-
-use rule rollout_cell as rollout_cell_tide with:
-    output:
-        parquet="results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_tide.parquet",
-        prov="results/provenance/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_tide.json",
-    log:
-        "logs/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_tide.log",
-    benchmark:
-        "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_tide.tsv"
-    params:
-        run=_rollout_params(True, "tide"),
-        code=rollout_code,
-
-
-# Fig. 7: one task at one tier for several team sizes n.
-use rule rollout_cell as rollout_cell_team with:
-    output:
-        parquet="results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_n{n}.parquet",
-        prov="results/provenance/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_n{n}.json",
-    log:
-        "logs/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_n{n}.log",
-    benchmark:
-        "results/benchmarks/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_n{n}.tsv"
-    wildcard_constraints:
-        n=r"\d+",
-    params:
-        run=_rollout_params(True),
-        code=rollout_code,
+        "../scripts/rollout_cells.py"
 
 
 rule table_ladder:
+    conda:
+        PY_ENV
     input:
         cells=rollout_targets() + currents_off_targets(),
     output:
-        md="results/tables/{region}/ladder.md",
+        md=report("results/tables/{region}/ladder.md", caption="../report/ladder.rst",
+                  category="Tables"),
         prov="results/provenance/tables/{region}/ladder.json",
     log:
         "logs/tables/{region}/ladder.log",

@@ -2,13 +2,16 @@
 
 
 rule table_dataset_variants:
+    conda:
+        PY_ENV
     input:
         metadata=expand(
             "results/product/{{region}}/{variant}/metadata.json",
             variant=VARIANTS,
         ),
     output:
-        tex="results/tables/{region}/dataset_variants.tex",
+        tex=report("results/tables/{region}/dataset_variants.tex",
+                   caption="../report/table.rst", category="Tables"),
         prov="results/provenance/tables/{region}/dataset_variants.json",
     log:
         "logs/tables/{region}/dataset_variants.log",
@@ -23,17 +26,10 @@ rule table_dataset_variants:
 TABLES_CODE = code_version("oneocean.tables", "oneocean.ladder", "oneocean.planning",
                            "oneocean.registry", "oneocean.data")
 
-
-def _table_rule_io(name):
-    return {
-        "tex": f"results/tables/{{region}}/{name}.tex",
-        "parquet": f"results/tables/{{region}}/{name}.parquet",
-        "prov": f"results/provenance/tables/{{region}}/{name}.json",
-    }
-
-
 # Table II: the task ladder (registry and tier tables).
 rule table_task_ladder:
+    conda:
+        PY_ENV
     output:
         **_table_rule_io("task_ladder"),
     log:
@@ -47,6 +43,8 @@ rule table_task_ladder:
 
 # Table III: per method, Tier-2/3 macro SR, E, Coll and Tier-3 key metrics.
 rule table_headline:
+    conda:
+        PY_ENV
     input:
         cells=rollout_targets(),
     output:
@@ -62,6 +60,8 @@ rule table_headline:
 
 # Table V: per task, every method at every tier.
 rule table_task_success:
+    conda:
+        PY_ENV
     input:
         cells=rollout_targets(),
     output:
@@ -77,6 +77,8 @@ rule table_task_success:
 
 # The difficulty ladder of the heuristic: T1/T2/T3 and the drops.
 rule table_difficulty:
+    conda:
+        PY_ENV
     input:
         cells=rollout_targets(),
     output:
@@ -92,6 +94,8 @@ rule table_difficulty:
 
 # The currents ablation of the heuristic: off / data-grounded / doubled / + synthetic tide.
 rule table_currents_ablation:
+    conda:
+        PY_ENV
     input:
         cells=rollout_targets() + currents_off_targets() + forcing_targets(),
     output:
@@ -107,6 +111,8 @@ rule table_currents_ablation:
 
 
 rule paper_tables:
+    conda:
+        PY_ENV
     input:
         PAPER_TABLES,
         f"results/tables/{REGION}/ladder.md",

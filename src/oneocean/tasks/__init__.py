@@ -261,3 +261,34 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
         df = na_frame(cell.mod, tier, method, cell.n_agents, dynamics, currents, seed)
         meta.update(applicable=False, reason=str(exc))
     return write_metrics(df, out_path, meta=meta)
+
+
+def compile_kernel(grid_path, out_path, task: str, tiers, dynamics: str) -> dict:
+    """Compile ``task``'s episode kernel into numba's on-disk cache, once, before its cells run.
+
+    Runs one episode of every tier in ``tiers`` with the heuristic on the grid export
+    ``grid_path`` (the cells' own grid, so the argument types are exactly the cells'); a tier
+    the region cannot host is noted, never an error. Every later process that runs the task
+    (its rollout cells, the BC dataset, the planning cells) loads the kernel from the cache
+    instead of compiling it again, so a cold run compiles each task kernel once rather than
+    once per concurrently starting job. Writes (atomically) and returns the kernel record
+    ``{task, dynamics, numba, tiers, not_applicable}``; no timings, so the record's bytes
+    depend only on the configuration.
+    """
+    import numba
+
+    from ..engine import load_grid
+    from ..io import write_json_atomic
+
+    grid = load_grid(grid_path)
+    done, na = [], {}
+    for tier in tiers:
+        try:
+            Cell(grid, task, int(tier)).run("heuristic", 1, 0, dynamics)
+            done.append(int(tier))
+        except NotApplicable as exc:
+            na[str(int(tier))] = str(exc)
+    rec = {"task": task, "dynamics": dynamics, "numba": numba.__version__, "tiers": done,
+           "not_applicable": na}
+    write_json_atomic(out_path, rec)
+    return rec
