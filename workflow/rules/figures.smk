@@ -77,6 +77,7 @@ rule figure_snapshots:
         episode=lambda wc: config["snapshots"]["episode"],
         seed=lambda wc: config["rollouts"]["seed"],
         episodes=lambda wc: config["rollouts"]["episodes"],
+        dynamics=lambda wc: config["rollouts"]["dynamics"],
         code=FIGURES_CODE + code_version("oneocean.snapshots") + tasks_code(config["snapshots"]["tasks"]),
     threads: 1
     script:
