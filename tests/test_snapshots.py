@@ -283,7 +283,8 @@ def test_workflow_script_writes_the_figure_and_its_provenance(shallow_path, tmp_
     smk.config = {}
     smk.input = _Named(grid=str(shallow_path))
     smk.output = _Named(png=str(out), pdf=str(out.with_suffix(".pdf")), prov=str(prov))
-    smk.params = _Named(tasks=["FH", "UPL"], tier=TIER, seed=SEED, method=METHOD)
+    smk.params = _Named(tasks=["FH", "UPL"], tier=TIER, seed=SEED, method=METHOD, episode=0,
+                        episodes=2, dynamics="6dof")
     smk.wildcards = _Named()
     smk.log = [str(tmp_path / "logs" / "snapshots.log")]
     root = logging.getLogger()
@@ -302,8 +303,9 @@ def test_workflow_script_writes_the_figure_and_its_provenance(shallow_path, tmp_
     assert sorted(Path(o["path"]).name for o in rec["outputs"]) == ["snapshots.pdf",
                                                                     "snapshots.png"]
     assert rec["params"] == {"tasks": ["FH", "UPL"], "tier": TIER, "seed": SEED,
-                             "method": METHOD}
+                             "method": METHOD, "episode": 0, "episodes": 2,
+                             "dynamics": "6dof"}
     direct = tmp_path / "direct.png"
     plot_snapshots(shallow_path, direct, tasks=("FH", "UPL"), tier=TIER, seed=SEED,
-                   method=METHOD)
+                   method=METHOD, episode=0, episodes=2, dynamics="6dof")
     assert direct.read_bytes() == out.read_bytes()
