@@ -15,6 +15,8 @@ Usage::
     python benchmarks/compile.py --parallel 2                   # two cold compiles at once
     python benchmarks/compile.py --baseline-src /tmp/base/src   # before/after columns
     python benchmarks/compile.py --src /tmp/base/src            # another checkout only
+    python benchmarks/compile.py --inline-memo-baseline         # numba's own IR copy vs
+                                                                # oneocean's shared memo
 
 Cold compiles take 60-160 s per task; ``--parallel 2`` (as ``snakemake --cores 2``) also
 prints the wall time of all the cold compiles of a side. Numba caches go to a temporary
@@ -56,10 +58,10 @@ print("@@" + json.dumps({"import_s": t_import, "first_s": t_first, "file": oneoc
 """
 
 
-def probe(src: Path, cache: Path, grid: Path, task: str, errors: list):
+def probe(src: Path, cache: Path, grid: Path, task: str, errors: list, env_extra=None):
     """One fresh process; its timings (+ its whole wall time), or None if it failed."""
     env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(cache),
-               NUMBA_NUM_THREADS="1")
+               NUMBA_NUM_THREADS="1", **(env_extra or {}))
     t0 = time.perf_counter()
     r = subprocess.run([sys.executable, "-c", _PROBE, str(grid), task], env=env,
                        capture_output=True, text=True)
@@ -74,14 +76,17 @@ def probe(src: Path, cache: Path, grid: Path, task: str, errors: list):
     return {**out, "process_s": wall}
 
 
-def run_side(src: Path, tasks, grid: Path, parallel: int, root: Path, errors: list) -> dict:
+def run_side(src: Path, tasks, grid: Path, parallel: int, root: Path, errors: list,
+             env_extra=None) -> dict:
     """Cold probes (``parallel`` at a time), then warm probes one at a time."""
     caches = {t: Path(tempfile.mkdtemp(prefix=f"{t}-", dir=root)) for t in tasks}
     t0 = time.perf_counter()
     with ThreadPoolExecutor(max_workers=parallel) as ex:
-        cold = dict(zip(tasks, ex.map(lambda t: probe(src, caches[t], grid, t, errors), tasks)))
+        cold = dict(zip(tasks, ex.map(
+            lambda t: probe(src, caches[t], grid, t, errors, env_extra), tasks)))
     wall = time.perf_counter() - t0
-    warm = {t: probe(src, caches[t], grid, t, errors) if cold[t] else None for t in tasks}
+    warm = {t: probe(src, caches[t], grid, t, errors, env_extra) if cold[t] else None
+            for t in tasks}
     return {"cold": cold, "warm": warm, "wall": wall}
 
 
@@ -95,25 +100,36 @@ def main(argv=None) -> int:
     ap.add_argument("--src", type=Path, default=ROOT / "src",
                     help="src/ dir of the checkout to measure (default: this one)")
     ap.add_argument("--baseline-src", type=Path, help="also measure this 'before' checkout")
+    ap.add_argument("--inline-memo-baseline", action="store_true",
+                    help="before = numba's own IR copy in the inliner "
+                         "(ONEOCEAN_NUMBA_INLINE_MEMO=0), after = the shared memo "
+                         "(oneocean.engine._jit), same checkout")
     ap.add_argument("--parallel", type=int, default=1, help="cold compiles at once")
     ap.add_argument("--grid", type=Path, default=DEFAULT_GRID)
     args = ap.parse_args(argv)
 
     sides = {"src": args.src.resolve()}
+    envs = {"src": None}
     if args.baseline_src:
         sides = {"before": args.baseline_src.resolve(), "after": args.src.resolve()}
+        envs = {"before": None, "after": None}
+    elif args.inline_memo_baseline:
+        sides = {"before": args.src.resolve(), "after": args.src.resolve()}
+        envs = {"before": {"ONEOCEAN_NUMBA_INLINE_MEMO": "0"},
+                "after": {"ONEOCEAN_NUMBA_INLINE_MEMO": "1"}}
     load0 = os.getloadavg()
     print(f"# task-kernel compile: first run_cell(grid, task, 2, 'heuristic', 2, 0, '6dof'), "
           f"fresh process each, {args.parallel} cold compile(s) at once")
     for s, src in sides.items():
-        print(f"# {s}: {src}")
+        print(f"# {s}: {src}" + (f" {envs[s]}" if envs[s] else ""))
     print(f"# load average at start: {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}")
     errors: list = []
     res = {}
     with tempfile.TemporaryDirectory(prefix="oneocean-compile-") as root:
         for s, src in sides.items():
             res[s] = run_side(src, args.tasks, args.grid.resolve(), args.parallel,
-                              Path(tempfile.mkdtemp(prefix=f"{s}-", dir=root)), errors)
+                              Path(tempfile.mkdtemp(prefix=f"{s}-", dir=root)), errors,
+                              envs[s])
 
     cols = list(sides)
     short = {"before": "bef", "after": "aft"} if len(cols) == 2 else {cols[0]: ""}
