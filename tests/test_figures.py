@@ -329,3 +329,39 @@ def test_team_sweep_in_a_region_that_cannot_host_it_is_a_note_not_a_crash(tmp_pa
     out = plot_team_sweep([f], tmp_path / "fig7.png")
     assert out["sweep"].empty
     assert (tmp_path / "fig7.png").stat().st_size > 1000 and (tmp_path / "fig7.pdf").is_file()
+
+
+def test_saved_figures_have_a_frozen_rounded_layout(tmp_path):
+    """save_figure runs constrained layout once, rounds every axes position to 1e-6 of the
+    figure and switches the engine off: the solver's last-bit noise (it depends on what the
+    process allocated before) cannot reach the PDF's coordinates. Two figures built with
+    allocations in between give identical bytes."""
+    from oneocean.figures import new_figure, paper_style, save_figure
+
+    def build(path, junk):
+        keep = [np.empty(3 * k + 1) for k in range(junk)]      # shifts later allocations
+        with paper_style():
+            fig = new_figure(6.0, 3.0)
+            axs = fig.subplots(1, 2)
+            for i, ax in enumerate(axs):
+                ax.plot([0, 1, 2], [i, 2 * i + 1, 0.3], label=f"line {i}")
+                ax.set_title(f"panel {i}")
+                ax.legend(loc="upper right")
+            fig.suptitle("frozen layout")
+            save_figure(fig, path)
+        del keep
+        return fig
+
+    fig = build(tmp_path / "a.png", 1)
+    assert fig.get_layout_engine() is None or type(fig.get_layout_engine()).__name__ == \
+        "PlaceHolderLayoutEngine"
+    for ax in fig.axes:
+        for v in ax.get_position().bounds:
+            assert v == round(v, 6)
+    x, y = fig._suptitle.get_position()
+    assert (x, y) == (round(x, 6), round(y, 6))
+    for junk in (7, 29, 113):
+        build(tmp_path / f"b{junk}.png", junk)
+        for ext in (".png", ".pdf"):
+            assert (tmp_path / f"a{ext}").read_bytes() == \
+                (tmp_path / f"b{junk}{ext}").read_bytes(), (junk, ext)

@@ -220,8 +220,12 @@ def _agents_extent(ef: EpisodeFrames) -> np.ndarray:
 
 
 def _circle(c, r, n=24):
-    a = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
-    return np.stack([c[0] + r * np.sin(a), c[1] + r * np.cos(a)], axis=1)
+    """``n`` points on a circle, with scalar libm sin/cos: numpy's SIMD kernels may round the
+    last bit differently depending on where an element falls in the buffer, and these points
+    set the row's crop, hence every coordinate written into the PDF."""
+    pts = [(c[0] + r * math.sin(2.0 * math.pi * k / n), c[1] + r * math.cos(2.0 * math.pi * k / n))
+           for k in range(n)]
+    return np.array(pts, dtype=np.float64)
 
 
 # ---- SPC: the oil field on its local grid
