@@ -38,7 +38,7 @@ def time_rollouts() -> None:
     cfg = load_config(REPO / "config" / "config.yaml")
     _snakemake("exports")
     _snakemake("rollouts")  # warm numba's cache (compiles only if the code changed)
-    wall = _snakemake("rollouts", "--forcerun", "rollout_cell", "rollout_cell_currents_off")
+    wall = _snakemake("rollouts", "--forcerun", "rollout_task", "rollout_task_bc", "rollout_team")
     files = sorted((REPO / "results" / "rollouts" / cfg["region"]["name"]
                     / cfg["rollouts"]["variant"]).rglob("*.parquet"))
     cells = pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
