@@ -27,10 +27,6 @@ DEBIAN_TEX = ("latexmk", "texlive-latex-base", "texlive-latex-recommended",
               "texlive-fonts-recommended")
 
 
-def tex_available(program: str = "latexmk") -> bool:
-    return shutil.which(program) is not None
-
-
 def _need(program: str) -> str:
     path = shutil.which(program)
     if path is None:

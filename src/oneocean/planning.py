@@ -159,17 +159,10 @@ def _bold_best(values: list[float], texts: list[str], higher: bool) -> list[str]
 
 
 def _latex(header: list[str], cols: list[list[str]], caption: str, label: str) -> str:
-    n = len(cols[0]) if cols else 0
-    lines = ["\\begin{table}[t]", "\\centering", "\\small",
-             f"\\caption{{{caption}}}", f"\\label{{{label}}}",
-             "\\begin{tabular}{l" + "r" * (len(header) - 1) + "}", "\\toprule",
-             " & ".join(header) + " \\\\", "\\midrule"]
-    for i in range(n):
-        lines.append(" & ".join(c[i] for c in cols) + " \\\\")
-    lines += ["\\bottomrule", "\\end{tabular}", "\\end{table}", ""]
-    from .tables import fit_width
+    """The planning tables, column by column, through the tables' one booktabs writer."""
+    from .tables import _latex as booktabs
 
-    return fit_width("\n".join(lines))
+    return booktabs(header, [list(row) for row in zip(*cols)], caption, label)
 
 
 def _esc(s: str) -> str:

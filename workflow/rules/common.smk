@@ -253,14 +253,21 @@ def _cell_files(cells, kind):
     return [pat.format(**c) for c in cells]
 
 
+def _cell_entry(method, tier, run, wildcards, code):
+    """One cell of a batched rollout job: what to run, and its own provenance record's
+    wildcards and params (``params.run`` is the run the script executes)."""
+    return {"method": method, "tier": int(tier), "wildcards": wildcards,
+            "params": {"code": code, "run": run}}
+
+
 def _cell_params(cells):
-    """Per-cell wildcards and params (each cell's provenance record), with the task's code."""
+    """Per-cell entries of a task's job (:func:`_cell_entry`), with the task's code hash."""
 
     def fn(wc):
         code = rollout_code(wc)
-        return [{"method": c["method"], "tier": c["tier"], "run": c["run"],
-                 "wildcards": {"method": c["method"], "tier": str(c["tier"])},
-                 "params": {"code": code, "run": c["run"]}} for c in cells]
+        return [_cell_entry(c["method"], c["tier"], c["run"],
+                            {"method": c["method"], "tier": str(c["tier"])}, code)
+                for c in cells]
 
     return fn
 
@@ -284,10 +291,9 @@ def team_sizes():
 
 
 def _team_params(wc):
-    """Per-cell wildcards and params of the team-size sweep's job."""
+    """Per-cell entries of the team-size sweep's job (:func:`_cell_entry`)."""
     code = rollout_code(wc)
-    return [{"method": wc.method, "tier": int(wc.tier), "run": _run(n_agents=n),
-             "wildcards": {"n": str(n)}, "params": {"code": code, "run": _run(n_agents=n)}}
+    return [_cell_entry(wc.method, wc.tier, _run(n_agents=n), {"n": str(n)}, code)
             for n in team_sizes()]
 
 

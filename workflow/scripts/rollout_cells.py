@@ -1,13 +1,15 @@
 from oneocean import smk
 from oneocean.tasks import rollout_to_file
 
-smk.run_cells(
-    snakemake,
-    lambda s, cell, path: rollout_to_file(
-        s.input.grid, path, s.wildcards.task, int(cell["tier"]), cell["method"],
-        cell["run"]["episodes"], cell["run"]["seed"], cell["run"]["dynamics"],
-        threads=s.threads, current_gain=cell["run"]["current_gain"], tide=cell["run"]["tide"],
-        currents=cell["run"]["currents"], weights=smk.optional_input(s, "weights"),
-        n_agents=cell["run"].get("n_agents"),
-    ),
-)
+
+def run_cell(s, cell, path):
+    run = cell["params"]["run"]
+    rollout_to_file(
+        s.input.grid, path, s.wildcards.task, cell["tier"], cell["method"], run["episodes"],
+        run["seed"], run["dynamics"], threads=s.threads, current_gain=run["current_gain"],
+        tide=run["tide"], currents=run["currents"], weights=smk.optional_input(s, "weights"),
+        n_agents=run.get("n_agents"),
+    )
+
+
+smk.run_cells(snakemake, run_cell)
