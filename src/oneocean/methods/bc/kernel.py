@@ -11,7 +11,8 @@ plus the task one-hot). The paper's set -- normalised goal delta, depth, polluti
 current, task one-hot -- plus what a fair team policy needs: the altitude above the seafloor
 (every task constrains it) and the nearest teammates' offsets (collision avoidance and
 formation keeping are part of FT, SPC, UPL, FH). Every input is something the heuristic also
-sees: the current is the same noisy probe, the goal cue is the task's target point.
+sees: the current is the same estimate (:mod:`oneocean.sensing`), the goal cue is the task's
+target point relative to the same navigation estimate.
 
 * ``goal_u{x,y,z}``: the goal offset ``g / (|g| + 1 m)`` (a unit vector far away, the offset
   itself in metres close in) and ``goal_log_dist = log(1 + |g|)``;
@@ -104,6 +105,36 @@ def _finite(v):
     return v if math.isfinite(v) else 0.0
 
 
+_LN2_HI = 6.93147180369123816490e-01   # fdlibm's split of log(2)
+_LN2_LO = 1.90821492927058770002e-10
+_SQRT2 = 1.4142135623730951
+
+
+@hot_kernel(inline="always")
+def log1p_pos(x):
+    """``log(1 + x)`` for ``x >= 0`` in plain arithmetic, so the features have the same bits
+    on every CPU (libm's ``log1p`` has FMA and non-FMA variants that differ in the last bit).
+
+    ``1 + x = m 2^k`` with ``m`` in ``[1, sqrt 2)`` (exact halvings), the rounding of ``1 + x``
+    corrected as fdlibm does, and ``log m = 2 atanh(s)``, ``s = (m - 1) / (m + 1)``, by its
+    series to ``s^21`` (``|s| < 0.172``: truncation below 1e-17). Within 2 ulp of libm."""
+    if not x < 1e300:
+        return x
+    y = 1.0 + x
+    c = (x - (y - 1.0)) / y
+    m = y
+    k = 0
+    while m >= _SQRT2:
+        m *= 0.5
+        k += 1
+    s = (m - 1.0) / (m + 1.0)
+    z = s * s
+    p = 1.0 / 21.0
+    for j in range(19, 0, -2):
+        p = 1.0 / j + z * p
+    return k * _LN2_HI + (2.0 * s * p + (c + k * _LN2_LO))
+
+
 @hot_kernel
 def featurize(o, task, n_tasks, out):
     """The features (:func:`feature_names`) of one observation row ``o`` into ``out``."""
@@ -114,14 +145,14 @@ def featurize(o, task, n_tasks, out):
     out[0] = gx / (d + 1.0)
     out[1] = gy / (d + 1.0)
     out[2] = gz / (d + 1.0)
-    out[3] = math.log1p(d)
+    out[3] = log1p_pos(d)
     out[4] = _finite(o[3])
     out[5] = _finite(o[4])
     out[6] = _finite(o[5])
     out[7] = _finite(o[6])
     p = o[7]
     if math.isfinite(p):
-        out[8] = math.log1p(max(p, 0.0))
+        out[8] = log1p_pos(max(p, 0.0))
         out[9] = 1.0
     else:
         out[8] = 0.0

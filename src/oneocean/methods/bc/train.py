@@ -1,18 +1,26 @@
-"""Fit the BC network: scikit-learn's ``MLPRegressor`` by MSE on the teacher's actions.
+"""Fit the BC network by MSE on the teacher's actions (:mod:`.fit`: a relu MLP and Adam).
 
-Why scikit-learn and not PyTorch: the network is a few thousand weights and the training set
-a few hundred thousand rows; scikit-learn (a ~10 MB wheel on top of the SciPy the package
-already needs) fits it in seconds on one core, where a CPU PyTorch wheel is ~200 MB to
-install for no gain. Determinism: the weights are a function of the dataset and ``seed``
-only -- scikit-learn's initialisation and shuffling draw from one ``RandomState(seed)``, and
-the BLAS runs on one thread during the fit (``threadpoolctl``), so the weights file is
-byte-identical for a seed whatever the machine's thread count.
+The fit is this package's own, a few hundred lines of ``numba`` loops, not a library's:
+the network is a few thousand weights and the training set a few hundred thousand rows, so
+it trains in about the time scikit-learn's ``MLPRegressor`` needs (whose semantics it
+keeps: initialisation, minibatch order, gradients and Adam steps agree with it to rounding),
+and it owns the order of every floating-point sum.
+
+Determinism: the weights file and the training report are a function of the dataset and
+``seed`` only, byte for byte, whatever the thread count and whatever BLAS kernels, SIMD
+width and FMA support the machine's x86-64 CPU has. The initial weights and every epoch's
+shuffle draw from one ``RandomState(seed)``; every reduction (forward pass, gradients,
+losses, the features' mean and standard deviation) is a loop in one fixed order (:mod:`.fit`
+says how). The features are :func:`.kernel.features_rows`, the loop's own; their one
+transcendental function, ``log1p``, is the C library's, so a libm whose ``log1p`` rounds
+differently (glibc's variant for CPUs without FMA does, in the last bit, for some inputs)
+gives different features in those rows and so different weights.
 
 Protocol: the validation set is whole episodes (the last ``val_fraction`` of each (task,
-tier, seed)'s episodes), never rows of a training episode. Training runs ``epochs`` passes
-(``partial_fit``), recording the training and validation MSE after each; the weights of the
-epoch with the lowest validation MSE are kept (early stopping without a patience knob).
-Targets are actions divided by the vehicle's ``v_max`` (:mod:`.kernel`).
+tier, seed)'s episodes), never rows of a training episode. Training runs ``epochs`` passes,
+recording the training and validation MSE after each; the weights of the epoch with the
+lowest validation MSE are kept (early stopping without a patience knob). Targets are actions
+divided by the vehicle's ``v_max`` (:mod:`.kernel`).
 """
 
 from __future__ import annotations
@@ -72,9 +80,10 @@ def train(df: pd.DataFrame, *, hidden=(64, 64), epochs: int = 40, batch_size: in
 
     Returns
     -------
-    model : sklearn.neural_network.MLPRegressor
-        Holding the kept (best-validation) weights; ``model.predict`` on standardised
-        features is what the loop computes.
+    model : :class:`.fit.MLP`
+        The kept (best-validation) network; ``model.predict`` on standardised features is
+        what the loop computes (:func:`.kernel.forward`, the same operations in the same
+        order).
     weights : dict of arrays
         :func:`oneocean.methods.bc.load_weights`'s layout (``mu``, ``sd``, padded ``w``,
         ``b``, ``dims``, ``tasks``, ``features``).
@@ -82,8 +91,7 @@ def train(df: pd.DataFrame, *, hidden=(64, 64), epochs: int = 40, batch_size: in
         JSON-able: settings, sizes, per-epoch ``train_mse`` / ``val_mse``, ``best_epoch``,
         per-task validation MSE.
     """
-    from sklearn.neural_network import MLPRegressor
-    from threadpoolctl import threadpool_limits
+    from .fit import Fit, column_stats, mse
 
     if len(df) == 0:
         raise ConfigError("bc train: the dataset has no rows")
@@ -97,32 +105,28 @@ def train(df: pd.DataFrame, *, hidden=(64, 64), epochs: int = 40, batch_size: in
     if not val.any():
         raise ConfigError("bc train: no validation episodes (every cell has one episode); "
                           "raise bc.episodes")
-    mu = X[~val].mean(axis=0)
-    sd = X[~val].std(axis=0)
-    sd = np.where(sd > 1e-9, sd, 1.0)
+    mu, sd = np.empty(X.shape[1]), np.empty(X.shape[1])
+    column_stats(X, np.flatnonzero(~val).astype(np.int64), mu, sd)
     Z = (X - mu) / sd
     Ztr, Ytr, Zva, Yva = Z[~val], Y[~val], Z[val], Y[val]
-    model = MLPRegressor(hidden_layer_sizes=tuple(int(h) for h in hidden), activation="relu",
-                         solver="adam", alpha=float(alpha), batch_size=int(batch_size),
-                         learning_rate_init=float(learning_rate), shuffle=True,
-                         random_state=np.random.RandomState(int(seed)))
+    fit = Fit(Ztr, Ytr, hidden, batch_size=batch_size, learning_rate=learning_rate,
+              alpha=alpha, rng=np.random.RandomState(int(seed)))
+    n_y = Y.shape[1]
     train_mse, val_mse = [], []
-    best = (np.inf, -1, None, None)
-    with threadpool_limits(limits=1):
-        for epoch in range(int(epochs)):
-            model.partial_fit(Ztr, Ytr)
-            train_mse.append(float(np.mean((model.predict(Ztr) - Ytr) ** 2)))
-            val_mse.append(float(np.mean((model.predict(Zva) - Yva) ** 2)))
-            if val_mse[-1] < best[0]:
-                best = (val_mse[-1], epoch, [c.copy() for c in model.coefs_],
-                        [b.copy() for b in model.intercepts_])
-        model.coefs_, model.intercepts_ = best[2], best[3]
-        pred_va = model.predict(Zva)
-    per_task = {t: float(np.mean((pred_va[df["task"].to_numpy()[val] == t]
-                                  - Yva[df["task"].to_numpy()[val] == t]) ** 2))
-                for t in tasks if (df["task"].to_numpy()[val] == t).any()}
+    best = (np.inf, -1, None)
+    for epoch in range(int(epochs)):
+        fit.epoch()
+        model = fit.model()
+        train_mse.append(mse(model.squared_errors(Ztr, Ytr), n_y))
+        val_mse.append(mse(model.squared_errors(Zva, Yva), n_y))
+        if val_mse[-1] < best[0]:
+            best = (val_mse[-1], epoch, model)
+    model = best[2]
+    sq_va = model.squared_errors(Zva, Yva)
+    task_va = df["task"].to_numpy()[val]
+    per_task = {t: mse(sq_va[task_va == t], n_y) for t in tasks if (task_va == t).any()}
     weights = export_weights(model, mu, sd, tasks)
-    report = {"method": "bc", "library": "scikit-learn MLPRegressor",
+    report = {"method": "bc", "library": "oneocean.methods.bc.fit (fixed-order MLP, Adam)",
               "tasks": tasks, "features": list(feature_names(tasks)),
               "hidden": [int(h) for h in hidden], "activation": "relu", "epochs": int(epochs),
               "batch_size": int(batch_size), "learning_rate": float(learning_rate),
@@ -135,19 +139,11 @@ def train(df: pd.DataFrame, *, hidden=(64, 64), epochs: int = 40, batch_size: in
 
 
 def export_weights(model, mu: np.ndarray, sd: np.ndarray, tasks: list[str]) -> dict:
-    """The fitted ``MLPRegressor``'s layers as padded arrays (:class:`.kernel.BCNet`)."""
-    if model.activation != "relu" or model.out_activation_ != "identity":
-        raise ValueError("bc: only relu hidden layers with an identity output are supported")
-    dims = [model.coefs_[0].shape[0]] + [c.shape[1] for c in model.coefs_]
-    width = max(dims)
-    n_layers = len(model.coefs_)
-    w = np.zeros((n_layers, width, width))
-    b = np.zeros((n_layers, width))
-    for layer, (c, i) in enumerate(zip(model.coefs_, model.intercepts_)):
-        w[layer, :c.shape[0], :c.shape[1]] = c
-        b[layer, :i.shape[0]] = i
-    return {"mu": np.asarray(mu, np.float64), "sd": np.asarray(sd, np.float64), "w": w, "b": b,
-            "dims": np.asarray(dims, np.int64), "tasks": np.asarray(tasks, dtype="U16"),
+    """The network's layers as :class:`.kernel.BCNet`'s padded arrays, with the features'
+    standardisation and names."""
+    return {"mu": np.asarray(mu, np.float64), "sd": np.asarray(sd, np.float64),
+            "w": np.array(model.w, np.float64), "b": np.array(model.b, np.float64),
+            "dims": np.asarray(model.dims, np.int64), "tasks": np.asarray(tasks, dtype="U16"),
             "features": np.asarray(feature_names(tasks), dtype="U32")}
 
 
