@@ -1,15 +1,15 @@
-"""The task ladder on the evaluation seed, for the default region and the real Dover Strait
-region, in one run, with 95 % intervals and the protocol's checks.
+"""The task ladder on the evaluation seed, for the default region and the real southern North
+Sea region, in one run, with 95 % intervals and the protocol's checks.
 
-    python benchmarks/ladder.py [--cores 2] [--regions synthetic_coast dover_strait_files]
+    python benchmarks/ladder.py [--cores 2] [--regions synthetic_coast southern_north_sea_files]
 
 Each region's ladder is the workflow's own target ``results/tables/<region>/ladder.md``
 (``snakemake --cores N results/tables/<region>/ladder.md [--configfile ...]``): heuristic and
 oracle rollouts of every (task, tier) and the heuristic's currents-off Tier-3 cells, on
 ``rollouts.seed`` (held out from every tier table's ``calibration.seeds``). The real region is
 built from ``../shared/data`` through the ``files`` source (``config/regions/
-dover_strait_files.yaml``); a cell it cannot host is shown as n/a with its reason. Prints each
-table and the wall time of each region's run (cold if its results are absent).
+southern_north_sea_files.yaml``); a cell it cannot host is shown as n/a with its reason. Prints
+each table and the wall time of each region's run (cold if its results are absent).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = {
     "synthetic_coast": None,
-    "dover_strait_files": ROOT / "config" / "regions" / "dover_strait_files.yaml",
+    "southern_north_sea_files": ROOT / "config" / "regions" / "southern_north_sea_files.yaml",
 }
 
 

@@ -1,4 +1,5 @@
-"""A real region end to end: Dover Strait product from the GLO12 currents and ETOPO 2022 files."""
+"""A real region end to end: the southern North Sea product from the GLO12 daily currents and
+the ETOPO 2022 files."""
 
 import json
 
@@ -18,10 +19,10 @@ CMEMS = "cmems_glo12_currents_P1D_w-1_e10_s50_n55_2025-01-01.nc"
 ETOPO = "etopo2022_30s_w2_e3_s51_n53.nc"
 
 
-def _dover(shared_data, root, currents, variant="public"):
-    """Fetch (source kind "files") and build a Dover Strait product from ``currents``."""
+def _north_sea(shared_data, root, currents, variant="public"):
+    """Fetch (source kind "files") and build a southern North Sea product from ``currents``."""
     cfg = load_config(REPO / "config" / "config.yaml",
-                      REPO / "config" / "regions" / "dover_strait_files.yaml",
+                      REPO / "config" / "regions" / "southern_north_sea_files.yaml",
                       overrides={"files": {"currents": str(currents),
                                            "bathymetry": str(shared_data / ETOPO)}})
     cur, bat = root / "currents.nc", root / "bathymetry.nc"
@@ -33,13 +34,13 @@ def _dover(shared_data, root, currents, variant="public"):
 
 
 @pytest.fixture(scope="module")
-def dover(shared_data, tmp_path_factory):
-    return _dover(shared_data, tmp_path_factory.mktemp("dover"), shared_data / CMEMS)
+def north_sea(shared_data, tmp_path_factory):
+    return _north_sea(shared_data, tmp_path_factory.mktemp("north_sea"), shared_data / CMEMS)
 
 
-def test_dover_product_masks_follow_bathymetry_and_cmems_nan_pattern(dover, shared_data,
-                                                                     tmp_path):
-    with xr.open_dataset(dover) as p, xr.open_dataset(shared_data / CMEMS) as src:
+def test_north_sea_product_masks_follow_bathymetry_and_cmems_nan_pattern(north_sea, shared_data,
+                                                                         tmp_path):
+    with xr.open_dataset(north_sea) as p, xr.open_dataset(shared_data / CMEMS) as src:
         assert p.attrs["source"] == "files"
         land = p["land_mask"].values.astype(bool)
         current = p["current_mask"].values.astype(bool)
@@ -70,8 +71,8 @@ def test_dover_product_masks_follow_bathymetry_and_cmems_nan_pattern(dover, shar
         assert np.isfinite(u0[sea]).all() and np.isnan(u0[~current]).all()
         assert p["valid_mask"].isel(depth=0).values[sea].all()
 
-    export_grid(dover, tmp_path / "grid.npz", {"region": "dover_strait_files",
-                                               "variant": "public"})
+    export_grid(north_sea, tmp_path / "grid.npz", {"region": "southern_north_sea_files",
+                                                   "variant": "public"})
     g = np.load(tmp_path / "grid.npz")
     assert np.isfinite(g["u"]).all() and g["land_mask"].shape == land.shape
     np.testing.assert_array_equal(g["current_mask"] == 1, current)
@@ -84,8 +85,8 @@ def test_dover_product_masks_follow_bathymetry_and_cmems_nan_pattern(dover, shar
     assert np.abs(G.sample_currents(grid, xyz, 0.0)).max() < 1e-12
 
 
-def test_dover_engine_sampling_equals_the_temporal_export(dover, tmp_path):
-    kinds = check_engine_matches_temporal(dover, tmp_path)
+def test_north_sea_engine_sampling_equals_the_temporal_export(north_sea, tmp_path):
+    kinds = check_engine_matches_temporal(north_sea, tmp_path)
     assert kinds["next_to_no_current"] >= 3 and kinds["above_bed_held"] >= 1
 
 
@@ -95,7 +96,7 @@ def test_surface_only_product_default_depth(shared_data, tmp_path):
         src.isel(depth=[0]).load().to_netcdf(tmp_path / "surface_only.nc")
     root = tmp_path / "b"
     root.mkdir()
-    product = _dover(shared_data, root, tmp_path / "surface_only.nc", "tiny")
+    product = _north_sea(shared_data, root, tmp_path / "surface_only.nc", "tiny")
     with xr.open_dataset(product) as p:
         assert p["depth"].values.tolist() == [pytest.approx(0.494025, abs=1e-6)]
     out = {}

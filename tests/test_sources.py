@@ -22,7 +22,7 @@ from oneocean.sources import gebco as gebco_source
 CURRENTS = "cmems_glo12_currents_P1D_w-1_e10_s50_n55_2025-01-01.nc"
 ETOPO = "etopo2022_30s_w2_e3_s51_n53.nc"
 GEBCO = "gebco_2020_n56.3_s55.2_w12.2_e13.1.nc"
-DOVER = {"west": 2.0, "east": 3.0, "south": 51.0, "north": 53.0}
+NORTH_SEA = {"west": 2.0, "east": 3.0, "south": 51.0, "north": 53.0}
 ORESUND = {"west": 12.5, "east": 12.8, "south": 55.5, "north": 55.9}
 WINDOW = {"start": "2025-01-01T00:00:00", "end": "2025-01-02T00:00:00"}
 
@@ -42,9 +42,10 @@ def assert_margin(values: np.ndarray, lo: float, hi: float) -> None:
 
 
 @pytest.fixture
-def dover_cfg(base_config, shared_data):
+def north_sea_cfg(base_config, shared_data):
     cfg = base_config
-    cfg["region"].update(name="dover", bbox=dict(DOVER), time=dict(WINDOW), max_depth_m=5.0)
+    cfg["region"].update(name="southern_north_sea", bbox=dict(NORTH_SEA), time=dict(WINDOW),
+                         max_depth_m=5.0)
     cfg["sources"].update(currents="files", bathymetry="files", tides=False)
     cfg["files"].update(currents=str(shared_data / CURRENTS), bathymetry=str(shared_data / ETOPO))
     return cfg
@@ -75,14 +76,14 @@ def test_cmems_currents_file_reads_canonical(shared_data):
     assert "uo" not in ds and "lat" not in ds.coords
 
 
-def test_etopo_dover_has_land_and_sea(shared_data):
+def test_etopo_north_sea_has_land_and_sea(shared_data):
     ds = read_bathymetry_file(shared_data / ETOPO)
     assert list(ds.data_vars) == ["elevation"]
     assert ds["elevation"].dims == ("latitude", "longitude")
     assert ds["elevation"].attrs["units"] == "m" and ds["elevation"].attrs["positive"] == "up"
     assert_canonical_axes(ds)
     z = ds["elevation"].values
-    assert (z > 0).mean() > 0.01 and (z < 0).mean() > 0.5  # French/Belgian coast + the strait
+    assert (z > 0).mean() > 0.01 and (z < 0).mean() > 0.5  # the French/Belgian coast + the sea
     assert -100 < z.min() < -40 and 0 < z.max() < 100
 
 
@@ -95,24 +96,24 @@ def test_gebco_download_app_netcdf3(shared_data):
     assert float(ds["longitude"][0]) == pytest.approx(12.2 + 1 / 480)  # cell centres
 
 
-def test_open_roundtrip_keeps_canonical_provenance(dover_cfg, tmp_path):
+def test_open_roundtrip_keeps_canonical_provenance(north_sea_cfg, tmp_path):
     out = tmp_path / "currents.nc"
-    fetch_currents(dover_cfg, out, tmp_path / "cache")
+    fetch_currents(north_sea_cfg, out, tmp_path / "cache")
     ds = open_currents(out)
     assert ds.attrs["source"] == "files" and ds["u"].chunks is not None
     again = tmp_path / "again.nc"
-    dover_cfg["files"]["currents"] = str(out)
-    fetch_currents(dover_cfg, again, tmp_path / "cache")
+    north_sea_cfg["files"]["currents"] = str(out)
+    fetch_currents(north_sea_cfg, again, tmp_path / "cache")
     assert json.loads(open_currents(again).attrs["source_files"])[0]["path"] == str(out)
     xr.testing.assert_equal(open_currents(again)[["u", "v"]], ds[["u", "v"]])
 
 
 # ------------------------------------------------------------------ the files source
 
-def test_files_source_dover(dover_cfg, tmp_path, shared_data):
+def test_files_source_north_sea(north_sea_cfg, tmp_path, shared_data):
     cur, bathy = tmp_path / "currents.nc", tmp_path / "bathymetry.nc"
-    fetch_currents(dover_cfg, cur, tmp_path / "cache")
-    fetch_bathymetry(dover_cfg, bathy, tmp_path / "cache")
+    fetch_currents(north_sea_cfg, cur, tmp_path / "cache")
+    fetch_bathymetry(north_sea_cfg, bathy, tmp_path / "cache")
     c, b = open_currents(cur), open_bathymetry(bathy)
     assert_margin(c["longitude"].values, 2.0, 3.0)
     assert_margin(c["latitude"].values, 51.0, 53.0)
@@ -129,11 +130,11 @@ def test_files_source_dover(dover_cfg, tmp_path, shared_data):
     assert np.nanmean(z[dry & inside]) > np.nanmean(z[~dry & inside]) + 10.0
 
 
-def test_etopo_source(dover_cfg, tmp_path, shared_data):
-    dover_cfg["sources"]["bathymetry"] = "etopo"
-    dover_cfg["etopo"]["path"] = str(shared_data / ETOPO)
+def test_etopo_source(north_sea_cfg, tmp_path, shared_data):
+    north_sea_cfg["sources"]["bathymetry"] = "etopo"
+    north_sea_cfg["etopo"]["path"] = str(shared_data / ETOPO)
     out = tmp_path / "b.nc"
-    fetch_bathymetry(dover_cfg, out, tmp_path / "cache")
+    fetch_bathymetry(north_sea_cfg, out, tmp_path / "cache")
     ds = open_bathymetry(out)
     assert ds.attrs["source"] == "etopo"
     assert ds["longitude"].values[0] < 2.005 and ds["longitude"].values[-1] > 2.995
@@ -154,12 +155,12 @@ class FakeSubset:
 
 
 @pytest.fixture
-def cmems_cfg(dover_cfg, monkeypatch):
+def cmems_cfg(north_sea_cfg, monkeypatch):
     monkeypatch.setenv("COPERNICUSMARINE_SERVICE_USERNAME", "user")
     monkeypatch.setenv("COPERNICUSMARINE_SERVICE_PASSWORD", "secret")
-    dover_cfg["sources"]["currents"] = "cmems"
-    dover_cfg["cmems"]["retry_wait_s"] = 0.0
-    return dover_cfg
+    north_sea_cfg["sources"]["currents"] = "cmems"
+    north_sea_cfg["cmems"]["retry_wait_s"] = 0.0
+    return north_sea_cfg
 
 
 def test_cmems_request_and_cache(cmems_cfg, tmp_path, shared_data, monkeypatch):

@@ -16,14 +16,14 @@ CURRENTS = "cmems_glo12_currents_P1D_w-1_e10_s50_n55_2025-01-01.nc"
 SALINITY = "cmems_glo12_salinity_P1D_w-13_e5_s47_n64_2025-09-24.nc"
 ETOPO = "etopo2022_30s_w2_e3_s51_n53.nc"
 GEBCO = "gebco_2020_n56.3_s55.2_w12.2_e13.1.nc"
-DOVER = {"west": 2.0, "east": 3.0, "south": 51.0, "north": 53.0}
+NORTH_SEA = {"west": 2.0, "east": 3.0, "south": 51.0, "north": 53.0}
 
 
 @pytest.fixture
 def cfg(base_config, shared_data):
-    """Dover Strait through the ``files`` source, without tides."""
+    """The southern North Sea through the ``files`` source, without tides."""
     c = base_config
-    c["region"].update(bbox=dict(DOVER), max_depth_m=5.0,
+    c["region"].update(bbox=dict(NORTH_SEA), max_depth_m=5.0,
                        time={"start": "2025-01-01T00:00:00", "end": "2025-01-02T00:00:00"})
     c["sources"].update(currents="files", bathymetry="files", tides=False)
     c["files"].update(currents=str(shared_data / CURRENTS), bathymetry=str(shared_data / ETOPO))
@@ -32,8 +32,8 @@ def cfg(base_config, shared_data):
 
 
 @pytest.fixture
-def dover_currents(shared_data) -> xr.Dataset:
-    """The CMEMS currents around the Dover Strait, loaded (small)."""
+def north_sea_currents(shared_data) -> xr.Dataset:
+    """The CMEMS currents around the southern North Sea bbox, loaded (small)."""
     with xr.open_dataset(shared_data / CURRENTS) as src:
         return src.sel(longitude=slice(1.5, 3.5), latitude=slice(50.5, 53.5)).load()
 
@@ -60,8 +60,8 @@ def write(ds: xr.Dataset, path: Path, **kwargs) -> Path:
 
 # ------------------------------------------------------------------ missing variables / files
 
-def test_missing_variable(cfg, tmp_path, dover_currents):
-    bad = write(dover_currents.drop_vars("vo"), tmp_path / "no_vo.nc")
+def test_missing_variable(cfg, tmp_path, north_sea_currents):
+    bad = write(north_sea_currents.drop_vars("vo"), tmp_path / "no_vo.nc")
     cfg["files"]["currents"] = str(bad)
     fails_cleanly(fetch_currents, cfg, tmp_path / "c.nc", names=bad, says="missing variable 'v'")
 
@@ -84,8 +84,8 @@ def test_missing_file(cfg, tmp_path):
                   says="file not found")
 
 
-def test_unsupported_units(cfg, tmp_path, dover_currents):
-    ds = dover_currents.copy()
+def test_unsupported_units(cfg, tmp_path, north_sea_currents):
+    ds = north_sea_currents.copy()
     ds["uo"].attrs["units"] = "knots"
     bad = write(ds, tmp_path / "knots.nc")
     cfg["files"]["currents"] = str(bad)
@@ -108,9 +108,10 @@ def test_swapped_axes_latitude_beyond_90(cfg, tmp_path):
                   says="latitude/longitude look swapped")
 
 
-def test_swapped_axes_by_attributes(cfg, tmp_path, dover_currents):
+def test_swapped_axes_by_attributes(cfg, tmp_path, north_sea_currents):
     """Axis names exchanged: the 'latitude' axis carries units degrees_east."""
-    ds = dover_currents.rename(latitude="tmp").rename(longitude="latitude").rename(tmp="longitude")
+    ds = north_sea_currents.rename(latitude="tmp").rename(longitude="latitude").rename(
+        tmp="longitude")
     bad = write(ds, tmp_path / "renamed.nc")
     cfg["files"]["currents"] = str(bad)
     fails_cleanly(fetch_currents, cfg, tmp_path / "c.nc", names=bad,
@@ -157,8 +158,8 @@ def test_time_window_not_covered(cfg, tmp_path, shared_data):
                   says="is not covered by the data")
 
 
-def test_all_nan_currents(cfg, tmp_path, dover_currents):
-    ds = dover_currents.copy()
+def test_all_nan_currents(cfg, tmp_path, north_sea_currents):
+    ds = north_sea_currents.copy()
     ds["uo"][:] = np.nan
     ds["vo"][:] = np.nan
     bad = write(ds, tmp_path / "all_nan.nc")
@@ -166,9 +167,9 @@ def test_all_nan_currents(cfg, tmp_path, dover_currents):
     fails_cleanly(fetch_currents, cfg, tmp_path / "c.nc", names=bad, says="are all NaN")
 
 
-def test_all_nan_in_the_requested_subset_only(cfg, tmp_path, dover_currents):
+def test_all_nan_in_the_requested_subset_only(cfg, tmp_path, north_sea_currents):
     """Valid currents elsewhere do not count: the requested bbox has none."""
-    ds = dover_currents.copy()
+    ds = north_sea_currents.copy()
     inside = (ds["longitude"] < 3.2) & (ds["latitude"] < 53.2)
     ds["uo"] = ds["uo"].where(~inside)
     ds["vo"] = ds["vo"].where(~inside)
