@@ -4,9 +4,10 @@ Prints, per task, the success rate of the heuristic and the oracle at Tier 1/2/3
 heuristic at Tier 3 with currents off (the data-grounding ablation); then per cell the mean
 primary metric, the task's diagnostics (e.g. AS footprint loss, PI detection rate, SPC escaped
 fraction, UPL final object depth) and the slowest cell's wall time; then whether each task meets
-the calibration aims of issue #4: oracle >= 90 % at every tier; heuristic SR non-increasing
-T1 -> T2 -> T3, about 90-100 / 65-90 / 15-45 %; Tier-3 SR >= 15 points higher with currents off.
-(The issue's hard checks are on the macro SRs: ``benchmarks/suite.py``.)
+the calibration aims: oracle >= 90 % at every tier; heuristic SR non-increasing T1 -> T2 -> T3
+with T1 > T3, about >= 90 / 60-90 / 20-50 %; the heuristic at least 10 points below the oracle
+at Tier 3 (what the heuristic lacks is information). The currents-off gap is printed, never
+aimed at. A single tier key's share of the T1 -> T3 drop: ``--set TASK.1.KEY=<T3 value>``.
 
 Calibration never reads the evaluation episodes: it runs on the CALIBRATION seeds (default:
 each tier table's ``calibration.seeds``; ``--seeds`` to choose) and refuses the evaluation seed
@@ -137,12 +138,13 @@ def run_cells(grid, task_ids, cells, episodes: int, seeds, dynamics: str, sets=N
 def targets(sr) -> list[tuple[str, bool]]:
     """Calibration aims for one task's SR row (order of ``CELLS``)."""
     h1, h2, h3, o1, o2, o3, off = sr
+    # the currents-off gap is reported (dSR-off), never a calibration aim
     return [("oracle>=90%", min(o1, o2, o3) >= 0.9),
-            ("H non-increasing", h1 >= h2 >= h3),
-            ("H-T1 in [90,100]", h1 >= 0.9),
-            ("H-T2 in [65,90]", 0.65 <= h2 <= 0.9),
-            ("H-T3 in [15,45]", 0.15 <= h3 <= 0.45),
-            ("off >= +15p", off - h3 >= 0.15)]
+            ("H T1>T3, non-increasing", h1 >= h2 >= h3 and h1 > h3),
+            ("H-T1 >= 90", h1 >= 0.9),
+            ("H-T2 in [60,90]", 0.60 <= h2 <= 0.9),
+            ("H-T3 in [20,50]", 0.20 <= h3 <= 0.50),
+            ("H-T3 <= O-T3 - 10p", h3 <= o3 - 0.10)]
 
 
 def format_table(rows) -> str:

@@ -55,9 +55,12 @@ def test_config_refuses_the_evaluation_seed_in_bc_train_seeds(base_config):
 def test_dataset_rows_are_the_pre_step_state_and_teacher_action(grid):
     """Kinematic model, stride 1: consecutive rows of an episode satisfy
     p[k+1] - p[k] = (a[k] + c(p[k], t_k)) dt, so the recorded goal offset and action are the
-    state *before* each step (the reference rebuilt it from the post-step pose)."""
+    state *before* each step (the reference rebuilt it from the post-step pose). The goal
+    offset is relative to the teacher's navigation estimate: with the true position it is
+    the true pre-step state, which the kinematics pin down."""
     cell = Cell(grid, "G2G", 1)
-    df = teacher_rows(cell, 100, 2, "kinematic", stride=1, max_rows=10**6)
+    df = teacher_rows(cell, 100, 2, "kinematic", stride=1, max_rows=10**6,
+                      info="true_position")
     init = cell.reset(2, 100)
     dt = cell.params["dt_s"]
     e0 = df[df["episode"] == 0].sort_values("step")
@@ -118,7 +121,9 @@ def test_weights_file_round_trip(trained, tmp_path):
         load_weights(tmp_path / "bad.npz")
 
 
-def test_kernel_forward_equals_sklearn_predict(dataset, trained):
+def test_kernel_forward_equals_the_training_forward_pass(dataset, trained):
+    """The loop's ``bc_act`` on a recorded observation is bit for bit the prediction the
+    training measured (same features, standardisation and forward pass), times v_max."""
     model, w, _ = trained
     tasks = ["G2G", "SK"]
     X = features(dataset, tasks)
@@ -128,22 +133,58 @@ def test_kernel_forward_equals_sklearn_predict(dataset, trained):
         net = make_net(w, row["task"], 1, 1)
         net.obs[0, 0, 0] = row[list(OBS_FIELDS)].to_numpy(np.float64)
         out = np.array(bc_act(net, 0, 0, 2.0))
-        np.testing.assert_allclose(out, 2.0 * pred[r], rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(out, 2.0 * pred[r])
 
 
-def test_in_loop_bc_actions_equal_the_library_predict(grid, trained):
-    """Inside the fused loop, every recorded BC action is the library's prediction on the
-    recorded observation, times v_max (to 1e-9)."""
-    model, w, _ = trained
+def test_in_loop_bc_actions_equal_the_forward_pass_of_the_saved_weights(grid, trained,
+                                                                         tmp_path):
+    """Inside the fused loop, every recorded BC action is the Python-side forward pass of the
+    weights file (read back) on the recorded observation, times v_max (to 1e-9; in fact
+    equal)."""
+    from oneocean.methods.bc.fit import MLP
+
+    _, w, _ = trained
+    write_npz_atomic(tmp_path / "w.npz", w)
+    saved = load_weights(tmp_path / "w.npz")
     cell = Cell(grid, "G2G", 1)
-    df, obs, act = cell.run("bc", 3, 1000, "6dof", observations=True, net=w)
+    df, obs, act = cell.run("bc", 3, 1000, "6dof", observations=True, net=saved)
     live = np.isfinite(act).all(axis=-1)
     o = obs[live]
     rows = pd.DataFrame(o, columns=list(OBS_FIELDS)).assign(task="G2G")
-    pred = model.predict((features(rows, ["G2G", "SK"]) - w["mu"]) / w["sd"])
+    Z = (features(rows, ["G2G", "SK"]) - saved["mu"]) / saved["sd"]
+    pred = MLP(saved["w"], saved["b"], saved["dims"]).predict(Z)
     assert len(rows) > 50
     np.testing.assert_allclose(act[live], pred * cell.vehicle.v_max, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(act[live], pred * cell.vehicle.v_max)
     assert df["method"].iloc[0] == "bc"
+
+
+def test_the_fit_is_scikit_learns_mlpregressor(dataset):
+    """Same initialisation, minibatch order, gradients and Adam steps as scikit-learn's
+    ``MLPRegressor`` fitted by ``partial_fit`` once per epoch (the reference): after three
+    epochs the kept weights agree to rounding (1e-12), as do the per-epoch losses."""
+    sklearn = pytest.importorskip("sklearn.neural_network")
+    from oneocean.methods.bc.train import targets, validation_mask
+
+    _, w, rep = train(dataset, hidden=(16, 16), epochs=3, batch_size=64, seed=5)
+    df = dataset.reset_index(drop=True)
+    val = validation_mask(df, 0.2)
+    Z = (features(df, ["G2G", "SK"]) - w["mu"]) / w["sd"]
+    Y = targets(df)
+    ref = sklearn.MLPRegressor(hidden_layer_sizes=(16, 16), activation="relu", solver="adam",
+                               alpha=1e-5, batch_size=64, learning_rate_init=1e-3,
+                               shuffle=True, random_state=np.random.RandomState(5))
+    layers = []
+    for epoch in range(3):
+        ref.partial_fit(Z[~val], Y[~val])
+        assert rep["val_mse"][epoch] == pytest.approx(
+            np.mean((ref.predict(Z[val]) - Y[val]) ** 2), rel=1e-12)
+        layers.append([(c.copy(), i.copy()) for c, i in zip(ref.coefs_, ref.intercepts_)])
+    for layer, (c, i) in enumerate(layers[rep["best_epoch"] - 1]):     # the kept epoch
+        np.testing.assert_allclose(w["w"][layer, :c.shape[0], :c.shape[1]], c, rtol=0,
+                                   atol=1e-12)
+        np.testing.assert_allclose(w["b"][layer, :i.shape[0]], i, rtol=0, atol=1e-12)
+    assert np.abs(w["w"][0]).max() > 0.1          # a trained network, not zeros
 
 
 def test_bc_differs_from_its_teacher_and_needs_weights(grid, trained):

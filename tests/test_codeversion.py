@@ -24,6 +24,9 @@ def test_a_task_depends_on_its_own_files_and_the_shared_engine_only():
     shared = set.intersection(*(_names(t) for t in ("G2G", "SK", "SPC")))
     assert _names("G2G") - shared == {"tasks/g2g.py", "methods/heuristic/g2g.py",
                                       "data/tasks/G2G.yaml"}
+    # the sensor models and the route planner are shared; RF also imports G2G's task code
+    assert {"sensing/kernels.py", "data/sensors.yaml", "methods/routing.py"} <= shared
+    assert {"tasks/g2g.py", "methods/heuristic/g2g.py"} <= _names("RF")
 
 
 def test_the_hash_follows_the_bytes(tmp_path):

@@ -124,7 +124,8 @@ def test_python_planner_between_segments_drives_the_fused_policy(coast):
         for e in range(ep.n_episodes):
             if not ep.done[e]:
                 k = int(ep.k[e])
-                pol.plan(ep.grid, ep.P, ep.W, ep.M, ep.state, e, k, ep.t0[e] + k * ep.dt)
+                pol.plan(ep.grid, ep.P, ep.W, ep.M, ep.known_state, e, k,
+                         ep.t0[e] + k * ep.dt)
 
     def make():
         return Episodes(cell.mod, cell.grid, cell.params, cell.reset(3, 1), "heuristic",

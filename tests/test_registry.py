@@ -109,7 +109,7 @@ def test_builtin_methods():
     assert registry.method_names()[:2] == ("heuristic", "oracle")
     h, o = registry.method_spec("heuristic"), registry.method_spec("oracle")
     assert (h.kind, o.kind) == ("fused", "fused")
-    assert "probe" in h.information and "true" in o.information
+    assert "sensor" in h.information and "true" in o.information
     assert h.short == "Heur" and o.short == "Oracle"
 
 

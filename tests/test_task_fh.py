@@ -20,7 +20,7 @@ from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_pa
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
-TIER = {"current_band": [0.0, 1.0], "time_limit_s": 600.0, "probe_noise_ms": 0.1, "fish_count": 60,
+TIER = {"current_band": [0.0, 1.0], "time_limit_s": 600.0, "fish_count": 60,
         "zone_distance_m": 100.0, "zone_radius_m": 10.0, "hold_s": 20.0, "dt_s": 1.0}
 N = fh.N_AGENTS
 

@@ -40,6 +40,8 @@ def test_observations_and_actions(coast, task):
                             n_agents=n_agents, observations=True)
     # recording never changes the episode
     pd.testing.assert_frame_equal(plain, df)
+    _, obs_true, _ = run_cell(coast, task, tier, "heuristic", episodes=2, seed=3,
+                              n_agents=n_agents, observations=True, info="true_position")
     n = int(df["n_agents"].iloc[0])
     assert obs.shape[:3] == act.shape[:3] and obs.shape[0] == 2 and obs.shape[2] == n
     assert obs.shape[3] == OBS_DIM and act.shape[3] == 3
@@ -68,13 +70,19 @@ def test_observations_and_actions(coast, task):
             assert np.isfinite(d[:k]).all() and np.isnan(d[k:]).all()
             assert np.all(np.diff(d[:k]) >= 0)
         if k:
+            # offsets between navigation estimates: with the true position they are exact
             p = init["pos0"][e]
             others = np.hypot(p[1:, 0] - p[0, 0], p[1:, 2] - p[0, 2])
-            assert math.isclose(np.hypot(*mates[0, 0]), others.min(), rel_tol=1e-9)
+            m0 = obs_true[e, 0, 0, 8:10]
+            assert math.isclose(np.hypot(*m0), others.min(), rel_tol=1e-9)
+            # with the sensors they are off by the agents' start fixes (3-sigma truncated)
+            assert abs(np.hypot(*mates[0, 0]) - others.min()) <= 2 * 3 * 3.0 * math.sqrt(2)
         # the recorded steps are a prefix covering the episode (T), actions alongside
         rec = np.isfinite(obs[e, :, 0, 0])
         m = int(rec.sum())
-        assert rec[:m].all() and m >= int(round(df["T_s"].iloc[e]))
+        assert rec[:m].all() and m <= obs.shape[1]
+        if df["success"].iloc[e]:   # T is the time to success (a failure's is the limit)
+            assert m >= int(round(df["T_s"].iloc[e]))
         assert np.isfinite(act[e, :m]).all() and not np.isfinite(act[e, m:]).any()
 
 def test_goal_cue_points_at_the_goal(coast):

@@ -23,8 +23,7 @@ from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
-TIER = {"current_band": [0.0, 1.0], "time_limit_s": 900.0, "probe_noise_ms": 0.1,
-        "pipeline_length_m": 800.0, "n_leaks": 2, "leak_spacing_m": 200.0,
+TIER = {"current_band": [0.0, 1.0], "time_limit_s": 900.0, "pipeline_length_m": 800.0, "n_leaks": 2, "leak_spacing_m": 200.0,
         "leak_rate_kg_s": 0.01, "detect_threshold_kg_m3": 4e-6, "loc_tolerance_m": 15.0,
         "seafloor_min_m": 30.0, "seafloor_max_m": 150.0, "dt_s": 1.0}
 
@@ -70,9 +69,9 @@ def _straight_init(grid, x0=-450.0, x1=450.0, z=0.0, leaks=(-150.0, 150.0), n_ag
             "t0": np.zeros(1), "sections": np.stack([cuts[:-1], cuts[1:]], axis=1)[None]}
 
 
-def _run(grid, tier, init, method, vehicle, seed=0):
+def _run(grid, tier, init, method, vehicle, seed=0, info=None):
     """Results and the final work arrays (field, per-leak peaks, logs and estimates)."""
-    ep = Episodes(pi, grid, tier, init, method, "6dof", vehicle, seed).run()
+    ep = Episodes(pi, grid, tier, init, method, "6dof", vehicle, seed, info=info).run()
     return ep.results(), ep.W
 
 
@@ -324,15 +323,22 @@ def test_failure_modes_do_nothing_and_high_threshold(calm):
     assert r["T_s"][0] == TIER["time_limit_s"]
 
 
-def test_along_pipe_current_biases_the_peak_not_the_onset():
+def test_along_pipe_current_biases_the_peak_not_the_onset(monkeypatch):
     grid = _sloped(ce=0.6)  # plumes run east along the pipeline
     init = _straight_init(grid)
     tier = {**TIER, "loc_tolerance_m": 12.0}
     ro, _ = _run(grid, tier, init, "oracle", E.load_vehicle())
-    rh, wh = _run(grid, tier, init, "heuristic", E.load_vehicle())
+    # given the truth, the heuristic is the oracle (onset estimator, same altitude)
+    rt, _ = _run(grid, tier, init, "heuristic", E.load_vehicle(), info="truth")
+    for k in pi.METRICS:
+        np.testing.assert_array_equal(rt[k], ro[k], err_msg=k)
+    # the same method claiming each event's peak instead of its onset
+    peak = pi_policy.params("oracle", tier, E.load_vehicle())._replace(estimator=pi_policy.PEAK)
+    monkeypatch.setattr(pi_policy, "params", lambda method, tier, vehicle: peak)
+    rh, wh = _run(grid, tier, init, "oracle", E.load_vehicle())
     assert ro["success"][0] and ro["localisation_error_m"][0] < 12.0
     assert rh["detection_rate"][0] == 1.0 and rh["false_claims"][0] == 0
-    # the heuristic claims the plume peaks, east (downstream) of the leaks
+    # the peak claims lie east (downstream) of the leaks
     claims = wh.claims[0, :wh.nclaim[0], :2]
     assert claims.shape == (2, 2)
     for leak in init["leaks"][0]:

@@ -21,8 +21,7 @@ from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
-TIER = {"time_limit_s": 400.0, "probe_noise_ms": 0.1,
-        "spill_radius_m": 40.0, "target_fraction": 0.5, "staging_distance_m": 120.0,
+TIER = {"time_limit_s": 400.0, "spill_radius_m": 40.0, "target_fraction": 0.5, "staging_distance_m": 120.0,
         "removal_radius_m": 11.0, "removal_rate_s": 0.1, "kappa_m2s": 1.0, "domain_m": 300.0,
         "aerial_period_s": 20.0, "dt_s": 1.0}
 

@@ -19,7 +19,7 @@ from oneocean.tasks.episodes import rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
-TIER = {"time_limit_s": 400.0, "probe_noise_ms": 0.1, "site_depth_m": 40.0,
+TIER = {"time_limit_s": 400.0, "site_depth_m": 40.0,
         "start_distance_m": 60.0, "attach_radius_m": 1.0, "attach_dwell_s": 5.0,
         "detach_radius_m": 2.5, "sink_speed_ms": 0.3, "quorum": 5, "hold_radius_m": 30.0,
         "success_depth_m": 2.5, "dt_s": 1.0}

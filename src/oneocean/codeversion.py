@@ -1,8 +1,8 @@
 """Which source files a workflow job's results depend on, and their hash (a rule's ``code``
 param: editing one of them reruns the job, editing anything else does not).
 
-A rollout cell of task ``T`` depends on the engine, the physical models, the one episode loop
-and its driver, the learned controller the loop links (``methods/bc``), ``T``'s own task
+A rollout cell of task ``T`` depends on the engine, the physical models, the sensor models and
+their table, the one episode loop and its driver, the learned controller the loop links (``methods/bc``), ``T``'s own task
 module and heuristic, ``T``'s tier table and the vehicle table -- not on the other tasks'
 modules or tables, so editing one task reruns only its cells.
 """
@@ -18,8 +18,8 @@ _PKG = Path(__file__).resolve().parent
 
 #: Files and folders every rollout cell depends on (relative to the package).
 ROLLOUT_SHARED = ("engine", "models", "methods/bc", "methods/heuristic/__init__.py",
-                  "tasks/__init__.py", "tasks/common.py", "tasks/loop.py", "tasks/episodes.py",
-                  "data/vehicles.yaml", "errors.py")
+                  "methods/routing.py", "sensing", "tasks/__init__.py", "tasks/common.py", "tasks/loop.py",
+                  "tasks/episodes.py", "data/vehicles.yaml", "data/sensors.yaml", "errors.py")
 
 
 def _files(entry: Path) -> list[Path]:
@@ -36,10 +36,15 @@ def module_file(module: str) -> Path:
     return Path(spec.origin).resolve()
 
 
+#: Task modules that import another task's module (and its heuristic twin): RF's transit
+#: reuses G2G's band draw, power and energy accounting.
+TASK_DEPENDS = {"RF": ("G2G",)}
+
+
 def task_files(task: str) -> list[Path]:
     """The files a rollout cell of ``task`` depends on (:data:`ROLLOUT_SHARED` plus the
     task's module, its heuristic twin ``methods/heuristic/<module>.py`` if there is one, and
-    its tier table)."""
+    its tier table; and those of the tasks it imports, :data:`TASK_DEPENDS`)."""
     from .registry import task_spec
 
     spec = task_spec(task)
@@ -49,7 +54,8 @@ def task_files(task: str) -> list[Path]:
     if mod.parent == _PKG / "tasks" and twin.is_file():
         own.append(twin)
     shared = [f for e in ROLLOUT_SHARED for f in _files(_PKG / e)]
-    return sorted(set(shared + own))
+    deps = [f for t in TASK_DEPENDS.get(task, ()) for f in task_files(t)]
+    return sorted(set(shared + own + deps))
 
 
 def files_hash(files) -> str:

@@ -7,8 +7,9 @@ action slots and advances every running episode by one step.
 Spaces (per agent; ``N`` = team size)
     observation
         ``OBS_DIM`` float64 values, :data:`oneocean.tasks.common.OBS_FIELDS`: the task's goal
-        cue (goal point minus position, world m), the current sensed at the agent through the
-        noisy local probe (m s-1), depth and altitude above the seafloor (m), the pollution
+        cue (goal point minus the agent's navigation estimate of its position, world m), its
+        current estimate (forecast plus filtered in-situ samples, :mod:`oneocean.sensing`,
+        m s-1), depth and altitude above the seafloor (m), the pollution
         probe (SPC, PI), the three nearest teammates' horizontal offsets (m). Values the task
         does not define (no field, fewer teammates) are 0 here (NaN in recorded observations).
     action

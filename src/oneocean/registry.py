@@ -145,14 +145,17 @@ class MethodSpec:
 
 #: The built-in methods (their policies live with the task code / ``oneocean.methods``).
 BUILTIN_METHODS = (
-    MethodSpec("heuristic", "Heuristic", "fused", "noisy local current probe",
+    MethodSpec("heuristic", "Heuristic", "fused", "shared sensor models",
                "The paper's baseline: per-task logic plus a velocity controller toward the "
-               "current target within the vehicle's v_max, with feed-forward of the locally "
-               "probed current (probe noise from the tier table).", short="Heur"),
-    MethodSpec("oracle", "Oracle", "fused", "true current field",
-               "A privileged solvability check: exact current knowledge (no probe noise), full "
-               "v_max and the same (or a better) task logic. Not a baseline."),
-    MethodSpec("bc", "Behaviour cloning", "learned", "noisy local current probe",
+               "current target within the vehicle's v_max, with feed-forward of its current "
+               "estimate (forecast plus filtered in-situ samples) and dead-reckoning "
+               "navigation (data/sensors.yaml, the same for every non-oracle method).",
+               short="Heur"),
+    MethodSpec("oracle", "Oracle", "fused", "true current and position",
+               "A privileged solvability check: the true current and its true position, full "
+               "v_max and the same task logic (a planner where a task has one). Not a "
+               "baseline."),
+    MethodSpec("bc", "Behaviour cloning", "learned", "shared sensor models",
                "An MLP trained by MSE on the heuristic teacher's actions (training seeds "
                "disjoint from the evaluation seed), mapping each agent's observation features "
                "to its through-water velocity; the heuristic's mission layer (plan, target "

@@ -34,7 +34,7 @@ class TOYPolicy(NamedTuple):
 
 
 class _Policy:
-    SENSING = {"heuristic": 1, "oracle": 0}
+    SENSING = {"heuristic": "sensors", "oracle": "truth"}
 
     @staticmethod
     def params(method, tier, vehicle):
@@ -117,7 +117,7 @@ def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_sto
 
 @hot_kernel
 def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
 
 
 @njit(cache=True, nogil=True)

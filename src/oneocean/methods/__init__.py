@@ -6,8 +6,9 @@ Four kinds (``oneocean.registry.MethodSpec.kind``):
   built-in ``heuristic`` and ``oracle`` of every task live in :mod:`oneocean.methods.heuristic`
   (one module per task, ``plan``/``act`` hooks of :mod:`oneocean.tasks.loop` plus
   ``params(method, tier, vehicle)``); they differ in the information they use (the heuristic
-  senses the current through a noisy local probe, the oracle knows the true field) and, where
-  a task has it, in planning.
+  senses through the sensor models every non-oracle method shares, :mod:`oneocean.sensing`;
+  the oracle knows the true current and its true position) and, where a task has it, in
+  planning.
 * ``learned``: a trained network evaluated inside the loop with its weights as arrays:
   ``bc`` (:mod:`oneocean.methods.bc`), behaviour cloning of the heuristic's velocity law.
 * ``planner``: Python called between K-step segments of the loop, writing plan tokens a

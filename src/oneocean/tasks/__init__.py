@@ -50,19 +50,25 @@ class Cell:
     times, current regime).
     The vehicle is the task table's ``vehicle`` unless one is given; its speed limit reaches
     ``reset``/``make`` as ``params["v_max"]``.
+    ``tier_overrides`` (``{key: value}``) replaces tier parameters of the task's tier table
+    (keys of its ``harder`` block; an unknown key is a one-line ConfigError naming it): the
+    stressor ablations, e.g. Tier 1 with one key at its Tier-3 value. ``tier_params`` is the
+    tier's parameters with the overrides applied, ``tier_overrides`` the overrides alone.
     """
 
     def __init__(self, grid, task: str, tier: int, *, n_agents: int | None = None,
-                 currents: bool = True, vehicle=None, current_gain: float = 1.0, tide=None):
+                 currents: bool = True, vehicle=None, current_gain: float = 1.0, tide=None,
+                 tier_overrides: dict | None = None):
         from ..engine import load_grid, load_vehicle
         from ..engine.grid import Grid, with_forcing
 
         self.task, self.tier = task, int(tier)
         self.mod = task_module(task)
-        grid = grid if isinstance(grid, Grid) else load_grid(grid)
         table = load_task_table(task)
+        self.tier_overrides = checked_tier_overrides(task, table, tier_overrides)
+        grid = grid if isinstance(grid, Grid) else load_grid(grid)
         self.vehicle = vehicle if vehicle is not None else load_vehicle(table.get("vehicle"))
-        params = tier_params(task, self.tier)
+        params = {**tier_params(task, self.tier), **self.tier_overrides}
         self.tier_params = params
         self.params = {**params, "dt_s": float(table["dt_s"]), "v_max": self.vehicle.v_max}
         self.n_agents = n_agents_for(task, n_agents)
@@ -131,16 +137,17 @@ class Cell:
 
 
     def run(self, method: str, episodes: int, seed: int, dynamics: str,
-            observations: bool = False, net: dict | None = None):
+            observations: bool = False, net: dict | None = None, info: str | None = None):
         """Sample ``episodes`` episodes of ``seed`` and run them with a fused ``method`` (or
-        ``bc`` with its network ``net``); the cell table (see :func:`run_cell`)."""
+        ``bc`` with its network ``net``; ``info``: what it knows instead of its sensors,
+        :class:`~oneocean.tasks.episodes.Episodes`); the cell table (see :func:`run_cell`)."""
         from ..registry import method_spec
         from .episodes import rollout
 
         method_spec(method)   # an unknown method is a one-line ConfigError
         init = self.reset(episodes, seed)
         res = rollout(self.mod, self.grid, self.params, init, method, dynamics, self.vehicle,
-                      int(seed), record=observations, net=net)
+                      int(seed), record=observations, net=net, info=info)
         df = cell_frame(self.mod, res, self.tier, method, self.n_agents, dynamics,
                         self.currents, episodes, seed)
         df.insert(df.columns.get_loc("seed") + 1, "candidate", init["candidate"])
@@ -157,7 +164,8 @@ REGIME_DRAWS = 3
 def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: int = 50,
              seed: int = 0, dynamics: str = "6dof", currents: bool = True,
              n_agents: int | None = None, vehicle=None, observations: bool = False,
-             current_gain: float = 1.0, tide=None, net: dict | None = None):
+             current_gain: float = 1.0, tide=None, net: dict | None = None,
+             info: str | None = None, tier_overrides: dict | None = None):
     """Run ``episodes`` episodes of one (task, tier, method) cell on the one episode loop,
     batched in one kernel call (a fused method: the task's heuristic or oracle).
 
@@ -173,6 +181,13 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
         The run's forcing (:class:`Cell`): g on the data u, v and the synthetic tide term.
     net : dict
         Method ``bc`` only: the trained network (:func:`oneocean.methods.bc.load_weights`).
+    info : str
+        What the method knows instead of its sensors (:data:`oneocean.sensing.INFO_LEVELS`;
+        default: the method's own): the information ablations ``true_current`` and
+        ``true_position`` of a non-oracle method.
+    tier_overrides : dict
+        Tier parameters to replace (:class:`Cell`): ``{key: value}``, keys of the task's tier
+        table; an unknown key is a one-line ConfigError.
 
     Returns
     -------
@@ -183,8 +198,26 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     NaN after an episode ended.
     """
     return Cell(grid, task, tier, n_agents=n_agents, currents=currents, vehicle=vehicle,
-                current_gain=current_gain, tide=tide).run(method, episodes, seed, dynamics,
-                                                          observations, net)
+                current_gain=current_gain, tide=tide,
+                tier_overrides=tier_overrides).run(method, episodes, seed, dynamics,
+                                                   observations, net, info)
+
+
+def checked_tier_overrides(task: str, table: dict, overrides) -> dict:
+    """``overrides`` as a plain dict after checking every key is a tier parameter of
+    ``task``'s tier table (declared in its ``harder`` block); else a one-line ConfigError
+    naming the key and the valid ones."""
+    if overrides is None:
+        return {}
+    if not isinstance(overrides, dict):
+        raise ConfigError(f"task {task}: tier_overrides must be a mapping of tier parameters "
+                          f"to values, got {type(overrides).__name__}")
+    valid = list(table["harder"])
+    for key in overrides:
+        if key not in valid:
+            raise ConfigError(f"task {task}: unknown tier parameter {key!r} in tier_overrides; "
+                              f"valid: {', '.join(valid)}")
+    return dict(overrides)
 
 
 def cell_frame(mod, res: dict, tier: int, method: str, n_agents: int, dynamics: str,
@@ -225,13 +258,20 @@ def na_frame(mod, tier: int, method: str, n_agents: int, dynamics: str,
 def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, episodes: int,
                     seed: int, dynamics: str, threads: int = 1, currents: bool = True,
                     current_gain: float = 1.0, tide=None, weights=None,
-                    n_agents: int | None = None) -> dict:
+                    n_agents: int | None = None, info: str | None = None,
+                    tier_overrides: dict | None = None) -> dict:
     """Run one cell on a grid export file and write its per-episode Parquet table atomically.
 
     The file records its configuration (``oneocean.engine.recording.read_metrics_meta``):
-    tier parameters, vehicle, dynamics, seed, forcing, and ``applicable``. A cell the region
-    cannot host (:class:`~oneocean.errors.NotApplicable`) is written with zero episodes,
-    ``applicable: false`` and the one-line ``reason``; it is never a crash.
+    tier parameters (with ``tier_overrides`` applied), vehicle, dynamics, seed, forcing, and
+    ``applicable``; an ablation cell also records ``info`` (an information level given
+    instead of the method's own sensing, :func:`run_cell`) and ``tier_overrides`` (the tier
+    parameters it replaced), so that tables never pool it with the normal cell. A cell the
+    region cannot host (:class:`~oneocean.errors.NotApplicable`) is written with zero episodes,
+    ``applicable: false`` and the one-line ``reason``; it is never a crash. So is a cell whose
+    ``tier_overrides`` the task cannot build with the tier's other parameters (its ``reset``
+    or ``make`` rejects the combination, e.g. more leaks than a shorter pipeline holds): it
+    also records ``tier_conflict: true``.
     ``weights``: method ``bc``'s weights file (:mod:`oneocean.methods.bc`), recorded by hash.
     Returns the manifest entry of :func:`oneocean.engine.write_metrics`.
     """
@@ -242,12 +282,16 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
     numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
     grid = load_grid(grid_path)
     cell = Cell(grid, task, tier, currents=currents, current_gain=current_gain, tide=tide,
-                n_agents=n_agents)
+                n_agents=n_agents, tier_overrides=tier_overrides)
     meta = {"task": task, "tier": int(tier), "method": method, "dynamics": dynamics,
             "vehicle": cell.vehicle.name, "v_max_ms": cell.vehicle.v_max,
             "n_agents": cell.n_agents, "episodes": int(episodes), "seed": int(seed),
             "current_gain": cell.current_gain, "tide": tide, "currents": bool(currents),
             "tier_params": cell.tier_params, "applicable": True, "reason": ""}
+    if info is not None:
+        meta["info"] = str(info)
+    if cell.tier_overrides:
+        meta["tier_overrides"] = cell.tier_overrides
     net = None
     if weights is not None:
         from ..io import sha256_file
@@ -255,11 +299,28 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
 
         net = load_weights(weights)
         meta["weights_sha256"] = sha256_file(weights)
+    # what could be refused for other reasons than the overrides, checked before the run
+    from ..registry import method_spec
+    from ..sensing import INFO_LEVELS
+
+    method_spec(method)
+    if info is not None and info not in INFO_LEVELS:
+        raise ConfigError(f"unknown information level {info!r}; valid: "
+                          f"{', '.join(INFO_LEVELS)}")
+    if method == "bc" and net is None:
+        raise ConfigError(f"task {task}: method 'bc' needs its trained weights")
     try:
-        df = cell.run(method, episodes, seed, dynamics, net=net)
+        df = cell.run(method, episodes, seed, dynamics, net=net, info=info)
     except NotApplicable as exc:
         df = na_frame(cell.mod, tier, method, cell.n_agents, dynamics, currents, seed)
         meta.update(applicable=False, reason=str(exc))
+    except ConfigError as exc:
+        if not cell.tier_overrides:
+            raise
+        df = na_frame(cell.mod, tier, method, cell.n_agents, dynamics, currents, seed)
+        what = ", ".join(f"{k} = {v}" for k, v in cell.tier_overrides.items())
+        meta.update(applicable=False, tier_conflict=True,
+                    reason=f"{task} tier {int(tier)} with {what}: {exc}")
     return write_metrics(df, out_path, meta=meta)
 
 

@@ -26,7 +26,8 @@ Metrics
 Methods
     :mod:`oneocean.methods.heuristic.as_` (a lawnmower: strips at a commanded altitude,
     terrain following, current feed-forward, full speed for both; heuristic: strips along the
-    long axis, noisy probe; oracle: strips across the current, exact current). Its
+    long axis, the sensor models of :mod:`oneocean.sensing`; oracle: strips across the current
+    by its scan-time planner, true current and position). Its
     plan (the waypoint lists per agent) is made in Python before the episode's first step and
     kept in ``W`` (``wps``, ``wcount``, ``widx``: the plan tokens); the observation's goal cue
     is the carrot the method follows (``W.tgt``).
@@ -80,7 +81,7 @@ CLEARANCE_M = 1.0
 #: Near-collision distance for coll_ratio, m (engine default).
 R_COLL_M = 2.0
 
-_TIER_KEYS = ("current_band", "time_limit_s", "probe_noise_ms", "region_long_m",
+_TIER_KEYS = ("current_band", "time_limit_s", "region_long_m",
               "region_short_m", "coverage_threshold", "max_altitude_m", "half_angle_deg",
               "cell_m", "seafloor_min_m", "seafloor_max_m", "min_relief_m")
 
@@ -334,7 +335,7 @@ def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_sto
 
 @hot_kernel
 def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
 
 
 @njit(cache=True, nogil=True)

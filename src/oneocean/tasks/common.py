@@ -19,10 +19,11 @@ import yaml
 from ..engine import status as st
 from ..engine._jit import hot_kernel
 from ..engine.grid import Grid, sample_current_data, sample_elevation, synthetic_tide
-from ..engine.rng import PURPOSE_TASK, normal
+from ..engine.rng import PURPOSE_TASK
 from ..errors import ConfigError, NotApplicable
 
-#: Random-stream purposes of the task layer (counter-based: ``normal(seed, ep, purpose, k)``).
+#: Random-stream purposes of the task layer (counter-based: ``normal(seed, ep, purpose, k)``;
+#: ``PURPOSE_TASK + 1`` and ``+ 4 .. + 6`` are the sensor models': :mod:`oneocean.sensing`).
 PURPOSE_PROBE = PURPOSE_TASK + 1
 PURPOSE_RESET = PURPOSE_TASK + 2
 PURPOSE_TASK_NOISE = PURPOSE_TASK + 3
@@ -32,7 +33,7 @@ STANDARD = ("success", "T_s", "E", "coll_ratio", "violations")
 
 #: Per-agent observation of every task, one row per (episode, step, agent) (:func:`observe`):
 #: the relative goal cue (the method's current target point: goal, route carrot, slot, ...),
-#: the current the method senses there (the heuristic's noisy probe), depth and altitude
+#: the current the method knows there (its estimate: :mod:`oneocean.sensing`), depth and altitude
 #: above the seafloor, the pollution probe (SPC: surface concentration kg m-2; PI: the
 #: sensor reading; NaN where the task has no field), and the N_MATES nearest teammates'
 #: horizontal offsets (NaN when there are fewer teammates). World frame, metres, m s-1.
@@ -66,18 +67,6 @@ def current_at(grid, x, y, z, t):
     ce, cn = sample_current_data(grid, x, y, z, t)
     te, tn = synthetic_tide(grid, t)
     return ce + te, cn + tn
-
-
-@hot_kernel(inline="always")
-def probe(ce, cn, noise_std, seed, episode, counter):
-    """The heuristic's current probe: the true current plus Gaussian noise (std m s-1).
-
-    ``counter`` must be unique per (step, agent) within an episode, e.g. ``2*(k*n_agents+i)``.
-    """
-    if noise_std <= 0.0:
-        return ce, cn
-    return (ce + noise_std * normal(seed, episode, PURPOSE_PROBE, counter),
-            cn + noise_std * normal(seed, episode, PURPOSE_PROBE, counter + 1))
 
 
 @hot_kernel(inline="always")
@@ -261,8 +250,8 @@ def seek_max(px, py, pz, gx, gy, gz, v_max, kp, ce, cn):
     the speed budget along the goal direction ("crabbing"), so the ground track points at the
     goal whenever ``|c_perp| < v_max``; the ground speed is ``min(kp * d, c_par +
     sqrt(v_max^2 - |c_perp|^2))``. At the goal it holds station (``-c``, clipped).
-    The navigation tasks' steering: the oracle calls it with the exact current and the full
-    ``v_max``, the heuristic with its noisy probe (both with the full ``v_max``).
+    The navigation tasks' steering: the oracle calls it with the exact current, the heuristic
+    with its current estimate (both with the full ``v_max``).
     """
     if not v_max > 0.0:
         return 0.0, 0.0, 0.0
@@ -477,8 +466,9 @@ def fresh_cache(kernel, module_file: str, *deps) -> bool:
     """Drop ``kernel``'s stale numba cache entries at import (:func:`ensure_fresh_cache`).
 
     numba keys a cache entry on the kernel's own file only; a task kernel also inlines (or
-    links) the engine, this module, the episode loop (``loop.py``) and the learned
-    controller it calls (``methods/bc/kernel.py``), and ``deps`` (e.g. its policy module, a
+    links) the engine, this module, the episode loop (``loop.py``), the sensor models
+    (``sensing/kernels.py``) and the learned controller it calls (``methods/bc/kernel.py``),
+    and ``deps`` (e.g. its policy module, a
     model file), so the fingerprint covers exactly those: editing one task recompiles that
     task alone.
     """
@@ -487,8 +477,9 @@ def fresh_cache(kernel, module_file: str, *deps) -> bool:
     here = Path(module_file).resolve()
     mine = Path(__file__).resolve()
     learned = mine.parents[1] / "methods" / "bc" / "kernel.py"
+    sensing = mine.parents[1] / "sensing" / "kernels.py"
     return ensure_fresh_cache(kernel, (here.stem + ".",), here, mine,
-                              mine.with_name("loop.py"), learned,
+                              mine.with_name("loop.py"), learned, sensing,
                               *(Path(d).resolve() for d in deps))
 
 
@@ -529,23 +520,27 @@ def obs_buffers(tier: dict, init: dict, record: bool):
 # once, shared by every task kernel) instead of one inlined copy per kernel cuts each task's
 # compile time (measured G2G 64 -> 54 s, SK 84 -> 49 s from a cold cache)
 @hot_kernel
-def observe(obs, act, e, k, i, grid, state, gx, gy, gz, pe, pn, pollution, ax, ay, az):
+def observe(obs, act, e, k, i, grid, nav, state, gx, gy, gz, pe, pn, pollution, ax, ay, az):
     """Record agent ``i``'s observation (``OBS_FIELDS``) and action (``ACT_FIELDS``) at step
-    ``k`` of episode ``e``, from its pre-step state; a no-op when ``k >= obs.shape[1]`` (the
-    rollout allocates a zero-length step axis unless observations are requested)."""
+    ``k`` of episode ``e``, before the step; a no-op when ``k >= obs.shape[1]`` (the
+    rollout allocates a zero-length step axis unless observations are requested).
+
+    The goal cue and the teammates' offsets are relative to the positions the method knows
+    (``nav``: its navigation estimate, the truth for the oracle); depth (pressure sensor)
+    and altitude (the DVL's beams) are measured, so they come from the true ``state``."""
     if k >= obs.shape[1]:
         return
     o = obs[e, k, i]
-    px = state[e, i, 0]
-    py = state[e, i, 1]
-    pz = state[e, i, 2]
+    px = nav[e, i, 0]
+    py = nav[e, i, 1]
+    pz = nav[e, i, 2]
     o[0] = gx - px
     o[1] = gy - py
     o[2] = gz - pz
     o[3] = pe
     o[4] = pn
-    o[5] = py
-    o[6] = -sample_elevation(grid, px, pz) - py
+    o[5] = state[e, i, 1]
+    o[6] = -sample_elevation(grid, state[e, i, 0], state[e, i, 2]) - state[e, i, 1]
     o[7] = pollution
     n_ag = state.shape[1]
     d_prev = -1.0
@@ -556,7 +551,7 @@ def observe(obs, act, e, k, i, grid, state, gx, gy, gz, pe, pn, pollution, ax, a
         for j in range(n_ag):
             if j == i:
                 continue
-            d = (state[e, j, 0] - px) ** 2 + (state[e, j, 2] - pz) ** 2
+            d = (nav[e, j, 0] - px) ** 2 + (nav[e, j, 2] - pz) ** 2
             # strictly after the previous pick in (distance, index) order
             if (d > d_prev or (d == d_prev and j > j_prev)) and d < d_best:
                 best = j
@@ -565,8 +560,8 @@ def observe(obs, act, e, k, i, grid, state, gx, gy, gz, pe, pn, pollution, ax, a
             o[8 + 2 * m] = math.nan
             o[9 + 2 * m] = math.nan
         else:
-            o[8 + 2 * m] = state[e, best, 0] - px
-            o[9 + 2 * m] = state[e, best, 2] - pz
+            o[8 + 2 * m] = nav[e, best, 0] - px
+            o[9 + 2 * m] = nav[e, best, 2] - pz
             d_prev = d_best
             j_prev = best
     a = act[e, k, i]

@@ -25,8 +25,8 @@ Observation cue
     tangent, target depth, slope) into ``W.leg`` for the policy.
 Methods
     :mod:`oneocean.methods.heuristic.dpt` (depth loop plus horizontal line-of-sight guidance;
-    both at full speed; heuristic: noisy probe, P depth loop; oracle: exact current,
-    slope feed-forward).
+    both at full speed, both with the profile's slope fed forward; heuristic: the sensor
+    models of :mod:`oneocean.sensing`; oracle: true current and position).
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset``; ``DPTParams`` / ``DPTWork`` and ``make``; the env
@@ -230,7 +230,7 @@ def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_sto
 
 @hot_kernel
 def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
 
 
 @njit(cache=True, nogil=True)

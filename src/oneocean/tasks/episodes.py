@@ -63,13 +63,13 @@ class Episodes:
         The task's ``reset`` output (``pos0`` (E, N, 3), ``psi0`` (E, N), ``t0`` (E,), ...).
     method : str
         A fused method the task's policy module knows (``heuristic``, ``oracle``), ``bc``
-        (the heuristic's mission layer with the action from ``net``; noisy probe), or
-        ``None`` for external actions (the step API; sensing is then the noisy probe).
+        (the heuristic's mission layer with the action from ``net``; the heuristic's
+        sensors), or ``None`` for external actions (the step API; the sensor models).
     dyn : str
         Dynamics model name.
     vehicle : Vehicle
     seed : int
-        Run seed (probe-noise streams).
+        Run seed (sensor-error streams).
     record : bool
         Record every agent's per-step observation and action.
     fused_plan : bool
@@ -78,12 +78,20 @@ class Episodes:
         (:meth:`run_planned`), and the fused ``act`` follows them.
     net : dict
         ``bc`` only: the network's arrays (:func:`oneocean.methods.bc.load_weights`).
+    info : str
+        What the method knows instead of its sensors (:data:`oneocean.sensing.INFO_LEVELS`):
+        default the method's own (``SENSING`` of its policy module: ``sensors``, or
+        ``truth`` for the oracle); ``true_current`` / ``true_position`` are the information
+        ablations of a non-oracle method.
     """
 
     def __init__(self, mod, grid, tier: dict, init: dict, method: str | None, dyn: str,
                  vehicle, seed: int, *, record: bool = False, fused_plan: bool = True,
-                 net: dict | None = None):
+                 net: dict | None = None, info: str | None = None):
         from ..methods.bc.kernel import make_net, no_net
+        from ..sensing import nav_aid, sensing_params
+        from .common import load_task_table
+        from ..sensing.kernels import init_sensing
 
         need_tier(mod.TASK_ID, tier, "time_limit_s", "dt_s")
         pol = mod.POLICY
@@ -91,7 +99,7 @@ class Episodes:
         if learned:
             if net is None:
                 raise ConfigError(f"task {mod.TASK_ID}: method 'bc' needs its trained weights")
-            method = "heuristic"   # the mission layer it keeps (and its noisy probe)
+            method = "heuristic"   # the mission layer it keeps (and its sensors)
         if method is not None and method not in pol.SENSING:
             raise ConfigError(f"task {mod.TASK_ID}: method {method!r} has no fused policy "
                               f"here; fused methods: {', '.join(sorted(pol.SENSING))}")
@@ -106,11 +114,17 @@ class Episodes:
         self.dt = dt
         self.P, self.W = mod.make(grid, tier, init)
         self.M = pol.params(method or "heuristic", tier, vehicle)
-        noisy = pol.SENSING[method] if method is not None else 1
+        if info is None:
+            info = pol.SENSING[method] if method is not None else "sensors"
+        self.info = info
         kind = LEARNED if learned else FUSED if method is not None else EXTERNAL
         self.LP = LoopParams(model_id(dyn), kind,
-                             int(bool(fused_plan)), int(noisy), self.n_steps, int(seed), dt,
-                             float(vehicle.v_max), float(tier.get("probe_noise_ms", 0.0)),
+                             int(bool(fused_plan)), self.n_steps, int(seed), dt,
+                             float(vehicle.v_max),
+                             sensing_params(info, dt,
+                                            nav_aid(load_task_table(mod.TASK_ID),
+                                                    f"task {mod.TASK_ID}"),
+                                            tier.get("forecast_lead_h")),
                              DEFAULT_LAND_THRESHOLD,
                              float(getattr(mod, "CLEARANCE_M", CLEARANCE_M)),
                              float(getattr(mod, "R_COLL_M", DEFAULT_R_COLL_M)),
@@ -120,6 +134,8 @@ class Episodes:
         #: which of the task's candidate episodes these are (:meth:`oneocean.tasks.Cell.reset`)
         self.candidate = np.asarray(init.get("candidate", np.arange(n_ep)), dtype=np.int64)
         self.state = new_state(n_ep, n_ag, pos0, init["psi0"])
+        LS = self.LS
+        init_sensing(self.LP.sens, self.LP.seed, self.state, LS.fc, LS.cb, LS.navc, LS.nerr)
         self.cmd = np.zeros((n_ep, n_ag, CMD_DIM))
         self.ext = np.zeros((n_ep, n_ag, len(ACT_FIELDS)))
         steps = self.n_steps if record else 0
@@ -128,18 +144,32 @@ class Episodes:
         self.act = np.full((n_ep, steps, n_ag, len(ACT_FIELDS)), np.nan)
         self.columns = STANDARD + tuple(mod.METRICS)
         self.res = np.zeros((n_ep, len(self.columns)))
-        # a method that plans in Python before the first step (e.g. AS's lawnmower) writes
-        # its plan tokens into W now; with external actions these are the heuristic's plan,
+        # a method that plans in Python before the first step (e.g. AS's lawnmower, the G2G
+        # and RF routes) writes its plan tokens into W now, from what it knows: the loop's
+        # params and state (its information level LP.sens, the episode's forecast LS.fc) and
+        # the agents' known state; with external actions these are the heuristic's plan,
         # the task's default mission plan, which the observation's goal cue reads
         prepare = getattr(pol, "prepare", None)
         if prepare is not None:
-            prepare(grid, self.P, self.W, self.M, self.t0)
+            prepare(grid, self.P, self.W, self.M, self.t0, self.LP, self.LS, self.known_state)
 
     # ------------------------------------------------------------------ stepping
     @property
     def k(self) -> np.ndarray:
         """(E,) steps taken by each episode."""
         return self.LS.k
+
+    @property
+    def known_state(self) -> np.ndarray:
+        """(E, N, STATE_DIM) the agents' state as the method knows it (what its policy
+        hooks see: the navigation estimate, the truth for a method given the true position).
+        A Python planner reads this, never :attr:`state`."""
+        if self.LP.sens.true_position:
+            return self.state
+        nav = self.state.copy()
+        nav[..., 0] += self.LS.nerr[..., 0]
+        nav[..., 2] += self.LS.nerr[..., 1]
+        return nav
 
     @property
     def done(self) -> np.ndarray:
@@ -198,9 +228,9 @@ class Episodes:
 
 
 def rollout(mod, grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int, *,
-            record: bool = False, net: dict | None = None) -> dict:
+            record: bool = False, net: dict | None = None, info: str | None = None) -> dict:
     """Run every episode of ``init`` (the task's ``reset`` output) to its end with one fused
-    method (or ``bc`` with its ``net``); returns the per-episode columns (``STANDARD`` + the
-    task's ``METRICS``, plus ``obs``/``act`` when ``record``)."""
+    method (or ``bc`` with its ``net``; ``info``: :class:`Episodes`); returns the per-episode
+    columns (``STANDARD`` + the task's ``METRICS``, plus ``obs``/``act`` when ``record``)."""
     return Episodes(mod, grid, tier, init, method, dyn, vehicle, seed, record=record,
-                    net=net).run().results()
+                    net=net, info=info).run().results()

@@ -28,9 +28,9 @@ Metrics
     ``school_spread_m`` (RMS distance of the fish from their centroid at the end, m).
 Methods (task logic; the environment above does not depend on it)
     :mod:`oneocean.methods.heuristic.fh` (herding from behind on an arc around the school;
-    both at the vehicle's full speed; heuristic: noisy probe, push toward the zone ignoring
-    the drift, standoff adapted to the school's ground speed near the zone; oracle: exact
-    current, the school crabbed across the current, standoff adapted to its swim speed).
+    both at the vehicle's full speed, the school crabbed across the current, standoff adapted
+    to its swim speed; heuristic: the sensor models of :mod:`oneocean.sensing` and the team's
+    mean current estimate at the school; oracle: true current and position).
     The observation's goal cue is the agent's herding waypoint (``W.tgt``, written by the
     method's ``plan``; the zone centre for external policies).
 
@@ -88,7 +88,7 @@ CLEARANCE_M = 1.0
 
 _C_CONT, _C_DIST, _C_FRAC, _C_SPREAD = (len(STANDARD) + i for i in range(len(METRICS)))
 
-_TIER_KEYS = ("current_band", "time_limit_s", "probe_noise_ms", "fish_count",
+_TIER_KEYS = ("current_band", "time_limit_s", "fish_count",
               "zone_distance_m", "zone_radius_m", "hold_s")
 
 
@@ -222,6 +222,7 @@ class FHWork(NamedTuple):
     keys: np.ndarray        # (E, 8) angle of each agent relative to the arc centre, rad
     rank: np.ndarray        # (E, 8) int64 arc slot of each agent
     tgt: np.ndarray         # (E, 8, 2) waypoint (x, z) of each agent, m (plan token, goal cue)
+    cest: np.ndarray        # (E, 8, 2) each agent's current estimate at its last step, m s-1
 
 
 def make(grid, tier: dict, init: dict):
@@ -240,7 +241,8 @@ def make(grid, tier: dict, init: dict):
                np.zeros(n_ep, dtype=np.int64), np.zeros((n_ep, 3)),
                np.zeros((n_ep, n), dtype=np.int64), np.zeros((n_ep, n)),
                np.zeros((n_ep, n), dtype=np.int64),
-               np.ascontiguousarray(np.repeat(zone[:, None, :], n, axis=1)))
+               np.ascontiguousarray(np.repeat(zone[:, None, :], n, axis=1)),
+               np.zeros((n_ep, n, 2)))
     return P, W
 
 
@@ -356,7 +358,7 @@ def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_sto
 
 @hot_kernel
 def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
 
 
 @njit(cache=True, nogil=True)

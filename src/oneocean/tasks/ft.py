@@ -23,7 +23,8 @@ Metrics
     ``|p_i - p_j| >= SPACING_M - e_i - e_j`` (measured closest pairs: 4.6-8 m).
 Methods
     :mod:`oneocean.methods.heuristic.ft` (a virtual centre paced by the worst slot lag, slot
-    tracking with feed-forward; heuristic: noisy probe; oracle: exact current). The
+    tracking with feed-forward; heuristic: the sensor models of :mod:`oneocean.sensing`;
+    oracle: true current and position). The
     observation's goal cue is the agent's slot around the method's virtual centre
     (``FTWork.vc``, written by the policy's ``plan``).
 
@@ -158,7 +159,7 @@ class FTWork(NamedTuple):
 
 def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
-    need_tier(TASK_ID, tier, "goal_radius_m", "slot_tol_m", "max_error_m", "probe_noise_ms")
+    need_tier(TASK_ID, tier, "goal_radius_m", "slot_tol_m", "max_error_m")
     start = np.ascontiguousarray(init["start"], dtype=np.float64)
     n_ep = start.shape[0]
     return (FTParams(float(tier["goal_radius_m"]), float(tier["slot_tol_m"]),
@@ -257,7 +258,7 @@ def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_sto
 
 @hot_kernel
 def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
 
 
 @njit(cache=True, nogil=True)

@@ -2,8 +2,9 @@
 
 A task (``oneocean.tasks.<id>``) says what the world does; a method (``oneocean.methods``)
 says what the agents do. This loop owns everything they share, so no task re-implements it:
-time, current sampling at every agent, the method's sensing (the heuristic's noisy probe or
-the exact current), observation recording, the action (through :func:`advance_agent`:
+time, current sampling at every agent, the method's sensing and navigation (the sensor
+models of :mod:`oneocean.sensing` for every non-oracle method, the truth for the oracle),
+observation recording, the action (through :func:`advance_agent`:
 clipping to ``v_max``, dynamics, feasibility), the energy proxy (eq. 7), rejected moves,
 near-collisions (eq. 4, one ``r_coll``), termination, success and ``T``, and the metric
 horizon (below) — in resumable segments of steps (``k_stop``), so a Python planner or a step
@@ -12,16 +13,18 @@ API can act between them.
 Per step ``k`` of episode ``e`` (``t = t0[e] + k dt``)::
 
     env.pre_step                      task physics before the agents act (e.g. face velocities)
-    policy.plan                       the method's team-level decision (assignment, map);
+    X = the agents' state as the method knows it (navigation estimate; truth for the oracle)
+    policy.plan(X)                    the method's team-level decision (assignment, map);
                                       skipped when a Python planner writes the plan tokens
     for every agent i:
         c   = true current at the agent (gain and tides included)
-        c~  = what the method senses (noisy probe or exact)
-        a   = policy.act(..., c~)     or the external action ext[e, i] (step API)
-        record observation (env.cue) and action when asked
-        advance_agent(a, c); env.after_agent
+        c~  = the method's current estimate (forecast + filtered in-situ sample; or c)
+        a   = policy.act(X, c~)       or the external action ext[e, i] (step API)
+        record observation (env.cue on X) and action when asked
+        advance_agent(a, c) on the true state; env.after_agent
     near-collision count (eq. 4) and the closest pair distance
     code = env.post_step              task physics after the moves, metrics, termination
+    navigation errors propagate over the step (dead reckoning, GNSS at the surface)
     k += 1
     at the end: success = env.finish(...); T = k dt on success (k_succ dt after REACHED),
     else the time limit
@@ -67,7 +70,9 @@ Env hooks (``P``: the task's params NamedTuple, ``W``: its per-episode work arra
                                                    before the step; a bool is GO / STOP)
     finish(grid, P, W, state, e, k, row) -> success        writes the task's metric columns
 
-Policy hooks (``M``: the method's params NamedTuple)::
+Policy hooks (``M``: the method's params NamedTuple; ``state`` is the state the method knows,
+``X`` above, and ``pe, pn`` its current estimate: a policy never sees the truth unless it is
+the oracle's)::
 
     plan(grid, P, W, M, state, e, k, t)
     act(grid, P, W, M, state, e, k, i, t, pe, pn) -> (ax, ay, az, psi)
@@ -82,10 +87,13 @@ from typing import NamedTuple
 import numpy as np
 
 from ..engine.constraints import min_pairwise_distance
+from ..engine.dynamics import STATE_DIM
 from ..engine._jit import hot_kernel
 from ..engine.step import advance_agent
 from ..methods.bc.kernel import BCNet, bc_act
-from .common import OK, current_at, observe, probe
+from ..sensing import SensingParams
+from ..sensing.kernels import current_estimate, nav_fill, nav_update
+from .common import OK, current_at, observe
 
 #: Policy kinds inside the loop: the task's fused policy (heuristic, oracle, ...), an
 #: external action per agent and step (``ext``; the step API and Python callables), or a
@@ -104,12 +112,11 @@ class LoopParams(NamedTuple):
     policy: int         # FUSED, EXTERNAL or LEARNED
     plan: int           # 1: call the fused policy's plan hook every step; 0: the plan tokens
                         # in W come from a Python planner between segments
-    noisy: int          # 1: the method senses the current through the noisy probe
     n_steps: int        # episode length, steps (the time limit)
-    seed: int           # run seed (probe-noise streams)
+    seed: int           # run seed (sensor-error streams)
     dt: float           # step, s
     v_max: float        # vehicle speed limit, m s-1
-    noise: float        # probe noise std, m s-1
+    sens: SensingParams  # what the method senses (oneocean.sensing; the truth for the oracle)
     land_thr: float     # land-mask threshold of the feasibility check
     clearance: float    # seafloor clearance of the feasibility check, m
     r_coll: float       # near-collision radius, m
@@ -126,6 +133,14 @@ class LoopState(NamedTuple):
     prev: np.ndarray        # (E, N, 3) positions before the current step, m
     k_succ: np.ndarray      # (E,) int64 steps to the REACHED success (-1: not reached)
     dmin: np.ndarray        # (E,) float64 smallest pair distance after a step, m (inf: N < 2)
+    # what the method knows (oneocean.sensing.kernels): its navigation estimate of every
+    # agent's state (the state the policy hooks see), position errors, dead-reckoning
+    # constants, filtered forecast corrections and the episode's forecast error
+    nav: np.ndarray         # (E, N, STATE_DIM) float64
+    nerr: np.ndarray        # (E, N, 2) float64 horizontal position error (x, z), m
+    navc: np.ndarray        # (E, N, 3) float64 1 + scale factor, cos / sin heading bias
+    cb: np.ndarray          # (E, N, 2) float64 filtered forecast correction (east, north)
+    fc: np.ndarray          # (E, 5) float64 forecast error (1 + gain, cos, sin, bias e, n)
 
 
 NEW, RUNNING, FINISHED = 0, 1, 2
@@ -136,32 +151,41 @@ GO, STOP, REACHED = 0, 1, 2
 
 
 def new_loop_state(n_episodes: int, n_agents: int) -> LoopState:
-    return LoopState(np.zeros(n_episodes, np.int64), np.zeros(n_episodes, np.int64),
-                     np.zeros(n_episodes), np.zeros(n_episodes, np.int64),
-                     np.zeros(n_episodes, np.int64), np.zeros((n_episodes, n_agents, 3)),
-                     np.full(n_episodes, -1, np.int64), np.full(n_episodes, np.inf))
+    E, N = n_episodes, n_agents
+    return LoopState(np.zeros(E, np.int64), np.zeros(E, np.int64),
+                     np.zeros(E), np.zeros(E, np.int64),
+                     np.zeros(E, np.int64), np.zeros((E, N, 3)),
+                     np.full(E, -1, np.int64), np.full(E, np.inf),
+                     np.zeros((E, N, STATE_DIM)), np.zeros((E, N, 2)), np.zeros((E, N, 3)),
+                     np.zeros((E, N, 2)), np.zeros((E, 5)))
 
 
 @hot_kernel(inline="always")
-def sense(noisy, ce, cn, noise, seed, e, counter):
-    """What a method knows of the current at its agent: the noisy probe or the truth."""
-    if noisy != 0:
-        return probe(ce, cn, noise, seed, e, counter)
-    return ce, cn
+def known_state(LP, LS, state, e):
+    """The agents' state as the method knows it: the truth for a method given the true
+    position (the oracle), else the navigation estimate, refreshed for every agent."""
+    if LP.sens.true_position != 0:
+        return state
+    for i in range(state.shape[1]):
+        nav_fill(state, LS.nerr, LS.nav, e, i)
+    return LS.nav
 
 
 @hot_kernel(inline="always")
-def observe_next(grid, cue, P, W, LP, state, t0, e, k, nobs, nact):
-    """The observation every agent gets before step ``k`` (the step API's ``obs``), into
-    ``nobs[e, 0]`` (``nact`` (E, 1, N, 3) is scratch)."""
+def observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact):
+    """The observation every agent gets before its episode's next step ``k`` (the step
+    API's ``obs``), into ``nobs[e, 0]`` (``nact`` (E, 1, N, 3) is scratch): exactly what the
+    loop's step ``k`` will sense (the filter update is computed, not stored)."""
     n_ag = state.shape[1]
+    k = LS.k[e]
     t = t0[e] + k * LP.dt
+    X = known_state(LP, LS, state, e)
     for i in range(n_ag):
         s = state[e, i]
         ce, cn = current_at(grid, s[0], s[1], s[2], t)
-        pe, pn = sense(LP.noisy, ce, cn, LP.noise, LP.seed, e, 2 * (k * n_ag + i))
-        gx, gy, gz, pr = cue(grid, P, W, state, e, k, i)
-        observe(nobs, nact, e, 0, i, grid, state, gx, gy, gz, pe, pn, pr,
+        pe, pn = current_estimate(LP.sens, LP.seed, LS.cb, LS.fc, e, k, i, n_ag, ce, cn, 0)
+        gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
+        observe(nobs, nact, e, 0, i, grid, X, state, gx, gy, gz, pe, pn, pr,
                 math.nan, math.nan, math.nan)
 
 
@@ -186,11 +210,13 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
     dmin = LS.dmin[e]
     counting = LS.k_succ[e] < 0   # standard metrics accumulate up to success (REACHED)
     S = state[e]
+    SP = LP.sens
     while k < n_steps and k < k_stop and not stop:
         t = t0[e] + k * dt
         pre_step(grid, P, W, state, e, k, t)
+        X = known_state(LP, LS, state, e)   # the policy's view (the truth for the oracle)
         if LP.policy != EXTERNAL and LP.plan != 0:
-            plan(grid, P, W, M, state, e, k, t)
+            plan(grid, P, W, M, X, e, k, t)
         for i in range(n_ag):
             s = S[i]
             px = s[0]
@@ -200,15 +226,15 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
             LS.prev[e, i, 1] = py
             LS.prev[e, i, 2] = pz
             ce, cn = current_at(grid, px, py, pz, t)
-            pe, pn = sense(LP.noisy, ce, cn, LP.noise, LP.seed, e, 2 * (k * n_ag + i))
+            pe, pn = current_estimate(SP, LP.seed, LS.cb, LS.fc, e, k, i, n_ag, ce, cn, 1)
             if LP.policy != EXTERNAL:
-                ax, ay, az, psi = act(grid, P, W, M, state, e, k, i, t, pe, pn)
+                ax, ay, az, psi = act(grid, P, W, M, X, e, k, i, t, pe, pn)
                 if LP.policy == LEARNED:
                     # the fused policy ran for its mission layer (plan, target point, claims);
                     # the network maps the observation to the action
-                    gx, gy, gz, pr = cue(grid, P, W, state, e, k, i)
-                    observe(LP.net.obs, LP.net.act, e, 0, i, grid, state, gx, gy, gz, pe, pn,
-                            pr, math.nan, math.nan, math.nan)
+                    gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
+                    observe(LP.net.obs, LP.net.act, e, 0, i, grid, X, state, gx, gy, gz, pe,
+                            pn, pr, math.nan, math.nan, math.nan)
                     ax, ay, az = bc_act(LP.net, e, i, LP.v_max)
                     psi = math.nan
             else:
@@ -217,8 +243,9 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
                 az = ext[e, i, 2]
                 psi = math.nan
             if k < obs.shape[1]:
-                gx, gy, gz, pr = cue(grid, P, W, state, e, k, i)
-                observe(obs, act_rec, e, k, i, grid, state, gx, gy, gz, pe, pn, pr, ax, ay, az)
+                gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
+                observe(obs, act_rec, e, k, i, grid, X, state, gx, gy, gz, pe, pn, pr, ax, ay,
+                        az)
             c = cmd[e, i]
             c[0] = ax
             c[1] = ay
@@ -232,6 +259,8 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
                 if code != OK:
                     viol += 1
             after_agent(grid, P, W, state, e, k, i, code)
+            if SP.true_position == 0:   # teammates acting later see where i now thinks it is
+                nav_fill(state, LS.nerr, LS.nav, e, i)
         if n_ag > 1 and counting:
             d = min_pairwise_distance(S)
             if d <= LP.r_coll:
@@ -239,6 +268,8 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
             if d < dmin:
                 dmin = d
         rc = int(post_step(grid, P, W, state, LS.prev, e, k, t))
+        for i in range(n_ag):   # dead reckoning over the step's ground displacement
+            nav_update(SP, LP.seed, LS.navc, LS.nerr, state, LS.prev, e, k, i, n_ag, dt)
         k += 1
         if rc == REACHED:
             if counting:

@@ -54,9 +54,9 @@ Metrics
 Methods
     :mod:`oneocean.methods.heuristic.pi` (both follow their section's polyline low over the
     seafloor at the full ``v_max``, detect plume events in their own readings and claim one
-    position per event; heuristic: ``ALT_HEURISTIC_M``, noisy probe, claims the event's peak
-    reading; oracle: ``ALT_ORACLE_M``, exact current, claims the event's upstream edge along
-    the current). The survey waypoints are the method's plan (``survey``, stored in the work
+    position per event, its upstream edge along the current; heuristic: the sensor models of
+    :mod:`oneocean.sensing`, so it logs and claims positions from its dead reckoning;
+    oracle: true current and position). The survey waypoints are the method's plan (``survey``, stored in the work
     arrays); the claims are its report, scored here.
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
@@ -129,7 +129,7 @@ MAX_CLAIMS = 32
 CLEARANCE_M = 1.0
 R_COLL_M = 2.0
 
-_TIER_KEYS = ("current_band", "time_limit_s", "probe_noise_ms", "pipeline_length_m",
+_TIER_KEYS = ("current_band", "time_limit_s", "pipeline_length_m",
               "n_leaks", "leak_spacing_m", "leak_rate_kg_s", "detect_threshold_kg_m3",
               "loc_tolerance_m", "seafloor_min_m", "seafloor_max_m")
 
@@ -665,7 +665,7 @@ def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_sto
 
 @hot_kernel
 def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
 
 
 @njit(cache=True, nogil=True)

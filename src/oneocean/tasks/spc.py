@@ -45,8 +45,9 @@ Observation
     The pollution probe is the surface concentration under the vehicle, kg m-2.
 Methods
     :mod:`oneocean.methods.heuristic.spc` (aerial map and greedy block assignment as the
-    team-level ``plan``; both at full speed; heuristic: stale periodic map, noisy probe;
-    oracle: the exact map every step, exact current).
+    team-level ``plan``; both at full speed; heuristic: stale periodic map and the sensor
+    models of :mod:`oneocean.sensing`; oracle: the exact map every step, true current and
+    position).
 
 Module layout: as :mod:`oneocean.tasks.g2g` (``reset``; ``SPCParams`` / ``SPCWork`` and
 ``make``: the per-episode field, land mask, face velocities, mass accumulators and the
@@ -99,7 +100,7 @@ CLEAR_RADII = 1.5
 
 _C_CLEAN, _C_ESC, _C_REM, _C_TTT = (len(STANDARD) + i for i in range(len(METRICS)))
 
-_TIER_KEYS = ("time_limit_s", "probe_noise_ms", "spill_radius_m",
+_TIER_KEYS = ("time_limit_s", "spill_radius_m",
               "target_fraction", "staging_distance_m", "removal_radius_m", "removal_rate_s",
               "kappa_m2s", "domain_m", "aerial_period_s")
 #: Near-collision radius, m (task contract).
@@ -384,7 +385,7 @@ def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_sto
 
 @hot_kernel
 def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
 
 
 @njit(cache=True, nogil=True)

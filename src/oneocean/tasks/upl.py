@@ -42,7 +42,8 @@ Metrics
     ``object_drift_m`` (horizontal distance of the object from the site at the end, m).
 Methods
     :mod:`oneocean.methods.heuristic.upl` (greedy slot assignment, slot seeking, held lift;
-    both at full speed; heuristic: noisy probe; oracle: exact current). The environment
+    both at full speed; heuristic: the sensor models of :mod:`oneocean.sensing`; oracle: true
+    current and position). The environment
     above does not depend on the method.
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
@@ -101,7 +102,7 @@ SLOT_MARGIN_M = 0.5
 
 _C_LIFT, _C_DEPTH, _C_ATT_T, _C_DRIFT = (len(STANDARD) + i for i in range(len(METRICS)))
 
-_TIER_KEYS = ("time_limit_s", "probe_noise_ms", "site_depth_m",
+_TIER_KEYS = ("time_limit_s", "site_depth_m",
               "start_distance_m", "attach_radius_m", "attach_dwell_s", "detach_radius_m",
               "sink_speed_ms", "quorum", "hold_radius_m", "success_depth_m")
 
@@ -529,7 +530,7 @@ def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_sto
 
 @hot_kernel
 def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
 
 
 @njit(cache=True, nogil=True)

@@ -35,10 +35,12 @@ def check_seeds(seeds, evaluation_seed: int) -> list[int]:
 
 
 def teacher_rows(cell, seed: int, episodes: int, dynamics: str, stride: int,
-                 max_rows: int) -> pd.DataFrame:
+                 max_rows: int, info: str | None = None) -> pd.DataFrame:
     """The teacher's rows of one :class:`oneocean.tasks.Cell` and seed (columns
-    :data:`KEY_COLUMNS` + OBS_FIELDS + ACT_FIELDS + ``v_max_ms``)."""
-    _, obs, act = cell.run("heuristic", int(episodes), int(seed), dynamics, observations=True)
+    :data:`KEY_COLUMNS` + OBS_FIELDS + ACT_FIELDS + ``v_max_ms``): what the heuristic saw
+    through its sensors (``info``: another information level, for tests)."""
+    _, obs, act = cell.run("heuristic", int(episodes), int(seed), dynamics, observations=True,
+                           info=info)
     n_ep, n_steps, n_ag, _ = obs.shape
     e, k, i = np.meshgrid(np.arange(n_ep), np.arange(n_steps), np.arange(n_ag), indexing="ij")
     keep = (k % int(stride) == 0) & np.isfinite(act).all(axis=-1)

@@ -19,12 +19,11 @@ Act (``act``, every agent and step)
     first); teammates closer than ``SEP_M`` repel each other (their positions are observed).
     The carrot is written to ``W.tgt`` (the observation's goal cue).
 
-Both use the full speed budget ``v_max`` through the water. ``heuristic``: strips along the
-region's long axis (fewest turns), feed-forward of the NOISY probed current (std
-``probe_noise_ms``). ``oracle``: exact current, a higher altitude
-(``ALT_FRAC_ORACLE``) and less overlap (``OVERLAP_ORACLE``: wider strips), and it orients the
-strips across the current (:func:`oracle_axis`: it predicts the scan time of both orientations
-from the true currents over the episode and takes the faster one).
+Both use the full speed budget ``v_max`` through the water, the same altitude and overlap.
+``heuristic``: strips along the region's long axis (fewest turns); its current estimate and
+navigation come from the sensor models (:mod:`oneocean.sensing`). ``oracle``: the truth, and a
+planner: it orients the strips across the current (:func:`oracle_axis`: it predicts the scan
+time of both orientations from the true currents over the episode and takes the faster one).
 """
 
 from __future__ import annotations
@@ -40,13 +39,10 @@ from ...tasks.common import ARRIVE_M, seek_max, waypoint_carrot
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python)
 from . import SENSING
 
-#: Commanded altitude as a fraction of the sensor's maximum altitude (heuristic, oracle):
-#: the oracle's exact terrain-following and current knowledge let it fly closer to the limit.
-ALT_FRAC = 0.6
-ALT_FRAC_ORACLE = 0.75
-#: Swath overlap between neighbouring strips (fraction of the swath width; heuristic, oracle).
+#: Commanded altitude as a fraction of the sensor's maximum altitude (every method).
+ALT_FRAC = 0.75
+#: Swath overlap between neighbouring strips (fraction of the swath width; every method).
 OVERLAP = 0.2
-OVERLAP_ORACLE = 0.1
 #: Line-of-sight lookahead along the strip, m.
 LOOKAHEAD_M = 12.0
 #: Proportional gain of point approaches (transit to the first strip), s-1.
@@ -77,16 +73,14 @@ class ASPolicy(NamedTuple):
 
 
 def method_altitude(tier: dict, method: str) -> float:
-    """Commanded altitude above the seafloor (m) of ``method``."""
-    return ((ALT_FRAC if method == "heuristic" else ALT_FRAC_ORACLE)
-            * float(tier["max_altitude_m"]))
+    """Commanded altitude above the seafloor (m): the same for every method."""
+    return ALT_FRAC * float(tier["max_altitude_m"])
 
 
 def strip_spacing(tier: dict, method: str) -> float:
-    """Lawnmower strip spacing (m) of ``method`` at its commanded altitude."""
-    overlap = OVERLAP if method == "heuristic" else OVERLAP_ORACLE
+    """Lawnmower strip spacing (m) at the commanded altitude: the same for every method."""
     return (2.0 * method_altitude(tier, method)
-            * math.tan(math.radians(float(tier["half_angle_deg"]))) * (1.0 - overlap))
+            * math.tan(math.radians(float(tier["half_angle_deg"]))) * (1.0 - OVERLAP))
 
 
 def params(method: str, tier: dict, vehicle) -> ASPolicy:
@@ -219,10 +213,12 @@ def with_runin(wps, count, runin: float = RUNIN_M):
     return out, count + 1
 
 
-def prepare(grid, P, W, M: ASPolicy, t0) -> None:
+def prepare(grid, P, W, M: ASPolicy, t0, LP=None, LS=None, X=None) -> None:
     """The Python planner: write the plan tokens of every episode not yet planned (``W.wps``,
     ``W.wcount``, ``W.widx = 0``, ``W.tgt`` = the first waypoint at the commanded altitude)
-    before the episode's first step. Idempotent (``W.planned``)."""
+    before the episode's first step. Idempotent (``W.planned``). (``LP``, ``LS``, ``X``: the
+    loop's params and state and the known state, :class:`~oneocean.tasks.episodes.Episodes`;
+    unused: the strips depend on the region only.)"""
     todo = np.flatnonzero(W.planned == 0)
     if todo.size == 0:
         return

@@ -4,10 +4,10 @@ A depth loop ``w = KZ (y* - y)`` goes first (at most half the budget), then hori
 line-of-sight guidance with the rest: aim at the point ``LOOKAHEAD_M`` ahead of the agent's
 horizontal projection on the active leg (the env's leg frame ``W.leg``, updated before every
 step) with :func:`~oneocean.tasks.common.seek_max` (cross-track current fed forward first,
-P-control ``KP``), both with the full ``v_max``. ``heuristic``: NOISY probed current,
-P depth loop on the local target depth only (it lags on slopes by ``slope * ground speed /
-KZ``). ``oracle``: exact current, plus feed-forward of the profile slope times
-the along-track ground speed (preview of the planned profile).
+P-control ``KP``), both with the full ``v_max``, and both feed the profile slope times the
+along-track ground speed forward (a preview of the depth profile the mission gives them).
+They differ in information only: the heuristic's current estimate and navigation come from
+the sensor models (:mod:`oneocean.sensing`), the oracle's are the truth.
 """
 
 from __future__ import annotations
@@ -39,9 +39,7 @@ class DPTPolicy(NamedTuple):
 
 def params(method: str, tier: dict, vehicle) -> DPTPolicy:
     v_max = float(vehicle.v_max)
-    heuristic = method == "heuristic"
-    return DPTPolicy(v_max, KP, LOOKAHEAD_M, KZ,
-                     0 if heuristic else 1)
+    return DPTPolicy(v_max, KP, LOOKAHEAD_M, KZ, 1)
 
 
 @hot_kernel(inline="always")

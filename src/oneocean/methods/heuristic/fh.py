@@ -11,21 +11,18 @@ waypoint with P-control, feed-forward of the school's velocity (centroid displac
 last step, ``W.school``) and of its current probe. The push direction is frozen while the
 centroid is within ``deadband * zone_radius_m`` of the centre.
 
-Both methods: within ``I_ZONE`` (heuristic) / ``I_ZONE_ORACLE`` (oracle) zone radii an
-integral action on the school's measured velocity error along ``w`` adapts the standoff
+Both methods: within ``I_ZONE`` zone radii an integral action on the school's measured velocity error along ``w`` adapts the standoff
 (``STANDOFF_KS``, at least ``STANDOFF_MIN_M``): further back when the school runs ahead of
 the plan, closer when it lags.
 
-``heuristic``: ``w = v`` (the school's drift is ignored; its integral acts on the ground
-velocity, so near the zone it partly corrects the along-track drift only); the arc re-aims at
-once (``DEADBAND_FRAC_HEURISTIC``, no slew limit); full ``v_max`` as every method
-(:func:`~oneocean.tasks.common.seek`); noisy probe (``probe_noise_ms``).
-``oracle``: ``w = v - c`` with the exact current ``c`` at the centroid, where ``v`` is the
-fastest ground velocity toward the zone with ``|w| <= ORACLE_SWIM_MS`` (the school crabs across
-the current; same ramp); the arc turns at most ``SLEW_RAD_S_ORACLE``
-(``DEADBAND_FRAC_ORACLE``); its integral acts on the swim (ground velocity minus the exact
-current); full ``v_max``, exact current, crab steering of the vehicles
-(:func:`~oneocean.tasks.common.seek_max`).
+Both: ``w = v - c`` with the current ``c`` at the centroid, where ``v`` is the fastest ground
+velocity toward the zone with ``|w| <= ORACLE_SWIM_MS`` (the school crabs across the current;
+same ramp); the arc turns at most ``SLEW_RAD_S`` (``DEADBAND_FRAC``); the integral acts on
+the swim (ground velocity minus ``c``); full ``v_max``, crab steering of the vehicles
+(:func:`~oneocean.tasks.common.seek_max`). They differ in information only: the oracle takes
+``c`` from the true field and knows its position; the heuristic takes the team's mean current
+estimate (``W.cest``, each agent's at its last step) and navigates by the sensor models
+(:mod:`oneocean.sensing`).
 
 Constants (calibrated for the BlueROV2 Heavy, 0.85 m/s, and the fish model's 0.8 m/s
 sustained flee with a 15 m reaction radius): the school is pushed gently (``PUSH_SPEED_MS``
@@ -47,7 +44,7 @@ from typing import NamedTuple
 
 from ...engine._jit import hot_kernel
 from ...models.fish import school_spread
-from ...tasks.common import current_at, seek, seek_max
+from ...tasks.common import current_at, seek_max
 from . import SENSING  # noqa: F401
 
 #: Slot-tracking proportional gain, s-1.
@@ -62,12 +59,9 @@ BACKOFF_M = 20.0
 PUSH_SPEED_MS = 0.3
 KP_PUSH = 0.02
 #: The push direction is frozen while the centroid is within this fraction of the zone radius.
-DEADBAND_FRAC_HEURISTIC = 0.5
-DEADBAND_FRAC_ORACLE = 0.25
-#: Largest turn rate of the push direction, rad s-1 (heuristic: none, the arc re-aims at once;
-#: oracle: the arc rotates around the school).
-SLEW_RAD_S_HEURISTIC = math.inf
-SLEW_RAD_S_ORACLE = 0.2
+DEADBAND_FRAC = 0.25
+#: Largest turn rate of the push direction, rad s-1 (the arc rotates around the school).
+SLEW_RAD_S = 0.2
 #: Oracle: largest swim speed (relative to the water) it plans for the school, m s-1 (the
 #: fish swim at most 0.8 m s-1).
 ORACLE_SWIM_MS = 0.75
@@ -76,10 +70,8 @@ ORACLE_SWIM_MS = 0.75
 STANDOFF_KS = 3.0
 #: Smallest adapted standoff, m.
 STANDOFF_MIN_M = 8.0
-#: The integral action is on within this many zone radii of the zone centre (heuristic;
-#: oracle).
-I_ZONE = 2.0
-I_ZONE_ORACLE = 3.0
+#: The integral action is on within this many zone radii of the zone centre.
+I_ZONE = 3.0
 
 
 class FHPolicy(NamedTuple):
@@ -105,10 +97,7 @@ def params(method: str, tier: dict, vehicle) -> FHPolicy:
     oracle = method != "heuristic"
     return FHPolicy(int(oracle), v_max, KP, ARC_RAD,
                     STANDOFF_M, SPREAD_GAIN, BACKOFF_M, PUSH_SPEED_MS, ORACLE_SWIM_MS, KP_PUSH,
-                    DEADBAND_FRAC_ORACLE if oracle else DEADBAND_FRAC_HEURISTIC, STANDOFF_KS,
-                    STANDOFF_MIN_M,
-                    SLEW_RAD_S_ORACLE if oracle else SLEW_RAD_S_HEURISTIC,
-                    I_ZONE_ORACLE if oracle else I_ZONE)
+                    DEADBAND_FRAC, STANDOFF_KS, STANDOFF_MIN_M, SLEW_RAD_S, I_ZONE)
 
 
 @hot_kernel(inline="always")
@@ -154,34 +143,37 @@ def plan(grid, P, W, M, state, e, k, t):
     dxz = zx - cxs
     dzz = zz - czs
     dist = math.sqrt(dxz * dxz + dzz * dzz)
-    # push direction: the swim ``w`` the school needs. Heuristic: move toward the zone centre
-    # at min(push, KP_PUSH * dist), the school's drift ignored. Oracle: fastest ground speed
-    # toward the zone whose swim, against the exact current at the centroid, is at most
-    # ``oswim`` (crab steering of the school), same ramp near the zone
-    vd = push if kpp * dist > push else kpp * dist
+    # push direction: the swim ``w`` the school needs: the fastest ground speed toward the
+    # zone whose swim, against the current at the centroid, is at most ``oswim`` (crab
+    # steering of the school), ramped down near the zone. The current there: the truth
+    # (oracle), or the team's mean current estimate at its last step (the agents are within
+    # a few tens of metres of the school)
     ux = dxz / dist if dist > 1e-9 else 0.0
     uz = dzz / dist if dist > 1e-9 else 0.0
-    ce = 0.0
-    cn = 0.0
-    if M.oracle == 0:
-        wx = ux * vd
-        wz = uz * vd
-    else:
+    if M.oracle != 0:
         ce, cn = _current(grid, cxs, P.depth, czs, t)
-        cpar = ce * ux + cn * uz
-        qx = ce - cpar * ux
-        qz = cn - cpar * uz
-        q2 = qx * qx + qz * qz
-        if q2 >= oswim * oswim:
-            f = oswim / math.sqrt(q2)
-            wx = -qx * f
-            wz = -qz * f
-        else:
-            vg = cpar + math.sqrt(oswim * oswim - q2)
-            if vg > kpp * dist:
-                vg = kpp * dist
-            wx = ux * vg - ce
-            wz = uz * vg - cn
+    else:
+        ce = 0.0
+        cn = 0.0
+        for j in range(n):
+            ce += W.cest[e, j, 0]
+            cn += W.cest[e, j, 1]
+        ce /= n
+        cn /= n
+    cpar = ce * ux + cn * uz
+    qx = ce - cpar * ux
+    qz = cn - cpar * uz
+    q2 = qx * qx + qz * qz
+    if q2 >= oswim * oswim:
+        f = oswim / math.sqrt(q2)
+        wx = -qx * f
+        wz = -qz * f
+    else:
+        vg = cpar + math.sqrt(oswim * oswim - q2)
+        if vg > kpp * dist:
+            vg = kpp * dist
+        wx = ux * vg - ce
+        wz = uz * vg - cn
     wn = math.sqrt(wx * wx + wz * wz)
     # compass angle of "behind the school": frozen near the zone centre (dead band) so the
     # arc does not flip around the school when the centroid crosses the centre, and turned
@@ -196,7 +188,7 @@ def plan(grid, P, W, M, state, e, k, t):
             dth = -slew * dt
         th_back = _wrap(th_back + dth)
     # close in when a strong push is needed, back off toward the flee radius otherwise
-    g = wn / (push if M.oracle == 0 else oswim)
+    g = wn / oswim
     if g > 1.0:
         g = 1.0
     r_adj = stand + (back - stand) * (1.0 - g)
@@ -252,9 +244,7 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     gz = W.tgt[e, i, 1]
     vcx = W.school[e, 2]
     vcz = W.school[e, 3]
-    if M.oracle == 0:
-        ax, ay, az = seek(s[0], s[1], s[2], gx, P.depth, gz, M.speed, M.kp, pe - vcx, pn - vcz)
-    else:
-        ax, ay, az = seek_max(s[0], s[1], s[2], gx, P.depth, gz, M.speed, M.kp, pe - vcx,
-                              pn - vcz)
+    W.cest[e, i, 0] = pe
+    W.cest[e, i, 1] = pn
+    ax, ay, az = seek_max(s[0], s[1], s[2], gx, P.depth, gz, M.speed, M.kp, pe - vcx, pn - vcz)
     return ax, ay, az, math.nan

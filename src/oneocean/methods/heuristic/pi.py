@@ -39,19 +39,16 @@ own claim. An event still open when the agent's section ends whose estimate lies
 source lies beyond the section); every agent but the first starts its survey ``OVERLAP_M``
 before its section, so a leak just past a boundary is seen rising by the next agent.
 
-``heuristic``: altitude ``ALT_HEURISTIC_M`` (a safe bottom-following altitude), NOISY probed
-current (``probe_noise_ms``); it claims where the event's largest reading was taken
-(:func:`peak_estimate`: the plume's peak, which an along-pipe current carries 1-2 cells
-downstream of the source).
+Both fly at altitude ``ALT_M`` and claim the event's *upstream edge*
+(:func:`onset_estimate`): with ``b`` the event's background, the weighted centroid (weights
+``reading - b``) of the readings >= ``b + ONSET_FRAC (peak - b)`` lying within
+``ONSET_BAND_M`` (along the current the agent knows) of the most upstream such reading -- the
+plume's peak in a cross-current, its onset in an along-pipe current. (:func:`peak_estimate`,
+the position of the event's largest reading, is kept as an alternative estimator.)
 
-``oracle``: altitude ``ALT_ORACLE_M`` (stronger signal), exact current; it claims the event's
-*upstream edge* (:func:`onset_estimate`): with ``b`` the event's background, the weighted
-centroid (weights ``reading - b``) of the readings >= ``b + ONSET_FRAC (peak - b)`` lying
-within ``ONSET_BAND_M`` (along the current) of the most upstream such reading -- the plume's
-peak in a cross-current, its onset in an along-pipe current.
-
-Both spend the full ``v_max``: they differ in information (probe noise), altitude and
-estimator, never in speed. Policy state lives in the task's work arrays
+Both spend the full ``v_max``: they differ in information only. The heuristic's current
+estimate and its navigation (so the positions it logs and claims) come from the sensor models
+(:mod:`oneocean.sensing`: dead reckoning drifts along the pipe); the oracle's are the truth. Policy state lives in the task's work arrays
 (:class:`oneocean.tasks.pi.PIWork`): the plan tokens ``wps`` / ``wcount`` (each agent's survey
 waypoints, from :func:`survey`), ``widx`` (the waypoint being followed), ``tgt`` (the step's
 carrot: the observation's goal cue), ``done`` (section finished: the env ends the survey when
@@ -70,9 +67,9 @@ from ...engine.grid import sample_elevation
 from ...tasks.common import ARRIVE_M, seek_max, waypoint_carrot
 from . import SENSING  # noqa: F401
 
-#: Commanded altitude above the seafloor, m (heuristic, oracle).
-ALT_HEURISTIC_M = 6.0
-ALT_ORACLE_M = 2.5
+#: Commanded altitude above the seafloor, m: the lowest a survey AUV flies terrain-following
+#: (the strongest plume signal), both methods.
+ALT_M = 2.5
 #: Readings count for detection only within this band around the commanded altitude, m.
 ALT_BAND_M = 0.5
 #: Line-of-sight lookahead, m; approach gain, s-1; waypoint tolerance, m; shallowest
@@ -120,9 +117,7 @@ class PIPolicy(NamedTuple):
 
 
 def params(method: str, tier: dict, vehicle) -> PIPolicy:
-    heur = method == "heuristic"
-    return PIPolicy(float(vehicle.v_max), KP, ALT_HEURISTIC_M if heur else ALT_ORACLE_M,
-                    LOOKAHEAD_M, PEAK if heur else ONSET)
+    return PIPolicy(float(vehicle.v_max), KP, ALT_M, LOOKAHEAD_M, ONSET)
 
 
 def survey(init: dict):

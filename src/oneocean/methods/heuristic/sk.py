@@ -3,8 +3,8 @@
 Both: P-control (``KP``) to the station plus feed-forward of the sensed current within the
 vehicle's full speed budget ``|a| <= v_max`` (:func:`~oneocean.tasks.common.seek_max`), heading
 commanded to the station heading. They differ in information only: ``heuristic`` feeds forward
-the NOISY local probe (``probe_noise_ms``), which shakes it off the station; ``oracle`` the
-exact current. Neither can hold against a current above ``v_max``.
+its current estimate and steers by its navigation estimate (:mod:`oneocean.sensing`);
+``oracle`` the true current and position. Neither can hold against a current above ``v_max``.
 """
 
 from __future__ import annotations

@@ -15,10 +15,11 @@ current by :func:`~oneocean.tasks.common.steer`; depth held at the task's operat
 
 ``heuristic``: knows only the spill's reported initial centroid until the first overflight
 (targets on a ring of radius ``spill_radius_m / 2`` around the report), then gets the aerial
-map every ``aerial_period_s`` (tier); NOISY probed current (std ``probe_noise_ms``).
-``oracle``: the exact map every step (from step 0), exact current. Both spend the vehicle's
-full speed budget ``v_max``: they differ in information (stale map and noisy probe vs the
-true field and current), never in speed.
+map every ``aerial_period_s`` (tier; the map is what every non-oracle method gets); its
+current estimate and navigation from the sensor models (:mod:`oneocean.sensing`).
+``oracle``: the exact map every step (from step 0), true current and position. Both spend the
+vehicle's full speed budget ``v_max``: they differ in information (stale map and sensors vs
+the true field, current and position), never in speed.
 
 The team-level decision (ring before the first map, aerial map and assignment) is
 :func:`plan`; its plan tokens live in the task's work arrays ``W``: ``tgt`` (E, N, 2) targets

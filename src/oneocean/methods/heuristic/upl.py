@@ -10,8 +10,9 @@ site, ``KP_HOLD``, capped at ``HOLD_SPEED_MS``; computed once per step by ``plan
 upward speed; the horizontal part (incl. the current feed-forward) has priority and the
 vertical part gets the rest of the speed budget.
 
-Both: speed budget ``v_max``. ``heuristic``: probed current with noise ``probe_noise_ms``.
-``oracle``: exact current, same logic.
+Both: speed budget ``v_max``, crab steering (:func:`~oneocean.tasks.common.seek_max`) toward
+the slot. ``heuristic``: the sensor models of :mod:`oneocean.sensing` (USBL-aided navigation,
+filtered current estimate). ``oracle``: true current and position, same logic.
 
 Policy state lives in the task's work arrays (:class:`oneocean.tasks.upl.UPLWork`):
 ``target`` (E, 5) the slot assigned to every agent, ``hold`` (E, 2) the step's hold velocity.
@@ -25,7 +26,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import seek, seek_max
+from ...tasks.common import seek_max
 from . import SENSING  # noqa: F401
 
 #: Slot-tracking proportional gain, s-1.
@@ -36,7 +37,6 @@ HOLD_SPEED_MS = 0.5
 
 
 class UPLPolicy(NamedTuple):
-    oracle: int         # 1: crab steering (seek_max) while seeking a slot, 0: seek
     speed: float        # speed budget through the water, m s-1
     kp: float           # slot-tracking gain, s-1
     kp_hold: float      # hold gain, s-1
@@ -45,9 +45,7 @@ class UPLPolicy(NamedTuple):
 
 def params(method: str, tier: dict, vehicle) -> UPLPolicy:
     v_max = float(vehicle.v_max)
-    heur = method == "heuristic"
-    return UPLPolicy(0 if heur else 1, v_max, KP, KP_HOLD,
-                     HOLD_SPEED_MS)
+    return UPLPolicy(v_max, KP, KP_HOLD, HOLD_SPEED_MS)
 
 
 @hot_kernel(inline="always")
@@ -140,10 +138,6 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
         else:
             vb = math.sqrt(speed * speed - ah * ah)
             ay = min(max(vy, -vb), vb)
-    elif M.oracle == 0:
-        ax, ay, az = seek(px, py, pz, gx, gy, gz, speed, kp, pe - W.vobj[e, 0],
-                          pn - W.vobj[e, 2])
-        ay += W.vobj[e, 1]
     else:
         ax, ay, az = seek_max(px, py, pz, gx, gy, gz, speed, kp, pe - W.vobj[e, 0],
                               pn - W.vobj[e, 2])

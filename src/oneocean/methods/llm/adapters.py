@@ -174,7 +174,8 @@ class SPCAdapter(Adapter):
         W, M = ep.W, ep.M
         nb = W.bm.shape[1]
         bm, bx, bz = np.zeros(nb), np.zeros(nb), np.zeros(nb)
-        total = _spc_plan(ep.grid, ep.P, W, M, ep.state, e, k, t, bm, bx, bz)
+        X = ep.known_state   # where the agents think they are
+        total = _spc_plan(ep.grid, ep.P, W, M, X, e, k, t, bm, bx, bz)
         if total < 0.0:   # step 0 (the ring) or no map now: nothing to choose
             return None
         n_ag = ep.n_agents
@@ -188,7 +189,7 @@ class SPCAdapter(Adapter):
             if hit.size == 0:
                 return None   # cannot happen (module doc); keep the heuristic's plan
             fallback.append(int(hit[0]))
-        summary = spc_summary(t - float(ep.t0[e]), k, W.report[e], ep.state[e][:, [0, 2]],
+        summary = spc_summary(t - float(ep.t0[e]), k, W.report[e], X[e][:, [0, 2]],
                               cents, W.bm[e, cand])
         return Decision(summary, n_ag, len(cand), tuple(fallback), cents)
 
@@ -228,8 +229,9 @@ class WaypointAdapter(Adapter):
                  f"(step {k}).", *self.progress(ep, e),
                  "Agents (position (x, z) m, x east, z north, and depth m; waypoints reached "
                  "of the list; next waypoints as offset: (x, z) m):"]
+        X = ep.known_state   # where the agents think they are
         for i in range(ep.n_agents):
-            s = ep.state[e, i]
+            s = X[e, i]
             w, nw = int(W.widx[e, i]), int(W.wcount[e, i])
             nxt = ", ".join(f"{j}: {_xz(*W.wps[e, i, w + j])}" for j in range(int(left[i])))
             lines.append(f"  {i}: at {_xz(s[0], s[2])} depth {s[1]:.0f}; reached {w} of {nw}; "

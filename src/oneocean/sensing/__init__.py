@@ -1,0 +1,186 @@
+"""Sensing and navigation: what a method knows of the current and of its own position.
+
+Every non-oracle method (the heuristic, BC, the LLM planner's vehicles, a user's policy
+through the step API) senses the world through the same models, with the same parameters in
+every task and tier (``data/sensors.yaml``; docs/sensing.md): a tier makes the ocean and the
+mission harder, never one method's sensors. The oracle is given the truth.
+
+Current. The vehicle carries a forecast of the field (the product's own field through a
+forecast-error model drawn once per episode: speed gain, direction error, bias) and measures
+the current at its position once per step (ADCP/DVL-class white noise). Its estimate is the
+forecast at its position plus a filtered correction: a steady-state Kalman filter on the
+forecast error (a random walk), updated with every in-situ sample (:func:`kalman_gain`).
+
+Position. Underwater, dead reckoning from a start fix: per step the error grows by the
+DVL-measured ground displacement's heading-bias rotation and scale-factor error (constant per
+vehicle and episode) plus white velocity noise; at the surface a GNSS fix replaces it. Depth
+(pressure sensor) and altitude (DVL beams) are measured directly.
+
+An *information ablation* gives a non-oracle method one piece of the truth
+(:func:`sensing_params` with ``true_current`` or ``true_position``): it shows what drives a
+cell. The kernels are in :mod:`oneocean.sensing.kernels`.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+from typing import NamedTuple
+
+import yaml
+
+from ..errors import ConfigError
+
+#: Where the sensor table lives (shipped in the wheel).
+SENSORS_YAML = Path(str(resources.files("oneocean") / "data" / "sensors.yaml"))
+
+#: Information levels of a method: what it is given instead of its sensors.
+#: ``sensors``: the sensor models; ``truth``: the oracle; the two ablations in between.
+INFO_LEVELS = ("sensors", "true_current", "true_position", "truth")
+
+
+class SensingParams(NamedTuple):
+    """The sensing and navigation models of one rollout (a kernel argument)."""
+    true_current: int        # 1: the method knows the true current (oracle, ablation)
+    true_position: int       # 1: the method knows its true position (oracle, ablation)
+    fc_gain_std: float       # forecast speed-gain error, relative (1 sigma)
+    fc_dir_std: float        # forecast direction error, rad
+    fc_bias_std: float       # forecast bias per horizontal component, m s-1
+    meas_std: float          # in-situ current noise per component and sample, m s-1
+    kf_gain: float           # steady-state Kalman gain of the forecast-error filter
+    start_fix_std: float     # start fix error per horizontal axis, m
+    heading_bias_std: float  # dead-reckoning heading bias, rad
+    scale_std: float         # dead-reckoning velocity scale-factor error, relative
+    vel_noise: float         # DVL velocity noise per axis and step, m s-1
+    gnss_std: float          # GNSS error per horizontal axis, m
+    surface_depth: float     # GNSS is received shallower than this, m
+    fix_every: int           # an acoustic position fix every this many steps (0: none)
+    fix_std: float           # its error per horizontal axis, m
+    fix_gain: float          # steady-state gain of the navigation filter's fix update
+
+
+_KEYS = {
+    ("current", "forecast"): ("speed_gain_std", "direction_std_deg", "bias_std_ms",
+                              "reference_lead_h", "analysis_fraction"),
+    ("current", "in_situ"): ("noise_std_ms",),
+    ("current", "filter"): ("process_std_ms",),
+    ("navigation",): ("start_fix_std_m", "heading_bias_std_deg", "scale_factor_std",
+                      "velocity_noise_ms", "gnss_std_m", "surface_depth_m",
+                      "fix_filter_process_std_m"),
+}
+
+
+@lru_cache(maxsize=None)
+def _load(path: str) -> dict:
+    f = Path(path)
+    try:
+        doc = yaml.safe_load(f.read_text())
+    except OSError as exc:
+        raise ConfigError(f"{f}: cannot read the sensor table ({exc.strerror})") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{f}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    if not isinstance(doc, dict):
+        raise ConfigError(f"{f}: expected a mapping of sensor sections")
+    for where, keys in _KEYS.items():
+        node = doc
+        for part in where:
+            node = node.get(part) if isinstance(node, dict) else None
+        if not isinstance(node, dict):
+            raise ConfigError(f"{f}: missing section '{'.'.join(where)}'")
+        for key in keys:
+            v = node.get(key)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
+                raise ConfigError(f"{f}: '{'.'.join(where + (key,))}' must be a number >= 0, "
+                                  f"got {v!r}")
+        extra = sorted(set(node) - set(keys) - ({"aids"} if where == ("navigation",) else set()))
+        if extra:
+            raise ConfigError(f"{f}: unknown key '{'.'.join(where + (extra[0],))}'")
+    aids = doc["navigation"].get("aids", {})
+    for name, aid in (aids.items() if isinstance(aids, dict) else [("aids", aids)]):
+        v = aid.get("std_m") if isinstance(aid, dict) else None
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
+            raise ConfigError(f"{f}: 'navigation.aids.{name}.std_m' must be a number >= 0, "
+                              f"got {v!r}")
+    return doc
+
+
+def sensor_table(path: str | Path | None = None) -> dict:
+    """The validated sensor table (``data/sensors.yaml`` unless ``path``)."""
+    return _load(str(path or SENSORS_YAML))
+
+
+def kalman_gain(process_std: float, meas_std: float, dt: float) -> float:
+    """Steady-state gain of a scalar Kalman filter tracking a random walk (``process_std``
+    per sqrt(s), over steps of ``dt`` s) from white measurements of std ``meas_std``: the
+    prior variance ``M`` solves ``M^2 = q M + q r`` (q, r the step's process and measurement
+    variances), gain ``M / (M + r)``; 1 when the measurement is exact."""
+    q = float(process_std) ** 2 * float(dt)
+    r = float(meas_std) ** 2
+    if r <= 0.0:
+        return 1.0
+    if q <= 0.0:
+        return 0.0
+    m = 0.5 * (q + math.sqrt(q * q + 4.0 * q * r))
+    return m / (m + r)
+
+
+def nav_aid(table: dict, where: str = "task table") -> tuple[str, float] | None:
+    """A task table's acoustic navigation aid: ``(aid, period_s)`` from its optional
+    ``navigation: {aid: <name in sensors.yaml navigation.aids>, period_s: <s>}``, else None."""
+    nav = table.get("navigation")
+    if nav is None:
+        return None
+    aids = sensor_table()["navigation"].get("aids", {})
+    if not isinstance(nav, dict) or set(nav) != {"aid", "period_s"}:
+        raise ConfigError(f"{where}: 'navigation' must be {{aid: NAME, period_s: S}}, got "
+                          f"{nav!r}")
+    if nav["aid"] not in aids:
+        raise ConfigError(f"{where}: navigation.aid {nav['aid']!r} is not a sensor aid; "
+                          f"known: {', '.join(sorted(aids))}")
+    p = nav["period_s"]
+    if isinstance(p, bool) or not isinstance(p, (int, float)) or not p > 0:
+        raise ConfigError(f"{where}: navigation.period_s must be a number > 0, got {p!r}")
+    return str(nav["aid"]), float(p)
+
+
+def lead_factor(lead_h: float | None, forecast: dict) -> float:
+    """Scale of the forecast-error standard deviations at ``lead_h`` hours (None: the
+    reference lead): ``a + (1 - a) * lead_h / reference_lead_h``, ``a`` the analysis
+    fraction."""
+    if lead_h is None:
+        return 1.0
+    lead = float(lead_h)
+    if not lead >= 0.0:
+        raise ConfigError(f"forecast_lead_h must be >= 0, got {lead_h!r}")
+    a = float(forecast["analysis_fraction"])
+    return a + (1.0 - a) * lead / float(forecast["reference_lead_h"])
+
+
+def sensing_params(info: str, dt: float, aid: tuple[str, float] | None = None,
+                   lead_h: float | None = None,
+                   path: str | Path | None = None) -> SensingParams:
+    """The :class:`SensingParams` of a method with information level ``info``
+    (:data:`INFO_LEVELS`), step ``dt`` s, the task's navigation ``aid`` (:func:`nav_aid`)
+    and the forecast's lead time ``lead_h`` hours (a tier's ``forecast_lead_h``)."""
+    if info not in INFO_LEVELS:
+        raise ConfigError(f"sensing: unknown information level {info!r}; valid: "
+                          f"{', '.join(INFO_LEVELS)}")
+    t = sensor_table(path)
+    nav = t["navigation"]
+    fix_every, fix_std, fix_gain = 0, 0.0, 0.0
+    if aid is not None:
+        fix_every = max(1, int(round(float(aid[1]) / float(dt))))
+        fix_std = float(nav["aids"][aid[0]]["std_m"])
+        fix_gain = kalman_gain(nav["fix_filter_process_std_m"], fix_std, fix_every * float(dt))
+    fc, ins, flt = (t["current"][k] for k in ("forecast", "in_situ", "filter"))
+    f = lead_factor(lead_h, fc)
+    return SensingParams(
+        int(info in ("true_current", "truth")), int(info in ("true_position", "truth")),
+        f * float(fc["speed_gain_std"]), f * math.radians(float(fc["direction_std_deg"])),
+        f * float(fc["bias_std_ms"]), float(ins["noise_std_ms"]),
+        kalman_gain(flt["process_std_ms"], ins["noise_std_ms"], dt),
+        float(nav["start_fix_std_m"]), math.radians(float(nav["heading_bias_std_deg"])),
+        float(nav["scale_factor_std"]), float(nav["velocity_noise_ms"]),
+        float(nav["gnss_std_m"]), float(nav["surface_depth_m"]), fix_every, fix_std, fix_gain)
