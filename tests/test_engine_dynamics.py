@@ -264,3 +264,85 @@ def test_engine_matches_the_plain_numpy_reference(model, vehicle):
     np.testing.assert_array_equal(ep.res[:, C_VIOL], r["violations"].sum(axis=1))
     np.testing.assert_array_equal(ep.LS.coll, r["coll_steps"])
     np.testing.assert_array_equal(ep.res[:, C_COLL], r["coll_steps"] / 60)
+
+
+# ----------------------------------------------------------------------- unsteady current
+
+
+def _rel_lin(s, ce, cn):
+    """Linear velocity relative to the water, body frame (m s-1)."""
+    R = np.array(D._rotation(s[D.PSI], s[D.PHI], s[D.THETA], True)[4:]).reshape(3, 3)
+    return s[D.U:D.W + 1] - R.T @ np.array([cn, ce, 0.0])
+
+
+@pytest.mark.parametrize("model", RIGID)
+def test_neutral_body_moves_with_an_accelerating_current(model):
+    """Thrust off, water accelerating uniformly at A from rest: with the water's
+    acceleration (Froude-Krylov m_d A + added mass M_A A) a neutrally buoyant body keeps zero
+    velocity relative to the water (it IS a parcel of water: kappa = (m - m_d)/(m + M_A) = 0);
+    stepped without it (``step_agent``, what the loop does) the hull keeps its momentum over
+    ground and only drag drags it along: it lags the water."""
+    veh = D.load_vehicle("generic_auv", overrides={"net_buoyancy_n": 0.0})
+    np.testing.assert_allclose(veh.params[D.P_ACC:D.P_ACC + 3], 1.0, rtol=1e-15)
+    m = D.model_id(model)
+    ae, an, dt = 0.004, -0.003, 1.0
+    s = D.new_state(1, 1, np.array([[[0.0, 50.0, 0.0]]]), 0.4)[0, 0]
+    s0 = s.copy()
+    cmd = D.make_cmd(thrust=False)
+    x = 0.0
+    for k in range(1, 121):
+        ce, cn = ae * k * dt, an * k * dt
+        D.step_agent_unsteady(m, veh.params, s, cmd, ce, cn, ae, an, dt)
+        D.step_agent(m, veh.params, s0, cmd, ce, cn, dt)
+        x += ce * dt
+        assert np.abs(_rel_lin(s, ce, cn)).max() < 1e-12, k
+    assert s[D.VX] == pytest.approx(ce, abs=1e-12) and s[D.VZ] == pytest.approx(cn, abs=1e-12)
+    assert s[D.X] == pytest.approx(x, rel=1e-12)   # the water's own path, sample by sample
+    # without the water's acceleration: the body lags (drag balances (m + M_A) A)
+    assert np.linalg.norm(_rel_lin(s0, ce, cn)) > 5e-3
+
+
+def test_heavy_body_lags_an_accelerating_current():
+    """A body heavier than the water it displaces (m_d < m) in water accelerating at A
+    settles at the relative velocity where drag carries the part of its inertia the water
+    does not: D(nu_r) nu_r = -(m - m_d) A (3dof: depth held, the weight does not act). The
+    neutral body has no lag; without the water's acceleration the lag is the whole
+    (m + M_A) A."""
+    dt, steps, a = 0.1, 4000, 0.005
+    dl, dq = 10.0, 25.0   # generic_auv surge damping
+
+    def lag(net_buoyancy, unsteady):
+        veh = D.load_vehicle("generic_auv", overrides={"net_buoyancy_n": net_buoyancy})
+        s = D.new_state(1, 1, np.array([[[0.0, 50.0, 0.0]]]), 0.0)[0, 0]   # facing north
+        cmd = D.make_cmd(thrust=False)
+        for k in range(1, steps + 1):
+            if unsteady:
+                D.step_agent_unsteady(1, veh.params, s, cmd, 0.0, a * k * dt, 0.0, a, dt)
+            else:
+                D.step_agent(1, veh.params, s, cmd, 0.0, a * k * dt, dt)
+        return _rel_lin(s, 0.0, a * steps * dt)[0]
+
+    def balance(mass):   # dl x + dq |x| x = -mass a, x < 0
+        return (dl - math.sqrt(dl * dl + 4.0 * dq * mass * a)) / (2.0 * dq)
+
+    g, m, ma = 9.81, 40.0, 4.0
+    heavy = -10.0 * g     # B - W: m_d = m - 10 kg
+    assert lag(heavy, True) == pytest.approx(balance(10.0), rel=0.03)
+    assert abs(lag(0.0, True)) < 1e-12
+    assert lag(heavy, False) == pytest.approx(balance(m + ma), rel=0.03)
+    assert lag(0.0, False) == pytest.approx(balance(m + ma), rel=0.03)
+
+
+@pytest.mark.parametrize("model", ("kinematic",) + RIGID)
+def test_step_agent_is_the_unsteady_step_without_acceleration(model, vehicle):
+    # the loop's step (no water acceleration given) is unchanged, bit for bit
+    m = D.model_id(model)
+    rng = np.random.default_rng(3)
+    a = D.new_state(1, 1, np.array([[[0.0, 30.0, 0.0]]]), 0.2)[0, 0]
+    b = a.copy()
+    for k in range(60):
+        ce, cn = 0.3 + 0.01 * k, -0.2 + 0.005 * k
+        cmd = D.make_cmd(*rng.uniform(-1.0, 1.0, 3))
+        D.step_agent(m, vehicle.params, a, cmd.copy(), ce, cn, 1.0)
+        D.step_agent_unsteady(m, vehicle.params, b, cmd.copy(), ce, cn, 0.0, 0.0, 1.0)
+    np.testing.assert_array_equal(a, b)
