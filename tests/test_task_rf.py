@@ -1,4 +1,6 @@
-"""RF (route following): reset geometry, waypoint/xte success rule, metrics, determinism."""
+"""RF (route following): reset geometry, waypoint/xte/energy success rule, metrics, the speed
+schedule planned through the field (heuristic on its forecast, oracle on the truth, the
+constant-speed crabber), determinism, tier table."""
 
 from __future__ import annotations
 
@@ -14,11 +16,12 @@ from oneocean.engine.grid import with_forcing
 from oneocean.errors import ConfigError
 from oneocean.tasks import rf, run_cell
 from oneocean.tasks.common import load_task_table, path_clear
-from oneocean.tasks.episodes import rollout
+from oneocean.methods.routing import power_model
+from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
-TIER = {"time_limit_s": 900.0, "probe_noise_ms": 0.0, "n_waypoints": 3,
+TIER = {"time_limit_s": 900.0, "n_waypoints": 3,
         "leg_m": 250.0, "wp_radius_m": 5.0, "xte_max_m": 3.0, "dt_s": 1.0}
 
 
@@ -35,9 +38,9 @@ def coast():
 VEHICLE = E.load_vehicle(load_task_table("RF")["vehicle"])
 
 
-def _run(grid, tier, method, dyn="kinematic", n=4, seed=0, init=None):
+def _run(grid, tier, method, dyn="kinematic", n=4, seed=0, init=None, info=None):
     init = init if init is not None else rf.reset(grid, tier, 1, n, seed)
-    return init, rollout(rf, grid, tier, init, method, dyn, VEHICLE, seed)
+    return init, rollout(rf, grid, tier, init, method, dyn, VEHICLE, seed, info=info)
 
 
 def _straight(grid_len=250.0, n_wp=3):
@@ -85,10 +88,11 @@ def test_oracle_follows_straight_route_exactly():
     assert r["success"][0]
     assert r["waypoints_reached"][0] == 3
     assert r["cross_track_error_m"][0] == 0.0 and r["max_cross_track_m"][0] == 0.0
-    # kinematic (the task logic, not the vehicle): 750 m at the REMUS's 2.5 m/s; the last
+    # kinematic (the task logic, not the vehicle): 750 m in calm water at the REMUS's
+    # least-energy speed, its maximum-range speed 1.25 m/s (its limit is 2.5 m/s); the last
     # waypoint counts within 5 m
     assert VEHICLE.v_max == 2.5
-    assert r["T_s"][0] == math.ceil((750.0 - 5.0) / 2.5)
+    assert r["T_s"][0] == math.ceil((750.0 - 5.0) / 1.25)
 
 
 def test_random_routes_oracle_calm(coast):
@@ -102,9 +106,9 @@ def test_random_routes_oracle_calm(coast):
 
 def test_time_limit_and_xte_bound_are_enforced():
     init = _straight()
-    # 200 s at 2.5 m/s: 500 m, waypoints at 250 and 500 m (within 5 m) but not 750 m
-    _, r = _run(_grid(), {**TIER, "time_limit_s": 200.0}, "oracle", init=init)
-    assert not r["success"][0] and r["waypoints_reached"][0] == 2 and r["T_s"][0] == 200.0
+    # 300 s at 1.25 m/s: 375 m, the waypoint at 250 m (within 5 m) but not 500 m
+    _, r = _run(_grid(), {**TIER, "time_limit_s": 300.0}, "oracle", init=init)
+    assert not r["success"][0] and r["waypoints_reached"][0] == 1 and r["T_s"][0] == 300.0
     # all waypoints reached but the mean cross-track error is above a (tiny) bound -> failure
     init2 = _straight()
     init2["pos0"] = init2["pos0"] + np.array([0.0, 0.0, 10.0])  # start 10 m off the route
@@ -116,35 +120,44 @@ def test_time_limit_and_xte_bound_are_enforced():
 
 
 def test_cross_current_separates_methods_by_information_only():
-    # route east, current 1.5 m/s north (< v_max = 2.5): the oracle crabs exactly on the route
-    # at ground speed sqrt(2.5^2 - 1.5^2) = 2 m/s (kinematic: the task's steering, not the hull)
+    # route east, current 1.5 m/s north (above the 1.25 m/s cruise speed, below v_max = 2.5):
+    # the oracle's schedule flies the speed with the least energy per metre among those that
+    # keep 0.1 m/s of cross-current headroom and crabs exactly on the route (kinematic: the
+    # task's steering, not the hull)
+    pw = power_model("remus100")
+    speeds = [u for u in np.arange(0.75, 2.51, 0.25) if u - 1.5 >= 0.1 - 1e-12]
+    per_m = [(pw.hotel_w + pw.k * u ** 3) / math.sqrt(u * u - 1.5 ** 2) for u in speeds]
+    u = speeds[int(np.argmin(per_m))]
+    assert u == 2.0
     g = _grid(0.0, 1.5)
     _, ro = _run(g, TIER, "oracle", init=_straight())
     assert ro["success"][0] and ro["cross_track_error_m"][0] < 0.01
-    assert ro["T_s"][0] == math.ceil((750.0 - 5.0) / 2.0)
-    # no throttle: with probe noise 0 the heuristic is the oracle, bit for bit
-    _, rh0 = _run(g, {**TIER, "probe_noise_ms": 0.0}, "heuristic", init=_straight())
+    assert ro["T_s"][0] == math.ceil((750.0 - 5.0) / math.sqrt(u * u - 1.5 ** 2))
+    # no throttle: given the truth the heuristic is the oracle, bit for bit
+    _, rh0 = _run(g, TIER, "heuristic", init=_straight(), info="truth")
     for k in ("success", "T_s", "E", "cross_track_error_m", "max_cross_track_m"):
         np.testing.assert_array_equal(rh0[k], ro[k], err_msg=k)
-    # with a noisy probe it mis-crabs every step: off the route and slower
-    _, rh = _run(g, {**TIER, "probe_noise_ms": 0.5}, "heuristic", init=_straight())
+    # with its sensors it follows the route as its dead reckoning sees it: off the true route
+    _, rh = _run(g, TIER, "heuristic", init=_straight())
     assert rh["cross_track_error_m"][0] > 0.3 and rh["max_cross_track_m"][0] > 1.0
-    assert rh["T_s"][0] > ro["T_s"][0]
     # ... and a tight cross-track bound turns that into a failure the oracle does not have
     tight = {**TIER, "xte_max_m": 0.2}
-    _, ro = _run(g, {**tight, "probe_noise_ms": 0.5}, "oracle", init=_straight())
-    _, rh = _run(g, {**tight, "probe_noise_ms": 0.5}, "heuristic", init=_straight())
+    _, ro = _run(g, tight, "oracle", init=_straight())
+    _, rh = _run(g, tight, "heuristic", init=_straight())
     assert ro["success"][0] and not rh["success"][0]
+    # the true position alone gives it back the route: what was left was its current estimate
+    _, rp = _run(g, TIER, "heuristic", init=_straight(), info="true_position")
+    assert rp["cross_track_error_m"][0] < rh["cross_track_error_m"][0]
 
 
 def test_determinism_and_threads(coast):
-    a = run_cell(coast, "RF", 3, "heuristic", episodes=4, seed=8)
-    b = run_cell(coast, "RF", 3, "heuristic", episodes=4, seed=8)
+    a = run_cell(coast, "RF", 2, "heuristic", episodes=4, seed=8)
+    b = run_cell(coast, "RF", 2, "heuristic", episodes=4, seed=8)
     pd.testing.assert_frame_equal(a, b)
     np.testing.assert_array_equal(a["primary"], a["cross_track_error_m"])
     assert a["waypoints_reached"].dtype == np.int64
     if numba.config.NUMBA_NUM_THREADS >= 2:
-        c = on_one_thread(run_cell, coast, "RF", 3, "heuristic", episodes=4, seed=8)
+        c = on_one_thread(run_cell, coast, "RF", 2, "heuristic", episodes=4, seed=8)
         pd.testing.assert_frame_equal(a, c)
 
 
@@ -154,6 +167,73 @@ def test_tier_table_monotone_and_declared():
     assert_tier_table_monotone(table)
     for t in (1, 2, 3):
         assert set(tiers[t]) == set(table["harder"])
-        assert {"current_band", "time_limit_s", "probe_noise_ms"} <= set(tiers[t])
+        assert {"current_ms", "time_limit_s", "energy_reserve", "forecast_lead_h"} <= set(tiers[t])
+    assert tiers[3]["current_ms"][0] > tiers[1]["current_ms"][0]
+    assert (tiers[3]["n_waypoints"] * tiers[3]["leg_m"] > tiers[1]["n_waypoints"]
+            * tiers[1]["leg_m"])
+    assert tiers[3]["energy_reserve"] < tiers[1]["energy_reserve"]
+    assert tiers[3]["forecast_lead_h"] > tiers[1]["forecast_lead_h"]
     assert table["vehicle"] == "remus100"
     assert table["agents"] == {"default": 1, "range": [1, 1]}
+
+
+# ------------------------------------------------------------------------------ energy, planning
+
+def _east(n_ep=1, leg=900.0, n_wp=2):
+    init = _straight(leg, n_wp)
+    return {k: np.repeat(v, n_ep, axis=0) for k, v in init.items()}
+
+
+def test_speed_schedule_beats_the_constant_speed_crabber(monkeypatch):
+    # a 1.0 m/s head current along an east-going route: the schedule flies faster than
+    # cruise (least energy per metre against the current); the crabber at its cruise speed
+    # makes 0.25 m/s over ground and spends twice the energy
+    g = _grid(-1.0, 0.0)
+    tier = {**TIER, "time_limit_s": 12000.0, "wp_radius_m": 10.0, "xte_max_m": 5.0,
+            "energy_reserve": 0.10, "forecast_lead_h": 24.0}
+    init = _east()
+    _, ro = _run(g, tier, "oracle", init=init)
+    assert ro["success"][0] and ro["energy_ratio"][0] <= 1.0
+    ep = Episodes(rf, g, tier, init, "oracle", "kinematic", VEHICLE, 0)
+    assert np.all(ep.W.wspd[0, :ep.W.wcount[0] - 1] > 1.25)
+    monkeypatch.setattr(rf.POLICY, "plan_episode", rf.POLICY.straight_plan)
+    _, rs = _run(g, tier, "heuristic", init=init, info="truth")
+    assert not rs["success"][0] and rs["energy_ratio"][0] >= 1.5
+
+
+def test_forecast_schedule_spends_more_than_the_oracles():
+    # a uniform 0.9 m/s head current, a 4-day-old forecast: given its true position (the
+    # forecast is the only difference) the heuristic's schedule never spends less than the
+    # oracle's and fails a 2 % reserve where the oracle succeeds
+    g = _grid(-0.9, 0.0)
+    tier = {**TIER, "time_limit_s": 12000.0, "wp_radius_m": 10.0, "xte_max_m": 5.0,
+            "energy_reserve": 0.02, "forecast_lead_h": 96.0}
+    init = _east(8)
+    _, ro = _run(g, tier, "oracle", init=init)
+    _, rh = _run(g, tier, "heuristic", init=init, info="true_position")
+    assert ro["success"].all()
+    assert np.all(rh["energy_ratio"] >= ro["energy_ratio"] - 1e-3)
+    assert np.mean(rh["energy_ratio"] > ro["energy_ratio"] + 0.01) >= 0.5
+    assert not rh["success"].all()
+    _, rt = _run(g, tier, "heuristic", init=init, info="truth")
+    for k in ("success", "T_s", "E", "energy_wh", "cross_track_error_m"):
+        np.testing.assert_array_equal(rt[k], ro[k], err_msg=k)
+
+
+def test_energy_allocation_is_the_best_schedule_plus_the_reserve():
+    g = _grid(-0.5, 0.3)
+    tier = {**TIER, "time_limit_s": 6000.0, "energy_reserve": 0.05}
+    init = _east()
+    P, W = rf.make(g, tier, init)
+    pw = power_model("remus100")
+    # east into a 0.5 m/s head and 0.3 m/s cross current: ground speed sqrt(u^2 - 0.09) - 0.5
+    per_m = min((pw.hotel_w + pw.k * u ** 3) / (math.sqrt(u * u - 0.09) - 0.5)
+                for u in np.arange(0.75, 2.51, 0.25) if u - 0.3 >= 0.1)
+    np.testing.assert_allclose(W.eref[0], 1800.0 * per_m, rtol=1e-6)   # float32 field
+    np.testing.assert_allclose(W.budget[0], 1.05 * W.eref[0])
+    # an allocation it cannot meet: every waypoint, over the allocation: failure
+    ep = Episodes(rf, g, tier, init, "oracle", "kinematic", VEHICLE, 0)
+    ep.W.budget[:] = 0.5 * ep.W.eref
+    r = ep.run().results()
+    assert not r["success"][0] and r["waypoints_reached"][0] == 2
+    assert r["energy_ratio"][0] > 0.95 and r["T_s"][0] == tier["time_limit_s"]

@@ -1,19 +1,37 @@
-"""G2G — go-to-goal under currents (1 agent).
+"""G2G — go-to-goal under currents (1 agent): a transit on an energy allocation.
 
 Objective
-    Reach a goal ``goal_distance_m`` metres from the start, at the start's depth, before
-    ``time_limit_s``. Start, goal and the straight segment between them are in valid water
-    (off land, inside the grid, ``MIN_ALTITUDE_M`` above the seafloor), so every episode is
-    solvable without path planning; the difficulty is the current along the way.
+    Reach a goal ``goal_distance_m`` metres from the start, at the start's depth, on the
+    energy allocated to the transit, before ``time_limit_s``. Start, goal and the straight
+    segment between them are in valid water (off land, inside the grid, ``MIN_ALTITUDE_M``
+    above the seafloor), so the straight line is always passable; the difficulty is the
+    current along the way. With ``current_ms: [lo, hi]`` only episodes whose mean current
+    speed (over the straight segment and the still-water transit time at the vehicle's
+    cruise speed) lies in ``[lo, hi]`` m/s are drawn: the current is stated in absolute terms
+    (it matters relative to the vehicle's speed, not to the region's quantiles).
+Energy
+    The vehicle's electrical energy is ``P(u_r) = hotel + k u_r^3`` integrated over the
+    episode (``u_r`` its speed through the water; the power model of the task's vehicle,
+    ``data/vehicles.yaml`` ``power:``). The allocation is ``(1 + energy_reserve) E_ref``:
+    ``E_ref`` the least energy of the transit, planned by the task on the true field of the
+    rollout (:func:`oneocean.methods.routing.plan_mission`, the same planner every method
+    has), ``energy_reserve`` the mission's reserve. Without ``energy_reserve`` there is no
+    allocation.
 Success
-    The agent comes within ``goal_radius_m`` of the goal (checked after every step); the
-    episode stops there and ``T_s`` is the time to success (the time limit on failure).
+    The agent comes within ``goal_radius_m`` of the goal (checked after every step; the
+    episode stops there) having spent at most its allocation; ``T_s`` is the time to success
+    (the time limit on failure). A vehicle past its allocation runs on (its ``energy_ratio``
+    says how far past), but can no longer succeed.
 Metrics
     ``final_error_m`` (primary: distance to the goal when the episode ends, m),
-    ``min_error_m`` (closest approach, m), ``path_length_m`` (ground track length, m).
+    ``min_error_m`` (closest approach, m), ``path_length_m`` (ground track length, m),
+    ``energy_wh`` (energy used, Wh), ``energy_ratio`` (energy used / ``E_ref``).
+Observation cue
+    The goal (the method's route is its own plan, in its plan tokens ``W.wps``).
 Methods
-    :mod:`oneocean.methods.heuristic.g2g` (both at full speed; heuristic: noisy probe;
-    oracle: exact current).
+    :mod:`oneocean.methods.heuristic.g2g` (both plan the route and speeds through the field,
+    then fly the plan; heuristic: on its forecast, with the sensor models of
+    :mod:`oneocean.sensing`; oracle: on the true field, with the true current and position).
 
 Module layout (the template every task module follows; the contract is
 :mod:`oneocean.tasks.loop`)
@@ -36,18 +54,87 @@ from typing import NamedTuple
 
 from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
-from ..errors import ConfigError
+from ..errors import ConfigError, NotApplicable
+from ..methods import routing
 from ..methods.heuristic import g2g as POLICY
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, fresh_cache,
-                     need_tier, sample_route, start_times)
+from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, current_at,
+                     episode_seed_sequence, fresh_cache, need_tier, sample_route, site_speeds,
+                     start_times)
 from .loop import noop_after_agent, noop_pre_step, observe_next, run_episode
 
 TASK_ID = "G2G"
-METRICS = ("final_error_m", "min_error_m", "path_length_m")
+METRICS = ("final_error_m", "min_error_m", "path_length_m", "energy_wh", "energy_ratio")
 #: Result-matrix columns written by the kernel (standard columns first).
 COLUMNS = STANDARD + METRICS
 
-_C_FINAL, _C_MIN, _C_PATH = (len(STANDARD) + i for i in range(len(METRICS)))
+_C_FINAL, _C_MIN, _C_PATH, _C_EWH, _C_ERAT = (len(STANDARD) + i for i in range(len(METRICS)))
+#: Plan-token capacity: vertices of a planned route.
+MAX_VERTICES = 256
+#: Candidate episodes drawn per episode kept before a current band is declared not
+#: applicable in a region.
+BAND_DRAWS = 60
+
+
+def task_power(tier: dict | None = None, task_id: str = TASK_ID):
+    """The power model of the task's vehicle (``data/vehicles.yaml`` ``power:``) and its
+    speed limit (``tier["v_max"]`` when the cell gives it)."""
+    from ..engine import load_vehicle
+    from .common import load_task_table
+
+    name = load_task_table(task_id)["vehicle"]
+    v_max = (tier or {}).get("v_max")
+    return routing.power_model(name), float(v_max if v_max is not None
+                                            else load_vehicle(name).v_max)
+
+
+def current_band(tier: dict, task_id: str = TASK_ID):
+    """The tier's absolute current band ``current_ms: [lo, hi]`` m/s (None without it)."""
+    band = tier.get("current_ms")
+    if band is None:
+        return None
+    try:
+        lo, hi = (float(b) for b in band)
+    except (TypeError, ValueError):
+        raise ConfigError(f"task {task_id}: current_ms: expected [lo, hi] m/s, got "
+                          f"{band!r}") from None
+    if not 0.0 <= lo < hi:
+        raise ConfigError(f"task {task_id}: current_ms: need 0 <= lo < hi, got {band!r}")
+    return lo, hi
+
+
+def draw_in_band(grid, tier: dict, n_episodes: int, seed: int, draw, points, length: float,
+                 what: str, task_id: str = TASK_ID):
+    """Candidates ``c = 0, 1, ...`` of ``seed`` (each from its own reset stream,
+    ``SeedSequence([seed, c, PURPOSE_RESET])``: ``draw(rng) -> (t0, geometry)``), keeping
+    the first ``n_episodes`` whose mean current speed at ``points(geometry)`` (n, 3) over
+    the still-water transit of ``length`` m at the cruise speed lies in the tier's
+    ``current_ms`` (all of them without one). Returns (t0 list, geometry list)."""
+    band = current_band(tier, task_id)
+    pw, v_max = task_power(tier, task_id)
+    window = float(length) / routing.cruise_speed(v_max, pw)
+    t0s, geos = [], []
+    n_max = int(n_episodes) * (BAND_DRAWS if band is not None else 1)
+    c = 0
+    while len(geos) < n_episodes and c < n_max:
+        batch = []
+        for _ in range(min(32, n_max - c)):
+            rng = np.random.default_rng(episode_seed_sequence(seed, c, PURPOSE_RESET))
+            batch.append(draw(rng, c))
+            c += 1
+        if band is None:
+            keep = [True] * len(batch)
+        else:
+            pts = np.stack([points(b[1]) for b in batch])
+            sp = site_speeds(grid, pts, [b[0] for b in batch], window)
+            keep = (sp >= band[0]) & (sp <= band[1])
+        for b, ok in zip(batch, keep):
+            if ok and len(geos) < n_episodes:
+                t0s.append(b[0])
+                geos.append(b[1])
+    if len(geos) < n_episodes:
+        raise NotApplicable(f"{what}: only {len(geos)} of {c} candidate episodes meet a mean "
+                            f"current of {band[0]:g}-{band[1]:g} m/s; {n_episodes} needed")
+    return t0s, geos
 
 
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
@@ -76,16 +163,20 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     if int(n_agents) != 1:
         raise ConfigError(f"task {TASK_ID}: single-agent task, got n_agents={n_agents}")
     need_tier(TASK_ID, tier, "goal_distance_m", "time_limit_s")
-    rngs = episode_generators(seed, n_episodes)
-    t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
-    pos0 = np.empty((n_episodes, 1, 3))
-    goal = np.empty((n_episodes, 3))
-    for e, rng in enumerate(rngs):
-        route = sample_route(grid, rng, 1, float(tier["goal_distance_m"]), DEPTH_RANGE_M,
-                             MIN_ALTITUDE_M, land_threshold=DEFAULT_LAND_THRESHOLD,
-                             what=f"task {TASK_ID} reset (episode {e})")
-        pos0[e, 0] = route[0]
-        goal[e] = route[1]
+    dist = float(tier["goal_distance_m"])
+
+    def draw(rng, c):
+        t0 = start_times(grid, [rng], float(tier["time_limit_s"]))[0]
+        return t0, sample_route(grid, rng, 1, dist, DEPTH_RANGE_M, MIN_ALTITUDE_M,
+                                land_threshold=DEFAULT_LAND_THRESHOLD,
+                                what=f"task {TASK_ID} reset (candidate {c})")
+
+    t0, routes = draw_in_band(grid, tier, n_episodes, seed, draw,
+                              lambda r: np.linspace(r[0], r[1], 5), dist,
+                              f"task {TASK_ID} reset")
+    t0 = np.array(t0, dtype=np.float64)
+    pos0 = np.array([r[:1] for r in routes], dtype=np.float64).reshape(n_episodes, 1, 3)
+    goal = np.array([r[1] for r in routes], dtype=np.float64).reshape(n_episodes, 3)
     d = goal - pos0[:, 0]
     psi0 = np.arctan2(d[:, 0], d[:, 2])[:, None]
     return {"pos0": pos0, "goal": goal, "psi0": psi0, "t0": t0}
@@ -93,19 +184,70 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
 class G2GParams(NamedTuple):
     radius: float           # success radius around the goal, m
+    t_lim: float            # time limit, s (the planners' field window)
+    dt: float               # step, s
+    hotel_w: float          # power model of the task's vehicle: P = hotel_w + pk u_r^3, W
+    pk: float
 
 
 class G2GWork(NamedTuple):
     goal: np.ndarray        # (E, 3) goal positions, m
-    acc: np.ndarray         # (E, 3) distance to the goal, closest approach, path length, m
+    start: np.ndarray       # (E, 3) start positions, m
+    acc: np.ndarray         # (E, 4) distance to the goal, closest approach, path length (m),
+                            #        energy used (J)
+    budget: np.ndarray      # (E,) energy allocation, J (inf: none)
+    eref: np.ndarray        # (E,) least energy of the transit (the task's plan), J
+    # plan tokens of the method (oneocean.methods.routing.follow_path), written by its
+    # prepare hook; the straight line at the cruise speed until then
+    wps: np.ndarray         # (E, MAX_VERTICES, 2) route vertices (x, z), m
+    wspd: np.ndarray        # (E, MAX_VERTICES) programmed speed of each segment, m s-1
+    wcount: np.ndarray      # (E,) int64 vertices
+    widx: np.ndarray        # (E,) int64 active segment
+    planned: np.ndarray     # (E,) int64 1 once the method planned
+
+
+def reference_energy(grid, tier: dict, start, goal, depth: float, t0: float,
+                     power=None) -> float:
+    """``E_ref`` (J): the least energy of the transit on ``grid``'s true field (the task's
+    plan with the planner every method has); inf when the goal is off the grid or no
+    passable route exists. (``power``: :func:`task_power`'s result, if at hand.)"""
+    pw, v_max = power if power is not None else task_power(tier)
+    pts = np.array([start, goal], dtype=np.float64)
+    if not routing.within_grid(grid, pts):
+        return math.inf
+    r = routing.plan_mission(grid, pts, depth, t0, float(tier["time_limit_s"]), v_max, pw)
+    return float(r.cost)
 
 
 def make(grid, tier: dict, init: dict):
-    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
-    need_tier(TASK_ID, tier, "goal_radius_m")
-    n_ep = init["goal"].shape[0]
-    return (G2GParams(float(tier["goal_radius_m"])),
-            G2GWork(np.ascontiguousarray(init["goal"], dtype=np.float64), np.zeros((n_ep, 3))))
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); with an
+    ``energy_reserve`` the allocation of every episode (:func:`reference_energy` on the
+    rollout's ``grid``: the ablations' forcing included)."""
+    need_tier(TASK_ID, tier, "goal_radius_m", "time_limit_s", "dt_s")
+    goal = np.ascontiguousarray(init["goal"], dtype=np.float64)
+    start = np.ascontiguousarray(init["pos0"][:, 0], dtype=np.float64)
+    n_ep = goal.shape[0]
+    pw, v_max = task_power(tier)
+    eref = np.full(n_ep, math.inf)
+    budget = np.full(n_ep, math.inf)
+    reserve = tier.get("energy_reserve")
+    if reserve is not None:
+        if not float(reserve) >= 0.0:
+            raise ConfigError(f"task {TASK_ID}: energy_reserve must be >= 0, got {reserve!r}")
+        for e in range(n_ep):
+            eref[e] = reference_energy(grid, tier, start[e, [0, 2]], goal[e, [0, 2]],
+                                       float(goal[e, 1]), float(init["t0"][e]), (pw, v_max))
+        budget = (1.0 + float(reserve)) * eref
+    wps = np.zeros((n_ep, MAX_VERTICES, 2))
+    wps[:, 0] = start[:, [0, 2]]
+    wps[:, 1] = goal[:, [0, 2]]
+    wspd = np.zeros((n_ep, MAX_VERTICES))
+    wspd[:, 0] = routing.cruise_speed(v_max, pw)
+    P = G2GParams(float(tier["goal_radius_m"]), float(tier["time_limit_s"]),
+                  float(tier["dt_s"]), pw.hotel_w, pw.k)
+    W = G2GWork(goal, start, np.zeros((n_ep, 4)), budget, eref, wps, wspd,
+                np.full(n_ep, 2, np.int64), np.zeros(n_ep, np.int64), np.zeros(n_ep, np.int64))
+    return P, W
 
 
 @hot_kernel(inline="always")
@@ -119,6 +261,7 @@ def begin(grid, P, W, state, e):
     W.acc[e, 0] = d
     W.acc[e, 1] = d
     W.acc[e, 2] = 0.0
+    W.acc[e, 3] = 0.0
     return d <= P.radius
 
 
@@ -128,11 +271,24 @@ def cue(grid, P, W, state, e, k, i):
 
 
 @hot_kernel(inline="always")
+def step_energy(grid, P, s, p, t):
+    """Energy (J) of the step that took the vehicle from ``p`` to ``s`` (its state): the
+    power at its speed through the water (ground velocity minus the current where it was)."""
+    ce, cn = current_at(grid, p[0], p[1], p[2], t)
+    ux = s[12] - ce
+    uy = s[13]
+    uz = s[14] - cn
+    ur = math.sqrt(ux * ux + uy * uy + uz * uz)
+    return (P.hotel_w + P.pk * ur * ur * ur) * P.dt
+
+
+@hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
     s = state[e, 0]
     p = prev[e, 0]
     a = W.acc[e]
     a[2] += math.sqrt((s[0] - p[0]) ** 2 + (s[1] - p[1]) ** 2 + (s[2] - p[2]) ** 2)
+    a[3] += step_energy(grid, P, s, p, t)
     d = _dist(s, W.goal[e])
     a[0] = d
     if d < a[1]:
@@ -146,7 +302,9 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_FINAL] = a[0]
     row[_C_MIN] = a[1]
     row[_C_PATH] = a[2]
-    return a[0] <= P.radius
+    row[_C_EWH] = a[3] / 3600.0
+    row[_C_ERAT] = a[3] / W.eref[e]
+    return a[0] <= P.radius and a[3] <= W.budget[e]
 
 
 # the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
@@ -165,7 +323,7 @@ def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_sto
 
 @hot_kernel
 def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
 
 
 @njit(cache=True, nogil=True)
@@ -176,4 +334,4 @@ def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer
 # changes.
-fresh_cache(_kernel, __file__, POLICY.__file__)
+fresh_cache(_kernel, __file__, POLICY.__file__, routing.__file__)

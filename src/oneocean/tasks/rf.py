@@ -1,35 +1,46 @@
-"""RF — route following under currents (1 agent).
+"""RF — route following under currents (1 agent): a fixed route on an energy allocation.
 
 Objective
     Follow a route of ``n_waypoints`` straight legs of ``leg_m`` metres (consecutive legs
-    turn by at most ``MAX_TURN_DEG``) at a constant depth, in order. The route is in valid
-    water with ``MIN_ALTITUDE_M`` of clearance along every leg; the agent starts at rest on
-    its first vertex, facing the first leg.
+    turn by at most ``MAX_TURN_DEG``) at a constant depth, in order, on the energy allocated
+    to it. The route is the mission (a survey line, a cable route): its legs are fixed, and
+    the route is in valid water with ``MIN_ALTITUDE_M`` of clearance along every leg; the
+    agent starts at rest on its first vertex, facing the first leg. With ``current_ms:
+    [lo, hi]`` only routes whose mean current speed (at its vertices and leg midpoints, over
+    the still-water time at the vehicle's cruise speed) lies in ``[lo, hi]`` m/s are drawn.
+Energy
+    As in :mod:`oneocean.tasks.g2g`: the energy ``P(u_r) = hotel + k u_r^3`` integrated over
+    the episode, the allocation ``(1 + energy_reserve) E_ref`` with ``E_ref`` the least
+    energy of flying the route (the best speed schedule along it on the true field,
+    :func:`oneocean.methods.routing.plan_mission`).
 Success
-    Every waypoint reached in order (within ``wp_radius_m``) before ``time_limit_s`` AND a
-    mean cross-track error at most ``xte_max_m``. The episode stops when the last waypoint is
-    reached (``T_s`` = that time; the time limit on failure).
+    Every waypoint reached in order (within ``wp_radius_m``, judged on the true position)
+    before ``time_limit_s``, within the allocation, AND a mean cross-track error at most
+    ``xte_max_m``. The episode stops when the last waypoint is reached (``T_s`` = that time;
+    the time limit on failure); a vehicle past its allocation runs on but cannot succeed.
 Metrics
     ``cross_track_error_m`` (primary: mean over the steps run of the distance to the route
     near the agent = the nearer of the active leg and the previous leg, as segments, m),
-    ``waypoints_reached`` (count), ``max_cross_track_m`` (m).
+    ``waypoints_reached`` (count), ``max_cross_track_m`` (m), ``energy_wh`` (Wh),
+    ``energy_ratio`` (energy used / ``E_ref``).
 Observation cue
     The route point ``CUE_LOOKAHEAD_M`` ahead of the agent's projection on the active leg
-    (clamped to the waypoint). Before every step the env also writes the agent's frame on the
-    active leg (``leg_geometry``: along-track, tangent, length) into ``W.leg`` for the policy.
+    (clamped to the waypoint).
 Methods
-    :mod:`oneocean.methods.heuristic.rf` (line-of-sight guidance at full speed; heuristic:
-    noisy probe; oracle: exact current).
+    :mod:`oneocean.methods.heuristic.rf` (both plan the speed schedule along the route,
+    then fly it with line-of-sight guidance; heuristic: on its forecast, with the sensor
+    models of :mod:`oneocean.sensing`; oracle: on the true field, true current and position).
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset``; ``RFParams`` / ``RFWork`` and ``make``; the env hooks
-    ``begin``, ``pre_step``, ``cue``, ``post_step``, ``finish``; ``POLICY``; ``_kernel`` and
+    ``begin``, ``cue``, ``post_step``, ``finish``; ``POLICY``; ``_kernel`` and
     ``_observe_kernel``.
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -38,13 +49,16 @@ from numba import njit
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
+from ..methods import routing
 from ..methods.heuristic import rf as POLICY
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, fresh_cache,
-                     need_tier, sample_route, start_times)
-from .loop import noop_after_agent, observe_next, run_episode
+from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, fresh_cache, need_tier,
+                     sample_route, start_times)
+from .g2g import MAX_VERTICES, draw_in_band, step_energy, task_power
+from .loop import noop_after_agent, noop_pre_step, observe_next, run_episode
 
 TASK_ID = "RF"
-METRICS = ("cross_track_error_m", "waypoints_reached", "max_cross_track_m")
+METRICS = ("cross_track_error_m", "waypoints_reached", "max_cross_track_m", "energy_wh",
+           "energy_ratio")
 INT_METRICS = ("waypoints_reached",)
 COLUMNS = STANDARD + METRICS
 
@@ -53,7 +67,7 @@ MAX_TURN_DEG = 120.0
 #: Lookahead of the observation's route cue along the active leg, m.
 CUE_LOOKAHEAD_M = 20.0
 
-_C_XTE, _C_WP, _C_XMAX = (len(STANDARD) + i for i in range(len(METRICS)))
+_C_XTE, _C_WP, _C_XMAX, _C_EWH, _C_ERAT = (len(STANDARD) + i for i in range(len(METRICS)))
 
 
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
@@ -71,17 +85,28 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     n_wp = int(tier["n_waypoints"])
     if n_wp < 1:
         raise ConfigError(f"task {TASK_ID}: n_waypoints must be >= 1, got {n_wp}")
-    rngs = episode_generators(seed, n_episodes)
-    t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
-    route = np.empty((n_episodes, n_wp + 1, 3))
-    for e, rng in enumerate(rngs):
-        route[e] = sample_route(grid, rng, n_wp, float(tier["leg_m"]), DEPTH_RANGE_M,
-                                MIN_ALTITUDE_M, max_turn_rad=math.radians(MAX_TURN_DEG),
+    leg = float(tier["leg_m"])
+
+    def draw(rng, c):
+        t0 = start_times(grid, [rng], float(tier["time_limit_s"]))[0]
+        return t0, sample_route(grid, rng, n_wp, leg, DEPTH_RANGE_M, MIN_ALTITUDE_M,
+                                max_turn_rad=math.radians(MAX_TURN_DEG),
                                 land_threshold=DEFAULT_LAND_THRESHOLD,
-                                what=f"task {TASK_ID} reset (episode {e})")
+                                what=f"task {TASK_ID} reset (candidate {c})")
+
+    t0, routes = draw_in_band(grid, tier, n_episodes, seed, draw, regime_points, n_wp * leg,
+                              f"task {TASK_ID} reset", TASK_ID)
+    t0 = np.array(t0, dtype=np.float64)
+    route = np.array(routes, dtype=np.float64).reshape(n_episodes, n_wp + 1, 3)
     d = route[:, 1] - route[:, 0]
     psi0 = np.arctan2(d[:, 0], d[:, 2])[:, None]
     return {"route": route, "pos0": route[:, :1].copy(), "psi0": psi0, "t0": t0}
+
+
+def regime_points(route):
+    """Where a route's current is judged: its vertices and leg midpoints."""
+    r = np.asarray(route, dtype=np.float64)
+    return np.concatenate([r, 0.5 * (r[1:] + r[:-1])])
 
 
 @hot_kernel(inline="always")
@@ -110,23 +135,68 @@ class RFParams(NamedTuple):
     radius: float           # waypoint radius, m
     xte_max: float          # bound on the mean cross-track error for success, m
     look: float             # lookahead of the observation's route cue, m
+    t_lim: float            # time limit, s (the planners' field window)
+    dt: float               # step, s
+    hotel_w: float          # power model of the task's vehicle: P = hotel_w + pk u_r^3, W
+    pk: float
 
 
 class RFWork(NamedTuple):
     route: np.ndarray       # (E, W + 1, 3) route vertices, m
     wp: np.ndarray          # (E,) int64 active waypoint (1..W; W + 1 when the route is done)
-    leg: np.ndarray         # (E, 5) agent on the active leg before the step: along-track m,
-                            #        unit tangent (x, y, z), leg length m
-    acc: np.ndarray         # (E, 2) sum and max of the cross-track error, m
+    acc: np.ndarray         # (E, 3) sum and max of the cross-track error (m), energy used (J)
+    budget: np.ndarray      # (E,) energy allocation, J (inf: none)
+    eref: np.ndarray        # (E,) least energy of the route (the task's schedule), J
+    # plan tokens of the method (oneocean.methods.routing.follow_path), written by its
+    # prepare hook; the legs at the cruise speed until then
+    wps: np.ndarray         # (E, MAX_VERTICES, 2) vertices (x, z), m
+    wspd: np.ndarray        # (E, MAX_VERTICES) programmed speed of each segment, m s-1
+    wcount: np.ndarray      # (E,) int64 vertices
+    widx: np.ndarray        # (E,) int64 active segment
+    planned: np.ndarray     # (E,) int64 1 once the method planned
+
+
+def reference_energy(grid, tier: dict, route, t0: float, power=None) -> float:
+    """``E_ref`` (J): the least energy of flying ``route`` (W + 1, 3) on ``grid``'s true field
+    (the best speed schedule along it); inf off the grid or where no schedule holds it.
+    (``power``: :func:`~oneocean.tasks.g2g.task_power`'s result, if at hand.)"""
+    pw, v_max = power if power is not None else task_power(tier, TASK_ID)
+    pts = np.ascontiguousarray(np.asarray(route)[:, [0, 2]])
+    if not routing.within_grid(grid, pts):
+        return math.inf
+    r = routing.plan_mission(grid, pts, float(route[0][1]), t0, float(tier["time_limit_s"]),
+                             v_max, pw, fixed=True)
+    return float(r.cost)
 
 
 def make(grid, tier: dict, init: dict):
-    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
-    need_tier(TASK_ID, tier, "wp_radius_m", "xte_max_m")
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); with an
+    ``energy_reserve`` the allocation of every episode (:func:`reference_energy` on the
+    rollout's ``grid``)."""
+    need_tier(TASK_ID, tier, "wp_radius_m", "xte_max_m", "time_limit_s", "dt_s")
     route = np.ascontiguousarray(init["route"], dtype=np.float64)
-    n_ep = route.shape[0]
-    return (RFParams(float(tier["wp_radius_m"]), float(tier["xte_max_m"]), CUE_LOOKAHEAD_M),
-            RFWork(route, np.ones(n_ep, np.int64), np.zeros((n_ep, 5)), np.zeros((n_ep, 2))))
+    n_ep, n_v = route.shape[:2]
+    if n_v > MAX_VERTICES:
+        raise ConfigError(f"task {TASK_ID}: at most {MAX_VERTICES - 1} waypoints")
+    pw, v_max = task_power(tier, TASK_ID)
+    eref = np.full(n_ep, math.inf)
+    budget = np.full(n_ep, math.inf)
+    reserve = tier.get("energy_reserve")
+    if reserve is not None:
+        if not float(reserve) >= 0.0:
+            raise ConfigError(f"task {TASK_ID}: energy_reserve must be >= 0, got {reserve!r}")
+        for e in range(n_ep):
+            eref[e] = reference_energy(grid, tier, route[e], float(init["t0"][e]), (pw, v_max))
+        budget = (1.0 + float(reserve)) * eref
+    wps = np.zeros((n_ep, MAX_VERTICES, 2))
+    wps[:, :n_v] = route[:, :, [0, 2]]
+    wspd = np.zeros((n_ep, MAX_VERTICES))
+    wspd[:, :n_v - 1] = routing.cruise_speed(v_max, pw)
+    P = RFParams(float(tier["wp_radius_m"]), float(tier["xte_max_m"]), CUE_LOOKAHEAD_M,
+                 float(tier["time_limit_s"]), float(tier["dt_s"]), pw.hotel_w, pw.k)
+    W = RFWork(route, np.ones(n_ep, np.int64), np.zeros((n_ep, 3)), budget, eref, wps, wspd,
+               np.full(n_ep, n_v, np.int64), np.zeros(n_ep, np.int64), np.zeros(n_ep, np.int64))
+    return P, W
 
 
 @hot_kernel(inline="always")
@@ -134,23 +204,8 @@ def begin(grid, P, W, state, e):
     W.wp[e] = 1
     W.acc[e, 0] = 0.0
     W.acc[e, 1] = 0.0
+    W.acc[e, 2] = 0.0
     return W.wp[e] > W.route.shape[1] - 1
-
-
-@hot_kernel(inline="always")
-def pre_step(grid, P, W, state, e, k, t):
-    s = state[e, 0]
-    wp = W.wp[e]
-    a0 = W.route[e, wp - 1]
-    b0 = W.route[e, wp]
-    al, _, tx, ty, tz, ln = leg_geometry(a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
-                                         s[0], s[1], s[2])
-    g = W.leg[e]
-    g[0] = al
-    g[1] = tx
-    g[2] = ty
-    g[3] = tz
-    g[4] = ln
 
 
 @hot_kernel(inline="always")
@@ -186,6 +241,7 @@ def post_step(grid, P, W, state, prev, e, k, t):
     a[0] += xt
     if xt > a[1]:
         a[1] = xt
+    a[2] += step_energy(grid, P, s, prev[e, 0], t)
     if (s[0] - b0[0]) ** 2 + (s[1] - b0[1]) ** 2 + (s[2] - b0[2]) ** 2 <= P.radius * P.radius:
         wp += 1
         W.wp[e] = wp
@@ -200,13 +256,15 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_XTE] = xte
     row[_C_WP] = wp - 1
     row[_C_XMAX] = a[1]
-    return wp > W.route.shape[1] - 1 and xte <= P.xte_max
+    row[_C_EWH] = a[2] / 3600.0
+    row[_C_ERAT] = a[2] / W.eref[e]
+    return wp > W.route.shape[1] - 1 and xte <= P.xte_max and a[2] <= W.budget[e]
 
 
 # the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
 @hot_kernel
 def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
-    run_episode(begin, pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
+    run_episode(begin, noop_pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
                 POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
                 k_stop)
 
@@ -219,7 +277,7 @@ def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_sto
 
 @hot_kernel
 def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, state, t0, e, LS.k[e], nobs, nact)
+    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
 
 
 @njit(cache=True, nogil=True)
@@ -230,4 +288,5 @@ def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
 
 # numba keys a cache entry on this file only; drop it when the engine or the task layer
 # changes.
-fresh_cache(_kernel, __file__, POLICY.__file__)
+fresh_cache(_kernel, __file__, POLICY.__file__, routing.__file__,
+            Path(__file__).with_name("g2g.py"))

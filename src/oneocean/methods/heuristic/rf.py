@@ -1,10 +1,26 @@
-"""RF heuristic and oracle: line-of-sight route following with current feed-forward.
+"""RF heuristic and oracle: plan the speed schedule along the route, then fly it.
 
-Both aim at the point ``LOOKAHEAD_M`` ahead of the agent's projection on the active leg
-(clamped to the waypoint; the env's leg frame ``W.leg``, updated before every step) with
-:func:`~oneocean.tasks.common.seek_max` (cross-track current fed forward first, P-control
-``KP`` toward the point), both with the full ``v_max``. ``heuristic``: NOISY probed current.
-``oracle``: exact current.
+The route is the mission: its legs are fixed, and the vehicle must keep to them (the task's
+cross-track bound). What a method plans is how fast to fly each stretch of it.
+
+Plan (Python, :func:`prepare` before the episode's first step; the plan tokens are the work
+arrays ``W.wps``, ``W.wspd``, ``W.wcount``, ``W.widx`` of :mod:`oneocean.tasks.rf`)
+    The route's legs split into stretches of at most ``PIECE_M`` m, each with the programmed
+    speed (among the mission speeds ``SPEED_MIN .. v_max``) that spends the least energy on
+    it in the current the vehicle will meet there and then, keeping ``HOLD_MS`` of
+    cross-current headroom (:func:`oneocean.methods.routing.plan_mission` with ``fixed``:
+    the power model of ``data/vehicles.yaml`` ``power:``). The field is what the method
+    knows of the currents: the truth with the true current (the oracle; an information
+    ablation), else its FORECAST of it (the episode's forecast-error model ``LoopState.fc``).
+Act (``act``, every step)
+    Line-of-sight following of the route (:func:`~oneocean.methods.routing.follow_path`: a
+    carrot ``LOOKAHEAD_M`` ahead along the legs), crabbing with the current estimate
+    (:func:`~oneocean.tasks.common.seek_max`) at the stretch's programmed speed, raised when
+    the sensed current needs it (:func:`~oneocean.methods.routing.hold_speed`).
+
+Heuristic and oracle differ in information only: the same planner, steering and gains.
+:func:`straight_plan` (the legs at the cruise speed) is the plan of a vehicle that does not
+plan, the calibration's baseline.
 """
 
 from __future__ import annotations
@@ -12,36 +28,87 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numpy as np
+
 from ...engine._jit import hot_kernel
 from ...tasks.common import seek_max
-from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision)
+from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python)
+from .. import routing
+from ..routing import follow_path, hold_speed
 from . import SENSING  # noqa: F401
+from .g2g import vehicle_power
 
-#: Line-of-sight lookahead distance along the active leg, m.
+#: Line-of-sight lookahead along the route, m.
 LOOKAHEAD_M = 20.0
-#: Proportional gain toward the lookahead point, s-1 (saturates: full speed on the route).
+#: Proportional gain toward the carrot, s-1 (saturates on the route; slows at its end).
 KP = 0.5
+#: A waypoint counts as passed (the vehicle turns for the next leg) within this fraction of
+#: the task's waypoint radius, on the position the vehicle knows.
+CAPTURE_FRAC = 0.5
 
 
 class RFPolicy(NamedTuple):
-    budget: float   # speed budget through the water, m s-1
-    kp: float       # gain toward the lookahead point, s-1
-    look: float     # lookahead along the active leg, m
+    v_max: float    # vehicle speed limit through the water, m s-1
+    kp: float       # gain toward the carrot, s-1
+    look: float     # lookahead along the route, m
+    capture: float  # waypoint capture distance as a fraction of the task's radius
+    hotel_w: float  # power model (0, 0: none; fly the route at v_max)
+    pk: float
 
 
 def params(method: str, tier: dict, vehicle) -> RFPolicy:
-    v_max = float(vehicle.v_max)
-    return RFPolicy(v_max, KP, LOOKAHEAD_M)
+    pw = vehicle_power(vehicle)
+    return RFPolicy(float(vehicle.v_max), KP, LOOKAHEAD_M, CAPTURE_FRAC,
+                    0.0 if pw is None else pw.hotel_w, 0.0 if pw is None else pw.k)
+
+
+def _power(M: RFPolicy):
+    return None if M.hotel_w <= 0.0 and M.pk <= 0.0 else routing.PowerModel(1.0, M.hotel_w,
+                                                                            M.pk)
+
+
+def plan_episode(grid, M: RFPolicy, route_xz, depth: float, t0: float, duration: float,
+                 fc=None, e: int = 0) -> routing.Route:
+    """The method's speed schedule along the route ``route_xz`` (W + 1, 2) (``fc``: on the
+    forecast of episode ``e``); the legs at the cruise speed where no schedule holds."""
+    if not (M.v_max > 0.0 and routing.within_grid(grid, route_xz)):
+        return straight_plan(grid, M, route_xz, depth, t0, duration, fc, e)
+    r = routing.plan_mission(grid, route_xz, depth, t0, duration, M.v_max, _power(M),
+                             fixed=True, fc=fc, e=e)
+    if not r.ok:
+        return straight_plan(grid, M, route_xz, depth, t0, duration, fc, e)
+    return r
+
+
+def straight_plan(grid, M: RFPolicy, route_xz, depth: float, t0: float, duration: float,
+                  fc=None, e: int = 0) -> routing.Route:
+    """The plan of a vehicle that does not plan: the legs at its cruise speed."""
+    p = np.asarray(route_xz, dtype=np.float64).reshape(-1, 2)
+    u = routing.cruise_speed(M.v_max, _power(M))
+    return routing.Route(p.copy(), np.full(p.shape[0] - 1, u),
+                         np.full(p.shape[0], math.nan), math.nan, True)
+
+
+def prepare(grid, P, W, M: RFPolicy, t0, LP=None, LS=None, X=None) -> None:
+    """The Python planner: the speed schedule of every episode not yet planned
+    (``W.planned``) on the field the method knows (``LP.sens.true_current``: the truth, else
+    the forecast ``LS.fc``). The route starts where the vehicle does (its first vertex)."""
+    todo = np.flatnonzero(W.planned == 0)
+    truth = LP is None or LS is None or LP.sens.true_current != 0
+    for e in todo:
+        pts = np.ascontiguousarray(W.route[e][:, [0, 2]])
+        r = plan_episode(grid, M, pts, float(W.route[e, 0, 1]), float(t0[e]), P.t_lim,
+                         None if truth else LS.fc, int(e))
+        routing.write_plan(r, W.wps, W.wspd, W.wcount, W.widx, int(e))
+        W.planned[e] = 1
 
 
 @hot_kernel(inline="always")
 def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     s = state[e, i]
-    g = W.leg[e]                    # along-track, tangent (x, y, z), leg length
-    a0 = W.route[e, W.wp[e] - 1]
-    sl = min(max(g[0], 0.0) + M.look, g[4])
-    lx = a0[0] + sl * g[1]
-    ly = a0[1] + sl * g[2]
-    lz = a0[2] + sl * g[3]
-    ax, ay, az = seek_max(s[0], s[1], s[2], lx, ly, lz, M.budget, M.kp, pe, pn)
+    cx, cz, u = follow_path(W.wps, W.wspd, W.wcount, W.widx, e, s[0], s[2], M.look,
+                            M.capture * P.radius, 1)
+    gy = W.route[e, 0, 1]
+    u = hold_speed(u, cx - s[0], cz - s[2], pe, pn, M.v_max)
+    ax, ay, az = seek_max(s[0], s[1], s[2], cx, gy, cz, u, M.kp, pe, pn)
     return ax, ay, az, math.nan

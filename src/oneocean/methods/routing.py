@@ -1,0 +1,852 @@
+"""Route planning through a time-varying 2-D current field, and the vehicle power model.
+
+Zermelo's navigation problem on a grid graph: a vehicle moving at speed ``u`` through the
+water, steering by crabbing (it cancels the cross-track current and spends the rest of ``u``
+along its track, the steering of :func:`oneocean.tasks.common.seek_max`), has the ground speed
+``g = c_par + sqrt(u^2 - c_perp^2)`` along a unit direction in a current ``c`` (``c_par``,
+``c_perp``: along- and cross-track parts); it cannot hold a track whose cross current reaches
+``u`` (less a headroom ``hold``) or whose ground speed is below ``G_MIN``.
+
+:func:`plan_route` finds the best route between two points by a time-dependent Dijkstra search
+over a regular node lattice with 16 edge directions (the 8 neighbours and the 8 knight moves),
+every edge integrated piecewise along it through the field at the time the vehicle gets there,
+then shortens the lattice path by string pulling (a vertex is skipped when the straight segment
+past it is passable and no dearer) and schedules the result piece by piece
+(:func:`schedule`, also the planner of a fixed route). The cost is the time (the time-optimal
+route; each piece at the fastest of the given speeds, one speed: the fixed-speed problem) or,
+given a power model ``P(u) = hotel + k u^3``, the energy (the least-energy route and speed
+schedule; each piece at the speed with the least energy). In a uniform current the route is
+the straight line and its time ``distance / g`` exactly (tested).
+
+Everything here is arrays in, arrays out: the field is given as node arrays (``cur`` currents
+at the lattice nodes at ``times``, ``free`` > 0 where the vehicle may go), sampled bilinearly
+between nodes and linearly in time (clamped outside), exactly what the planner "knows": the
+caller fills them from the truth (the oracle) or from its forecast of it
+(:func:`field_from_grid`, :func:`forecast_field`; :func:`plan_mission` does both for a task).
+No BLAS, no ``fastmath``, plain IEEE arithmetic and a heap keyed on (cost, node index): the
+same bits on every CPU. The kernels the episode loop inlines to fly a plan are
+:func:`follow_path` and :func:`hold_speed`.
+
+The power model (:class:`PowerModel`, ``data/vehicles.yaml`` ``power:``) is the electrical
+power of a vehicle at speed ``u`` through the water; its maximum-range speed
+``(hotel / 2k)^(1/3)`` (least energy per metre in still water) is the cruise speed of a
+vehicle that flies one speed (:func:`cruise_speed`).
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+import yaml
+from numba import njit
+
+from ..engine._jit import hot_kernel
+from ..engine.grid import sample_land
+from ..errors import ConfigError
+from ..sensing.kernels import forecast
+
+#: Edge directions of the lattice: (di, dj) node offsets (x, z), 8 neighbours + 8 knight moves.
+EDGES = np.array([(1, 0), (0, 1), (-1, 0), (0, -1), (1, 1), (-1, 1), (-1, -1), (1, -1),
+                  (2, 1), (1, 2), (-1, 2), (-2, 1), (-2, -1), (-1, -2), (1, -2), (2, -1)],
+                 dtype=np.int64)
+#: Slowest ground speed along a track that counts as progress, m s-1 (slower: impassable;
+#: the steering speeds up to keep it, :func:`hold_speed`).
+G_MIN = 0.05
+#: Longest piece of a segment integrated with one current sample, in node spacings.
+PIECE = 0.5
+
+
+# ------------------------------------------------------------------------------ power model
+
+class PowerModel(NamedTuple):
+    """Electrical power of a vehicle: ``P(u) = hotel_w + k u^3`` W at ``u`` m/s through the
+    water; ``battery_wh`` usable energy."""
+    battery_wh: float
+    hotel_w: float
+    k: float          # propulsion coefficient, W s3 m-3
+
+    def power(self, u):
+        """P(u), W."""
+        return self.hotel_w + self.k * np.asarray(u, dtype=np.float64) ** 3
+
+    @property
+    def range_speed(self) -> float:
+        """The maximum-range speed: least energy per metre in still water, m s-1."""
+        return (self.hotel_w / (2.0 * self.k)) ** (1.0 / 3.0)
+
+
+def power_model(vehicle: str, path: str | Path | None = None) -> PowerModel:
+    """The :class:`PowerModel` of ``vehicle`` (``power:`` section of ``data/vehicles.yaml``)."""
+    f = Path(path) if path is not None else Path(
+        str(resources.files("oneocean") / "data" / "vehicles.yaml"))
+    return _power_model(vehicle, str(f), f.stat().st_mtime_ns)
+
+
+@lru_cache(maxsize=64)
+def _power_model(vehicle: str, path: str, mtime: int) -> PowerModel:
+    f = Path(path)
+    doc = yaml.safe_load(f.read_text())
+    entry = (doc.get("power") or {}).get(vehicle) if isinstance(doc, dict) else None
+    if not isinstance(entry, dict):
+        raise ConfigError(f"{f}: no power model for vehicle {vehicle!r} (section 'power')")
+    vals = []
+    for key in ("battery_wh", "hotel_w", "propulsion_w_s3_m3"):
+        v = entry.get(key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
+            raise ConfigError(f"{f}: power.{vehicle}.{key} must be a number > 0, got {v!r}")
+        vals.append(float(v))
+    return PowerModel(*vals)
+
+
+# ------------------------------------------------------------------------------ kernels
+
+@njit(cache=True)
+def _time_weights(times, t):
+    n = times.shape[0]
+    if n == 1 or t <= times[0]:
+        return 0, 0, 0.0
+    if t >= times[n - 1]:
+        return n - 1, n - 1, 0.0
+    i = 0
+    while i < n - 2 and times[i + 1] <= t:
+        i += 1
+    return i, i + 1, (t - times[i]) / (times[i + 1] - times[i])
+
+
+@njit(cache=True)
+def _cell(nx, ny, x0, z0, h, x, z):
+    fx = (x - x0) / h
+    fz = (z - z0) / h
+    if fx < 0.0:
+        fx = 0.0
+    elif fx > nx - 1:
+        fx = float(nx - 1)
+    if fz < 0.0:
+        fz = 0.0
+    elif fz > ny - 1:
+        fz = float(ny - 1)
+    i = min(int(fx), max(nx - 2, 0))
+    j = min(int(fz), max(ny - 2, 0))
+    return i, j, fx - i, fz - j
+
+
+@njit(cache=True)
+def _bil(a, i, j, wx, wz):
+    ny, nx = a.shape[0], a.shape[1]
+    i1 = min(i + 1, nx - 1)
+    j1 = min(j + 1, ny - 1)
+    return ((1.0 - wz) * ((1.0 - wx) * a[j, i] + wx * a[j, i1])
+            + wz * ((1.0 - wx) * a[j1, i] + wx * a[j1, i1]))
+
+
+@njit(cache=True)
+def _bil4(cur, t, c, i, j, wx, wz):
+    ny, nx = cur.shape[1], cur.shape[2]
+    i1 = min(i + 1, nx - 1)
+    j1 = min(j + 1, ny - 1)
+    return ((1.0 - wz) * ((1.0 - wx) * cur[t, j, i, c] + wx * cur[t, j, i1, c])
+            + wz * ((1.0 - wx) * cur[t, j1, i, c] + wx * cur[t, j1, i1, c]))
+
+
+@njit(cache=True)
+def _current(cur, times, x0, z0, h, x, z, t):
+    """Current (east, north) at (x, z) and time t: bilinear between nodes, linear in time."""
+    ny, nx = cur.shape[1], cur.shape[2]
+    i, j, wx, wz = _cell(nx, ny, x0, z0, h, x, z)
+    t0, t1, wt = _time_weights(times, t)
+    ce = (1.0 - wt) * _bil4(cur, t0, 0, i, j, wx, wz) + wt * _bil4(cur, t1, 0, i, j, wx, wz)
+    cn = (1.0 - wt) * _bil4(cur, t0, 1, i, j, wx, wz) + wt * _bil4(cur, t1, 1, i, j, wx, wz)
+    return ce, cn
+
+
+@njit(cache=True)
+def _free(free, x0, z0, h, x, z):
+    """Passability margin at (x, z) (> 0: passable); -1 outside the lattice."""
+    ny, nx = free.shape
+    if x < x0 or z < z0 or x > x0 + (nx - 1) * h or z > z0 + (ny - 1) * h:
+        return -1.0
+    i, j, wx, wz = _cell(nx, ny, x0, z0, h, x, z)
+    return _bil(free, i, j, wx, wz)
+
+
+@njit(cache=True)
+def ground_speed(ce, cn, ux, uz, u):
+    """Crab-steering ground speed (m s-1) along the unit direction (ux, uz) at speed ``u``
+    through the current (ce, cn); -1 when the cross current reaches ``u``."""
+    c_par = ce * ux + cn * uz
+    qx = ce - c_par * ux
+    qz = cn - c_par * uz
+    q2 = qx * qx + qz * qz
+    if q2 >= u * u:
+        return -1.0
+    return c_par + math.sqrt(u * u - q2)
+
+
+@njit(cache=True)
+def _piece(ce, cn, ux, uz, L, speeds, ph, pk, hold):
+    """The best speed over a piece of length ``L`` along (ux, uz) in the current (ce, cn):
+    (time s, cost, speed index); cost = time when ``ph == pk == 0``, else the energy
+    ``(ph + pk u^3) * time`` J; the fastest (time) or most frugal (energy) speed whose cross
+    current leaves ``hold`` m/s to spare and whose ground speed exceeds G_MIN; (inf, inf, -1)
+    when there is none. Ties go to the earlier speed."""
+    c_par = ce * ux + cn * uz
+    qx = ce - c_par * ux
+    qz = cn - c_par * uz
+    q2 = qx * qx + qz * qz
+    q = math.sqrt(q2)
+    energy = ph > 0.0 or pk > 0.0
+    best_c = math.inf
+    best_t = math.inf
+    best_i = -1
+    for s in range(speeds.shape[0]):
+        u = speeds[s]
+        if u - q < hold or q2 >= u * u:
+            continue
+        g = c_par + math.sqrt(u * u - q2)
+        if not g > G_MIN:
+            continue
+        dt = L / g
+        c = (ph + pk * u * u * u) * dt if energy else dt
+        if c < best_c:
+            best_c = c
+            best_t = dt
+            best_i = s
+    return best_t, best_c, best_i
+
+
+@njit(cache=True)
+def _n_pieces(L, step):
+    n = int(math.ceil(L / step))
+    return 1 if n < 1 else n
+
+
+@njit(cache=True)
+def _segment(cur, times, free, x0, z0, h, ax, az, bx, bz, speeds, ph, pk, hold, t, step,
+             check_start, out_speed):
+    """Arrival time and cost of the straight segment a -> b leaving at time t (inf, inf when
+    impassable), integrated in ``_n_pieces(L, step)`` equal pieces, each flown at its own best
+    speed (:func:`_piece`) with the current at the piece's middle at the time the vehicle
+    starts it; each piece's speed index into ``out_speed[:n]`` when it is long enough."""
+    dx = bx - ax
+    dz = bz - az
+    L = math.sqrt(dx * dx + dz * dz)
+    if L <= 0.0:
+        return t, 0.0
+    ux = dx / L
+    uz = dz / L
+    n = _n_pieces(L, step)
+    if check_start and not _free(free, x0, z0, h, ax, az) > 0.0:
+        return math.inf, math.inf
+    cost = 0.0
+    for p in range(n):
+        s0 = L * p / n
+        s1 = L * (p + 1) / n
+        sm = 0.5 * (s0 + s1)
+        mx = ax + sm * ux
+        mz = az + sm * uz
+        if not (_free(free, x0, z0, h, mx, mz) > 0.0
+                and _free(free, x0, z0, h, ax + s1 * ux, az + s1 * uz) > 0.0):
+            return math.inf, math.inf
+        ce, cn = _current(cur, times, x0, z0, h, mx, mz, t)
+        dt, c, si = _piece(ce, cn, ux, uz, s1 - s0, speeds, ph, pk, hold)
+        if si < 0:
+            return math.inf, math.inf
+        if out_speed.shape[0] >= n:
+            out_speed[p] = si
+        t += dt
+        cost += c
+    return t, cost
+
+
+@njit(cache=True)
+def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0, step,
+              edges):
+    """Time-dependent Dijkstra (cost: time or energy, time carried along) from the point s to
+    the point g over the node lattice.
+
+    Returns (cost (ny*nx,), arrival time (ny*nx,), parent (ny*nx,) node or -1 (= from s),
+    goal_parent node (-1: s itself, -2: unreachable), goal cost, goal time)."""
+    ny, nx = free.shape
+    nn = ny * nx
+    cost = np.full(nn, np.inf)
+    tarr = np.full(nn, np.inf)
+    parent = np.full(nn, -3, np.int64)
+    done = np.zeros(nn, np.uint8)
+    nos = np.empty(0, np.int64)
+    r_att = 2.3 * h
+    bt, bc = _segment(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0,
+                      step, True, nos)
+    goal_parent = -1 if math.isfinite(bc) else -2
+    heap = [(0.0, np.int64(0))]
+    heap.pop()
+    # the start attaches to the nodes around it
+    i_lo = max(int(math.floor((sx - x0) / h - 2.3)), 0)
+    i_hi = min(int(math.ceil((sx - x0) / h + 2.3)), nx - 1)
+    j_lo = max(int(math.floor((sz - z0) / h - 2.3)), 0)
+    j_hi = min(int(math.ceil((sz - z0) / h + 2.3)), ny - 1)
+    for j in range(j_lo, j_hi + 1):
+        for i in range(i_lo, i_hi + 1):
+            px = x0 + i * h
+            pz = z0 + j * h
+            if (px - sx) ** 2 + (pz - sz) ** 2 > r_att * r_att or not free[j, i] > 0.0:
+                continue
+            ta, ca = _segment(cur, times, free, x0, z0, h, sx, sz, px, pz, speeds, ph, pk,
+                              hold, t0, step, True, nos)
+            n = j * nx + i
+            if ca < cost[n]:
+                cost[n] = ca
+                tarr[n] = ta
+                parent[n] = -1
+                heapq.heappush(heap, (ca, n))
+    while len(heap) > 0:
+        c, n = heapq.heappop(heap)
+        if done[n] == 1 or c > cost[n]:
+            continue
+        if c >= bc:
+            break
+        done[n] = 1
+        i = n % nx
+        j = n // nx
+        px = x0 + i * h
+        pz = z0 + j * h
+        t = tarr[n]
+        if (px - gx) ** 2 + (pz - gz) ** 2 <= r_att * r_att:
+            tg, cg = _segment(cur, times, free, x0, z0, h, px, pz, gx, gz, speeds, ph, pk,
+                              hold, t, step, False, nos)
+            if c + cg < bc:
+                bc = c + cg
+                bt = tg
+                goal_parent = n
+        for k in range(edges.shape[0]):
+            ii = i + edges[k, 0]
+            jj = j + edges[k, 1]
+            if ii < 0 or jj < 0 or ii >= nx or jj >= ny:
+                continue
+            m = jj * nx + ii
+            if done[m] == 1 or not free[jj, ii] > 0.0:
+                continue
+            tm, cm = _segment(cur, times, free, x0, z0, h, px, pz, x0 + ii * h, z0 + jj * h,
+                              speeds, ph, pk, hold, t, step, False, nos)
+            if c + cm < cost[m]:
+                cost[m] = c + cm
+                tarr[m] = tm
+                parent[m] = n
+                heapq.heappush(heap, (c + cm, m))
+    return cost, tarr, parent, goal_parent, bc, bt
+
+
+@njit(cache=True)
+def _pull(cur, times, free, x0, z0, h, path, cum, tarr, speeds, ph, pk, hold, step):
+    """String pulling: from each kept vertex jump to the farthest later vertex whose direct
+    segment is passable and costs no more than the path between them (``cum``: the path's
+    cumulative cost, ``tarr`` its times). Returns the kept vertex indices."""
+    n = path.shape[0]
+    keep = np.empty(n, np.int64)
+    nos = np.empty(0, np.int64)
+    keep[0] = 0
+    m = 1
+    a = 0
+    ta = tarr[0]
+    ca = cum[0]
+    while a < n - 1:
+        nxt = a + 1
+        tn, cn_ = _segment(cur, times, free, x0, z0, h, path[a, 0], path[a, 1],
+                           path[a + 1, 0], path[a + 1, 1], speeds, ph, pk, hold, ta, step,
+                           False, nos)
+        cn_ = ca + cn_
+        for b in range(n - 1, a + 1, -1):
+            tb, cb = _segment(cur, times, free, x0, z0, h, path[a, 0], path[a, 1], path[b, 0],
+                              path[b, 1], speeds, ph, pk, hold, ta, step, False, nos)
+            if ca + cb <= cum[b]:
+                nxt = b
+                tn = tb
+                cn_ = ca + cb
+                break
+        keep[m] = nxt
+        m += 1
+        a = nxt
+        ta = tn
+        ca = cn_
+    return keep[:m]
+
+
+@njit(cache=True)
+def _schedule(cur, times, free, x0, z0, h, path, speeds, ph, pk, hold, t0, step, out_xy,
+              out_s, out_t):
+    """Fly the polyline ``path``: every segment split into ``_n_pieces(L, step)`` pieces,
+    each at its best speed. Writes the pieces' end points (out_xy[1:]), speed indices
+    (out_s) and arrival times (out_t); returns (number of vertices, cost) (cost inf from the
+    first impassable piece on)."""
+    out_xy[0, 0] = path[0, 0]
+    out_xy[0, 1] = path[0, 1]
+    out_t[0] = t0
+    t = t0
+    cost = 0.0
+    m = 1
+    idx = np.empty(out_s.shape[0], np.int64)
+    for k in range(1, path.shape[0]):
+        ax = path[k - 1, 0]
+        az = path[k - 1, 1]
+        bx = path[k, 0]
+        bz = path[k, 1]
+        L = math.sqrt((bx - ax) ** 2 + (bz - az) ** 2)
+        if L <= 0.0:
+            continue
+        n = _n_pieces(L, step)
+        t1, c = _segment(cur, times, free, x0, z0, h, ax, az, bx, bz, speeds, ph, pk, hold,
+                         t, step, k == 1, idx)
+        if not math.isfinite(c):
+            cost = math.inf
+        for p in range(n):
+            out_xy[m, 0] = ax + (bx - ax) * (p + 1) / n
+            out_xy[m, 1] = az + (bz - az) * (p + 1) / n
+            out_s[m - 1] = idx[p] if math.isfinite(c) else -1
+            m += 1
+        # times of the pieces: re-integrate (the segment only returns its end)
+        if math.isfinite(c):
+            tt = t
+            ux = (bx - ax) / L
+            uz = (bz - az) / L
+            for p in range(n):
+                s0 = L * p / n
+                s1 = L * (p + 1) / n
+                sm = 0.5 * (s0 + s1)
+                ce, cn = _current(cur, times, x0, z0, h, ax + sm * ux, az + sm * uz, tt)
+                g = ground_speed(ce, cn, ux, uz, speeds[idx[p]])
+                tt += (s1 - s0) / g
+                out_t[m - n + p] = tt
+            t = t1
+            cost += c
+        else:
+            for p in range(n):
+                out_t[m - n + p] = math.inf
+            t = math.inf
+    return m, cost
+
+
+@njit(cache=True)
+def _map_forecast(cur, fc, e, out):
+    for t in range(cur.shape[0]):
+        for j in range(cur.shape[1]):
+            for i in range(cur.shape[2]):
+                fe, fn = forecast(fc, e, cur[t, j, i, 0], cur[t, j, i, 1])
+                out[t, j, i, 0] = fe
+                out[t, j, i, 1] = fn
+    return out
+
+
+# ------------------------------------------------------------------------------ planning
+
+class Route(NamedTuple):
+    """A planned route: ``path`` (n, 2) vertices (x east, z north) m from start to goal,
+    ``speed`` (n - 1,) the through-water speed of every segment m/s, ``t`` (n,) planned
+    arrival times s, ``cost`` the planned time (s) or energy (J) from start to goal, ``ok``
+    False when no passable route was found (then the straight line, ``speed`` the slowest
+    speed, ``t[1:]`` and ``cost`` inf)."""
+    path: np.ndarray
+    speed: np.ndarray
+    t: np.ndarray
+    cost: float
+    ok: bool
+
+
+def _arrays(cur, times, free):
+    cur = np.ascontiguousarray(cur, dtype=np.float64)
+    times = np.ascontiguousarray(times, dtype=np.float64).reshape(-1)
+    free = np.ascontiguousarray(free, dtype=np.float64)
+    if cur.ndim != 4 or cur.shape[3] != 2 or cur.shape[1:3] != free.shape \
+            or cur.shape[0] != times.shape[0]:
+        raise ValueError(f"routing: cur {cur.shape} must be (nt, ny, nx, 2) with free "
+                         f"{free.shape} (ny, nx) and times {times.shape} (nt,)")
+    return cur, times, free
+
+
+def _speeds_power(speeds, power):
+    sp = np.ascontiguousarray(np.atleast_1d(np.asarray(speeds, dtype=np.float64)))
+    if sp.size == 0 or not np.all(sp > 0):
+        raise ValueError(f"routing: speeds must be > 0, got {speeds!r}")
+    if power is None:
+        return sp, 0.0, 0.0
+    ph, pk = (float(v) for v in power)
+    if not (ph >= 0 and pk >= 0 and ph + pk > 0):
+        raise ValueError(f"routing: power (hotel_w, k) must be >= 0, got {power!r}")
+    return sp, ph, pk
+
+
+def schedule(cur, times, free, x0: float, z0: float, h: float, path, speeds, t0: float, *,
+             power=None, hold: float = 0.0, piece: float | None = None) -> Route:
+    """Fly the fixed polyline ``path`` (n, 2): every segment split into equal pieces of at
+    most ``piece`` m (default ``PIECE * h``), each piece at its best speed of ``speeds``
+    (the fastest when ``power`` is None: cost = time; else the least energy, ``power`` =
+    ``(hotel_w, k)``: ``P(u) = hotel_w + k u^3``), with the current where and when the
+    vehicle gets there. The route returned has one vertex per piece end."""
+    cur, times, free = _arrays(cur, times, free)
+    sp, ph, pk = _speeds_power(speeds, power)
+    p = np.ascontiguousarray(np.asarray(path, dtype=np.float64).reshape(-1, 2))
+    step = float(piece) if piece is not None else PIECE * float(h)
+    L = np.hypot(*np.diff(p, axis=0).T)
+    n_max = 1 + int(sum(math.ceil(x / step) + 1 for x in L))   # an upper bound
+    xy = np.empty((n_max, 2))
+    si = np.empty(max(n_max - 1, 1), np.int64)
+    tt = np.empty(n_max)
+    m, cost = _schedule(cur, times, free, float(x0), float(z0), float(h), p, sp, ph, pk,
+                        float(hold), float(t0), step, xy, si, tt)
+    ok = bool(math.isfinite(cost))
+    spd = np.where(si[:m - 1] >= 0, sp[np.maximum(si[:m - 1], 0)], sp.min())
+    return _merge(Route(xy[:m].copy(), spd, tt[:m].copy(), float(cost), ok))
+
+
+def _merge(r: Route) -> Route:
+    """Drop the interior vertices between collinear pieces flown at the same speed."""
+    n = r.path.shape[0]
+    if n <= 2:
+        return r
+    keep = [0]
+    for k in range(1, n - 1):
+        a, b, c = r.path[keep[-1]], r.path[k], r.path[k + 1]
+        d1, d2 = b - a, c - b
+        cross = d1[0] * d2[1] - d1[1] * d2[0]
+        same_dir = abs(cross) <= 1e-9 * (np.hypot(*d1) * np.hypot(*d2) + 1e-300) \
+            and d1 @ d2 > 0
+        if not (same_dir and r.speed[k - 1] == r.speed[k]):
+            keep.append(k)
+    keep.append(n - 1)
+    keep = np.array(keep)
+    return Route(r.path[keep], r.speed[keep[:-1]], r.t[keep], r.cost, r.ok)
+
+
+def plan_route(cur, times, free, x0: float, z0: float, h: float, start, goal, speeds,
+               t0: float, *, power=None, hold: float = 0.0, piece: float | None = None
+               ) -> Route:
+    """The best route from ``start`` to ``goal`` (x, z) m leaving at ``t0`` s.
+
+    Parameters
+    ----------
+    cur : (nt, ny, nx, 2) float64
+        The current (east, north) m/s the planner knows at node ``(j, i)``, world
+        ``(x0 + i h, z0 + j h)``, at ``times`` (nt,) s ascending.
+    free : (ny, nx) float64
+        Passability margin: the vehicle may be where its bilinear interpolation is > 0
+        (land, too shallow water and anything else forbidden <= 0). Outside the lattice is
+        impassable.
+    speeds : float or array
+        Through-water speeds the vehicle may fly, m/s (one: the fixed-speed problem).
+    power : (hotel_w, k), optional
+        None: the time-optimal route (each piece at the fastest feasible speed). Given: the
+        least-energy route and speed schedule, ``P(u) = hotel_w + k u^3`` W.
+    hold : float
+        Cross-current headroom a track needs: a speed ``u`` is feasible on a piece only if
+        ``u - |c_perp| >= hold`` m/s (and the ground speed exceeds ``G_MIN``).
+    piece : float
+        Longest piece flown at one speed and integrated with one current sample, m
+        (default ``PIECE * h``).
+
+    Returns
+    -------
+    Route
+        Its ``path`` is the string-pulled lattice path re-scheduled piece by piece
+        (:func:`schedule`); deterministic (bit for bit) on every CPU.
+    """
+    cur, times, free = _arrays(cur, times, free)
+    sp, ph, pk = _speeds_power(speeds, power)
+    if not h > 0:
+        raise ValueError("plan_route: h must be > 0")
+    step = float(piece) if piece is not None else PIECE * float(h)
+    sx, sz = (float(v) for v in start)
+    gx, gz = (float(v) for v in goal)
+    cost, tarr, parent, gp, bc, bt = _dijkstra(cur, times, free, float(x0), float(z0),
+                                               float(h), sx, sz, gx, gz, sp, ph, pk,
+                                               float(hold), float(t0), step, EDGES)
+    if gp == -2:
+        return Route(np.array([[sx, sz], [gx, gz]]), sp.min(keepdims=True),
+                     np.array([float(t0), math.inf]), math.inf, False)
+    nodes = []
+    n = gp
+    while n >= 0:
+        nodes.append(n)
+        n = parent[n]
+    nodes.reverse()
+    nx = free.shape[1]
+    pts = [(sx, sz)] + [(x0 + (m % nx) * h, z0 + (m // nx) * h) for m in nodes] + [(gx, gz)]
+    path = np.array(pts, dtype=np.float64)
+    idx = np.array(nodes, dtype=np.int64)
+    cum = np.concatenate([[0.0], cost[idx], [bc]])
+    tt = np.concatenate([[float(t0)], tarr[idx], [bt]])
+    keep = _pull(cur, times, free, float(x0), float(z0), float(h), path, cum, tt, sp, ph, pk,
+                 float(hold), step)
+    return schedule(cur, times, free, x0, z0, h, path[keep], sp, t0, power=power, hold=hold,
+                    piece=step)
+
+
+def route_cost(cur, times, free, x0: float, z0: float, h: float, path, speeds, t0: float, *,
+               power=None, hold: float = 0.0, piece: float | None = None) -> float:
+    """The planned cost (time s or energy J, inf: impassable) of flying the polyline
+    ``path`` (:func:`schedule`), e.g. the straight line."""
+    return schedule(cur, times, free, x0, z0, h, path, speeds, t0, power=power, hold=hold,
+                    piece=piece).cost
+
+
+# ------------------------------------------------------------------------------ the field
+
+class Lattice(NamedTuple):
+    """A planning lattice over a window of the grid: node ``(j, i)`` is world
+    ``(x0 + i h, z0 + j h)``."""
+    x0: float
+    z0: float
+    h: float
+    nx: int
+    ny: int
+
+
+def lattice(grid, points, pad: float, h: float) -> Lattice:
+    """The lattice of spacing ``h`` m covering the bounding box of ``points`` (n, 2) (x, z)
+    plus ``pad`` m, clipped to the grid's extent."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    xl = max(float(p[:, 0].min()) - pad, grid.x0)
+    xh = min(float(p[:, 0].max()) + pad, grid.x_max)
+    zl = max(float(p[:, 1].min()) - pad, grid.z0)
+    zh = min(float(p[:, 1].max()) + pad, grid.z_max)
+    nx = max(2, int(math.floor((xh - xl) / h)) + 1)
+    ny = max(2, int(math.floor((zh - zl) / h)) + 1)
+    return Lattice(xl, zl, float(h), nx, ny)
+
+
+def field_times(grid, t0: float, duration: float) -> np.ndarray:
+    """The grid's own time axis over ``[t0, t0 + duration]`` (plus the bracketing times), on
+    which the product's currents are linear in time: the planner's ``times``."""
+    ts = np.asarray(grid.time_s, dtype=np.float64)
+    if ts.size == 1:
+        return ts.copy()
+    lo = max(int(np.searchsorted(ts, t0, side="right")) - 1, 0)
+    hi = min(int(np.searchsorted(ts, t0 + duration, side="left")), ts.size - 1)
+    return ts[lo:hi + 1].copy()
+
+
+def field_from_grid(grid, lat: Lattice, depth: float, times, clearance: float,
+                    land_threshold: float = 0.5, land_margin: float = 0.1):
+    """The true field on ``lat``: ``cur`` (nt, ny, nx, 2) (:func:`oneocean.engine.grid.
+    sample_currents` at every node at depth ``depth`` m and every time of ``times``) and
+    ``free`` (ny, nx): the smaller of the water depth below ``depth + clearance`` m and
+    ``(land_threshold - land_margin - land) * h`` (land and shallows <= 0)."""
+    from ..engine.grid import sample_currents, sample_elevation_points
+
+    times = np.asarray(times, dtype=np.float64).reshape(-1)
+    xs = lat.x0 + np.arange(lat.nx) * lat.h
+    zs = lat.z0 + np.arange(lat.ny) * lat.h
+    X, Z = np.meshgrid(xs, zs)
+    xz = np.ascontiguousarray(np.column_stack([X.ravel(), Z.ravel()]))
+    n = xz.shape[0]
+    xyz = np.column_stack([xz[:, 0], np.full(n, float(depth)), xz[:, 1]])
+    pts = np.tile(xyz, (times.size, 1))
+    c = sample_currents(grid, pts, np.repeat(times, n)).reshape(times.size, lat.ny, lat.nx, 2)
+    elev = sample_elevation_points(grid, xz, np.empty(n)).reshape(lat.ny, lat.nx)
+    land = _land_points(grid, xz, np.empty(n)).reshape(lat.ny, lat.nx)
+    free = np.minimum(-elev - (float(depth) + float(clearance)),
+                      (float(land_threshold) - float(land_margin) - land) * lat.h)
+    return np.ascontiguousarray(c), np.ascontiguousarray(free)
+
+
+@njit(cache=True)
+def _land_points(grid, xz, out):
+    for n in range(xz.shape[0]):
+        out[n] = sample_land(grid, xz[n, 0], xz[n, 1])
+    return out
+
+
+def forecast_field(cur, fc, e: int) -> np.ndarray:
+    """``cur`` mapped through episode ``e``'s forecast-error model (``LoopState.fc``;
+    :func:`oneocean.sensing.kernels.forecast` at every node and time): what a vehicle
+    carrying the forecast plans on."""
+    cur = np.ascontiguousarray(cur, dtype=np.float64)
+    return _map_forecast(cur, np.ascontiguousarray(fc, dtype=np.float64), int(e),
+                         np.empty_like(cur))
+
+
+# ------------------------------------------------------------------------------ missions
+
+#: Slowest through-water speed a transit mission programs, m/s (fins keep authority above
+#: it), and the step of the programmed speeds up to the vehicle's speed limit.
+SPEED_MIN = 0.75
+SPEED_STEP = 0.25
+#: Cross-current headroom a track keeps, m/s: a leg is flown at least this much faster than
+#: the current across it (the plan's constraint and the steering's rule alike).
+HOLD_MS = 0.1
+#: Slowest ground speed a vehicle accepts along its track, m/s (the steering speeds up to
+#: keep it: it is never swept backwards while it has speed in hand); the plans' G_MIN.
+G_MIN_MS = G_MIN
+#: Longest stretch flown at one programmed speed, m.
+PIECE_M = 100.0
+
+
+def mission_speeds(v_max: float) -> np.ndarray:
+    """The speeds a mission may program: SPEED_MIN .. v_max in SPEED_STEP steps (and v_max)."""
+    v = float(v_max)
+    if v <= SPEED_MIN:
+        return np.array([v])
+    s = np.arange(SPEED_MIN, v + 1e-9, SPEED_STEP)
+    return s if abs(s[-1] - v) <= 1e-9 else np.append(s, v)
+
+
+def cruise_speed(v_max: float, power: PowerModel | None) -> float:
+    """The programmed speed of a vehicle flying one speed: the mission speed nearest its
+    maximum-range speed (:attr:`PowerModel.range_speed`), else ``v_max``."""
+    s = mission_speeds(v_max)
+    if power is None:
+        return float(s[-1])
+    return float(s[int(np.argmin(np.abs(s - power.range_speed)))])
+
+
+def lattice_spacing(length: float) -> float:
+    """Node spacing of the planning lattice for a route of ``length`` m: length / 40,
+    clipped to 50-200 m (the product's own spacing is 100-250 m)."""
+    return float(min(max(float(length) / 40.0, 50.0), 200.0))
+
+
+def plan_mission(grid, points, depth: float, t0: float, duration: float, v_max: float,
+                 power: PowerModel | None, *, fixed: bool = False, fc=None, e: int = 0,
+                 clearance: float = 5.0, land_threshold: float = 0.5) -> Route:
+    """A vehicle's plan through the field of ``grid`` at ``depth`` m leaving at ``t0`` s.
+
+    ``points`` (n, 2) (x, z) m: the start and the goal of a transit (``fixed=False``: the
+    least-energy route and speed schedule, or the fastest route at ``v_max`` without a
+    power model), or the route's vertices (``fixed=True``: the speed schedule along it).
+    The field is the truth sampled on a lattice around the points (:func:`field_from_grid`
+    over ``[t0, t0 + duration]``), or, given ``fc`` (a ``LoopState.fc`` array) the forecast
+    of episode ``e`` of it (:func:`forecast_field`): what a vehicle carrying that forecast
+    plans on.
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    length = float(np.hypot(*np.diff(pts, axis=0).T).sum())
+    h = lattice_spacing(length)
+    lat = lattice(grid, pts, (200.0 if fixed else 0.25 * length + 300.0), h)
+    times = field_times(grid, t0, duration)
+    cur, free = field_from_grid(grid, lat, depth, times, clearance, land_threshold)
+    if fc is not None:
+        cur = forecast_field(cur, fc, e)
+    speeds = mission_speeds(v_max)
+    pw = None if power is None else (power.hotel_w, power.k)
+    piece = PIECE_M
+    args = (cur, times, free, lat.x0, lat.z0, lat.h)
+    if fixed:
+        return schedule(*args, pts, speeds, t0, power=pw, hold=HOLD_MS, piece=piece)
+    return plan_route(*args, pts[0], pts[-1], speeds, t0, power=pw, hold=HOLD_MS,
+                      piece=piece)
+
+
+def within_grid(grid, points) -> bool:
+    """True if every point (n, 2) (x, z) lies inside the grid's horizontal extent."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    return bool(np.all((p[:, 0] >= grid.x0) & (p[:, 0] <= grid.x_max)
+                       & (p[:, 1] >= grid.z0) & (p[:, 1] <= grid.z_max)))
+
+
+# ------------------------------------------------------------------------------ following
+
+@hot_kernel(inline="always")
+def follow_path(wps, wspd, wcount, widx, e, px, pz, look, capture, commit):
+    """Line-of-sight following of episode ``e``'s planned polyline ``wps[e, :wcount[e]]``
+    (x, z) m from the vehicle at (px, pz).
+
+    The active segment ``widx[e]`` advances when the vehicle is within ``capture`` m of its
+    end, or its along-track position is (stored when ``commit``). The carrot is ``look`` m
+    beyond the vehicle's projection on the active segment, along the polyline across
+    straight vertices (where only the programmed speed changes) but never past a corner: a
+    corner vertex (a waypoint, a turn of the route) is steered at until it is captured, so
+    the vehicle visits it, and the carrot cannot pull it to a point whose projection never
+    reaches the segment's end. Returns (carrot x, carrot z, the active segment's speed)."""
+    n = wcount[e]
+    w = widx[e]
+    while w < n - 2:
+        ax_ = wps[e, w, 0]
+        az_ = wps[e, w, 1]
+        bx_ = wps[e, w + 1, 0]
+        bz_ = wps[e, w + 1, 1]
+        dx = bx_ - ax_
+        dz = bz_ - az_
+        L = math.sqrt(dx * dx + dz * dz)
+        if (L > 1e-9 and ((px - ax_) * dx + (pz - az_) * dz) / L < L - capture
+                and (px - bx_) ** 2 + (pz - bz_) ** 2 > capture * capture):
+            break
+        w += 1
+    if commit != 0:
+        widx[e] = w
+    ax_ = wps[e, w, 0]
+    az_ = wps[e, w, 1]
+    dx = wps[e, w + 1, 0] - ax_
+    dz = wps[e, w + 1, 1] - az_
+    L = math.sqrt(dx * dx + dz * dz)
+    along = 0.0
+    if L > 1e-9:
+        along = ((px - ax_) * dx + (pz - az_) * dz) / L
+        if along < 0.0:
+            along = 0.0
+    rem = along + look
+    k = w
+    cx = wps[e, n - 1, 0]
+    cz = wps[e, n - 1, 1]
+    while k < n - 1:
+        ax_ = wps[e, k, 0]
+        az_ = wps[e, k, 1]
+        dx = wps[e, k + 1, 0] - ax_
+        dz = wps[e, k + 1, 1] - az_
+        L = math.sqrt(dx * dx + dz * dz)
+        if rem <= L:
+            f = rem / L
+            cx = ax_ + f * dx
+            cz = az_ + f * dz
+            break
+        cx = wps[e, k + 1, 0]
+        cz = wps[e, k + 1, 1]
+        if k + 2 <= n - 1:   # spill over the vertex only where the polyline runs straight on
+            ex = wps[e, k + 2, 0] - cx
+            ez = wps[e, k + 2, 1] - cz
+            M = math.sqrt(ex * ex + ez * ez)
+            if abs(dx * ez - dz * ex) > 1e-6 * L * M or dx * ex + dz * ez <= 0.0:
+                break
+        rem -= L
+        k += 1
+    return cx, cz, wspd[e, w]
+
+
+@hot_kernel(inline="always")
+def hold_speed(u, dx, dz, ce, cn, v_max):
+    """The through-water speed to fly toward (dx, dz) in the current (ce, cn): the programmed
+    ``u``, raised (up to ``v_max``) so the cross current leaves HOLD_MS to spare and the
+    ground speed along the track stays >= G_MIN_MS."""
+    d = math.sqrt(dx * dx + dz * dz)
+    if d <= 1e-9:
+        return u
+    ux = dx / d
+    uz = dz / d
+    c_par = ce * ux + cn * uz
+    qx = ce - c_par * ux
+    qz = cn - c_par * uz
+    q2 = qx * qx + qz * qz
+    need = math.sqrt(q2) + HOLD_MS
+    if c_par < G_MIN_MS:
+        n2 = math.sqrt(q2 + (G_MIN_MS - c_par) * (G_MIN_MS - c_par))
+        if n2 > need:
+            need = n2
+    if need > u:
+        u = need if need < v_max else v_max
+    return u
+
+
+def write_plan(route: Route, wps, wspd, wcount, widx, e: int) -> None:
+    """Store ``route`` as episode ``e``'s plan tokens (:func:`follow_path`)."""
+    n = route.path.shape[0]
+    if n > wps.shape[1]:
+        raise RuntimeError(f"plan of episode {e}: {n} vertices, the plan-token array holds "
+                           f"{wps.shape[1]}")
+    wps[e] = 0.0
+    wps[e, :n] = route.path
+    wspd[e] = 0.0
+    wspd[e, :n - 1] = route.speed
+    wcount[e] = n
+    widx[e] = 0
