@@ -39,8 +39,12 @@ def time_rollouts() -> None:
     _snakemake("exports")
     _snakemake("rollouts")  # warm numba's cache (compiles only if the code changed)
     wall = _snakemake("rollouts", "--forcerun", "rollout_task", "rollout_task_bc", "rollout_team")
-    files = sorted((REPO / "results" / "rollouts" / cfg["region"]["name"]
-                    / cfg["rollouts"]["variant"]).rglob("*.parquet"))
+    from oneocean.ladder import read_cell
+
+    # the cells the forced rules rewrote (not the ablation cells of rollout_ablation_<task>)
+    files = sorted(f for f in (REPO / "results" / "rollouts" / cfg["region"]["name"]
+                               / cfg["rollouts"]["variant"]).rglob("*.parquet")
+                   if not read_cell(f)[1]["ablation"])
     cells = pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
     dt = 1.0
     agent_steps = float((np.ceil(cells["T_s"] / dt) * cells["n_agents"]).sum())

@@ -183,7 +183,7 @@ def test_readme_ladder_blocks_are_the_workflows_output(tmp_path):
 
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
     names = [c.name for c in run_checks(_cells({("G2G", "heuristic", 2): 30}))]
-    for region in ("synthetic_coast", "dover_strait_files"):
+    for region in ("synthetic_coast", "southern_north_sea_files"):
         begin, end = readme_markers(region)
         block = readme.split(begin)[1].split(end)[0].strip()
         assert block.startswith(f"Region `{region}`, evaluation seed {EVALUATION_SEED}"), region

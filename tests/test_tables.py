@@ -405,12 +405,11 @@ def test_ladder_spec_table(tmp_path):
         assert (r.loc[t, "agents_lo"], r.loc[t, "agents_hi"]) == s.agents_range
         for k, p in tb["tiers"].items():
             assert r.loc[t, f"T{k}_time_limit_s"] == p["time_limit_s"]
-            assert r.loc[t, f"T{k}_probe_noise_ms"] == p["probe_noise_ms"]
             assert [r.loc[t, f"T{k}_band_lo"], r.loc[t, f"T{k}_band_hi"]] == p["current_band"]
             assert json.loads(r.loc[t, f"T{k}_params"]) == p
     tex = (tmp_path / "ladder.tex").read_text()
     assert "FT & Formation transit & 10 (2--10) & REMUS 100" in tex
-    assert "940; 0.30; 67--100" in tex
+    assert "940; 67--100" in tex
     assert "\\emph{Coordination / Pollution}" in tex
     pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "ladder.parquet"), df,
                                   check_dtype=False)

@@ -6,6 +6,7 @@ import shutil
 import pandas as pd
 import pytest
 
+from oneocean.ablations import stressor_keys
 from oneocean.cli import main as cli
 from oneocean.engine.recording import read_metrics_meta
 from oneocean.tasks.common import load_task_table
@@ -39,7 +40,8 @@ def test_paper_tables_produces_every_artifact(two_runs):
         assert v in tex
     # every paper table (LaTeX + its numbers) and figure (PNG + PDF) of the region
     for name in ("task_ladder", "headline", "task_success_by_tier", "difficulty_heuristic",
-                 "currents_ablation", "planning_performance", "planning_cost"):
+                 "currents_ablation", "information_ablation", "tier_stressors",
+                 "planning_performance", "planning_cost"):
         assert "\\toprule" in (a / f"results/tables/{REGION}/{name}.tex").read_text(), name
         assert len(pd.read_parquet(a / f"results/tables/{REGION}/{name}.parquet")), name
     for name in ("pollution_species", "snapshots", "ladder", "team_sweep",
@@ -77,8 +79,12 @@ def test_rollout_cells_currents_off_and_the_ladder(two_runs):
     off = {f"{t}/tier3/heuristic_currents-off.parquet" for t in r["tasks"]}
     forced = {f"{t}/tier3/heuristic_{f}.parquet" for t in r["tasks"] for f in ("gain", "tide")}
     team = {f"SPC/tier1/heuristic_n{n}.parquet" for n in (2, 3)}
+    info = {f"{t}/tier3/heuristic_info-{lvl}.parquet" for t in r["tasks"]
+            for lvl in ("true_current", "true_position")}
+    stress = {f"{t}/tier{k}/heuristic_set-{key}-T{4 - k}.parquet" for t in r["tasks"]
+              for key in stressor_keys(t) for k in (1, 3)}
     got = {p.relative_to(root).as_posix() for p in root.rglob("*.parquet")}
-    assert got == cells | off | forced | team
+    assert got == cells | off | forced | team | info | stress
     for rel in sorted(got):
         meta = read_metrics_meta(root / rel)
         df = pd.read_parquet(root / rel)
@@ -93,14 +99,17 @@ def test_rollout_cells_currents_off_and_the_ladder(two_runs):
         assert (df["seed"] == 1000).all()
         cols = list(df.columns)
         assert cols[cols.index("seed") + 1] == "candidate"
+        episodes = (SMALL_CONFIG["ablations"]["stressors"]["episodes"] if "_set-" in rel
+                    else r["episodes"])
         if meta["applicable"]:
-            assert len(df) == r["episodes"] and meta["reason"] == ""
+            assert len(df) == episodes and meta["reason"] == ""
         else:
             assert len(df) == 0 and meta["reason"]
         # one provenance record per cell, although one job ran all the task's cells
         prov = json.loads((a / "results/provenance/rollouts" / REGION / r["variant"] / rel)
                           .with_suffix(".json").read_text())
-        assert prov["rule"] in {"rollout_task", "rollout_task_bc", "rollout_team"}, rel
+        assert prov["rule"] in {"rollout_task", "rollout_task_bc", "rollout_team",
+                                f"rollout_ablation_{task}"}, rel
         assert [o["path"] for o in prov["outputs"]] == [
             f"results/rollouts/{REGION}/{r['variant']}/{rel}"]
         assert prov["wildcards"]["task"] == task and prov["params"]["run"]["seed"] == 1000
@@ -123,6 +132,75 @@ def test_rollout_cells_currents_off_and_the_ladder(two_runs):
         assert f"| {t} | {load_task_table(t)['vehicle']} |" in md, t
     assert "| Check | Measured | Target | Verdict |" in md
     assert (a / f"results/provenance/tables/{REGION}/ladder.json").is_file()
+
+
+def test_ablation_tables_from_their_cells_and_in_the_manifest(two_runs):
+    """The information-ablation and stressor tables: their numbers are their cells' (the
+    'true position' SR is its cell file's success mean), each stressor cell changes exactly
+    its one tier key, the ablation cells are not the ladder's, and both tables are
+    hash-tracked in the manifest with their provenance."""
+    a, _ = two_runs
+    r = SMALL_CONFIG["rollouts"]
+    root = a / "results/rollouts" / REGION / r["variant"]
+    tabs = a / f"results/tables/{REGION}"
+    info = pd.read_parquet(tabs / "information_ablation.parquet").set_index("task")
+    assert list(info.index) == r["tasks"]
+    for t in r["tasks"]:
+        for col, name in (("sensors", "heuristic"),
+                          ("true_position", "heuristic_info-true_position"),
+                          ("true_current", "heuristic_info-true_current"),
+                          ("currents_off", "heuristic_currents-off")):
+            df = pd.read_parquet(root / f"{t}/tier3/{name}.parquet")
+            assert info.loc[t, f"{col}_n"] == len(df) in (0, r["episodes"])
+            assert info.loc[t, f"{col}_state"] == ("ok" if len(df) else "n/a")
+            assert info.loc[t, f"{col}_sr"] == pytest.approx(100 * df["success"].mean(),
+                                                             nan_ok=True)
+        assert info.loc[t, "oracle_state"] == "missing"        # the config runs no oracle
+        same = info.loc[t, "same_episodes"]
+        assert same is pd.NA or bool(same)              # NA: the heuristic's cell is n/a
+        meta = read_metrics_meta(root / f"{t}/tier3/heuristic_info-true_current.parquet")
+        assert meta["info"] == "true_current" and "tier_overrides" not in meta
+    st = pd.read_parquet(tabs / "tier_stressors.parquet")
+    assert list(dict.fromkeys(st["task"])) == r["tasks"]
+    for t in r["tasks"]:
+        table = load_task_table(t)["tiers"]
+        rows = st[st["task"] == t].set_index("key")
+        assert list(rows.index) == stressor_keys(t)
+        t1 = pd.read_parquet(root / f"{t}/tier1/heuristic.parquet")
+        for key in rows.index:
+            for k, other in ((1, 3), (3, 1)):
+                f = root / f"{t}/tier{k}/heuristic_set-{key}-T{other}.parquet"
+                meta = read_metrics_meta(f)
+                assert meta["tier_overrides"] == {key: table[other][key]}
+                changed = {p for p in table[k] if meta["tier_params"][p] != table[k][p]}
+                assert changed == {key} and set(meta["tier_params"]) == set(table[k])
+            df = pd.read_parquet(root / f"{t}/tier1/heuristic_set-{key}-T3.parquet")
+            assert rows.loc[key, "T1_plus_key_sr"] == pytest.approx(
+                100 * df["success"].mean(), nan_ok=True)
+            assert rows.loc[key, "T1_sr"] == pytest.approx(100 * t1["success"].mean(),
+                                                           nan_ok=True)
+        assert rows["check"].nunique() == 1
+    assert st["over_three_quarters"].dtype == "boolean"
+    tex = (tabs / "tier_stressors.tex").read_text()
+    assert "Check per task: " + r["tasks"][0] in tex
+    manifest = json.loads((a / f"results/manifest/{REGION}.json").read_text())["artifacts"]
+    for name, rule in (("information_ablation", "table_information_ablation"),
+                       ("tier_stressors", "table_tier_stressors")):
+        for ext in ("tex", "parquet"):
+            rec = manifest[f"results/tables/{REGION}/{name}.{ext}"]
+            assert rec["rule"] == rule
+        assert (a / f"results/provenance/tables/{REGION}/{name}.json").is_file()
+    key = stressor_keys("G2G")[0]
+    cell = manifest[f"results/rollouts/{REGION}/{r['variant']}/G2G/tier1/"
+                    f"heuristic_set-{key}-T3.parquet"]
+    assert cell["rule"] == "rollout_ablation_G2G"
+    assert cell["wildcards"] == {"from_tier": "3", "method": "heuristic", "region": REGION,
+                                 "set": key, "task": "G2G", "tier": "1",
+                                 "variant": r["variant"]}
+    assert cell["params"]["run"]["episodes"] == SMALL_CONFIG["ablations"]["stressors"]["episodes"]
+    # the ladder is built from the normal cells only
+    ladder = json.loads((a / f"results/provenance/tables/{REGION}/ladder.json").read_text())
+    assert not [i for i in ladder["inputs"] if "_info-" in i["path"] or "_set-" in i["path"]]
 
 
 def test_bc_chain_dataset_weights_rollouts_and_planning_tables(two_runs):
@@ -164,7 +242,7 @@ def test_every_generated_table_compiles_standalone(two_runs, tmp_path):
 
     a, _ = two_runs
     tables = sorted((a / f"results/tables/{REGION}").glob("*.tex"))
-    assert len(tables) == 8
+    assert len(tables) == 10
     for table in tables:
         doc = tmp_path / f"{table.stem}_doc.tex"
         doc.write_text(latex.standalone_table(table))

@@ -34,6 +34,8 @@ SMALL_CONFIG = {
     "planning": {"tasks": ["SPC"], "tier": 1, "episodes": 3, "cost_episodes": 2,
                  "methods": ["heuristic", "bc"]},
     "snapshots": {"tasks": ["SPC", "FT"], "tier": 1},
+    # the stressor table's cells (2 per tier key) with few episodes each
+    "ablations": {"stressors": {"episodes": 2}},
 }
 
 

@@ -45,9 +45,13 @@ def read_cell(path) -> tuple[pd.DataFrame, dict]:
     run_gain`` (the run's gain g on the data currents, a tier's own gain divided out),
     ``tide`` (the synthetic tide term or None), ``forcing`` (``data``: the product's currents
     as they are, ``off``, ``gain``: another gain, ``tide``: a synthetic tide added),
-    ``applicable, reason, vehicle, n_agents, seed``. The identity comes from the file's own
-    record (a workflow cell), else from its columns (e.g. a user's ``oneocean evaluate``
-    file). The one reader of cell files (tables, figures and the ladder use it)."""
+    ``applicable, reason, vehicle, n_agents, seed``, and what an ablation cell changed:
+    ``info`` (the information level the method was given instead of its own sensing, e.g.
+    ``true_current``; ``""`` for its own), ``tier_overrides`` (the tier parameters it
+    replaced, ``{}`` for none) and ``ablation`` (either of the two: such a cell is never one
+    of the ladder's normal cells). The identity comes from the file's own record (a workflow
+    cell), else from its columns (e.g. a user's ``oneocean evaluate`` file). The one reader
+    of cell files (tables, figures and the ladder use it)."""
     from .engine.recording import read_metrics_meta
 
     df = pd.read_parquet(path)
@@ -64,24 +68,40 @@ def read_cell(path) -> tuple[pd.DataFrame, dict]:
     forcing = ("off" if not currents else "tide" if tide is not None
                else "gain" if abs(run_gain - 1.0) > 1e-12 else "data")
     seed = get("seed")
-    return df, {"task": get("task"), "tier": int(get("tier", -1)), "method": get("method"),
+    method = get("method")
+    info = meta.get("info") or ""
+    if info == own_info(method):
+        info = ""
+    overrides = dict(meta.get("tier_overrides") or {})
+    return df, {"task": get("task"), "tier": int(get("tier", -1)), "method": method,
                 "currents": currents, "run_gain": run_gain, "tide": tide, "forcing": forcing,
+                "info": info, "tier_overrides": overrides, "ablation": bool(info or overrides),
                 "applicable": bool(meta.get("applicable", True)),
                 "reason": meta.get("reason", ""), "vehicle": meta.get("vehicle", ""),
                 "n_agents": int(get("n_agents", 0)),
                 "seed": None if seed is None else int(seed), "meta": meta}
 
 
+def own_info(method) -> str:
+    """The information level ``method`` senses with by default (:data:`oneocean.sensing.
+    INFO_LEVELS`): ``truth`` for the oracle, ``sensors`` for every other method."""
+    from .methods.heuristic import SENSING
+
+    return SENSING.get(str(method), "sensors")
+
+
 def load_cells(files) -> pd.DataFrame:
-    """One row per cell file: ``task, tier, method, currents, forcing, applicable, reason,
-    vehicle, n_agents, n, k`` and the episodes' success vector (``success``, a numpy bool
-    array); :func:`read_cell` says what each is. The ladder and its macros use the ``data``
-    and ``off`` cells only."""
+    """One row per cell file: ``task, tier, method, currents, forcing, info, ablation,
+    applicable, reason, vehicle, n_agents, n, k`` and the episodes' success vector
+    (``success``, a numpy bool array); :func:`read_cell` says what each is. The ladder and its
+    macros use the ``data`` and ``off`` cells only, never an ablation cell (an information
+    level or tier override)."""
     rows = []
     for f in files:
         df, c = read_cell(f)
         rows.append({**{k: c[k] for k in ("task", "tier", "method", "currents", "forcing",
-                                          "applicable", "reason", "vehicle", "n_agents")},
+                                          "info", "ablation", "applicable", "reason",
+                                          "vehicle", "n_agents")},
                      "n": int(len(df)), "k": int(df["success"].sum()),
                      "success": df["success"].to_numpy(dtype=bool)})
     return pd.DataFrame(rows)
@@ -104,8 +124,12 @@ def cell_rate(k: int, n: int) -> Rate:
 
 def _data_and_off(cells: pd.DataFrame) -> pd.DataFrame:
     """The data-grounded and currents-off cells (all of them for a frame without
-    ``forcing``)."""
-    return cells[cells["forcing"].isin(("data", "off"))] if "forcing" in cells else cells
+    ``forcing``), never an ablation cell (information level or tier override)."""
+    if "forcing" in cells:
+        cells = cells[cells["forcing"].isin(("data", "off"))]
+    if "ablation" in cells:
+        cells = cells[~cells["ablation"].astype(bool)]
+    return cells
 
 
 def ladder_frame(cells: pd.DataFrame) -> pd.DataFrame:

@@ -161,6 +161,29 @@ def _condition(currents: bool, gain: float, tide: str | None) -> tuple[str, str,
     return "+".join(parts), " ".join(label), (0, int(tide is not None), float(gain), tide or "")
 
 
+#: Labels of the information levels an ablation cell gives a method instead of its sensors.
+INFO_LABEL = {"sensors": "Sensors", "true_current": "True current",
+              "true_position": "True position", "truth": "True current and position"}
+
+
+def _ablation_condition(cond: str, label: str, key: tuple, info: str,
+                        overrides: dict) -> tuple[str, str, tuple]:
+    """A cell's condition with its ablation (information level, tier overrides) appended:
+    ``info-<level>``, ``set-<key>[+<key>...]``; unchanged for a normal cell."""
+    parts, labels = [], []
+    if info:
+        parts.append(f"info-{info}")
+        labels.append(INFO_LABEL.get(info, info))
+    if overrides:
+        parts.append("set-" + "+".join(sorted(overrides)))
+        labels.append(", ".join(f"{k} = {json.dumps(overrides[k])}" for k in sorted(overrides)))
+    if not parts:
+        return cond, label, key
+    base = [] if cond == DATA_GROUNDED else [cond]
+    return ("+".join(base + parts), "; ".join(([] if cond == DATA_GROUNDED else [label])
+                                              + labels), (2, *key, "+".join(parts)))
+
+
 def load_cell_frames(cell_files) -> pd.DataFrame:
     """One row per cell file, in canonical order (registry task order, registry method order,
     tier, condition): ``task, tier, method, currents, current_gain, tide, condition,
@@ -171,8 +194,12 @@ def load_cell_frames(cell_files) -> pd.DataFrame:
     columns of :func:`oneocean.ladder.load_cells`, so its macros apply). Identity comes from
     the file's record, else from its columns (a user's ``oneocean evaluate`` file).
     ``current_gain`` is the run's gain g (a tier's own gain divided out), ``tide`` the
-    synthetic tide as canonical JSON (None: none). An unregistered task or method, or two files
-    for the same cell, is a ConfigError (never silently dropped or pooled).
+    synthetic tide as canonical JSON (None: none). An ablation cell (:func:`oneocean.ladder.
+    read_cell`: ``info``, an information level instead of the method's sensors;
+    ``tier_overrides``, canonical JSON of the replaced tier parameters, ``""`` for none;
+    ``ablation``) has its own condition (``info-<level>``, ``set-<key>``), never
+    ``data-grounded``. An unregistered task or method, or two files for the same cell, is a
+    ConfigError (never silently dropped or pooled).
     """
     from . import registry
     from .errors import ConfigError
@@ -186,18 +213,23 @@ def load_cell_frames(cell_files) -> pd.DataFrame:
         gain = float(c["meta"].get("current_gain", 1.0)) / (
             float((c["meta"].get("tier_params") or {}).get("current_gain", 1.0)) or 1.0)
         tide = None if c["tide"] is None else json.dumps(c["tide"], sort_keys=True)
-        cond, label, key = _condition(c["currents"], gain, tide)
+        cond, label, key = _ablation_condition(*_condition(c["currents"], gain, tide),
+                                               c["info"], c["tier_overrides"])
         rows.append({**{k: c[k] for k in ("task", "tier", "method", "currents")},
                      "current_gain": gain, "tide": tide, "condition": cond,
-                     "condition_label": label, "condition_key": key,
+                     "condition_label": label, "condition_key": key, "info": c["info"],
+                     "tier_overrides": (json.dumps(c["tier_overrides"], sort_keys=True)
+                                        if c["tier_overrides"] else ""),
+                     "ablation": c["ablation"],
                      **{k: c[k] for k in ("applicable", "reason", "vehicle", "n_agents",
                                           "seed")},
                      "n": int(len(df)), "k": int(df["success"].sum()),
                      "success": df["success"].to_numpy(dtype=bool), "episodes": df,
                      "file": str(f)})
     cols = ["task", "tier", "method", "currents", "current_gain", "tide", "condition",
-            "condition_label", "condition_key", "applicable", "reason", "vehicle", "n_agents",
-            "seed", "n", "k", "success", "episodes", "file"]
+            "condition_label", "condition_key", "info", "tier_overrides", "ablation",
+            "applicable", "reason", "vehicle", "n_agents", "seed", "n", "k", "success",
+            "episodes", "file"]
     if not rows:
         return pd.DataFrame(columns=cols)
     cells = pd.DataFrame(rows, columns=cols)
@@ -221,6 +253,12 @@ def load_cell_frames(cell_files) -> pd.DataFrame:
 
 def _data_grounded(cells: pd.DataFrame) -> pd.DataFrame:
     return cells[cells["condition"] == DATA_GROUNDED]
+
+
+def _forcing_only(cells: pd.DataFrame) -> pd.DataFrame:
+    """The cells without an ablation of their information or tier (the forcing conditions:
+    data-grounded, currents off, other gains, a tide)."""
+    return cells[~cells["ablation"].astype(bool)] if "ablation" in cells else cells
 
 
 def _tasks(cells: pd.DataFrame) -> list[str]:
@@ -459,9 +497,10 @@ def _family_rows(tasks: list[str], body: dict[str, list[str]]) -> list:
 def ladder_spec_frame(tasks=None) -> pd.DataFrame:
     """Table II as data: one row per task (registry order): ``family, task, label,
     agents_default, agents_lo, agents_hi, vehicle, primary, primary_higher`` and per tier
-    ``T<k>_time_limit_s``, ``T<k>_probe_noise_ms``, ``T<k>_band_lo``, ``T<k>_band_hi``
-    (current band, quantiles of the region's own speeds; NaN where a table lacks the key) and
-    ``T<k>_params`` (every tier parameter, canonical JSON)."""
+    ``T<k>_time_limit_s``, ``T<k>_band_lo``, ``T<k>_band_hi`` (the current band: quantiles
+    of the region's own speeds, ``current_band``; NaN where a table lacks the key),
+    ``T<k>_ms_lo``, ``T<k>_ms_hi`` (an absolute band in m s-1, ``current_ms``, where a task's
+    table has one instead) and ``T<k>_params`` (every tier parameter, canonical JSON)."""
     from . import registry
     from .tasks.common import load_task_table
 
@@ -479,9 +518,10 @@ def ladder_spec_frame(tasks=None) -> pd.DataFrame:
         for k in tiers:
             p = tb["tiers"].get(k)
             band = (p or {}).get("current_band") or (math.nan, math.nan)
+            ms = (p or {}).get("current_ms") or (math.nan, math.nan)
             row[f"T{k}_time_limit_s"] = float((p or {}).get("time_limit_s", math.nan))
-            row[f"T{k}_probe_noise_ms"] = float((p or {}).get("probe_noise_ms", math.nan))
             row[f"T{k}_band_lo"], row[f"T{k}_band_hi"] = float(band[0]), float(band[1])
+            row[f"T{k}_ms_lo"], row[f"T{k}_ms_hi"] = float(ms[0]), float(ms[1])
             row[f"T{k}_params"] = "" if p is None else json.dumps(p, sort_keys=True)
         rows.append(row)
     return pd.DataFrame(rows)
@@ -490,10 +530,16 @@ def ladder_spec_frame(tasks=None) -> pd.DataFrame:
 def _tier_cell(row, k: int) -> str:
     if not row[f"T{k}_params"]:
         return "--"
-    tl, pn = row[f"T{k}_time_limit_s"], row[f"T{k}_probe_noise_ms"]
+    tl = row[f"T{k}_time_limit_s"]
     lo, hi = row[f"T{k}_band_lo"], row[f"T{k}_band_hi"]
-    band = "--" if not np.isfinite(lo) else f"{100 * lo:.0f}--{100 * hi:.0f}"
-    return f"{_num(tl, '{:.0f}')}; {_num(pn, '{:.2f}')}; {band}"
+    mlo, mhi = row.get(f"T{k}_ms_lo", math.nan), row.get(f"T{k}_ms_hi", math.nan)
+    if np.isfinite(lo):
+        band = f"{100 * lo:.0f}--{100 * hi:.0f}"
+    elif np.isfinite(mlo):
+        band = f"{mlo:g}--{mhi:g}\\,m/s"
+    else:
+        band = "--"
+    return f"{_num(tl, '{:.0f}')}; {band}"
 
 
 def ladder_spec_latex(df: pd.DataFrame) -> str:
@@ -510,12 +556,13 @@ def ladder_spec_latex(df: pd.DataFrame) -> str:
             _tier_cell(r, k) for k in tiers]
     seeds = sorted({s for v in df["calibration_seeds"] for s in json.loads(v)})
     caption = ("The task ladder. Agents: default (range). Primary metric: $\\uparrow$ higher "
-               "is better, $\\downarrow$ lower. Each tier: time limit (s); std of the "
-               "heuristic's current-probe noise (m\\,s$^{-1}$); current band, the percentiles "
-               "of the region's own current speeds an episode's current must lie between (the "
-               "data are never rescaled). The task-specific stressors (tolerances, route "
-               "length or area, coordination, sensing noise) tighten monotonically with the "
-               "tier (the tier tables)."
+               "is better, $\\downarrow$ lower. Each tier: time limit (s); current band, the "
+               "percentiles of the region's own current speeds an episode's current must lie "
+               "between (the data are never rescaled), or an absolute band in m/s (the "
+               "transits G2G and RF, whose vehicle cruises at 1.25 m/s). The task-specific stressors "
+               "(tolerances, route length or area, coordination) tighten monotonically with "
+               "the tier (the tier tables). Every non-oracle method senses through the same "
+               "sensor models in every tier."
                + (f" Calibrated on seeds {', '.join(map(str, seeds))} only; the evaluation seed "
                   "is held out." if seeds else ""))
     align = "lllll" + "l" * len(tiers)
@@ -671,8 +718,9 @@ def headline_frame(cell_files, tiers=(2, 3), metric_tier: int = 3,
       tier, stratified bootstrap) and ``T<k>_coll`` (mean Coll = ``coll_ratio`` x 100 over the
       episodes of the multi-agent tasks, ``n_agents > 1``; ``T<k>_coll_tasks``);
     * at ``metric_tier``, per key metric of ``metrics`` (:data:`HEADLINE_METRICS`): a rate
-      (Wilson) or a mean of the finite values (seeded bootstrap; SK's ``rms_error_m`` is NaN
-      where the vehicle never held, so its mean is over the episodes that held), with
+      (Wilson) or a mean of the finite values (seeded bootstrap; SK's ``rms_error_m``, the
+      station-keeping RMS over the episode's window, is defined for every episode, so its
+      mean includes the failures), with
       ``<key>_state``: ``ok``, ``n/a`` (the region cannot host the cell) or ``missing``.
 
     Every value has ``_lo`` / ``_hi`` (95 %)."""
@@ -909,7 +957,7 @@ def ablation_frame(cell_files, tier: int = 3, method: str = "heuristic") -> pd.D
     episodes: equal ``candidate`` draws; None without a data-grounded cell to compare)."""
     from . import registry
 
-    cells = load_cell_frames(cell_files)
+    cells = _forcing_only(load_cell_frames(cell_files))
     cells = cells[(cells["method"] == method) & (cells["tier"] == tier)]
     conds = (cells.drop_duplicates("condition")
              .sort_values("condition_key", kind="stable")[
@@ -1005,7 +1053,7 @@ def ablation_table(cell_files, out_tex, tier: int = 3, method: str = "heuristic"
                    region: str | None = None) -> pd.DataFrame:
     """Write the forcing-ablation table (every condition with cells of ``method`` at
     ``tier``) and its numbers as Parquet."""
-    cells = load_cell_frames(cell_files)
+    cells = _forcing_only(load_cell_frames(cell_files))
     df = ablation_frame(cells, tier, method)
     _write(df, ablation_latex(df, cells, tier, method, region), out_tex,
            {"table": "ablation", "tier": int(tier), "method": method, "region": region})

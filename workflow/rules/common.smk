@@ -5,6 +5,7 @@ import re
 import sys
 from pathlib import Path
 
+from oneocean.ablations import HIGH_TIER, LOW_TIER, stressor_cells
 from oneocean.codeversion import task_code, tasks_code
 from oneocean.config import llm_method, validate_config
 from oneocean.errors import ConfigError
@@ -146,11 +147,20 @@ def _prov(paths):
     ]
 
 
+def ablation_targets():
+    """Every task's ablation cells, made by the rollout_ablation_<task> rules: the information
+    ablation and the stressor cells."""
+    v = config["rollouts"]["variant"]
+    return [p.format(region=REGION, variant=v) for t in config["rollouts"]["tasks"]
+            for p in _ablation_files(t, ablation_cells(t), "parquet")]
+
+
 #: The paper's tables and figures of this region (beside the ladder and planning tables).
 PAPER_TABLES = [
     f"results/tables/{REGION}/{name}.tex"
     for name in ("dataset_variants", "task_ladder", "headline", "task_success_by_tier",
-                 "difficulty_heuristic", "currents_ablation")
+                 "difficulty_heuristic", "currents_ablation", "information_ablation",
+                 "tier_stressors")
 ]
 PAPER_FIGURES = [
     f"results/figures/{REGION}/{name}.png"
@@ -176,7 +186,7 @@ def provenance_targets():
                for p in PAPER_TABLES]
     stages += [p.replace("results/figures/", "results/provenance/figures/").replace(".png", ".json")
                for p in PAPER_FIGURES]
-    stages += _prov(forcing_targets() + team_targets())
+    stages += _prov(forcing_targets() + team_targets() + ablation_targets())
     r = config["rollouts"]
     kernel_tasks = dict.fromkeys([*r["tasks"], r["team_sweep"]["task"],
                                   *config["planning"]["tasks"], *config["snapshots"]["tasks"]])
@@ -272,6 +282,102 @@ def _cell_params(cells):
     return fn
 
 
+#: The ablations' method (oneocean.ablations: the heuristic).
+ABLATION_METHOD = "heuristic"
+
+
+def _ablation_run(info=None, tier_overrides=None, episodes=None):
+    """An ablation cell's run: the config's (:func:`_run`) with an information level or tier
+    overrides, and its own episode count."""
+    run = _run()
+    if episodes is not None:
+        run["episodes"] = int(episodes)
+    return {**run, "info": info, "tier_overrides": tier_overrides}
+
+
+def stressor_episodes():
+    """Episodes per stressor cell (ablations.stressors.episodes; null: rollouts.episodes)."""
+    e = config["ablations"]["stressors"]["episodes"]
+    return int(config["rollouts"]["episodes"] if e is None else e)
+
+
+def ablation_cells(task):
+    """The ablation cells one job runs for ``task`` (its rollout_ablation_<task> rule), the
+    information levels at ablations.info.tier (if it is in rollouts.tiers), then the stressor
+    cells (oneocean.ablations.stressor_cells: per tier key, Tier 1 with the key at its Tier-3
+    value and Tier 3 with it at its Tier-1 value; if both tiers are in rollouts.tiers)."""
+    r, a = config["rollouts"], config["ablations"]
+    m = ABLATION_METHOD
+    cells = []
+    tier = int(a["info"]["tier"])
+    if tier in r["tiers"]:
+        cells += [{"method": m, "tier": tier, "suffix": f"_info-{lvl}",
+                   "wildcards": {"info": lvl}, "run": _ablation_run(info=lvl)}
+                  for lvl in a["info"]["levels"]]
+    if LOW_TIER in r["tiers"] and HIGH_TIER in r["tiers"]:
+        n = stressor_episodes()
+        cells += [{"method": m, "tier": c["tier"],
+                   "suffix": f"_set-{c['key']}-T{c['from_tier']}",
+                   "wildcards": {"set": c["key"], "from_tier": str(c["from_tier"])},
+                   "run": _ablation_run(tier_overrides=c["overrides"], episodes=n)}
+                  for c in stressor_cells(task, LOW_TIER, HIGH_TIER)]
+    return cells
+
+
+def _ablation_files(task, cells, kind):
+    """Output paths of one task's ablation cells (region and variant stay wildcards)."""
+    return [p.replace("{task}", task) for p in _cell_files(cells, kind)]
+
+
+def ablation_rule_name(task):
+    """The name of the rule that runs ``task``'s ablation cells (one per task, whose tier
+    keys are its own)."""
+    safe = re.sub(r"\W", "_", task)
+    return f"rollout_ablation_{safe}"
+
+
+def _ablation_params(task, cells):
+    """Per-cell entries of a task's ablation job (:func:`_cell_entry`)."""
+    code = task_code(task)
+    return [_cell_entry(c["method"], c["tier"], c["run"],
+                        {"task": task, "method": c["method"], "tier": str(c["tier"]),
+                         **c["wildcards"]}, code)
+            for c in cells]
+
+
+def information_table_cells():
+    """The information-ablation table's cells: per task at ablations.info.tier, the
+    heuristic's ladder cell, its information-level cells, its currents-off cell and the
+    oracle's cell (those the config runs)."""
+    r, tier = config["rollouts"], int(config["ablations"]["info"]["tier"])
+    have = set(rollout_targets() + currents_off_targets())
+    cells = ablation_targets()
+    out = []
+    for t in r["tasks"]:
+        d = f"results/rollouts/{REGION}/{r['variant']}/{t}/tier{tier}"
+        out += [p for p in (f"{d}/{ABLATION_METHOD}.parquet", f"{d}/oracle.parquet",
+                            f"{d}/{ABLATION_METHOD}_currents-off.parquet") if p in have]
+        out += [p for p in cells if p.startswith(f"{d}/")
+                and Path(p).name.startswith(f"{ABLATION_METHOD}_info-")]
+    return out
+
+
+def stressor_table_cells():
+    """The stressor table's cells: per task the heuristic's Tier-1 and Tier-3 ladder cells
+    and its stressor cells."""
+    r = config["rollouts"]
+    have = set(rollout_targets())
+    cells = ablation_targets()
+    out = []
+    for t in r["tasks"]:
+        d = f"results/rollouts/{REGION}/{r['variant']}/{t}"
+        out += [p for p in (f"{d}/tier{LOW_TIER}/{ABLATION_METHOD}.parquet",
+                            f"{d}/tier{HIGH_TIER}/{ABLATION_METHOD}.parquet") if p in have]
+        out += [p for p in cells if p.startswith(f"{d}/")
+                and Path(p).name.startswith(f"{ABLATION_METHOD}_set-")]
+    return out
+
+
 def bc_weights(wc):
     """Method bc's trained weights (the bc_train rule's output); no input for other methods."""
     return f"results/bc/{wc.region}/{wc.variant}/weights.npz" if wc.method == "bc" else []
@@ -344,11 +450,12 @@ def _figure_io(name, caption):
 
 
 # ---- input functions and params of rules/tables.smk
-def _table_rule_io(name):
-    """A paper table's outputs; the LaTeX goes into `snakemake --report`."""
+def _table_rule_io(name, caption="table"):
+    """A paper table's outputs; the LaTeX goes into `snakemake --report` with ``caption``
+    (workflow/report/<caption>.rst)."""
     return {
-        "tex": report(f"results/tables/{{region}}/{name}.tex", caption="../report/table.rst",
-                      category="Tables"),
+        "tex": report(f"results/tables/{{region}}/{name}.tex",
+                      caption=f"../report/{caption}.rst", category="Tables"),
         "parquet": f"results/tables/{{region}}/{name}.parquet",
         "prov": f"results/provenance/tables/{{region}}/{name}.json",
     }

@@ -80,6 +80,37 @@ if _BC_CELLS:
             "../scripts/rollout_cells.py"
 
 
+# What drives a ladder cell (oneocean.ablations): every ablation cell of one task in one job,
+# the heuristic given the true current or its true position (ablations.info) and the stressor
+# cells (Tier 1 with one tier key at its Tier-3 value, Tier 3 with it at its Tier-1 value).
+# One rule per task, rollout_ablation_<task>, because each task's tier keys are its own.
+for _task in config["rollouts"]["tasks"]:
+    _cells = ablation_cells(_task)
+    if not _cells:
+        continue
+
+    rule:
+        name:
+            ablation_rule_name(_task)
+        conda:
+            PY_ENV
+        input:
+            grid=rules.export_grid.output.npz,
+            kernel=f"results/kernels/{{region}}/{{variant}}/{_task}.json",
+        output:
+            parquet=_ablation_files(_task, _cells, "parquet"),
+            prov=_ablation_files(_task, _cells, "prov"),
+        log:
+            f"logs/rollouts/{{region}}/{{variant}}/{_task}/rollout_ablation.log",
+        benchmark:
+            f"results/benchmarks/rollouts/{{region}}/{{variant}}/{_task}/rollout_ablation.tsv"
+        params:
+            cells=_ablation_params(_task, _cells),
+        threads: lambda wc: config["rollouts"]["threads"]
+        script:
+            "../scripts/rollout_cells.py"
+
+
 # Fig. 7: one task at one tier for several team sizes n, in one job.
 rule rollout_team:
     conda:

@@ -24,7 +24,7 @@ rule table_dataset_variants:
 
 
 TABLES_CODE = code_version("oneocean.tables", "oneocean.ladder", "oneocean.planning",
-                           "oneocean.registry", "oneocean.data")
+                           "oneocean.registry", "oneocean.data", "oneocean.ablations")
 
 # Table II: the task ladder (registry and tier tables).
 rule table_task_ladder:
@@ -104,6 +104,43 @@ rule table_currents_ablation:
         "logs/tables/{region}/currents_ablation.log",
     params:
         tier=lambda wc: max(config["rollouts"]["forcing_ablation"]["tiers"]),
+        code=TABLES_CODE,
+    threads: 1
+    script:
+        "../scripts/table_paper.py"
+
+
+# What drives a ladder cell (1): the heuristic at one tier with its sensors, the true current,
+# its true position, the currents off, and the oracle.
+rule table_information_ablation:
+    conda:
+        PY_ENV
+    input:
+        cells=information_table_cells(),
+    output:
+        **_table_rule_io("information_ablation", caption="information_ablation"),
+    log:
+        "logs/tables/{region}/information_ablation.log",
+    params:
+        tier=lambda wc: config["ablations"]["info"]["tier"],
+        code=TABLES_CODE,
+    threads: 1
+    script:
+        "../scripts/table_paper.py"
+
+
+# What drives a ladder cell (2): one tier key at a time between Tier 1 and Tier 3, its share of
+# the T1 -> T3 drop, and the check that no key alone makes more than three quarters of it.
+rule table_tier_stressors:
+    conda:
+        PY_ENV
+    input:
+        cells=stressor_table_cells(),
+    output:
+        **_table_rule_io("tier_stressors", caption="tier_stressors"),
+    log:
+        "logs/tables/{region}/tier_stressors.log",
+    params:
         code=TABLES_CODE,
     threads: 1
     script:

@@ -1,4 +1,4 @@
-from oneocean import smk
+from oneocean import ablations, smk
 from oneocean import tables
 
 
@@ -16,6 +16,11 @@ def make(s):
     elif s.rule == "table_currents_ablation":
         tables.ablation_table(cells, out, tier=int(s.params.tier), method="heuristic",
                               region=region)
+    elif s.rule == "table_information_ablation":
+        ablations.information_table(cells, out, tier=int(s.params.tier), method="heuristic",
+                                    region=region)
+    elif s.rule == "table_tier_stressors":
+        ablations.stressor_table(cells, out, method="heuristic", region=region)
     else:
         raise ValueError(f"table_paper.py: unknown rule {s.rule}")
 
