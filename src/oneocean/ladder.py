@@ -183,14 +183,16 @@ class Check:
     name: str
     measured: str
     target: str
-    passed: bool | None   # None: could not be evaluated (missing cells)
+    passed: bool | None   # None: could not be evaluated (missing cells), or only reported
 
 
 def run_checks(cells: pd.DataFrame) -> list[Check]:
-    """The protocol's checks on the evaluation cells, reported as measured (issue #9):
-    heuristic Tier-2 macro SR in [60, 90] %, Tier-3 macro in [20, 50] %, heuristic SR
-    non-increasing T1 -> T3 per task, oracle >= 90 % in every cell with a 95 % Wilson lower
-    bound >= 80 %, currents off raising the heuristic's Tier-3 macro by >= 15 points."""
+    """The protocol's checks on the evaluation cells, reported as measured: heuristic Tier-2
+    macro SR in [60, 90] %, Tier-3 macro in [20, 50] %, heuristic SR non-increasing
+    T1 -> T3 with T1 > T3 per task, oracle >= 90 % in every cell with a 95 % Wilson lower
+    bound >= 80 %, the heuristic at least 10 points below the oracle at Tier 3 in every task
+    (what it lacks is information); the currents-off gap of the heuristic's Tier-3 macro is
+    reported, not a target (``passed`` None)."""
     out: list[Check] = []
     lad = ladder_frame(cells)
     h = lad[(lad["method"] == "heuristic") & lad["currents"]]
@@ -206,9 +208,9 @@ def run_checks(cells: pd.DataFrame) -> list[Check]:
             continue
         seen += 1
         srs = g["sr"].to_numpy()
-        if np.any(np.diff(srs) > 1e-9):
+        if np.any(np.diff(srs) > 1e-9) or not srs[0] > srs[-1]:
             bad.append(f"{task} " + "/".join(f"{v:.0f}" for v in srs))
-    out.append(Check("heuristic SR non-increasing T1->T3 per task",
+    out.append(Check("heuristic SR non-increasing T1->T3 per task, T1 > T3",
                      "all" if not bad else "; ".join(bad), f"{seen} tasks",
                      None if seen == 0 else not bad))
     o = lad[(lad["method"] == "oracle") & lad["currents"] & lad["applicable"]]
@@ -223,16 +225,29 @@ def run_checks(cells: pd.DataFrame) -> list[Check]:
                          f"{len(o) - len(fails)}/{len(o)} cells pass" + (
                              "" if fails.empty else f" (fail: {what})"), "every cell",
                          fails.empty))
+    t3 = lad[lad["currents"] & lad["applicable"] & (lad["tier"] == 3)]
+    pairs = t3.pivot_table(index="task", columns="method", values="sr", sort=False)
+    if not {"heuristic", "oracle"} <= set(pairs.columns):
+        out.append(Check("heuristic <= oracle - 10 points at Tier 3, per task",
+                         "no Tier-3 cells of both", "every task", None))
+    else:
+        pairs = pairs.dropna(subset=["heuristic", "oracle"])
+        close = pairs[pairs["heuristic"] > pairs["oracle"] - 10.0]
+        what = "; ".join(f"{t} {r.heuristic:.0f} vs {r.oracle:.0f}"
+                         for t, r in close.iterrows())
+        out.append(Check("heuristic <= oracle - 10 points at Tier 3, per task",
+                         f"{len(pairs) - len(close)}/{len(pairs)} tasks" + (
+                             f" (not: {what})" if what else ""), "every task", close.empty))
     on = macro_rate(cells, "heuristic", 3, True)
     off = macro_rate(cells, "heuristic", 3, False)
     if off["tasks"] == 0 or on["tasks"] == 0:
-        out.append(Check("currents off raises heuristic Tier-3 macro", "no currents-off cells",
-                         ">= +15 points", None))
+        out.append(Check("currents off: heuristic Tier-3 macro", "no currents-off cells",
+                         "reported", None))
     else:
         d = off["sr"] - on["sr"]
-        out.append(Check("currents off raises heuristic Tier-3 macro",
+        out.append(Check("currents off: heuristic Tier-3 macro",
                          f"{d:+.1f} points ({on['sr']:.1f} -> {off['sr']:.1f} %)",
-                         ">= +15 points", bool(d >= 15.0)))
+                         "reported", None))
     return out
 
 
@@ -292,7 +307,8 @@ def ladder_markdown(cells: pd.DataFrame, region: str, seed: int | None = None) -
         out.append("")
     out += ["| Check | Measured | Target | Verdict |", "|---|---|---|---|"]
     for c in run_checks(cells):
-        v = "n/a" if c.passed is None else ("pass" if c.passed else "FAIL")
+        v = (("reported" if c.target == "reported" else "n/a") if c.passed is None
+             else ("pass" if c.passed else "FAIL"))
         out.append(f"| {c.name} | {c.measured} | {c.target} | {v} |")
     return "\n".join(out) + "\n"
 
