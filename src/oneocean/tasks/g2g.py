@@ -219,6 +219,22 @@ def reference_energy(grid, tier: dict, start, goal, depth: float, t0: float,
     return float(r.cost)
 
 
+def energy_budgets(task: str, tier: dict, n_ep: int, reference) -> tuple:
+    """``(eref, budget)`` (E,) J: each episode's least transit energy ``reference(e)`` and
+    its allocation ``(1 + energy_reserve) * eref``; both inf without an ``energy_reserve``
+    (the transits G2G and RF)."""
+    eref = np.full(n_ep, math.inf)
+    budget = np.full(n_ep, math.inf)
+    reserve = tier.get("energy_reserve")
+    if reserve is not None:
+        if not float(reserve) >= 0.0:
+            raise ConfigError(f"task {task}: energy_reserve must be >= 0, got {reserve!r}")
+        for e in range(n_ep):
+            eref[e] = reference(e)
+        budget = (1.0 + float(reserve)) * eref
+    return eref, budget
+
+
 def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); with an
     ``energy_reserve`` the allocation of every episode (:func:`reference_energy` on the
@@ -228,16 +244,10 @@ def make(grid, tier: dict, init: dict):
     start = np.ascontiguousarray(init["pos0"][:, 0], dtype=np.float64)
     n_ep = goal.shape[0]
     pw, v_max = task_power(tier)
-    eref = np.full(n_ep, math.inf)
-    budget = np.full(n_ep, math.inf)
-    reserve = tier.get("energy_reserve")
-    if reserve is not None:
-        if not float(reserve) >= 0.0:
-            raise ConfigError(f"task {TASK_ID}: energy_reserve must be >= 0, got {reserve!r}")
-        for e in range(n_ep):
-            eref[e] = reference_energy(grid, tier, start[e, [0, 2]], goal[e, [0, 2]],
-                                       float(goal[e, 1]), float(init["t0"][e]), (pw, v_max))
-        budget = (1.0 + float(reserve)) * eref
+    eref, budget = energy_budgets(
+        TASK_ID, tier, n_ep,
+        lambda e: reference_energy(grid, tier, start[e, [0, 2]], goal[e, [0, 2]],
+                                   float(goal[e, 1]), float(init["t0"][e]), (pw, v_max)))
     wps = np.zeros((n_ep, MAX_VERTICES, 2))
     wps[:, 0] = start[:, [0, 2]]
     wps[:, 1] = goal[:, [0, 2]]

@@ -53,7 +53,7 @@ from ..methods import routing
 from ..methods.heuristic import rf as POLICY
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, fresh_cache, need_tier,
                      sample_route, start_times)
-from .g2g import MAX_VERTICES, draw_in_band, step_energy, task_power
+from .g2g import MAX_VERTICES, draw_in_band, energy_budgets, step_energy, task_power
 from .loop import noop_after_agent, noop_pre_step, observe_next, run_episode
 
 TASK_ID = "RF"
@@ -179,15 +179,9 @@ def make(grid, tier: dict, init: dict):
     if n_v > MAX_VERTICES:
         raise ConfigError(f"task {TASK_ID}: at most {MAX_VERTICES - 1} waypoints")
     pw, v_max = task_power(tier, TASK_ID)
-    eref = np.full(n_ep, math.inf)
-    budget = np.full(n_ep, math.inf)
-    reserve = tier.get("energy_reserve")
-    if reserve is not None:
-        if not float(reserve) >= 0.0:
-            raise ConfigError(f"task {TASK_ID}: energy_reserve must be >= 0, got {reserve!r}")
-        for e in range(n_ep):
-            eref[e] = reference_energy(grid, tier, route[e], float(init["t0"][e]), (pw, v_max))
-        budget = (1.0 + float(reserve)) * eref
+    eref, budget = energy_budgets(
+        TASK_ID, tier, n_ep,
+        lambda e: reference_energy(grid, tier, route[e], float(init["t0"][e]), (pw, v_max)))
     wps = np.zeros((n_ep, MAX_VERTICES, 2))
     wps[:, :n_v] = route[:, :, [0, 2]]
     wspd = np.zeros((n_ep, MAX_VERTICES))
