@@ -48,6 +48,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
+from .kernel import dense_layer
 
 BETA1 = 0.9
 BETA2 = 0.999
@@ -127,21 +128,9 @@ def _forward_batch(w, b, dims, a, m):
         n_out = dims[layer + 1]
         wl = w[layer]
         bl = b[layer]
+        relu = layer < n_layers - 1
         for r in range(m):
-            x = a[layer, r]
-            o = a[layer + 1, r]
-            for j in range(n_out):
-                o[j] = bl[j]
-            for q in range(n_in):
-                s = x[q]
-                if s != 0.0:
-                    wq = wl[q]
-                    for j in range(n_out):
-                        o[j] += s * wq[j]
-            if layer < n_layers - 1:
-                for j in range(n_out):
-                    if o[j] < 0.0:
-                        o[j] = 0.0
+            dense_layer(wl, bl, a[layer, r], a[layer + 1, r], n_in, n_out, relu)
 
 
 @hot_kernel

@@ -174,6 +174,27 @@ def featurize(o, task, n_tasks, out):
         out[N_BASE + t] = 1.0 if t == task else 0.0
 
 
+@hot_kernel(inline="always")
+def dense_layer(wl, bl, x, o, n_in, n_out, relu):
+    """One layer, ``o = relu?(bl + x @ wl)`` in a fixed order: per output the bias, then each
+    non-zero input times its weight row, inputs in order (the inner loop runs over contiguous
+    weights and independent outputs, so it vectorises without reordering any sum; the zeros
+    relu leaves in the input are skipped). The in-loop forward pass and the training's
+    (:mod:`.fit`) both use it, so their outputs agree bit for bit."""
+    for j in range(n_out):
+        o[j] = bl[j]
+    for q in range(n_in):
+        s = x[q]
+        if s != 0.0:
+            wq = wl[q]
+            for j in range(n_out):
+                o[j] += s * wq[j]
+    if relu:
+        for j in range(n_out):
+            if o[j] < 0.0:
+                o[j] = 0.0
+
+
 @hot_kernel
 def forward(net, x, h):
     """The network's output (3,) for standardised features ``x`` (``h``: (2, width)
@@ -185,21 +206,7 @@ def forward(net, x, h):
         n_in = net.dims[layer]
         n_out = net.dims[layer + 1]
         dst = h[1 - cur]
-        wl = net.w[layer]
-        for j in range(n_out):
-            dst[j] = net.b[layer, j]
-        # row by row: the inner loop runs over contiguous weights and independent outputs
-        # (vectorised), and the zeros relu leaves in the input are skipped
-        for q in range(n_in):
-            sq = src[q]
-            if sq != 0.0:
-                row = wl[q]
-                for j in range(n_out):
-                    dst[j] += sq * row[j]
-        if layer < n_layers - 1:
-            for j in range(n_out):
-                if dst[j] < 0.0:
-                    dst[j] = 0.0
+        dense_layer(net.w[layer], net.b[layer], src, dst, n_in, n_out, layer < n_layers - 1)
         src = dst
         cur = 1 - cur
     return src[0], src[1], src[2]
