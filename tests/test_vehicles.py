@@ -73,7 +73,7 @@ def test_every_literature_value_carries_a_source():
     # every key of the two literature vehicles is preceded by a comment that cites a source
     # ([P01] Prestero, [vB22] von Benzon, [W18] Wu, [T200] Blue Robotics, [WHOI]) or says why
     # the value was chosen / how it was derived
-    text = D._vehicles_file().read_text().splitlines()
+    text = D.vehicles_file().read_text().splitlines()
     tags = re.compile(r"\[(P01|vB22|W18|T200|WHOI)\]|[Cc]hosen|[Dd]erived")
     for name in NEW:
         start = text.index(f"  {name}:")

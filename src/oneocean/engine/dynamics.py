@@ -231,7 +231,8 @@ class Vehicle:
         return _nsub(self.params, float(dt))
 
 
-def _vehicles_file() -> Path:
+def vehicles_file() -> Path:
+    """The vehicle table, ``data/vehicles.yaml`` (shipped in the wheel)."""
     return Path(str(resources.files("oneocean") / "data" / "vehicles.yaml"))
 
 
@@ -362,7 +363,7 @@ def load_vehicle(name: str | None = None, overrides: Mapping | None = None,
     path : path-like, optional
         Alternative YAML file with the same layout.
     """
-    f = Path(path) if path is not None else _vehicles_file()
+    f = Path(path) if path is not None else vehicles_file()
     try:
         doc = yaml.safe_load(f.read_text())
     except OSError as exc:
@@ -383,7 +384,7 @@ def load_vehicle(name: str | None = None, overrides: Mapping | None = None,
 
 def vehicle_names(path: str | Path | None = None) -> tuple[str, ...]:
     """Names of the vehicles in ``data/vehicles.yaml`` (or ``path``), file order."""
-    f = Path(path) if path is not None else _vehicles_file()
+    f = Path(path) if path is not None else vehicles_file()
     return tuple(yaml.safe_load(f.read_text())["vehicles"])
 
 

@@ -38,7 +38,6 @@ from __future__ import annotations
 import heapq
 import math
 from functools import lru_cache
-from importlib import resources
 from pathlib import Path
 from typing import NamedTuple
 
@@ -47,6 +46,7 @@ import yaml
 from numba import njit
 
 from ..engine._jit import hot_kernel
+from ..engine.dynamics import vehicles_file
 from ..engine.grid import sample_land
 from ..errors import ConfigError
 from ..sensing.kernels import forecast
@@ -83,9 +83,12 @@ class PowerModel(NamedTuple):
 
 def power_model(vehicle: str, path: str | Path | None = None) -> PowerModel:
     """The :class:`PowerModel` of ``vehicle`` (``power:`` section of ``data/vehicles.yaml``)."""
-    f = Path(path) if path is not None else Path(
-        str(resources.files("oneocean") / "data" / "vehicles.yaml"))
-    return _power_model(vehicle, str(f), f.stat().st_mtime_ns)
+    f = Path(path) if path is not None else vehicles_file()
+    try:
+        mtime = f.stat().st_mtime_ns
+    except OSError as exc:
+        raise ConfigError(f"{f}: cannot read vehicle file ({exc.strerror})") from None
+    return _power_model(vehicle, str(f), mtime)
 
 
 @lru_cache(maxsize=64)
