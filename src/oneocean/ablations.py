@@ -226,7 +226,9 @@ def information_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: 
                         "(its navigation unchanged)",
         "true_position": "the same method given its true position instead of its navigation "
                          "estimate (its current estimate unchanged)",
-        "truth": "the same method given both the true current and its true position",
+        "true_target": "the same method perceiving the mission target exactly (UPL's object, "
+                       "FH's school) instead of through its perception model",
+        "truth": "the same method given the true current, its true position and the exact target",
         CURRENTS_OFF: "the same method with its own sensors and the currents switched off "
                       "(g = 0, no tides)",
         ORACLE: "the privileged oracle for reference (true current and position; in some "

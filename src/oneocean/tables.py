@@ -163,7 +163,8 @@ def _condition(currents: bool, gain: float, tide: str | None) -> tuple[str, str,
 
 #: Labels of the information levels an ablation cell gives a method instead of its sensors.
 INFO_LABEL = {"sensors": "Sensors", "true_current": "True current",
-              "true_position": "True position", "truth": "True current and position"}
+              "true_position": "True position", "true_target": "True target",
+              "truth": "Truth"}
 
 
 def _ablation_condition(cond: str, label: str, key: tuple, info: str,

@@ -37,14 +37,16 @@ from ..errors import ConfigError
 SENSORS_YAML = Path(str(resources.files("oneocean") / "data" / "sensors.yaml"))
 
 #: Information levels of a method: what it is given instead of its sensors.
-#: ``sensors``: the sensor models; ``truth``: the oracle; the two ablations in between.
-INFO_LEVELS = ("sensors", "true_current", "true_position", "truth")
+#: ``sensors``: the sensor models; ``truth``: the oracle; the three ablations in between
+#: (``true_target``: the mission target -- UPL's object, FH's school -- perceived exactly).
+INFO_LEVELS = ("sensors", "true_current", "true_position", "true_target", "truth")
 
 
 class SensingParams(NamedTuple):
     """The sensing and navigation models of one rollout (a kernel argument)."""
     true_current: int        # 1: the method knows the true current (oracle, ablation)
     true_position: int       # 1: the method knows its true position (oracle, ablation)
+    true_target: int         # 1: the method perceives the mission target exactly (oracle, ablation)
     fc_gain_std: float       # forecast speed-gain error, relative (1 sigma)
     fc_dir_std: float        # forecast direction error, rad
     fc_bias_std: float       # forecast bias per horizontal component, m s-1
@@ -97,6 +99,16 @@ def _load(path: str) -> dict:
         extra = sorted(set(node) - set(keys) - ({"aids"} if where == ("navigation",) else set()))
         if extra:
             raise ConfigError(f"{f}: unknown key '{'.'.join(where + (extra[0],))}'")
+    perc = doc.get("perception", {})
+    if not isinstance(perc, dict):
+        raise ConfigError(f"{f}: 'perception' must be a mapping of perception models")
+    for name, model in perc.items():
+        if not isinstance(model, dict):
+            raise ConfigError(f"{f}: 'perception.{name}' must be a mapping of parameters")
+        for key, v in model.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
+                raise ConfigError(f"{f}: 'perception.{name}.{key}' must be a number >= 0, "
+                                  f"got {v!r}")
     aids = doc["navigation"].get("aids", {})
     for name, aid in (aids.items() if isinstance(aids, dict) else [("aids", aids)]):
         v = aid.get("std_m") if isinstance(aid, dict) else None
@@ -109,6 +121,17 @@ def _load(path: str) -> dict:
 def sensor_table(path: str | Path | None = None) -> dict:
     """The validated sensor table (``data/sensors.yaml`` unless ``path``)."""
     return _load(str(path or SENSORS_YAML))
+
+
+def perception(name: str, path: str | Path | None = None) -> dict:
+    """The parameters of perception model ``name`` (``sensors.yaml`` ``perception.<name>``):
+    how every non-oracle method perceives a mission target (the oracle, and the
+    ``true_target`` ablation, perceive it exactly: ``SensingParams.true_target``)."""
+    models = sensor_table(path).get("perception", {})
+    if name not in models:
+        raise ConfigError(f"{path or SENSORS_YAML}: missing perception model "
+                          f"'perception.{name}'")
+    return dict(models[name])
 
 
 def kalman_gain(process_std: float, meas_std: float, dt: float) -> float:
@@ -178,6 +201,7 @@ def sensing_params(info: str, dt: float, aid: tuple[str, float] | None = None,
     f = lead_factor(lead_h, fc)
     return SensingParams(
         int(info in ("true_current", "truth")), int(info in ("true_position", "truth")),
+        int(info in ("true_target", "truth")),
         f * float(fc["speed_gain_std"]), f * math.radians(float(fc["direction_std_deg"])),
         f * float(fc["bias_std_ms"]), float(ins["noise_std_ms"]),
         kalman_gain(flt["process_std_ms"], ins["noise_std_ms"], dt),

@@ -30,6 +30,7 @@ PURPOSE_NAV_CONST = PURPOSE_TASK + 4
 PURPOSE_NAV_STEP = PURPOSE_TASK + 5
 PURPOSE_FORECAST = PURPOSE_TASK + 6
 PURPOSE_NAV_FIX = PURPOSE_TASK + 7
+PURPOSE_PERCEPTION = PURPOSE_TASK + 8
 
 #: Error draws are truncated at this many standard deviations.
 TRUNC = 3.0
@@ -141,6 +142,27 @@ def nav_update(SP, seed, navc, nerr, state, prev, e, k, i, n_ag, dt):
         ez = (1.0 - K) * ez + K * draw(seed, e, PURPOSE_NAV_FIX, cnt + 1, SP.fix_std)
     nerr[e, i, 0] = ex
     nerr[e, i, 1] = ez
+
+
+@hot_kernel(inline="always")
+def polar_fix(seed, e, counter, dx, dz, range_std, bearing_std):
+    """A range-and-bearing measurement of a target at horizontal offset ``(dx, dz)`` m from
+    the sensor (x east, z north): the range with white noise ``range_std`` m, the bearing
+    with white noise ``bearing_std`` rad (draws truncated at :data:`TRUNC` sigma, counters
+    ``counter`` and ``counter + 1`` of the perception stream). Returns the measured offset.
+    A perception model of :mod:`oneocean.sensing` (``sensors.yaml`` ``perception``); the
+    caller decides whether the target is seen (range, period) and whether the method is given
+    the truth instead (``SensingParams.true_target``)."""
+    r = (dx * dx + dz * dz) ** 0.5
+    rm = r + draw(seed, e, PURPOSE_PERCEPTION, counter, range_std)
+    if rm < 0.0:
+        rm = 0.0
+    if r <= 0.0:
+        return 0.0, 0.0
+    s, c = sincos(draw(seed, e, PURPOSE_PERCEPTION, counter + 1, bearing_std))
+    ux = dx / r
+    uz = dz / r
+    return rm * (c * ux + s * uz), rm * (c * uz - s * ux)
 
 
 @hot_kernel
