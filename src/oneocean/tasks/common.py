@@ -401,6 +401,49 @@ def steer(vx, vy, vz, budget, ce, cn):
 
 
 @hot_kernel(inline="always")
+def profile_at(ax_, ay_, az_, bx, by, bz, px, pz):
+    """Horizontal projection of (px, pz) on leg a->b.
+
+    Returns (along-track s m, horizontal leg length m, unit horizontal tangent (tx, tz),
+    target depth at the clamped projection m, profile slope dy/ds, cross-track distance m).
+    """
+    lx = bx - ax_
+    lz = bz - az_
+    ln = math.sqrt(lx * lx + lz * lz)
+    if ln <= 1e-12:
+        return 0.0, 0.0, 0.0, 0.0, by, 0.0, math.sqrt((px - bx) ** 2 + (pz - bz) ** 2)
+    tx = lx / ln
+    tz = lz / ln
+    s = (px - ax_) * tx + (pz - az_) * tz
+    f = min(max(s / ln, 0.0), 1.0)
+    qx = ax_ + f * lx - px
+    qz = az_ + f * lz - pz
+    return s, ln, tx, tz, ay_ + f * (by - ay_), (by - ay_) / ln, math.sqrt(qx * qx + qz * qz)
+
+
+@hot_kernel(inline="always")
+def nav_waypoint(route, nwp, e, px, py, pz, radius, horizontal):
+    """The route's active waypoint as the vehicle's mission computer knows it.
+
+    ``nwp[e]`` (1..W; W + 1 once the route is done) advances by one when the position the
+    vehicle knows, ``(px, py, pz)`` m, is within ``radius`` m of it (``horizontal``: x and z
+    only). The task's judge keeps its own pointer on the true position, so a waypoint the
+    vehicle believes it reached may not count. At most one waypoint per call (the same
+    position gives the same pointer however often it is asked). Returns the pointer."""
+    w = nwp[e]
+    if w <= route.shape[1] - 1:
+        dx = px - route[e, w, 0]
+        dz = pz - route[e, w, 2]
+        d2 = dx * dx + dz * dz
+        if horizontal == 0:
+            dy = py - route[e, w, 1]
+            d2 += dy * dy
+        if d2 <= radius * radius:
+            nwp[e] = w + 1
+    return nwp[e]
+
+
+@hot_kernel(inline="always")
 def los_carrot(px, pz, ax_, az_, bx, bz, look):
     """Line-of-sight carrot on segment a -> b: the projection of p plus ``look`` m, clamped
     to b. Returns (cx, cz, along, length)."""

@@ -18,11 +18,15 @@ Metrics
     ``depth_error_m`` (primary: RMS depth error over the steps run, m),
     ``waypoints_reached`` (count), ``max_depth_error_m`` (m), ``cross_track_error_m``
     (mean horizontal distance to the active leg, m).
+Active leg
+    The judge's active waypoint ``W.wp`` advances on the true position; the vehicle's
+    mission computer keeps its own, ``W.nwp``, advanced on the position it knows
+    (:func:`~oneocean.tasks.common.nav_waypoint`): a vehicle whose navigation has drifted
+    turns for the next leg where it believes the waypoint is, and a waypoint it missed does
+    not count.
 Observation cue
-    The point ``CUE_LOOKAHEAD_M`` ahead of the agent's horizontal projection on the active leg
-    (clamped to the waypoint), at the target depth ``y*``. Before every step the env also
-    writes the agent's frame on the active leg (``profile_at``: along-track, leg length,
-    tangent, target depth, slope) into ``W.leg`` for the policy.
+    The point ``CUE_LOOKAHEAD_M`` ahead of the agent's known horizontal projection on the
+    mission computer's active leg (clamped to the waypoint), at the profile's depth there.
 Methods
     :mod:`oneocean.methods.heuristic.dpt` (depth loop plus horizontal line-of-sight guidance;
     both at full speed, both with the profile's slope fed forward; heuristic: the sensor
@@ -30,7 +34,7 @@ Methods
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset``; ``DPTParams`` / ``DPTWork`` and ``make``; the env
-    hooks ``begin``, ``pre_step``, ``cue``, ``post_step``, ``finish``; ``POLICY``; ``_kernel``
+    hooks ``begin``, ``cue``, ``post_step``, ``finish``; ``POLICY``; ``_kernel``
     and ``_observe_kernel``.
 """
 
@@ -46,9 +50,9 @@ from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from ..methods.heuristic import dpt as POLICY
-from .common import (MIN_ALTITUDE_M, STANDARD, episode_generators, fresh_cache, need_tier,
-                     sample_route, start_times)
-from .loop import noop_after_agent, observe_next, run_episode
+from .common import (MIN_ALTITUDE_M, STANDARD, episode_generators, fresh_cache, nav_waypoint,
+                     need_tier, profile_at, sample_route, start_times)
+from .loop import noop_after_agent, noop_pre_step, observe_next, run_episode
 
 TASK_ID = "DPT"
 METRICS = ("depth_error_m", "waypoints_reached", "max_depth_error_m", "cross_track_error_m")
@@ -97,27 +101,6 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     return {"route": route, "pos0": route[:, :1].copy(), "psi0": psi0, "t0": t0}
 
 
-@hot_kernel(inline="always")
-def profile_at(ax_, ay_, az_, bx, by, bz, px, pz):
-    """Horizontal projection of (px, pz) on leg a->b.
-
-    Returns (along-track s m, horizontal leg length m, unit horizontal tangent (tx, tz),
-    target depth at the clamped projection m, profile slope dy/ds, cross-track distance m).
-    """
-    lx = bx - ax_
-    lz = bz - az_
-    ln = math.sqrt(lx * lx + lz * lz)
-    if ln <= 1e-12:
-        return 0.0, 0.0, 0.0, 0.0, by, 0.0, math.sqrt((px - bx) ** 2 + (pz - bz) ** 2)
-    tx = lx / ln
-    tz = lz / ln
-    s = (px - ax_) * tx + (pz - az_) * tz
-    f = min(max(s / ln, 0.0), 1.0)
-    qx = ax_ + f * lx - px
-    qz = az_ + f * lz - pz
-    return s, ln, tx, tz, ay_ + f * (by - ay_), (by - ay_) / ln, math.sqrt(qx * qx + qz * qz)
-
-
 class DPTParams(NamedTuple):
     radius: float           # horizontal waypoint radius, m
     depth_tol: float        # bound on the RMS depth error for success, m
@@ -126,9 +109,9 @@ class DPTParams(NamedTuple):
 
 class DPTWork(NamedTuple):
     route: np.ndarray       # (E, W + 1, 3) route vertices (x, target depth, z), m
-    wp: np.ndarray          # (E,) int64 active waypoint (1..W; W + 1 when the route is done)
-    leg: np.ndarray         # (E, 6) agent on the active leg before the step (profile_at):
-                            #        along-track m, leg length m, tangent (x, z), y* m, slope
+    wp: np.ndarray          # (E,) int64 the judge's active waypoint (true position; 1..W;
+                            #        W + 1 when the route is done)
+    nwp: np.ndarray         # (E,) int64 the mission computer's (known position; nav_waypoint)
     acc: np.ndarray         # (E, 3) sum of squared and max depth error, sum of cross-track, m
 
 
@@ -138,12 +121,13 @@ def make(grid, tier: dict, init: dict):
     route = np.ascontiguousarray(init["route"], dtype=np.float64)
     n_ep = route.shape[0]
     return (DPTParams(float(tier["wp_radius_m"]), float(tier["depth_tol_m"]), CUE_LOOKAHEAD_M),
-            DPTWork(route, np.ones(n_ep, np.int64), np.zeros((n_ep, 6)), np.zeros((n_ep, 3))))
+            DPTWork(route, np.ones(n_ep, np.int64), np.ones(n_ep, np.int64), np.zeros((n_ep, 3))))
 
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
     W.wp[e] = 1
+    W.nwp[e] = 1
     W.acc[e, 0] = 0.0
     W.acc[e, 1] = 0.0
     W.acc[e, 2] = 0.0
@@ -151,27 +135,10 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel(inline="always")
-def pre_step(grid, P, W, state, e, k, t):
-    s = state[e, 0]
-    wp = W.wp[e]
-    a0 = W.route[e, wp - 1]
-    b0 = W.route[e, wp]
-    sh, ln, tx, tz, ytgt, slope, _ = profile_at(a0[0], a0[1], a0[2], b0[0], b0[1], b0[2],
-                                                s[0], s[2])
-    g = W.leg[e]
-    g[0] = sh
-    g[1] = ln
-    g[2] = tx
-    g[3] = tz
-    g[4] = ytgt
-    g[5] = slope
-
-
-@hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
     s = state[e, i]
-    wp = W.wp[e]
-    if wp > W.route.shape[1] - 1:   # route done: the last waypoint
+    wp = nav_waypoint(W.route, W.nwp, e, s[0], s[1], s[2], P.radius, 1)
+    if wp > W.route.shape[1] - 1:   # route done as far as the vehicle knows: the last waypoint
         g = W.route[e, wp - 1]
         return g[0], g[1], g[2], math.nan
     a0 = W.route[e, wp - 1]
@@ -217,7 +184,7 @@ def finish(grid, P, W, state, e, k, row):
 # the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
 @hot_kernel
 def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
-    run_episode(begin, pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
+    run_episode(begin, noop_pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
                 POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
                 k_stop)
 

@@ -24,8 +24,10 @@ Metrics
     ``waypoints_reached`` (count), ``max_cross_track_m`` (m), ``energy_wh`` (Wh),
     ``energy_ratio`` (energy used / ``E_ref``).
 Observation cue
-    The route point ``CUE_LOOKAHEAD_M`` ahead of the agent's projection on the active leg
-    (clamped to the waypoint).
+    The route point ``CUE_LOOKAHEAD_M`` ahead of the agent's known projection on the active
+    leg (clamped to the waypoint), the leg as the vehicle's mission computer knows it: its
+    pointer ``W.nwp`` advances on the known position
+    (:func:`~oneocean.tasks.common.nav_waypoint`), the judge's ``W.wp`` on the truth.
 Methods
     :mod:`oneocean.methods.heuristic.rf` (both plan the speed schedule along the route,
     then fly it with line-of-sight guidance; heuristic: on its forecast, with the sensor
@@ -51,8 +53,8 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from ..methods import routing
 from ..methods.heuristic import rf as POLICY
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, fresh_cache, need_tier,
-                     sample_route, start_times)
+from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, fresh_cache, nav_waypoint,
+                     need_tier, sample_route, start_times)
 from .g2g import MAX_VERTICES, draw_in_band, energy_budgets, step_energy, task_power
 from .loop import noop_after_agent, noop_pre_step, observe_next, run_episode
 
@@ -143,7 +145,10 @@ class RFParams(NamedTuple):
 
 class RFWork(NamedTuple):
     route: np.ndarray       # (E, W + 1, 3) route vertices, m
-    wp: np.ndarray          # (E,) int64 active waypoint (1..W; W + 1 when the route is done)
+    wp: np.ndarray          # (E,) int64 the judge's active waypoint (true position; 1..W;
+                            #        W + 1 when the route is done)
+    nwp: np.ndarray         # (E,) int64 the mission computer's (known position; nav_waypoint):
+                            #        the observation's route cue
     acc: np.ndarray         # (E, 3) sum and max of the cross-track error (m), energy used (J)
     budget: np.ndarray      # (E,) energy allocation, J (inf: none)
     eref: np.ndarray        # (E,) least energy of the route (the task's schedule), J
@@ -188,7 +193,7 @@ def make(grid, tier: dict, init: dict):
     wspd[:, :n_v - 1] = routing.cruise_speed(v_max, pw)
     P = RFParams(float(tier["wp_radius_m"]), float(tier["xte_max_m"]), CUE_LOOKAHEAD_M,
                  float(tier["time_limit_s"]), float(tier["dt_s"]), pw.hotel_w, pw.k)
-    W = RFWork(route, np.ones(n_ep, np.int64), np.zeros((n_ep, 3)), budget, eref, wps, wspd,
+    W = RFWork(route, np.ones(n_ep, np.int64), np.ones(n_ep, np.int64), np.zeros((n_ep, 3)), budget, eref, wps, wspd,
                np.full(n_ep, n_v, np.int64), np.zeros(n_ep, np.int64), np.zeros(n_ep, np.int64))
     return P, W
 
@@ -196,6 +201,7 @@ def make(grid, tier: dict, init: dict):
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
     W.wp[e] = 1
+    W.nwp[e] = 1
     W.acc[e, 0] = 0.0
     W.acc[e, 1] = 0.0
     W.acc[e, 2] = 0.0
@@ -205,8 +211,8 @@ def begin(grid, P, W, state, e):
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
     s = state[e, i]
-    wp = W.wp[e]
-    if wp > W.route.shape[1] - 1:   # route done: the last waypoint
+    wp = nav_waypoint(W.route, W.nwp, e, s[0], s[1], s[2], P.radius, 0)
+    if wp > W.route.shape[1] - 1:   # route done as far as the vehicle knows: the last waypoint
         g = W.route[e, wp - 1]
         return g[0], g[1], g[2], math.nan
     a0 = W.route[e, wp - 1]

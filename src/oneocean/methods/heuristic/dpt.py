@@ -2,8 +2,8 @@
 
 A depth loop ``w = KZ (y* - y)`` goes first (at most half the budget), then horizontal
 line-of-sight guidance with the rest: aim at the point ``LOOKAHEAD_M`` ahead of the agent's
-horizontal projection on the active leg (the env's leg frame ``W.leg``, updated before every
-step) with :func:`~oneocean.tasks.common.seek_max` (cross-track current fed forward first,
+horizontal projection on the active leg (the mission computer's leg, ``W.nwp``, advanced on
+the position the method knows: :func:`~oneocean.tasks.common.nav_waypoint`) with :func:`~oneocean.tasks.common.seek_max` (cross-track current fed forward first,
 P-control ``KP``), both with the full ``v_max``, and both feed the profile slope times the
 along-track ground speed forward (a preview of the depth profile the mission gives them).
 They differ in information only: the heuristic's current estimate and navigation come from
@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 from ...engine._jit import hot_kernel
 from ...engine.dynamics import VX, VZ
-from ...tasks.common import seek_max
+from ...tasks.common import nav_waypoint, profile_at, seek_max
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision)
 from . import SENSING  # noqa: F401
 
@@ -48,19 +48,18 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     px = s[0]
     py = s[1]
     pz = s[2]
-    g = W.leg[e]        # along-track, leg length, tangent (x, z), target depth, slope
-    sh = g[0]
-    ln = g[1]
-    tx = g[2]
-    tz = g[3]
-    wp = W.wp[e]
-    a0x = W.route[e, wp - 1, 0]
-    a0z = W.route[e, wp - 1, 2]
+    # the active leg as the mission computer knows it (the last leg once it thinks it is done)
+    wp = min(nav_waypoint(W.route, W.nwp, e, px, py, pz, P.radius, 1), W.route.shape[1] - 1)
+    a = W.route[e, wp - 1]
+    b = W.route[e, wp]
+    sh, ln, tx, tz, ytgt, slope, _ = profile_at(a[0], a[1], a[2], b[0], b[1], b[2], px, pz)
+    a0x = a[0]
+    a0z = a[2]
     budget = M.budget
     # depth loop first (at most half the budget), then horizontal LOS with the rest
-    w = M.kz * (g[4] - py)
+    w = M.kz * (ytgt - py)
     if M.preview != 0 and 0.0 <= sh <= ln:
-        w += g[5] * (s[VX] * tx + s[VZ] * tz)
+        w += slope * (s[VX] * tx + s[VZ] * tz)
     wlim = 0.5 * budget
     w = min(max(w, -wlim), wlim)
     bh = math.sqrt(budget * budget - w * w)
