@@ -17,7 +17,7 @@ from oneocean.tasks import run_cell
 from oneocean.tasks.common import OBS_DIM, OBS_FIELDS
 from oneocean.testing import make_test_grid
 
-METRIC_COLS = ["success", "T_s", "E", "coll_ratio", "violations", "primary"]
+METRIC_COLS = ["success", "T_s", "E", "coll_ratio", "violations", "current_speed_ms", "primary"]
 
 
 @pytest.fixture(scope="module")

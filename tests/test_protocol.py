@@ -104,6 +104,37 @@ def test_checks_report_pass_and_fail_as_measured():
     assert got["currents off: heuristic Tier-3 macro"].passed is None
 
 
+def test_ladder_reports_a_replicate_seed_and_each_tiers_absolute_current():
+    rates = {("G2G", m, t): k for m, ks in (("heuristic", (50, 40, 20)), ("oracle", (50,) * 3))
+             for t, k in zip((1, 2, 3), ks)}
+    cells = _cells(rates)
+    cells["seed"] = 1000
+    cells["vehicle"] = "remus100"
+    cells["current"] = [np.full(50, 0.1 * t) for t in cells["tier"]]
+    rep = _cells({**rates, ("G2G", "heuristic", 3): 10})
+    rep["seed"] = 1001
+    md = ladder_markdown(cells, "r", 1000, rep)
+    # the current table: median [p10, p90] in m/s and as a share of the REMUS's 2.5 m/s
+    assert "| G2G | remus100 (2.50 m/s) | 0.10 [0.10, 0.10] m/s, 4 % |" in md
+    assert "0.30 [0.30, 0.30] m/s, 12 %" in md
+    # the replicate's own table and checks, and the macro's change seed to seed
+    assert "Replicate: the same ladder on held-out seed 1001" in md
+    rep_part = md.split("held-out seed 1001")[1]
+    assert "| G2G | v | 100 [93, 100] | 80 [67, 89] | 20 [11, 33] |" in rep_part
+    assert "heuristic T3 40.0 -> 20.0 (-20.0)" in rep_part
+    assert "currents off" not in rep_part            # no currents-off cells replicated
+
+
+def test_config_refuses_a_replicate_seed_that_is_evaluated_or_calibrated():
+    with pytest.raises(ConfigError, match=r"rollouts\.replicate\.seeds.*evaluation seed"):
+        validate_config({"rollouts": {"seed": 1000, "replicate": {"seeds": [1000]}}})
+    cal = load_task_table("G2G")["calibration"]["seeds"]
+    with pytest.raises(ConfigError, match=r"rollouts\.replicate\.seeds.*calibration seed"):
+        validate_config({"rollouts": {"replicate": {"seeds": [cal[0]]}, "tasks": ["G2G"]}})
+    with pytest.raises(ConfigError, match=r"rollouts\.replicate\.methods.*'bc'"):
+        validate_config({"rollouts": {"replicate": {"seeds": [1001], "methods": ["bc"]}}})
+
+
 # ------------------------------------------------------------------------------ regimes
 
 @pytest.fixture(scope="module")

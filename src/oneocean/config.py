@@ -163,12 +163,23 @@ def _check_held_out(rollouts: dict) -> None:
     from .tasks.common import load_task_table
 
     seed = int(rollouts["seed"])
+    rep = rollouts.get("replicate") or {}
+    reps = [int(s) for s in rep.get("seeds", [])]
+    if seed in reps:
+        raise ConfigError(f"config key 'rollouts.replicate.seeds': {seed} is the evaluation "
+                          "seed rollouts.seed; a replicate needs other episodes")
+    bad = [m for m in rep.get("methods", []) if m not in rollouts["methods"] or m == "bc"]
+    if bad:
+        raise ConfigError(f"config key 'rollouts.replicate.methods': {bad[0]!r} is not one of "
+                          "rollouts.methods (bc is not replicated)")
     for task in rollouts["tasks"]:
-        cal = load_task_table(task).get("calibration") or {}
-        if seed in [int(s) for s in cal.get("seeds", [])]:
-            raise ConfigError(f"config key 'rollouts.seed': {seed} is a calibration seed of "
-                              f"task {task} (its tier table's calibration.seeds "
-                              f"{cal['seeds']}); evaluate on held-out seeds")
+        cal = [int(s) for s in (load_task_table(task).get("calibration") or {}).get("seeds", [])]
+        for key, s in [("rollouts.seed", seed)] + [("rollouts.replicate.seeds", r)
+                                                   for r in reps]:
+            if s in cal:
+                raise ConfigError(f"config key '{key}': {s} is a calibration seed of task "
+                                  f"{task} (its tier table's calibration.seeds {cal}); "
+                                  "evaluate on held-out seeds")
 
 
 def load_config(*paths: str | Path, overrides: dict | None = None) -> dict:

@@ -92,8 +92,9 @@ def own_info(method) -> str:
 
 def load_cells(files) -> pd.DataFrame:
     """One row per cell file: ``task, tier, method, currents, forcing, info, ablation,
-    applicable, reason, vehicle, n_agents, n, k`` and the episodes' success vector
-    (``success``, a numpy bool array); :func:`read_cell` says what each is. The ladder and its
+    applicable, reason, vehicle, n_agents, seed, n, k``, the episodes' success vector
+    (``success``, a numpy bool array) and the current speed each episode met (``current``,
+    m s-1; empty for a file without the column); :func:`read_cell` says what each is. The ladder and its
     macros use the ``data`` and ``off`` cells only, never an ablation cell (an information
     level or tier override)."""
     rows = []
@@ -101,9 +102,11 @@ def load_cells(files) -> pd.DataFrame:
         df, c = read_cell(f)
         rows.append({**{k: c[k] for k in ("task", "tier", "method", "currents", "forcing",
                                           "info", "ablation", "applicable", "reason",
-                                          "vehicle", "n_agents")},
+                                          "vehicle", "n_agents", "seed")},
                      "n": int(len(df)), "k": int(df["success"].sum()),
-                     "success": df["success"].to_numpy(dtype=bool)})
+                     "success": df["success"].to_numpy(dtype=bool),
+                     "current": (df["current_speed_ms"].to_numpy(dtype=np.float64)
+                                 if "current_speed_ms" in df else np.zeros(0))})
     return pd.DataFrame(rows)
 
 
@@ -264,9 +267,8 @@ def _fmt_cell(r) -> str:
     return f"{r['sr']:.0f} [{r['lo']:.0f}, {r['hi']:.0f}]"
 
 
-def ladder_markdown(cells: pd.DataFrame, region: str, seed: int | None = None) -> str:
-    """The ladder as a Markdown table (SR % [95 % Wilson CI] per task x tier x method, macro
-    rows with bootstrap intervals), the n/a reasons, and the checks' verdicts."""
+def _ladder_table(cells: pd.DataFrame) -> tuple[list[str], list[str]]:
+    """The ladder's Markdown table rows and its n/a notes."""
     from . import registry
 
     lad = ladder_frame(cells)
@@ -299,26 +301,105 @@ def ladder_markdown(cells: pd.DataFrame, region: str, seed: int | None = None) -
     for m, t, cur in cols:
         macro.append(_fmt_macro(macro_rate(cells, m, t, cur)))
     lines.append("| " + " | ".join(macro) + " |")
+    return lines, notes
+
+
+def current_markdown(cells: pd.DataFrame, method: str = "heuristic") -> list[str]:
+    """Each tier's current in absolute terms: per task and tier, the median [10th, 90th
+    percentile] over ``method``'s episodes of the true current speed the agents met (m/s,
+    mean over agents and steps) and the median as a percentage of the vehicle's speed limit.
+    Empty without such cells."""
+    from . import registry
+    from .engine.dynamics import load_vehicle
+
+    sel = _data_and_off(cells)
+    sel = sel[(sel["method"] == method) & sel["currents"] & sel["applicable"]]
+    sel = sel[sel["current"].map(len) > 0] if "current" in sel else sel.iloc[0:0]
+    if sel.empty:
+        return []
+    tiers = sorted(set(sel["tier"]))
+    vmax: dict[str, float] = {}
+    lines = ["| Task | Vehicle (speed limit) | " + " | ".join(f"T{t}" for t in tiers) + " |",
+             "|" + "---|" * (len(tiers) + 2)]
+    for task in [t for t in registry.task_ids() if t in set(sel["task"])]:
+        g = sel[sel["task"] == task]
+        veh = str(g["vehicle"].iloc[0])
+        if veh and veh not in vmax:
+            vmax[veh] = load_vehicle(veh).v_max
+        vm = vmax.get(veh, math.nan)
+        row = [task, f"{veh} ({vm:.2f} m/s)" if veh else ""]
+        for t in tiers:
+            c = g[g["tier"] == t]
+            if c.empty:
+                row.append("")
+                continue
+            v = c["current"].iloc[0]
+            med, p10, p90 = (float(x) for x in np.quantile(v, [0.5, 0.1, 0.9]))
+            row.append(f"{med:.2f} [{p10:.2f}, {p90:.2f}] m/s, {100.0 * med / vm:.0f} %")
+        lines.append("| " + " | ".join(row) + " |")
+    return lines
+
+
+def _check_lines(cells: pd.DataFrame, skip_missing: bool = False) -> list[str]:
+    """The checks' Markdown table (``skip_missing``: leave out checks without cells)."""
+    out = ["| Check | Measured | Target | Verdict |", "|---|---|---|---|"]
+    for c in run_checks(cells):
+        if skip_missing and c.passed is None and c.measured.startswith("no "):
+            continue
+        v = (("reported" if c.target == "reported" else "n/a") if c.passed is None
+             else ("pass" if c.passed else "FAIL"))
+        out.append(f"| {c.name} | {c.measured} | {c.target} | {v} |")
+    return out
+
+
+def ladder_markdown(cells: pd.DataFrame, region: str, seed: int | None = None,
+                    replicate: pd.DataFrame | None = None) -> str:
+    """The ladder as a Markdown table (SR % [95 % Wilson CI] per task x tier x method, macro
+    rows with bootstrap intervals), the n/a reasons, and the checks' verdicts; then, per
+    replicate seed (``replicate``: cells of other held-out seeds), the same table and checks
+    of its methods and the macro's change from the evaluation seed."""
+    lines, notes = _ladder_table(cells)
     out = [f"Region `{region}`" + (f", evaluation seed {seed}" if seed is not None else "")
            + ": success rate % [95 % CI] (Wilson per cell; macro: stratified bootstrap).", "",
            *lines, ""]
     if notes:
         out += ["Not applicable in this region:", ""] + [f"- {n}" for n in sorted(set(notes))]
         out.append("")
-    out += ["| Check | Measured | Target | Verdict |", "|---|---|---|---|"]
-    for c in run_checks(cells):
-        v = (("reported" if c.target == "reported" else "n/a") if c.passed is None
-             else ("pass" if c.passed else "FAIL"))
-        out.append(f"| {c.name} | {c.measured} | {c.target} | {v} |")
+    cur = current_markdown(cells)
+    if cur:
+        out += ["", "The current each tier's episodes met (heuristic cells): median [10th, 90th "
+                "percentile] of the true current speed at the agents, m/s, and the median as a "
+                "share of the vehicle's speed limit.", "", *cur, ""]
+    out += _check_lines(cells)
+    if replicate is not None and len(replicate):
+        for rs in sorted(set(int(x) for x in replicate["seed"].dropna())):
+            rep = replicate[replicate["seed"] == rs]
+            lines, _ = _ladder_table(rep)
+            out += ["", f"Replicate: the same ladder on held-out seed {rs} (other episodes, "
+                    "the same tiers): success rate % [95 % CI].", "", *lines, ""]
+            out += _check_lines(rep, skip_missing=True)
+            diffs = []
+            for m in sorted(set(rep["method"])):
+                for t in sorted(set(rep["tier"])):
+                    a = macro_rate(cells, m, t)
+                    b = macro_rate(rep, m, t)
+                    if a["tasks"] and b["tasks"]:
+                        diffs.append(f"{m} T{t} {a['sr']:.1f} -> {b['sr']:.1f} "
+                                     f"({b['sr'] - a['sr']:+.1f})")
+            if diffs:
+                out += ["", f"Macro SR, seed {seed} -> seed {rs}: " + "; ".join(diffs) + "."]
     return "\n".join(out) + "\n"
 
 
-def write_ladder(cell_files, out_md, region: str, seed: int | None = None) -> None:
-    """Write :func:`ladder_markdown` of the cell files atomically (the workflow's
-    ``table_ladder`` rule)."""
+def write_ladder(cell_files, out_md, region: str, seed: int | None = None,
+                 replicate=()) -> None:
+    """Write :func:`ladder_markdown` of the cell files (and the replicate seeds' cell files)
+    atomically (the workflow's ``table_ladder`` rule)."""
     from .io import write_text_atomic
 
-    write_text_atomic(out_md, ladder_markdown(load_cells(list(cell_files)), region, seed))
+    rep = load_cells(list(replicate)) if len(replicate) else None
+    write_text_atomic(out_md, ladder_markdown(load_cells(list(cell_files)), region, seed,
+                                              rep))
 
 
 def readme_markers(region: str) -> tuple[str, str]:

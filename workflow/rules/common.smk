@@ -97,6 +97,21 @@ def rollout_targets():
     )
 
 
+def replicate_targets():
+    """The ladder's cells on the replicate seeds (rollouts.replicate)."""
+    r = config["rollouts"]
+    rep = r.get("replicate") or {}
+    return expand(
+        "results/rollouts/{region}/{variant}/{task}/tier{tier}/{method}_seed{seed}.parquet",
+        region=REGION,
+        variant=r["variant"],
+        task=r["tasks"],
+        tier=r["tiers"],
+        method=[m for m in rep.get("methods", []) if m in r["methods"]],
+        seed=rep.get("seeds", []),
+    )
+
+
 def currents_off_targets():
     r = config["rollouts"]
     off = r["currents_off"]
@@ -186,7 +201,8 @@ def provenance_targets():
                for p in PAPER_TABLES]
     stages += [p.replace("results/figures/", "results/provenance/figures/").replace(".png", ".json")
                for p in PAPER_FIGURES]
-    stages += _prov(forcing_targets() + team_targets() + ablation_targets())
+    stages += _prov(forcing_targets() + team_targets() + ablation_targets()
+                    + replicate_targets())
     r = config["rollouts"]
     kernel_tasks = dict.fromkeys([*r["tasks"], r["team_sweep"]["task"],
                                   *config["planning"]["tasks"], *config["snapshots"]["tasks"]])
@@ -221,12 +237,15 @@ def rollout_code(wc):
     return task_code(wc.task)
 
 
-def _run(currents=True, forcing=None, n_agents=None):
+def _run(currents=True, forcing=None, n_agents=None, seed=None):
     """The run settings of a cell: the config's, or an ablation's forcing ("gain": the
-    forcing ablation's gain on the data currents; "tide": the data plus its tide term)."""
+    forcing ablation's gain on the data currents; "tide": the data plus its tide term), or a
+    replicate seed's."""
     r = config["rollouts"]
     run = {**{k: r[k] for k in ("episodes", "seed", "dynamics", "current_gain", "tide")},
            "currents": currents, "n_agents": n_agents}
+    if seed is not None:
+        run["seed"] = int(seed)
     fa = r["forcing_ablation"]
     if forcing == "gain":
         run["current_gain"] = fa["gain"] * r["current_gain"]
@@ -250,6 +269,9 @@ def task_cells(learned):
               for m in keep(off["methods"]) for t in off["tiers"] if t in r["tiers"]]
     cells += [(m, t, f"_{f}", _run(forcing=f)) for f in ("gain", "tide")
               for m in keep(fa["methods"]) for t in fa["tiers"] if t in r["tiers"]]
+    rep = r.get("replicate") or {}
+    cells += [(m, t, f"_seed{s}", _run(seed=s)) for s in rep.get("seeds", [])
+              for m in keep(rep.get("methods", [])) for t in r["tiers"]]
     return [{"method": m, "tier": t, "suffix": sfx, "run": run} for m, t, sfx, run in cells]
 
 

@@ -139,6 +139,7 @@ rule table_ladder:
         PY_ENV
     input:
         cells=rollout_targets() + currents_off_targets(),
+        replicate=replicate_targets(),
     output:
         md=report("results/tables/{region}/ladder.md", caption="../report/ladder.rst",
                   category="Tables"),

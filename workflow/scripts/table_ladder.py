@@ -2,4 +2,4 @@ from oneocean import smk
 from oneocean.ladder import write_ladder
 
 smk.run(snakemake, lambda s: write_ladder(s.input.cells, s.output.md, s.wildcards.region,
-                                          s.params.seed))
+                                          s.params.seed, replicate=s.input.replicate))

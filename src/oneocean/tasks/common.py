@@ -29,7 +29,7 @@ PURPOSE_RESET = PURPOSE_TASK + 2
 PURPOSE_TASK_NOISE = PURPOSE_TASK + 3
 
 #: Columns every task returns for every episode (then its own METRICS).
-STANDARD = ("success", "T_s", "E", "coll_ratio", "violations")
+STANDARD = ("success", "T_s", "E", "coll_ratio", "violations", "current_speed_ms")
 
 #: Per-agent observation of every task, one row per (episode, step, agent) (:func:`observe`):
 #: the relative goal cue (the method's current target point: goal, route carrot, slot, ...),

@@ -102,8 +102,8 @@ from .common import OK, current_at, observe
 FUSED, EXTERNAL, LEARNED = 0, 1, 2
 
 #: Columns every task writes first in its result row (then its metrics).
-N_STANDARD = 5
-C_SUCCESS, C_T, C_E, C_COLL, C_VIOL = range(N_STANDARD)
+N_STANDARD = 6
+C_SUCCESS, C_T, C_E, C_COLL, C_VIOL, C_CUR = range(N_STANDARD)
 
 
 class LoopParams(NamedTuple):
@@ -141,6 +141,7 @@ class LoopState(NamedTuple):
     navc: np.ndarray        # (E, N, 3) float64 1 + scale factor, cos / sin heading bias
     cb: np.ndarray          # (E, N, 2) float64 filtered forecast correction (east, north)
     fc: np.ndarray          # (E, 5) float64 forecast error (1 + gain, cos, sin, bias e, n)
+    cur: np.ndarray         # (E,) float64 sum over agents and steps of the true current speed
 
 
 NEW, RUNNING, FINISHED = 0, 1, 2
@@ -157,7 +158,7 @@ def new_loop_state(n_episodes: int, n_agents: int) -> LoopState:
                      np.zeros(E, np.int64), np.zeros((E, N, 3)),
                      np.full(E, -1, np.int64), np.full(E, np.inf),
                      np.zeros((E, N, STATE_DIM)), np.zeros((E, N, 2)), np.zeros((E, N, 3)),
-                     np.zeros((E, N, 2)), np.zeros((E, 5)))
+                     np.zeros((E, N, 2)), np.zeros((E, 5)), np.zeros(E))
 
 
 @hot_kernel(inline="always")
@@ -208,6 +209,7 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
     viol = LS.viol[e]
     coll = LS.coll[e]
     dmin = LS.dmin[e]
+    cur = LS.cur[e]
     counting = LS.k_succ[e] < 0   # standard metrics accumulate up to success (REACHED)
     S = state[e]
     SP = LP.sens
@@ -226,6 +228,8 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
             LS.prev[e, i, 1] = py
             LS.prev[e, i, 2] = pz
             ce, cn = current_at(grid, px, py, pz, t)
+            if counting:
+                cur += math.sqrt(ce * ce + cn * cn)
             pe, pn = current_estimate(SP, LP.seed, LS.cb, LS.fc, e, k, i, n_ag, ce, cn, 1)
             if LP.policy != EXTERNAL:
                 ax, ay, az, psi = act(grid, P, W, M, X, e, k, i, t, pe, pn)
@@ -282,6 +286,7 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
     LS.viol[e] = viol
     LS.coll[e] = coll
     LS.dmin[e] = dmin
+    LS.cur[e] = cur
     if stop or k >= n_steps:
         LS.status[e] = FINISHED
         row = res[e]
@@ -292,6 +297,7 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
         row[C_E] = energy
         row[C_COLL] = coll / k_end if k_end > 0 else 0.0
         row[C_VIOL] = viol
+        row[C_CUR] = cur / (k_end * n_ag) if k_end > 0 else 0.0
 
 
 @hot_kernel(inline="always")
