@@ -409,7 +409,7 @@ def test_ladder_spec_table(tmp_path):
             assert json.loads(r.loc[t, f"T{k}_params"]) == p
     tex = (tmp_path / "ladder.tex").read_text()
     assert "FT & Formation transit & 10 (2--10) & REMUS 100" in tex
-    assert "940; 67--100" in tex
+    assert "1800; 67--100" in tex
     assert "\\emph{Coordination / Pollution}" in tex
     pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "ladder.parquet"), df,
                                   check_dtype=False)

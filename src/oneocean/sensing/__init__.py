@@ -61,6 +61,11 @@ class SensingParams(NamedTuple):
     fix_every: int           # an acoustic position fix every this many steps (0: none)
     fix_std: float           # its error per horizontal axis, m
     fix_gain: float          # steady-state gain of the navigation filter's fix update
+    fix_seq: int             # 1: the aid tracks the team's vehicles in turn (one per
+                             # fix_every steps: a vehicle's fix every n_agents * fix_every
+                             # steps, staggered; opt-in ``navigation.sequential``)
+    fix_process_var: float   # the fix filter's process variance per second, m2 s-1 (the
+                             # sequential gain is computed in the kernel from the team size)
 
 
 _KEYS = {
@@ -149,23 +154,36 @@ def kalman_gain(process_std: float, meas_std: float, dt: float) -> float:
     return m / (m + r)
 
 
-def nav_aid(table: dict, where: str = "task table") -> tuple[str, float] | None:
+def nav_aid(table: dict, where: str = "task table") -> tuple | None:
     """A task table's acoustic navigation aid: ``(aid, period_s)`` from its optional
-    ``navigation: {aid: <name in sensors.yaml navigation.aids>, period_s: <s>}``, else None."""
+    ``navigation: {aid: <name in sensors.yaml navigation.aids>, period_s: <s>}``, else None.
+
+    With the optional ``sequential: true`` (opt-in; the aid must declare ``sequential`` in
+    ``sensors.yaml``) the aid tracks the team's vehicles in turn, ``period_s`` being one
+    target's slot of the interrogation sequence: ``(aid, period_s, True)``."""
     nav = table.get("navigation")
     if nav is None:
         return None
     aids = sensor_table()["navigation"].get("aids", {})
-    if not isinstance(nav, dict) or set(nav) != {"aid", "period_s"}:
-        raise ConfigError(f"{where}: 'navigation' must be {{aid: NAME, period_s: S}}, got "
-                          f"{nav!r}")
+    if (not isinstance(nav, dict) or not {"aid", "period_s"} <= set(nav)
+            or not set(nav) <= {"aid", "period_s", "sequential"}):
+        raise ConfigError(f"{where}: 'navigation' must be {{aid: NAME, period_s: S}} "
+                          f"(optionally sequential: true), got {nav!r}")
     if nav["aid"] not in aids:
         raise ConfigError(f"{where}: navigation.aid {nav['aid']!r} is not a sensor aid; "
                           f"known: {', '.join(sorted(aids))}")
     p = nav["period_s"]
     if isinstance(p, bool) or not isinstance(p, (int, float)) or not p > 0:
         raise ConfigError(f"{where}: navigation.period_s must be a number > 0, got {p!r}")
-    return str(nav["aid"]), float(p)
+    if "sequential" not in nav:
+        return str(nav["aid"]), float(p)
+    seq = nav["sequential"]
+    if not isinstance(seq, bool):
+        raise ConfigError(f"{where}: navigation.sequential must be true or false, got {seq!r}")
+    if seq and not aids[nav["aid"]].get("sequential"):
+        raise ConfigError(f"{where}: navigation.sequential: aid {nav['aid']!r} does not track "
+                          "several targets in turn (sensors.yaml navigation.aids)")
+    return str(nav["aid"]), float(p), seq
 
 
 def lead_factor(lead_h: float | None, forecast: dict) -> float:
@@ -192,11 +210,12 @@ def sensing_params(info: str, dt: float, aid: tuple[str, float] | None = None,
                           f"{', '.join(INFO_LEVELS)}")
     t = sensor_table(path)
     nav = t["navigation"]
-    fix_every, fix_std, fix_gain = 0, 0.0, 0.0
+    fix_every, fix_std, fix_gain, fix_seq = 0, 0.0, 0.0, 0
     if aid is not None:
         fix_every = max(1, int(round(float(aid[1]) / float(dt))))
         fix_std = float(nav["aids"][aid[0]]["std_m"])
         fix_gain = kalman_gain(nav["fix_filter_process_std_m"], fix_std, fix_every * float(dt))
+        fix_seq = int(len(aid) > 2 and bool(aid[2]))
     fc, ins, flt = (t["current"][k] for k in ("forecast", "in_situ", "filter"))
     f = lead_factor(lead_h, fc)
     return SensingParams(
@@ -207,4 +226,5 @@ def sensing_params(info: str, dt: float, aid: tuple[str, float] | None = None,
         kalman_gain(flt["process_std_ms"], ins["noise_std_ms"], dt),
         float(nav["start_fix_std_m"]), math.radians(float(nav["heading_bias_std_deg"])),
         float(nav["scale_factor_std"]), float(nav["velocity_noise_ms"]),
-        float(nav["gnss_std_m"]), float(nav["surface_depth_m"]), fix_every, fix_std, fix_gain)
+        float(nav["gnss_std_m"]), float(nav["surface_depth_m"]), fix_every, fix_std, fix_gain,
+        fix_seq, float(nav["fix_filter_process_std_m"]) ** 2)

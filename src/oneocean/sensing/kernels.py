@@ -115,11 +115,25 @@ def nav_fill(state, nerr, nav, e, i):
 
 
 @hot_kernel(inline="always")
+def seq_fix_gain(q, r):
+    """Steady-state gain of the fix filter (as :func:`oneocean.sensing.kalman_gain`) for
+    process variance ``q`` m2 over the fix period and fix variance ``r`` m2: the prior
+    variance ``M`` solves ``M^2 = q M + q r``; gain ``M / (M + r)`` (1 for an exact fix)."""
+    if r <= 0.0:
+        return 1.0
+    if q <= 0.0:
+        return 0.0
+    m = 0.5 * (q + (q * q + 4.0 * q * r) ** 0.5)
+    return m / (m + r)
+
+
+@hot_kernel(inline="always")
 def nav_update(SP, seed, navc, nerr, state, prev, e, k, i, n_ag, dt):
     """Propagate agent ``i``'s position error over step ``k``: at the surface a GNSS fix;
     underwater, dead reckoning on the DVL-measured ground displacement (scale factor and
     heading bias) plus velocity noise, fused with the task's acoustic fix when one is due
-    (every ``SP.fix_every`` steps, gain ``SP.fix_gain``)."""
+    (every ``SP.fix_every`` steps, gain ``SP.fix_gain``; with ``SP.fix_seq`` the aid tracks
+    the team in turn: agent ``i``'s fix every ``n_ag * SP.fix_every`` steps, in slot ``i``)."""
     if SP.true_position != 0:
         return
     cnt = 2 * (k * n_ag + i)
@@ -136,7 +150,15 @@ def nav_update(SP, seed, navc, nerr, state, prev, e, k, i, n_ag, dt):
     mz = g * (c * dz - s * dx)
     ex = nerr[e, i, 0] + mx - dx + dt * draw(seed, e, PURPOSE_NAV_STEP, cnt, SP.vel_noise)
     ez = nerr[e, i, 1] + mz - dz + dt * draw(seed, e, PURPOSE_NAV_STEP, cnt + 1, SP.vel_noise)
-    if SP.fix_every > 0 and (k + 1) % SP.fix_every == 0:   # fuse the acoustic fix
+    if SP.fix_every > 0 and SP.fix_seq != 0:
+        # the aid tracks the team in turn: agent i's fix in the i-th slot of every sequence
+        # of n_ag slots, fused with the gain of its own fix period (n_ag slots)
+        cyc = SP.fix_every * n_ag
+        if (k + 1) % cyc == ((i + 1) * SP.fix_every) % cyc:
+            K = seq_fix_gain(SP.fix_process_var * cyc * dt, SP.fix_std * SP.fix_std)
+            ex = (1.0 - K) * ex + K * draw(seed, e, PURPOSE_NAV_FIX, cnt, SP.fix_std)
+            ez = (1.0 - K) * ez + K * draw(seed, e, PURPOSE_NAV_FIX, cnt + 1, SP.fix_std)
+    elif SP.fix_every > 0 and (k + 1) % SP.fix_every == 0:   # fuse the acoustic fix
         K = SP.fix_gain
         ex = (1.0 - K) * ex + K * draw(seed, e, PURPOSE_NAV_FIX, cnt, SP.fix_std)
         ez = (1.0 - K) * ez + K * draw(seed, e, PURPOSE_NAV_FIX, cnt + 1, SP.fix_std)

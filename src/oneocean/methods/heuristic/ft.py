@@ -9,7 +9,10 @@ virtual centre at the start of the step) with feed-forward of the virtual centre
 over the step plus P-control ``KP`` (capped at ``P_CAP_MS``) through
 :func:`~oneocean.tasks.common.steer`.
 
-Both: ``budget = v_max``. ``heuristic``: NOISY probed current. ``oracle``: exact current.
+Both: ``budget = v_max``, the same logic and gains; they differ in information only
+(:mod:`oneocean.sensing`): the heuristic's state is its navigation estimate (USBL fixes in
+turn fused with dead reckoning) and its current the filtered estimate; the oracle's are the
+truth. Given the truth the heuristic is the oracle bit for bit (tests/test_information_only.py).
 
 The virtual centre is the plan token: ``plan`` writes its position at the start of the step
 (``W.vc``, the observation's goal cue is the agent's slot around it), its velocity over the
