@@ -1,4 +1,5 @@
-"""UPL (cooperative lift): reset geometry, reachability, attach/lift physics, success rule,
+"""UPL (cooperative lift): reset geometry, the survey's chart, reachability, attach/lift
+physics, success rule, the object's perception (sonar fixes, the team's filter, the search),
 metrics, determinism (seeds and threads), tier table."""
 
 from __future__ import annotations
@@ -15,14 +16,14 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError, NotApplicable
 from oneocean.tasks import run_cell, upl
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
-from oneocean.tasks.episodes import rollout
+from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"time_limit_s": 400.0, "site_depth_m": 40.0,
         "start_distance_m": 60.0, "attach_radius_m": 1.0, "attach_dwell_s": 5.0,
         "detach_radius_m": 2.5, "sink_speed_ms": 0.3, "quorum": 5, "hold_radius_m": 30.0,
-        "success_depth_m": 2.5, "dt_s": 1.0}
+        "success_depth_m": 2.5, "survey_std_m": 10.0, "dt_s": 1.0}
 N = upl.N_SLOTS
 #: The task's vehicle (its tier table): the BlueROV2 Heavy, 0.85 m/s.
 VEHICLE = E.load_vehicle(load_task_table("UPL")["vehicle"])
@@ -63,6 +64,10 @@ def _at_slots(depth_floor=40.0, n_ep=1, offset=0.0):
 
 def _roll(grid, tier, init, method="oracle", dyn="kinematic", vehicle=None, seed=0):
     return rollout(upl, grid, tier, init, method, dyn, vehicle or VEHICLE, seed)
+
+
+def _batch(grid, tier, init, method="heuristic", dyn="kinematic", seed=0, info=None):
+    return Episodes(upl, grid, tier, init, method, dyn, VEHICLE, seed, info=info)
 
 
 def test_reset_geometry_is_valid(coast):
@@ -120,6 +125,8 @@ def test_unreachable_success_depth_is_rejected(calm):
                 E.load_vehicle(), 0)
     with pytest.raises(ConfigError, match="above the success depth"):
         upl.check_reachable({**TIER, "site_depth_m": 17.0})
+    with pytest.raises(ConfigError, match="survey_std_m"):
+        upl.check_reachable({**TIER, "survey_std_m": -1.0})
     for i in (1, 2, 3):
         upl.check_reachable(_tier(i))
 
@@ -232,3 +239,76 @@ def test_tier_table_monotone_and_declared():
     assert table["vehicle"] == "bluerov2_heavy"
     assert table["agents"] == {"default": 5, "range": [5, 5]}
     assert table["dt_s"] == 1.0
+
+
+def test_chart_is_the_site_with_the_survey_error(coast):
+    tier = _tier(3)
+    init = upl.reset(coast, tier, N, 40, seed=3)
+    obj, chart = init["obj0"], init["chart"]
+    err = (chart - obj)[:, [0, 2]]
+    # horizontal error of the tier's stated size (truncated at 3 sigma), none vertically
+    # beyond the charted seafloor's depth at the charted point
+    assert np.all(np.abs(err) <= 3.0 * tier["survey_std_m"] + 1e-9)
+    assert 0.5 * tier["survey_std_m"] < err.std() < 1.5 * tier["survey_std_m"]
+    floor = -E.grid.sample_elevation_points(coast, np.ascontiguousarray(chart[:, [0, 2]]),
+                                            np.empty(40))
+    wet = floor > upl.OBJ_HALF_HEIGHT_M
+    np.testing.assert_allclose(chart[wet, 1], floor[wet] - upl.OBJ_HALF_HEIGHT_M)
+    # the chart is drawn after the geometry: the sites and starts do not depend on it
+    other = upl.reset(coast, {**tier, "survey_std_m": 0.0}, N, 40, seed=3)
+    np.testing.assert_array_equal(other["obj0"], obj)
+    np.testing.assert_array_equal(other["pos0"], init["pos0"])
+    np.testing.assert_allclose(other["chart"][:, [0, 2]], obj[:, [0, 2]])
+
+
+def test_object_perception_reads_the_sensor_table(monkeypatch):
+    rng, rstd, bstd, cstd, every = upl.object_perception(1.0)
+    assert (rng, rstd, cstd, every) == (40.0, 0.1, 0.1, 1)
+    assert bstd == pytest.approx(np.radians(1.0))
+    assert upl.object_perception(0.5)[4] == 2
+    monkeypatch.setattr(upl, "perception", lambda name: {"range_m": 40.0})
+    with pytest.raises(ConfigError, match="perception.upl_object.range_std_m"):
+        upl.object_perception(1.0)
+
+
+def test_sonar_fixes_within_range_and_the_oracle_exact(calm):
+    # agents 3 m above their slots (in range) and one 150 m away (out of range)
+    init = _at_slots(offset=3.0)
+    init["pos0"][0, 4] += np.array([150.0, -30.0, 0.0])
+    init["chart"] = init["obj0"] + np.array([[6.0, 0.0, -8.0]])
+    h = _batch(calm, TIER, init).run(1)
+    fix = h.W.fix[0]
+    assert np.all(fix[:4, 3] == 1.0) and fix[4, 3] == 0.0
+    # the measured offsets of the step's start, with the sonar's noise (not exact)
+    d = fix[:4, :3] - (init["obj0"][0] - init["pos0"][0, :4])
+    assert np.all(np.abs(d) < 1.0) and np.any(d != 0.0)
+    assert h.W.odet[0] == 1
+    # the team's estimate left the chart for the object
+    est = h.W.oest[0, :3]
+    assert np.linalg.norm(est - init["obj0"][0]) < 1.0
+    o = _batch(calm, TIER, init, method="oracle").run(1)
+    assert np.all(o.W.fix[0, :, 3] == 1.0)   # exact, at any range
+    np.testing.assert_array_equal(o.W.oest[0, :3], o.W.obj[0])
+
+
+def test_heuristic_estimate_converges_and_is_not_the_truth(coast):
+    tier = _tier(2)
+    init = upl.reset(coast, tier, N, 4, seed=2)
+    h = _batch(coast, tier, init, dyn="6dof").run(150)
+    err = np.linalg.norm(h.W.oest[:, :3] - h.W.obj, axis=1)
+    assert np.all(h.W.odet == 1)
+    assert np.all(err < 1.0) and np.all(err > 0.0)
+
+
+def test_search_finds_an_object_far_off_the_chart(calm):
+    # the chart 70 m off: beyond the sonar's 40 m from the charted slots; the team searches
+    init = _at_slots(offset=3.0)
+    init["pos0"][0] += np.array([70.0, -30.0, 0.0])
+    init["chart"] = init["obj0"] + np.array([[70.0, 0.0, 0.0]])
+    tier = {**TIER, "survey_std_m": 40.0, "time_limit_s": 900.0}
+    h = _batch(calm, tier, init).run()
+    r = h.results()
+    assert h.W.srch[0, 0] == 1.0 and h.W.odet[0] == 1
+    assert r["success"][0]
+    o = _roll(calm, tier, init)
+    assert o["success"][0] and o["T_s"][0] < r["T_s"][0]

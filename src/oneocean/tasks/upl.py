@@ -10,6 +10,18 @@ Objective
     ``[START_RING_FRAC * start_distance_m, start_distance_m]`` horizontally from the site, each
     with a straight, clear descent to it. They must approach, attach, then lift the object
     cooperatively to the surface while holding it over the site against the currents.
+Mission data and perception
+    The team knows the object from the site survey's chart (``reset``'s ``chart``: the true
+    centre moved horizontally by the survey's error, ``survey_std_m`` per axis, truncated at
+    3 sigma, at the charted seafloor depth there; the same for every method) and sees it with
+    each ROV's forward-looking imaging sonar (``sensors.yaml`` ``perception.upl_object``,
+    docs/sensing.md): ``pre_step`` writes every agent's fix (the object's offset from the
+    agent with range, bearing and elevation noise and the echo centre's offset, within the
+    detection range, once per period) into ``W.fix``; a method that perceives the target
+    exactly (the oracle, the ``true_target`` ablation) gets the exact offset at any range. The
+    slot offsets (the object's drawing) are mission data. The method keeps its own estimate
+    of the object (:mod:`oneocean.methods.heuristic.upl`); attach, detach and success are
+    judged on the truth.
 Physics (the environment; identical for every method)
     * Attach: an unattached agent that stays within ``attach_radius_m`` of the same free slot
       for ``attach_dwell_s`` consecutive seconds latches onto it. Any agent may take any free
@@ -41,16 +53,19 @@ Metrics
     m), ``attach_time_s`` (first time the quorum was attached, s; the time limit if never),
     ``object_drift_m`` (horizontal distance of the object from the site at the end, m).
 Methods
-    :mod:`oneocean.methods.heuristic.upl` (greedy slot assignment, slot seeking, held lift;
-    both at full speed; heuristic: the sensor models of :mod:`oneocean.sensing`; oracle: true
-    current and position). The environment
-    above does not depend on the method.
+    :mod:`oneocean.methods.heuristic.upl` (the team's object filter, greedy slot assignment,
+    slot seeking with a search when the chart is wrong, held lift; both at full speed;
+    heuristic: the sensor models of :mod:`oneocean.sensing` and the object's sonar model;
+    oracle: true current, position and object; information only). The environment above does
+    not depend on the method.
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
-    ``TASK_ID``, ``METRICS``; ``reset`` (Python: site, slots, starts and start times);
+    ``TASK_ID``, ``METRICS``; ``reset`` (Python: site, slots, starts, start times, chart);
     ``UPLParams`` / ``UPLWork`` and ``make`` (the env's typed scalars and per-episode arrays:
-    object, attachments, the method's slot targets); the env hooks ``begin``, ``pre_step``
-    (positions and attached count at the step start), ``cue`` (the agent's slot),
+    object, attachments, sonar fixes, the method's object estimate and slot targets);
+    ``object_perception`` (the sonar model's scalars); the env hooks ``begin``, ``pre_step``
+    (positions, attached count and sonar fixes at the step start), ``cue`` (the agent's slot
+    on the method's estimate),
     ``after_agent`` (after the last agent's move: the object and the assembly move, so the
     near-collision count sees the carried agents), ``post_step`` (attach / detach, quorum time,
     success), ``finish``; ``POLICY``; ``_kernel`` and ``_observe_kernel``.
@@ -70,6 +85,8 @@ from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError, NotApplicable
 from ..methods.heuristic import upl as POLICY
+from ..sensing import perception
+from ..sensing.kernels import PURPOSE_PERCEPTION, draw, polar_fix
 from .common import (OK, STANDARD, current_at, episode_generators, episode_steps, fresh_cache,
                      need_tier, path_clear, start_times)
 from .loop import observe_next, run_episode
@@ -99,12 +116,15 @@ START_SEPARATION_M = 6.0
 CLEARANCE_M = 1.0
 #: Extra altitude margin required at every slot of a sampled site, m.
 SLOT_MARGIN_M = 0.5
+#: Vertical standard deviation of the charted object depth (the chart's seafloor depth at the
+#: charted point vs the object's), m: the prior of the method's object filter.
+SITE_PRIOR_STD_Y_M = 2.0
 
 _C_LIFT, _C_DEPTH, _C_ATT_T, _C_DRIFT = (len(STANDARD) + i for i in range(len(METRICS)))
 
 _TIER_KEYS = ("time_limit_s", "site_depth_m",
               "start_distance_m", "attach_radius_m", "attach_dwell_s", "detach_radius_m",
-              "sink_speed_ms", "quorum", "hold_radius_m", "success_depth_m")
+              "sink_speed_ms", "quorum", "hold_radius_m", "success_depth_m", "survey_std_m")
 
 
 def slot_offsets(phase: float = 0.0) -> np.ndarray:
@@ -134,6 +154,9 @@ def check_reachable(tier: dict, grid=None) -> None:
         raise ConfigError(f"task {TASK_ID}: quorum={q} outside [1, {N_SLOTS}]")
     if float(tier["detach_radius_m"]) < float(tier["attach_radius_m"]):
         raise ConfigError(f"task {TASK_ID}: detach_radius_m < attach_radius_m")
+    sv = tier.get("survey_std_m", 0.0)
+    if isinstance(sv, bool) or not isinstance(sv, (int, float)) or not sv >= 0.0:
+        raise ConfigError(f"task {TASK_ID}: survey_std_m must be a number >= 0 m, got {sv!r}")
 
 
 def _site_candidates(grid, rng, lo: float, hi: float, n: int = 4096) -> np.ndarray:
@@ -194,7 +217,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     dict
         ``obj0`` (E, 3) object centre, m; ``slot_off`` (E, 5, 3) slot offsets from the centre,
         m; ``pos0`` (E, 5, 3) agent starts, m; ``psi0`` (E, 5) headings toward the site, rad;
-        ``t0`` (E,) start times, s.
+        ``t0`` (E,) start times, s; ``chart`` (E, 3) the survey's charted object centre, m.
 
     Raises
     ------
@@ -208,11 +231,13 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     hi = float(tier["site_depth_m"])
     lo = hi - SITE_DEPTH_SPAN_M
     dist = float(tier["start_distance_m"])
+    survey = float(tier["survey_std_m"])
     rngs = episode_generators(seed, n_episodes)
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
     obj0 = np.empty((n_episodes, 3))
     slot_off = np.empty((n_episodes, N_SLOTS, 3))
     pos0 = np.empty((n_episodes, N_SLOTS, 3))
+    chart = np.empty((n_episodes, 3))
     for e, rng in enumerate(rngs):
         found = None
         for _ in range(8):
@@ -228,6 +253,11 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
                               f"{dist:g} m found; the grid has no such water for this tier")
         obj0[e], phase, pos0[e] = found
         slot_off[e] = slot_offsets(phase)
+        # the site survey's chart of the object (mission data, every method's): the true
+        # position with the survey's horizontal error (truncated at 3 sigma), at the charted
+        # seafloor depth there (drawn last: the geometry above does not depend on it)
+        err = np.clip(rng.normal(0.0, 1.0, 2), -3.0, 3.0) * survey
+        chart[e] = _chart_point(grid, obj0[e], err)
     d = obj0[:, None, :] - pos0
     psi0 = np.arctan2(d[..., 0], d[..., 2])
     # the current regime is judged at the object: its site, and the water column it rises in
@@ -235,7 +265,19 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     col[:, 1, 1] *= 0.5
     col[:, 2, 1] = float(tier["success_depth_m"])
     return {"obj0": obj0, "slot_off": slot_off, "pos0": pos0, "psi0": psi0, "t0": t0,
-            "regime_points": col}
+            "chart": chart, "regime_points": col}
+
+
+def _chart_point(grid, obj: np.ndarray, err) -> np.ndarray:
+    """The charted object centre: ``obj`` moved horizontally by the survey error ``err``
+    (x, z) m, at the charted seafloor depth there (the object's own depth where the charted
+    point is dry or off the grid)."""
+    x = float(obj[0] + err[0])
+    z = float(obj[2] + err[1])
+    inside = grid.x0 <= x <= grid.x_max and grid.z0 <= z <= grid.z_max
+    floor = -float(sample_elevation_points(grid, np.array([[x, z]]), np.empty(1))[0])
+    y = floor - OBJ_HALF_HEIGHT_M if inside and floor > OBJ_HALF_HEIGHT_M else float(obj[1])
+    return np.array([x, y, z])
 
 
 @hot_kernel  # not inlined: called once per step, keeps the episode kernel's compile time down
@@ -280,6 +322,14 @@ class UPLParams(NamedTuple):
     sink: float             # sink speed of the object alone, m s-1
     succ_d: float           # success depth of the object's centre, m
     hold_r: float           # success radius around the site (horizontal), m
+    survey_std: float       # the chart's stated error per horizontal axis (mission data), m
+    # the object's perception model (data/sensors.yaml perception.upl_object; every
+    # non-oracle method's: docs/sensing.md)
+    p_range: float          # detection range (slant), m
+    p_range_std: float      # range noise, m
+    p_bearing_std: float    # bearing and elevation noise, rad
+    p_centre_std: float     # echo centre's offset from the object's centre (line of sight), m
+    p_every: int            # one fix per ROV every this many steps
 
 
 class UPLWork(NamedTuple):
@@ -296,9 +346,23 @@ class UPLWork(NamedTuple):
     t: np.ndarray           # (E,) time of the current step, s
     n_att: np.ndarray       # (E,) int attached agents at the start of the step
     t_att: np.ndarray       # (E,) first time the quorum was attached, s (-1: not yet)
+    chart: np.ndarray       # (E, 3) the survey's charted object centre (mission data), m
+    # the object's perception (pre_step; the policy's ``prepare`` sets ``pcfg``)
+    pcfg: np.ndarray        # (2,) int: run seed, 1 = the method perceives the object exactly
+    fix: np.ndarray         # (E, 5, 4) this step's sonar fix per agent: measured offset of
+                            # the object's centre from the agent (x, y, z) m, 1 = valid
     # the method's (oneocean.methods.heuristic.upl)
     target: np.ndarray      # (E, 5) int slot assigned to each agent
     hold: np.ndarray        # (E, 2) the step's hold velocity of the assembly (x, z), m s-1
+    oest: np.ndarray        # (E, 6) the object's estimate: centre (x, y, z) m, velocity m s-1
+    ocov: np.ndarray        # (E, 3, 3) its covariance per axis: P_pp m2, P_pv m2 s-1, P_vv
+    odet: np.ndarray        # (E,) int 1 once the team has a fix of the object
+    srch: np.ndarray        # (E, 2) 1 while the team searches (arrived, no fix); the search
+                            # spiral's turn, rad
+    hsite: np.ndarray       # (E, 3) where the team holds the lift: its site estimate (x, z),
+                            # set (third entry 1) when the quorum first holds
+    fixk: np.ndarray        # (E,) int step of the latest fixes in ``fix`` (-1: none yet)
+    kf: np.ndarray          # (E,) int step of the fixes the estimate last fused (-1: none)
 
 
 def make(grid, tier: dict, init: dict):
@@ -310,16 +374,40 @@ def make(grid, tier: dict, init: dict):
     P = UPLParams(int(tier["quorum"]), dt, episode_steps(tier) * dt, DEFAULT_LAND_THRESHOLD,
                   CLEARANCE_M, float(tier["attach_radius_m"]), float(tier["attach_dwell_s"]),
                   float(tier["detach_radius_m"]), float(tier["sink_speed_ms"]),
-                  float(tier["success_depth_m"]), float(tier["hold_radius_m"]))
+                  float(tier["success_depth_m"]), float(tier["hold_radius_m"]),
+                  float(tier["survey_std_m"]), *object_perception(dt))
     site = np.ascontiguousarray(init["obj0"], dtype=np.float64)
+    chart = np.ascontiguousarray(init.get("chart", site), dtype=np.float64)
     W = UPLWork(site, np.ascontiguousarray(init["slot_off"], dtype=np.float64), site.copy(),
                 np.zeros((n_ep, 3)), np.ones(n_ep, dtype=np.bool_),
                 np.full((n_ep, n), -1, dtype=np.int64), np.full((n_ep, n), -1, dtype=np.int64),
                 np.zeros((n_ep, n)), np.full((n_ep, n), -1, dtype=np.int64),
                 np.zeros((n_ep, n, 3)), np.zeros(n_ep), np.zeros(n_ep, dtype=np.int64),
-                np.full(n_ep, -1.0), np.full((n_ep, n), -1, dtype=np.int64),
-                np.zeros((n_ep, 2)))
+                np.full(n_ep, -1.0), chart.copy(), np.zeros(2, dtype=np.int64),
+                np.zeros((n_ep, n, 4)), np.full((n_ep, n), -1, dtype=np.int64),
+                np.zeros((n_ep, 2)), np.zeros((n_ep, 6)), np.zeros((n_ep, 3, 3)),
+                np.zeros(n_ep, dtype=np.int64), np.zeros((n_ep, 2)), np.zeros((n_ep, 3)),
+                np.full(n_ep, -1, dtype=np.int64), np.full(n_ep, -1, dtype=np.int64))
     return P, W
+
+
+def object_perception(dt: float) -> tuple[float, float, float, float, int]:
+    """The object's perception model (``sensors.yaml`` ``perception.upl_object``) as the
+    kernel's scalars: detection range m, range noise m, bearing noise rad, echo-centre offset
+    m, fix every n steps.
+
+    Raises
+    ------
+    ConfigError
+        A missing parameter (one line, naming it).
+    """
+    m = perception("upl_object")
+    for key in ("range_m", "range_std_m", "bearing_std_deg", "centre_std_m", "period_s"):
+        if key not in m:
+            raise ConfigError(f"sensors.yaml: perception.upl_object.{key} missing")
+    every = max(1, int(round(float(m["period_s"]) / float(dt))))
+    return (float(m["range_m"]), float(m["range_std_m"]),
+            math.radians(float(m["bearing_std_deg"])), float(m["centre_std_m"]), every)
 
 
 @hot_kernel(inline="always")
@@ -335,6 +423,21 @@ def begin(grid, P, W, state, e):
         W.dwell[e, i] = 0.0
         W.dslot[e, i] = -1
     W.t_att[e] = -1.0
+    # the method's prior of the object: the chart, at rest, with the survey's stated error
+    # (horizontal) and the charted seafloor's (vertical, SITE_PRIOR_STD_Y_M)
+    for c in range(3):
+        W.oest[e, c] = W.chart[e, c]
+        W.oest[e, 3 + c] = 0.0
+        sd = P.survey_std if c != 1 else SITE_PRIOR_STD_Y_M
+        W.ocov[e, c, 0] = sd * sd + 1e-6
+        W.ocov[e, c, 1] = 0.0
+        W.ocov[e, c, 2] = 1e-6
+        W.hsite[e, c] = 0.0
+    W.odet[e] = 0
+    W.fixk[e] = -1
+    W.kf[e] = -1
+    W.srch[e, 0] = 0.0
+    W.srch[e, 1] = 0.0
     return False
 
 
@@ -352,16 +455,64 @@ def pre_step(grid, P, W, state, e, k, t):
         if W.att[e, i] >= 0:
             n_att += 1
     W.n_att[e] = n_att
+    _sonar_fixes(P, W, state, e, k)
+    W.fixk[e] = k
+
+
+@hot_kernel(inline="always")
+def _sonar_fixes(P, W, state, e, k):
+    """This step's sonar fix of the object by every agent (``W.fix``): the offset of the
+    object's centre from the agent, exact for a method that perceives the target exactly
+    (``W.pcfg[1]``: the oracle; every step, any range); otherwise, every ``P.p_every`` steps
+    while the object is within the slant range ``P.p_range``, the horizontal offset with the
+    sonar's range and bearing noise (:func:`~oneocean.sensing.kernels.polar_fix`, counters
+    ``4 (k N + i)`` and ``+ 1``) and the vertical one with its elevation noise (``+ 2``),
+    plus the echo centre's offset from the object's centre along the line of sight (one
+    draw per agent and episode, ``P.p_centre_std``, counter ``4 i + 3``)."""
+    n = state.shape[1]
+    seed = W.pcfg[0]
+    exact = W.pcfg[1] != 0
+    due = k % P.p_every == 0
+    for i in range(n):
+        dx = W.obj[e, 0] - state[e, i, 0]
+        dy = W.obj[e, 1] - state[e, i, 1]
+        dz = W.obj[e, 2] - state[e, i, 2]
+        F = W.fix[e, i]
+        if exact:
+            F[0] = dx
+            F[1] = dy
+            F[2] = dz
+            F[3] = 1.0
+            continue
+        r = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if not due or r > P.p_range:
+            F[3] = 0.0
+            continue
+        c = 4 * (k * n + i)
+        mx, mz = polar_fix(seed, e, c, dx, dz, P.p_range_std, P.p_bearing_std)
+        # the echo's centre lies off the object's centre along the line of sight (the
+        # facing surface; per agent and episode: counter 4 i + 3, unused by the steps)
+        b = draw(seed, e, PURPOSE_PERCEPTION, 4 * i + 3, P.p_centre_std)
+        if r > 0.0:
+            b /= r
+        F[0] = mx + b * dx
+        F[1] = dy + b * dy + draw(seed, e, PURPOSE_PERCEPTION, c + 2, r * P.p_bearing_std)
+        F[2] = mz + b * dz
+        F[3] = 1.0
 
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
-    """The agent's slot: its own when attached, else the method's target (the nearest slot
-    when no fused method assigns one)."""
+    """The agent's slot as the method knows it (its object estimate ``W.oest``, which has
+    fused every sonar fix up to the last step: :func:`~oneocean.methods.heuristic.upl.
+    perceive`, so a policy acting through the step API perceives the object as the fused
+    heuristic does): its own when attached, else the method's target (the nearest slot when
+    no fused method assigns one)."""
+    POLICY.perceive(P, W, state, e)
     off = W.slot_off[e]
-    ox = W.obj[e, 0]
-    oy = W.obj[e, 1]
-    oz = W.obj[e, 2]
+    ox = W.oest[e, 0]
+    oy = W.oest[e, 1]
+    oz = W.oest[e, 2]
     j = W.att[e, i]
     if j < 0:
         j = W.target[e, i]

@@ -1,21 +1,43 @@
-"""UPL heuristic and oracle: greedy slot assignment, slot seeking, then a held cooperative lift.
+"""UPL heuristic and oracle: the object as the team perceives it, greedy slot assignment,
+slot seeking (a search when the object is not where the chart says), then a held lift.
 
-Assignment (``plan`` at step 0): greedy nearest (agent, slot) pairs; an agent whose slot was
-taken by another retargets the nearest free slot (``act``). Unattached agents seek their slot
-with P-control (``KP``, capped at the speed budget), feed-forward of the sensed current and of
-the object's last velocity (``heuristic``: :func:`~oneocean.tasks.common.seek`; ``oracle``:
-crab steering, :func:`~oneocean.tasks.common.seek_max`). Attached agents hold their slot until
-the quorum is attached, then lift: desired ground velocity = slot tracking + hold (P toward the
-site, ``KP_HOLD``, capped at ``HOLD_SPEED_MS``; computed once per step by ``plan``) + full
-upward speed; the horizontal part (incl. the current feed-forward) has priority and the
-vertical part gets the rest of the speed budget.
+Perception (``plan``, every step). The team keeps one estimate of the object's centre and
+velocity (``W.oest``, covariance ``W.ocov``): a constant-velocity Kalman filter per axis
+(process noise ``QA_REST`` while the object rests or sinks, ``QA_LIFT`` while the quorum
+lifts it), started at the site survey's chart (mission data: ``W.chart``, its stated error
+``P.survey_std`` horizontally) and updated with every sonar fix of every ROV (``W.fix``: the
+measured offset of the object from the ROV, :func:`oneocean.tasks.upl._sonar_fixes`) placed
+at the ROV's navigation estimate; the fix's variance is the sonar's range and angular noise
+at its range, the echo centre's offset and the USBL-aided navigation's error ``NAV_STD_M``
+(horizontal). A method
+that perceives the target exactly (the oracle; the ``true_target`` ablation) has the object's
+true centre and velocity instead. Slot targets are the estimate plus the slots' offsets
+(the object's drawing, mission data).
 
-Both: speed budget ``v_max``, crab steering (:func:`~oneocean.tasks.common.seek_max`) toward
-the slot. ``heuristic``: the sensor models of :mod:`oneocean.sensing` (USBL-aided navigation,
-filtered current estimate). ``oracle``: true current and position, same logic.
+Assignment (``plan`` at step 0): greedy nearest (agent, slot) pairs on the estimate; an agent
+whose slot was taken by another retargets the nearest free slot (``act``). Search: when an
+agent reaches its charted slot (``SEARCH_ARRIVE_M``) and no ROV has a fix yet, the team
+searches: every agent flies a point of a five-armed spiral about the chart (arms at the
+slots' bearings, from the sonar's detection range outward by ``SEARCH_PITCH`` ranges per
+fifth of a turn, the point moving at ``SEARCH_SPEED_MS``), at the slot depth kept
+``SEARCH_ALTITUDE_M`` above the charted seafloor, until the first fix. Unattached agents seek
+their slot with crab steering (:func:`~oneocean.tasks.common.seek_max`, P-gain ``KP``, capped
+at the speed budget) and
+feed-forward of the current estimate and the object's estimated velocity. Attached agents
+hold their slot until the quorum is attached, then lift: desired ground velocity = slot
+tracking + hold (P toward the team's site estimate -- the object's estimate when the quorum
+first held --, ``KP_HOLD``, capped at ``HOLD_SPEED_MS``; computed once per step by ``plan``)
++ full upward speed; the horizontal part (incl. the current feed-forward) has priority and
+the vertical part gets the rest of the speed budget.
+
+Both methods: speed budget ``v_max``, the same logic and gains. ``heuristic``: the sensor
+models of :mod:`oneocean.sensing` (USBL-aided navigation, filtered current estimate, the
+object's sonar model). ``oracle``: true current, position and object (information only).
 
 Policy state lives in the task's work arrays (:class:`oneocean.tasks.upl.UPLWork`):
-``target`` (E, 5) the slot assigned to every agent, ``hold`` (E, 2) the step's hold velocity.
+``target`` (E, 5) the slot assigned to every agent, ``hold`` (E, 2) the step's hold
+velocity, ``oest`` / ``ocov`` / ``odet`` the object's filter, ``srch`` the search flag,
+``hsite`` the site estimate held during the lift.
 """
 
 from __future__ import annotations
@@ -26,6 +48,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
+from ...engine.dynamics import sincos
+from ...engine.grid import sample_elevation
 from ...tasks.common import seek_max
 from . import SENSING  # noqa: F401
 
@@ -34,6 +58,26 @@ KP = 0.6
 #: Hold (object over the site) proportional gain, s-1, and its speed cap, m s-1.
 KP_HOLD = 0.1
 HOLD_SPEED_MS = 0.5
+#: Horizontal navigation error per axis the object filter assumes for a fix's placement, m
+#: (the USBL-aided navigation's, docs/sensing.md: ~0.15 m RMS per axis).
+NAV_STD_M = 0.15
+#: Acceleration noise of the object filter's constant-velocity model, m s-1.5: resting or
+#: sinking, and lifted by the quorum.
+QA_REST = 0.02
+QA_LIFT = 0.2
+#: An agent within this horizontal distance of its charted slot with no fix starts the
+#: search, m.
+SEARCH_ARRIVE_M = 3.0
+#: The search spiral: every agent's search point turns about the chart at this speed, m s-1,
+#: starting at the sonar's detection range from the chart and moving out by
+#: ``SEARCH_PITCH`` detection ranges per fifth of a turn (a teammate's pass at the same
+#: bearing is then 1.6 ranges further in: the swaths, two ranges wide, overlap).
+SEARCH_SPEED_MS = 0.5
+SEARCH_PITCH = 1.6
+#: Least altitude of the search above the charted seafloor at the spoke's end, m.
+SEARCH_ALTITUDE_M = 3.0
+#: Agents of the search (one per slot: the spiral's arms are the slots' bearings).
+N_SPOKES = 5
 
 
 class UPLPolicy(NamedTuple):
@@ -44,8 +88,85 @@ class UPLPolicy(NamedTuple):
 
 
 def params(method: str, tier: dict, vehicle) -> UPLPolicy:
+    """The policy's parameters (the same for heuristic and oracle)."""
     v_max = float(vehicle.v_max)
     return UPLPolicy(v_max, KP, KP_HOLD, HOLD_SPEED_MS)
+
+
+def prepare(grid, P, W, M: UPLPolicy, t0, LP=None, LS=None, X=None) -> None:
+    """Before the first step: what the method perceives of the object (``W.pcfg``: the run
+    seed of the sonar's error stream and whether the method perceives the object exactly,
+    ``LP.sens.true_target``: the oracle and the ``true_target`` ablation)."""
+    if LP is not None:
+        W.pcfg[0] = int(LP.seed)
+        W.pcfg[1] = int(LP.sens.true_target != 0)
+
+
+@hot_kernel(inline="always")
+def _filter(P, W, state, e):
+    """Predict the object's estimate over the step, then update it with every valid sonar
+    fix (sequential scalar Kalman updates per axis)."""
+    n = state.shape[1]
+    dt = P.dt
+    qa = QA_LIFT if W.n_att[e] >= P.quorum else QA_REST
+    q2 = qa * qa
+    O = W.oest[e]
+    C = W.ocov[e]
+    for c in range(3):
+        a = C[c, 0]
+        b = C[c, 1]
+        d = C[c, 2]
+        O[c] += O[3 + c] * dt
+        C[c, 0] = a + 2.0 * dt * b + dt * dt * d + q2 * dt * dt * dt / 3.0
+        C[c, 1] = b + dt * d + 0.5 * q2 * dt * dt
+        C[c, 2] = d + q2 * dt
+    for i in range(n):
+        F = W.fix[e, i]
+        if F[3] == 0.0:
+            continue
+        W.odet[e] = 1
+        r2 = F[0] * F[0] + F[1] * F[1] + F[2] * F[2]
+        rv = (P.p_range_std * P.p_range_std + P.p_centre_std * P.p_centre_std
+              + r2 * P.p_bearing_std * P.p_bearing_std)
+        for c in range(3):
+            v = rv + (NAV_STD_M * NAV_STD_M if c != 1 else 0.0)   # depth is measured
+            a = C[c, 0]
+            b = C[c, 1]
+            d = C[c, 2]
+            s = a + v
+            kp_ = a / s
+            kv_ = b / s
+            y = state[e, i, c] + F[c] - O[c]
+            O[c] += kp_ * y
+            O[3 + c] += kv_ * y
+            C[c, 0] = a - kp_ * a
+            C[c, 1] = b - kp_ * b
+            C[c, 2] = d - kv_ * b
+
+
+@hot_kernel(inline="always")
+def perceive(P, W, state, e):
+    """Fuse the latest sonar fixes into the object's estimate, once per set of fixes
+    (``W.fixk`` / ``W.kf``): exact for a method that perceives the object exactly
+    (``W.pcfg[1]``), else :func:`_filter` with the fixes placed at the agents' known
+    positions ``state``. Called by ``plan`` and by the task's observation cue, so a method
+    acting through the step API gets the same estimate (one step later)."""
+    if W.kf[e] == W.fixk[e]:
+        return
+    W.kf[e] = W.fixk[e]
+    if W.pcfg[1] != 0:   # the object perceived exactly
+        for c in range(3):
+            W.oest[e, c] = W.obj[e, c]
+            W.oest[e, 3 + c] = W.vobj[e, c]
+        W.odet[e] = 1
+    else:
+        _filter(P, W, state, e)
+
+
+@hot_kernel(inline="always")
+def _spiral_radius(P, phi):
+    """Distance of the search point from the chart after a turn of ``phi`` rad, m."""
+    return P.p_range * (1.0 + SEARCH_PITCH * phi * N_SPOKES / (2.0 * math.pi))
 
 
 @hot_kernel(inline="always")
@@ -54,9 +175,11 @@ def plan(grid, P, W, M, state, e, k, t):
     S = state[e]
     TG = W.target[e]
     off = W.slot_off[e]
-    ox = W.obj[e, 0]
-    oy = W.obj[e, 1]
-    oz = W.obj[e, 2]
+    O = W.oest[e]
+    perceive(P, W, state, e)
+    ox = O[0]
+    oy = O[1]
+    oz = O[2]
     if k == 0:
         # greedy nearest (agent, slot) assignment
         for i in range(n):
@@ -82,11 +205,24 @@ def plan(grid, P, W, M, state, e, k, t):
                         bi = i
                         bj = j
             TG[bi] = bj
-    # hold: desired horizontal velocity of the assembly toward the site
+    if W.odet[e] == 0:
+        if W.srch[e, 0] == 0.0:   # arrived at the chart and nothing seen: search
+            for i in range(n):
+                j = TG[i]
+                if ((S[i, 0] - ox - off[j, 0]) ** 2 + (S[i, 2] - oz - off[j, 2]) ** 2
+                        <= SEARCH_ARRIVE_M * SEARCH_ARRIVE_M):
+                    W.srch[e, 0] = 1.0
+        else:   # the spiral's turn advances at the search speed along it
+            W.srch[e, 1] += SEARCH_SPEED_MS * P.dt / _spiral_radius(P, W.srch[e, 1])
+    if W.n_att[e] >= P.quorum and W.hsite[e, 2] == 0.0:   # the lift starts here
+        W.hsite[e, 0] = ox
+        W.hsite[e, 1] = oz
+        W.hsite[e, 2] = 1.0
+    # hold: desired horizontal velocity of the assembly toward the site estimate
     kph = M.kp_hold
     hold_v = M.hold_v
-    hx = kph * (W.site[e, 0] - ox)
-    hz = kph * (W.site[e, 2] - oz)
+    hx = kph * (W.hsite[e, 0] - ox)
+    hz = kph * (W.hsite[e, 1] - oz)
     hn = math.sqrt(hx * hx + hz * hz)
     if hn > hold_v:
         hx *= hold_v / hn
@@ -104,9 +240,12 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     O = W.owner[e]
     TG = W.target[e]
     off = W.slot_off[e]
-    ox = W.obj[e, 0]
-    oy = W.obj[e, 1]
-    oz = W.obj[e, 2]
+    ox = W.oest[e, 0]
+    oy = W.oest[e, 1]
+    oz = W.oest[e, 2]
+    vx = W.oest[e, 3]
+    vy = W.oest[e, 4]
+    vz = W.oest[e, 5]
     px = state[e, i, 0]
     py = state[e, i, 1]
     pz = state[e, i, 2]
@@ -126,10 +265,25 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     gx = ox + off[j, 0]
     gy = oy + off[j, 1]
     gz = oz + off[j, 2]
+    if W.odet[e] == 0 and W.srch[e, 0] != 0.0:   # search: the agent's point of the spiral
+        phi = W.srch[e, 1]
+        rho = _spiral_radius(P, phi)
+        hr = math.sqrt(off[j, 0] * off[j, 0] + off[j, 2] * off[j, 2])
+        if hr > 0.0:
+            sn, cs = sincos(phi)
+            ux = off[j, 0] / hr
+            uz = off[j, 2] / hr
+            gx = ox + rho * (ux * cs + uz * sn)
+            gz = oz + rho * (uz * cs - ux * sn)
+        floor = -sample_elevation(grid, gx, gz)
+        if gy > floor - SEARCH_ALTITUDE_M:
+            gy = floor - SEARCH_ALTITUDE_M
+        if gy < 1.0:
+            gy = 1.0
     if A[i] >= 0 and W.n_att[e] >= P.quorum:  # lifting
         ax = kp * (gx - px) + W.hold[e, 0] - pe
         az = kp * (gz - pz) + W.hold[e, 1] - pn
-        vy = kp * (gy - py) - speed
+        vy_ = kp * (gy - py) - speed
         ah = math.sqrt(ax * ax + az * az)
         if ah >= speed:
             ax *= speed / ah
@@ -137,9 +291,8 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
             ay = 0.0
         else:
             vb = math.sqrt(speed * speed - ah * ah)
-            ay = min(max(vy, -vb), vb)
+            ay = min(max(vy_, -vb), vb)
     else:
-        ax, ay, az = seek_max(px, py, pz, gx, gy, gz, speed, kp, pe - W.vobj[e, 0],
-                              pn - W.vobj[e, 2])
-        ay += W.vobj[e, 1]
+        ax, ay, az = seek_max(px, py, pz, gx, gy, gz, speed, kp, pe - vx, pn - vz)
+        ay += vy
     return ax, ay, az, math.nan
