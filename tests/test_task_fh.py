@@ -202,3 +202,79 @@ def test_tier_table_monotone_and_declared():
         assert tiers[t]["fish_count"] >= 50
     assert table["agents"] == {"default": 8, "range": [8, 8]}
     assert table["dt_s"] == 1.0
+
+
+def _sonar_setup(calm, n_fish=80, agent0=(20.0, 0.0), true_target=0):
+    """A school at the origin, agent 0 at ``agent0`` (x, z), the others 200 m away."""
+    init = _hand_init((80.0, 0.0), n_fish=n_fish)
+    init["pos0"][0, :, 0] = 200.0
+    init["pos0"][0, :, 2] = 0.0
+    init["pos0"][0, 0, 0], init["pos0"][0, 0, 2] = agent0
+    P, W = fh.make(calm, TIER, init)
+    W.sinfo[0] = (7, true_target, 0)
+    state = np.zeros((1, N, 12))
+    state[0, :, :3] = init["pos0"][0]
+    return P, W, state, init
+
+
+def test_sonar_sees_the_near_side_of_the_school(calm):
+    """Each ROV's reading: the echo centroid, pulled toward the sensor by shadowing, with
+    range/bearing noise; nothing beyond the sonar's range; deterministic per ping."""
+    P, W, state, init = _sonar_setup(calm)
+    assert P.sonar_r == 50.0 and P.ext_len > 0.0
+    cx, cz = init["fish0"][0].mean(axis=1)
+    dx = []
+    for ping in range(200):
+        fh.sonar(P, W, state, 0, ping)
+        assert W.sfix[0, 0, 0] == 1.0 and not W.sfix[0, 1:, 0].any()   # 200 m: not seen
+        dx.append((W.sfix[0, 0, 1], W.sfix[0, 0, 2], W.sfix[0, 0, 3]))
+    dx = np.array(dx)
+    true_off = cx - 20.0
+    bias = dx[:, 0].mean() - true_off
+    assert 0.3 < bias < 4.0                   # toward the sensor (+x), a fraction of the school
+    assert abs(dx[:, 1].mean() - cz) < 0.3    # no bias across the line of sight
+    assert dx[:, 0].std() > 0.05              # the echo fluctuates from ping to ping
+    assert 0.0 < dx[:, 2].mean() < fh.SCHOOL_RADIUS_M
+    fh.sonar(P, W, state, 0, 5)
+    again = W.sfix[0, 0, :].copy()
+    fh.sonar(P, W, state, 0, 5)
+    np.testing.assert_array_equal(W.sfix[0, 0], again)
+    # a method given the target draws nothing (it reads the truth)
+    P, W, state, _ = _sonar_setup(calm, true_target=1)
+    W.sfix[:] = -1.0
+    fh.sonar(P, W, state, 0, 0)
+    assert (W.sfix == -1.0).all()
+
+
+def test_school_sensor_table_errors(tmp_path):
+    import yaml
+    from oneocean.sensing import SENSORS_YAML
+    doc = yaml.safe_load(SENSORS_YAML.read_text())
+    del doc["perception"]["fh_school"]["extinction_m"]
+    p = tmp_path / "sensors.yaml"
+    p.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ConfigError, match="perception.fh_school.extinction_m"):
+        fh.school_sensor(p)
+    doc["perception"]["fh_school"]["extinction_m"] = 0.0
+    p.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ConfigError, match="perception.fh_school.extinction_m"):
+        fh.school_sensor(p)
+
+
+def test_heuristic_given_the_truth_is_the_oracle(coast):
+    # information only: the same params; the truth (target, current, position) makes them equal
+    kw = dict(episodes=2, seed=11, dynamics="6dof")
+    o = run_cell(coast, "FH", 1, "oracle", **kw)
+    t = run_cell(coast, "FH", 1, "heuristic", info="truth", **kw)
+    h = run_cell(coast, "FH", 1, "heuristic", **kw)
+    cols = [c for c in o.columns if c != "method"]
+    pd.testing.assert_frame_equal(o[cols], t[cols])
+    assert not h[cols].equals(t[cols])
+
+
+def test_tracker_gains():
+    from oneocean.methods.heuristic.fh import tracker_gains
+    a, b = tracker_gains(0.02, 0.5, 1.0)
+    assert 0.0 < b < a < 1.0
+    a2, b2 = tracker_gains(0.2, 0.5, 1.0)   # a faster target: larger gains
+    assert a2 > a and b2 > b

@@ -16,8 +16,22 @@ Fish physics (the environment)
     (land, outside the grid, or less than ``FISH_CLEARANCE_M`` above the seafloor at its depth)
     stays at its previous position with zero swim velocity (fish do not beach). The jitter
     stream of episode ``e`` is keyed by ``hash64(seed, e, PURPOSE_TASK_NOISE, 0)`` (``seed``:
-    the run seed). After the moves (``post_step``) the school's centroid and its velocity over
-    the step (``W.school``, what the methods see of the school) are updated.
+    the run seed). After the moves (``post_step``) the school's true centroid and its velocity
+    over the step (``W.school``: judging, snapshots, and what a method given the target
+    perceives) are updated.
+Perception (every non-oracle method; :func:`sonar`)
+    Each ROV's imaging sonar (``sensors.yaml`` ``perception.fh_school``, read by
+    :func:`school_sensor`) reports, at the start and after every step, the offset of the
+    school's echo centroid from the ROV and the echo's extent (``W.sfix``): the fish within
+    ``range_m`` of it, weighted by a fluctuating echo intensity (exponential, coefficient of
+    variation ``echo_cv``) and by the shadowing of the fish in front
+    (``exp(-(d - d_near) / extinction_m)``), so the centroid is pulled toward the sensor by a
+    fraction of the school's extent; its offset gets the sonar's range and bearing noise
+    (:func:`~oneocean.sensing.kernels.polar_fix`). The method places the readings where each
+    ROV knows it is and tracks the school (:mod:`oneocean.methods.heuristic.fh`). A method
+    given the target (``SensingParams.true_target``: the oracle, the ``true_target``
+    ablation) perceives the true school instead; ``_episode`` copies the run seed and the
+    sensing flags the hooks need into ``W.sinfo``.
 Success
     The school's centroid stays inside the safe zone (distance <= ``zone_radius_m``) for
     ``hold_s`` consecutive seconds (checked after every step; the episode stops when the hold
@@ -29,8 +43,10 @@ Metrics
 Methods (task logic; the environment above does not depend on it)
     :mod:`oneocean.methods.heuristic.fh` (herding from behind on an arc around the school;
     both at the vehicle's full speed, the school crabbed across the current, standoff adapted
-    to its swim speed; heuristic: the sensor models of :mod:`oneocean.sensing` and the team's
-    mean current estimate at the school; oracle: true current and position).
+    to its swim speed). Heuristic and oracle differ in information only: the heuristic
+    tracks the school from the team's sonar readings, takes the team's mean current estimate
+    at the school and navigates by the sensor models of :mod:`oneocean.sensing`; the oracle
+    knows the school, the current at its centroid and its position.
     The observation's goal cue is the agent's herding waypoint (``W.tgt``, written by the
     method's ``plan``; the zone centre for external policies).
 
@@ -38,7 +54,8 @@ Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.task
     ``TASK_ID``, ``METRICS``; ``reset``; ``FHParams`` / ``FHWork`` and ``make``; the env hooks
     ``begin``, ``pre_step`` (the fish step), ``cue``, ``post_step``, ``finish``; ``POLICY``;
     ``_kernel`` and ``_observe_kernel``. ``_episode`` also derives the episode's fish-jitter
-    key (``W.fseed``) from the run seed, which the env hooks do not see.
+    key (``W.fseed``) from the run seed and copies the seed and the sensing flags into
+    ``W.sinfo`` (the env and policy hooks do not see the loop's params).
 """
 
 from __future__ import annotations
@@ -52,12 +69,14 @@ from numba import njit
 from ..engine import status as st
 from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility
-from ..engine.rng import hash64
+from ..engine.rng import PURPOSE_TASK, hash64, uniform01
 from ..errors import ConfigError, NotApplicable
 from ..methods.heuristic import fh as POLICY
 from ..models import fish as _fish
 from ..models.fish import (fish_params, fraction_inside_circle, init_school, school_centroid,
                            school_spread, step_school)
+from ..sensing import perception
+from ..sensing.kernels import PURPOSE_PERCEPTION, polar_fix
 from .common import (PURPOSE_TASK_NOISE, STANDARD, current_at, episode_generators, fresh_cache,
                      need_tier, path_clear, sample_route, start_times)
 from .loop import noop_after_agent, observe_next, run_episode
@@ -85,6 +104,9 @@ START_RING_M = (35.0, 50.0)
 START_SEPARATION_M = 5.0
 #: Seafloor clearance of the vehicles' feasibility check, m (engine default).
 CLEARANCE_M = 1.0
+#: Random stream of the sonar's per-fish echo intensities (one draw per fish, agent and
+#: ping; the range and bearing noise of a reading is ``polar_fix``'s PURPOSE_PERCEPTION).
+PURPOSE_SCHOOL_ECHO = PURPOSE_TASK + 24
 
 _C_CONT, _C_DIST, _C_FRAC, _C_SPREAD = (len(STANDARD) + i for i in range(len(METRICS)))
 
@@ -203,6 +225,13 @@ class FHParams(NamedTuple):
     depth: float            # depth of the school and of the vehicles, m
     land_thr: float         # land-mask threshold of the fish feasibility check
     fp: np.ndarray          # fish-model parameters (models.fish.fish_params)
+    # the school's perception model (sensors.yaml perception.fh_school; every non-oracle
+    # method): each agent's imaging sonar, every step
+    sonar_r: float          # detection range, m
+    range_std: float        # range noise of the echo centroid, m
+    bearing_std: float      # bearing noise, rad
+    echo_cv: float          # coefficient of variation of a fish's echo intensity per ping
+    ext_len: float          # shadowing: extinction length behind the nearest fish, m
 
 
 class FHWork(NamedTuple):
@@ -212,10 +241,18 @@ class FHWork(NamedTuple):
     fc: np.ndarray          # (E, 2, F) currents at the fish, m s-1
     apos: np.ndarray        # (E, 2, 8) agent x/z seen by the fish, m
     fseed: np.ndarray       # (E,) uint64 fish-jitter key (set by _episode from the run seed)
-    school: np.ndarray      # (E, 5) centroid x, z (m), its velocity over the last step
-                            #   (m s-1), time inside the zone (s)
+    school: np.ndarray      # (E, 5) the truth (judging, snapshots; the oracle's perception):
+                            #   centroid x, z (m), its velocity over the last step (m s-1),
+                            #   time inside the zone (s)
     done: np.ndarray        # (E,) int64 1 once the hold is complete
+    sinfo: np.ndarray       # (E, 3) int64 the method's information, copied by _episode from
+                            #   the loop's params: run seed, true_target, true_current
+    sfix: np.ndarray        # (E, 8, 4) each agent's latest sonar reading of the school: seen
+                            #   (1/0), offset of the echo centroid from the agent x, z (m),
+                            #   extent (weighted RMS radius, m); unused with true_target
     # method state (oneocean.methods.heuristic.fh)
+    sest: np.ndarray        # (E, 6) the method's school estimate: centroid x, z (m), velocity
+                            #   (m s-1), spread (m), 1 once initialised
     herd: np.ndarray        # (E, 3) angle behind the school (rad), integral standoff (m),
                             #   slot radius (m)
     order: np.ndarray       # (E, 8) int64 agents in angular order around the school
@@ -223,6 +260,39 @@ class FHWork(NamedTuple):
     rank: np.ndarray        # (E, 8) int64 arc slot of each agent
     tgt: np.ndarray         # (E, 8, 2) waypoint (x, z) of each agent, m (plan token, goal cue)
     cest: np.ndarray        # (E, 8, 2) each agent's current estimate at its last step, m s-1
+
+
+def school_sensor(path=None) -> tuple[float, float, float, float, float]:
+    """The school's perception model (``sensors.yaml`` ``perception.fh_school``).
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        Sensor table (default: the shipped ``data/sensors.yaml``).
+
+    Returns
+    -------
+    tuple of float
+        Detection range (m), range noise (m), bearing noise (rad), echo-intensity
+        coefficient of variation (-), extinction length (m): the tail of ``FHParams``.
+
+    Raises
+    ------
+    ConfigError
+        A missing parameter, or a range or extinction length that is not > 0 (one line
+        naming the key).
+    """
+    m = perception("fh_school", path)
+    out = []
+    for key in ("range_m", "range_std_m", "bearing_std_deg", "echo_cv", "extinction_m"):
+        if key not in m:
+            raise ConfigError(f"sensors.yaml: missing 'perception.fh_school.{key}'")
+        v = float(m[key])
+        if key in ("range_m", "extinction_m") and not v > 0.0:
+            raise ConfigError(f"sensors.yaml: 'perception.fh_school.{key}' must be > 0, "
+                              f"got {m[key]!r}")
+        out.append(math.radians(v) if key == "bearing_std_deg" else v)
+    return tuple(out)
 
 
 def make(grid, tier: dict, init: dict):
@@ -235,10 +305,11 @@ def make(grid, tier: dict, init: dict):
     fish = np.zeros((n_ep, 2, 4, n_fish))
     fish[:, 0, :2] = fish0
     P = FHParams(float(tier["zone_radius_m"]), float(tier["hold_s"]), float(tier["dt_s"]),
-                 FISH_DEPTH_M, DEFAULT_LAND_THRESHOLD, fish_params())
+                 FISH_DEPTH_M, DEFAULT_LAND_THRESHOLD, fish_params(), *school_sensor())
     W = FHWork(zone, fish, np.zeros(n_ep, dtype=np.int64), np.zeros((n_ep, 2, n_fish)),
                np.zeros((n_ep, 2, n)), np.zeros(n_ep, dtype=np.uint64), np.zeros((n_ep, 5)),
-               np.zeros(n_ep, dtype=np.int64), np.zeros((n_ep, 3)),
+               np.zeros(n_ep, dtype=np.int64), np.zeros((n_ep, 3), dtype=np.int64),
+               np.zeros((n_ep, n, 4)), np.zeros((n_ep, 6)), np.zeros((n_ep, 3)),
                np.zeros((n_ep, n), dtype=np.int64), np.zeros((n_ep, n)),
                np.zeros((n_ep, n), dtype=np.int64),
                np.ascontiguousarray(np.repeat(zone[:, None, :], n, axis=1)),
@@ -265,6 +336,73 @@ def _fish_step(grid, fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, t, dt, land
 
 
 @hot_kernel(inline="always")
+def sonar(P, W, state, e, ping):
+    """Every agent's sonar reading of the school (``sensors.yaml`` ``perception.fh_school``)
+    into ``W.sfix[e]``, from the true agents and fish; ``ping`` numbers the readings (0 at
+    the start, ``k + 1`` after step ``k``) so that no two draws share a counter.
+
+    The echo centroid of agent ``i`` is the mean of the fish within ``P.sonar_r`` of it,
+    weighted by each fish's echo intensity ``max(0, 1 + echo_cv (X - 1))`` (``X`` an
+    exponential draw of stream ``PURPOSE_SCHOOL_ECHO``) times the shadowing
+    ``exp(-(d - d_near) / ext_len)`` (``d`` the fish's range, ``d_near`` the nearest fish's);
+    its offset from the agent gets the range and bearing noise of
+    :func:`~oneocean.sensing.kernels.polar_fix` (counters ``2 (ping N + i)`` and ``+1``). The
+    extent is the weighted RMS radius about the echo centroid, m. No fish in range: no
+    reading (``sfix[e, i, 0] = 0``). With ``true_target`` the method reads the truth instead
+    and nothing is drawn."""
+    if W.sinfo[e, 1] != 0:
+        return
+    S = state[e]
+    n = S.shape[0]
+    F = W.fish[e, W.fcur[e]]
+    fx = F[0]
+    fz = F[1]
+    nf = fx.shape[0]
+    seed = W.sinfo[e, 0]
+    r2 = P.sonar_r * P.sonar_r
+    for i in range(n):
+        ax = S[i, 0]
+        az = S[i, 2]
+        W.sfix[e, i, 0] = 0.0
+        near2 = math.inf
+        for f in range(nf):
+            d2 = (fx[f] - ax) ** 2 + (fz[f] - az) ** 2
+            if d2 < near2:
+                near2 = d2
+        if not near2 < r2:
+            continue
+        near = math.sqrt(near2)
+        base = (ping * n + i) * nf
+        sw = 0.0
+        sx = 0.0
+        sz = 0.0
+        ss = 0.0
+        for f in range(nf):
+            dx = fx[f] - ax
+            dz = fz[f] - az
+            d2 = dx * dx + dz * dz
+            if d2 < r2:
+                u = uniform01(seed, e, PURPOSE_SCHOOL_ECHO, base + f)
+                amp = 1.0 + P.echo_cv * (-math.log(1.0 - u) - 1.0)
+                if amp > 0.0:
+                    w = amp * math.exp(-(math.sqrt(d2) - near) / P.ext_len)
+                    sw += w
+                    sx += w * dx
+                    sz += w * dz
+                    ss += w * d2
+        if not sw > 0.0:
+            continue
+        cx = sx / sw
+        cz = sz / sw
+        v = ss / sw - cx * cx - cz * cz
+        mx, mz = polar_fix(seed, e, 2 * (ping * n + i), cx, cz, P.range_std, P.bearing_std)
+        W.sfix[e, i, 0] = 1.0
+        W.sfix[e, i, 1] = mx
+        W.sfix[e, i, 2] = mz
+        W.sfix[e, i, 3] = math.sqrt(v) if v > 0.0 else 0.0
+
+
+@hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
     F = W.fish[e, 0]
     cx, cz = school_centroid(F[0], F[1])
@@ -275,6 +413,8 @@ def begin(grid, P, W, state, e):
     W.school[e, 3] = 0.0
     W.school[e, 4] = 0.0
     W.done[e] = 0
+    W.sest[e, 5] = 0.0
+    sonar(P, W, state, e, 0)
     return False
 
 
@@ -315,6 +455,7 @@ def post_step(grid, P, W, state, prev, e, k, t):
     sc[1] = nz
     zx = W.zone[e, 0]
     zz = W.zone[e, 1]
+    sonar(P, W, state, e, k + 1)   # what the sensors see of the school after the step
     if math.sqrt((nx - zx) ** 2 + (nz - zz) ** 2) <= P.zone_r:
         sc[4] += dt
         if sc[4] >= P.hold - 1e-9:
@@ -341,10 +482,14 @@ def finish(grid, P, W, state, e, k, row):
 
 
 # the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels);
-# the fish-jitter key needs the run seed, which only the loop's params carry
+# the fish-jitter key, the sonar's draws and the method's information need the run seed and
+# the sensing flags, which only the loop's params carry
 @hot_kernel
 def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
     W.fseed[e] = hash64(LP.seed, e, PURPOSE_TASK_NOISE, 0)
+    W.sinfo[e, 0] = LP.seed
+    W.sinfo[e, 1] = LP.sens.true_target
+    W.sinfo[e, 2] = LP.sens.true_current
     run_episode(begin, pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
                 POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
                 k_stop)

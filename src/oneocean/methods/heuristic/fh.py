@@ -7,22 +7,31 @@ agents take slots on an arc of ``ARC_RAD`` centred behind the school (opposite t
 ``BACKOFF_M`` (no push needed) to ``STANDOFF_M`` (``|w| >= PUSH_SPEED_MS``). Agents are matched
 to slots in angular order around the school (no crossings) and travel around it (waypoints at
 most 45 degrees of arc ahead on the slot circle), not through it. Each agent seeks its
-waypoint with P-control, feed-forward of the school's velocity (centroid displacement over the
-last step, ``W.school``) and of its current probe. The push direction is frozen while the
-centroid is within ``deadband * zone_radius_m`` of the centre.
+waypoint with P-control, feed-forward of the school's velocity and of its current estimate.
+The push direction is frozen while the centroid is within ``deadband * zone_radius_m`` of the
+centre.
 
-Both methods: within ``I_ZONE`` zone radii an integral action on the school's measured velocity error along ``w`` adapts the standoff
-(``STANDOFF_KS``, at least ``STANDOFF_MIN_M``): further back when the school runs ahead of
-the plan, closer when it lags.
-
-Both: ``w = v - c`` with the current ``c`` at the centroid, where ``v`` is the fastest ground
+Within ``I_ZONE_M`` of the zone centre an integral action on the school's velocity error
+along ``w`` (its swim: ground velocity minus the current ``c`` at the centroid) adapts the
+standoff (``STANDOFF_KS``, at least ``STANDOFF_MIN_M``): further back when the school runs
+ahead of the plan, closer when it lags. ``w = v - c``, where ``v`` is the fastest ground
 velocity toward the zone with ``|w| <= ORACLE_SWIM_MS`` (the school crabs across the current;
-same ramp); the arc turns at most ``SLEW_RAD_S`` (``DEADBAND_FRAC``); the integral acts on
-the swim (ground velocity minus ``c``); full ``v_max``, crab steering of the vehicles
-(:func:`~oneocean.tasks.common.seek_max`). They differ in information only: the oracle takes
-``c`` from the true field and knows its position; the heuristic takes the team's mean current
-estimate (``W.cest``, each agent's at its last step) and navigates by the sensor models
-(:mod:`oneocean.sensing`).
+same ramp); the arc turns at most ``SLEW_RAD_S``; full ``v_max``, crab steering of the
+vehicles (:func:`~oneocean.tasks.common.seek_max`).
+
+What the school is (centroid, velocity, spread: ``W.sest``). Given the target
+(``W.sinfo[e, 1]``: the oracle, the ``true_target`` ablation) the truth (``W.school``, the
+fish). Otherwise the team's sonar readings (``W.sfix``, the task's perception model
+``sensors.yaml`` ``perception.fh_school``: each agent's offset to the school's echo centroid
+and the echo's extent): every step the readings are placed where each agent knows it is
+(its navigation estimate) and averaged, and an alpha-beta tracker (steady-state
+constant-velocity Kalman filter, :func:`tracker_gains`) filters the centroid and estimates
+its velocity; the extent is smoothed with the same alpha. Before the first reading the
+agents hold still. The current at the school: the true current at the known centroid given
+the true current (``W.sinfo[e, 2]``), else the team's mean current estimate (``W.cest``, each
+agent's at its last step; the agents are within a few tens of metres of the school).
+Heuristic and oracle have the same params: they differ in information only, and given the
+truth the heuristic is the oracle.
 
 Constants (calibrated for the BlueROV2 Heavy, 0.85 m/s, and the fish model's 0.8 m/s
 sustained flee with a 15 m reaction radius): the school is pushed gently (``PUSH_SPEED_MS``
@@ -62,20 +71,26 @@ KP_PUSH = 0.02
 DEADBAND_FRAC = 0.25
 #: Largest turn rate of the push direction, rad s-1 (the arc rotates around the school).
 SLEW_RAD_S = 0.2
-#: Oracle: largest swim speed (relative to the water) it plans for the school, m s-1 (the
-#: fish swim at most 0.8 m s-1).
+#: Largest swim speed (relative to the water) planned for the school, m s-1 (the fish swim
+#: at most 0.8 m s-1).
 ORACLE_SWIM_MS = 0.75
-#: Rate of the standoff adaptation to the school's speed error along the planned push, m per
-#: m s-1 per s (heuristic: ground-velocity error, the drift unknown; oracle: swim error).
+#: Rate of the standoff adaptation to the school's swim error along the planned push, m per
+#: m s-1 per s.
 STANDOFF_KS = 3.0
 #: Smallest adapted standoff, m.
 STANDOFF_MIN_M = 8.0
-#: The integral action is on within this many zone radii of the zone centre.
-I_ZONE = 3.0
+#: The integral action is on within this distance of the zone centre, m (beyond the push
+#: ramp's ``PUSH_SPEED_MS / KP_PUSH`` = 15 m, so a school that stalls on the ramp against the
+#: current is pushed in).
+I_ZONE_M = 20.0
+#: School tracker (every method that senses the school, :func:`tracker_gains`): the error of
+#: one team-fused sonar fix of the centroid it assumes (m) and the school's manoeuvre, white
+#: acceleration (m s-2).
+FIX_STD_M = 0.5
+SCHOOL_ACC_STD = 0.02
 
 
 class FHPolicy(NamedTuple):
-    oracle: int         # 1: crab-steer the school against the exact current, integral standoff
     speed: float        # speed budget through the water, m s-1
     kp: float           # slot-tracking gain, s-1
     arc: float          # herding arc, rad
@@ -83,21 +98,54 @@ class FHPolicy(NamedTuple):
     sgain: float        # standoff growth with the school's spread
     back: float         # standoff when no push is needed, m
     push: float         # planned school ground speed, m s-1
-    oswim: float        # oracle: largest planned school swim, m s-1
+    oswim: float        # largest planned school swim, m s-1
     kpp: float          # push ramp gain, s-1
     deadband: float     # push direction frozen within this fraction of the zone radius
     oks: float          # standoff adaptation rate
     stand_min: float    # smallest adapted standoff, m
     slew: float         # largest turn rate of the push direction, rad s-1
-    i_zone: float       # integral action within this many zone radii
+    i_zone: float       # integral action within this distance of the zone centre, m
+    fa: float           # school tracker: position gain (alpha)
+    fb: float           # school tracker: velocity gain (beta), per step
+    fs: float           # school tracker: spread smoothing gain
+
+
+def tracker_gains(acc_std: float, fix_std: float, dt: float) -> tuple[float, float]:
+    """Steady-state gains of a constant-velocity Kalman filter (alpha-beta tracker).
+
+    Kalata, "The tracking index", IEEE Trans. Aerosp. Electron. Syst. 20(2), 1984: tracking
+    index ``lam = acc_std dt^2 / fix_std``.
+
+    Parameters
+    ----------
+    acc_std : float
+        The target's white acceleration, m s-2.
+    fix_std : float
+        The error of one position fix, m (> 0).
+    dt : float
+        Fix interval, s.
+
+    Returns
+    -------
+    alpha, beta : float
+        Position gain and velocity gain (the velocity update is ``beta / dt`` times the
+        residual, s-1).
+    """
+    lam = float(acc_std) * float(dt) ** 2 / float(fix_std)
+    r = math.sqrt(lam * lam + 8.0 * lam)
+    alpha = -(lam * lam + 8.0 * lam - (lam + 4.0) * r) / 8.0
+    beta = (lam * lam + 4.0 * lam - lam * r) / 4.0
+    return alpha, beta
 
 
 def params(method: str, tier: dict, vehicle) -> FHPolicy:
+    """The same for every method: heuristic and oracle differ in information only (the
+    sensing flags the task copies into ``W.sinfo``)."""
     v_max = float(vehicle.v_max)
-    oracle = method != "heuristic"
-    return FHPolicy(int(oracle), v_max, KP, ARC_RAD,
+    fa, fb = tracker_gains(SCHOOL_ACC_STD, FIX_STD_M, float(tier["dt_s"]))
+    return FHPolicy(v_max, KP, ARC_RAD,
                     STANDOFF_M, SPREAD_GAIN, BACKOFF_M, PUSH_SPEED_MS, ORACLE_SWIM_MS, KP_PUSH,
-                    DEADBAND_FRAC, STANDOFF_KS, STANDOFF_MIN_M, SLEW_RAD_S, I_ZONE)
+                    DEADBAND_FRAC, STANDOFF_KS, STANDOFF_MIN_M, SLEW_RAD_S, I_ZONE_M, fa, fb, fa)
 
 
 @hot_kernel(inline="always")
@@ -113,7 +161,8 @@ def _current(grid, x, y, z, t):
 
 @hot_kernel(inline="always")
 def plan(grid, P, W, M, state, e, k, t):
-    """Push direction, arc angle and standoff; agents matched to arc slots; waypoints."""
+    """The school estimate (``W.sest``: the truth, or the team's tracked sonar readings);
+    push direction, arc angle and standoff; agents matched to arc slots; waypoints."""
     S = state[e]
     n = S.shape[0]
     F = W.fish[e, W.fcur[e]]
@@ -126,10 +175,56 @@ def plan(grid, P, W, M, state, e, k, t):
     zz = W.zone[e, 1]
     zr = P.zone_r
     dt = P.dt
-    cxs = W.school[e, 0]
-    czs = W.school[e, 1]
-    vcx = W.school[e, 2]
-    vcz = W.school[e, 3]
+    SE = W.sest[e]
+    first = SE[5] == 0.0   # the first plan with a school estimate
+    if W.sinfo[e, 1] != 0:
+        # the school perceived exactly (oracle, true_target ablation)
+        SE[0] = W.school[e, 0]
+        SE[1] = W.school[e, 1]
+        SE[2] = W.school[e, 2]
+        SE[3] = W.school[e, 3]
+        SE[4] = school_spread(F[0], F[1])
+        SE[5] = 1.0
+    else:
+        # fuse the team's sonar readings (each agent's offset to the echo centroid from
+        # where the agent knows it is) and track the centroid with an alpha-beta filter
+        m = 0.0
+        mx = 0.0
+        mz = 0.0
+        ms = 0.0
+        for j in range(n):
+            if W.sfix[e, j, 0] != 0.0:
+                m += 1.0
+                mx += S[j, 0] + W.sfix[e, j, 1]
+                mz += S[j, 2] + W.sfix[e, j, 2]
+                ms += W.sfix[e, j, 3]
+        if SE[5] == 0.0:
+            if m == 0.0:
+                for j in range(n):   # nothing seen yet: hold still
+                    TG[j, 0] = S[j, 0]
+                    TG[j, 1] = S[j, 2]
+                return
+            SE[0] = mx / m
+            SE[1] = mz / m
+            SE[2] = 0.0
+            SE[3] = 0.0
+            SE[4] = ms / m
+            SE[5] = 1.0
+        else:
+            SE[0] += SE[2] * dt
+            SE[1] += SE[3] * dt
+            if m > 0.0:
+                rx = mx / m - SE[0]
+                rz = mz / m - SE[1]
+                SE[0] += M.fa * rx
+                SE[1] += M.fa * rz
+                SE[2] += M.fb / dt * rx
+                SE[3] += M.fb / dt * rz
+                SE[4] += M.fs * (ms / m - SE[4])
+    cxs = SE[0]
+    czs = SE[1]
+    vcx = SE[2]
+    vcz = SE[3]
     th_back = H[0]
     r_int = H[1]
     push = M.push
@@ -139,18 +234,18 @@ def plan(grid, P, W, M, state, e, k, t):
     back = M.back
     slew = M.slew
     arc = M.arc
-    spread = school_spread(F[0], F[1])
+    spread = SE[4]
     dxz = zx - cxs
     dzz = zz - czs
     dist = math.sqrt(dxz * dxz + dzz * dzz)
     # push direction: the swim ``w`` the school needs: the fastest ground speed toward the
     # zone whose swim, against the current at the centroid, is at most ``oswim`` (crab
-    # steering of the school), ramped down near the zone. The current there: the truth
-    # (oracle), or the team's mean current estimate at its last step (the agents are within
-    # a few tens of metres of the school)
+    # steering of the school), ramped down near the zone. The current there: the truth at
+    # the known centroid (given the true current), or the team's mean current estimate at
+    # its last step (the agents are within a few tens of metres of the school)
     ux = dxz / dist if dist > 1e-9 else 0.0
     uz = dzz / dist if dist > 1e-9 else 0.0
-    if M.oracle != 0:
+    if W.sinfo[e, 2] != 0:
         ce, cn = _current(grid, cxs, P.depth, czs, t)
     else:
         ce = 0.0
@@ -178,7 +273,7 @@ def plan(grid, P, W, M, state, e, k, t):
     # compass angle of "behind the school": frozen near the zone centre (dead band) so the
     # arc does not flip around the school when the centroid crosses the centre, and turned
     # at most ``slew`` rad/s so the agents circle around the school, not through it
-    if k == 0:
+    if first:
         th_back = math.atan2(-wx, -wz)
     elif dist > M.deadband * zr:
         dth = _wrap(math.atan2(-wx, -wz) - th_back)
@@ -193,10 +288,9 @@ def plan(grid, P, W, M, state, e, k, t):
         g = 1.0
     r_adj = stand + (back - stand) * (1.0 - g)
     # integral action on the school's velocity error along w (closer when the school is
-    # slower than planned, further back when it runs ahead): the oracle on the swim
-    # (ground velocity minus the exact current), the heuristic on the ground velocity (it
-    # does not know the drift)
-    if dist < M.i_zone * zr and k > 0 and wn > 1e-9:
+    # slower than planned, further back when it runs ahead), on the swim: the school's
+    # (estimated) ground velocity minus the current at the centroid
+    if dist < M.i_zone and k > 0 and wn > 1e-9:
         r_int += M.oks * ((vcx - ce - wx) * wx + (vcz - cn - wz) * wz) / wn * dt
         if r_int < M.stand_min - r_adj:
             r_int = M.stand_min - r_adj
@@ -242,8 +336,8 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     s = state[e, i]
     gx = W.tgt[e, i, 0]
     gz = W.tgt[e, i, 1]
-    vcx = W.school[e, 2]
-    vcz = W.school[e, 3]
+    vcx = W.sest[e, 2]
+    vcz = W.sest[e, 3]
     W.cest[e, i, 0] = pe
     W.cest[e, i, 1] = pn
     ax, ay, az = seek_max(s[0], s[1], s[2], gx, P.depth, gz, M.speed, M.kp, pe - vcx, pn - vcz)
