@@ -18,7 +18,7 @@ from oneocean.errors import ConfigError
 from oneocean.methods.heuristic import as_ as pol
 from oneocean.tasks import as_, run_cell
 from oneocean.tasks.common import STANDARD, load_task_table
-from oneocean.tasks.episodes import rollout
+from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
@@ -172,40 +172,142 @@ def test_torpedo_does_not_orbit_its_first_waypoint(calm):
             assert r["success"].all(), (seed, method, np.flatnonzero(~r["success"]))
 
 
-def test_oracle_is_faster_and_a_strong_current_defeats_the_heuristic():
-    # 2 m/s eastward (REMUS v_max = 2.5 m/s) along regions whose long axis runs east: the
-    # heuristic's strips go with and against the current (0.5 m/s upstream), the oracle's
-    # across it (crabbing at sqrt(2.5^2 - 2^2) = 1.5 m/s); both have the full speed budget,
-    # the same altitude and overlap. The oracle's planner finishes first in every episode.
+def _sp(info="sensors"):
+    from oneocean.sensing import sensing_params
+    return sensing_params(info, 1.0)
+
+
+def test_both_methods_orient_the_strips_across_a_strong_current():
+    # 2 m/s eastward (REMUS v_max = 2.5 m/s) along regions whose long axis runs east: strips
+    # with and against it (0.5 m/s upstream) take longer than strips across it (crabbing at
+    # 1.5 m/s). One planner for both methods: the oracle on the true current, the heuristic on
+    # its forecast (gain, direction and bias errors do not flip a 2 m/s current), so both fly
+    # their strips along z (north); the heuristic's strips are longer and its area wider by
+    # its navigation margins.
     grid = _sloped(ce=2.0)
-    tier = TIER
-    init = as_.reset(grid, tier, 1, 12, 5)
+    init = as_.reset(grid, TIER, 1, 12, 5)
     keep = np.flatnonzero(init["long_axis"] == 0)[:4]
     assert keep.size == 4
     init = {k: (v[keep] if isinstance(v, np.ndarray) and v.shape[:1] == (12,) else v)
             for k, v in init.items()}
-    ro = rollout(as_, grid, tier, init, "oracle", "6dof", E.load_vehicle(), 0)
-    rh = rollout(as_, grid, tier, init, "heuristic", "6dof", E.load_vehicle(), 0)
-    assert ro["success"].all()
-    assert np.all(ro["T_s"] < rh["T_s"])
-    # a tighter time limit turns the heuristic's slower strips into failures
-    tight = {**tier, "time_limit_s": float(ro["T_s"].max()) + 30.0}
-    ro = rollout(as_, grid, tight, init, "oracle", "6dof", E.load_vehicle(), 0)
-    rh = rollout(as_, grid, tight, init, "heuristic", "6dof", E.load_vehicle(), 0)
-    assert ro["success"].all() and not rh["success"].all()
-    assert np.all(rh["coverage_fraction"] <= ro["coverage_fraction"])
+    veh = E.load_vehicle()
+    runs = {}
+    for method in ("oracle", "heuristic"):
+        ep = Episodes(as_, grid, TIER, init, method, "6dof", veh, 0)
+        runs[method] = ep
+        for e in range(4):
+            w = ep.W.wps[e, 0, 1:ep.W.wcount[e, 0]]
+            assert np.allclose(w[0::2, 0], w[1::2, 0]), method   # strips along z
+    reg = init["region"]
+    o, h = runs["oracle"].W, runs["heuristic"].W
+    for e in range(4):
+        wo = o.wps[e, 0, 1:o.wcount[e, 0]]
+        wh = h.wps[e, 0, 1:h.wcount[e, 0]]
+        # the oracle's strips span the region exactly; the heuristic's reach past both ends
+        np.testing.assert_allclose([wo[:, 1].min(), wo[:, 1].max()], reg[e, [1, 3]])
+        assert wh[:, 1].min() < reg[e, 1] - 0.5 and wh[:, 1].max() > reg[e, 3] + 0.5
+        assert wh[:, 0].min() < wo[:, 0].min() and wh[:, 0].max() > wo[:, 0].max()
+    ro = runs["oracle"].run().results()
+    rh = runs["heuristic"].run().results()
+    assert ro["success"].all() and rh["success"].all()
 
 
-def test_oracle_orients_strips_across_the_current():
+def test_scan_axis_orients_strips_across_the_current():
     box = (0.0, 0.0, 200.0, 100.0)
-    east = _sloped(ce=1.2)
-    north = _sloped(cn=1.2)
-    assert pol.oracle_axis(east, box, 10.0, 0.0, 600.0, 2.0, 20.0) == 1  # strips along z
-    assert pol.oracle_axis(north, box, 10.0, 0.0, 600.0, 2.0, 20.0) == 0  # strips along x
-    # no current: the long axis (fewer turns)
-    assert pol.oracle_axis(_sloped(), box, 10.0, 0.0, 600.0, 2.0, 20.0) == 0
-    assert pol.oracle_axis(_sloped(), (0.0, 0.0, 100.0, 200.0), 10.0, 0.0, 600.0, 2.0,
-                           20.0) == 1
+    assert pol.scan_axis(np.array([[1.2, 0.0]]), box, 2.0, 20.0) == 1  # strips along z
+    assert pol.scan_axis(np.array([[0.0, 1.2]]), box, 2.0, 20.0) == 0  # strips along x
+    # no current: the long axis (fewer strips and cross legs)
+    assert pol.scan_axis(np.zeros((1, 2)), box, 2.0, 20.0) == 0
+    assert pol.scan_axis(np.zeros((1, 2)), (0.0, 0.0, 100.0, 200.0), 2.0, 20.0) == 1
+    # the predicted time: 5 strips of 200 m at 2 m/s and 4 cross legs of 20 m; or 10 of 100 m
+    t = pol.scan_times(np.zeros((1, 2)), box, 2.0, 20.0)
+    assert t[0] == pytest.approx(5 * 100.0 + 4 * 10.0)
+    assert t[1] == pytest.approx(10 * 50.0 + 9 * 10.0)
+
+
+def test_navigation_sigma_and_margins_from_the_sensor_table():
+    SP = _sp()
+    fix, psi, sf, vn = 0.5, math.radians(0.5), 0.003, 0.005   # data/sensors.yaml
+    # 1000 m east of the fix: across-track (north) error from the heading bias, along-track
+    # (east) from the scale factor; the velocity noise's random walk over t s
+    assert pol.nav_sigma(SP, 1000.0, 0.0, 0.0, 1.0, 0.0) == pytest.approx(
+        math.hypot(fix, psi * 1000.0))
+    assert pol.nav_sigma(SP, 1000.0, 0.0, 1.0, 0.0, 0.0) == pytest.approx(
+        math.hypot(fix, sf * 1000.0))
+    assert pol.nav_sigma(SP, 0.0, 0.0, 1.0, 0.0, 400.0) == pytest.approx(
+        math.sqrt(fix ** 2 + vn ** 2 * 400.0))
+    assert pol.nav_sigma(_sp("truth"), 1000.0, 0.0, 0.0, 1.0, 900.0) == 0.0
+    assert pol.nav_sigma(_sp("true_current"), 1000.0, 0.0, 0.0, 1.0, 0.0) > 8.0
+    # margins of a 1000 x 100 m region, start fix at its south-west corner: the long (north
+    # and south) sides' margins are NAV_K sigma of the heading bias over 1000 m, the near
+    # (west) side's only the fix and the heading bias over the width
+    m = pol.nav_margins(SP, (0.0, 0.0, 1000.0, 100.0), [[0.0, 0.0]], 0.0)
+    k = pol.NAV_K
+    assert m[1] == pytest.approx(k * math.hypot(fix, psi * 1000.0))            # south
+    assert m[3] == pytest.approx(k * math.sqrt(fix ** 2 + (sf * 100.0) ** 2
+                                               + (psi * 1000.0) ** 2))         # north
+    assert m[0] == pytest.approx(k * math.hypot(fix, psi * 100.0))             # west
+    assert m[2] == pytest.approx(k * math.sqrt(fix ** 2 + (sf * 1000.0) ** 2
+                                               + (psi * 100.0) ** 2))          # east
+    assert 17.0 < m[3] < 18.0 and m[0] < 2.5
+    assert pol.nav_margins(_sp("truth"), (0.0, 0.0, 1000.0, 100.0), [[0.0, 0.0]],
+                           900.0) == (0.0, 0.0, 0.0, 0.0)
+    assert pol.margin_bound({"time_limit_s": 900.0}, [(0.0, 0.0, 1000.0, 100.0)]) >= max(m)
+
+
+def test_planner_narrows_its_margin_to_fit_the_time_limit(calm):
+    M = pol.params("heuristic", TIER, E.load_vehicle())
+    assert M == pol.params("oracle", TIER, E.load_vehicle())   # information only
+    box = (300.0, 300.0, 1300.0, 400.0)
+    starts = np.array([[310.0, 310.0]])
+    SP = _sp()
+    full = pol.nav_margins(SP, box, starts, 4000.0)
+    wps, cnt, t_full = pol.plan_episode(calm, M, box, 0.0, 4000.0, 1, starts, SP)
+    w = wps[0, 1:cnt[0]]
+    # ample time: the whole NAV_K margin, strips along x (the long axis in still water)
+    np.testing.assert_allclose([w[:, 0].min(), w[:, 0].max()],
+                               [box[0] - full[0], box[2] + full[2]])
+    assert t_full <= 4000.0
+    # too little time for any margin: the region itself, as the oracle plans it
+    wps0, cnt0, t0_ = pol.plan_episode(calm, M, box, 0.0, 600.0, 1, starts, SP)
+    wpo, cnto, _ = pol.plan_episode(calm, M, box, 0.0, 600.0, 1, starts, _sp("truth"))
+    np.testing.assert_array_equal(wps0, wpo)
+    np.testing.assert_allclose([wpo[0, 1:, 0].min(), wpo[0, 1:, 0].max()], [box[0], box[2]])
+    # in between: a narrower margin whose predicted scan fits
+    lim = 0.5 * (t_full + t0_) / (1.0 - pol.TIME_RESERVE)
+    wpm, cntm, t_mid = pol.plan_episode(calm, M, box, 0.0, lim, 1, starts, SP)
+    assert t_mid <= (1.0 - pol.TIME_RESERVE) * lim
+    assert box[0] - full[0] < wpm[0, 1:cntm[0], 0].min() < box[0]
+
+
+def test_dead_reckoning_drift_opens_holidays_the_margins_close(monkeypatch):
+    """A long narrow survey in still water: the oracle (true position) covers the region;
+    the heuristic flying the same plan without margins (NAV_K = 0) on its dead-reckoned
+    position leaves holidays at the far edges in some episodes; with its margins it covers
+    the region as the oracle does, in more time."""
+    grid = _sloped(nx=31, ny=31)
+    tier = {**TIER, "region_long_m": 1000.0, "region_short_m": 96.0, "time_limit_s": 5000.0,
+            "coverage_threshold": 1.0}
+    init = as_.reset(grid, tier, 1, 8, 2)
+    veh = E.load_vehicle()
+    ro = rollout(as_, grid, tier, init, "oracle", "kinematic", veh, 0)
+    rh = rollout(as_, grid, tier, init, "heuristic", "kinematic", veh, 0)
+    monkeypatch.setattr(pol, "NAV_K", 0.0)
+    r0 = rollout(as_, grid, tier, init, "heuristic", "kinematic", veh, 0)
+    assert ro["coverage_fraction"].min() >= 0.999
+    assert rh["coverage_fraction"].min() >= 0.999
+    assert r0["coverage_fraction"].min() < 0.99          # drift: holidays
+    assert np.mean(rh["T_s"]) > np.mean(ro["T_s"])       # the margins cost time
+
+
+def test_heuristic_given_the_truth_is_the_oracle(coast):
+    kw = dict(episodes=3, seed=11, dynamics="6dof")
+    o = run_cell(coast, "AS", 1, "oracle", **kw)
+    t = run_cell(coast, "AS", 1, "heuristic", info="truth", **kw)
+    h = run_cell(coast, "AS", 1, "heuristic", **kw)
+    cols = [c for c in o.columns if c != "method"]
+    pd.testing.assert_frame_equal(o[cols], t[cols])
+    assert not h[cols].equals(t[cols])
 
 
 def test_plan_splits_strips_between_agents():
@@ -220,6 +322,27 @@ def test_plan_splits_strips_between_agents():
     assert list(cnt) == [2, 2, 2, 2]
     np.testing.assert_allclose(wps[:, 0, 1], [12.5, 37.5, 62.5, 87.5])  # z offsets
     np.testing.assert_allclose(wps[:, :2, 0], [[0.0, 200.0]] * 4)  # along x, same end
+
+
+def test_team_blocks_overlap_by_the_seam():
+    # 2 agents, 100 m wide, 20 m spacing, a 10 m seam: the width unrolls to 110 m, 6 strips
+    # at (k + 1/2) 110 / 6, the second agent's block shifted back by 10 m
+    wps, cnt = pol.plan_lawnmower((0.0, 0.0, 200.0, 100.0), 0, 20.0, 2, seam=10.0)
+    assert list(cnt) == [6, 6]
+    u = (np.arange(6) + 0.5) * 110.0 / 6
+    np.testing.assert_allclose(wps[0, 0:6:2, 1], u[:3])
+    np.testing.assert_allclose(wps[1, 0:6:2, 1], u[3:] - 10.0)
+    assert wps[1, 0, 1] - wps[0, 4, 1] == pytest.approx(110.0 / 6 - 10.0)
+    assert wps[1, 4, 1] == pytest.approx(100.0 - 110.0 / 12)   # symmetric at the far edge
+    # the seam of two dead-reckoning vehicles: sqrt(2) NAV_K sigma across the strips at the
+    # far corner; none for one vehicle or given the true position
+    box = (0.0, 0.0, 1000.0, 100.0)
+    two = [[0.0, 0.0], [5.0, 0.0]]
+    sig = pol.nav_sigma(_sp(), 1000.0, 100.0, 0.0, 1.0, 0.0)
+    assert pol.team_seam(_sp(), box, two, 0.0, 0) == pytest.approx(
+        pol.NAV_K * math.sqrt(2.0) * sig)
+    assert pol.team_seam(_sp(), box, two[:1], 0.0, 0) == 0.0
+    assert pol.team_seam(_sp("truth"), box, two, 0.0, 0) == 0.0
 
 
 def test_team_scans_faster_and_coll_ratio(calm):

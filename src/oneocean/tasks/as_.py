@@ -25,9 +25,14 @@ Metrics
     ``mean_altitude_m`` (mean altitude over agent-steps, m).
 Methods
     :mod:`oneocean.methods.heuristic.as_` (a lawnmower: strips at a commanded altitude,
-    terrain following, current feed-forward, full speed for both; heuristic: strips along the
-    long axis, the sensor models of :mod:`oneocean.sensing`; oracle: strips across the current
-    by its scan-time planner, true current and position). Its
+    terrain following, current feed-forward, full speed; one policy for the heuristic and the
+    oracle, which differ in information only). The strips are flown on the method's
+    navigation estimate while the sensor images the true seafloor, so the heuristic's
+    dead-reckoning drift (no navigation aid: a 0.5 m start fix, then ~0.9 % of the
+    displacement) opens holidays at the region's edges; its planner extends the region by the
+    margins its navigation error needs, as wide as the time limit allows, and orients the
+    strips by the scan time predicted on its forecast of the currents (the oracle: the true
+    currents, zero margins). Its
     plan (the waypoint lists per agent) is made in Python before the episode's first step and
     kept in ``W`` (``wps``, ``wcount``, ``widx``: the plan tokens); the observation's goal cue
     is the carrot the method follows (``W.tgt``).

@@ -4,10 +4,19 @@ Plan (Python, :func:`prepare` before the episode's first step; the plan tokens a
 waypoint arrays of the task's work ``W``: ``wps``, ``wcount``, ``widx``)
     Strips at commanded altitude ``a_c = ALT_FRAC * max_altitude_m`` (so the footprint
     survives terrain-following errors), spacing at most ``2 a_c tan(half_angle) (1 - OVERLAP)``
-    spread evenly over the region's width (:func:`plan_lawnmower`); the strips are split into
+    spread evenly over the width (:func:`plan_lawnmower`); the strips are split into
     contiguous blocks, one per agent (boustrophedon inside a block). Each agent's list starts
     with a run-in waypoint ``RUNIN_M`` before its first strip, on the strip's line
     (:func:`with_runin`), so a torpedo AUV enters the region aligned with the strip.
+    The strips are flown on the vehicle's navigation estimate while its footprint falls on
+    the true seafloor, so dead-reckoning drift opens holidays at the region's edges. The
+    planner (:func:`plan_episode`) therefore lays the strips over the region extended on
+    each side by a navigation margin, ``k`` standard deviations of the dead-reckoning error
+    it expects there (:func:`nav_margins`, from the navigation model's own figures: start
+    fix, heading bias, scale factor, velocity noise), taking the widest margin, ``k`` from
+    ``NAV_K`` down to 0, whose predicted scan (:func:`predicted_time`) fits the time limit
+    less ``TIME_RESERVE``; it orients the strips along x or z, whichever gives the shorter
+    predicted scan through the currents it knows (:func:`scan_axis`, :func:`known_currents`).
 Act (``act``, every agent and step)
     The transit to the run-in waypoint ends within ``ARRIVE_M`` (wider than the vehicle's
     turning diameter: an underactuated torpedo cannot close on a point inside its turning
@@ -19,11 +28,13 @@ Act (``act``, every agent and step)
     first); teammates closer than ``SEP_M`` repel each other (their positions are observed).
     The carrot is written to ``W.tgt`` (the observation's goal cue).
 
-Both use the full speed budget ``v_max`` through the water, the same altitude and overlap.
-``heuristic``: strips along the region's long axis (fewest turns); its current estimate and
-navigation come from the sensor models (:mod:`oneocean.sensing`). ``oracle``: the truth, and a
-planner: it orients the strips across the current (:func:`oracle_axis`: it predicts the scan
-time of both orientations from the true currents over the episode and takes the faster one).
+Heuristic and oracle are one policy with the same parameters (the full speed budget
+``v_max`` through the water, the same altitude, overlap, planner and rules); they differ in
+information only (``LoopParams.sens``). The heuristic plans on its forecast of the currents
+(``LoopState.fc``), from its start fix, with the margins its dead reckoning needs, and flies
+on its navigation estimate and filtered current estimate (:mod:`oneocean.sensing`); the
+oracle plans on the true currents from its true position, with zero margins (its position
+error is 0), and flies on the truth. Given the truth the heuristic is the oracle, bit for bit.
 """
 
 from __future__ import annotations
@@ -60,6 +71,20 @@ MIN_DEPTH_M = 1.0
 #: Teammate avoidance: repulsion inside SEP_M (m), up to K_REP_MS (m s-1) at contact.
 SEP_M = 6.0
 K_REP_MS = 1.0
+#: Navigation margin of the survey plan, in standard deviations of the expected
+#: dead-reckoning error at the region's edges (:func:`nav_margins`): one-sided, an edge is
+#: imaged through ~98 % of the drifts (every method; 0 m for a method that knows its position).
+NAV_K = 2.0
+#: Steps (standard deviations) by which the planner narrows its margin to fit the time limit.
+K_STEP = 0.25
+#: Fraction of the time limit the plan keeps in hand: the scan-time model leaves out the turns
+#: and the terrain following (the oracle's actual / predicted scan time on the calibration
+#: seeds, T2 and T3: median 1.02, upper quartile 1.07-1.08).
+TIME_RESERVE = 0.05
+#: Reach (m) of a start fix from the region's corner assumed by :func:`margin_bound`.
+SPAWN_REACH_M = 100.0
+#: Times over the episode at which the planner samples the currents it knows.
+N_TIMES = 7
 
 
 class ASPolicy(NamedTuple):
@@ -68,8 +93,7 @@ class ASPolicy(NamedTuple):
     look: float     # line-of-sight lookahead, m
     alt: float      # commanded altitude above the seafloor, m
     spacing: float  # nominal strip spacing, m
-    oracle: int     # 1: orient the strips by the predicted scan time (true currents)
-    v_max: float    # vehicle speed limit, m s-1 (the oracle's scan-time prediction)
+    v_max: float    # vehicle speed limit, m s-1 (the scan-time prediction)
 
 
 def method_altitude(tier: dict, method: str) -> float:
@@ -84,10 +108,11 @@ def strip_spacing(tier: dict, method: str) -> float:
 
 
 def params(method: str, tier: dict, vehicle) -> ASPolicy:
+    """The policy's parameters: the same for the heuristic and the oracle (they differ in
+    what they know only: ``LoopParams.sens``, read by :func:`prepare`)."""
     v_max = float(vehicle.v_max)
-    return ASPolicy(v_max, KP, LOOKAHEAD_M,
-                    method_altitude(tier, method), strip_spacing(tier, method),
-                    0 if method == "heuristic" else 1, v_max)
+    return ASPolicy(v_max, KP, LOOKAHEAD_M, method_altitude(tier, method),
+                    strip_spacing(tier, method), v_max)
 
 
 # ------------------------------------------------------------------------------ planning
@@ -96,13 +121,16 @@ def _n_strips(width: float, spacing: float, n_agents: int) -> int:
     return max(1, int(math.ceil(width / spacing - 1e-9)), int(n_agents))
 
 
-def plan_lawnmower(box, axis: int, spacing: float, n_agents: int):
+def plan_lawnmower(box, axis: int, spacing: float, n_agents: int, seam: float = 0.0):
     """Boustrophedon waypoints (x, z) per agent over ``box``, strips along ``axis``.
 
-    ``n = max(ceil(W / spacing), n_agents)`` strips (every agent gets at least one; a large
-    team flies narrower, overlapping strips rather than idling or crowding) at offsets
-    ``(k + 1/2) W / n``, split into contiguous blocks, one per agent; every block starts at
-    the strips' low end.
+    ``n = max(ceil((W + (n_agents - 1) seam) / spacing), n_agents)`` strips (every agent gets
+    at least one; a large team flies narrower, overlapping strips rather than idling or
+    crowding), split into contiguous blocks, one per agent; every block starts at the strips'
+    low end. The strips lie at ``(k + 1/2) U / n`` over the width unrolled to
+    ``U = W + (n_agents - 1) seam``, block ``i`` shifted back by ``i seam``: neighbouring
+    agents' swaths overlap by an extra ``seam`` m at the seam between their blocks
+    (:func:`team_seam`; 0: evenly spaced strips).
 
     Returns
     -------
@@ -115,7 +143,7 @@ def plan_lawnmower(box, axis: int, spacing: float, n_agents: int):
         a_lo, a_hi, b_lo, b_hi = x_lo, x_hi, z_lo, z_hi
     else:
         a_lo, a_hi, b_lo, b_hi = z_lo, z_hi, x_lo, x_hi
-    width = b_hi - b_lo
+    width = b_hi - b_lo + (n_agents - 1) * seam
     n_strips = _n_strips(width, spacing, n_agents)
     offs = b_lo + (np.arange(n_strips) + 0.5) * width / n_strips
     blocks = np.array_split(np.arange(n_strips), n_agents)
@@ -126,19 +154,102 @@ def plan_lawnmower(box, axis: int, spacing: float, n_agents: int):
         k = 0
         for j, s in enumerate(blk):
             ends = (a_lo, a_hi) if j % 2 == 0 else (a_hi, a_lo)
+            b = offs[s] - i * seam
             for a in ends:
-                wps[i, k] = (a, offs[s]) if axis == 0 else (offs[s], a)
+                wps[i, k] = (a, b) if axis == 0 else (b, a)
                 k += 1
         count[i] = k
     return wps, count
 
 
+def nav_sigma(SP, dx: float, dz: float, nx: float, nz: float, t: float) -> float:
+    """Standard deviation (m) of the dead-reckoning position error, along the unit normal
+    ``(nx, nz)``, at a point ``(dx, dz)`` m from the start fix reached ``t`` s after it, from
+    the navigation model's own figures (``SP``: :class:`~oneocean.sensing.SensingParams`, the
+    sensor table): the start fix, plus the constant scale factor's error along the
+    displacement and the constant heading bias's across it (the error of dead reckoning on a
+    constant scale factor and heading bias is ``(g R - I)`` times the displacement from the
+    fix, whatever the path), plus the DVL velocity noise's random walk. 0 for a method that
+    knows its true position."""
+    if SP.true_position != 0:
+        return 0.0
+    along = dx * nx + dz * nz      # displacement along the normal (scale factor)
+    across = dx * nz - dz * nx     # across it (heading bias)
+    steps = max(t, 0.0)            # steps of dt = 1 s (AS.yaml dt_s): t s
+    var = (SP.start_fix_std ** 2 + (SP.scale_std * along) ** 2
+           + (SP.heading_bias_std * across) ** 2 + SP.vel_noise ** 2 * steps)
+    return math.sqrt(var)
+
+
+def nav_margins(SP, box, starts, duration: float, k: float | None = None):
+    """Margins (m) by which a survey planner extends the region ``box`` (x_lo, z_lo, x_hi,
+    z_hi) on each side, ``(west, south, east, north)``: ``k`` times the navigation error
+    normal to that side (:func:`nav_sigma`) at its corner farthest from the agents' start
+    fixes ``starts`` (n, 2) (x, z), after the whole mission ``duration`` s. The strips are
+    flown on the navigation estimate while the footprint falls on the true seafloor: the
+    margin keeps the region's edges imaged through the expected drift. Zeros for a method
+    that knows its position (the rule is shared; only the information differs)."""
+    x_lo, z_lo, x_hi, z_hi = box
+    sides = ((-1.0, 0.0, ((x_lo, z_lo), (x_lo, z_hi))),   # west
+             (0.0, -1.0, ((x_lo, z_lo), (x_hi, z_lo))),   # south
+             (1.0, 0.0, ((x_hi, z_lo), (x_hi, z_hi))),    # east
+             (0.0, 1.0, ((x_lo, z_hi), (x_hi, z_hi))))    # north
+    k = NAV_K if k is None else float(k)
+    out = []
+    for nx, nz, corners in sides:
+        s = 0.0
+        for sx, sz in np.asarray(starts, dtype=np.float64).reshape(-1, 2):
+            for cx, cz in corners:
+                s = max(s, nav_sigma(SP, cx - sx, cz - sz, nx, nz, duration))
+        out.append(k * s)
+    return tuple(out)
+
+
+def team_seam(SP, box, starts, duration: float, axis: int, k: float | None = None) -> float:
+    """Extra overlap (m) between neighbouring agents' blocks of strips along ``axis`` over
+    ``box``: ``k`` (default ``NAV_K``) times the standard deviation of the difference of two
+    vehicles' independent dead-reckoning errors across the strips (``sqrt(2)`` times
+    :func:`nav_sigma`, normal to the strips) at the box's corner farthest from the start
+    fixes ``starts`` (n, 2). 0 for a single agent or a method that knows its position."""
+    pts = np.asarray(starts, dtype=np.float64).reshape(-1, 2) if starts is not None else None
+    if SP is None or pts is None or pts.shape[0] < 2:
+        return 0.0
+    k = NAV_K if k is None else float(k)
+    nx, nz = (0.0, 1.0) if axis == 0 else (1.0, 0.0)
+    x_lo, z_lo, x_hi, z_hi = box
+    s = 0.0
+    for sx, sz in pts:
+        for cx, cz in ((x_lo, z_lo), (x_hi, z_lo), (x_lo, z_hi), (x_hi, z_hi)):
+            s = max(s, nav_sigma(SP, cx - sx, cz - sz, nx, nz, duration))
+    return k * math.sqrt(2.0) * s
+
+
+def margin_bound(tier: dict, region) -> float:
+    """An upper bound (m) of :func:`nav_margins` over the regions ``region`` (E, 4) of a tier
+    (starts within ``SPAWN_REACH_M`` of a region's corner, every error at the sensor
+    table's values): what the plan-token array must leave room for."""
+    from ...sensing import sensing_params
+
+    SP = sensing_params("sensors", 1.0)
+    region = np.asarray(region, dtype=np.float64).reshape(-1, 4)
+    if region.size == 0:
+        return 0.0
+    d = float(np.hypot(region[:, 2] - region[:, 0], region[:, 3] - region[:, 1]).max())
+    d += SPAWN_REACH_M
+    return NAV_K * math.sqrt(SP.start_fix_std ** 2
+                             + (SP.scale_std ** 2 + SP.heading_bias_std ** 2) * d * d
+                             + SP.vel_noise ** 2 * max(float(tier["time_limit_s"]), 0.0))
+
+
 def max_waypoints(tier: dict, region, n_agents: int) -> int:
-    """Waypoints per agent that every method's plan fits in (either strip orientation), for
-    the regions ``region`` (E, 4): the size of the plan-token array."""
+    """Waypoints per agent that every method's plan fits in (either strip orientation, the
+    navigation margins and a team's seams included), for the regions ``region`` (E, 4): the size of the
+    plan-token array."""
     region = np.asarray(region, dtype=np.float64).reshape(-1, 4)
     sides = np.concatenate([region[:, 2] - region[:, 0], region[:, 3] - region[:, 1]])
-    width = float(sides.max()) if sides.size else 0.0
+    mb = margin_bound(tier, region)
+    width = ((float(sides.max()) if sides.size else 0.0) + 2.0 * mb
+             + (int(n_agents) - 1) * math.sqrt(2.0) * mb)
     n = max(_n_strips(width, strip_spacing(tier, m), n_agents) for m in SENSING)
     return 2 * (-(-n // int(n_agents))) + 1
 
@@ -152,51 +263,117 @@ def _along_speed(ce: float, cn: float, ux: float, uz: float, v: float) -> float:
     return max(0.0, c_par + math.sqrt(v * v - q2))
 
 
-def oracle_axis(grid, box, depth: float, t0: float, duration: float, v: float,
-                spacing: float = 20.0, n_times: int = 7) -> int:
-    """Strip orientation (0 = along x) with the shorter predicted scan under the true currents.
+def scan_times(cur, box, v: float, spacing: float, n_agents: int = 1):
+    """Predicted scan time (s) of the lawnmower over ``box`` with strips along x and along z,
+    through the currents ``cur`` (n, 2) (east, north m s-1, samples over the episode).
 
     A scan along an axis has ``n = ceil(W / spacing)`` strips of length ``L`` flown
-    alternately each way and ``n - 1`` cross legs of ``spacing``; each leg's time uses the
+    alternately each way and ``n - 1`` cross legs of ``W / n``; each leg's time uses the
     fastest ground speed along it through the current (:func:`_along_speed`), averaged over
-    ``n_times`` times of the episode at the region's centre.
+    the samples.
     """
-    from ...engine.grid import sample_currents
-
     x_lo, z_lo, x_hi, z_hi = box
-    cx, cz = 0.5 * (x_lo + x_hi), 0.5 * (z_lo + z_hi)
-    ts = t0 + np.linspace(0.0, duration, n_times)
-    xyz = np.tile([cx, depth, cz], (n_times, 1))
-    cur = sample_currents(grid, xyz, ts)
     cost = []
     for axis, (L, W) in enumerate(((x_hi - x_lo, z_hi - z_lo), (z_hi - z_lo, x_hi - x_lo))):
         ux, uz = (1.0, 0.0) if axis == 0 else (0.0, 1.0)
-        n = max(1, int(math.ceil(W / spacing - 1e-9)))
+        n = _n_strips(W, spacing, n_agents)
         tot = 0.0
-        for ce, cn in cur:
+        for ce, cn in np.asarray(cur, dtype=np.float64).reshape(-1, 2):
             strips = 0.5 * L * (1.0 / max(_along_speed(ce, cn, ux, uz, v), 1e-3)
                                 + 1.0 / max(_along_speed(ce, cn, -ux, -uz, v), 1e-3))
             cross = W / n / max(_along_speed(ce, cn, uz, ux, v), 1e-3)
             tot += n * strips + (n - 1) * cross
-        cost.append(tot)
+        cost.append(tot / max(1, np.asarray(cur).reshape(-1, 2).shape[0]))
+    return cost
+
+
+def known_currents(grid, box, depth: float, t0: float, duration: float, fc=None, e: int = 0,
+                   n_times: int = N_TIMES):
+    """The currents (n_times, 2) at the centre of ``box`` at ``depth`` m over
+    ``[t0, t0 + duration]`` as the method knows them before the episode: the true field, or
+    given ``fc`` (``LoopState.fc``) episode ``e``'s forecast of it
+    (:func:`oneocean.methods.routing.forecast_field`)."""
+    from ...engine.grid import sample_currents
+    from ..routing import forecast_field
+
+    x_lo, z_lo, x_hi, z_hi = box
+    ts = float(t0) + np.linspace(0.0, float(duration), int(n_times))
+    xyz = np.tile([0.5 * (x_lo + x_hi), float(depth), 0.5 * (z_lo + z_hi)], (ts.size, 1))
+    cur = np.ascontiguousarray(sample_currents(grid, xyz, ts), dtype=np.float64)
+    if fc is not None:
+        cur = forecast_field(cur.reshape(ts.size, 1, 1, 2), fc, e).reshape(ts.size, 2)
+    return cur
+
+
+def scan_axis(cur, box, v: float, spacing: float, n_agents: int = 1) -> int:
+    """Strip orientation (0 = along x) with the shorter predicted scan (:func:`scan_times`)
+    through the currents ``cur`` (along x on a tie)."""
+    cost = scan_times(cur, box, v, spacing, n_agents)
     return int(np.argmin(cost))
 
 
-def plan_episode(grid, M: ASPolicy, box, long_axis: int, t0: float, duration: float,
-                 n_agents: int):
-    """The method's lawnmower over one episode's region ``box`` (x_lo, z_lo, x_hi, z_hi):
-    :func:`plan_lawnmower` along the long axis (heuristic) or along :func:`oracle_axis`
-    (``M.oracle``; ``duration``: the episode's time limit, s)."""
-    if M.oracle == 0:
-        axis = int(long_axis)
-    else:
-        depth = float(-sample_elevation_points(
-            grid, np.array([[0.5 * (box[0] + box[2]), 0.5 * (box[1] + box[3])]]),
-            np.empty(1))[0]) - M.alt
-        axis = oracle_axis(grid, box, max(depth, MIN_DEPTH_M), float(t0), duration, M.v_max,
-                           M.spacing)
-    wps, cnt = plan_lawnmower(box, axis, M.spacing, n_agents)
-    return with_runin(wps, cnt)
+def plan_episode(grid, M: ASPolicy, box, t0: float, duration: float, n_agents: int,
+                 starts=None, SP=None, fc=None, e: int = 0):
+    """The method's lawnmower over one episode's region ``box`` (x_lo, z_lo, x_hi, z_hi) and
+    its predicted duration (s).
+
+    The strips are oriented by :func:`scan_axis` on the currents the method knows
+    (:func:`known_currents`: ``fc`` its forecast, else the truth) and laid over the region
+    extended by the navigation margins (:func:`nav_margins`, from the agents' known start
+    fixes ``starts`` (n, 2) and the navigation model ``SP``; none when ``SP`` is None or the
+    method knows its position), a team's blocks overlapping by :func:`team_seam`: the widest
+    margin, ``NAV_K`` standard deviations down to 0
+    in steps of ``K_STEP``, whose predicted scan fits the episode's time limit ``duration``
+    s (:func:`predicted_time`), as a survey planner fits its line plan to the time it has.
+
+    Returns
+    -------
+    wps : (n_agents, n_max, 2) float64
+        Waypoints (x, z) per agent, m, run-in first (:func:`with_runin`).
+    count : (n_agents,) int64
+        Waypoints of each agent.
+    t_pred : float
+        The plan's predicted duration, s.
+    """
+    depth = float(-sample_elevation_points(
+        grid, np.array([[0.5 * (box[0] + box[2]), 0.5 * (box[1] + box[3])]]),
+        np.empty(1))[0]) - M.alt
+    cur = known_currents(grid, box, max(depth, MIN_DEPTH_M), t0, duration, fc, e)
+    n_k = int(round(NAV_K / K_STEP))
+    for j in range(n_k, -1, -1):
+        bx = box
+        if SP is not None and starts is not None:
+            m = nav_margins(SP, box, starts, duration, j * K_STEP)
+            bx = (box[0] - m[0], box[1] - m[1], box[2] + m[2], box[3] + m[3])
+        seam = [team_seam(SP, bx, starts, duration, ax, j * K_STEP) for ax in (0, 1)]
+        # each orientation's scan over the width its seams add (strips along x: z widens)
+        cost = [scan_times(cur, (bx[0], bx[1], bx[2], bx[3] + (n_agents - 1) * seam[0]),
+                           M.v_max, M.spacing, n_agents)[0],
+                scan_times(cur, (bx[0], bx[1], bx[2] + (n_agents - 1) * seam[1], bx[3]),
+                           M.v_max, M.spacing, n_agents)[1]]
+        axis = int(np.argmin(cost))
+        wps, cnt = with_runin(*plan_lawnmower(bx, axis, M.spacing, n_agents, seam[axis]))
+        t_pred = predicted_time(wps, cnt, cost[axis], starts, M.v_max, n_agents)
+        if (t_pred <= (1.0 - TIME_RESERVE) * duration or j == 0
+                or (bx == box and seam[axis] == 0.0)):
+            return wps, cnt, t_pred
+    raise AssertionError("unreachable")
+
+
+def predicted_time(wps, count, scan: float, starts, v: float, n_agents: int) -> float:
+    """Predicted duration (s) of a plan: its scan (:func:`scan_times`, the team's strips
+    shared between ``n_agents``; the turns at the strip ends and the terrain following are
+    left out), plus the transit from the start to the run-in waypoint and the run-in at
+    ``v``."""
+    t = scan / max(1, int(n_agents))
+    lead = 0.0
+    for i in range(wps.shape[0]):
+        d = RUNIN_M
+        if starts is not None:
+            s = np.asarray(starts, dtype=np.float64).reshape(-1, 2)[min(i, len(starts) - 1)]
+            d += float(np.hypot(*(wps[i, 0] - s)))
+        lead = max(lead, d / max(v, 1e-3))
+    return t + lead
 
 
 def with_runin(wps, count, runin: float = RUNIN_M):
@@ -216,16 +393,20 @@ def with_runin(wps, count, runin: float = RUNIN_M):
 def prepare(grid, P, W, M: ASPolicy, t0, LP=None, LS=None, X=None) -> None:
     """The Python planner: write the plan tokens of every episode not yet planned (``W.wps``,
     ``W.wcount``, ``W.widx = 0``, ``W.tgt`` = the first waypoint at the commanded altitude)
-    before the episode's first step. Idempotent (``W.planned``). (``LP``, ``LS``, ``X``: the
-    loop's params and state and the known state, :class:`~oneocean.tasks.episodes.Episodes`;
-    unused: the strips depend on the region only.)"""
+    before the episode's first step, from what the method knows (``LP.sens``): the currents
+    (the truth, else its forecast ``LS.fc``), the agents' start positions (``X``: the known
+    state) and its navigation model (the margins; none given the true position). Without
+    ``LP`` / ``LS`` the truth. Idempotent (``W.planned``)."""
     todo = np.flatnonzero(W.planned == 0)
     if todo.size == 0:
         return
     n_ag = W.wcount.shape[1]
+    SP = None if LP is None else LP.sens
+    use_fc = SP is not None and LS is not None and SP.true_current == 0
     for e in todo:
-        wps, cnt = plan_episode(grid, M, tuple(W.region[e]), W.long_axis[e], t0[e], P.t_lim,
-                                n_ag)
+        starts = None if X is None else np.asarray(X[e, :, :][:, [0, 2]], dtype=np.float64)
+        wps, cnt, _ = plan_episode(grid, M, tuple(W.region[e]), t0[e], P.t_lim, n_ag,
+                                   starts, SP, LS.fc if use_fc else None, int(e))
         if wps.shape[1] > W.wps.shape[2]:
             raise RuntimeError(f"AS plan of episode {e}: {wps.shape[1]} waypoints per agent, "
                                f"the plan-token array holds {W.wps.shape[2]}")
