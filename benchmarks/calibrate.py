@@ -180,7 +180,7 @@ def main(argv=None) -> None:
     ap.add_argument("--dynamics", default="6dof")
     ap.add_argument("--n-agents", type=int, default=None,
                     help="team size (default: each task table's default)")
-    ap.add_argument("--set", nargs="*", default=[], metavar="TASK.TIER.KEY=VALUE")
+    ap.add_argument("--set", nargs="*", action="extend", default=[], metavar="TASK.TIER.KEY=VALUE")
     a = ap.parse_args(argv)
     grid = load_grid(a.grid)
     sets = parse_sets(a.set)

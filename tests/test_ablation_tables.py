@@ -413,7 +413,8 @@ def test_a_bad_override_is_a_one_line_error(grid_file, overrides, named):
 
 def test_config_keys_of_the_ablations():
     cfg = load_config(REPO / "config" / "config.yaml")
-    assert cfg["ablations"] == {"info": {"tier": 3, "levels": ["true_current", "true_position"]},
+    assert cfg["ablations"] == {"info": {"tier": 3, "levels": ["true_current", "true_position",
+                                                             "true_target"]},
                                 "stressors": {"episodes": None}}
     for override, named in (({"stressors": {"episodes": 0}}, "ablations.stressors.episodes"),
                             ({"info": {"levels": ["sensors"]}}, "ablations.info.levels"),

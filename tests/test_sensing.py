@@ -35,8 +35,12 @@ def test_sensor_table_and_levels():
     assert (sensing_params("truth", 1.0).true_current,
             sensing_params("truth", 1.0).true_position) == (1, 1)
     assert sensing_params("true_current", 1.0)[:2] == (1, 0)
-    assert sensing_params("true_position", 1.0)[:2] == (0, 1)
-    assert set(INFO_LEVELS) == {"sensors", "true_current", "true_position", "truth"}
+    assert sensing_params("true_position", 1.0)[:3] == (0, 1, 0)
+    assert sensing_params("true_target", 1.0)[:3] == (0, 0, 1)
+    assert sensing_params("truth", 1.0)[:3] == (1, 1, 1)
+    assert sensing_params("sensors", 1.0)[:3] == (0, 0, 0)
+    assert set(INFO_LEVELS) == {"sensors", "true_current", "true_position", "true_target",
+                                "truth"}
     with pytest.raises(ConfigError, match="unknown information level 'psychic'"):
         sensing_params("psychic", 1.0)
     aid = nav_aid({"navigation": {"aid": "usbl", "period_s": 5}})
@@ -170,3 +174,23 @@ def test_step_api_observation_is_what_the_loop_senses(coast, task, cols):
     # and stepping in segments is the uninterrupted run
     seg.run()
     np.testing.assert_array_equal(seg.res, rec.res)
+
+
+def test_polar_fix_measures_range_and_bearing_with_bounded_noise():
+    from oneocean.sensing.kernels import TRUNC, polar_fix
+
+    # no noise: the offset itself; zero offset: zero
+    assert polar_fix(7, 0, 0, 3.0, 4.0, 0.0, 0.0) == pytest.approx((3.0, 4.0), abs=1e-12)
+    assert polar_fix(7, 0, 0, 0.0, 0.0, 0.1, 0.01) == (0.0, 0.0)
+    # with noise: the measured range within TRUNC sigma, the bearing within TRUNC sigma, and
+    # the same draw for the same (seed, episode, counter)
+    rs, bs = 0.1, math.radians(1.0)
+    errs_r, errs_b = [], []
+    for c in range(0, 400, 2):
+        mx, mz = polar_fix(7, 3, c, 30.0, 40.0, rs, bs)
+        assert (mx, mz) == polar_fix(7, 3, c, 30.0, 40.0, rs, bs)
+        errs_r.append(math.hypot(mx, mz) - 50.0)
+        errs_b.append(math.atan2(mx, mz) - math.atan2(30.0, 40.0))
+    assert max(map(abs, errs_r)) <= TRUNC * rs + 1e-9
+    assert max(map(abs, errs_b)) <= TRUNC * bs + 1e-9
+    assert 0.07 < np.std(errs_r) < 0.13 and 0.7 < math.degrees(np.std(errs_b)) < 1.3

@@ -80,23 +80,26 @@ def test_rollout_cells_currents_off_and_the_ladder(two_runs):
     forced = {f"{t}/tier3/heuristic_{f}.parquet" for t in r["tasks"] for f in ("gain", "tide")}
     team = {f"SPC/tier1/heuristic_n{n}.parquet" for n in (2, 3)}
     info = {f"{t}/tier3/heuristic_info-{lvl}.parquet" for t in r["tasks"]
-            for lvl in ("true_current", "true_position")}
+            for lvl in ("true_current", "true_position", "true_target")}
+    # the replicate seed (config default 1001) of the configured methods it replicates
+    rep = {f"{t}/tier{k}/heuristic_seed1001.parquet" for t in r["tasks"] for k in r["tiers"]}
     stress = {f"{t}/tier{k}/heuristic_set-{key}-T{4 - k}.parquet" for t in r["tasks"]
               for key in stressor_keys(t) for k in (1, 3)}
     got = {p.relative_to(root).as_posix() for p in root.rglob("*.parquet")}
-    assert got == cells | off | forced | team | info | stress
+    assert got == cells | off | forced | team | info | stress | rep
     for rel in sorted(got):
         meta = read_metrics_meta(root / rel)
         df = pd.read_parquet(root / rel)
         task = rel.split("/")[0]
-        assert meta["task"] == task and meta["seed"] == r["seed"] == 1000
+        seed = 1001 if "_seed1001" in rel else 1000
+        assert meta["task"] == task and meta["seed"] == seed and r["seed"] == 1000
         assert meta["vehicle"] == load_task_table(task)["vehicle"]
         assert meta["currents"] is (not rel.endswith("_currents-off.parquet"))
         assert (meta["current_gain"] == 2.0) is rel.endswith("_gain.parquet")
         assert (meta["tide"] is not None) is rel.endswith("_tide.parquet")
         if "_n" in rel:
             assert meta["n_agents"] == int(rel.split("_n")[1].split(".")[0])
-        assert (df["seed"] == 1000).all()
+        assert (df["seed"] == seed).all()
         cols = list(df.columns)
         assert cols[cols.index("seed") + 1] == "candidate"
         episodes = (SMALL_CONFIG["ablations"]["stressors"]["episodes"] if "_set-" in rel
@@ -112,7 +115,7 @@ def test_rollout_cells_currents_off_and_the_ladder(two_runs):
                                 f"rollout_ablation_{task}"}, rel
         assert [o["path"] for o in prov["outputs"]] == [
             f"results/rollouts/{REGION}/{r['variant']}/{rel}"]
-        assert prov["wildcards"]["task"] == task and prov["params"]["run"]["seed"] == 1000
+        assert prov["wildcards"]["task"] == task and prov["params"]["run"]["seed"] == seed
         assert prov["params"]["run"]["currents"] is meta["currents"]
         assert prov["wildcards"].get("tier", str(meta["tier"])) == str(meta["tier"])
         assert f"results/kernels/{REGION}/{r['variant']}/{task}.json" in [
@@ -131,6 +134,10 @@ def test_rollout_cells_currents_off_and_the_ladder(two_runs):
     for t in r["tasks"]:
         assert f"| {t} | {load_task_table(t)['vehicle']} |" in md, t
     assert "| Check | Measured | Target | Verdict |" in md
+    # the replicate seed's own ladder, and each tier's current in absolute terms
+    assert "Replicate: the same ladder on held-out seed 1001" in md
+    assert "Macro SR, seed 1000 -> seed 1001: heuristic T1" in md
+    assert " m/s, " in md and "share of the vehicle's speed limit" in md
     assert (a / f"results/provenance/tables/{REGION}/ladder.json").is_file()
 
 

@@ -168,10 +168,13 @@ def _check_held_out(rollouts: dict) -> None:
     if seed in reps:
         raise ConfigError(f"config key 'rollouts.replicate.seeds': {seed} is the evaluation "
                           "seed rollouts.seed; a replicate needs other episodes")
-    bad = [m for m in rep.get("methods", []) if m not in rollouts["methods"] or m == "bc"]
-    if bad:
-        raise ConfigError(f"config key 'rollouts.replicate.methods': {bad[0]!r} is not one of "
-                          "rollouts.methods (bc is not replicated)")
+    from . import registry
+
+    for m in rep.get("methods", []):
+        if m == "bc" or m not in registry.method_names():
+            raise ConfigError(f"config key 'rollouts.replicate.methods': {m!r} is not a "
+                              "replicable method (one of rollouts.methods' fused methods; bc "
+                              "is not replicated)")
     for task in rollouts["tasks"]:
         cal = [int(s) for s in (load_task_table(task).get("calibration") or {}).get("seeds", [])]
         for key, s in [("rollouts.seed", seed)] + [("rollouts.replicate.seeds", r)
