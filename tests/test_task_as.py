@@ -300,16 +300,6 @@ def test_dead_reckoning_drift_opens_holidays_the_margins_close(monkeypatch):
     assert np.mean(rh["T_s"]) > np.mean(ro["T_s"])       # the margins cost time
 
 
-def test_heuristic_given_the_truth_is_the_oracle(coast):
-    kw = dict(episodes=3, seed=11, dynamics="6dof")
-    o = run_cell(coast, "AS", 1, "oracle", **kw)
-    t = run_cell(coast, "AS", 1, "heuristic", info="truth", **kw)
-    h = run_cell(coast, "AS", 1, "heuristic", **kw)
-    cols = [c for c in o.columns if c != "method"]
-    pd.testing.assert_frame_equal(o[cols], t[cols])
-    assert not h[cols].equals(t[cols])
-
-
 def test_plan_splits_strips_between_agents():
     wps, cnt = pol.plan_lawnmower((0.0, 0.0, 200.0, 100.0), 0, 20.0, 2)
     assert list(cnt) == [6, 4]  # 5 strips: 3 + 2, two waypoints per strip

@@ -261,17 +261,6 @@ def test_school_sensor_table_errors(tmp_path):
         fh.school_sensor(p)
 
 
-def test_heuristic_given_the_truth_is_the_oracle(coast):
-    # information only: the same params; the truth (target, current, position) makes them equal
-    kw = dict(episodes=2, seed=11, dynamics="6dof")
-    o = run_cell(coast, "FH", 1, "oracle", **kw)
-    t = run_cell(coast, "FH", 1, "heuristic", info="truth", **kw)
-    h = run_cell(coast, "FH", 1, "heuristic", **kw)
-    cols = [c for c in o.columns if c != "method"]
-    pd.testing.assert_frame_equal(o[cols], t[cols])
-    assert not h[cols].equals(t[cols])
-
-
 def test_tracker_gains():
     from oneocean.methods.heuristic.fh import tracker_gains
     a, b = tracker_gains(0.02, 0.5, 1.0)

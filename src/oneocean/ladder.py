@@ -367,7 +367,7 @@ def ladder_markdown(cells: pd.DataFrame, region: str, seed: int | None = None,
         out.append("")
     cur = current_markdown(cells)
     if cur:
-        out += ["", "The current each tier's episodes met (heuristic cells): median [10th, 90th "
+        out += ["The current each tier's episodes met (heuristic cells): median [10th, 90th "
                 "percentile] of the true current speed at the agents, m/s, and the median as a "
                 "share of the vehicle's speed limit.", "", *cur, ""]
     out += _check_lines(cells)

@@ -37,7 +37,8 @@ Methods
     tracking with feed-forward; heuristic: the sensor models of :mod:`oneocean.sensing`;
     oracle: true current and position). The
     observation's goal cue is the agent's slot around the method's virtual centre
-    (``FTWork.vc``, written by the policy's ``plan``).
+    (``FTWork.vc``, written by the policy's ``plan``), led by ``CUE_LEAD_S`` at the centre's
+    pace: where the slot will be.
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``wedge_offsets`` and ``reset`` (Python: route, formation frame
@@ -75,6 +76,10 @@ R_COLL_M = DEFAULT_R_COLL_M
 #: Form-up allowance after the release, s: the error bound ``max_error_m`` applies from then
 #: on (the team is released at rest in its slots and forms up on its first navigation fixes).
 SETTLE_S = 60.0
+
+#: Lead of the observation's slot cue along the virtual centre's motion, s: the inverse of
+#: the slot-tracking gain (``methods.heuristic.ft.KP``).
+CUE_LEAD_S = 1.0 / POLICY.KP
 
 _C_FERR, _C_EMAX, _C_FINAL = (len(STANDARD) + i for i in range(len(METRICS)))
 
@@ -198,9 +203,13 @@ def begin(grid, P, W, state, e):
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
-    """Agent i's slot around the method's virtual centre (the plan token ``W.vc``)."""
-    return (W.vc[e, 0] + W.offsets[e, i, 0], W.vc[e, 1] + W.offsets[e, i, 1],
-            W.vc[e, 2] + W.offsets[e, i, 2], math.nan)
+    """Agent i's slot around the method's virtual centre (the plan token ``W.vc``), led by
+    ``CUE_LEAD_S`` at the centre's pace (``W.vff``): where the slot will be, so the cue says
+    how the formation moves (the heuristic's feed-forward plus its slot tracking is its gain
+    times this offset, the part a learner sees)."""
+    return (W.vc[e, 0] + W.offsets[e, i, 0] + CUE_LEAD_S * W.vff[e, 0],
+            W.vc[e, 1] + W.offsets[e, i, 1] + CUE_LEAD_S * W.vff[e, 1],
+            W.vc[e, 2] + W.offsets[e, i, 2] + CUE_LEAD_S * W.vff[e, 2], math.nan)
 
 
 @hot_kernel(inline="always")
