@@ -4,6 +4,7 @@ registry and the vehicles file without the source checkout."""
 
 import os
 import shutil
+import site
 import subprocess
 import sys
 import textwrap
@@ -77,6 +78,14 @@ def test_wheel_installs_and_reads_its_package_data(tmp_path):
     venv = tmp_path / "venv"
     _run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(venv)])
     py = venv / "bin" / "python"
+    if sys.prefix != sys.base_prefix:
+        # run from a virtual environment: --system-site-packages shows the base interpreter's
+        # packages, not this environment's, so point the new venv at this one's site dirs
+        # (paths only: their .pth hooks, e.g. an editable oneocean, stay inactive)
+        site_dir = _run([str(py), "-c", "import sysconfig; print(sysconfig.get_path("
+                         "'purelib'))"], env=env).stdout.strip()
+        Path(site_dir, "_outer_env.pth").write_text(
+            "\n".join(site.getsitepackages()) + "\n")
     _run([str(py), "-m", "pip", "install", "--no-deps", "--no-index", "--ignore-installed",
           "-q", str(wheel)], cwd=tmp_path, env=env)
     script = tmp_path / "check_install.py"
