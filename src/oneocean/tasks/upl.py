@@ -507,7 +507,9 @@ def cue(grid, P, W, state, e, k, i):
     fused every sonar fix up to the last step: :func:`~oneocean.methods.heuristic.upl.
     perceive`, so a policy acting through the step API perceives the object as the fused
     heuristic does): its own when attached, else the method's target (the nearest slot when
-    no fused method assigns one)."""
+    no fused method assigns one). During the lift (the agent attached, the quorum held) the
+    cue is where the lift takes its slot, at the object's success depth: the vertical goal the
+    heuristic flies at full speed (what a learner must see to start the lift)."""
     POLICY.perceive(P, W, state, e)
     off = W.slot_off[e]
     ox = W.oest[e, 0]
@@ -525,6 +527,8 @@ def cue(grid, P, W, state, e, k, i):
             if d2 < best:
                 best = d2
                 j = j2
+    if W.att[e, i] >= 0 and W.n_att[e] >= P.quorum:   # lifting: the slot at the surface
+        oy = min(oy, P.succ_d)
     return ox + off[j, 0], oy + off[j, 1], oz + off[j, 2], math.nan
 
 
