@@ -19,6 +19,25 @@ _UMASK = os.umask(0)
 os.umask(_UMASK)
 
 
+def read_yaml_mapping(path: str | os.PathLike, what: str) -> dict:
+    """A YAML file whose top level is a mapping (``what`` names the file in the errors: e.g.
+    ``"task table"``); an unreadable file, invalid YAML or another top level is a one-line
+    ``ConfigError`` naming the file."""
+    import yaml
+
+    from .errors import ConfigError
+
+    try:
+        doc = yaml.safe_load(Path(path).read_text())
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read the {what} ({exc.strerror})") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    if not isinstance(doc, dict):
+        raise ConfigError(f"{path}: the {what}'s top level must be a mapping")
+    return doc
+
+
 def sha256_file(path: str | os.PathLike) -> str:
     """Hex sha256 of a file's bytes, read in 1 MiB chunks."""
     h = hashlib.sha256()

@@ -27,6 +27,7 @@ from types import MappingProxyType
 from typing import Iterable, Mapping
 
 from .errors import ConfigError, OneOceanError
+from .io import read_yaml_mapping
 
 #: The paper's task ladder, in the paper's order (Table II): canonical order of task ids.
 PAPER_TASKS = ("G2G", "SK", "RF", "DPT", "AS", "PI", "FT", "SPC", "UPL", "FH")
@@ -175,20 +176,6 @@ def _tasks_dir() -> Path:
     return Path(str(resources.files("oneocean") / "data" / "tasks"))
 
 
-def _read_yaml(path: Path) -> dict:
-    import yaml
-
-    try:
-        doc = yaml.safe_load(Path(path).read_text())
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read task table ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML ({exc.__class__.__name__})") from None
-    if not isinstance(doc, dict):
-        raise ConfigError(f"{path}: top level must be a mapping")
-    return doc
-
-
 def load_task_spec(path: str | Path) -> TaskSpec:
     """Build a :class:`TaskSpec` from a tier-table YAML's ``spec:`` block plus its ``agents``
     and ``dt_s`` keys (does not register it: see :func:`register_task`).
@@ -207,7 +194,7 @@ def load_task_spec(path: str | Path) -> TaskSpec:
     Raises ConfigError (one line naming the file and key) on a missing or ill-typed key.
     """
     path = Path(path).resolve()
-    doc = _read_yaml(path)
+    doc = read_yaml_mapping(path, "task table")
     spec = doc.get("spec")
     if not isinstance(spec, dict):
         raise ConfigError(f"{path}: missing 'spec' block (id, label, family, module, metrics)")

@@ -29,9 +29,9 @@ from importlib import resources
 from pathlib import Path
 from typing import NamedTuple
 
-import yaml
 
 from ..errors import ConfigError
+from ..io import read_yaml_mapping
 
 #: Where the sensor table lives (shipped in the wheel).
 SENSORS_YAML = Path(str(resources.files("oneocean") / "data" / "sensors.yaml"))
@@ -82,14 +82,7 @@ _KEYS = {
 @lru_cache(maxsize=None)
 def _load(path: str) -> dict:
     f = Path(path)
-    try:
-        doc = yaml.safe_load(f.read_text())
-    except OSError as exc:
-        raise ConfigError(f"{f}: cannot read the sensor table ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{f}: not valid YAML ({str(exc).splitlines()[0]})") from None
-    if not isinstance(doc, dict):
-        raise ConfigError(f"{f}: expected a mapping of sensor sections")
+    doc = read_yaml_mapping(f, "sensor table")
     for where, keys in _KEYS.items():
         node = doc
         for part in where:
@@ -139,19 +132,23 @@ def perception(name: str, path: str | Path | None = None) -> dict:
     return dict(models[name])
 
 
+def perception_values(model: dict, name: str, keys) -> list[float]:
+    """The values of ``keys`` of perception model ``name`` (:func:`perception`'s mapping
+    ``model``), in order; a missing key is a one-line ``ConfigError`` naming it."""
+    for key in keys:
+        if key not in model:
+            raise ConfigError(f"sensors.yaml: missing 'perception.{name}.{key}'")
+    return [float(model[key]) for key in keys]
+
+
 def kalman_gain(process_std: float, meas_std: float, dt: float) -> float:
     """Steady-state gain of a scalar Kalman filter tracking a random walk (``process_std``
     per sqrt(s), over steps of ``dt`` s) from white measurements of std ``meas_std``: the
     prior variance ``M`` solves ``M^2 = q M + q r`` (q, r the step's process and measurement
     variances), gain ``M / (M + r)``; 1 when the measurement is exact."""
-    q = float(process_std) ** 2 * float(dt)
-    r = float(meas_std) ** 2
-    if r <= 0.0:
-        return 1.0
-    if q <= 0.0:
-        return 0.0
-    m = 0.5 * (q + math.sqrt(q * q + 4.0 * q * r))
-    return m / (m + r)
+    from .kernels import steady_gain
+
+    return steady_gain.py_func(float(process_std) ** 2 * float(dt), float(meas_std) ** 2)
 
 
 def nav_aid(table: dict, where: str = "task table") -> tuple | None:

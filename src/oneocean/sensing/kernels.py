@@ -17,6 +17,7 @@ Trigonometry of the error angles is the engine's :func:`~oneocean.engine.dynamic
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from ..engine._jit import ensure_fresh_cache, hot_kernel
@@ -115,15 +116,17 @@ def nav_fill(state, nerr, nav, e, i):
 
 
 @hot_kernel(inline="always")
-def seq_fix_gain(q, r):
-    """Steady-state gain of the fix filter (as :func:`oneocean.sensing.kalman_gain`) for
-    process variance ``q`` m2 over the fix period and fix variance ``r`` m2: the prior
-    variance ``M`` solves ``M^2 = q M + q r``; gain ``M / (M + r)`` (1 for an exact fix)."""
+def steady_gain(q, r):
+    """Steady-state gain of a scalar Kalman filter tracking a random walk of variance ``q``
+    per update from white measurements of variance ``r``: the prior variance ``M`` solves
+    ``M^2 = q M + q r``; gain ``M / (M + r)`` (1 for an exact measurement, 0 without process
+    noise). The one formula of :func:`oneocean.sensing.kalman_gain` (Python, ``py_func``) and
+    of the in-turn USBL fix in :func:`nav_update` (whose period depends on the team size)."""
     if r <= 0.0:
         return 1.0
     if q <= 0.0:
         return 0.0
-    m = 0.5 * (q + (q * q + 4.0 * q * r) ** 0.5)
+    m = 0.5 * (q + math.sqrt(q * q + 4.0 * q * r))
     return m / (m + r)
 
 
@@ -155,7 +158,7 @@ def nav_update(SP, seed, navc, nerr, state, prev, e, k, i, n_ag, dt):
         # of n_ag slots, fused with the gain of its own fix period (n_ag slots)
         cyc = SP.fix_every * n_ag
         if (k + 1) % cyc == ((i + 1) * SP.fix_every) % cyc:
-            K = seq_fix_gain(SP.fix_process_var * cyc * dt, SP.fix_std * SP.fix_std)
+            K = steady_gain(SP.fix_process_var * cyc * dt, SP.fix_std * SP.fix_std)
             ex = (1.0 - K) * ex + K * draw(seed, e, PURPOSE_NAV_FIX, cnt, SP.fix_std)
             ez = (1.0 - K) * ez + K * draw(seed, e, PURPOSE_NAV_FIX, cnt + 1, SP.fix_std)
     elif SP.fix_every > 0 and (k + 1) % SP.fix_every == 0:   # fuse the acoustic fix

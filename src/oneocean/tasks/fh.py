@@ -75,7 +75,7 @@ from ..methods.heuristic import fh as POLICY
 from ..models import fish as _fish
 from ..models.fish import (fish_params, fraction_inside_circle, init_school, school_centroid,
                            school_spread, step_school)
-from ..sensing import perception
+from ..sensing import perception, perception_values
 from ..sensing.kernels import PURPOSE_PERCEPTION, polar_fix
 from .common import (PURPOSE_TASK_NOISE, STANDARD, current_at, episode_generators, fresh_cache,
                      need_tier, path_clear, sample_route, start_times)
@@ -282,17 +282,14 @@ def school_sensor(path=None) -> tuple[float, float, float, float, float]:
         A missing parameter, or a range or extinction length that is not > 0 (one line
         naming the key).
     """
-    m = perception("fh_school", path)
-    out = []
-    for key in ("range_m", "range_std_m", "bearing_std_deg", "echo_cv", "extinction_m"):
-        if key not in m:
-            raise ConfigError(f"sensors.yaml: missing 'perception.fh_school.{key}'")
-        v = float(m[key])
-        if key in ("range_m", "extinction_m") and not v > 0.0:
+    rng, rstd, bdeg, cv, ext = perception_values(
+        perception("fh_school", path), "fh_school",
+        ("range_m", "range_std_m", "bearing_std_deg", "echo_cv", "extinction_m"))
+    for key, v in (("range_m", rng), ("extinction_m", ext)):
+        if not v > 0.0:
             raise ConfigError(f"sensors.yaml: 'perception.fh_school.{key}' must be > 0, "
-                              f"got {m[key]!r}")
-        out.append(math.radians(v) if key == "bearing_std_deg" else v)
-    return tuple(out)
+                              f"got {v!r}")
+    return rng, rstd, math.radians(bdeg), cv, ext
 
 
 def make(grid, tier: dict, init: dict):

@@ -85,7 +85,7 @@ from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError, NotApplicable
 from ..methods.heuristic import upl as POLICY
-from ..sensing import perception
+from ..sensing import perception, perception_values
 from ..sensing.kernels import PURPOSE_PERCEPTION, draw, polar_fix
 from .common import (OK, STANDARD, current_at, episode_generators, episode_steps, fresh_cache,
                      need_tier, path_clear, start_times)
@@ -401,13 +401,11 @@ def object_perception(dt: float) -> tuple[float, float, float, float, int]:
     ConfigError
         A missing parameter (one line, naming it).
     """
-    m = perception("upl_object")
-    for key in ("range_m", "range_std_m", "bearing_std_deg", "centre_std_m", "period_s"):
-        if key not in m:
-            raise ConfigError(f"sensors.yaml: perception.upl_object.{key} missing")
-    every = max(1, int(round(float(m["period_s"]) / float(dt))))
-    return (float(m["range_m"]), float(m["range_std_m"]),
-            math.radians(float(m["bearing_std_deg"])), float(m["centre_std_m"]), every)
+    rng, rstd, bdeg, cstd, period = perception_values(
+        perception("upl_object"), "upl_object",
+        ("range_m", "range_std_m", "bearing_std_deg", "centre_std_m", "period_s"))
+    every = max(1, int(round(period / float(dt))))
+    return rng, rstd, math.radians(bdeg), cstd, every
 
 
 @hot_kernel(inline="always")
