@@ -59,8 +59,8 @@ def overrides(sets: dict):
         return
     orig = tasks.tier_params
 
-    def patched(task_id, tier):
-        p = orig(task_id, tier)
+    def patched(task_id, tier, scene=False):
+        p = orig(task_id, tier, scene)
         p.update(sets.get((task_id, int(tier)), {}))
         return p
 

@@ -38,22 +38,23 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 
 from .tasks import Cell
 from .tasks.common import ACT_FIELDS, OBS_DIM, OBS_FIELDS
-from .tasks.episodes import Episodes
+from .backends.protocol import Rollout
 
 
 class _Cell(Cell):
     """A :class:`~oneocean.tasks.Cell` that builds externally driven :class:`Episodes`."""
 
     def __init__(self, task: str, tier: int, grid, *, dynamics: str = "6dof",
-                 n_agents: int | None = None, currents: bool = True, vehicle=None):
+                 n_agents: int | None = None, currents: bool = True, vehicle=None,
+                 backend: str = "core", scene=None):
         super().__init__(grid, task, tier, n_agents=n_agents, currents=currents,
-                         vehicle=vehicle)
+                         vehicle=vehicle, backend=backend, scene=scene)
         self.dynamics = dynamics
         self.v_max = float(self.vehicle.v_max)
 
-    def episodes(self, n_episodes: int, seed: int) -> Episodes:
-        return Episodes(self.mod, self.grid, self.params, self.reset(n_episodes, seed), None,
-                        self.dynamics, self.vehicle, int(seed))
+    def batch(self, n_episodes: int, seed: int) -> Rollout:
+        """Externally driven episodes ``0 .. n_episodes-1`` of ``seed`` on the backend."""
+        return self.episodes(self.reset(n_episodes, seed), None, self.dynamics, seed)
 
     def obs_space(self, shape) -> spaces.Box:
         return spaces.Box(-np.inf, np.inf, shape=shape, dtype=np.float64)
@@ -76,8 +77,11 @@ class OceanVectorEnv(VectorEnv):
 
     Parameters
     ----------
-    task, tier : the cell; grid : a :class:`~oneocean.engine.grid.Grid` or a grid export path;
-    num_envs : episodes per batch; dynamics, n_agents, currents, vehicle : as ``run_cell``.
+    task, tier : the cell; grid : a :class:`~oneocean.engine.grid.Grid` or a grid export path
+    (None with ``scene``); num_envs : episodes per batch; dynamics, n_agents, currents,
+    vehicle : as ``run_cell``; backend, scene : the execution backend (``core``, or
+    ``mujoco`` with a :class:`oneocean.backends.mujoco.scenes.Scene`), as
+    :class:`~oneocean.tasks.Cell`.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.DISABLED, "render_modes": []}
@@ -91,7 +95,7 @@ class OceanVectorEnv(VectorEnv):
         self.observation_space = self.cell.obs_space((self.num_envs, n, OBS_DIM))
         self.action_space = self.cell.act_space((self.num_envs, n, len(ACT_FIELDS)))
         self.obs_fields = OBS_FIELDS
-        self.batch: Episodes | None = None
+        self.batch: Rollout | None = None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         if options and "reset_mask" in options:
@@ -99,7 +103,7 @@ class OceanVectorEnv(VectorEnv):
                              "not supported; call reset() for the whole batch")
         super().reset(seed=seed)
         self._seed = int(seed) if seed is not None else int(self.np_random.integers(2**31))
-        self.batch = self.cell.episodes(self.num_envs, self._seed)
+        self.batch = self.cell.batch(self.num_envs, self._seed)
         self.batch.run(0)            # begin every episode (step 0 not taken)
         return _clean(self.batch.observe()), {}
 

@@ -52,14 +52,18 @@ def load_policy(spec: str):
 def evaluate(policy, task: str, tier: int, grid, *, episodes: int = 50,
              seed: int = EVALUATION_SEED,
              dynamics: str = "6dof", n_agents: int | None = None, currents: bool = True,
-             vehicle=None, name: str = "user") -> pd.DataFrame:
+             vehicle=None, name: str = "user", backend: str = "core",
+             scene=None) -> pd.DataFrame:
     """Run ``policy`` on ``episodes`` episodes of a (task, tier) cell through the step API's
-    loop; returns the cell table (:func:`oneocean.tasks.cell_frame`) with ``method = name``."""
+    loop; returns the cell table (:func:`oneocean.tasks.cell_frame`) with ``method = name``.
+    ``backend``/``scene``: the execution backend (:class:`oneocean.tasks.Cell`); the same
+    episodes, judge and metrics on either."""
     from .envs import OceanVectorEnv
     from .tasks import cell_frame
 
     env = OceanVectorEnv(task, tier, grid, num_envs=int(episodes), dynamics=dynamics,
-                         n_agents=n_agents, currents=currents, vehicle=vehicle)
+                         n_agents=n_agents, currents=currents, vehicle=vehicle,
+                         backend=backend, scene=scene)
     obs, _ = env.reset(seed=int(seed))
     b = env.batch
     if hasattr(policy, "reset"):

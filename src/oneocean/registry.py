@@ -307,6 +307,13 @@ def builtin_task_ids() -> tuple[str, ...]:
     return _builtin_tasks
 
 
+def scene_tasks() -> tuple[str, ...]:
+    """The registered tasks whose tier table has a ``scene_tiers`` block (the tasks that run
+    in a scene, on either backend), in :func:`task_ids` order."""
+    return tuple(t for t in task_ids()
+                 if read_yaml_mapping(task_spec(t).table_path, "tier table").get("scene_tiers"))
+
+
 def task_spec(task_id: str) -> TaskSpec:
     """The spec of ``task_id``; an unknown id is a one-line ConfigError listing valid ids."""
     tasks = _discover()

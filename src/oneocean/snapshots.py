@@ -150,7 +150,6 @@ def episode_frames(grid, task: str, tier: int = 2, method: str = "heuristic",
         Bad ``times``, ``episode`` or ``trail_every``.
     """
     from .tasks import Cell
-    from .tasks.episodes import Episodes
 
     fr = [float(f) for f in times]
     if not fr or any(not 0.0 <= f <= 1.0 for f in fr):
@@ -168,8 +167,7 @@ def episode_frames(grid, task: str, tier: int = 2, method: str = "heuristic",
     n_keep = episode + 1
 
     def batch():
-        return Episodes(cell.mod, cell.grid, cell.params, _cut(init, n_keep, n_all), method,
-                        dynamics, cell.vehicle, int(seed))
+        return cell.episodes(_cut(init, n_keep, n_all), method, dynamics, seed)
 
     e = episode
     ref = batch().run()

@@ -14,15 +14,19 @@ LAND = 10
 SEAFLOOR = 11
 #: The proposed position is outside the horizontal extent of the grid.
 OUTSIDE = 12
+#: The scene backend: the vehicle touched the seafloor or a structure during the step (a
+#: physical contact: MuJoCo resolved it; counted as a violation, the move is not undone).
+CONTACT = 13
 #: The dynamics produced a non-finite state (a bug or absurd parameters); move rejected.
 NONFINITE = 20
 #: Episode reached its time limit without success (set by tasks, never by the engine).
 TIMEOUT = 30
 
 NAMES = {OK: "ok", LAND: "land", SEAFLOOR: "seafloor", OUTSIDE: "outside",
-         NONFINITE: "nonfinite", TIMEOUT: "timeout"}
+         CONTACT: "contact", NONFINITE: "nonfinite", TIMEOUT: "timeout"}
 
 
 def is_violation(code: int) -> bool:
-    """True for codes that mean a rejected move (LAND, SEAFLOOR, OUTSIDE, NONFINITE)."""
+    """True for codes counted as violations: a rejected move (LAND, SEAFLOOR, OUTSIDE,
+    NONFINITE) or a physical contact in the scene backend (CONTACT)."""
     return 10 <= int(code) < 30

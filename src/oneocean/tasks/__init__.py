@@ -54,21 +54,37 @@ class Cell:
     (keys of its ``harder`` block; an unknown key is a one-line ConfigError naming it): the
     stressor ablations, e.g. Tier 1 with one key at its Tier-3 value. ``tier_params`` is the
     tier's parameters with the overrides applied, ``tier_overrides`` the overrides alone.
+    ``backend`` (:data:`oneocean.backends.protocol.BACKENDS`) says what moves the agents:
+    ``core`` (the numba engine) or ``mujoco`` (MuJoCo rigid bodies in ``scene``, which it
+    requires). With a ``scene`` (a :class:`oneocean.backends.mujoco.scenes.Scene`), on
+    either backend, ``grid`` is the scene's local grid when None and the tier is the table's
+    ``scene_tiers`` row over its core row (a task without one is not applicable in a scene).
+    The scenario, judge and accounting are the same code on both backends
+    (:mod:`oneocean.tasks.loop`).
     """
 
     def __init__(self, grid, task: str, tier: int, *, n_agents: int | None = None,
                  currents: bool = True, vehicle=None, current_gain: float = 1.0, tide=None,
-                 tier_overrides: dict | None = None):
+                 tier_overrides: dict | None = None, backend: str = "core", scene=None,
+                 physics_step_s: float | None = None):
+        from ..backends.protocol import check_backend
         from ..engine import load_grid, load_vehicle
         from ..engine.grid import Grid, with_forcing
 
+        self.backend = check_backend(backend, "backend")
+        if backend != "core" and scene is None:
+            raise ConfigError(f"backend {backend!r} needs a scene")
+        self.scene = scene
+        self.physics_step_s = physics_step_s   # the scene backend's MuJoCo step, s
+        if grid is None and scene is not None:
+            grid = scene.grid_data
         self.task, self.tier = task, int(tier)
         self.mod = task_module(task)
         table = load_task_table(task)
         self.tier_overrides = checked_tier_overrides(task, table, tier_overrides)
         grid = grid if isinstance(grid, Grid) else load_grid(grid)
         self.vehicle = vehicle if vehicle is not None else load_vehicle(table.get("vehicle"))
-        params = {**tier_params(task, self.tier), **self.tier_overrides}
+        params = {**tier_params(task, self.tier, scene is not None), **self.tier_overrides}
         self.tier_params = params
         self.params = {**params, "dt_s": float(table["dt_s"]), "v_max": self.vehicle.v_max}
         self.n_agents = n_agents_for(task, n_agents)
@@ -136,18 +152,35 @@ class Cell:
         return out
 
 
+    def episodes(self, init: dict, method: str | None, dynamics: str, seed: int, **kw):
+        """The rollout (:class:`oneocean.backends.protocol.Rollout`) of the episodes ``init``
+        (:meth:`reset`) on this cell's backend: ``method`` a fused method, ``bc`` (with
+        ``net=``) or None for external actions; ``kw`` as
+        :class:`~oneocean.tasks.episodes.Episodes` (``record``, ``net``, ``info``,
+        ``fused_plan``)."""
+        if self.backend == "core":
+            from .episodes import Episodes
+
+            return Episodes(self.mod, self.grid, self.params, init, method, dynamics,
+                            self.vehicle, int(seed), **kw)
+        from ..backends.mujoco.episodes import SceneEpisodes
+
+        if self.physics_step_s is not None:
+            kw.setdefault("physics_step_s", float(self.physics_step_s))
+        return SceneEpisodes(self.mod, self.scene, self.grid, self.params, init, method,
+                             dynamics, self.vehicle, int(seed), **kw)
+
     def run(self, method: str, episodes: int, seed: int, dynamics: str,
             observations: bool = False, net: dict | None = None, info: str | None = None):
         """Sample ``episodes`` episodes of ``seed`` and run them with a fused ``method`` (or
         ``bc`` with its network ``net``; ``info``: what it knows instead of its sensors,
         :class:`~oneocean.tasks.episodes.Episodes`); the cell table (see :func:`run_cell`)."""
         from ..registry import method_spec
-        from .episodes import rollout
 
         method_spec(method)   # an unknown method is a one-line ConfigError
         init = self.reset(episodes, seed)
-        res = rollout(self.mod, self.grid, self.params, init, method, dynamics, self.vehicle,
-                      int(seed), record=observations, net=net, info=info)
+        res = self.episodes(init, method, dynamics, seed, record=observations, net=net,
+                            info=info).run().results()
         df = cell_frame(self.mod, res, self.tier, method, self.n_agents, dynamics,
                         self.currents, episodes, seed)
         df.insert(df.columns.get_loc("seed") + 1, "candidate", init["candidate"])
@@ -259,7 +292,8 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
                     seed: int, dynamics: str, threads: int = 1, currents: bool = True,
                     current_gain: float = 1.0, tide=None, weights=None,
                     n_agents: int | None = None, info: str | None = None,
-                    tier_overrides: dict | None = None) -> dict:
+                    tier_overrides: dict | None = None, backend: str = "core",
+                    scene=None, physics_step_s: float | None = None) -> dict:
     """Run one cell on a grid export file and write its per-episode Parquet table atomically.
 
     The file records its configuration (``oneocean.engine.recording.read_metrics_meta``):
@@ -273,6 +307,10 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
     or ``make`` rejects the combination, e.g. more leaks than a shorter pipeline holds): it
     also records ``tier_conflict: true``.
     ``weights``: method ``bc``'s weights file (:mod:`oneocean.methods.bc`), recorded by hash.
+    ``backend``, ``scene``: the execution backend and the scene (:class:`Cell`; with a scene,
+    ``grid_path`` may be None: the scene's own grid); the file records the backend, the scene
+    and its metadata (frames, dataset clock, current source). A task that does not run in a
+    scene is written as a not-applicable cell.
     Returns the manifest entry of :func:`oneocean.engine.write_metrics`.
     """
     import numba
@@ -280,14 +318,31 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
     from ..engine import load_grid, write_metrics
 
     numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
-    grid = load_grid(grid_path)
-    cell = Cell(grid, task, tier, currents=currents, current_gain=current_gain, tide=tide,
-                n_agents=n_agents, tier_overrides=tier_overrides)
+    grid = load_grid(grid_path) if grid_path is not None else None
+    where = {"backend": backend}
+    if scene is not None:
+        where.update(scene=scene.name, scene_meta=scene_record(scene))
+    if backend == "mujoco":
+        from ..backends.mujoco.episodes import PHYSICS_STEP_S
+
+        where["physics_step_s"] = float(physics_step_s or PHYSICS_STEP_S)
+    try:
+        cell = Cell(grid, task, tier, currents=currents, current_gain=current_gain, tide=tide,
+                    n_agents=n_agents, tier_overrides=tier_overrides, backend=backend,
+                    scene=scene, physics_step_s=physics_step_s)
+    except NotApplicable as exc:
+        mod = task_module(task)
+        n = n_agents_for(task, n_agents)
+        df = na_frame(mod, tier, method, n, dynamics, currents, seed)
+        return write_metrics(df, out_path, meta={
+            "task": task, "tier": int(tier), "method": method, "dynamics": dynamics,
+            "n_agents": n, "episodes": int(episodes), "seed": int(seed), **where,
+            "applicable": False, "reason": str(exc)})
     meta = {"task": task, "tier": int(tier), "method": method, "dynamics": dynamics,
             "vehicle": cell.vehicle.name, "v_max_ms": cell.vehicle.v_max,
             "n_agents": cell.n_agents, "episodes": int(episodes), "seed": int(seed),
             "current_gain": cell.current_gain, "tide": tide, "currents": bool(currents),
-            "tier_params": cell.tier_params, "applicable": True, "reason": ""}
+            "tier_params": cell.tier_params, "applicable": True, "reason": "", **where}
     if info is not None:
         meta["info"] = str(info)
     if cell.tier_overrides:
@@ -322,6 +377,18 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
         meta.update(applicable=False, tier_conflict=True,
                     reason=f"{task} tier {int(tier)} with {what}: {exc}")
     return write_metrics(df, out_path, meta=meta)
+
+
+def scene_record(scene) -> dict:
+    """What a cell file records about the scene it ran in: name, kind and stand-in label,
+    the frame mapping, the current source and the dataset clock (``start_s``: dataset time
+    of scene time 0, s since the product's time0; ``rate``: dataset seconds per simulated
+    second)."""
+    return {"name": scene.name, "kind": scene.kind, "label": scene.label,
+            "frames": "core: x east, y down, z north; MuJoCo: x east, y north, z up",
+            "currents": scene.currents,
+            "clock": {"start_s": float(scene.clock[0]), "rate": float(scene.clock[1])},
+            "anchor": [float(a) for a in scene.anchor]}
 
 
 def compile_kernel(grid_path, out_path, task: str, tiers, dynamics: str) -> dict:

@@ -126,6 +126,11 @@ def load_task_table(task_id: str, path: str | Path | None = None) -> dict:
     if "vehicle" in doc and not isinstance(doc["vehicle"], str):
         raise ConfigError(f"{f}: 'vehicle' must be a vehicle name (data/vehicles.yaml), got "
                           f"{doc['vehicle']!r}")
+    for tier, params in (doc.get("scene_tiers") or {}).items():
+        bad = sorted(set(params) - set(doc["harder"]) - {"current_gain"})
+        if bad:
+            raise ConfigError(f"{f}: scene_tiers {tier} parameter '{bad[0]}' is not a tier "
+                              f"parameter (declared in 'harder') nor current_gain")
     cal = doc.get("calibration")
     if cal is not None:
         seeds = cal.get("seeds") if isinstance(cal, dict) else None
@@ -136,12 +141,34 @@ def load_task_table(task_id: str, path: str | Path | None = None) -> dict:
     return doc
 
 
-def tier_params(task_id: str, tier: int) -> dict:
+def tier_params(task_id: str, tier: int, scene: bool = False) -> dict:
+    """The parameters of ``task_id``'s tier ``tier``: its row of the tier table, and in a
+    scene (``scene=True``: either backend on a scene's local grid) with the table's
+    ``scene_tiers`` row on top (the mission at scene scale and the tier's current multiplier
+    ``current_gain``; a task without that block is a one-line ConfigError naming the tasks
+    that have one)."""
     table = load_task_table(task_id)
     if tier not in table["tiers"]:
         raise ConfigError(f"task {task_id}: unknown tier {tier!r}; valid tiers are "
                           f"{sorted(table['tiers'])}")
-    return dict(table["tiers"][tier])
+    out = dict(table["tiers"][tier])
+    if scene:
+        rows = table.get("scene_tiers")
+        if not rows:
+            raise NotApplicable(f"task {task_id} has no scene_tiers in its tier table, so it "
+                                f"does not run in a scene; tasks with scene tiers: "
+                                f"{', '.join(scene_tasks())}")
+        if tier not in rows:
+            raise ConfigError(f"task {task_id}: scene_tiers has no tier {tier}")
+        out.update(rows[tier])
+    return out
+
+
+def scene_tasks() -> tuple[str, ...]:
+    """The tasks whose tier table has ``scene_tiers`` (:func:`oneocean.registry.scene_tasks`)."""
+    from ..registry import scene_tasks as _scene_tasks
+
+    return _scene_tasks()
 
 
 # ------------------------------------------------------------------------------ resets
@@ -282,11 +309,15 @@ def seek_max(px, py, pz, gx, gy, gz, v_max, kp, ce, cn):
 
 
 def path_clear(grid: Grid, p0, p1, clearance: float, land_threshold: float = 0.5,
-               spacing_m: float = 20.0) -> bool:
+               spacing_m: float | None = None) -> bool:
     """True if the straight segment ``p0 -> p1`` (world m, (3,)) is feasible every
-    ``spacing_m`` metres (land, grid extent and ``clearance`` m above the seafloor)."""
+    ``spacing_m`` metres (land, grid extent and ``clearance`` m above the seafloor); default
+    20 m, or half the grid's node spacing where that is finer (a scene's local grid, whose
+    thin structures a 20 m check would step over)."""
     from ..engine.constraints import feasibility
 
+    if spacing_m is None:
+        spacing_m = min(20.0, 0.5 * min(float(grid.dx), float(grid.dz)))
     p0 = np.asarray(p0, dtype=np.float64)
     p1 = np.asarray(p1, dtype=np.float64)
     n = max(2, int(math.ceil(float(np.linalg.norm(p1 - p0)) / spacing_m)) + 1)

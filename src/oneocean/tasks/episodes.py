@@ -48,7 +48,8 @@ def over_episodes(kernel, n_episodes: int, *args) -> None:
 
 
 class Episodes:
-    """E episodes of one task under one method, advanced by the task's fused kernel.
+    """E episodes of one task under one method, advanced by the task's fused kernel: the core
+    backend's :class:`~oneocean.backends.protocol.Rollout`.
 
     Parameters
     ----------
@@ -84,6 +85,9 @@ class Episodes:
         ``truth`` for the oracle); ``true_current`` / ``true_position`` are the information
         ablations of a non-oracle method.
     """
+
+    #: The execution backend (:data:`oneocean.backends.protocol.BACKENDS`).
+    backend = "core"
 
     def __init__(self, mod, grid, tier: dict, init: dict, method: str | None, dyn: str,
                  vehicle, seed: int, *, record: bool = False, fused_plan: bool = True,

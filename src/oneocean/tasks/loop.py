@@ -87,7 +87,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..engine.constraints import min_pairwise_distance
-from ..engine.dynamics import STATE_DIM
+from ..engine.dynamics import STATE_DIM, clip_action
 from ..engine._jit import hot_kernel
 from ..engine.step import advance_agent
 from ..methods.bc.kernel import BCNet, bc_act
@@ -121,6 +121,7 @@ class LoopParams(NamedTuple):
     clearance: float    # seafloor clearance of the feasibility check, m
     r_coll: float       # near-collision radius, m
     net: BCNet          # the learned controller (LEARNED; methods.bc.kernel.no_net otherwise)
+    phase: int = 0      # FULL (the core backend), DECIDE or JUDGE (another backend's physics)
 
 
 class LoopState(NamedTuple):
@@ -142,9 +143,18 @@ class LoopState(NamedTuple):
     cb: np.ndarray          # (E, N, 2) float64 filtered forecast correction (east, north)
     fc: np.ndarray          # (E, 5) float64 forecast error (1 + gain, cos, sin, bias e, n)
     cur: np.ndarray         # (E,) float64 sum over agents and steps of the true current speed
+    # the hand-over to a backend that moves the agents itself (phases DECIDE / JUDGE)
+    en: np.ndarray          # (E, N) float64 energy proxy of each agent's executed action, m2 s-1
+    cw: np.ndarray          # (E, N, 2) float64 true current at each agent (east, north), m s-1
+    code: np.ndarray        # (E, N) int64 status of each agent's move (engine.status)
 
 
 NEW, RUNNING, FINISHED = 0, 1, 2
+
+#: What a call of the loop runs (``LoopParams.phase``): whole steps with the core's physics;
+#: one step's decisions for a backend that moves the agents itself; that step's judging once
+#: it has (:func:`run_episode`).
+FULL, DECIDE, JUDGE = 0, 1, 2
 
 #: Stop codes of the env's ``post_step`` (a bool return is GO / STOP): continue; end the
 #: episode now; success reached at this step, run on to the metric horizon (the time limit).
@@ -158,7 +168,8 @@ def new_loop_state(n_episodes: int, n_agents: int) -> LoopState:
                      np.zeros(E, np.int64), np.zeros((E, N, 3)),
                      np.full(E, -1, np.int64), np.full(E, np.inf),
                      np.zeros((E, N, STATE_DIM)), np.zeros((E, N, 2)), np.zeros((E, N, 3)),
-                     np.zeros((E, N, 2)), np.zeros((E, 5)), np.zeros(E))
+                     np.zeros((E, N, 2)), np.zeros((E, 5)), np.zeros(E),
+                     np.zeros((E, N)), np.zeros((E, N, 2)), np.zeros((E, N), np.int64))
 
 
 @hot_kernel(inline="always")
@@ -191,10 +202,126 @@ def observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact):
 
 
 @hot_kernel(inline="always")
+def decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext, obs, act_rec, e, k, i,
+                 t, counting, cur):
+    """The decision half of agent ``i``'s step ``k`` (every backend): remember where it is,
+    sample the true current at it, give the method its current estimate, choose the action
+    (the fused policy, the learned controller or the external action), record the
+    observation and write the command row ``cmd[e, i]`` (unclipped). Returns the updated
+    current-speed sum and the true current ``(ce, cn)`` at the agent."""
+    s = state[e, i]
+    px = s[0]
+    py = s[1]
+    pz = s[2]
+    LS.prev[e, i, 0] = px
+    LS.prev[e, i, 1] = py
+    LS.prev[e, i, 2] = pz
+    ce, cn = current_at(grid, px, py, pz, t)
+    if counting:
+        cur += math.sqrt(ce * ce + cn * cn)
+    pe, pn = current_estimate(LP.sens, LP.seed, LS.cb, LS.fc, e, k, i, state.shape[1], ce, cn,
+                              1)
+    if LP.policy != EXTERNAL:
+        ax, ay, az, psi = act(grid, P, W, M, X, e, k, i, t, pe, pn)
+        if LP.policy == LEARNED:
+            # the fused policy ran for its mission layer (plan, target point, claims);
+            # the network maps the observation to the action
+            gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
+            observe(LP.net.obs, LP.net.act, e, 0, i, grid, X, state, gx, gy, gz, pe,
+                    pn, pr, math.nan, math.nan, math.nan)
+            ax, ay, az = bc_act(LP.net, e, i, LP.v_max)
+            psi = math.nan
+    else:
+        ax = ext[e, i, 0]
+        ay = ext[e, i, 1]
+        az = ext[e, i, 2]
+        psi = math.nan
+    if k < obs.shape[1]:
+        gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
+        observe(obs, act_rec, e, k, i, grid, X, state, gx, gy, gz, pe, pn, pr, ax, ay, az)
+    c = cmd[e, i]
+    c[0] = ax
+    c[1] = ay
+    c[2] = az
+    c[3] = psi
+    c[4] = 1.0
+    return cur, ce, cn
+
+
+@hot_kernel(inline="always")
+def account_agent(after_agent, grid, P, W, LP, LS, state, e, k, i, en, code, counting, energy,
+                  viol):
+    """The accounting half of agent ``i``'s step after it moved (every backend): the energy
+    proxy ``en`` of its executed action and the move's status ``code`` (a rejected move or a
+    contact) counted up to success, the task's ``after_agent`` hook, and the navigation
+    estimate teammates acting later see. Returns the updated energy and violation count."""
+    if counting:
+        energy += en
+        if code != OK:
+            viol += 1
+    after_agent(grid, P, W, state, e, k, i, code)
+    if LP.sens.true_position == 0:   # teammates acting later see where i now thinks it is
+        nav_fill(state, LS.nerr, LS.nav, e, i)
+    return energy, viol
+
+
+@hot_kernel(inline="always")
+def end_step(post_step, grid, P, W, LP, LS, state, e, k, t, counting, coll, dmin):
+    """The end of step ``k`` once every agent moved (every backend): near-collisions (eq. 4)
+    and the closest pair, the task's ``post_step`` judge, dead reckoning over the step, the
+    ``REACHED`` latch. Returns ``(k + 1, stop, counting, coll, dmin)``."""
+    S = state[e]
+    if S.shape[0] > 1 and counting:
+        d = min_pairwise_distance(S)
+        if d <= LP.r_coll:
+            coll += 1
+        if d < dmin:
+            dmin = d
+    rc = int(post_step(grid, P, W, state, LS.prev, e, k, t))
+    for i in range(S.shape[0]):   # dead reckoning over the step's ground displacement
+        nav_update(LP.sens, LP.seed, LS.navc, LS.nerr, state, LS.prev, e, k, i, S.shape[0],
+                   LP.dt)
+    k += 1
+    stop = False
+    if rc == REACHED:
+        if counting:
+            LS.k_succ[e] = k
+            counting = False
+    elif rc != GO:
+        stop = True
+    return k, stop, counting, coll, dmin
+
+
+@hot_kernel(inline="always")
+def finish_episode(finish, grid, P, W, LP, LS, state, res, e, k):
+    """Close episode ``e`` after ``k`` steps (every backend): the task's ``finish`` judge
+    writes its metrics, the loop the standard columns over the steps up to success."""
+    LS.status[e] = FINISHED
+    row = res[e]
+    success = finish(grid, P, W, state, e, k, row)
+    k_end = LS.k_succ[e] if LS.k_succ[e] >= 0 else k   # the steps the metrics cover
+    dt = LP.dt
+    n_ag = state.shape[1]
+    row[C_SUCCESS] = 1.0 if success else 0.0
+    row[C_T] = k_end * dt if success else LP.n_steps * dt
+    row[C_E] = LS.energy[e]
+    row[C_COLL] = LS.coll[e] / k_end if k_end > 0 else 0.0
+    row[C_VIOL] = LS.viol[e]
+    row[C_CUR] = LS.cur[e] / (k_end * n_ag) if k_end > 0 else 0.0
+
+
+@hot_kernel(inline="always")
 def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
                 grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act_rec, res, e, k_stop):
     """Advance episode ``e`` up to step ``k_stop`` (or its end); write ``res[e]`` when it
-    ends. Serial; the per-task kernel runs it for every episode of its block."""
+    ends. Serial; the per-task kernel runs it for every episode of its block.
+
+    ``LP.phase`` says which part of a step this call runs: ``FULL`` (the core backend:
+    whole steps, each agent deciding and moving in turn through :func:`advance_agent`),
+    ``DECIDE`` (another backend's physics: one step's decisions of every agent -- the
+    command rows ``cmd`` and the true currents ``LS.cw`` -- with the executed action clipped
+    and its energy in ``LS.en``) or ``JUDGE`` (after that backend moved the agents and wrote
+    each move's status into ``LS.code``: the accounting and the judge of the step)."""
     if LS.status[e] == FINISHED:
         return
     n_ag = state.shape[1]
@@ -211,93 +338,57 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
     dmin = LS.dmin[e]
     cur = LS.cur[e]
     counting = LS.k_succ[e] < 0   # standard metrics accumulate up to success (REACHED)
-    S = state[e]
-    SP = LP.sens
-    while k < n_steps and k < k_stop and not stop:
-        t = t0[e] + k * dt
-        pre_step(grid, P, W, state, e, k, t)
-        X = known_state(LP, LS, state, e)   # the policy's view (the truth for the oracle)
-        if LP.policy != EXTERNAL and LP.plan != 0:
-            plan(grid, P, W, M, X, e, k, t)
-        for i in range(n_ag):
-            s = S[i]
-            px = s[0]
-            py = s[1]
-            pz = s[2]
-            LS.prev[e, i, 0] = px
-            LS.prev[e, i, 1] = py
-            LS.prev[e, i, 2] = pz
-            ce, cn = current_at(grid, px, py, pz, t)
-            if counting:
-                cur += math.sqrt(ce * ce + cn * cn)
-            pe, pn = current_estimate(SP, LP.seed, LS.cb, LS.fc, e, k, i, n_ag, ce, cn, 1)
-            if LP.policy != EXTERNAL:
-                ax, ay, az, psi = act(grid, P, W, M, X, e, k, i, t, pe, pn)
-                if LP.policy == LEARNED:
-                    # the fused policy ran for its mission layer (plan, target point, claims);
-                    # the network maps the observation to the action
-                    gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
-                    observe(LP.net.obs, LP.net.act, e, 0, i, grid, X, state, gx, gy, gz, pe,
-                            pn, pr, math.nan, math.nan, math.nan)
-                    ax, ay, az = bc_act(LP.net, e, i, LP.v_max)
-                    psi = math.nan
-            else:
-                ax = ext[e, i, 0]
-                ay = ext[e, i, 1]
-                az = ext[e, i, 2]
-                psi = math.nan
-            if k < obs.shape[1]:
-                gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
-                observe(obs, act_rec, e, k, i, grid, X, state, gx, gy, gz, pe, pn, pr, ax, ay,
-                        az)
-            c = cmd[e, i]
-            c[0] = ax
-            c[1] = ay
-            c[2] = az
-            c[3] = psi
-            c[4] = 1.0
-            en, code = advance_agent(grid, LP.model, vp, s, c, ce, cn, LP.v_max, dt,
-                                     LP.land_thr, LP.clearance)
-            if counting:
-                energy += en
-                if code != OK:
-                    viol += 1
-            after_agent(grid, P, W, state, e, k, i, code)
-            if SP.true_position == 0:   # teammates acting later see where i now thinks it is
-                nav_fill(state, LS.nerr, LS.nav, e, i)
-        if n_ag > 1 and counting:
-            d = min_pairwise_distance(S)
-            if d <= LP.r_coll:
-                coll += 1
-            if d < dmin:
-                dmin = d
-        rc = int(post_step(grid, P, W, state, LS.prev, e, k, t))
-        for i in range(n_ag):   # dead reckoning over the step's ground displacement
-            nav_update(SP, LP.seed, LS.navc, LS.nerr, state, LS.prev, e, k, i, n_ag, dt)
-        k += 1
-        if rc == REACHED:
-            if counting:
-                LS.k_succ[e] = k
-                counting = False
-        elif rc != GO:
-            stop = True
+    if LP.phase == FULL:
+        while k < n_steps and k < k_stop and not stop:
+            t = t0[e] + k * dt
+            pre_step(grid, P, W, state, e, k, t)
+            X = known_state(LP, LS, state, e)   # the policy's view (the truth for the oracle)
+            if LP.policy != EXTERNAL and LP.plan != 0:
+                plan(grid, P, W, M, X, e, k, t)
+            for i in range(n_ag):
+                cur, ce, cn = decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext,
+                                           obs, act_rec, e, k, i, t, counting, cur)
+                en, code = advance_agent(grid, LP.model, vp, state[e, i], cmd[e, i], ce, cn,
+                                         LP.v_max, dt, LP.land_thr, LP.clearance)
+                energy, viol = account_agent(after_agent, grid, P, W, LP, LS, state, e, k, i,
+                                             en, code, counting, energy, viol)
+            k, stop, counting, coll, dmin = end_step(post_step, grid, P, W, LP, LS, state, e,
+                                                     k, t, counting, coll, dmin)
+    elif LP.phase == DECIDE:
+        if k < n_steps and k < k_stop and not stop:
+            t = t0[e] + k * dt
+            pre_step(grid, P, W, state, e, k, t)
+            X = known_state(LP, LS, state, e)
+            if LP.policy != EXTERNAL and LP.plan != 0:
+                plan(grid, P, W, M, X, e, k, t)
+            for i in range(n_ag):
+                cur, ce, cn = decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext,
+                                           obs, act_rec, e, k, i, t, counting, cur)
+                c = cmd[e, i]
+                ax, ay, az = clip_action(c[0], c[1], c[2], LP.v_max)
+                c[0] = ax
+                c[1] = ay
+                c[2] = az
+                LS.en[e, i] = (ax * ax + ay * ay + az * az) * dt
+                LS.cw[e, i, 0] = ce
+                LS.cw[e, i, 1] = cn
+    else:   # JUDGE: the backend moved every agent of step k
+        if k < n_steps and k < k_stop and not stop:
+            t = t0[e] + k * dt
+            for i in range(n_ag):
+                energy, viol = account_agent(after_agent, grid, P, W, LP, LS, state, e, k, i,
+                                             LS.en[e, i], LS.code[e, i], counting, energy,
+                                             viol)
+            k, stop, counting, coll, dmin = end_step(post_step, grid, P, W, LP, LS, state, e,
+                                                     k, t, counting, coll, dmin)
     LS.k[e] = k
     LS.energy[e] = energy
     LS.viol[e] = viol
     LS.coll[e] = coll
     LS.dmin[e] = dmin
     LS.cur[e] = cur
-    if stop or k >= n_steps:
-        LS.status[e] = FINISHED
-        row = res[e]
-        success = finish(grid, P, W, state, e, k, row)
-        k_end = LS.k_succ[e] if LS.k_succ[e] >= 0 else k   # the steps the metrics cover
-        row[C_SUCCESS] = 1.0 if success else 0.0
-        row[C_T] = k_end * dt if success else n_steps * dt
-        row[C_E] = energy
-        row[C_COLL] = coll / k_end if k_end > 0 else 0.0
-        row[C_VIOL] = viol
-        row[C_CUR] = cur / (k_end * n_ag) if k_end > 0 else 0.0
+    if stop or (k >= n_steps and LP.phase != DECIDE):
+        finish_episode(finish, grid, P, W, LP, LS, state, res, e, k)
 
 
 @hot_kernel(inline="always")

@@ -178,13 +178,11 @@ def run_planner_cell(cell, cfg: Mapping, client, episodes: int, seed: int,
     table (:func:`planner_cell`). Raises :class:`~oneocean.errors.NotApplicable` as
     :meth:`~oneocean.tasks.Cell.reset` does."""
     from ...tasks import cell_frame
-    from ...tasks.episodes import Episodes
 
     adapter = adapter_for(cell.task)
     k_every = adapter.every(cell.params, cell.vehicle, every)
     init = cell.reset(episodes, seed)
-    ep = Episodes(cell.mod, cell.grid, cell.params, init, "heuristic", dynamics, cell.vehicle,
-                  int(seed), fused_plan=False)
+    ep = cell.episodes(init, "heuristic", dynamics, seed, fused_plan=False)
     planners = [Planner(client) for _ in range(ep.n_episodes)]
     ep.run_planned(planning_step(adapter, planners), k_every)
     method = method_name(cfg)

@@ -1,0 +1,1 @@
+"""Execution backends of a rollout: the core (numba) and the MuJoCo scene backend."""

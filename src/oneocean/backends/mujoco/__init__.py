@@ -1,0 +1,1 @@
+"""The scene backend: MuJoCo scenes that run the tasks through the same scenario, judge and accounting."""

@@ -1,0 +1,108 @@
+"""The scene backend's rollout: the task's kernel decides and judges, MuJoCo moves.
+
+:class:`SceneEpisodes` is an :class:`oneocean.tasks.episodes.Episodes` (same construction,
+same task parameters and work arrays, same sensing, same ``observe`` and ``results``) whose
+``run`` replaces the core's physics. Each step ``k`` of every running episode:
+
+1. the task's kernel in phase ``DECIDE`` (:mod:`oneocean.tasks.loop`): the task's
+   ``pre_step``, the method's ``plan`` and per-agent action (or the external action of the
+   step API), the observation record, the executed action clipped to ``v_max`` with its
+   energy proxy, and the true current at every agent (the scene's currents: its local grid,
+   :mod:`.scenes`);
+2. :meth:`oneocean.backends.mujoco.physics.ScenePhysics.step`: MuJoCo advances every vehicle
+   by ``dt`` under its command and the current at it, writes the new states back in the
+   core's convention and reports each move's status (``OK`` or ``CONTACT``; ``OUTSIDE`` when
+   the vehicle has left the scene's extent);
+3. the task's kernel in phase ``JUDGE``: the standard accounting (energy, violations =
+   contacts here, near-collisions, ``T``, the ``REACHED`` latch), the task's ``post_step``
+   judge, navigation, and at the end its ``finish`` metrics.
+
+Agents decide together and move together (the core moves them one after the other within a
+step: a teammate acting later sees the earlier one's new position).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...tasks.episodes import Episodes
+from ...engine.status import OUTSIDE
+from ...tasks.loop import DECIDE, FINISHED, JUDGE
+
+#: MuJoCo's integration step in the scene backend, s (the task's control step ``dt_s`` is
+#: held over ``dt_s / PHYSICS_STEP_S`` of them).
+PHYSICS_STEP_S = 0.02
+
+
+class SteppedEpisodes(Episodes):
+    """Episodes whose agents another physics moves (parameters as :class:`Episodes`, plus
+    ``physics``: an object with ``reset(state)`` and ``step(state, cmd, current, live) ->
+    codes`` as :class:`oneocean.backends.mujoco.physics.ScenePhysics`). ``trace=True`` keeps
+    every step's true state of every episode (:meth:`traced`) for media."""
+
+    backend = "stepped"
+
+    def __init__(self, mod, grid, tier: dict, init: dict, method, dyn: str, vehicle,
+                 seed: int, *, physics, trace: bool = False, **kw):
+        super().__init__(mod, grid, tier, init, method, dyn, vehicle, seed, **kw)
+        self.physics = physics
+        self.physics.reset(self.state)
+        self._decide = self.LP._replace(phase=DECIDE)
+        self._judge = self.LP._replace(phase=JUDGE)
+        self.trace = [self.state.copy()] if trace else None
+
+    def _call(self, LP, k_stop: int) -> None:
+        self.mod._kernel(self.grid, self.vehicle.params, LP, self.P, self.W, self.M, self.LS,
+                         self.t0, self.state, self.cmd, self.ext, self.obs, self.act, self.res,
+                         int(k_stop), 0, self.n_episodes)
+
+    def run(self, k_stop: int | None = None) -> "SteppedEpisodes":
+        """Advance every running episode up to step ``k_stop`` (default: to its end), one
+        step at a time: decide (the task's kernel), move (the physics), judge (the kernel)."""
+        k_stop = self.n_steps if k_stop is None else int(k_stop)
+        LS = self.LS
+        while True:
+            live = (LS.status != FINISHED) & (LS.k < min(k_stop, self.n_steps))
+            if not live.any():
+                return self
+            self._call(self._decide, k_stop)
+            moving = live & (LS.status != FINISHED)   # a task's begin may end an episode
+            codes = self.physics.step(self.state, self.cmd, LS.cw, live=moving)
+            codes = np.where(self._outside(), OUTSIDE, codes)
+            LS.code[moving] = codes[moving]
+            self._call(self._judge, k_stop)
+            if self.trace is not None:
+                self.trace.append(self.state.copy())
+
+    def _outside(self) -> np.ndarray:
+        """(E, N) bool: the agent is off the grid's horizontal extent (the world the task's
+        scenario, currents and judge are defined on; the core rejects such a move, here it
+        is counted as a violation like a contact)."""
+        g, s = self.grid, self.state
+        return ((s[..., 0] < g.x0) | (s[..., 0] > g.x_max) | (s[..., 2] < g.z0)
+                | (s[..., 2] > g.z_max))
+
+    def traced(self) -> np.ndarray:
+        """(steps + 1, E, N, STATE_DIM) the true states kept with ``trace=True``."""
+        if self.trace is None:
+            raise RuntimeError(f"{type(self).__name__}: built without trace=True")
+        return np.stack(self.trace)
+
+
+class SceneEpisodes(SteppedEpisodes):
+    """E episodes of one task in a MuJoCo scene (parameters as :class:`Episodes`, plus the
+    ``scene``, whose local grid ``grid`` is; ``physics_step_s``: MuJoCo's step, s;
+    ``trace`` as :class:`SteppedEpisodes`)."""
+
+    backend = "mujoco"
+
+    def __init__(self, mod, scene, grid, tier: dict, init: dict, method, dyn: str, vehicle,
+                 seed: int, *, physics_step_s: float = PHYSICS_STEP_S, **kw):
+        from .physics import ScenePhysics
+
+        n_ep, n_ag = np.asarray(init["pos0"]).shape[:2]
+        physics = ScenePhysics(scene, vehicle, n_ep, n_ag, dt=float(tier["dt_s"]),
+                               timestep=float(physics_step_s))
+        self.scene = scene
+        super().__init__(mod, grid, tier, init, method, dyn, vehicle, seed, physics=physics,
+                         **kw)
