@@ -36,6 +36,14 @@ SMALL_CONFIG = {
     "snapshots": {"tasks": ["SPC", "FT"], "tier": 1},
     # the stressor table's cells (2 per tier key) with few episodes each
     "ablations": {"stressors": {"episodes": 2}},
+    # the scene backend: two small scenes, one task whose kernel the rollouts compile
+    "scenes": {"tasks": ["G2G"], "tiers": [3], "methods": ["heuristic"], "episodes": 2,
+               "compare": "open_water",
+               "media": {"keyframes": 2, "width": 96, "height": 72, "fps": 5},
+               "list": [{"name": "open_water", "kind": "open_water", "size_m": 240,
+                         "resolution_m": 8},
+                        {"name": "pier_harbor", "kind": "pier_harbor", "size_m": 240,
+                         "resolution_m": 8, "depth_m": 20}]},
 }
 
 

@@ -27,7 +27,8 @@ SCHEMA_PATH = Path(str(resources.files("oneocean") / "data" / "config.schema.yam
 def load_schema(path: str | Path | None = None) -> dict:
     """The config schema (the packaged one unless ``path``), with ``rollouts.tasks`` and
     ``rollouts.methods`` restricted to the tasks and methods registered now, and
-    ``rollouts.tasks`` defaulting to the packaged task ladder."""
+    ``rollouts.tasks`` defaulting to the packaged task ladder; ``scenes.tasks`` restricted to
+    (and defaulting to) the tasks with scene tiers, ``scenes.methods`` to the methods."""
     if path is None:
         text = (resources.files("oneocean") / "data" / "config.schema.yaml").read_text()
     else:
@@ -40,6 +41,12 @@ def load_schema(path: str | Path | None = None) -> dict:
     if "methods" in rollouts:
         rollouts["methods"]["items"] = {"enum": list(registry.method_names())}
         rollouts["methods"].setdefault("default", list(registry.builtin_method_names()))
+    scenes = schema.get("properties", {}).get("scenes", {}).get("properties", {})
+    if "tasks" in scenes:   # the tasks whose tier table has scene_tiers
+        scenes["tasks"]["items"] = {"enum": list(registry.scene_tasks())}
+        scenes["tasks"].setdefault("default", list(registry.scene_tasks()))
+    if "methods" in scenes:
+        scenes["methods"]["items"] = {"enum": list(registry.method_names())}
     return schema
 
 
@@ -133,7 +140,37 @@ def _check_semantics(cfg: dict) -> None:
     names = [m["name"] for m in cfg["llm"]["models"]]
     if len(set(names)) != len(names):
         raise ConfigError(f"config key 'llm.models': duplicate name in {names}")
+    _check_scenes(cfg)
     register_llm_methods(cfg)
+
+
+def _check_scenes(cfg: dict) -> None:
+    """Every ``scenes.list`` entry is a valid scene spec (the scene builder's own check, so a
+    typo fails before any job runs), names are unique folder names, and ``scenes.compare``
+    and ``rollouts.scene`` (when its backend is mujoco) name a listed scene."""
+    import re
+
+    from .backends.mujoco.scenes import normalise_spec
+
+    sc = cfg["scenes"]
+    names = []
+    for i, spec in enumerate(sc["list"]):
+        try:
+            names.append(normalise_spec(spec)["name"])
+        except ConfigError as exc:
+            raise ConfigError(f"config key 'scenes.list[{i}]': {exc}") from None
+        if not re.fullmatch(r"[A-Za-z0-9_-]+", names[-1]):
+            raise ConfigError(f"config key 'scenes.list[{i}].name': {names[-1]!r} must be "
+                              "letters, digits, '_' or '-' (it names a folder)")
+    if len(set(names)) != len(names):
+        raise ConfigError(f"config key 'scenes.list': duplicate scene name in {names}")
+    if sc["compare"] not in names:
+        raise ConfigError(f"config key 'scenes.compare': {sc['compare']!r} is not a scene of "
+                          f"scenes.list ({', '.join(names)})")
+    r = cfg["rollouts"]
+    if r["backend"] == "mujoco" and r["scene"] not in names:
+        raise ConfigError(f"config key 'rollouts.scene': {r['scene']!r} is not a scene of "
+                          f"scenes.list ({', '.join(names)})")
 
 
 def llm_method(model: dict) -> str:

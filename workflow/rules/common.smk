@@ -226,6 +226,7 @@ def provenance_targets():
     ]
     stages.append(f"results/provenance/tables/{REGION}/planning.json")
     stages.append(f"results/provenance/tables/{REGION}/ladder.json")
+    stages += scene_provenance()   # workflow/rules/scenes.smk
 
     return stages
 

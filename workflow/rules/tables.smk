@@ -158,4 +158,5 @@ rule paper_tables:
         figure_targets(),
         PAPER_FIGURES,
         export_targets(),
+        scene_targets(),
         f"results/manifest/{REGION}.json",

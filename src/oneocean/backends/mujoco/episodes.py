@@ -11,8 +11,9 @@ same task parameters and work arrays, same sensing, same ``observe`` and ``resul
    :mod:`.scenes`);
 2. :meth:`oneocean.backends.mujoco.physics.ScenePhysics.step`: MuJoCo advances every vehicle
    by ``dt`` under its command and the current at it, writes the new states back in the
-   core's convention and reports each move's status (``OK`` or ``CONTACT``; ``OUTSIDE`` when
-   the vehicle has left the scene's extent);
+   core's convention and reports each move's status (``OK`` or ``CONTACT``); a vehicle that
+   is then where the core would reject the move (on land, which includes the scene's boundary
+   band, or off the grid) gets the core's code: a violation, the move not undone;
 3. the task's kernel in phase ``JUDGE``: the standard accounting (energy, violations =
    contacts here, near-collisions, ``T``, the ``REACHED`` latch), the task's ``post_step``
    judge, navigation, and at the end its ``finish`` metrics.
@@ -26,7 +27,8 @@ from __future__ import annotations
 import numpy as np
 
 from ...tasks.episodes import Episodes
-from ...engine.status import OUTSIDE
+from ...engine.constraints import DEFAULT_LAND_THRESHOLD, feasibility
+from ...engine.status import OK
 from ...tasks.loop import DECIDE, FINISHED, JUDGE
 
 #: MuJoCo's integration step in the scene backend, s (the task's control step ``dt_s`` is
@@ -68,19 +70,22 @@ class SteppedEpisodes(Episodes):
             self._call(self._decide, k_stop)
             moving = live & (LS.status != FINISHED)   # a task's begin may end an episode
             codes = self.physics.step(self.state, self.cmd, LS.cw, live=moving)
-            codes = np.where(self._outside(), OUTSIDE, codes)
+            codes = np.where(codes != OK, codes, self._feasibility())
             LS.code[moving] = codes[moving]
             self._call(self._judge, k_stop)
             if self.trace is not None:
                 self.trace.append(self.state.copy())
 
-    def _outside(self) -> np.ndarray:
-        """(E, N) bool: the agent is off the grid's horizontal extent (the world the task's
-        scenario, currents and judge are defined on; the core rejects such a move, here it
-        is counted as a violation like a contact)."""
-        g, s = self.grid, self.state
-        return ((s[..., 0] < g.x0) | (s[..., 0] > g.x_max) | (s[..., 2] < g.z0)
-                | (s[..., 2] > g.z_max))
+    def _feasibility(self) -> np.ndarray:
+        """(E, N) the core's feasibility code of every agent's new position on the grid
+        (:func:`oneocean.engine.constraints.feasibility`: land, which includes a scene's
+        boundary band and surfacing structures, the grid's extent; no seafloor clearance:
+        the physics resolves the seafloor). The core rejects such a move; here the physics
+        is authoritative and the code only counts a violation."""
+        xyz = self.state[..., :3].reshape(-1, 3).copy()
+        np.maximum(xyz[:, 1], 0.0, out=xyz[:, 1])   # at the surface is not off the grid
+        return feasibility(self.grid, xyz, DEFAULT_LAND_THRESHOLD, 0.0).reshape(
+            self.state.shape[:2])
 
     def traced(self) -> np.ndarray:
         """(steps + 1, E, N, STATE_DIM) the true states kept with ``trace=True``."""

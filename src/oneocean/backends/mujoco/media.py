@@ -1,0 +1,167 @@
+"""Offscreen media of a scene episode (Fig. 8): keyframe PNGs and an animated GIF.
+
+The trajectory's vehicles are placed as kinematic bodies in one model (the scene with N copies
+of the vehicle, :func:`.mjcf.scene_xml` with ``n_vehicles``; no physics is stepped) and drawn
+with :class:`mujoco.Renderer` under ``MUJOCO_GL=egl``: the backend is chosen when MuJoCo is
+first imported, so every module of this package imports MuJoCo lazily through
+:func:`.mjcf.import_mujoco`, which sets ``MUJOCO_GL=egl`` unless already set. A free camera looks
+at the agents' bounding box over the heightfield from a fixed azimuth and elevation; each
+vehicle gets a translucent marker sphere (visible at scene scale) and the track it has
+travelled so far. Images are written with Pillow (PNG, GIF), atomically.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+
+import numpy as np
+
+from ...engine import dynamics as dyn
+from ...errors import ConfigError, DataError
+
+__all__ = ["render_media"]
+
+_COLOURS = ((0.95, 0.75, 0.1), (0.9, 0.3, 0.2), (0.2, 0.8, 0.4), (0.3, 0.5, 0.95),
+            (0.85, 0.4, 0.85), (0.1, 0.85, 0.85), (0.95, 0.55, 0.2), (0.6, 0.6, 0.9))
+#: Largest number of frames put in the GIF (the trajectory is subsampled evenly).
+MAX_GIF_FRAMES = 150
+
+
+def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframes: int = 3,
+                 size: tuple = (480, 360), fps: int = 10, azimuth_deg: float = 135.0,
+                 elevation_deg: float = -35.0) -> dict:
+    """Render keyframe PNGs and an animated GIF of agents moving through a scene.
+
+    Parameters
+    ----------
+    scene : Scene
+    vehicle : str, Vehicle or VehicleModel
+    trajectory : (T, N, STATE_DIM) float64
+        Core states over time (positions and attitudes are used; non-finite rows hide the
+        vehicle).
+    out_png_stem : path-like
+        Keyframes are written to ``<stem>_<k>.png``, k = 0..keyframes-1 (evenly spaced over T,
+        first and last included).
+    gif_path : path-like
+        Animated GIF of the whole trajectory (at most :data:`MAX_GIF_FRAMES` frames).
+    keyframes : int
+    size : (width, height)
+        Image size, pixels (at most 1280 x 960).
+    fps : int
+        GIF frame rate.
+    azimuth_deg, elevation_deg : float
+        Camera azimuth and elevation (MuJoCo's free-camera convention, degrees).
+
+    Returns
+    -------
+    dict
+        ``{"png": [paths], "gif": path, "frames": int}``.
+
+    Raises
+    ------
+    DataError
+        Offscreen rendering is unavailable (no EGL / OpenGL context).
+    ConfigError
+        Bad shapes or sizes.
+    """
+    from pathlib import Path
+
+    from PIL import Image
+
+    from ...io import write_bytes_atomic
+    from . import mjcf
+
+    traj = np.asarray(trajectory, dtype=np.float64)
+    if traj.ndim != 3 or traj.shape[2] != dyn.STATE_DIM or traj.shape[0] < 1 or traj.shape[1] < 1:
+        raise ConfigError(f"render_media: trajectory must be (T, N, {dyn.STATE_DIM}), "
+                          f"got {traj.shape}")
+    width, height = int(size[0]), int(size[1])
+    if not (16 <= width <= 1280 and 16 <= height <= 960):
+        raise ConfigError(f"render_media: size must be within 16..1280 x 16..960, got {size}")
+    if keyframes < 1 or fps < 1:
+        raise ConfigError("render_media: keyframes and fps must be >= 1")
+    T, N = traj.shape[:2]
+    mujoco = mjcf.import_mujoco()
+    model = mujoco.MjModel.from_xml_string(mjcf.scene_xml(scene, vehicle, n_vehicles=N,
+                                                          physics=False))
+    data = mujoco.MjData(model)
+    try:
+        renderer = mujoco.Renderer(model, height, width)
+    except Exception as exc:  # noqa: BLE001 - any GL failure means no offscreen rendering
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise DataError(f"render_media: offscreen rendering unavailable under MUJOCO_GL="
+                        f"{os.environ.get('MUJOCO_GL')} ({msg}); MUJOCO_GL must be set (egl) "
+                        "before MuJoCo is first imported in the process") from None
+    adr = [int(model.jnt_qposadr[model.joint(f"vehicle{k}_joint").id]) for k in range(N)]
+    ok = np.all(np.isfinite(traj[..., :6]), axis=2)  # (T, N)
+    pos = mjcf.core_to_mj(np.where(ok[..., None], traj[..., :3], 0.0))
+    quat = mjcf.euler_to_quat(*(np.where(ok, traj[..., c], 0.0)
+                                for c in (dyn.PHI, dyn.THETA, dyn.PSI)))
+    if ok.any():
+        lo, hi = pos[ok].min(axis=0), pos[ok].max(axis=0)
+    else:
+        lo = hi = np.array([0.5 * (scene.extent[0] + scene.extent[1]),
+                            0.5 * (scene.extent[2] + scene.extent[3]), -5.0])
+    span = float(np.max(hi - lo))
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    cam.lookat[:] = 0.5 * (lo + hi)
+    cam.distance = max(1.6 * span, 12.0)
+    cam.azimuth = azimuth_deg
+    cam.elevation = elevation_deg
+    marker = max(0.6, 0.012 * cam.distance)
+
+    def frame(t: int) -> np.ndarray:
+        for k in range(N):
+            a = adr[k]
+            if ok[t, k]:
+                data.qpos[a:a + 3] = pos[t, k]
+                data.qpos[a + 3:a + 7] = quat[t, k]
+            else:
+                data.qpos[a:a + 3] = (0.0, 0.0, -1.0e4)
+                data.qpos[a + 3:a + 7] = (1.0, 0.0, 0.0, 0.0)
+        mujoco.mj_kinematics(model, data)
+        renderer.update_scene(data, camera=cam)
+        scn = renderer.scene
+        for k in range(N):
+            rgb = _COLOURS[k % len(_COLOURS)]
+            track = pos[:t + 1, k][ok[:t + 1, k]]
+            step = max(1, len(track) // 60)
+            pts = track[::step]
+            if len(track) and not np.array_equal(pts[-1], track[-1]):
+                pts = np.vstack([pts, track[-1:]])
+            for p0, p1 in zip(pts[:-1], pts[1:]):
+                if scn.ngeom >= scn.maxgeom or np.array_equal(p0, p1):
+                    continue
+                g = scn.geoms[scn.ngeom]
+                mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3),
+                                    np.eye(3).ravel(), np.array([*rgb, 0.9], dtype=np.float32))
+                mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_CAPSULE, 0.25 * marker, p0, p1)
+                scn.ngeom += 1
+            if ok[t, k] and scn.ngeom < scn.maxgeom:
+                g = scn.geoms[scn.ngeom]
+                mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_SPHERE, np.array([marker, 0, 0]),
+                                    pos[t, k], np.eye(3).ravel(),
+                                    np.array([*rgb, 0.35], dtype=np.float32))
+                scn.ngeom += 1
+        return renderer.render().copy()
+
+    stem = Path(out_png_stem)
+    keys = sorted(set(np.linspace(0, T - 1, keyframes).round().astype(int).tolist()))
+    pngs = []
+    for k, t in enumerate(keys):
+        buf = io.BytesIO()
+        Image.fromarray(frame(t)).save(buf, format="PNG")
+        path = stem.parent / f"{stem.name}_{k}.png"
+        write_bytes_atomic(path, buf.getvalue())
+        pngs.append(path)
+    idx = np.unique(np.linspace(0, T - 1, min(T, MAX_GIF_FRAMES)).round().astype(int))
+    images = [Image.fromarray(frame(int(t))).convert("P", palette=Image.Palette.ADAPTIVE)
+              for t in idx]
+    buf = io.BytesIO()
+    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:],
+                   duration=int(round(1000 / fps)), loop=0)
+    write_bytes_atomic(Path(gif_path), buf.getvalue())
+    renderer.close()
+    return {"png": pngs, "gif": Path(gif_path), "frames": len(images)}

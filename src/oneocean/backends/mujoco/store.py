@@ -1,0 +1,90 @@
+"""Scene files on disk (what the workflow's ``scene_build`` writes and later jobs read) and the
+scene jobs' pure functions: build a scene's files, load a scene back, render its media."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from ...errors import ConfigError, DataError
+
+
+def _npz(path, what: str) -> dict:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except FileNotFoundError:
+        raise DataError(f"{path}: {what} not found") from None
+    except (OSError, ValueError) as exc:
+        raise DataError(f"{path}: not a readable {what} ({exc.__class__.__name__})") from None
+
+
+def build_scene_files(spec: Mapping, grid_path, temporal_path, meta_out) -> dict:
+    """Build the scene ``spec`` (:func:`.scenes.build_scene`) from a grid export and a
+    temporal export and write its files (:func:`.scenes.scene_files`) into the folder of
+    ``meta_out`` (``scene.xml``, ``grid.npz``, ``scene.json``); the spec's ``name`` must be
+    that folder's name. Returns the written paths."""
+    from .scenes import build_scene, scene_files
+
+    out_dir = Path(meta_out).parent
+    if spec.get("name") != out_dir.name:
+        raise ConfigError(f"scenes.list: scene name {spec.get('name')!r} does not match its "
+                          f"folder {out_dir.name!r}")
+    scene = build_scene(spec, _npz(grid_path, "grid export"),
+                        _npz(temporal_path, "temporal export"))
+    return scene_files(scene, out_dir)
+
+
+def load_scene(meta_path):
+    """The :class:`.scenes.Scene` whose ``scene.json`` is ``meta_path`` (its ``grid.npz``
+    beside it); a missing or malformed file is a one-line DataError naming it."""
+    from .scenes import Scene, Structure
+
+    meta_path = Path(meta_path)
+    try:
+        meta = json.loads(meta_path.read_text())
+    except FileNotFoundError:
+        raise DataError(f"{meta_path}: scene file not found (built by the workflow's "
+                        "scene_build rule)") from None
+    except (OSError, json.JSONDecodeError) as exc:
+        raise DataError(f"{meta_path}: not a scene file ({exc.__class__.__name__})") from None
+    try:
+        structures = tuple(Structure(name=s["name"], centre=tuple(s["centre"]),
+                                     half=tuple(s["half"]), yaw_rad=float(s["yaw_rad"]),
+                                     kind=s["kind"]) for s in meta["structures"])
+        clock = meta["clock"]
+        return Scene(name=meta["name"], kind=meta["kind"], label=meta["label"],
+                     grid_data=_npz(meta_path.with_name("grid.npz"), "scene grid"),
+                     structures=structures, extent=tuple(meta["extent_m"]),
+                     anchor=(meta["anchor"]["lat"], meta["anchor"]["lon"]),
+                     currents=meta["currents"],
+                     clock=(float(clock["start_s"]), float(clock["rate"])), meta=meta)
+    except (KeyError, TypeError) as exc:
+        raise DataError(f"{meta_path}: scene file lacks {exc}") from None
+
+
+def scene_media(scene, task: str, tier: int, seed: int, dynamics: str, frames, media: Mapping,
+                physics_step_s: float | None = None) -> dict:
+    """Fig. 8's media of one scene: episode 0 of ``seed`` of the heuristic on ``task`` at
+    ``tier`` in ``scene`` (the scene backend, every step's state traced), rendered offscreen
+    (:func:`.media.render_media`) into ``frames``: the keyframe PNGs ``<dir>/keyframe_<k>.png``
+    then the GIF, the paths the workflow names. ``media``: the config's ``scenes.media``."""
+    from ...tasks import Cell
+    from .media import render_media
+
+    frames = [Path(f) for f in frames]
+    pngs, gif = frames[:-1], frames[-1]
+    stem = pngs[0].with_name("keyframe")
+    if [p.name for p in pngs] != [f"keyframe_{k}.png" for k in range(len(pngs))]:
+        raise ConfigError(f"scene_media: keyframe paths must be {stem}_<k>.png, got "
+                          f"{', '.join(map(str, pngs))}")
+    cell = Cell(None, task, int(tier), backend="mujoco", scene=scene,
+                physics_step_s=physics_step_s)
+    init = cell.reset(1, int(seed))
+    ep = cell.episodes(init, "heuristic", dynamics, int(seed), trace=True).run()
+    traj = ep.traced()[: int(ep.k[0]) + 1, 0]
+    return render_media(scene, cell.vehicle, traj, stem, gif, keyframes=len(pngs),
+                        size=(int(media["width"]), int(media["height"])), fps=int(media["fps"]))

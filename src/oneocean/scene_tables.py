@@ -1,0 +1,235 @@
+"""The scene backend's tables: Table VII (per scene, Tier 2 and 3) and core vs scene.
+
+Inputs are the cell files of the workflow's ``scene_cells`` jobs
+(``results/scene_rollouts/<region>/<variant>/<scene>/<backend>/<task>/tier<k>/<method>.parquet``),
+each recording its backend, scene and the scene's metadata.
+
+Table VII (``scene_backend.tex``) follows the paper's shape for route following (RF): per
+scene and tier, the success rate with its Wilson 95 % interval, the waypoints reached (% of the
+route's waypoints, mean over episodes) and the mean cross-track error (m), then the mean over
+scenes with every scene weighted equally. Success is the task's own rule, the same as the
+core's: every waypoint in order, a mean cross-track error within ``xte_max_m`` and the energy
+allocation; the column "all WP" gives the paper's scene-table rule (every waypoint reached,
+no cross-track or energy bound). ``scene_vs_core.tex`` sets the two backends side by side on
+the compare scene (same tasks, tiers, methods, seed and episodes: the same scenarios), so a
+difference is the execution substrate's. ``scene_backend.md`` holds both plus every scene's
+success rate per task, tier and method.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .io import write_text_atomic
+from .tables import _ci, _escape, _latex, rate_ci
+
+#: The scene table's task (the paper's Table VII: route following).
+TABLE7_TASK = "RF"
+
+
+def load_scene_cells(cell_files) -> pd.DataFrame:
+    """One row per scene cell file: ``scene, label, backend, task, tier, method, applicable,
+    reason, n, success, episodes, n_waypoints, file``."""
+    from .engine.recording import read_metrics_meta
+
+    rows = []
+    for f in cell_files:
+        meta = read_metrics_meta(f)
+        df = pd.read_parquet(f)
+        sm = meta.get("scene_meta") or {}
+        rows.append({"scene": meta.get("scene", Path(f).parts[-5]),
+                     "label": sm.get("label", meta.get("scene", "")),
+                     "backend": meta.get("backend", "core"), "task": meta["task"],
+                     "tier": int(meta["tier"]), "method": meta["method"],
+                     "applicable": bool(meta.get("applicable", True)),
+                     "reason": meta.get("reason", ""), "n": int(len(df)),
+                     "success": df["success"].to_numpy(dtype=bool) if len(df) else
+                     np.zeros(0, bool), "episodes": df,
+                     "n_waypoints": (meta.get("tier_params") or {}).get("n_waypoints"),
+                     "file": str(f)})
+    return pd.DataFrame(rows)
+
+
+def _mean(x) -> float:
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    return float(x.mean()) if x.size else math.nan
+
+
+def _fmt(v, fmt="{:.1f}") -> str:
+    return fmt.format(v) if v is not None and np.isfinite(v) else "--"
+
+
+def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
+                 task: str = TABLE7_TASK) -> pd.DataFrame:
+    """Per scene and tier (MuJoCo backend): ``sr, sr_lo, sr_hi, wp_pct, all_wp_pct, cte_m,
+    n``; then one ``scene = "mean"`` row per tier (each scene weighted equally)."""
+    sel = cells[(cells["backend"] == "mujoco") & (cells["task"] == task)
+                & (cells["method"] == method)]
+    rows = []
+    for (scene, tier), g in sel.groupby(["scene", "tier"], sort=False):
+        c = g.iloc[0]
+        ep = c["episodes"]
+        if not c["applicable"] or c["n"] == 0:
+            rows.append({"scene": scene, "label": c["label"], "tier": tier, "n": 0,
+                         "sr": math.nan, "sr_lo": math.nan, "sr_hi": math.nan,
+                         "wp_pct": math.nan, "all_wp_pct": math.nan, "cte_m": math.nan,
+                         "reason": c["reason"]})
+            continue
+        nwp = float(c["n_waypoints"])
+        wp = ep["waypoints_reached"].to_numpy(dtype=float)
+        sr, lo, hi = rate_ci(c["success"])
+        rows.append({"scene": scene, "label": c["label"], "tier": tier, "n": int(c["n"]),
+                     "sr": sr, "sr_lo": lo, "sr_hi": hi, "wp_pct": 100.0 * _mean(wp / nwp),
+                     "all_wp_pct": 100.0 * float(np.mean(wp >= nwp)),
+                     "cte_m": _mean(ep["cross_track_error_m"]), "reason": ""})
+    out = pd.DataFrame(rows)
+    if out.empty:
+        return out
+    means = []
+    for tier, g in out.groupby("tier", sort=True):
+        ok = g[g["n"] > 0]
+        means.append({"scene": "mean", "label": "Mean over scenes", "tier": tier,
+                      "n": int(ok["n"].sum()), "sr": _mean(ok["sr"]), "sr_lo": math.nan,
+                      "sr_hi": math.nan, "wp_pct": _mean(ok["wp_pct"]),
+                      "all_wp_pct": _mean(ok["all_wp_pct"]), "cte_m": _mean(ok["cte_m"]),
+                      "reason": ""})
+    return pd.concat([out, pd.DataFrame(means)], ignore_index=True)
+
+
+def table7_latex(df: pd.DataFrame, region: str, method: str, episodes: str) -> str:
+    tiers = sorted(df["tier"].unique())
+    header = ["Scene"] + [f"T{k} {h}" for k in tiers for h in ("SR (\\%)", "WP (\\%)",
+                                                              "all WP (\\%)", "CTE (m)")]
+    rows = []
+    for scene in dict.fromkeys(df["scene"]):
+        g = df[df["scene"] == scene]
+        label = g["label"].iloc[0]
+        r = [_escape(label)]
+        for k in tiers:
+            c = g[g["tier"] == k]
+            if c.empty or (c["n"].iloc[0] == 0 and scene != "mean"):
+                r += ["n/a"] * 4
+                continue
+            c = c.iloc[0]
+            sr = (_fmt(c["sr"]) if scene == "mean" else _ci(c["sr"], c["sr_lo"], c["sr_hi"]))
+            r += [sr, _fmt(c["wp_pct"]), _fmt(c["all_wp_pct"]), _fmt(c["cte_m"], "{:.2f}")]
+        if scene == "mean":
+            rows.append(("rule",))
+        rows.append(r)
+    caption = (f"Scene backend (MuJoCo stand-ins for the paper's packaged scenes), route "
+               f"following with the {_escape(method)} method, region {_escape(region)} "
+               f"({episodes}). SR: the task's own success rule, as on the core (every waypoint "
+               f"in order, mean cross-track error within its bound, within the energy "
+               f"allocation), with its Wilson 95\\% interval; WP: waypoints reached (\\% of the "
+               f"route); all WP: episodes reaching every waypoint (the paper's scene-table "
+               f"rule); CTE: mean cross-track error. The mean weights every scene equally.")
+    return _latex(header, rows, caption, f"tab:scene_backend:{region}", wide=True)
+
+
+def compare_frame(cells: pd.DataFrame, scene: str) -> pd.DataFrame:
+    """Core vs MuJoCo on ``scene``: per task, tier, method, backend: ``sr, sr_lo, sr_hi,
+    primary, T_s, E, violations, n``."""
+    sel = cells[cells["scene"] == scene]
+    rows = []
+    for (task, tier, method, backend), g in sel.groupby(["task", "tier", "method", "backend"],
+                                                        sort=False):
+        c = g.iloc[0]
+        ep = c["episodes"]
+        if not c["applicable"] or c["n"] == 0:
+            rows.append({"task": task, "tier": tier, "method": method, "backend": backend,
+                         "n": 0, "sr": math.nan, "sr_lo": math.nan, "sr_hi": math.nan,
+                         "primary": math.nan, "T_s": math.nan, "E": math.nan,
+                         "violations": math.nan})
+            continue
+        sr, lo, hi = rate_ci(c["success"])
+        rows.append({"task": task, "tier": tier, "method": method, "backend": backend,
+                     "n": int(c["n"]), "sr": sr, "sr_lo": lo, "sr_hi": hi,
+                     "primary": _mean(ep["primary"]), "T_s": _mean(ep["T_s"]),
+                     "E": _mean(ep["E"]), "violations": _mean(ep["violations"])})
+    return pd.DataFrame(rows)
+
+
+def compare_latex(df: pd.DataFrame, region: str, scene: str, label: str, episodes: str) -> str:
+    from .registry import task_spec
+
+    header = ["Task", "Tier", "Method", "Core SR (\\%)", "Scene SR (\\%)", "Core primary",
+              "Scene primary", "Core contacts / rejections", "Scene contacts"]
+    rows = []
+    keys = list(dict.fromkeys(zip(df["task"], df["tier"], df["method"])))
+    for task, tier, method in keys:
+        g = df[(df["task"] == task) & (df["tier"] == tier) & (df["method"] == method)]
+        by = {b: g[g["backend"] == b].iloc[0] for b in ("core", "mujoco")
+              if (g["backend"] == b).any()}
+        core, mj = by.get("core"), by.get("mujoco")
+
+        def sr(c):
+            return "--" if c is None or c["n"] == 0 else _ci(c["sr"], c["sr_lo"], c["sr_hi"])
+
+        def val(c, k, fmt="{:.2f}"):
+            return "--" if c is None or c["n"] == 0 else _fmt(c[k], fmt)
+
+        prim = task_spec(task).metrics[0].name
+        rows.append([task, f"T{tier}", _escape(method), sr(core), sr(mj),
+                     val(core, "primary"), val(mj, "primary"), val(core, "violations", "{:.1f}"),
+                     val(mj, "violations", "{:.1f}")])
+        del prim
+    caption = (f"Core vs scene backend on the same scene ({_escape(label)}), region "
+               f"{_escape(region)} ({episodes}): the same episodes (scenario and seed), the same "
+               f"judge and metrics; only the physics differs (the core's rigid-body model with "
+               f"its feasibility check vs MuJoCo rigid bodies with fluid forces and physical "
+               f"contacts). Primary: the task's primary metric, mean over episodes; contacts "
+               f"and rejections: mean per episode.")
+    return _latex(header, rows, caption, f"tab:scene_vs_core:{region}", wide=True)
+
+
+def _episodes_text(cells: pd.DataFrame) -> str:
+    ns = sorted(set(cells.loc[cells["n"] > 0, "n"]))
+    return (f"{ns[0]} episodes per cell" if len(ns) == 1 else
+            f"{ns[0]}--{ns[-1]} episodes per cell" if ns else "no episodes")
+
+
+def write_scene_tables(cell_files, out_tex, out_compare, out_md, region: str,
+                       compare: str, method: str = "heuristic") -> None:
+    """Write Table VII, the core-vs-scene table and the markdown summary (atomically)."""
+    cells = load_scene_cells(cell_files)
+    eps = _episodes_text(cells)
+    t7 = table7_frame(cells, method)
+    write_text_atomic(out_tex, table7_latex(t7, region, method, eps) if not t7.empty else
+                      "% no route-following cells in the scene backend\n")
+    cmp_df = compare_frame(cells, compare)
+    label = next(iter(cells.loc[cells["scene"] == compare, "label"]), compare)
+    write_text_atomic(out_compare, compare_latex(cmp_df, region, compare, label, eps))
+    write_text_atomic(out_md, scene_markdown(cells, t7, cmp_df, region, compare, method, eps))
+
+
+def scene_markdown(cells, t7, cmp_df, region, compare, method, eps) -> str:
+    lines = [f"# Scene backend: {region}", "",
+             f"MuJoCo scenes (stand-ins for the paper's packaged scenes), {eps}. Success is "
+             "each task's own rule, the same as on the core.", "",
+             f"## Route following per scene ({method})", "",
+             "| Scene | Tier | SR % [95 % CI] | WP % | all WP % | CTE m |", "|---|---|---|---|---|---|"]
+    for _, r in t7.iterrows():
+        sr = (_fmt(r["sr"]) if r["scene"] == "mean" else _ci(r["sr"], r["sr_lo"], r["sr_hi"]))
+        lines.append(f"| {r['label']} | {r['tier']} | {sr} | {_fmt(r['wp_pct'])} | "
+                     f"{_fmt(r['all_wp_pct'])} | {_fmt(r['cte_m'], '{:.2f}')} |")
+    lines += ["", "## Success rate per scene, task, tier and method (MuJoCo)", "",
+              "| Scene | Task | Tier | Method | SR % [95 % CI] | n |", "|---|---|---|---|---|---|"]
+    mj = cells[cells["backend"] == "mujoco"]
+    for _, c in mj.iterrows():
+        txt = (_ci(*rate_ci(c["success"])) if c["n"] else f"n/a ({c['reason']})")
+        lines.append(f"| {c['label']} | {c['task']} | {c['tier']} | {c['method']} | {txt} | "
+                     f"{c['n']} |")
+    lines += ["", f"## Core vs scene on {compare}", "",
+              "| Task | Tier | Method | Backend | SR % [95 % CI] | primary | T s | contacts |",
+              "|---|---|---|---|---|---|---|---|"]
+    for _, r in cmp_df.iterrows():
+        sr = _ci(r["sr"], r["sr_lo"], r["sr_hi"]) if r["n"] else "n/a"
+        lines.append(f"| {r['task']} | {r['tier']} | {r['method']} | {r['backend']} | {sr} | "
+                     f"{_fmt(r['primary'], '{:.2f}')} | {_fmt(r['T_s'], '{:.0f}')} | "
+                     f"{_fmt(r['violations'], '{:.1f}')} |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,216 @@
+# Stage 4b: the scene backend (MuJoCo). Scenes built from a variant's grid and temporal
+# exports (scene_build), every scene task run in every scene (scene_cells, backend mujoco)
+# and, on the compare scene, by the core on the same local grid (backend core), Fig. 8's
+# media (scene_media) and the scene tables (table_scenes: Table VII and core vs scene).
+
+SCENE_CFG = config["scenes"]
+SCENE_NAMES = [s["name"] for s in SCENE_CFG["list"]]
+SCENE_BACKENDS = ("mujoco", "core")
+
+
+wildcard_constraints:
+    scene="|".join(map(re.escape, SCENE_NAMES)) or "NONE",
+
+
+def scene_spec(name):
+    return next(s for s in SCENE_CFG["list"] if s["name"] == name)
+
+
+def _scene_method_ok(task, method):
+    """bc runs in a scene only on the tasks its network is trained on (the rollouts' tasks,
+    when bc is one of the rollouts' methods)."""
+    r = config["rollouts"]
+    return method != "bc" or ("bc" in r["methods"] and task in r["tasks"])
+
+
+def scene_cell_list(scene, backend):
+    """(task, tier, method) cells of one scene on one backend: every scene cell on mujoco;
+    on the core only the compare scene's."""
+    if backend == "core" and scene != SCENE_CFG["compare"]:
+        return []
+    return [{"task": t, "tier": int(k), "method": m} for t in SCENE_CFG["tasks"]
+            for k in SCENE_CFG["tiers"] for m in SCENE_CFG["methods"] if _scene_method_ok(t, m)]
+
+
+def _scene_cell_path(kind, scene, backend, c):
+    if kind == "parquet":
+        return (f"results/scene_rollouts/{{region}}/{{variant}}/{scene}/{backend}/"
+                f"{c['task']}/tier{c['tier']}/{c['method']}.parquet")
+    return (f"results/provenance/scene_rollouts/{{region}}/{{variant}}/{scene}/{backend}/"
+            f"{c['task']}/tier{c['tier']}/{c['method']}.json")
+
+
+def scene_runs():
+    """(scene, backend) pairs that have cells."""
+    return [(s, b) for s in SCENE_NAMES for b in SCENE_BACKENDS if scene_cell_list(s, b)]
+
+
+def scene_cell_targets(kind="parquet"):
+    if not SCENE_CFG["enabled"]:
+        return []
+    v = SCENE_CFG["variant"]
+    return [_scene_cell_path(kind, s, b, c).format(region=REGION, variant=v)
+            for s, b in scene_runs() for c in scene_cell_list(s, b)]
+
+
+def scene_media_files(scene):
+    m = SCENE_CFG["media"]
+    base = f"results/figures/{{region}}/scenes/{{variant}}/{scene}"
+    return ([f"{base}/keyframe_{i}.png" for i in range(int(m["keyframes"]))]
+            + [f"{base}/episode.gif"])
+
+
+def scene_targets():
+    """Everything paper_tables needs from the scene backend (nothing when disabled)."""
+    if not SCENE_CFG["enabled"]:
+        return []
+    v = SCENE_CFG["variant"]
+    out = [f"results/tables/{REGION}/{n}" for n in
+           ("scene_backend.tex", "scene_vs_core.tex", "scene_backend.md")]
+    out += [f"results/scenes/{REGION}/{v}/{s}/scene.xml" for s in SCENE_NAMES]
+    if SCENE_CFG["media"]["enabled"]:
+        out += [p.format(region=REGION, variant=v) for s in SCENE_NAMES
+                for p in scene_media_files(s)]
+    return out
+
+
+def scene_provenance():
+    if not SCENE_CFG["enabled"]:
+        return []
+    v = SCENE_CFG["variant"]
+    out = [f"results/provenance/scenes/{REGION}/{v}/{s}.json" for s in SCENE_NAMES]
+    out += scene_cell_targets("prov")
+    out.append(f"results/provenance/tables/{REGION}/scene_backend.json")
+    if SCENE_CFG["media"]["enabled"]:
+        out += [f"results/provenance/figures/{REGION}/scenes/{v}/{s}.json" for s in SCENE_NAMES]
+    return out
+
+
+def scene_weights(wc):
+    if not any(_scene_method_ok(t, "bc") for t in SCENE_CFG["tasks"]) or \
+            "bc" not in SCENE_CFG["methods"]:
+        return []
+    return [f"results/bc/{wc.region}/{config['rollouts']['variant']}/weights.npz"]
+
+
+def scene_kernels(wc):
+    return [f"results/kernels/{wc.region}/{config['rollouts']['variant']}/{t}.json"
+            for t in SCENE_CFG["tasks"] if t in config["rollouts"]["tasks"]]
+
+
+SCENE_CODE = code_version("oneocean.backends", "oneocean.tasks", "oneocean.methods",
+                          "oneocean.sensing", "oneocean.engine", "oneocean.data")
+
+
+rule scene_build:
+    conda:
+        PY_ENV
+    input:
+        grid="results/exports/{region}/{variant}/grid.npz",
+        temporal="results/exports/{region}/{variant}/temporal.npz",
+    output:
+        xml="results/scenes/{region}/{variant}/{scene}/scene.xml",
+        grid="results/scenes/{region}/{variant}/{scene}/grid.npz",
+        meta="results/scenes/{region}/{variant}/{scene}/scene.json",
+        prov="results/provenance/scenes/{region}/{variant}/{scene}.json",
+    log:
+        "logs/scenes/{region}/{variant}/{scene}/build.log",
+    params:
+        spec=lambda wc: scene_spec(wc.scene),
+        code=code_version("oneocean.backends"),
+    threads: 1
+    script:
+        "../scripts/scene_build.py"
+
+
+# Every (task, tier, method) cell of one scene on one backend in one job: one rule per
+# (scene, backend), scene_cells_<scene>_<backend>, because each has its own list of files.
+def _scene_cell_params(scene, backend):
+    return [{**c, "wildcards": {"task": c["task"], "tier": str(c["tier"]),
+                                "method": c["method"], "scene": scene, "backend": backend},
+             "params": {"code": SCENE_CODE,
+                        "run": {"episodes": SCENE_CFG["episodes"],
+                                "seed": config["rollouts"]["seed"],
+                                "dynamics": config["rollouts"]["dynamics"],
+                                "physics_step_s": SCENE_CFG["physics_step_s"]}}}
+            for c in scene_cell_list(scene, backend)]
+
+
+for _scene, _backend in scene_runs():
+
+    rule:
+        name:
+            f"scene_cells_{_scene}_{_backend}"
+        conda:
+            PY_ENV
+        input:
+            scene=f"results/scenes/{{region}}/{{variant}}/{_scene}/scene.json",
+            scene_grid=f"results/scenes/{{region}}/{{variant}}/{_scene}/grid.npz",
+            xml=f"results/scenes/{{region}}/{{variant}}/{_scene}/scene.xml",
+            temporal="results/exports/{region}/{variant}/temporal.npz",
+            kernels=scene_kernels,
+            weights=scene_weights,
+        output:
+            parquet=[_scene_cell_path("parquet", _scene, _backend, c)
+                     for c in scene_cell_list(_scene, _backend)],
+            prov=[_scene_cell_path("prov", _scene, _backend, c)
+                  for c in scene_cell_list(_scene, _backend)],
+        log:
+            f"logs/scene_rollouts/{{region}}/{{variant}}/{_scene}/{_backend}.log",
+        benchmark:
+            f"results/benchmarks/scene_rollouts/{{region}}/{{variant}}/{_scene}/{_backend}.tsv"
+        params:
+            cells=_scene_cell_params(_scene, _backend),
+            backend=_backend,
+        threads: 1
+        script:
+            "../scripts/scene_cells.py"
+
+
+# Fig. 8: keyframes and an animated GIF of episode 0 of the heuristic, the scenes' first task
+# at their last tier, rendered offscreen.
+rule scene_media:
+    conda:
+        PY_ENV
+    input:
+        scene=rules.scene_build.output.meta,
+        scene_grid=rules.scene_build.output.grid,
+        kernels=scene_kernels,
+    output:
+        frames=scene_media_files("{scene}"),
+        prov="results/provenance/figures/{region}/scenes/{variant}/{scene}.json",
+    log:
+        "logs/figures/{region}/scenes/{variant}/{scene}.log",
+    params:
+        task="RF" if "RF" in SCENE_CFG["tasks"] else SCENE_CFG["tasks"][0],
+        tier=SCENE_CFG["tiers"][-1],
+        seed=config["rollouts"]["seed"],
+        dynamics=config["rollouts"]["dynamics"],
+        media=SCENE_CFG["media"],
+        physics_step_s=SCENE_CFG["physics_step_s"],
+        code=SCENE_CODE,
+    threads: 1
+    script:
+        "../scripts/scene_media.py"
+
+
+rule table_scenes:
+    conda:
+        PY_ENV
+    input:
+        cells=scene_cell_targets(),
+    output:
+        tex=report("results/tables/{region}/scene_backend.tex",
+                   caption="../report/table.rst", category="Tables"),
+        compare=report("results/tables/{region}/scene_vs_core.tex",
+                       caption="../report/table.rst", category="Tables"),
+        md="results/tables/{region}/scene_backend.md",
+        prov="results/provenance/tables/{region}/scene_backend.json",
+    log:
+        "logs/tables/{region}/scene_backend.log",
+    params:
+        compare=SCENE_CFG["compare"],
+        code=code_version("oneocean.scene_tables"),
+    threads: 1
+    script:
+        "../scripts/table_scenes.py"
