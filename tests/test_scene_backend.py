@@ -118,3 +118,38 @@ def test_step_api_and_cell_file_on_the_scene_backend(scenes, tmp_path):
     rollout_to_file(None, na, "SPC", 2, "heuristic", 2, 0, "6dof", backend="mujoco",
                     scene=scene)
     assert read_metrics_meta(na)["applicable"] is False and len(read_metrics(na)) == 0
+
+
+def test_cli_evaluate_in_a_scene(scenes, tmp_path):
+    """`oneocean evaluate --scene .../scene.json --backend mujoco` scores a user's policy in a
+    scene written by the workflow's scene_build (scene_files) and records the backend."""
+    import os
+    import subprocess
+    import sys
+
+    from oneocean.backends.mujoco.scenes import scene_files
+
+    paths = scene_files(scenes["open_water"], tmp_path / "open_water")
+    (tmp_path / "seek.py").write_text(
+        "import numpy as np\n"
+        "def act(obs):\n"
+        "    g = obs[..., :3]\n"
+        "    return 1.5 * g / np.maximum(np.linalg.norm(g, axis=-1, keepdims=True), 1e-9)\n")
+    out = tmp_path / "mine.parquet"
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    r = subprocess.run([sys.executable, "-m", "oneocean.cli", "evaluate", "--task", "G2G",
+                        "--tier", "1", "--policy", "seek:act", "--scene", str(paths["meta"]),
+                        "--backend", "mujoco", "--episodes", "2", "--seed", "3",
+                        "--out", str(out)], cwd=tmp_path, capture_output=True, text=True,
+                       env=env)
+    assert r.returncode == 0, r.stderr
+    meta = read_metrics_meta(out)
+    assert meta["backend"] == "mujoco" and meta["scene"] == "open_water"
+    assert meta["tier_params"]["goal_distance_m"] == 150   # the scene tier, not the core's
+    bad = subprocess.run([sys.executable, "-m", "oneocean.cli", "evaluate", "--task", "G2G",
+                          "--tier", "1", "--policy", "seek:act", "--scene",
+                          str(tmp_path / "nope.json"), "--backend", "mujoco",
+                          "--out", str(tmp_path / "x.parquet")], cwd=tmp_path,
+                         capture_output=True, text=True, env=env)
+    assert bad.returncode == 2 and "scene file not found" in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "x.parquet").exists()

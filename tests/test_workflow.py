@@ -50,6 +50,39 @@ def test_paper_tables_produces_every_artifact(two_runs):
             assert (a / f"results/figures/{REGION}/{name}.{ext}").stat().st_size > 1000
 
 
+def test_scene_backend_stage(two_runs):
+    """Scenes built and listed, their cells run on MuJoCo (and on the core in the compare
+    scene, the same episodes), Fig. 8's media rendered, the scene tables written."""
+    a, _ = two_runs
+    sc = SMALL_CONFIG["scenes"]
+    v = "scene"
+    manifest = json.loads((a / f"results/manifest/{REGION}.json").read_text())["artifacts"]
+    for spec in sc["list"]:
+        base = f"results/scenes/{REGION}/{v}/{spec['name']}"
+        for f in ("scene.xml", "grid.npz", "scene.json"):
+            assert f"{base}/{f}" in manifest, f
+        assert manifest[f"{base}/scene.xml"]["rule"] == "scene_build"
+        media = f"results/figures/{REGION}/scenes/{v}/{spec['name']}"
+        for f in ("keyframe_0.png", "keyframe_1.png", "episode.gif"):
+            assert (a / media / f).stat().st_size > 1000 and f"{media}/{f}" in manifest
+    cells = {}
+    for backend in ("mujoco", "core"):
+        f = (a / f"results/scene_rollouts/{REGION}/{v}/open_water/{backend}/G2G/tier3/"
+             "heuristic.parquet")
+        meta = read_metrics_meta(f)
+        assert meta["backend"] == backend and meta["scene"] == "open_water"
+        assert meta["scene_meta"]["clock"] == {"start_s": meta["scene_meta"]["clock"]["start_s"],
+                                               "rate": 1.0}
+        cells[backend] = pd.read_parquet(f)
+        assert len(cells[backend]) == sc["episodes"] or not meta["applicable"]
+    assert list(cells["core"]["candidate"]) == list(cells["mujoco"]["candidate"])
+    assert not (a / f"results/scene_rollouts/{REGION}/{v}/pier_harbor/core").exists()
+    for name in ("scene_backend", "scene_vs_core"):
+        assert "\\toprule" in (a / f"results/tables/{REGION}/{name}.tex").read_text()
+    md = (a / f"results/tables/{REGION}/scene_backend.md").read_text()
+    assert "PierHarbor*" in md and "OpenWater*" in md and "Core vs scene" in md
+
+
 def test_tables_state_the_numbers_of_their_cells(two_runs):
     """Table V's and the ablation table's numbers are the cells' own (Wilson rates)."""
     a, _ = two_runs

@@ -42,15 +42,22 @@ def _verify(args) -> int:
 
 
 def _evaluate(args) -> int:
-    from .errors import ConfigError
+    from .errors import OneOceanError
     from .evaluate import evaluate_to_file
 
     try:
-        entry = evaluate_to_file(args.policy, args.out, args.task, args.tier, args.grid,
+        scene = None
+        if args.scene is not None:
+            from .backends.mujoco.store import load_scene
+
+            scene = load_scene(args.scene)
+        entry = evaluate_to_file(args.policy, args.out, args.task, args.tier,
+                                 None if scene is not None else args.grid,
                                  name=args.name, episodes=args.episodes, seed=args.seed,
                                  dynamics=args.dynamics, n_agents=args.n_agents,
-                                 currents=not args.currents_off)
-    except ConfigError as exc:
+                                 currents=not args.currents_off, backend=args.backend,
+                                 scene=scene)
+    except OneOceanError as exc:
         print(f"oneocean evaluate: {exc}", file=sys.stderr)
         return 2
     import pandas as pd
@@ -101,6 +108,11 @@ def main(argv=None) -> int:
     p.add_argument("--dynamics", default="6dof")
     p.add_argument("--n-agents", type=int, default=None)
     p.add_argument("--currents-off", action="store_true", help="the currents-off ablation")
+    p.add_argument("--backend", choices=("core", "mujoco"), default="core",
+                   help="what moves the agents (mujoco needs --scene)")
+    p.add_argument("--scene", default=None,
+                   help="a scene's scene.json (results/scenes/<region>/<variant>/<scene>/): "
+                        "run in that scene (its grid and scene tiers; --grid is ignored)")
     p.set_defaults(func=_evaluate)
     p = sub.add_parser("ladder-readme", help="copy the workflow's ladder tables "
                        "(results/tables/<region>/ladder.md) into the README's ladder blocks")

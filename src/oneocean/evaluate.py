@@ -92,6 +92,12 @@ def evaluate_to_file(policy_spec: str, out_path, task: str, tier: int, grid_path
     policy = load_policy(policy_spec)
     name = name or policy_spec.split(":", 1)[1]
     df = evaluate(policy, task, tier, grid_path, name=name, **kw)
-    return write_metrics(df, out_path, meta={"dynamics": kw.get("dynamics", "6dof"),
-                                             "policy": policy_spec,
-                                             "tier_params": tier_params(task, int(tier))})
+    scene = kw.get("scene")
+    meta = {"dynamics": kw.get("dynamics", "6dof"), "policy": policy_spec,
+            "tier_params": tier_params(task, int(tier), scene is not None),
+            "backend": kw.get("backend", "core")}
+    if scene is not None:
+        from .tasks import scene_record
+
+        meta.update(scene=scene.name, scene_meta=scene_record(scene))
+    return write_metrics(df, out_path, meta=meta)

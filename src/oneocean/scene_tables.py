@@ -42,7 +42,7 @@ def load_scene_cells(cell_files) -> pd.DataFrame:
         df = pd.read_parquet(f)
         sm = meta.get("scene_meta") or {}
         rows.append({"scene": meta.get("scene", Path(f).parts[-5]),
-                     "label": sm.get("label", meta.get("scene", "")),
+                     "label": short_label(sm, meta.get("scene", "")),
                      "backend": meta.get("backend", "core"), "task": meta["task"],
                      "tier": int(meta["tier"]), "method": meta["method"],
                      "applicable": bool(meta.get("applicable", True)),
@@ -52,6 +52,19 @@ def load_scene_cells(cell_files) -> pd.DataFrame:
                      "n_waypoints": (meta.get("tier_params") or {}).get("n_waypoints"),
                      "file": str(f)})
     return pd.DataFrame(rows)
+
+
+#: Short names of the scene kinds in tables (the stand-ins of the paper's scenes).
+KIND_NAMES = {"dam": "Dam", "open_water": "OpenWater", "pier_harbor": "PierHarbor",
+              "simple_underwater": "SimpleUnderwater"}
+
+
+def short_label(scene_meta: dict, name: str) -> str:
+    """``"Dam*"``-style table label of a scene (``*``: a stand-in, said in the caption);
+    the scene's name is added when it differs from its kind."""
+    kind = scene_meta.get("kind", "")
+    base = KIND_NAMES.get(kind, name) + "*"
+    return base if name in ("", kind) else f"{base} ({name})"
 
 
 def _mean(x) -> float:
@@ -80,13 +93,16 @@ def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
                          "wp_pct": math.nan, "all_wp_pct": math.nan, "cte_m": math.nan,
                          "reason": c["reason"]})
             continue
-        nwp = float(c["n_waypoints"])
-        wp = ep["waypoints_reached"].to_numpy(dtype=float)
         sr, lo, hi = rate_ci(c["success"])
+        if "waypoints_reached" in ep and c["n_waypoints"]:
+            nwp = float(c["n_waypoints"])
+            wp = ep["waypoints_reached"].to_numpy(dtype=float)
+            wp_pct, all_wp = 100.0 * _mean(wp / nwp), 100.0 * float(np.mean(wp >= nwp))
+        else:
+            wp_pct = all_wp = math.nan
         rows.append({"scene": scene, "label": c["label"], "tier": tier, "n": int(c["n"]),
-                     "sr": sr, "sr_lo": lo, "sr_hi": hi, "wp_pct": 100.0 * _mean(wp / nwp),
-                     "all_wp_pct": 100.0 * float(np.mean(wp >= nwp)),
-                     "cte_m": _mean(ep["cross_track_error_m"]), "reason": ""})
+                     "sr": sr, "sr_lo": lo, "sr_hi": hi, "wp_pct": wp_pct,
+                     "all_wp_pct": all_wp, "cte_m": _mean(ep["primary"]), "reason": ""})
     out = pd.DataFrame(rows)
     if out.empty:
         return out
@@ -101,10 +117,14 @@ def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
     return pd.concat([out, pd.DataFrame(means)], ignore_index=True)
 
 
-def table7_latex(df: pd.DataFrame, region: str, method: str, episodes: str) -> str:
+def table7_latex(df: pd.DataFrame, region: str, method: str, episodes: str,
+                 task: str = TABLE7_TASK) -> str:
+    from .registry import task_spec
+
     tiers = sorted(df["tier"].unique())
+    prim = "CTE (m)" if task == TABLE7_TASK else _escape(str(task_spec(task).metrics[0]))
     header = ["Scene"] + [f"T{k} {h}" for k in tiers for h in ("SR (\\%)", "WP (\\%)",
-                                                              "all WP (\\%)", "CTE (m)")]
+                                                              "all WP (\\%)", prim)]
     rows = []
     for scene in dict.fromkeys(df["scene"]):
         g = df[df["scene"] == scene]
@@ -121,8 +141,11 @@ def table7_latex(df: pd.DataFrame, region: str, method: str, episodes: str) -> s
         if scene == "mean":
             rows.append(("rule",))
         rows.append(r)
-    caption = (f"Scene backend (MuJoCo stand-ins for the paper's packaged scenes), route "
-               f"following with the {_escape(method)} method, region {_escape(region)} "
+    what = ("route following" if task == TABLE7_TASK else
+            f"{_escape(task_spec(task).label)} ({task}; no route-following cells: WP columns "
+            f"n/a, last column its primary metric)")
+    caption = (f"Scene backend (MuJoCo; *: stand-ins for the paper's packaged scenes), "
+               f"{what} with the {_escape(method)} method, region {_escape(region)} "
                f"({episodes}). SR: the task's own success rule, as on the core (every waypoint "
                f"in order, mean cross-track error within its bound, within the energy "
                f"allocation), with its Wilson 95\\% interval; WP: waypoints reached (\\% of the "
@@ -157,7 +180,7 @@ def compare_frame(cells: pd.DataFrame, scene: str) -> pd.DataFrame:
 def compare_latex(df: pd.DataFrame, region: str, scene: str, label: str, episodes: str) -> str:
     from .registry import task_spec
 
-    header = ["Task", "Tier", "Method", "Core SR (\\%)", "Scene SR (\\%)", "Core primary",
+    header = ["Task (primary metric)", "Tier", "Method", "Core SR (\\%)", "Scene SR (\\%)", "Core primary",
               "Scene primary", "Core contacts / rejections", "Scene contacts"]
     rows = []
     keys = list(dict.fromkeys(zip(df["task"], df["tier"], df["method"])))
@@ -173,11 +196,10 @@ def compare_latex(df: pd.DataFrame, region: str, scene: str, label: str, episode
         def val(c, k, fmt="{:.2f}"):
             return "--" if c is None or c["n"] == 0 else _fmt(c[k], fmt)
 
-        prim = task_spec(task).metrics[0].name
-        rows.append([task, f"T{tier}", _escape(method), sr(core), sr(mj),
+        prim = _escape(str(task_spec(task).metrics[0]))
+        rows.append([f"{task} ({prim})", f"T{tier}", _escape(method), sr(core), sr(mj),
                      val(core, "primary"), val(mj, "primary"), val(core, "violations", "{:.1f}"),
                      val(mj, "violations", "{:.1f}")])
-        del prim
     caption = (f"Core vs scene backend on the same scene ({_escape(label)}), region "
                f"{_escape(region)} ({episodes}): the same episodes (scenario and seed), the same "
                f"judge and metrics; only the physics differs (the core's rigid-body model with "
@@ -198,21 +220,28 @@ def write_scene_tables(cell_files, out_tex, out_compare, out_md, region: str,
     """Write Table VII, the core-vs-scene table and the markdown summary (atomically)."""
     cells = load_scene_cells(cell_files)
     eps = _episodes_text(cells)
-    t7 = table7_frame(cells, method)
-    write_text_atomic(out_tex, table7_latex(t7, region, method, eps) if not t7.empty else
-                      "% no route-following cells in the scene backend\n")
+    tasks = list(dict.fromkeys(cells["task"])) if len(cells) else []
+    task = TABLE7_TASK if TABLE7_TASK in tasks else (tasks[0] if tasks else TABLE7_TASK)
+    t7 = table7_frame(cells, method, task)
+    write_text_atomic(out_tex, table7_latex(t7, region, method, eps, task) if not t7.empty
+                      else "% no scene cells of the method\n")
     cmp_df = compare_frame(cells, compare)
     label = next(iter(cells.loc[cells["scene"] == compare, "label"]), compare)
     write_text_atomic(out_compare, compare_latex(cmp_df, region, compare, label, eps))
-    write_text_atomic(out_md, scene_markdown(cells, t7, cmp_df, region, compare, method, eps))
+    write_text_atomic(out_md, scene_markdown(cells, t7, cmp_df, region, compare, method, eps,
+                                             task))
 
 
-def scene_markdown(cells, t7, cmp_df, region, compare, method, eps) -> str:
+def scene_markdown(cells, t7, cmp_df, region, compare, method, eps,
+                   task: str = TABLE7_TASK) -> str:
     lines = [f"# Scene backend: {region}", "",
-             f"MuJoCo scenes (stand-ins for the paper's packaged scenes), {eps}. Success is "
-             "each task's own rule, the same as on the core.", "",
-             f"## Route following per scene ({method})", "",
-             "| Scene | Tier | SR % [95 % CI] | WP % | all WP % | CTE m |", "|---|---|---|---|---|---|"]
+             f"MuJoCo scenes (*: stand-ins for the paper's packaged scenes), {eps}. Success is "
+             "each task's own rule, the same as on the core; violations are contacts with the "
+             "seafloor or a structure and entries into the scene's boundary band (the core: "
+             "rejected moves).", "",
+             f"## {task} per scene ({method})", "",
+             "| Scene | Tier | SR % [95 % CI] | WP % | all WP % | "
+             + ("CTE m" if task == TABLE7_TASK else "primary") + " |", "|---|---|---|---|---|---|"]
     for _, r in t7.iterrows():
         sr = (_fmt(r["sr"]) if r["scene"] == "mean" else _ci(r["sr"], r["sr_lo"], r["sr_hi"]))
         lines.append(f"| {r['label']} | {r['tier']} | {sr} | {_fmt(r['wp_pct'])} | "
@@ -224,12 +253,25 @@ def scene_markdown(cells, t7, cmp_df, region, compare, method, eps) -> str:
         txt = (_ci(*rate_ci(c["success"])) if c["n"] else f"n/a ({c['reason']})")
         lines.append(f"| {c['label']} | {c['task']} | {c['tier']} | {c['method']} | {txt} | "
                      f"{c['n']} |")
-    lines += ["", f"## Core vs scene on {compare}", "",
-              "| Task | Tier | Method | Backend | SR % [95 % CI] | primary | T s | contacts |",
-              "|---|---|---|---|---|---|---|---|"]
-    for _, r in cmp_df.iterrows():
-        sr = _ci(r["sr"], r["sr_lo"], r["sr_hi"]) if r["n"] else "n/a"
-        lines.append(f"| {r['task']} | {r['tier']} | {r['method']} | {r['backend']} | {sr} | "
-                     f"{_fmt(r['primary'], '{:.2f}')} | {_fmt(r['T_s'], '{:.0f}')} | "
-                     f"{_fmt(r['violations'], '{:.1f}')} |")
+    lines += ["", f"## Core vs scene on {compare} (the same episodes)", "",
+              "| Task | Tier | Method | core SR % [95 % CI] | scene SR % [95 % CI] | core primary | "
+              "scene primary | core T s | scene T s | core violations | scene violations |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
+    keys = list(dict.fromkeys(zip(cmp_df["task"], cmp_df["tier"], cmp_df["method"])))
+    for t_, k_, m_ in keys:
+        g = cmp_df[(cmp_df["task"] == t_) & (cmp_df["tier"] == k_) & (cmp_df["method"] == m_)]
+        by = {b: g[g["backend"] == b].iloc[0] for b in ("core", "mujoco")
+              if (g["backend"] == b).any()}
+        row = []
+        for k, fmt in (("sr", None), ("primary", "{:.2f}"), ("T_s", "{:.0f}"),
+                       ("violations", "{:.1f}")):
+            for b in ("core", "mujoco"):
+                r = by.get(b)
+                if r is None or r["n"] == 0:
+                    row.append("n/a")
+                elif fmt is None:
+                    row.append(_ci(r["sr"], r["sr_lo"], r["sr_hi"]))
+                else:
+                    row.append(_fmt(r[k], fmt))
+        lines.append(f"| {t_} | {k_} | {m_} | " + " | ".join(row) + " |")
     return "\n".join(lines) + "\n"

@@ -77,8 +77,10 @@ def run(snakemake, func) -> None:
     outputs = dict(snakemake.output.items())
     prov = outputs.pop("prov")
     params = {k: _plain(v) for k, v in snakemake.params.items()}
+    files = [str(f) for o in outputs.values()
+             for f in (o if isinstance(o, (list, tuple)) else [o])]   # a named list of files
     write_job_provenance(prov, snakemake.rule, _plain(dict(snakemake.wildcards.items())),
-                         [str(o) for o in outputs.values()],
+                         files,
                          [str(i) for i in snakemake.input], params)
     with contextlib.suppress(Exception):
         log.info("wrote %s", ", ".join(map(str, outputs.values())))

@@ -491,6 +491,8 @@ def paper_inputs():
     figs.append(f"results/figures/{REGION}/scene/current_field.pdf")
     if "bc" in r["methods"] or "bc" in config["planning"]["methods"]:
         figs.append(f"results/figures/{REGION}/{r['variant']}/bc_training.pdf")
+    scene = ([f"results/tables/{REGION}/scene_backend.tex",
+              f"results/tables/{REGION}/scene_vs_core.tex"] if config["scenes"]["enabled"] else [])
     return PAPER_TABLES + [f"results/tables/{REGION}/planning_performance.tex",
-                           f"results/tables/{REGION}/planning_cost.tex"] + figs
+                           f"results/tables/{REGION}/planning_cost.tex"] + scene + figs
 

@@ -92,7 +92,8 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise DataError(f"render_media: offscreen rendering unavailable under MUJOCO_GL="
                         f"{os.environ.get('MUJOCO_GL')} ({msg}); MUJOCO_GL must be set (egl) "
-                        "before MuJoCo is first imported in the process") from None
+                        "before MuJoCo is first imported in the process; or switch the media "
+                        "off: config scenes.media.enabled: false") from None
     adr = [int(model.jnt_qposadr[model.joint(f"vehicle{k}_joint").id]) for k in range(N)]
     ok = np.all(np.isfinite(traj[..., :6]), axis=2)  # (T, N)
     pos = mjcf.core_to_mj(np.where(ok[..., None], traj[..., :3], 0.0))
