@@ -153,3 +153,29 @@ def test_cli_evaluate_in_a_scene(scenes, tmp_path):
                          capture_output=True, text=True, env=env)
     assert bad.returncode == 2 and "scene file not found" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "x.parquet").exists()
+
+
+def test_scene_media_falls_back_to_what_the_scene_hosts(scenes, tmp_path):
+    """Fig. 8's media of a scene: route following when the scene hosts it, else the next
+    task or tier it hosts, else the scene alone: never a crash."""
+    from oneocean.backends.mujoco.store import scene_media
+    from oneocean.errors import DataError
+
+    media = {"width": 96, "height": 72, "fps": 5}
+    frames = [tmp_path / "a" / f"keyframe_{k}.png" for k in range(2)] + [tmp_path / "a" / "e.gif"]
+    frames[0].parent.mkdir()
+    g = uniform_grid(*CURRENT, depth_m=40.0, nx=31, ny=31, dx_m=100.0)
+    small = build_scene({"name": "small", "kind": "open_water", "size_m": 160.0}, g,
+                        _temporal(g, *CURRENT))
+    try:
+        out = scene_media(small, ["RF", "SK"], [2, 3], 0, "6dof", frames, media)
+    except DataError as exc:   # no EGL on this machine
+        pytest.skip(str(exc))
+    assert (out["task"], out["tier"]) == ("SK", 3)   # RF's route does not fit in 80 m of water
+    assert all(f.stat().st_size > 500 for f in frames)
+    frames2 = [tmp_path / "b" / f"keyframe_{k}.png" for k in range(2)] + [tmp_path / "b" / "e.gif"]
+    frames2[0].parent.mkdir()
+    tiny = build_scene({"name": "tiny", "kind": "open_water", "size_m": 100.0, "margin_m": 45},
+                       g, _temporal(g, *CURRENT))
+    out = scene_media(tiny, ["RF"], [3], 0, "6dof", frames2, media)
+    assert (out["task"], out["tier"]) == (None, None) and frames2[-1].stat().st_size > 500

@@ -427,7 +427,7 @@ def test_tables_on_the_real_cells(tmp_path):
     # the workflow's table inputs: the data cells and the forcing ablations (not the
     # team-size sweep, whose cells differ only in N)
     files = sorted(f for f in glob.glob(str(REAL / "*/tier*/*.parquet"))
-                   if "_n" not in Path(f).name)
+                   if "_n" not in Path(f).name and "_seed" not in Path(f).name)
     cells = T.load_cell_frames(files)
 
     def cell(task, tier, method, off=False):

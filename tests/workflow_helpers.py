@@ -40,9 +40,9 @@ SMALL_CONFIG = {
     "scenes": {"tasks": ["G2G"], "tiers": [3], "methods": ["heuristic"], "episodes": 2,
                "compare": "open_water",
                "media": {"keyframes": 2, "width": 96, "height": 72, "fps": 5},
-               "list": [{"name": "open_water", "kind": "open_water", "size_m": 240,
+               "list": [{"name": "open_water", "kind": "open_water", "size_m": 360,
                          "resolution_m": 8},
-                        {"name": "pier_harbor", "kind": "pier_harbor", "size_m": 240,
+                        {"name": "pier_harbor", "kind": "pier_harbor", "size_m": 360,
                          "resolution_m": 8, "depth_m": 20}]},
 }
 

@@ -167,8 +167,8 @@ for _scene, _backend in scene_runs():
             "../scripts/scene_cells.py"
 
 
-# Fig. 8: keyframes and an animated GIF of episode 0 of the heuristic, the scenes' first task
-# at their last tier, rendered offscreen.
+# Fig. 8: keyframes and an animated GIF of episode 0 of the heuristic on route following at the
+# last scene tier (else the next task or tier the scene hosts), rendered offscreen.
 rule scene_media:
     conda:
         PY_ENV
@@ -182,8 +182,8 @@ rule scene_media:
     log:
         "logs/figures/{region}/scenes/{variant}/{scene}.log",
     params:
-        task="RF" if "RF" in SCENE_CFG["tasks"] else SCENE_CFG["tasks"][0],
-        tier=SCENE_CFG["tiers"][-1],
+        tasks=sorted(SCENE_CFG["tasks"], key=lambda t: t != "RF"),   # RF first
+        tiers=SCENE_CFG["tiers"],
         seed=config["rollouts"]["seed"],
         dynamics=config["rollouts"]["dynamics"],
         media=SCENE_CFG["media"],

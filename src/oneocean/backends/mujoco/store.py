@@ -66,12 +66,17 @@ def load_scene(meta_path):
         raise DataError(f"{meta_path}: scene file lacks {exc}") from None
 
 
-def scene_media(scene, task: str, tier: int, seed: int, dynamics: str, frames, media: Mapping,
+def scene_media(scene, tasks, tiers, seed: int, dynamics: str, frames, media: Mapping,
                 physics_step_s: float | None = None) -> dict:
-    """Fig. 8's media of one scene: episode 0 of ``seed`` of the heuristic on ``task`` at
-    ``tier`` in ``scene`` (the scene backend, every step's state traced), rendered offscreen
-    (:func:`.media.render_media`) into ``frames``: the keyframe PNGs ``<dir>/keyframe_<k>.png``
-    then the GIF, the paths the workflow names. ``media``: the config's ``scenes.media``."""
+    """Fig. 8's media of one scene: episode 0 of ``seed`` of the heuristic in ``scene`` (the
+    scene backend, every step's state traced), on the first (task, tier) of ``tasks`` x
+    ``tiers`` (in that order: each task, its tiers from the last) that the scene can host;
+    the scene alone when it hosts none. Rendered offscreen (:func:`.media.render_media`) into
+    ``frames``: the keyframe PNGs ``<dir>/keyframe_<k>.png`` then the GIF. ``media``: the
+    config's ``scenes.media``. Returns the renderer's record plus ``task`` and ``tier``
+    (None: the scene alone)."""
+    from ...engine.dynamics import STATE_DIM
+    from ...errors import NotApplicable
     from ...tasks import Cell
     from .media import render_media
 
@@ -81,10 +86,22 @@ def scene_media(scene, task: str, tier: int, seed: int, dynamics: str, frames, m
     if [p.name for p in pngs] != [f"keyframe_{k}.png" for k in range(len(pngs))]:
         raise ConfigError(f"scene_media: keyframe paths must be {stem}_<k>.png, got "
                           f"{', '.join(map(str, pngs))}")
-    cell = Cell(None, task, int(tier), backend="mujoco", scene=scene,
-                physics_step_s=physics_step_s)
-    init = cell.reset(1, int(seed))
-    ep = cell.episodes(init, "heuristic", dynamics, int(seed), trace=True).run()
-    traj = ep.traced()[: int(ep.k[0]) + 1, 0]
-    return render_media(scene, cell.vehicle, traj, stem, gif, keyframes=len(pngs),
-                        size=(int(media["width"]), int(media["height"])), fps=int(media["fps"]))
+    traj, vehicle, which = None, "remus100", (None, None)
+    for task in tasks:
+        for tier in sorted((int(k) for k in tiers), reverse=True):
+            try:
+                cell = Cell(None, task, tier, backend="mujoco", scene=scene,
+                            physics_step_s=physics_step_s)
+                init = cell.reset(1, int(seed))
+            except NotApplicable:
+                continue
+            ep = cell.episodes(init, "heuristic", dynamics, int(seed), trace=True).run()
+            traj, vehicle, which = ep.traced()[: int(ep.k[0]) + 1, 0], cell.vehicle, (task, tier)
+            break
+        if traj is not None:
+            break
+    if traj is None:   # the scene alone: no vehicle shown (non-finite rows hide it)
+        traj = np.full((2, 1, STATE_DIM), np.nan)
+    out = render_media(scene, vehicle, traj, stem, gif, keyframes=len(pngs),
+                       size=(int(media["width"]), int(media["height"])), fps=int(media["fps"]))
+    return {**out, "task": which[0], "tier": which[1]}
