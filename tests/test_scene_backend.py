@@ -179,3 +179,24 @@ def test_scene_media_falls_back_to_what_the_scene_hosts(scenes, tmp_path):
                        g, _temporal(g, *CURRENT))
     out = scene_media(tiny, ["RF"], [3], 0, "6dof", frames2, media)
     assert (out["task"], out["tier"]) == (None, None) and frames2[-1].stat().st_size > 500
+
+
+def test_ladder_cells_on_the_mujoco_backend_through_the_workflow(tmp_path):
+    """rollouts.backend: mujoco runs the ladder's cells in the scene rollouts.scene: a task
+    with scene tiers gives scene cells (recording backend and scene), one without them a
+    not-applicable cell; never a crash."""
+    import copy
+
+    from workflow_helpers import SMALL_CONFIG, run_workflow
+
+    cfg = copy.deepcopy(SMALL_CONFIG)
+    cfg["rollouts"].update(backend="mujoco", scene="open_water", methods=["heuristic"],
+                           tasks=["G2G", "SPC"], tiers=[1], episodes=2)
+    region, v = cfg["region"]["name"], cfg["rollouts"]["variant"]
+    want = [f"results/rollouts/{region}/{v}/{t}/tier1/heuristic.parquet" for t in ("G2G", "SPC")]
+    run_workflow(tmp_path, targets=want, config=cfg)
+    g2g, spc = (read_metrics_meta(tmp_path / w) for w in want)
+    assert g2g["backend"] == "mujoco" and g2g["scene"] == "open_water" and g2g["applicable"]
+    assert len(read_metrics(tmp_path / want[0])) == 2
+    assert g2g["tier_params"]["goal_distance_m"] == 150   # the scene tier
+    assert spc["applicable"] is False and "scene_tiers" in spc["reason"]

@@ -245,6 +245,9 @@ def _run(currents=True, forcing=None, n_agents=None, seed=None):
     r = config["rollouts"]
     run = {**{k: r[k] for k in ("episodes", "seed", "dynamics", "current_gain", "tide")},
            "currents": currents, "n_agents": n_agents}
+    if r["backend"] != "core":   # (the core's run records stay as they were)
+        run.update(backend=r["backend"], scene=r["scene"],
+                   physics_step_s=config["scenes"]["physics_step_s"])
     if seed is not None:
         run["seed"] = int(seed)
     fa = r["forcing_ablation"]
@@ -253,6 +256,14 @@ def _run(currents=True, forcing=None, n_agents=None, seed=None):
     elif forcing == "tide":
         run["tide"] = dict(fa["tide"])
     return run
+
+
+def ladder_scene(wc):
+    """The scene file the ladder's cells run in when rollouts.backend is mujoco, else none."""
+    r = config["rollouts"]
+    if r["backend"] != "mujoco":
+        return []
+    return [f"results/scenes/{wc.region}/{wc.variant}/{r['scene']}/scene.json"]
 
 
 def task_cells(learned):

@@ -40,6 +40,7 @@ if _BASE_CELLS:
             PY_ENV
         input:
             grid=rules.export_grid.output.npz,
+            scene=ladder_scene,
             kernel=rules.compile_kernel.output.record,
         output:
             parquet=_cell_files(_BASE_CELLS, "parquet"),
@@ -64,6 +65,7 @@ if _BC_CELLS:
         priority: 20
         input:
             grid=rules.export_grid.output.npz,
+            scene=ladder_scene,
             kernel=rules.compile_kernel.output.record,
             weights="results/bc/{region}/{variant}/weights.npz",
         output:
@@ -96,6 +98,7 @@ for _task in config["rollouts"]["tasks"]:
             PY_ENV
         input:
             grid=rules.export_grid.output.npz,
+            scene=ladder_scene,
             kernel=f"results/kernels/{{region}}/{{variant}}/{_task}.json",
         output:
             parquet=_ablation_files(_task, _cells, "parquet"),
@@ -117,6 +120,7 @@ rule rollout_team:
         PY_ENV
     input:
         grid=rules.export_grid.output.npz,
+        scene=ladder_scene,
         kernel=rules.compile_kernel.output.record,
     output:
         parquet=[f"results/rollouts/{{region}}/{{variant}}/{{task}}/tier{{tier}}/{{method}}_n{n}.parquet"
