@@ -200,3 +200,21 @@ def test_ladder_cells_on_the_mujoco_backend_through_the_workflow(tmp_path):
     assert len(read_metrics(tmp_path / want[0])) == 2
     assert g2g["tier_params"]["goal_distance_m"] == 150   # the scene tier
     assert spc["applicable"] is False and "scene_tiers" in spc["reason"]
+
+
+@pytest.mark.parametrize("task", ["RF", "G2G", "SK", "FT"])
+def test_scene_tiers_are_monotone_and_multiply_the_current(task):
+    """The scene tiers (each row over the core tier) are monotone T1 -> T3 in every tier key
+    in its declared direction, and the current multiplier grows: 1, 1.5, 2."""
+    from task_helpers import assert_tier_table_monotone
+
+    from oneocean.registry import scene_tasks
+    from oneocean.tasks.common import load_task_table, tier_params
+
+    assert task in scene_tasks()
+    table = load_task_table(task)
+    rows = {k: tier_params(task, k, scene=True) for k in (1, 2, 3)}
+    assert [rows[k].pop("current_gain") for k in (1, 2, 3)] == [1.0, 1.5, 2.0]
+    assert_tier_table_monotone({"tiers": rows, "harder": table["harder"]})
+    assert any(rows[1][k] != table["tiers"][1][k] for k in table["scene_tiers"][1]
+               if k != "current_gain")   # the scene scale differs from the core's
