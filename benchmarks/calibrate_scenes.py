@@ -30,7 +30,7 @@ EXPORTS = ROOT / "results" / "exports" / "synthetic_coast" / "scene"
 
 def main(argv=None) -> None:
     from oneocean.backends.mujoco.scenes import build_scene
-    from oneocean.backends.mujoco.store import _npz
+    from oneocean.io import read_npz
     from oneocean.tasks import Cell
     from oneocean.tasks.common import scene_tasks
 
@@ -44,7 +44,8 @@ def main(argv=None) -> None:
     a = ap.parse_args(argv)
     cfg = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["scenes"]
     seeds = calibration_seeds(a.tasks, a.seeds)
-    grid, temporal = _npz(EXPORTS / "grid.npz", "grid"), _npz(EXPORTS / "temporal.npz", "t")
+    grid = read_npz(EXPORTS / "grid.npz", "grid export")
+    temporal = read_npz(EXPORTS / "temporal.npz", "temporal export")
     rows = []
     t_all = time.time()
     with overrides(parse_sets(a.set)):

@@ -37,15 +37,15 @@ def _scene(name: str | None):
     import yaml
 
     from oneocean.backends.mujoco.scenes import build_scene
-    from oneocean.backends.mujoco.store import _npz
+    from oneocean.io import read_npz
 
     cfg = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["scenes"]["list"]
     spec = next(s for s in cfg if (s["name"] == name if name else s["kind"] == "open_water"))
     for f in ("grid.npz", "temporal.npz"):
         if not (EXPORTS / f).exists():
             sys.exit(f"{EXPORTS / f} not found: run `snakemake --cores 2 exports` first")
-    return build_scene(spec, _npz(EXPORTS / "grid.npz", "grid export"),
-                       _npz(EXPORTS / "temporal.npz", "temporal export"))
+    return build_scene(spec, read_npz(EXPORTS / "grid.npz", "grid export"),
+                       read_npz(EXPORTS / "temporal.npz", "temporal export"))
 
 
 def _time(cell, init, backend_kw, seed, repeat):

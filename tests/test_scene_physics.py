@@ -122,17 +122,22 @@ def test_remus_holds_heading_and_speed(scenes):
     assert np.abs(s[0, :, dyn.Y] - 10.0).max() < 1.0  # depth kept within 1 m over 40 s
 
 
+def _force_ratios(ph, s, cmd, cur, steps):
+    """Each step's largest |servo force| / limit, (steps, E, N, n_servo)."""
+    out = []
+    for _ in range(steps):
+        ph.step(s, cmd, cur)
+        out.append(ph.force_ratio.copy())
+    return np.array(out)
+
+
 def test_actuator_forces_stay_within_the_limits(scenes):
     ph = ScenePhysics(scenes["open_water"], "bluerov2_heavy", 1, 1)
     s, cmd, cur = _setup()
     cmd[..., dyn.C_AX] = 2.0  # beyond what the thrusters can hold: saturates surge
     cmd[..., dyn.C_THRUST] = 1.0
     ph.reset(s)
-    ratios = []
-    for _ in range(15):
-        ph.step(s, cmd, cur)
-        ratios.append(ph.force_ratio.copy())
-    ratios = np.array(ratios)
+    ratios = _force_ratios(ph, s, cmd, cur, 15)
     assert ratios.max() <= 1.0 + 1e-9
     assert ratios[..., 0].max() == pytest.approx(1.0)  # surge ran at its limit
     # REMUS turning: rudder moment limited to |N_uudr| u_r^2 delta_max every period
@@ -144,11 +149,7 @@ def test_actuator_forces_stay_within_the_limits(scenes):
     _run(ph, s, cmd, cur, 15)
     cmd[..., dyn.C_AZ] = 0.0
     cmd[..., dyn.C_AX] = 1.5  # turn east
-    ratios = []
-    for _ in range(20):
-        ph.step(s, cmd, cur)
-        ratios.append(ph.force_ratio.copy())
-    ratios = np.array(ratios)
+    ratios = _force_ratios(ph, s, cmd, cur, 20)
     assert ratios.max() <= 1.0 + 1e-9
     assert ratios[..., 2].max() == pytest.approx(1.0)  # the rudder saturated in the turn
     assert abs(s[0, 0, dyn.PSI] - math.pi / 2) < 0.1  # and the turn completed

@@ -108,6 +108,21 @@ def config_hash(obj) -> str:
 _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 
 
+def read_npz(path: str | os.PathLike, what: str) -> dict:
+    """Every array of an ``.npz`` file (no pickles), read into memory; a missing or unreadable
+    file is a one-line :class:`~oneocean.errors.DataError` naming it as ``what``."""
+    from .errors import DataError
+
+    path = Path(os.fspath(path))
+    if not path.is_file():
+        raise DataError(f"{path}: {what} not found")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except (OSError, ValueError) as exc:  # zip errors are ValueError subclasses / OSError
+        raise DataError(f"{path}: not a readable .npz {what} ({exc})") from exc
+
+
 def write_npz_atomic(path: str | os.PathLike, arrays: Mapping[str, np.ndarray]) -> None:
     """Write an ``.npz`` readable by :func:`numpy.load` whose bytes depend only on the arrays.
 

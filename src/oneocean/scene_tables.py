@@ -25,30 +25,28 @@ import numpy as np
 import pandas as pd
 
 from .io import write_text_atomic
-from .tables import _ci, _escape, _latex, rate_ci
+from .tables import _ci, _escape, _latex, _num, rate_ci
 
 #: The scene table's task (the paper's Table VII: route following).
 TABLE7_TASK = "RF"
 
 
 def load_scene_cells(cell_files) -> pd.DataFrame:
-    """One row per scene cell file: ``scene, label, backend, task, tier, method, applicable,
-    reason, n, success, episodes, n_waypoints, file``."""
-    from .engine.recording import read_metrics_meta
+    """One row per scene cell file (read by :func:`oneocean.ladder.read_cell`): ``scene,
+    label, backend, task, tier, method, applicable, reason, n, success, episodes,
+    n_waypoints, file``."""
+    from .ladder import read_cell
 
     rows = []
     for f in cell_files:
-        meta = read_metrics_meta(f)
-        df = pd.read_parquet(f)
-        sm = meta.get("scene_meta") or {}
+        df, c = read_cell(f)
+        meta = c["meta"]
         rows.append({"scene": meta.get("scene", Path(f).parts[-5]),
-                     "label": short_label(sm, meta.get("scene", "")),
-                     "backend": meta.get("backend", "core"), "task": meta["task"],
-                     "tier": int(meta["tier"]), "method": meta["method"],
-                     "applicable": bool(meta.get("applicable", True)),
-                     "reason": meta.get("reason", ""), "n": int(len(df)),
-                     "success": df["success"].to_numpy(dtype=bool) if len(df) else
-                     np.zeros(0, bool), "episodes": df,
+                     "label": short_label(meta.get("scene_meta") or {}, meta.get("scene", "")),
+                     "backend": meta.get("backend", "core"),
+                     **{k: c[k] for k in ("task", "tier", "method", "applicable", "reason")},
+                     "n": int(len(df)), "success": df["success"].to_numpy(dtype=bool),
+                     "episodes": df,
                      "n_waypoints": (meta.get("tier_params") or {}).get("n_waypoints"),
                      "file": str(f)})
     return pd.DataFrame(rows)
@@ -71,10 +69,6 @@ def _mean(x) -> float:
     x = np.asarray(x, dtype=float)
     x = x[np.isfinite(x)]
     return float(x.mean()) if x.size else math.nan
-
-
-def _fmt(v, fmt="{:.1f}") -> str:
-    return fmt.format(v) if v is not None and np.isfinite(v) else "--"
 
 
 def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
@@ -136,8 +130,10 @@ def table7_latex(df: pd.DataFrame, region: str, method: str, episodes: str,
                 r += ["n/a"] * 4
                 continue
             c = c.iloc[0]
-            sr = (_fmt(c["sr"]) if scene == "mean" else _ci(c["sr"], c["sr_lo"], c["sr_hi"]))
-            r += [sr, _fmt(c["wp_pct"]), _fmt(c["all_wp_pct"]), _fmt(c["cte_m"], "{:.2f}")]
+            sr = (_num(c["sr"], "{:.1f}") if scene == "mean"
+                  else _ci(c["sr"], c["sr_lo"], c["sr_hi"]))
+            r += [sr, _num(c["wp_pct"], "{:.1f}"), _num(c["all_wp_pct"], "{:.1f}"),
+                  _num(c["cte_m"], "{:.2f}")]
         if scene == "mean":
             rows.append(("rule",))
         rows.append(r)
@@ -194,7 +190,7 @@ def compare_latex(df: pd.DataFrame, region: str, scene: str, label: str, episode
             return "--" if c is None or c["n"] == 0 else _ci(c["sr"], c["sr_lo"], c["sr_hi"])
 
         def val(c, k, fmt="{:.2f}"):
-            return "--" if c is None or c["n"] == 0 else _fmt(c[k], fmt)
+            return "--" if c is None or c["n"] == 0 else _num(c[k], fmt)
 
         prim = _escape(str(task_spec(task).metrics[0]))
         rows.append([f"{task} ({prim})", f"T{tier}", _escape(method), sr(core), sr(mj),
@@ -243,9 +239,10 @@ def scene_markdown(cells, t7, cmp_df, region, compare, method, eps,
              "| Scene | Tier | SR % [95 % CI] | WP % | all WP % | "
              + ("CTE m" if task == TABLE7_TASK else "primary") + " |", "|---|---|---|---|---|---|"]
     for _, r in t7.iterrows():
-        sr = (_fmt(r["sr"]) if r["scene"] == "mean" else _ci(r["sr"], r["sr_lo"], r["sr_hi"]))
-        lines.append(f"| {r['label']} | {r['tier']} | {sr} | {_fmt(r['wp_pct'])} | "
-                     f"{_fmt(r['all_wp_pct'])} | {_fmt(r['cte_m'], '{:.2f}')} |")
+        sr = (_num(r["sr"], "{:.1f}") if r["scene"] == "mean"
+              else _ci(r["sr"], r["sr_lo"], r["sr_hi"]))
+        lines.append(f"| {r['label']} | {r['tier']} | {sr} | {_num(r['wp_pct'], '{:.1f}')} | "
+                     f"{_num(r['all_wp_pct'], '{:.1f}')} | {_num(r['cte_m'], '{:.2f}')} |")
     lines += ["", "## Success rate per scene, task, tier and method (MuJoCo)", "",
               "| Scene | Task | Tier | Method | SR % [95 % CI] | n |", "|---|---|---|---|---|---|"]
     mj = cells[cells["backend"] == "mujoco"]
@@ -272,6 +269,6 @@ def scene_markdown(cells, t7, cmp_df, region, compare, method, eps,
                 elif fmt is None:
                     row.append(_ci(r["sr"], r["sr_lo"], r["sr_hi"]))
                 else:
-                    row.append(_fmt(r[k], fmt))
+                    row.append(_num(r[k], fmt))
         lines.append(f"| {t_} | {k_} | {m_} | " + " | ".join(row) + " |")
     return "\n".join(lines) + "\n"

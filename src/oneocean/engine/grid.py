@@ -39,6 +39,7 @@ from typing import Mapping, NamedTuple
 import numpy as np
 
 from ..errors import ConfigError, DataError
+from ..io import read_npz
 from ._jit import hot_kernel
 
 #: Keys of the grid export, contracts §3 (order = documentation order).
@@ -196,14 +197,7 @@ def _cell_full(cmask: np.ndarray) -> np.ndarray:
 def _as_mapping(src) -> tuple[Mapping, str]:
     if isinstance(src, Mapping):
         return src, "grid export (in-memory)"
-    path = Path(os.fspath(src))
-    if not path.is_file():
-        raise DataError(f"{path}: grid export not found")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            return {k: z[k] for k in z.files}, str(path)
-    except (OSError, ValueError) as exc:  # zip errors are ValueError subclasses / OSError
-        raise DataError(f"{path}: not a readable .npz grid export ({exc})") from exc
+    return read_npz(src, "grid export"), str(Path(os.fspath(src)))
 
 
 def _parse_tide(tide) -> tuple[float, float, float]:

@@ -168,24 +168,21 @@ def _mat_to_quat(m: np.ndarray) -> np.ndarray:
     tr = m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]
     diag = np.stack([tr, m[:, 0, 0], m[:, 1, 1], m[:, 2, 2]], axis=1)
     k = np.argmax(diag, axis=1)
-    for idx in range(m.shape[0]):
-        a = m[idx]
-        if k[idx] == 0:
-            s = math.sqrt(max(1.0 + tr[idx], 0.0)) * 2.0
-            q[idx] = (0.25 * s, (a[2, 1] - a[1, 2]) / s, (a[0, 2] - a[2, 0]) / s,
-                      (a[1, 0] - a[0, 1]) / s)
-        elif k[idx] == 1:
-            s = math.sqrt(max(1.0 + a[0, 0] - a[1, 1] - a[2, 2], 0.0)) * 2.0
-            q[idx] = ((a[2, 1] - a[1, 2]) / s, 0.25 * s, (a[0, 1] + a[1, 0]) / s,
-                      (a[0, 2] + a[2, 0]) / s)
-        elif k[idx] == 2:
-            s = math.sqrt(max(1.0 - a[0, 0] + a[1, 1] - a[2, 2], 0.0)) * 2.0
-            q[idx] = ((a[0, 2] - a[2, 0]) / s, (a[0, 1] + a[1, 0]) / s, 0.25 * s,
-                      (a[1, 2] + a[2, 1]) / s)
-        else:
-            s = math.sqrt(max(1.0 - a[0, 0] - a[1, 1] + a[2, 2], 0.0)) * 2.0
-            q[idx] = ((a[1, 0] - a[0, 1]) / s, (a[0, 2] + a[2, 0]) / s,
-                      (a[1, 2] + a[2, 1]) / s, 0.25 * s)
+    a = m
+    # Shepperd's four formulas, each where its diagonal term is the largest (vectorised)
+    s = 2.0 * np.sqrt(np.maximum(np.stack([
+        1.0 + tr, 1.0 + a[:, 0, 0] - a[:, 1, 1] - a[:, 2, 2],
+        1.0 - a[:, 0, 0] + a[:, 1, 1] - a[:, 2, 2], 1.0 - a[:, 0, 0] - a[:, 1, 1] + a[:, 2, 2]],
+        axis=1)[np.arange(m.shape[0]), k], 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d21, d02, d10 = a[:, 2, 1] - a[:, 1, 2], a[:, 0, 2] - a[:, 2, 0], a[:, 1, 0] - a[:, 0, 1]
+        s01, s02, s12 = a[:, 0, 1] + a[:, 1, 0], a[:, 0, 2] + a[:, 2, 0], a[:, 1, 2] + a[:, 2, 1]
+        cand = np.stack([
+            np.stack([0.25 * s, d21 / s, d02 / s, d10 / s], axis=1),
+            np.stack([d21 / s, 0.25 * s, s01 / s, s02 / s], axis=1),
+            np.stack([d02 / s, s01 / s, 0.25 * s, s12 / s], axis=1),
+            np.stack([d10 / s, s02 / s, s12 / s, 0.25 * s], axis=1)], axis=1)
+    q[:] = cand[np.arange(m.shape[0]), k]
     q *= np.where(q[:, :1] < 0, -1.0, 1.0)
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     return q.reshape(shp + (4,))

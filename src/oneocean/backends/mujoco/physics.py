@@ -65,7 +65,7 @@ __all__ = ["ScenePhysics", "CONTACT"]
 
 #: Status code of a step during which the vehicle touched the seafloor or a structure (the
 #: move is kept: MuJoCo resolved the contact): :data:`oneocean.engine.status.CONTACT` (13).
-CONTACT = getattr(st, "CONTACT", 13)
+CONTACT = st.CONTACT
 
 _SIGN6 = np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])  # FRD <-> FLU per DOF
 

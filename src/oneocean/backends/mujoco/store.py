@@ -10,16 +10,7 @@ from typing import Mapping
 import numpy as np
 
 from ...errors import ConfigError, DataError
-
-
-def _npz(path, what: str) -> dict:
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            return {k: z[k] for k in z.files}
-    except FileNotFoundError:
-        raise DataError(f"{path}: {what} not found") from None
-    except (OSError, ValueError) as exc:
-        raise DataError(f"{path}: not a readable {what} ({exc.__class__.__name__})") from None
+from ...io import read_npz
 
 
 def build_scene_files(spec: Mapping, grid_path, temporal_path, meta_out) -> dict:
@@ -33,8 +24,8 @@ def build_scene_files(spec: Mapping, grid_path, temporal_path, meta_out) -> dict
     if spec.get("name") != out_dir.name:
         raise ConfigError(f"scenes.list: scene name {spec.get('name')!r} does not match its "
                           f"folder {out_dir.name!r}")
-    scene = build_scene(spec, _npz(grid_path, "grid export"),
-                        _npz(temporal_path, "temporal export"))
+    scene = build_scene(spec, read_npz(grid_path, "grid export"),
+                        read_npz(temporal_path, "temporal export"))
     return scene_files(scene, out_dir)
 
 
@@ -57,7 +48,7 @@ def load_scene(meta_path):
                                      kind=s["kind"]) for s in meta["structures"])
         clock = meta["clock"]
         return Scene(name=meta["name"], kind=meta["kind"], label=meta["label"],
-                     grid_data=_npz(meta_path.with_name("grid.npz"), "scene grid"),
+                     grid_data=read_npz(meta_path.with_name("grid.npz"), "scene grid"),
                      structures=structures, extent=tuple(meta["extent_m"]),
                      anchor=(meta["anchor"]["lat"], meta["anchor"]["lon"]),
                      currents=meta["currents"],
