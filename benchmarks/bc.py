@@ -125,7 +125,7 @@ def main(argv=None) -> int:
 
 def _rollouts(cfg, base, tier, episodes) -> None:
     from oneocean.engine import load_grid
-    from oneocean.methods.bc import load_weights
+    from oneocean.tasks.learned import load_weights
     from oneocean.tasks import Cell
 
     region, variant = cfg["region"]["name"], cfg["rollouts"]["variant"]

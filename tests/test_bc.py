@@ -9,9 +9,9 @@ import pytest
 import oneocean.engine as E
 from oneocean.errors import ConfigError
 from oneocean.io import sha256_file, write_npz_atomic
-from oneocean.methods.bc import load_weights
+from oneocean.tasks.learned import load_weights
 from oneocean.methods.bc.dataset import build_dataset, check_seeds, teacher_rows
-from oneocean.methods.bc.kernel import bc_act, feature_names, make_net
+from oneocean.tasks.learned import learned_act, feature_names, make_net
 from oneocean.methods.bc.train import features, train
 from oneocean.tasks import Cell
 from oneocean.tasks.common import ACT_FIELDS, OBS_FIELDS
@@ -122,7 +122,7 @@ def test_weights_file_round_trip(trained, tmp_path):
 
 
 def test_kernel_forward_equals_the_training_forward_pass(dataset, trained):
-    """The loop's ``bc_act`` on a recorded observation is bit for bit the prediction the
+    """The loop's ``learned_act`` on a recorded observation is bit for bit the prediction the
     training measured (same features, standardisation and forward pass), times v_max."""
     model, w, _ = trained
     tasks = ["G2G", "SK"]
@@ -132,11 +132,11 @@ def test_kernel_forward_equals_the_training_forward_pass(dataset, trained):
         row = dataset.iloc[r]
         net = make_net(w, row["task"], 1, 1)
         net.obs[0, 0, 0] = row[list(OBS_FIELDS)].to_numpy(np.float64)
-        out = np.array(bc_act(net, 0, 0, 2.0))
+        out = np.array(learned_act(net, 0, 0, 2.0))
         np.testing.assert_array_equal(out, 2.0 * pred[r])
 
 
-def test_in_loop_bc_actions_equal_the_forward_pass_of_the_saved_weights(grid, trained,
+def test_in_loop_learned_actions_equal_the_forward_pass_of_the_saved_weights(grid, trained,
                                                                          tmp_path):
     """Inside the fused loop, every recorded BC action is the Python-side forward pass of the
     weights file (read back) on the recorded observation, times v_max (to 1e-9; in fact

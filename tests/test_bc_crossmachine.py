@@ -12,7 +12,7 @@ compare the bytes with the host's:
 * the three at once (the oldest machine);
 * ``GLIBC_TUNABLES=glibc.cpu.hwcaps=-AVX2,-FMA,...``: glibc's libm uses its non-FMA variants
   (``log1p``, ``exp``, ``sin``, ... differ from the FMA ones in the last bit for some inputs;
-  the features use :func:`oneocean.methods.bc.kernel.log1p_pos`, plain arithmetic, instead).
+  the features use :func:`oneocean.tasks.learned.log1p_pos`, plain arithmetic, instead).
 
 Each environment's emulation is checked to be in effect (OpenBLAS reports the core it
 loaded, numba the target it compiles for, NumPy its dispatched features, ld.so the CPU
@@ -72,7 +72,7 @@ if train_file:
 else:
     from oneocean.methods.bc.train import train
 from oneocean.io import write_json_atomic, write_npz_atomic
-from oneocean.methods.bc.kernel import bc_act, make_net
+from oneocean.tasks.learned import learned_act, make_net
 from oneocean.tasks.common import OBS_FIELDS
 
 df = pd.read_parquet(dataset)
@@ -82,7 +82,7 @@ write_json_atomic(out + ".json", report)
 
 # the loop's BC forward pass (features, standardisation, network, times v_max) on every
 # row, with fixed weights (the parent's), so that only the forward pass can differ
-from oneocean.methods.bc import load_weights
+from oneocean.tasks.learned import load_weights
 fixed = load_weights(fixed_weights)
 obs = df[list(OBS_FIELDS)].to_numpy(np.float64)
 act = np.zeros((len(df), 3))
@@ -90,7 +90,7 @@ for task in [str(t) for t in fixed["tasks"]]:
     net = make_net(fixed, task, 1, 1)
     for r in np.flatnonzero(df["task"].to_numpy() == task):
         net.obs[0, 0, 0] = obs[r]
-        act[r] = bc_act(net, 0, 0, 1.5)
+        act[r] = learned_act(net, 0, 0, 1.5)
 np.save(out + "_act.npy", act)
 
 facts = {}
@@ -206,7 +206,7 @@ def _fixed_weights(dataset: Path, path: Path) -> None:
     """Random weights in the weights file's layout for the dataset's tasks (the forward
     pass's test input, the same for every environment)."""
     from oneocean.io import write_npz_atomic
-    from oneocean.methods.bc.kernel import feature_names
+    from oneocean.tasks.learned import feature_names
     from oneocean.methods.bc.train import features, task_order
 
     df = pd.read_parquet(dataset)
@@ -281,7 +281,7 @@ def test_training_gives_the_host_bytes(runs, name):
 
 @pytest.mark.parametrize("name", _cases())
 def test_bc_forward_pass_gives_the_host_actions(runs, name):
-    """:func:`~oneocean.methods.bc.kernel.bc_act` (features, standardisation, network) on
+    """:func:`~oneocean.tasks.learned.learned_act` (features, standardisation, network) on
     every dataset row with the same fixed weights: the same action bits as on the host."""
     host, r = runs["host"], runs[name]
     assert np.isfinite(host["act"]).all() and np.abs(host["act"]).max() > 0
@@ -292,7 +292,7 @@ LOOP_CHILD = r"""
 import sys
 import numpy as np
 import oneocean.engine as E
-from oneocean.methods.bc import load_weights
+from oneocean.tasks.learned import load_weights
 from oneocean.tasks import Cell
 from oneocean.testing import make_test_grid
 
@@ -303,14 +303,14 @@ np.save(sys.argv[2], act)
 """
 
 
-def test_in_loop_bc_actions_are_the_same_for_the_generic_cpu(tmp_path):
+def test_in_loop_learned_actions_are_the_same_for_the_generic_cpu(tmp_path):
     """A small BC rollout (G2G, two episodes, fixed weights) inside the fused loop: the
     recorded actions have the same bits when numba compiles for the baseline x86-64 (a fresh
     cache: the G2G kernel is compiled again, ~20 s) as here."""
     import oneocean.engine as E
     from oneocean.io import write_npz_atomic
-    from oneocean.methods.bc import load_weights
-    from oneocean.methods.bc.kernel import feature_names
+    from oneocean.tasks.learned import load_weights
+    from oneocean.tasks.learned import feature_names
     from oneocean.tasks import Cell
     from oneocean.testing import make_test_grid
 

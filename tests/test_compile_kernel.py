@@ -17,7 +17,8 @@ def test_compile_kernel_covers_every_cell_of_the_task(tmp_path):
     write_npz_atomic(grid, make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")}   # cold cache
     compile_code = textwrap.dedent(f"""
-        from oneocean.tasks import compile_kernel, g2g
+        from oneocean.kernels import g2g
+        from oneocean.tasks import compile_kernel
         compile_kernel({str(grid)!r}, {str(tmp_path / "G2G.json")!r}, "G2G", [1, 2, 3], "6dof")
         print(sum(g2g._kernel.stats.cache_misses.values()))
     """)
@@ -30,7 +31,8 @@ def test_compile_kernel_covers_every_cell_of_the_task(tmp_path):
 
     cells_code = textwrap.dedent(f"""
         from oneocean.engine import load_grid
-        from oneocean.tasks import run_cell, g2g
+        from oneocean.kernels import g2g
+        from oneocean.tasks import run_cell
         g = load_grid({str(grid)!r})
         for tier in (1, 2, 3):
             for method in ("heuristic", "oracle"):

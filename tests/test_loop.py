@@ -100,7 +100,8 @@ def test_task_kernel_loads_from_the_cache_in_a_new_process(coast):
     code = textwrap.dedent("""
         from oneocean import engine as E
         from oneocean.testing import make_test_grid
-        from oneocean.tasks import run_cell, g2g
+        from oneocean.kernels import g2g
+        from oneocean.tasks import run_cell
         g = E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
         run_cell(g, "G2G", 1, "heuristic", episodes=2, seed=0)
         print(sum(g2g._kernel.stats.cache_hits.values()),
@@ -120,7 +121,7 @@ def test_python_planner_between_segments_drives_the_fused_policy(coast):
     fused = _episodes(cell, "heuristic", n=3).run()
 
     def replay(ep):
-        pol = ep.mod.POLICY
+        pol = ep.kern.POLICY
         for e in range(ep.n_episodes):
             if not ep.done[e]:
                 k = int(ep.k[e])

@@ -1,4 +1,4 @@
-"""The route planner (oneocean.methods.routing) on hand-made fields: the straight line in a
+"""The route planner (oneocean.tasks.routing) on hand-made fields: the straight line in a
 uniform current, a jet across and along the straight line, land, time-varying fields, the
 power model, the forecast mapping, path following, and bit-for-bit determinism."""
 
@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from oneocean.methods import routing as R
+from oneocean.tasks import routing as R
 
 H = 50.0
 X0 = Z0 = -2000.0

@@ -11,6 +11,7 @@ import pytest
 
 from oneocean import engine as E
 from oneocean.errors import ConfigError
+from oneocean.methods.heuristic import ft as FT_POLICY
 from oneocean.tasks import ft, run_cell
 from oneocean.tasks.common import load_task_table, path_clear
 from oneocean.tasks.episodes import Episodes, rollout
@@ -91,13 +92,13 @@ def test_oracle_transits_in_formation():
     assert r["coll_ratio"][0] == 0.0 and r["violations"][0] == 0
     # the virtual centre runs at the method's v_nom (V_NOM_FRAC * its budget,
     # methods.heuristic.ft): 395 m in 395 / v_nom s
-    v_nom = ft.POLICY.params("oracle", TIER, E.load_vehicle()).v_nom
+    v_nom = FT_POLICY.params("oracle", TIER, E.load_vehicle()).v_nom
     assert 395.0 / v_nom - 2.0 <= r["T_s"][0] <= 395.0 / v_nom + 13.0
 
 
 def test_heuristic_in_calm_and_default_team(coast):
     _, r = _run(_grid(), TIER, "heuristic", n_agents=5, init=_line_init(5))
-    v_nom = ft.POLICY.params("heuristic", TIER, E.load_vehicle()).v_nom
+    v_nom = FT_POLICY.params("heuristic", TIER, E.load_vehicle()).v_nom
     assert r["success"][0] and 395 / v_nom - 2 < r["T_s"][0] < 395 / v_nom + 20
     _, r = _run(E.with_forcing(coast, current_gain=0.0), TIER, "heuristic", n_agents=10, n=3)
     assert r["success"].all()

@@ -15,7 +15,8 @@ from oneocean import engine as E
 from oneocean.engine import status as st
 from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError, NotApplicable
-from oneocean.methods.routing import power_model
+from oneocean.tasks.routing import power_model
+from oneocean.methods.heuristic import g2g as POLICY
 from oneocean.tasks import g2g, run_cell
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear, site_speed
 from oneocean.tasks.episodes import Episodes, rollout
@@ -264,7 +265,7 @@ def test_planner_beats_the_straight_line_crabber_on_a_jet(monkeypatch):
     ep = Episodes(g2g, grid, tier, init, "oracle", "6dof", veh, 0)
     assert np.max(np.abs(ep.W.wps[0, :ep.W.wcount[0], 1])) > 200.0
     # the straight line through the jet costs several times the plan's energy
-    monkeypatch.setattr(g2g.POLICY, "plan_episode", g2g.POLICY.straight_plan)
+    monkeypatch.setattr(POLICY, "plan_episode", POLICY.straight_plan)
     rs = rollout(g2g, grid, tier, init, "heuristic", "6dof", veh, 0)
     assert not rs["success"][0] and rs["energy_ratio"][0] >= 1.10
     assert rs["final_error_m"][0] > 1000.0      # still in the jet at the time limit

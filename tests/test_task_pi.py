@@ -53,6 +53,13 @@ def _still():
     return dataclasses.replace(veh, params=p)
 
 
+def _make(grid):
+    """The task's params and work arrays for the straight-pipeline episode, with the
+    heuristic's plan tokens (its survey)."""
+    init = _straight_init(grid)
+    return pi.make(grid, TIER, init, pi_policy.plan_tokens(grid, TIER, init))
+
+
 def _straight_init(grid, x0=-450.0, x1=450.0, z=0.0, leaks=(-150.0, 150.0), n_agents=1,
                    rate=0.01):
     """A hand-made episode: a straight west-east pipeline, leaks at the given x."""
@@ -229,13 +236,13 @@ def test_event_detector_on_a_hand_made_series(calm):
 
     r = plume(0.0) + plume(250.0)
     for est, want in ((pi_policy.PEAK, (30.0, 280.0)), (pi_policy.ONSET, (0.0, 250.0))):
-        _, W = pi.make(calm, TIER, _straight_init(calm))
+        _, W = _make(calm)
         _feed(W, x, r, 0.5, thr, est)
         n = W.nclaim[0]
         assert n == 2, est
         np.testing.assert_allclose(W.claims[0, :n, 0], want, atol=6.0)
         np.testing.assert_allclose(W.claims[0, :n, 1], 0.0)
-    _, W = pi.make(calm, TIER, _straight_init(calm))
+    _, W = _make(calm)
     _feed(W, x, 0.4 + 0.3 * np.sin(x / 7.0), 0.5, thr, pi_policy.PEAK)
     assert W.nclaim[0] == 0
 
@@ -286,14 +293,14 @@ def test_event_reopened_on_the_tail_of_a_plume_keeps_its_own_claim(calm):
     # leak at 0: peak 25 at 0, decays to a trough of 3 at 40 m; then a slow rise to a
     # second leak's peak 20 at 220 m (the event opens ~42 m from the first claim)
     r = np.interp(x, [-40.0, 0.0, 40.0, 220.0, 260.0, 500.0], [0.0, 25.0, 3.0, 20.0, 0.0, 0.0])
-    _, W = pi.make(calm, TIER, _straight_init(calm))
+    _, W = _make(calm)
     _feed(W, x, r, 0.0, thr, pi_policy.PEAK)
     n = W.nclaim[0]
     assert n == 2
     np.testing.assert_allclose(np.sort(W.claims[0, :n, 0]), [0.0, 220.0], atol=3.0)
     # one plume seen as two events (a dip in the readings): one claim, at the stronger peak
     r = np.interp(x, [-40.0, 0.0, 10.0, 20.0, 30.0, 70.0], [0.0, 12.0, 5.0, 14.0, 0.0, 0.0])
-    _, W = pi.make(calm, TIER, _straight_init(calm))
+    _, W = _make(calm)
     _feed(W, x, r, 0.0, thr, pi_policy.PEAK)
     assert W.nclaim[0] == 1
     assert W.claims[0, 0, 0] == pytest.approx(20.0, abs=2.0)
@@ -303,7 +310,7 @@ def test_event_reopened_on_the_tail_of_a_plume_keeps_its_own_claim(calm):
     for x_end, want in ((50.0, 0), (160.0, 1)):
         xs = x[x <= x_end]
         r = np.interp(xs, [-100.0, 0.0, 60.0, 120.0], [0.0, 0.0, 10.0, 0.0])
-        _, W = pi.make(calm, TIER, _straight_init(calm))
+        _, W = _make(calm)
         _feed(W, xs, r, 0.0, thr, pi_policy.ONSET)
         if W.ev_on[0, 0]:
             _end_section(W, xs[-1], 0.0)

@@ -14,9 +14,10 @@ import pytest
 from oneocean import engine as E
 from oneocean.engine.grid import with_forcing
 from oneocean.errors import ConfigError
+from oneocean.methods.heuristic import rf as POLICY
 from oneocean.tasks import rf, run_cell
 from oneocean.tasks.common import load_task_table, path_clear
-from oneocean.methods.routing import power_model
+from oneocean.tasks.routing import power_model
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
@@ -196,7 +197,7 @@ def test_speed_schedule_beats_the_constant_speed_crabber(monkeypatch):
     assert ro["success"][0] and ro["energy_ratio"][0] <= 1.0
     ep = Episodes(rf, g, tier, init, "oracle", "kinematic", VEHICLE, 0)
     assert np.all(ep.W.wspd[0, :ep.W.wcount[0] - 1] > 1.25)
-    monkeypatch.setattr(rf.POLICY, "plan_episode", rf.POLICY.straight_plan)
+    monkeypatch.setattr(POLICY, "plan_episode", POLICY.straight_plan)
     _, rs = _run(g, tier, "heuristic", init=init, info="truth")
     assert not rs["success"][0] and rs["energy_ratio"][0] >= 1.5
 

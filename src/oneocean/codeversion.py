@@ -2,9 +2,10 @@
 param: editing one of them reruns the job, editing anything else does not).
 
 A rollout cell of task ``T`` depends on the engine, the physical models, the sensor models and
-their table, the one episode loop and its driver, the learned controller the loop links (``methods/bc``), ``T``'s own task
-module and heuristic, ``T``'s tier table and the vehicle table -- not on the other tasks'
-modules or tables, so editing one task reruns only its cells.
+their table, the one episode loop and its driver, the learned controller the loop links
+(``tasks/learned.py``), the route planner (``tasks/routing.py``), ``T``'s own task module,
+heuristic and kernel module, ``T``'s tier table and the vehicle table -- not on the other
+tasks' modules or tables, so editing one task reruns only its cells.
 """
 
 from __future__ import annotations
@@ -17,9 +18,10 @@ from pathlib import Path
 _PKG = Path(__file__).resolve().parent
 
 #: Files and folders every rollout cell depends on (relative to the package).
-ROLLOUT_SHARED = ("engine", "models", "methods/bc", "methods/heuristic/__init__.py",
-                  "methods/routing.py", "sensing", "tasks/__init__.py", "tasks/common.py", "tasks/loop.py",
-                  "tasks/episodes.py", "data/vehicles.yaml", "data/sensors.yaml", "errors.py")
+ROLLOUT_SHARED = ("engine", "models", "methods/heuristic/__init__.py", "kernels/__init__.py",
+                  "sensing", "tasks/__init__.py", "tasks/common.py", "tasks/loop.py",
+                  "tasks/episodes.py", "tasks/learned.py", "tasks/routing.py",
+                  "data/vehicles.yaml", "data/sensors.yaml", "errors.py")
 
 
 def _files(entry: Path) -> list[Path]:
@@ -43,13 +45,14 @@ TASK_DEPENDS = {"RF": ("G2G",)}
 
 def task_files(task: str) -> list[Path]:
     """The files a rollout cell of ``task`` depends on (:data:`ROLLOUT_SHARED` plus the
-    task's module, its heuristic twin ``methods/heuristic/<module>.py`` if there is one, and
-    its tier table; and those of the tasks it imports, :data:`TASK_DEPENDS`)."""
+    task's module, its heuristic twin ``methods/heuristic/<module>.py`` and its kernel module
+    (:attr:`~oneocean.registry.TaskSpec.kernel_module`), and its tier table; and those of
+    the tasks it imports, :data:`TASK_DEPENDS`)."""
     from .registry import task_spec
 
     spec = task_spec(task)
     mod = module_file(spec.module)
-    own = [mod, Path(spec.table_path).resolve()]
+    own = [mod, module_file(spec.kernel_module), Path(spec.table_path).resolve()]
     twin = _PKG / "methods" / "heuristic" / mod.name
     if mod.parent == _PKG / "tasks" and twin.is_file():
         own.append(twin)

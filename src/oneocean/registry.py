@@ -72,6 +72,7 @@ class TaskSpec:
     dt_s: float
     table_path: str
     family_label: str = field(default="", compare=False)
+    kernel: str = ""
 
     def __post_init__(self):
         where = f"task spec {self.id!r}"
@@ -83,6 +84,8 @@ class TaskSpec:
                 raise ConfigError(f"{where}: '{name}' must be a non-empty string")
         if not isinstance(self.module, str) or not _MODULE.match(self.module):
             raise ConfigError(f"{where}: 'module' {self.module!r} is not a dotted module name")
+        if self.kernel and (not isinstance(self.kernel, str) or not _MODULE.match(self.kernel)):
+            raise ConfigError(f"{where}: 'kernel' {self.kernel!r} is not a dotted module name")
         metrics = tuple(self.metrics)
         if not metrics or not all(isinstance(m, str) and m for m in metrics):
             raise ConfigError(f"{where}: 'metrics' must be a non-empty list of names "
@@ -108,6 +111,12 @@ class TaskSpec:
         object.__setattr__(self, "table_path", str(self.table_path))
         if self.family_label:
             _check_family_label(self.family, self.family_label, where)
+
+    @property
+    def kernel_module(self) -> str:
+        """The module binding the task's compiled loop (``kernel``; default ``module``: a
+        plugin may define its kernel beside its hooks; :mod:`oneocean.kernels`)."""
+        return self.kernel or self.module
 
     @property
     def primary(self) -> str:
@@ -188,6 +197,7 @@ def load_task_spec(path: str | Path) -> TaskSpec:
           family: navigation            # a family id (families())
           family_label: ...             # optional, only for a new family
           module: oneocean.tasks.g2g
+          kernel: oneocean.kernels.g2g  # optional: the compiled loop (default: module)
           metrics:                      # primary first; better: higher | lower
             - {name: final_error_m, better: lower}
 
@@ -201,10 +211,11 @@ def load_task_spec(path: str | Path) -> TaskSpec:
     for key in ("id", "label", "family", "module", "metrics"):
         if key not in spec:
             raise ConfigError(f"{path}: missing key 'spec.{key}'")
-    unknown = sorted(set(spec) - {"id", "label", "family", "family_label", "module", "metrics"})
+    unknown = sorted(set(spec) - {"id", "label", "family", "family_label", "module", "kernel",
+                                  "metrics"})
     if unknown:
         raise ConfigError(f"{path}: unknown key 'spec.{unknown[0]}' (known keys: family, "
-                          "family_label, id, label, metrics, module)")
+                          "family_label, id, kernel, label, metrics, module)")
     for key in ("agents", "dt_s"):
         if key not in doc:
             raise ConfigError(f"{path}: missing key '{key}'")
@@ -228,7 +239,8 @@ def load_task_spec(path: str | Path) -> TaskSpec:
                         module=spec["module"], agents_default=agents["default"],
                         agents_range=tuple(agents["range"]), metrics=tuple(metrics),
                         higher_is_better=hib, dt_s=doc["dt_s"], table_path=str(path),
-                        family_label=spec.get("family_label") or "")
+                        family_label=spec.get("family_label") or "",
+                        kernel=spec.get("kernel") or "")
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{path}: {exc}") from None
 

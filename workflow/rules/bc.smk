@@ -54,7 +54,7 @@ rule bc_train:
         bc=lambda wc: {k: config["bc"][k] for k in ("hidden", "epochs", "batch_size",
                                                      "learning_rate", "alpha", "val_fraction",
                                                      "seed")},
-        code=code_version("oneocean.methods.bc"),
+        code=code_version("oneocean.methods.bc", "oneocean.tasks.learned"),
     threads: 1
     script:
         "../scripts/bc_train.py"

@@ -213,7 +213,7 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     current_gain, tide
         The run's forcing (:class:`Cell`): g on the data u, v and the synthetic tide term.
     net : dict
-        Method ``bc`` only: the trained network (:func:`oneocean.methods.bc.load_weights`).
+        Method ``bc`` only: the trained network (:func:`oneocean.tasks.learned.load_weights`).
     info : str
         What the method knows instead of its sensors (:data:`oneocean.sensing.INFO_LEVELS`;
         default: the method's own): the information ablations ``true_current`` and
@@ -350,7 +350,7 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
     net = None
     if weights is not None:
         from ..io import sha256_file
-        from ..methods.bc import load_weights
+        from .learned import load_weights
 
         net = load_weights(weights)
         meta["weights_sha256"] = sha256_file(weights)
@@ -362,8 +362,8 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
     if info is not None and info not in INFO_LEVELS:
         raise ConfigError(f"unknown information level {info!r}; valid: "
                           f"{', '.join(INFO_LEVELS)}")
-    if method == "bc" and net is None:
-        raise ConfigError(f"task {task}: method 'bc' needs its trained weights")
+    if method_spec(method).kind == "learned" and net is None:
+        raise ConfigError(f"task {task}: method {method!r} needs its trained weights")
     try:
         df = cell.run(method, episodes, seed, dynamics, net=net, info=info)
     except NotApplicable as exc:

@@ -42,11 +42,11 @@ Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.task
     ``ASParams`` / ``ASWork`` and ``make`` (the env's typed scalars and per-episode arrays:
     coverage map, counters, plan tokens); the env hooks ``begin``, ``cue``, ``after_agent``
     (altitude, footprint, coverage after every agent's move), ``post_step`` (success),
-    ``finish`` (``hot_kernel``, no allocation); ``POLICY`` (the fused heuristic/oracle
-    module, whose Python planner ``POLICY.prepare`` writes the plan tokens before the first
-    segment, :class:`~oneocean.tasks.episodes.Episodes` calls it); ``_kernel`` and
-    ``_observe_kernel`` (``njit(cache=True, nogil=True)``: the one loop over a block of
-    episodes, specialised to these hooks).
+    ``finish`` (``hot_kernel``, no allocation). The plan tokens hold
+    ``tokens["max_waypoints"]`` waypoints per agent (the policy's ``plan_tokens``); the
+    policy's Python planner ``prepare`` writes them before the first segment
+    (:class:`~oneocean.tasks.episodes.Episodes` calls it); the compiled loop is
+    :mod:`oneocean.kernels.as_`.
 
 Default team size: N = 1, as in the paper's Table V (so SRs are comparable); any N in
 [1, 10] runs, with the strips divided between agents.
@@ -58,15 +58,12 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from ..engine._jit import hot_kernel
 from ..engine.constraints import spawn_positions
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError, NotApplicable
-from ..methods.heuristic import as_ as POLICY
-from .common import STANDARD, episode_generators, fresh_cache, need_tier, start_times
-from .loop import noop_pre_step, observe_next, run_episode
+from .common import STANDARD, episode_generators, need_tier, need_tokens, start_times
 
 TASK_ID = "AS"
 METRICS = ("coverage_fraction", "footprint_loss_frac", "mean_altitude_m")
@@ -217,7 +214,7 @@ class ASWork(NamedTuple):
     cov: np.ndarray         # (E, max cells) uint8 coverage map (row-major, z rows)
     cnt: np.ndarray         # (E, 2) int64 covered cells, agent-steps above alt_max
     alt_sum: np.ndarray     # (E,) sum of altitudes over agent-steps, m
-    # plan tokens (the method's, written by POLICY.prepare; read by the cue)
+    # plan tokens (the method's, written by its prepare; read by the cue)
     wps: np.ndarray         # (E, N, n_max, 2) lawnmower waypoints (x, z) per agent, m
     wcount: np.ndarray      # (E, N) int64 waypoints of each agent
     widx: np.ndarray        # (E, N) int64 current waypoint of each agent
@@ -225,10 +222,12 @@ class ASWork(NamedTuple):
     planned: np.ndarray     # (E,) int64 1 once the plan tokens are written
 
 
-def make(grid, tier: dict, init: dict):
+def make(grid, tier: dict, init: dict, tokens: dict | None = None):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); the plan
-    tokens are sized for every method's plan and filled by ``POLICY.prepare``."""
+    tokens (the waypoints of every agent's plan, filled by the policy's ``prepare``) hold
+    ``tokens["max_waypoints"]`` per agent (the policy's ``plan_tokens``)."""
     need_tier(TASK_ID, tier, *_TIER_KEYS)
+    tokens = need_tokens(TASK_ID, tokens, "max_waypoints")
     region = np.ascontiguousarray(init["region"], dtype=np.float64)
     n_ep = region.shape[0]
     n_ag = init["pos0"].shape[1]
@@ -237,7 +236,7 @@ def make(grid, tier: dict, init: dict):
     ncell[:, 0] = np.maximum(1, np.round((region[:, 2] - region[:, 0]) / cell)).astype(np.int64)
     ncell[:, 1] = np.maximum(1, np.round((region[:, 3] - region[:, 1]) / cell)).astype(np.int64)
     n_cells = int((ncell[:, 0] * ncell[:, 1]).max()) if n_ep else 1
-    n_max = POLICY.max_waypoints(tier, region, n_ag)
+    n_max = int(tokens["max_waypoints"])
     P = ASParams(float(tier["max_altitude_m"]),
                  math.tan(math.radians(float(tier["half_angle_deg"]))), cell,
                  float(tier["coverage_threshold"]), float(tier["time_limit_s"]))
@@ -322,33 +321,3 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_LOSS] = W.cnt[e, 1] / (k * n_ag) if k > 0 else 0.0
     row[_C_ALT] = W.alt_sum[e] / (k * n_ag) if k > 0 else 0.0
     return covered >= P.thr * n_cells
-
-
-# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
-@hot_kernel
-def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
-    run_episode(begin, noop_pre_step, cue, after_agent, post_step, finish, POLICY.plan,
-                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
-                k_stop)
-
-
-@njit(cache=True, nogil=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
-
-
-@hot_kernel
-def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
-
-
-@njit(cache=True, nogil=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
-
-
-# numba keys a cache entry on this file only; drop it when the engine or the task layer
-# changes.
-fresh_cache(_kernel, __file__, POLICY.__file__)

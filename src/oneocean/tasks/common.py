@@ -541,22 +541,32 @@ def fresh_cache(kernel, module_file: str, *deps) -> bool:
 
     numba keys a cache entry on the kernel's own file only; a task kernel also inlines (or
     links) the engine, this module, the episode loop (``loop.py``), the sensor models
-    (``sensing/kernels.py``) and the learned controller it calls (``methods/bc/kernel.py``),
-    and ``deps`` (e.g. its policy module, a
-    model file), so the fingerprint covers exactly those: editing one task recompiles that
-    task alone.
+    (``sensing/kernels.py``) and the learned controller it calls (``learned.py``), and
+    ``deps`` (its task module, its policy module, a model file), so the fingerprint covers
+    exactly those: editing one task recompiles that task alone.
     """
     from ..engine._jit import ensure_fresh_cache
 
     here = Path(module_file).resolve()
     mine = Path(__file__).resolve()
-    learned = mine.parents[1] / "methods" / "bc" / "kernel.py"
+    learned = mine.with_name("learned.py")
     sensing = mine.parents[1] / "sensing" / "kernels.py"
     return ensure_fresh_cache(kernel, (here.stem + ".",), here, mine,
                               mine.with_name("loop.py"), learned, sensing,
                               *(Path(d).resolve() for d in deps))
 
 
+
+
+def need_tokens(task_id: str, tokens, *keys: str) -> dict:
+    """The plan tokens ``tokens`` (a dict from the fused policy's ``plan_tokens``), with a
+    one-line ConfigError naming the ``keys`` it lacks."""
+    tokens = dict(tokens or {})
+    missing = [k for k in keys if k not in tokens]
+    if missing:
+        raise ConfigError(f"task {task_id}: plan tokens missing: {', '.join(missing)} (the "
+                          "policy module's plan_tokens(grid, tier, init) gives them)")
+    return tokens
 
 
 def need_tier(task_id: str, tier: dict, *keys: str) -> None:

@@ -34,8 +34,8 @@ Methods
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset``; ``DPTParams`` / ``DPTWork`` and ``make``; the env
-    hooks ``begin``, ``cue``, ``post_step``, ``finish``; ``POLICY``; ``_kernel``
-    and ``_observe_kernel``.
+    hooks ``begin``, ``cue``, ``post_step``, ``finish``; the compiled loop is
+    :mod:`oneocean.kernels.dpt`.
 """
 
 from __future__ import annotations
@@ -44,15 +44,12 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
-from ..methods.heuristic import dpt as POLICY
-from .common import (MIN_ALTITUDE_M, STANDARD, episode_generators, fresh_cache, nav_waypoint,
-                     need_tier, profile_at, sample_route, start_times)
-from .loop import noop_after_agent, noop_pre_step, observe_next, run_episode
+from .common import (MIN_ALTITUDE_M, STANDARD, episode_generators, nav_waypoint, need_tier,
+                     profile_at, sample_route, start_times)
 
 TASK_ID = "DPT"
 METRICS = ("depth_error_m", "waypoints_reached", "max_depth_error_m", "cross_track_error_m")
@@ -179,33 +176,3 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_DMAX] = a[1]
     row[_C_XTE] = a[2] / kk
     return wp > W.route.shape[1] - 1 and rms <= P.depth_tol
-
-
-# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
-@hot_kernel
-def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
-    run_episode(begin, noop_pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
-                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
-                k_stop)
-
-
-@njit(cache=True, nogil=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
-
-
-@hot_kernel
-def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
-
-
-@njit(cache=True, nogil=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
-
-
-# numba keys a cache entry on this file only; drop it when the engine or the task layer
-# changes.
-fresh_cache(_kernel, __file__, POLICY.__file__)

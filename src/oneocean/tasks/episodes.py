@@ -23,6 +23,17 @@ from .common import (ACT_FIELDS, CLEARANCE_M, OBS_DIM, STANDARD, episode_steps, 
 from .loop import EXTERNAL, FUSED, FINISHED, LEARNED, LoopParams, new_loop_state
 
 
+def learned_method(method: str) -> bool:
+    """Whether ``method`` is registered with kind ``learned`` (a network the loop evaluates,
+    :mod:`oneocean.tasks.learned`); an unregistered name is not."""
+    from ..registry import method_spec
+
+    try:
+        return method_spec(method).kind == "learned"
+    except ConfigError:
+        return False
+
+
 def over_episodes(kernel, n_episodes: int, *args) -> None:
     """Run ``kernel(*args, e_lo, e_hi)`` over episodes ``0 .. n_episodes-1`` on
     ``numba.get_num_threads()`` threads, each a contiguous block of episodes.
@@ -54,8 +65,9 @@ class Episodes:
     Parameters
     ----------
     mod : module
-        The task module (``TASK_ID``, ``METRICS``, ``make``, ``POLICY``, ``_kernel``,
-        ``_observe_kernel``).
+        The task module (``TASK_ID``, ``METRICS``, ``make``); its compiled loop (``POLICY``,
+        ``_kernel``, ``_observe_kernel``) is its spec's kernel module
+        (:func:`oneocean.kernels.kernel_module`).
     grid : Grid
         Forcing applied (``run_cell`` sets the tier's gain or switches the current off).
     tier : dict
@@ -63,9 +75,10 @@ class Episodes:
     init : dict
         The task's ``reset`` output (``pos0`` (E, N, 3), ``psi0`` (E, N), ``t0`` (E,), ...).
     method : str
-        A fused method the task's policy module knows (``heuristic``, ``oracle``), ``bc``
-        (the heuristic's mission layer with the action from ``net``; the heuristic's
-        sensors), or ``None`` for external actions (the step API; the sensor models).
+        A fused method the task's policy module knows (``heuristic``, ``oracle``), a method
+        of kind ``learned`` such as ``bc`` (the heuristic's mission layer with the action
+        from the network ``net``; the heuristic's sensors), or ``None`` for external actions
+        (the step API; the sensor models).
     dyn : str
         Dynamics model name.
     vehicle : Vehicle
@@ -78,7 +91,8 @@ class Episodes:
         tokens in ``W`` are written by a Python planner between segments
         (:meth:`run_planned`), and the fused ``act`` follows them.
     net : dict
-        ``bc`` only: the network's arrays (:func:`oneocean.methods.bc.load_weights`).
+        A learned method only: the network's arrays
+        (:func:`oneocean.tasks.learned.load_weights`).
     info : str
         What the method knows instead of its sensors (:data:`oneocean.sensing.INFO_LEVELS`):
         default the method's own (``SENSING`` of its policy module: ``sensors``, or
@@ -92,17 +106,20 @@ class Episodes:
     def __init__(self, mod, grid, tier: dict, init: dict, method: str | None, dyn: str,
                  vehicle, seed: int, *, record: bool = False, fused_plan: bool = True,
                  net: dict | None = None, info: str | None = None):
-        from ..methods.bc.kernel import make_net, no_net
+        from ..kernels import kernel_module
+        from .learned import make_net, no_net
         from ..sensing import nav_aid, sensing_params
         from .common import load_task_table
         from ..sensing.kernels import init_sensing
 
         need_tier(mod.TASK_ID, tier, "time_limit_s", "dt_s")
-        pol = mod.POLICY
-        learned = method == "bc"
+        self.kern = kernel_module(mod.TASK_ID)
+        pol = self.kern.POLICY
+        learned = method is not None and learned_method(method)
         if learned:
             if net is None:
-                raise ConfigError(f"task {mod.TASK_ID}: method 'bc' needs its trained weights")
+                raise ConfigError(f"task {mod.TASK_ID}: method {method!r} needs its trained "
+                                  "weights")
             method = "heuristic"   # the mission layer it keeps (and its sensors)
         if method is not None and method not in pol.SENSING:
             raise ConfigError(f"task {mod.TASK_ID}: method {method!r} has no fused policy "
@@ -116,7 +133,12 @@ class Episodes:
         self.n_steps = episode_steps(tier)
         dt = float(tier["dt_s"])
         self.dt = dt
-        self.P, self.W = mod.make(grid, tier, init)
+        # the plan tokens the task carries for the policy (sized or filled by it)
+        plan_tokens = getattr(pol, "plan_tokens", None)
+        if plan_tokens is None:
+            self.P, self.W = mod.make(grid, tier, init)
+        else:
+            self.P, self.W = mod.make(grid, tier, init, plan_tokens(grid, tier, init))
         self.M = pol.params(method or "heuristic", tier, vehicle)
         if info is None:
             info = pol.SENSING[method] if method is not None else "sensors"
@@ -183,7 +205,7 @@ class Episodes:
     def run(self, k_stop: int | None = None) -> "Episodes":
         """Advance every running episode up to step ``k_stop`` (default: to its end)."""
         k_stop = self.n_steps if k_stop is None else int(k_stop)
-        over_episodes(self.mod._kernel, self.n_episodes, self.grid, self.vehicle.params,
+        over_episodes(self.kern._kernel, self.n_episodes, self.grid, self.vehicle.params,
                       self.LP, self.P, self.W, self.M, self.LS, self.t0, self.state, self.cmd,
                       self.ext, self.obs, self.act, self.res, k_stop)
         return self
@@ -216,7 +238,7 @@ class Episodes:
         finished episodes are not cleared: check :attr:`done`)."""
         nobs = np.full((self.n_episodes, 1, self.n_agents, OBS_DIM), np.nan)
         nact = np.zeros((self.n_episodes, 1, self.n_agents, len(ACT_FIELDS)))
-        over_episodes(self.mod._observe_kernel, self.n_episodes, self.grid, self.LP, self.P,
+        over_episodes(self.kern._observe_kernel, self.n_episodes, self.grid, self.LP, self.P,
                       self.W, self.LS, self.t0, self.state, nobs, nact)
         return nobs[:, 0]
 

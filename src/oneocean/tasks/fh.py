@@ -52,10 +52,10 @@ Methods (task logic; the environment above does not depend on it)
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset``; ``FHParams`` / ``FHWork`` and ``make``; the env hooks
-    ``begin``, ``pre_step`` (the fish step), ``cue``, ``post_step``, ``finish``; ``POLICY``;
-    ``_kernel`` and ``_observe_kernel``. ``_episode`` also derives the episode's fish-jitter
-    key (``W.fseed``) from the run seed and copies the seed and the sensing flags into
-    ``W.sinfo`` (the env and policy hooks do not see the loop's params).
+    ``begin``, ``pre_step`` (the fish step), ``cue``, ``post_step``, ``finish``; ``seed_episode``
+    (called by the compiled loop, :mod:`oneocean.kernels.fh`, before the episode: derives
+    the episode's fish-jitter key ``W.fseed`` from the run seed and copies the seed and the
+    sensing flags into ``W.sinfo``; the env and policy hooks do not see the loop's params).
 """
 
 from __future__ import annotations
@@ -71,15 +71,12 @@ from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility
 from ..engine.rng import PURPOSE_TASK, hash64, uniform01
 from ..errors import ConfigError, NotApplicable
-from ..methods.heuristic import fh as POLICY
-from ..models import fish as _fish
 from ..models.fish import (fish_params, fraction_inside_circle, init_school, school_centroid,
                            school_spread, step_school)
 from ..sensing import perception, perception_values
-from ..sensing.kernels import PURPOSE_PERCEPTION, polar_fix
-from .common import (PURPOSE_TASK_NOISE, STANDARD, current_at, episode_generators, fresh_cache,
-                     need_tier, path_clear, sample_route, start_times)
-from .loop import noop_after_agent, observe_next, run_episode
+from ..sensing.kernels import polar_fix
+from .common import (PURPOSE_TASK_NOISE, STANDARD, current_at, episode_generators, need_tier,
+                     path_clear, sample_route, start_times)
 
 TASK_ID = "FH"
 METRICS = ("containment_success", "final_centroid_distance_m", "fraction_inside",
@@ -478,37 +475,12 @@ def finish(grid, P, W, state, e, k, row):
     return success
 
 
-# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels);
-# the fish-jitter key, the sonar's draws and the method's information need the run seed and
-# the sensing flags, which only the loop's params carry
-@hot_kernel
-def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
+@hot_kernel(inline="always")
+def seed_episode(W, LP, e):
+    """Before the episode, from the loop's params (which only they carry): the fish-jitter
+    key of the episode and the run seed and sensing flags the sonar's draws and the method's
+    information need. The kernel calls it before the loop."""
     W.fseed[e] = hash64(LP.seed, e, PURPOSE_TASK_NOISE, 0)
     W.sinfo[e, 0] = LP.seed
     W.sinfo[e, 1] = LP.sens.true_target
     W.sinfo[e, 2] = LP.sens.true_current
-    run_episode(begin, pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
-                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
-                k_stop)
-
-
-@njit(cache=True, nogil=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
-
-
-@hot_kernel
-def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
-
-
-@njit(cache=True, nogil=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
-
-
-# numba keys a cache entry on this file only; drop it when the engine, the task layer, the
-# method or the model changes.
-fresh_cache(_kernel, __file__, POLICY.__file__, _fish.__file__)

@@ -43,8 +43,8 @@ Methods
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``wedge_offsets`` and ``reset`` (Python: route, formation frame
     and start times per episode); ``FTParams`` / ``FTWork`` and ``make``; the env hooks
-    ``begin``, ``cue``, ``post_step``, ``finish``; ``POLICY``; ``_kernel`` and
-    ``_observe_kernel``.
+    ``begin``, ``cue``, ``post_step``, ``finish``; the compiled loop is
+    :mod:`oneocean.kernels.ft`.
 """
 
 from __future__ import annotations
@@ -53,15 +53,12 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, DEFAULT_R_COLL_M
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError, NotApplicable
-from ..methods.heuristic import ft as POLICY
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, fresh_cache,
-                     need_tier, path_clear, sample_route, start_times)
-from .loop import noop_after_agent, noop_pre_step, observe_next, run_episode
+from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, need_tier,
+                     path_clear, sample_route, start_times)
 
 TASK_ID = "FT"
 METRICS = ("formation_error_m", "max_slot_error_m", "final_centroid_error_m")
@@ -77,9 +74,10 @@ R_COLL_M = DEFAULT_R_COLL_M
 #: on (the team is released at rest in its slots and forms up on its first navigation fixes).
 SETTLE_S = 60.0
 
-#: Lead of the observation's slot cue along the virtual centre's motion, s: the inverse of
-#: the slot-tracking gain (``methods.heuristic.ft.KP``).
-CUE_LEAD_S = 1.0 / POLICY.KP
+#: Lead of the observation's slot cue along the virtual centre's motion, s: where the slot
+#: will be after this long at the centre's pace (a policy tracking the cue with gain
+#: 1 / CUE_LEAD_S, as the fused heuristic does, tracks the slot itself).
+CUE_LEAD_S = 10.0 / 3.0
 
 _C_FERR, _C_EMAX, _C_FINAL = (len(STANDARD) + i for i in range(len(METRICS)))
 
@@ -265,33 +263,3 @@ def finish(grid, P, W, state, e, k, row):
                               + (W.cen[e, 1] - W.goal[e, 1]) ** 2
                               + (W.cen[e, 2] - W.goal[e, 2]) ** 2)
     return W.won[e] == 1
-
-
-# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
-@hot_kernel
-def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
-    run_episode(begin, noop_pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
-                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
-                k_stop)
-
-
-@njit(cache=True, nogil=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
-
-
-@hot_kernel
-def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
-
-
-@njit(cache=True, nogil=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
-
-
-# numba keys a cache entry on this file only; drop it when the engine or the task layer
-# changes.
-fresh_cache(_kernel, __file__, POLICY.__file__)

@@ -14,7 +14,7 @@ Energy
     episode (``u_r`` its speed through the water; the power model of the task's vehicle,
     ``data/vehicles.yaml`` ``power:``). The allocation is ``(1 + energy_reserve) E_ref``:
     ``E_ref`` the least energy of the transit, planned by the task on the true field of the
-    rollout (:func:`oneocean.methods.routing.plan_mission`, the same planner every method
+    rollout (:func:`oneocean.tasks.routing.plan_mission`, the same planner every method
     has), ``energy_reserve`` the mission's reserve. Without ``energy_reserve`` there is no
     allocation.
 Success
@@ -38,9 +38,11 @@ Module layout (the template every task module follows; the contract is
     ``TASK_ID``, ``METRICS``; ``reset`` (Python: geometry and start times per episode from
     :func:`~oneocean.tasks.common.episode_generators`); ``Params`` / ``Work`` and ``make``
     (the env's typed scalars and per-episode arrays); the env hooks ``begin``, ``cue``,
-    ``post_step``, ``finish`` (``hot_kernel``, no allocation); ``POLICY`` (the task's fused
-    heuristic/oracle module); ``_kernel`` and ``_observe_kernel`` (``njit(cache=True,
-    nogil=True)``: the one loop over a block of episodes, specialised to these hooks).
+    ``post_step``, ``finish`` (``hot_kernel``, no allocation). A task module imports no
+    method: its compiled loop with the fused heuristic/oracle
+    (:mod:`oneocean.methods.heuristic.g2g`) is :mod:`oneocean.kernels.g2g`, and plan tokens
+    a policy sizes reach ``make`` as its ``tokens`` argument (the policy's
+    ``plan_tokens``).
 """
 
 from __future__ import annotations
@@ -48,19 +50,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from typing import NamedTuple
 
 from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..errors import ConfigError, NotApplicable
-from ..methods import routing
-from ..methods.heuristic import g2g as POLICY
+from . import routing
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, current_at,
-                     episode_seed_sequence, fresh_cache, need_tier, sample_route, site_speeds,
-                     start_times)
-from .loop import noop_after_agent, noop_pre_step, observe_next, run_episode
+                     episode_seed_sequence, need_tier, sample_route, site_speeds, start_times)
 
 TASK_ID = "G2G"
 METRICS = ("final_error_m", "min_error_m", "path_length_m", "energy_wh", "energy_ratio")
@@ -197,7 +195,7 @@ class G2GWork(NamedTuple):
                             #        energy used (J)
     budget: np.ndarray      # (E,) energy allocation, J (inf: none)
     eref: np.ndarray        # (E,) least energy of the transit (the task's plan), J
-    # plan tokens of the method (oneocean.methods.routing.follow_path), written by its
+    # plan tokens of the method (oneocean.tasks.routing.follow_path), written by its
     # prepare hook; the straight line at the cruise speed until then
     wps: np.ndarray         # (E, MAX_VERTICES, 2) route vertices (x, z), m
     wspd: np.ndarray        # (E, MAX_VERTICES) programmed speed of each segment, m s-1
@@ -315,33 +313,3 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_EWH] = a[3] / 3600.0
     row[_C_ERAT] = a[3] / W.eref[e]
     return a[0] <= P.radius and a[3] <= W.budget[e]
-
-
-# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
-@hot_kernel
-def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
-    run_episode(begin, noop_pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
-                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
-                k_stop)
-
-
-@njit(cache=True, nogil=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
-
-
-@hot_kernel
-def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
-
-
-@njit(cache=True, nogil=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
-
-
-# numba keys a cache entry on this file only; drop it when the engine or the task layer
-# changes.
-fresh_cache(_kernel, __file__, POLICY.__file__, routing.__file__)

@@ -41,8 +41,9 @@ a run that stopped there would report. Everything else (the world, the agents, t
 accumulators) runs to the horizon, and ``finish`` sees the final step.
 
 Hooks are plain ``@hot_kernel`` functions of the task module (the env) and of its method
-module (the policy). The task module passes them to :func:`run_episode` (``inline="always"``)
-from its own serial ``_episode`` (``hot_kernel``), which its kernel ``_kernel``
+module (the policy); neither imports the other. The task's kernel module
+(:mod:`oneocean.kernels`) passes them to :func:`run_episode` (``inline="always"``) from its
+serial ``_episode`` (``hot_kernel``), which its kernel ``_kernel``
 (``njit(cache=True, nogil=True)``) runs for a block of episodes ``[e_lo, e_hi)``;
 :func:`oneocean.tasks.episodes.over_episodes` runs the blocks on numba's thread count (no
 ``prange``: the parfor pass more than doubled every task kernel's compile time). ``_observe``
@@ -90,15 +91,16 @@ from ..engine.constraints import min_pairwise_distance
 from ..engine.dynamics import STATE_DIM, clip_action
 from ..engine._jit import hot_kernel
 from ..engine.step import advance_agent
-from ..methods.bc.kernel import BCNet, bc_act
+from .learned import LearnedNet, learned_act
 from ..sensing import SensingParams
 from ..sensing.kernels import current_estimate, nav_fill, nav_update
 from .common import OK, current_at, observe
 
 #: Policy kinds inside the loop: the task's fused policy (heuristic, oracle, ...), an
 #: external action per agent and step (``ext``; the step API and Python callables), or a
-#: learned controller (``bc``: the fused policy's mission layer -- its plan and target point --
-#: with the action replaced by the network's, :mod:`oneocean.methods.bc`).
+#: learned controller (a network, :mod:`oneocean.tasks.learned`, e.g. ``bc``: the fused
+#: policy's mission layer -- its plan and target point -- with the action replaced by the
+#: network's).
 FUSED, EXTERNAL, LEARNED = 0, 1, 2
 
 #: Columns every task writes first in its result row (then its metrics).
@@ -120,7 +122,7 @@ class LoopParams(NamedTuple):
     land_thr: float     # land-mask threshold of the feasibility check
     clearance: float    # seafloor clearance of the feasibility check, m
     r_coll: float       # near-collision radius, m
-    net: BCNet          # the learned controller (LEARNED; methods.bc.kernel.no_net otherwise)
+    net: LearnedNet     # the learned controller (LEARNED; learned.no_net otherwise)
     phase: int = 0      # FULL (the core backend), DECIDE or JUDGE (another backend's physics)
 
 
@@ -229,7 +231,7 @@ def decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext, obs, act_r
             gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
             observe(LP.net.obs, LP.net.act, e, 0, i, grid, X, state, gx, gy, gz, pe,
                     pn, pr, math.nan, math.nan, math.nan)
-            ax, ay, az = bc_act(LP.net, e, i, LP.v_max)
+            ax, ay, az = learned_act(LP.net, e, i, LP.v_max)
             psi = math.nan
     else:
         ax = ext[e, i, 0]

@@ -65,7 +65,8 @@ Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.task
     transport), ``cue`` (the agent's carrot and the reading before the move), ``after_agent``
     (the reading after the move, handed to the method), ``post_step`` (the report is final
     when every agent has finished its section), ``finish`` (the method's claims, scored by
-    :func:`match_claims`); ``POLICY``; ``_kernel`` and ``_observe_kernel``.
+    :func:`match_claims`); the survey plan is the policy's (``make``'s ``tokens``); the
+    compiled loop is :mod:`oneocean.kernels.pi`.
 """
 
 from __future__ import annotations
@@ -74,17 +75,14 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, spawn_positions
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError, NotApplicable
-from ..methods.heuristic import pi as POLICY
 from ..models import pollution as pol
-from .common import (STANDARD, current_at, episode_generators, fresh_cache, need_tier,
+from .common import (STANDARD, current_at, episode_generators, need_tier, need_tokens,
                      start_times)
-from .loop import observe_next, run_episode
 
 TASK_ID = "PI"
 METRICS = ("inspection_score", "localisation_error_m", "detection_rate", "false_claims")
@@ -426,10 +424,13 @@ class PIWork(NamedTuple):
     ev_claim: np.ndarray    # (E, N) int64 the claim the open event files into (-1: none yet)
 
 
-def make(grid, tier: dict, init: dict):
+def make(grid, tier: dict, init: dict, tokens: dict | None = None):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); the
-    survey waypoints are the method's plan (:func:`oneocean.methods.heuristic.pi.survey`)."""
+    plan tokens are the policy's (its ``plan_tokens``): every agent's survey waypoints
+    ``tokens["wps"]`` (E, N, V, 2) / ``tokens["wcount"]`` (E, N) and room for
+    ``tokens["max_events"]`` events per agent."""
     need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
+    tokens = need_tokens(TASK_ID, tokens, "wps", "wcount", "max_events")
     dt = float(tier["dt_s"])
     poly = np.asarray(init["poly"], dtype=np.float64)
     n_ep = poly.shape[0]
@@ -456,7 +457,8 @@ def make(grid, tier: dict, init: dict):
         leak_loc[e, :, 0] = dx * ax_[0] + dz * ax_[1]
         leak_loc[e, :, 1] = -dx * ax_[1] + dz * ax_[0]
         land[e] = _field_land(grid, frame[e], nx, nz, h)
-    wps, wcount = POLICY.survey(init)
+    wps = np.ascontiguousarray(tokens["wps"], dtype=np.float64)
+    wcount = np.ascontiguousarray(tokens["wcount"], dtype=np.int64)
     dtf = FIELD_EVERY * dt
     _, tracer = pol.field_params(pol.KIND_TRACER, 1)
     P = PIParams(n_leak, int(round(SPINUP_S / dtf)), max(1, int(round(FIELD_REFRESH_S / dtf))),
@@ -474,7 +476,7 @@ def make(grid, tier: dict, init: dict):
                np.zeros((n_ep, n_ag), dtype=np.int64),
                np.zeros((n_ep, n_ag), dtype=np.int64), ev_lvl, np.zeros((n_ep, n_ag, 4)),
                np.zeros((n_ep, n_ag), dtype=np.int64),
-               np.zeros((n_ep, n_ag, POLICY.MAX_EVENT, 4)),
+               np.zeros((n_ep, n_ag, int(tokens["max_events"]), 4)),
                np.full((n_ep, n_ag), -1, dtype=np.int64))
     return P, W
 
@@ -648,32 +650,3 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_DET] = n_det / n_leak
     row[_C_FALSE] = n_false
     return n_loc == n_leak and n_false == 0
-
-
-# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
-@hot_kernel
-def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
-    run_episode(begin, pre_step, cue, after_agent, post_step, finish, POLICY.plan, POLICY.act,
-                grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
-
-
-@njit(cache=True, nogil=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
-
-
-@hot_kernel
-def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
-
-
-@njit(cache=True, nogil=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
-
-
-# numba keys a cache entry on this file only; drop it when the engine, the task layer, the
-# policy or the plume model changes.
-fresh_cache(_kernel, __file__, POLICY.__file__, pol.__file__)

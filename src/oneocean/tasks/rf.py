@@ -12,7 +12,7 @@ Energy
     As in :mod:`oneocean.tasks.g2g`: the energy ``P(u_r) = hotel + k u_r^3`` integrated over
     the episode, the allocation ``(1 + energy_reserve) E_ref`` with ``E_ref`` the least
     energy of flying the route (the best speed schedule along it on the true field,
-    :func:`oneocean.methods.routing.plan_mission`).
+    :func:`oneocean.tasks.routing.plan_mission`).
 Success
     Every waypoint reached in order (within ``wp_radius_m``, judged on the true position)
     before ``time_limit_s``, within the allocation, AND a mean cross-track error at most
@@ -35,28 +35,24 @@ Methods
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset``; ``RFParams`` / ``RFWork`` and ``make``; the env hooks
-    ``begin``, ``cue``, ``post_step``, ``finish``; ``POLICY``; ``_kernel`` and
-    ``_observe_kernel``.
+    ``begin``, ``cue``, ``post_step``, ``finish``; the compiled loop is
+    :mod:`oneocean.kernels.rf`.
 """
 
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
-from ..methods import routing
-from ..methods.heuristic import rf as POLICY
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, fresh_cache, nav_waypoint,
-                     need_tier, sample_route, start_times)
+from . import routing
+from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, nav_waypoint, need_tier,
+                     sample_route, start_times)
 from .g2g import MAX_VERTICES, draw_in_band, energy_budgets, step_energy, task_power
-from .loop import noop_after_agent, noop_pre_step, observe_next, run_episode
 
 TASK_ID = "RF"
 METRICS = ("cross_track_error_m", "waypoints_reached", "max_cross_track_m", "energy_wh",
@@ -152,7 +148,7 @@ class RFWork(NamedTuple):
     acc: np.ndarray         # (E, 3) sum and max of the cross-track error (m), energy used (J)
     budget: np.ndarray      # (E,) energy allocation, J (inf: none)
     eref: np.ndarray        # (E,) least energy of the route (the task's schedule), J
-    # plan tokens of the method (oneocean.methods.routing.follow_path), written by its
+    # plan tokens of the method (oneocean.tasks.routing.follow_path), written by its
     # prepare hook; the legs at the cruise speed until then
     wps: np.ndarray         # (E, MAX_VERTICES, 2) vertices (x, z), m
     wspd: np.ndarray        # (E, MAX_VERTICES) programmed speed of each segment, m s-1
@@ -259,34 +255,3 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_EWH] = a[2] / 3600.0
     row[_C_ERAT] = a[2] / W.eref[e]
     return wp > W.route.shape[1] - 1 and xte <= P.xte_max and a[2] <= W.budget[e]
-
-
-# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
-@hot_kernel
-def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
-    run_episode(begin, noop_pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
-                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
-                k_stop)
-
-
-@njit(cache=True, nogil=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
-
-
-@hot_kernel
-def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
-
-
-@njit(cache=True, nogil=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
-
-
-# numba keys a cache entry on this file only; drop it when the engine or the task layer
-# changes.
-fresh_cache(_kernel, __file__, POLICY.__file__, routing.__file__,
-            Path(__file__).with_name("g2g.py"))

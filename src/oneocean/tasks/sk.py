@@ -53,8 +53,8 @@ Methods
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset``; ``SKParams`` / ``SKWork`` and ``make``; the env hooks
-    ``begin``, ``cue``, ``post_step``, ``finish``; ``POLICY``; ``_kernel`` and
-    ``_observe_kernel``.
+    ``begin``, ``cue``, ``post_step``, ``finish``; the compiled loop is
+    :mod:`oneocean.kernels.sk`.
 """
 
 from __future__ import annotations
@@ -63,7 +63,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, feasibility
 from ..engine.dynamics import PSI, wrap_angle
@@ -71,10 +70,9 @@ from ..engine._jit import hot_kernel
 from ..engine.grid import sample_currents
 from ..engine import status as st
 from ..errors import ConfigError, NotApplicable
-from ..methods.heuristic import sk as POLICY
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, fresh_cache,
-                     need_tier, sample_route, start_times)
-from .loop import GO, REACHED, noop_after_agent, noop_pre_step, observe_next, run_episode
+from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, need_tier,
+                     sample_route, start_times)
+from .loop import GO, REACHED
 
 TASK_ID = "SK"
 METRICS = ("rms_error_m", "hold_rms_m", "heading_rms_deg", "max_error_m", "hold_s",
@@ -274,33 +272,3 @@ def finish(grid, P, W, state, e, k, row):
         ss += W.ring[e, j]
     row[_C_FIN] = math.sqrt(ss / n) if n > 0 else math.nan
     return held
-
-
-# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
-@hot_kernel
-def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
-    run_episode(begin, noop_pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
-                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
-                k_stop)
-
-
-@njit(cache=True, nogil=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
-
-
-@hot_kernel
-def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
-
-
-@njit(cache=True, nogil=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
-
-
-# numba keys a cache entry on this file only; drop it when the engine or the task layer
-# changes.
-fresh_cache(_kernel, __file__, POLICY.__file__)

@@ -53,7 +53,8 @@ Module layout: as :mod:`oneocean.tasks.g2g` (``reset``; ``SPCParams`` / ``SPCWor
 ``make``: the per-episode field, land mask, face velocities, mass accumulators and the
 policy's plan tokens and map scratch with a leading episode axis; env hooks ``begin``,
 ``pre_step`` (face refresh), ``cue``, ``post_step`` (removal in agent order, field step,
-success reached), ``finish``; ``POLICY``; ``_kernel`` / ``_observe_kernel``).
+success reached), ``finish``; the map scratch is sized by the policy (``make``'s
+``tokens``); the compiled loop is :mod:`oneocean.kernels.spc`).
 """
 
 from __future__ import annotations
@@ -62,18 +63,16 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from ..engine import status as st
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, feasibility, spawn_positions
 from ..engine.grid import sample_current_data
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError, NotApplicable
-from ..methods.heuristic import spc as POLICY
 from ..models import pollution as pol
-from .common import (STANDARD, current_at, episode_generators, episode_steps, fresh_cache,
-                     need_tier, path_clear, start_times)
-from .loop import GO, REACHED, noop_after_agent, observe_next, run_episode
+from .common import (STANDARD, current_at, episode_generators, episode_steps, need_tier,
+                     need_tokens, path_clear, start_times)
+from .loop import GO, REACHED
 
 TASK_ID = "SPC"
 METRICS = ("cleanup_rate", "escaped_fraction", "remaining_fraction", "time_to_target_s")
@@ -283,14 +282,16 @@ class SPCWork(NamedTuple):
     done: np.ndarray    # (E, N) int64 agent assigned
 
 
-def make(grid, tier: dict, init: dict):
+def make(grid, tier: dict, init: dict, tokens: dict | None = None):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); the
-    field is a copy of ``init["C0"]`` (never modified)."""
+    field is a copy of ``init["C0"]`` (never modified); the policy's map scratch holds
+    ``tokens["map_blocks"]`` blocks (the policy's ``plan_tokens``)."""
     need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
+    tokens = need_tokens(TASK_ID, tokens, "map_blocks")
     C = np.ascontiguousarray(init["C0"], dtype=np.float64).copy()
     n_ep, _, nz, nx = C.shape
     n_ag = init["pos0"].shape[1]
-    nb = POLICY.n_blocks(nz, nx)
+    nb = int(tokens["map_blocks"])
     report = np.ascontiguousarray(init["report"], dtype=np.float64)
     P = SPCParams(float(tier["dt_s"]), episode_steps(tier), FIELD_H_M, SURFACE_Y_M,
                   float(tier["kappa_m2s"]), float(tier["removal_radius_m"]),
@@ -367,33 +368,3 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_REM] = pol.total_mass(W.C[e], P.h) / m0
     row[_C_TTT] = W.k_hit[e] * P.dt if success else P.n_steps * P.dt
     return success
-
-
-# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
-@hot_kernel
-def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
-    run_episode(begin, pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
-                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
-                k_stop)
-
-
-@njit(cache=True, nogil=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
-
-
-@hot_kernel
-def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
-
-
-@njit(cache=True, nogil=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
-
-
-# numba keys a cache entry on this file only; drop it when the engine, the task layer, the
-# policy or the pollution model changes.
-fresh_cache(_kernel, __file__, POLICY.__file__, pol.__file__)

@@ -68,7 +68,8 @@ Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.task
     on the method's estimate),
     ``after_agent`` (after the last agent's move: the object and the assembly move, so the
     near-collision count sees the carried agents), ``post_step`` (attach / detach, quorum time,
-    success), ``finish``; ``POLICY``; ``_kernel`` and ``_observe_kernel``.
+    success), ``finish``; the team's object estimate every method shares
+    (:func:`perceive`); the compiled loop is :mod:`oneocean.kernels.upl`.
 """
 
 from __future__ import annotations
@@ -77,19 +78,16 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from ..engine import status as st
 from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError, NotApplicable
-from ..methods.heuristic import upl as POLICY
 from ..sensing import perception, perception_values
 from ..sensing.kernels import PURPOSE_PERCEPTION, draw, polar_fix
-from .common import (OK, STANDARD, current_at, episode_generators, episode_steps, fresh_cache,
-                     need_tier, path_clear, start_times)
-from .loop import observe_next, run_episode
+from .common import (OK, STANDARD, current_at, episode_generators, episode_steps, need_tier,
+                     path_clear, start_times)
 
 TASK_ID = "UPL"
 METRICS = ("lift_success", "final_object_depth_m", "attach_time_s", "object_drift_m")
@@ -347,7 +345,7 @@ class UPLWork(NamedTuple):
     n_att: np.ndarray       # (E,) int attached agents at the start of the step
     t_att: np.ndarray       # (E,) first time the quorum was attached, s (-1: not yet)
     chart: np.ndarray       # (E, 3) the survey's charted object centre (mission data), m
-    # the object's perception (pre_step; the policy's ``prepare`` sets ``pcfg``)
+    # the object's perception (pre_step; perception_setup, from the policy's prepare, sets pcfg)
     pcfg: np.ndarray        # (2,) int: run seed, 1 = the method perceives the object exactly
     fix: np.ndarray         # (E, 5, 4) this step's sonar fix per agent: measured offset of
                             # the object's centre from the agent (x, y, z) m, 1 = valid
@@ -499,16 +497,96 @@ def _sonar_fixes(P, W, state, e, k):
         F[3] = 1.0
 
 
+# ------------------------------------------------------------------ the team's object estimate
+#: Horizontal navigation error per axis the object filter assumes for a fix's placement, m
+#: (the USBL-aided navigation's, docs/sensing.md: ~0.15 m RMS per axis).
+NAV_STD_M = 0.15
+#: Acceleration noise of the object filter's constant-velocity model, m s-1.5: resting or
+#: sinking, and lifted by the quorum.
+QA_REST = 0.02
+QA_LIFT = 0.2
+
+def perception_setup(W, LP) -> None:
+    """What the method perceives of the object (``W.pcfg``): the run seed of the sonar's
+    error stream and whether it perceives the object exactly (``LP.sens.true_target``: the
+    oracle and the ``true_target`` ablation). Called before the first step (a policy's
+    ``prepare``)."""
+    if LP is not None:
+        W.pcfg[0] = int(LP.seed)
+        W.pcfg[1] = int(LP.sens.true_target != 0)
+
+
+@hot_kernel(inline="always")
+def _filter(P, W, state, e):
+    """Predict the object's estimate over the step, then update it with every valid sonar
+    fix (sequential scalar Kalman updates per axis)."""
+    n = state.shape[1]
+    dt = P.dt
+    qa = QA_LIFT if W.n_att[e] >= P.quorum else QA_REST
+    q2 = qa * qa
+    O = W.oest[e]
+    C = W.ocov[e]
+    for c in range(3):
+        a = C[c, 0]
+        b = C[c, 1]
+        d = C[c, 2]
+        O[c] += O[3 + c] * dt
+        C[c, 0] = a + 2.0 * dt * b + dt * dt * d + q2 * dt * dt * dt / 3.0
+        C[c, 1] = b + dt * d + 0.5 * q2 * dt * dt
+        C[c, 2] = d + q2 * dt
+    for i in range(n):
+        F = W.fix[e, i]
+        if F[3] == 0.0:
+            continue
+        W.odet[e] = 1
+        r2 = F[0] * F[0] + F[1] * F[1] + F[2] * F[2]
+        rv = (P.p_range_std * P.p_range_std + P.p_centre_std * P.p_centre_std
+              + r2 * P.p_bearing_std * P.p_bearing_std)
+        for c in range(3):
+            v = rv + (NAV_STD_M * NAV_STD_M if c != 1 else 0.0)   # depth is measured
+            a = C[c, 0]
+            b = C[c, 1]
+            d = C[c, 2]
+            s = a + v
+            kp_ = a / s
+            kv_ = b / s
+            y = state[e, i, c] + F[c] - O[c]
+            O[c] += kp_ * y
+            O[3 + c] += kv_ * y
+            C[c, 0] = a - kp_ * a
+            C[c, 1] = b - kp_ * b
+            C[c, 2] = d - kv_ * b
+
+
+@hot_kernel(inline="always")
+def perceive(P, W, state, e):
+    """Fuse the latest sonar fixes into the object's estimate, once per set of fixes
+    (``W.fixk`` / ``W.kf``): exact for a method that perceives the object exactly
+    (``W.pcfg[1]``, :func:`perception_setup`), else :func:`_filter` with the fixes placed
+    at the agents' known positions ``state``. Called by the observation cue and by the fused
+    policy's ``plan``, so a method acting through the step API gets the same estimate (one
+    step later)."""
+    if W.kf[e] == W.fixk[e]:
+        return
+    W.kf[e] = W.fixk[e]
+    if W.pcfg[1] != 0:   # the object perceived exactly
+        for c in range(3):
+            W.oest[e, c] = W.obj[e, c]
+            W.oest[e, 3 + c] = W.vobj[e, c]
+        W.odet[e] = 1
+    else:
+        _filter(P, W, state, e)
+
+
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
     """The agent's slot as the method knows it (its object estimate ``W.oest``, which has
-    fused every sonar fix up to the last step: :func:`~oneocean.methods.heuristic.upl.
-    perceive`, so a policy acting through the step API perceives the object as the fused
-    heuristic does): its own when attached, else the method's target (the nearest slot when
-    no fused method assigns one). During the lift (the agent attached, the quorum held) the
+    fused every sonar fix up to the last step: :func:`perceive`, so a policy acting through
+    the step API perceives the object as the fused heuristic does): its own when attached,
+    else the method's target (the nearest slot when no fused method assigns one). During the lift (the agent attached, the quorum held) the
     cue is where the lift takes its slot, at the object's success depth: the vertical goal the
     heuristic flies at full speed (what a learner must see to start the lift)."""
-    POLICY.perceive(P, W, state, e)
+    perceive(P, W, state, e)
     off = W.slot_off[e]
     ox = W.oest[e, 0]
     oy = W.oest[e, 1]
@@ -665,33 +743,3 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_DRIFT] = math.sqrt((W.obj[e, 0] - W.site[e, 0]) ** 2
                               + (W.obj[e, 2] - W.site[e, 2]) ** 2)
     return success
-
-
-# the one loop specialised to this task's hooks (see oneocean.tasks.loop for why two levels)
-@hot_kernel
-def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
-    run_episode(begin, pre_step, cue, after_agent, post_step, finish, POLICY.plan,
-                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
-                k_stop)
-
-
-@njit(cache=True, nogil=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
-
-
-@hot_kernel
-def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
-
-
-@njit(cache=True, nogil=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
-
-
-# numba keys a cache entry on this file only; drop it when the engine or the task layer
-# changes.
-fresh_cache(_kernel, __file__, POLICY.__file__)

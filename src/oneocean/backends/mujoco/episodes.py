@@ -54,7 +54,7 @@ class SteppedEpisodes(Episodes):
         self.trace = [self.state.copy()] if trace else None
 
     def _call(self, LP, k_stop: int) -> None:
-        self.mod._kernel(self.grid, self.vehicle.params, LP, self.P, self.W, self.M, self.LS,
+        self.kern._kernel(self.grid, self.vehicle.params, LP, self.P, self.W, self.M, self.LS,
                          self.t0, self.state, self.cmd, self.ext, self.obs, self.act, self.res,
                          int(k_stop), 0, self.n_episodes)
 

@@ -48,7 +48,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from .kernel import dense_layer
+from ...tasks.learned import dense_layer
 
 BETA1 = 0.9
 BETA2 = 0.999
@@ -272,7 +272,7 @@ _CHUNK = 256
 
 
 class MLP:
-    """A relu MLP with an identity output as padded arrays, :class:`.kernel.BCNet`'s layout:
+    """A relu MLP with an identity output as padded arrays, :class:`oneocean.tasks.learned.LearnedNet`'s layout:
     ``w[l, :dims[l], :dims[l+1]]`` and ``b[l, :dims[l+1]]`` are layer ``l``'s weights (input,
     output) and biases."""
 

@@ -30,7 +30,7 @@ import pandas as pd
 
 from ...errors import ConfigError
 from ...tasks.common import ACT_FIELDS, OBS_FIELDS
-from .kernel import N_BASE, feature_names, features_rows
+from ...tasks.learned import N_BASE, feature_names, features_rows
 
 
 def task_order(tasks) -> list[str]:
@@ -85,7 +85,7 @@ def train(df: pd.DataFrame, *, hidden=(64, 64), epochs: int = 40, batch_size: in
         what the loop computes (:func:`.kernel.forward`, the same operations in the same
         order).
     weights : dict of arrays
-        :func:`oneocean.methods.bc.load_weights`'s layout (``mu``, ``sd``, padded ``w``,
+        :func:`oneocean.tasks.learned.load_weights`'s layout (``mu``, ``sd``, padded ``w``,
         ``b``, ``dims``, ``tasks``, ``features``).
     report : dict
         JSON-able: settings, sizes, per-epoch ``train_mse`` / ``val_mse``, ``best_epoch``,
@@ -139,7 +139,7 @@ def train(df: pd.DataFrame, *, hidden=(64, 64), epochs: int = 40, batch_size: in
 
 
 def export_weights(model, mu: np.ndarray, sd: np.ndarray, tasks: list[str]) -> dict:
-    """The network's layers as :class:`.kernel.BCNet`'s padded arrays, with the features'
+    """The network's layers as :class:`oneocean.tasks.learned.LearnedNet`'s padded arrays, with the features'
     standardisation and names."""
     return {"mu": np.asarray(mu, np.float64), "sd": np.asarray(sd, np.float64),
             "w": np.array(model.w, np.float64), "b": np.array(model.b, np.float64),

@@ -241,6 +241,12 @@ def margin_bound(tier: dict, region) -> float:
                              + SP.vel_noise ** 2 * max(float(tier["time_limit_s"]), 0.0))
 
 
+def plan_tokens(grid, tier: dict, init: dict) -> dict:
+    """The size of the plan the task carries for this policy (:func:`oneocean.tasks.as_.make`):
+    ``max_waypoints`` per agent (:func:`max_waypoints`)."""
+    return {"max_waypoints": max_waypoints(tier, init["region"], init["pos0"].shape[1])}
+
+
 def max_waypoints(tier: dict, region, n_agents: int) -> int:
     """Waypoints per agent that every method's plan fits in (either strip orientation, the
     navigation margins and a team's seams included), for the regions ``region`` (E, 4): the size of the
@@ -292,9 +298,9 @@ def known_currents(grid, box, depth: float, t0: float, duration: float, fc=None,
     """The currents (n_times, 2) at the centre of ``box`` at ``depth`` m over
     ``[t0, t0 + duration]`` as the method knows them before the episode: the true field, or
     given ``fc`` (``LoopState.fc``) episode ``e``'s forecast of it
-    (:func:`oneocean.methods.routing.forecast_field`)."""
+    (:func:`oneocean.tasks.routing.forecast_field`)."""
     from ...engine.grid import sample_currents
-    from ..routing import forecast_field
+    from ...tasks.routing import forecast_field
 
     x_lo, z_lo, x_hi, z_hi = box
     ts = float(t0) + np.linspace(0.0, float(duration), int(n_times))

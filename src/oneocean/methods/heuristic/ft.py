@@ -26,6 +26,7 @@ from typing import NamedTuple
 
 from ...engine._jit import hot_kernel
 from ...tasks.common import steer
+from ...tasks.ft import CUE_LEAD_S
 from . import SENSING  # noqa: F401
 
 #: Virtual-centre nominal speed as a fraction of the method's speed budget.
@@ -38,8 +39,10 @@ PACE_E1_M = 3.0
 #: leaves a lagging torpedo orbiting its slot on its turning circle (>= 5 m for the REMUS,
 #: beyond PACE_E0_M + PACE_E1_M), which would stop the centre for good.
 PACE_MIN_TORPEDO = 0.4
-#: Slot-tracking gain (s-1) and cap of the P part of the ground-velocity request (m s-1).
-KP = 0.3
+#: Slot-tracking gain (s-1): the inverse of the lead of the task's slot cue
+#: (:data:`oneocean.tasks.ft.CUE_LEAD_S`), so a policy that tracks the cue tracks the slot
+#: with this gain; and the cap of the P part of the ground-velocity request (m s-1).
+KP = 1.0 / CUE_LEAD_S
 P_CAP_MS = 0.6
 
 

@@ -3,7 +3,7 @@
 Plan (Python, :func:`prepare` before the episode's first step; the plan tokens are the work
 arrays ``W.wps``, ``W.wspd``, ``W.wcount``, ``W.widx`` of :mod:`oneocean.tasks.g2g`)
     The least-energy route and speed schedule from the start (as the method knows it) to the
-    goal through the current field over the episode (:func:`oneocean.methods.routing.
+    goal through the current field over the episode (:func:`oneocean.tasks.routing.
     plan_mission`: time-dependent Dijkstra over a lattice, string pulling, then the
     programmed speed of every stretch of at most ``PIECE_M`` m among the mission speeds
     ``SPEED_MIN .. v_max``, with the vehicle's power model ``data/vehicles.yaml`` ``power:``;
@@ -12,17 +12,17 @@ arrays ``W.wps``, ``W.wspd``, ``W.wcount``, ``W.widx`` of :mod:`oneocean.tasks.g
     ablation) plans on the truth, every other method on its FORECAST of it (the true field
     through the episode's forecast-error model ``LoopState.fc``, :mod:`oneocean.sensing`).
 Act (``act``, every step)
-    Line-of-sight following of the planned polyline (:func:`~oneocean.methods.routing.
+    Line-of-sight following of the planned polyline (:func:`~oneocean.tasks.routing.
     follow_path`: a carrot ``LOOKAHEAD_M`` ahead), crabbing with the current estimate
     (:func:`~oneocean.tasks.common.seek_max`: the cross-track current is cancelled first) at
     the stretch's programmed speed, raised when the sensed current needs it
-    (:func:`~oneocean.methods.routing.hold_speed`: cross-current headroom and a minimum
+    (:func:`~oneocean.tasks.routing.hold_speed`: cross-current headroom and a minimum
     ground speed, up to ``v_max``). The carrot is the observation's goal cue.
 
 Heuristic and oracle differ in information only (forecast vs true field for the plan, the
 sensor models vs the truth for steering and navigation): the same planner, steering and
 gains. :func:`straight_plan` is the plan of a vehicle that does not plan (the straight line
-at its cruise speed, :func:`~oneocean.methods.routing.cruise_speed`): the baseline the
+at its cruise speed, :func:`~oneocean.tasks.routing.cruise_speed`): the baseline the
 calibration compares against.
 """
 
@@ -37,8 +37,8 @@ from ...engine._jit import hot_kernel
 from ...errors import ConfigError
 from ...tasks.common import ARRIVE_M, seek_max
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python)
-from .. import routing
-from ..routing import follow_path, hold_speed
+from ...tasks import routing
+from ...tasks.routing import follow_path, hold_speed
 from . import SENSING  # noqa: F401
 
 #: Proportional gain of the final approach (ground speed <= KP * distance to the carrot), s-1.
@@ -66,7 +66,7 @@ def params(method: str, tier: dict, vehicle) -> G2GPolicy:
 
 
 def vehicle_power(vehicle):
-    """The vehicle's :class:`~oneocean.methods.routing.PowerModel`, None if it has none."""
+    """The vehicle's :class:`~oneocean.tasks.routing.PowerModel`, None if it has none."""
     try:
         return routing.power_model(vehicle.name)
     except ConfigError:

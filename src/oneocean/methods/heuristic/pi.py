@@ -120,6 +120,14 @@ def params(method: str, tier: dict, vehicle) -> PIPolicy:
     return PIPolicy(float(vehicle.v_max), KP, ALT_M, LOOKAHEAD_M, ONSET)
 
 
+def plan_tokens(grid, tier: dict, init: dict) -> dict:
+    """The plan the task carries for this policy (:func:`oneocean.tasks.pi.make`): every
+    agent's survey waypoints ``wps`` / ``wcount`` (:func:`survey`) and room for
+    ``max_events`` (``MAX_EVENT``) events per agent."""
+    wps, wcount = survey(init)
+    return {"wps": wps, "wcount": wcount, "max_events": MAX_EVENT}
+
+
 def survey(init: dict):
     """The survey plan of every agent: its section of the pipeline polyline as waypoints,
     from ``OVERLAP_M`` before the section's start (but the first agent's) to its end.
@@ -131,7 +139,7 @@ def survey(init: dict):
     wcount : (E, N) int64
         Waypoints of each agent.
     """
-    from ...tasks.pi import sub_polyline  # the task's geometry (imports this module)
+    from ...tasks.pi import sub_polyline  # the task's geometry
 
     poly = np.asarray(init["poly"], dtype=np.float64)
     sections = init["sections"]

@@ -8,15 +8,15 @@ arrays ``W.wps``, ``W.wspd``, ``W.wcount``, ``W.widx`` of :mod:`oneocean.tasks.r
     The route's legs split into stretches of at most ``PIECE_M`` m, each with the programmed
     speed (among the mission speeds ``SPEED_MIN .. v_max``) that spends the least energy on
     it in the current the vehicle will meet there and then, keeping ``HOLD_MS`` of
-    cross-current headroom (:func:`oneocean.methods.routing.plan_mission` with ``fixed``:
+    cross-current headroom (:func:`oneocean.tasks.routing.plan_mission` with ``fixed``:
     the power model of ``data/vehicles.yaml`` ``power:``). The field is what the method
     knows of the currents: the truth with the true current (the oracle; an information
     ablation), else its FORECAST of it (the episode's forecast-error model ``LoopState.fc``).
 Act (``act``, every step)
-    Line-of-sight following of the route (:func:`~oneocean.methods.routing.follow_path`: a
+    Line-of-sight following of the route (:func:`~oneocean.tasks.routing.follow_path`: a
     carrot ``LOOKAHEAD_M`` ahead along the legs), crabbing with the current estimate
     (:func:`~oneocean.tasks.common.seek_max`) at the stretch's programmed speed, raised when
-    the sensed current needs it (:func:`~oneocean.methods.routing.hold_speed`).
+    the sensed current needs it (:func:`~oneocean.tasks.routing.hold_speed`).
 
 Heuristic and oracle differ in information only: the same planner, steering and gains.
 :func:`straight_plan` (the legs at the cruise speed) is the plan of a vehicle that does not
@@ -33,8 +33,8 @@ import numpy as np
 from ...engine._jit import hot_kernel
 from ...tasks.common import seek_max
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python)
-from .. import routing
-from ..routing import follow_path, hold_speed
+from ...tasks import routing
+from ...tasks.routing import follow_path, hold_speed
 from . import SENSING  # noqa: F401
 from .g2g import vehicle_power
 

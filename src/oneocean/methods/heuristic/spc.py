@@ -63,6 +63,13 @@ class SPCPolicy(NamedTuple):
     block: int          # aerial-map block size, cells
 
 
+def plan_tokens(grid, tier: dict, init: dict) -> dict:
+    """The size of the scratch the task carries for this policy
+    (:func:`oneocean.tasks.spc.make`): ``map_blocks``, the aerial map's blocks of the field."""
+    nz, nx = init["C0"].shape[2:]
+    return {"map_blocks": n_blocks(int(nz), int(nx))}
+
+
 def n_blocks(nz: int, nx: int) -> int:
     """Aerial-map blocks of an (nz, nx) field (the size of the map scratch in ``W``)."""
     return ((nx + BLOCK_CELLS - 1) // BLOCK_CELLS) * ((nz + BLOCK_CELLS - 1) // BLOCK_CELLS)

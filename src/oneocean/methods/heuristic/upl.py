@@ -1,17 +1,18 @@
 """UPL heuristic and oracle: the object as the team perceives it, greedy slot assignment,
 slot seeking (a search when the object is not where the chart says), then a held lift.
 
-Perception (``plan``, every step). The team keeps one estimate of the object's centre and
-velocity (``W.oest``, covariance ``W.ocov``): a constant-velocity Kalman filter per axis
-(process noise ``QA_REST`` while the object rests or sinks, ``QA_LIFT`` while the quorum
-lifts it), started at the site survey's chart (mission data: ``W.chart``, its stated error
-``P.survey_std`` horizontally) and updated with every sonar fix of every ROV (``W.fix``: the
-measured offset of the object from the ROV, :func:`oneocean.tasks.upl._sonar_fixes`) placed
-at the ROV's navigation estimate; the fix's variance is the sonar's range and angular noise
-at its range, the echo centre's offset and the USBL-aided navigation's error ``NAV_STD_M``
-(horizontal). A method
-that perceives the target exactly (the oracle; the ``true_target`` ablation) has the object's
-true centre and velocity instead. Slot targets are the estimate plus the slots' offsets
+Perception (``plan``, every step: the task's perception model,
+:func:`oneocean.tasks.upl.perceive`, which the observation cue uses too). The team keeps one
+estimate of the object's centre and velocity (``W.oest``, covariance ``W.ocov``): a
+constant-velocity Kalman filter per axis (process noise ``QA_REST`` while the object rests or
+sinks, ``QA_LIFT`` while the quorum lifts it), started at the site survey's chart (mission
+data: ``W.chart``, its stated error ``P.survey_std`` horizontally) and updated with every
+sonar fix of every ROV (``W.fix``: the measured offset of the object from the ROV,
+:func:`oneocean.tasks.upl._sonar_fixes`) placed at the ROV's navigation estimate; the fix's
+variance is the sonar's range and angular noise at its range, the echo centre's offset and
+the USBL-aided navigation's error ``NAV_STD_M`` (horizontal). A method that perceives the
+target exactly (the oracle; the ``true_target`` ablation) has the object's true centre and
+velocity instead. Slot targets are the estimate plus the slots' offsets
 (the object's drawing, mission data).
 
 Assignment (``plan`` at step 0): greedy nearest (agent, slot) pairs on the estimate; an agent
@@ -51,6 +52,7 @@ from ...engine._jit import hot_kernel
 from ...engine.dynamics import sincos
 from ...engine.grid import sample_elevation
 from ...tasks.common import seek_max
+from ...tasks.upl import perceive, perception_setup
 from . import SENSING  # noqa: F401
 
 #: Slot-tracking proportional gain, s-1.
@@ -58,13 +60,6 @@ KP = 0.6
 #: Hold (object over the site) proportional gain, s-1, and its speed cap, m s-1.
 KP_HOLD = 0.1
 HOLD_SPEED_MS = 0.5
-#: Horizontal navigation error per axis the object filter assumes for a fix's placement, m
-#: (the USBL-aided navigation's, docs/sensing.md: ~0.15 m RMS per axis).
-NAV_STD_M = 0.15
-#: Acceleration noise of the object filter's constant-velocity model, m s-1.5: resting or
-#: sinking, and lifted by the quorum.
-QA_REST = 0.02
-QA_LIFT = 0.2
 #: An agent within this horizontal distance of its charted slot with no fix starts the
 #: search, m.
 SEARCH_ARRIVE_M = 3.0
@@ -97,70 +92,7 @@ def prepare(grid, P, W, M: UPLPolicy, t0, LP=None, LS=None, X=None) -> None:
     """Before the first step: what the method perceives of the object (``W.pcfg``: the run
     seed of the sonar's error stream and whether the method perceives the object exactly,
     ``LP.sens.true_target``: the oracle and the ``true_target`` ablation)."""
-    if LP is not None:
-        W.pcfg[0] = int(LP.seed)
-        W.pcfg[1] = int(LP.sens.true_target != 0)
-
-
-@hot_kernel(inline="always")
-def _filter(P, W, state, e):
-    """Predict the object's estimate over the step, then update it with every valid sonar
-    fix (sequential scalar Kalman updates per axis)."""
-    n = state.shape[1]
-    dt = P.dt
-    qa = QA_LIFT if W.n_att[e] >= P.quorum else QA_REST
-    q2 = qa * qa
-    O = W.oest[e]
-    C = W.ocov[e]
-    for c in range(3):
-        a = C[c, 0]
-        b = C[c, 1]
-        d = C[c, 2]
-        O[c] += O[3 + c] * dt
-        C[c, 0] = a + 2.0 * dt * b + dt * dt * d + q2 * dt * dt * dt / 3.0
-        C[c, 1] = b + dt * d + 0.5 * q2 * dt * dt
-        C[c, 2] = d + q2 * dt
-    for i in range(n):
-        F = W.fix[e, i]
-        if F[3] == 0.0:
-            continue
-        W.odet[e] = 1
-        r2 = F[0] * F[0] + F[1] * F[1] + F[2] * F[2]
-        rv = (P.p_range_std * P.p_range_std + P.p_centre_std * P.p_centre_std
-              + r2 * P.p_bearing_std * P.p_bearing_std)
-        for c in range(3):
-            v = rv + (NAV_STD_M * NAV_STD_M if c != 1 else 0.0)   # depth is measured
-            a = C[c, 0]
-            b = C[c, 1]
-            d = C[c, 2]
-            s = a + v
-            kp_ = a / s
-            kv_ = b / s
-            y = state[e, i, c] + F[c] - O[c]
-            O[c] += kp_ * y
-            O[3 + c] += kv_ * y
-            C[c, 0] = a - kp_ * a
-            C[c, 1] = b - kp_ * b
-            C[c, 2] = d - kv_ * b
-
-
-@hot_kernel(inline="always")
-def perceive(P, W, state, e):
-    """Fuse the latest sonar fixes into the object's estimate, once per set of fixes
-    (``W.fixk`` / ``W.kf``): exact for a method that perceives the object exactly
-    (``W.pcfg[1]``), else :func:`_filter` with the fixes placed at the agents' known
-    positions ``state``. Called by ``plan`` and by the task's observation cue, so a method
-    acting through the step API gets the same estimate (one step later)."""
-    if W.kf[e] == W.fixk[e]:
-        return
-    W.kf[e] = W.fixk[e]
-    if W.pcfg[1] != 0:   # the object perceived exactly
-        for c in range(3):
-            W.oest[e, c] = W.obj[e, c]
-            W.oest[e, 3 + c] = W.vobj[e, c]
-        W.odet[e] = 1
-    else:
-        _filter(P, W, state, e)
+    perception_setup(W, LP)
 
 
 @hot_kernel(inline="always")

@@ -1,10 +1,14 @@
-"""Behaviour cloning inside the fused loop: the feature map and the MLP's forward pass.
+"""The loop's learned controller: a network over the standard observation features.
 
-Both are plain ``hot_kernel`` functions on arrays, used twice: by the episode loop
-(:func:`oneocean.tasks.loop.run_episode`, method kind ``LEARNED``) for every agent and step,
-and by :mod:`.dataset` / :mod:`.train` (through :func:`features_rows`) on the observations the
-teacher's rollouts recorded -- one implementation, so the features a network is trained on are
-the features it acts on.
+A method given as the weights of a feed-forward network (``method kind learned``: behaviour
+cloning, :mod:`oneocean.methods.bc`, trains one; any method that writes a weights file in
+this layout runs the same way) acts inside the fused loop through this module: the loop
+(:func:`oneocean.tasks.loop.run_episode`) keeps the method's mission layer (the goal cue
+its observation carries) and replaces the velocity law by the network's output, for every
+agent and step. Everything here is a plain ``hot_kernel`` function on arrays, used twice:
+by the loop, and by the training code (through :func:`features_rows`) on recorded
+observations -- one implementation, so the features a network is trained on are the
+features it acts on.
 
 Features (:data:`FEATURES`, from one observation row, :data:`oneocean.tasks.common.OBS_FIELDS`,
 plus the task one-hot). The paper's set -- normalised goal delta, depth, pollution probe, local
@@ -23,11 +27,12 @@ target point relative to the same navigation estimate.
   ``mate{m}_close = 1 / (1 + d)``; all 0 when there is no such teammate;
 * ``task_<ID>``: one-hot over the tasks the network was trained on.
 
-The network's target is the teacher's through-water velocity request divided by the
-vehicle's ``v_max`` (a REMUS 100 and a BlueROV2 share one network); the loop multiplies the
-output back by ``v_max``. Features are standardised with the training set's mean and
-standard deviation (:class:`BCNet` ``mu``, ``sd``), then ``relu`` hidden layers and an
-identity output, exactly scikit-learn's ``MLPRegressor`` (``activation="relu"``).
+The network's output is a through-water velocity request divided by the vehicle's ``v_max``
+(a REMUS 100 and a BlueROV2 share one network); the loop multiplies it back by ``v_max``.
+Features are standardised with the training set's mean and standard deviation
+(:class:`LearnedNet` ``mu``, ``sd``), then ``relu`` hidden layers and an identity output,
+exactly scikit-learn's ``MLPRegressor`` (``activation="relu"``). A weights file
+(:func:`load_weights`) holds :data:`WEIGHT_KEYS`.
 """
 
 from __future__ import annotations
@@ -37,8 +42,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ...engine._jit import hot_kernel
-from ...tasks.common import N_MATES, OBS_DIM
+from ..engine._jit import hot_kernel
+from .common import N_MATES, OBS_DIM
+
+#: Arrays of a weights file (:func:`load_weights`).
+WEIGHT_KEYS = ("mu", "sd", "w", "b", "dims", "tasks", "features")
 
 #: Feature names before the task one-hot (see the module docstring).
 BASE_FEATURES = (("goal_ux", "goal_uy", "goal_uz", "goal_log_dist", "current_e_ms",
@@ -53,7 +61,7 @@ def feature_names(tasks) -> tuple[str, ...]:
     return BASE_FEATURES + tuple(f"task_{t}" for t in tasks)
 
 
-class BCNet(NamedTuple):
+class LearnedNet(NamedTuple):
     """An MLP as arrays for the loop (``L`` layers, widths ``dims``), plus its scratch.
 
     ``w[l, :dims[l], :dims[l+1]]`` and ``b[l, :dims[l+1]]`` are layer ``l``'s weights and bias
@@ -72,25 +80,44 @@ class BCNet(NamedTuple):
     buf: np.ndarray     # (E, 2, width) activation scratch
 
 
-def no_net() -> BCNet:
-    """The placeholder the loop carries for every method that is not ``bc`` (same numba
+def load_weights(path) -> dict:
+    """The arrays of a weights file (``.npz`` holding :data:`WEIGHT_KEYS`, as
+    :func:`oneocean.methods.bc.train.write_weights` writes it); a missing or malformed file
+    is a one-line ``ConfigError`` naming it."""
+    from ..errors import ConfigError
+
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            out = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"{path}: not a network weights file ({exc.__class__.__name__}: "
+                          f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
+    missing = [k for k in WEIGHT_KEYS if k not in out]
+    if missing:
+        raise ConfigError(f"{path}: network weights file lacks {', '.join(missing)}")
+    return out
+
+
+def no_net() -> LearnedNet:
+    """The placeholder the loop carries for every method that is not a network (same numba
     type as a real network, so all methods share one compiled kernel)."""
-    return BCNet(np.zeros(1), np.ones(1), np.zeros((1, 1, 1)), np.zeros((1, 1)),
+    return LearnedNet(np.zeros(1), np.ones(1), np.zeros((1, 1, 1)), np.zeros((1, 1)),
                  np.zeros(2, np.int64), 0, 1, np.zeros((1, 1, 1, OBS_DIM)),
                  np.zeros((1, 1, 1, 3)), np.zeros((1, 2, 1)))
 
 
-def make_net(weights: dict, task: str, n_episodes: int, n_agents: int) -> BCNet:
-    """The loop's :class:`BCNet` for ``task`` from a weights file's arrays (:mod:`.train`:
-    ``mu``, ``sd``, ``w``, ``b``, ``dims``, ``tasks``). A task the network was not trained on
-    is a one-line ``ConfigError``."""
-    from ...errors import ConfigError
+def make_net(weights: dict, task: str, n_episodes: int, n_agents: int) -> LearnedNet:
+    """The loop's :class:`LearnedNet` for ``task`` from a weights file's arrays (``mu``,
+    ``sd``, ``w``, ``b``, ``dims``, ``tasks``: :func:`load_weights`). A task the network was
+    not trained on is a one-line ``ConfigError``."""
+    from ..errors import ConfigError
 
     tasks = [str(t) for t in weights["tasks"]]
     if task not in tasks:
-        raise ConfigError(f"bc: the network was trained on tasks {tasks}, not on {task!r}")
+        raise ConfigError(f"learned controller: the network was trained on tasks {tasks}, "
+                          f"not on {task!r}")
     width = int(weights["w"].shape[1])
-    return BCNet(np.ascontiguousarray(weights["mu"], dtype=np.float64),
+    return LearnedNet(np.ascontiguousarray(weights["mu"], dtype=np.float64),
                  np.ascontiguousarray(weights["sd"], dtype=np.float64),
                  np.ascontiguousarray(weights["w"], dtype=np.float64),
                  np.ascontiguousarray(weights["b"], dtype=np.float64),
@@ -180,7 +207,7 @@ def dense_layer(wl, bl, x, o, n_in, n_out, relu):
     non-zero input times its weight row, inputs in order (the inner loop runs over contiguous
     weights and independent outputs, so it vectorises without reordering any sum; the zeros
     relu leaves in the input are skipped). The in-loop forward pass and the training's
-    (:mod:`.fit`) both use it, so their outputs agree bit for bit."""
+    (:mod:`oneocean.methods.bc.fit`) both use it, so their outputs agree bit for bit."""
     for j in range(n_out):
         o[j] = bl[j]
     for q in range(n_in):
@@ -213,7 +240,7 @@ def forward(net, x, h):
 
 
 @hot_kernel
-def bc_act(net, e, i, v_max):
+def learned_act(net, e, i, v_max):
     """Agent ``i``'s action from its observation in ``net.obs[e, 0, i]`` (written by
     :func:`oneocean.tasks.common.observe`): features, standardisation, forward pass, times
     ``v_max``. World-frame through-water velocity request, m s-1."""

@@ -1,0 +1,36 @@
+"""Each task's compiled episode loop: where a task and its fused methods meet.
+
+A task module (:mod:`oneocean.tasks`) says what the world does -- its scenario, hooks,
+judge and accounting -- and a policy module (:mod:`oneocean.methods.heuristic`) says what
+the fused heuristic and oracle do; neither imports the other (a policy reads only the task's
+public view: its work arrays, cue and helpers). The module ``kernels/<task>.py`` binds the
+two: it passes the task's hooks and the policy's ``plan`` / ``act`` to the one loop
+(:func:`oneocean.tasks.loop.run_episode`) and exposes
+
+* ``TASK`` and ``POLICY``: the two modules it binds;
+* ``_kernel``: the loop over a block of episodes ``[e_lo, e_hi)``
+  (``njit(cache=True, nogil=True)``), which both backends run
+  (:class:`oneocean.tasks.episodes.Episodes` fused; the scene backend's
+  :class:`oneocean.backends.mujoco.episodes.SteppedEpisodes` in its decide and judge phases);
+* ``_observe_kernel``: the next observation of every agent (:func:`~oneocean.tasks.loop.
+  observe_next`), for the step API.
+
+These wrappers are all numba's on-disk cache needs: a kernel is cached only when the hooks
+reach the inlined loop as module globals (:mod:`oneocean.tasks.loop`), so each task has one
+small file, and :func:`~oneocean.tasks.common.fresh_cache` drops its cache entries when the
+task, its policy or a model it inlines changes. A task's spec names its kernel module
+(``kernel:`` in its table's ``spec`` block; :func:`kernel_module`); a plugin task may bind
+its kernel in its own module (the default).
+"""
+
+from __future__ import annotations
+
+import importlib
+
+
+def kernel_module(task_id: str):
+    """The module holding ``task_id``'s compiled loop (``POLICY``, ``_kernel``,
+    ``_observe_kernel``): its spec's ``kernel`` (:class:`oneocean.registry.TaskSpec`)."""
+    from ..registry import task_spec
+
+    return importlib.import_module(task_spec(task_id).kernel_module)

@@ -1,0 +1,41 @@
+"""G2G's compiled episode loop: the hooks of :mod:`oneocean.tasks.g2g` with its
+fused policy :mod:`oneocean.methods.heuristic.g2g` (:mod:`oneocean.kernels`)."""
+
+from __future__ import annotations
+
+from numba import njit
+
+from ..engine._jit import hot_kernel
+from ..methods.heuristic import g2g as POLICY
+from ..tasks import g2g as TASK
+from ..tasks import routing
+from ..tasks.common import fresh_cache
+from ..tasks.loop import noop_after_agent, noop_pre_step, observe_next, run_episode
+from ..tasks.g2g import begin, cue, finish, post_step
+
+
+@hot_kernel
+def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
+    run_episode(begin, noop_pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
+                POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
+                k_stop)
+
+
+@njit(cache=True, nogil=True)
+def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
+    for e in range(e_lo, e_hi):
+        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
+
+
+@hot_kernel
+def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
+    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
+
+
+@njit(cache=True, nogil=True)
+def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
+    for e in range(e_lo, e_hi):
+        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
+
+
+fresh_cache(_kernel, __file__, TASK.__file__, POLICY.__file__, routing.__file__)
