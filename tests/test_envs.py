@@ -62,7 +62,9 @@ def test_vector_env_contract(coast):
 
     from oneocean.envs import OceanVectorEnv
 
-    env = OceanVectorEnv("G2G", 1, coast, num_envs=3)
+    assert (OceanVectorEnv("G2G", 1, coast, num_envs=3).metadata["autoreset_mode"]
+            == AutoresetMode.NEXT_STEP)                  # what RL libraries expect
+    env = OceanVectorEnv("G2G", 1, coast, num_envs=3, autoreset_mode="disabled")
     assert env.metadata["autoreset_mode"] == AutoresetMode.DISABLED
     obs, info = env.reset(seed=5)
     assert obs.shape == (3, 1, OBS_DIM) == env.observation_space.shape
@@ -84,13 +86,14 @@ def test_vector_env_contract(coast):
 def test_episode_end_reports_metrics_in_info(coast):
     from oneocean.envs import OceanVectorEnv
 
-    env = OceanVectorEnv("G2G", 1, coast, num_envs=2)
+    env = OceanVectorEnv("G2G", 1, coast, num_envs=2, autoreset_mode="disabled")
     env.reset(seed=0)
     n = env.batch.n_steps
     for k in range(n):
         _, r, term, trunc, info = env.step(np.zeros(env.action_space.shape))
     assert trunc.all() and not term.any() and (r == 0).all()
     assert info["_success"].all() and (info["T_s"] == n * env.batch.dt).all()
+    assert info["_is_success"].all() and not info["is_success"].any()
 
 
 def test_gymnasium_check_env(coast):
@@ -166,3 +169,202 @@ def test_cli_evaluate_writes_the_cell_table(tmp_path, coast):
                           "--out", str(tmp_path / "x.parquet")], cwd=tmp_path,
                          capture_output=True, text=True)
     assert bad.returncode == 2 and not (tmp_path / "x.parquet").exists()
+
+
+# ---------------------------------------------------------------------------------- RL use
+def _toward_goal(obs, speed):
+    g = obs[..., 0:3]
+    return speed * g / np.maximum(np.linalg.norm(g, axis=-1, keepdims=True), 1e-9)
+
+
+def _ends(env, steps, seed=3, speed=None):
+    """Step ``env`` toward the goal cue; (step, sub-env, T_s) of every episode end and
+    the observations."""
+    obs, _ = env.reset(seed=seed)
+    speed = env.v_max if speed is None else speed
+    ends, hist = [], []
+    for k in range(steps):
+        obs, r, term, trunc, info = env.step(_toward_goal(obs, speed))
+        hist.append(obs.copy())
+        for j in np.flatnonzero(term | trunc):
+            ends.append((k, int(j), float(info["T_s"][j])))
+    return ends, np.array(hist), info
+
+
+def test_next_step_autoreset_resets_on_the_following_step(coast):
+    """The step after an episode ends returns the next episode's first observation with
+    reward 0 and neither flag; the first episodes are the cell's (disabled mode's), and the
+    whole run is reproducible for a seed."""
+    from oneocean.envs import OceanVectorEnv
+
+    def make(mode):
+        return OceanVectorEnv("G2G", 1, coast, num_envs=2, autoreset_mode=mode, pool=2)
+
+    env = make("next_step")
+    n = OceanVectorEnv("G2G", 1, coast, num_envs=2, autoreset_mode="disabled")
+    obs0, _ = env.reset(seed=4)
+    np.testing.assert_array_equal(obs0, n.reset(seed=4)[0])
+    steps = env.cell_steps
+    for _ in range(steps):                       # zero action: every episode times out
+        obs, r, term, trunc, info = env.step(np.zeros(env.action_space.shape))
+    assert trunc.all() and not term.any()
+    obs, r, term, trunc, info = env.step(np.full(env.action_space.shape, 9.0))
+    assert (r == 0).all() and not term.any() and not trunc.any() and info == {}
+    init = env.cell.reset(4, 4)                  # pool of 2 x 2: episodes 2, 3 come next
+    np.testing.assert_allclose(obs[:, 0, [0, 2]],
+                               (init["goal"] - init["pos0"][:, 0])[2:4][:, [0, 2]], atol=1.5)
+    a, ha, _ = _ends(make("next_step"), 3 * steps)
+    b, hb, _ = _ends(make("next_step"), 3 * steps)
+    assert a == b and np.array_equal(ha, hb) and len(a) >= 4
+
+
+def test_same_step_autoreset_returns_the_final_observation_in_info(coast):
+    from oneocean.envs import OceanVectorEnv
+
+    env = OceanVectorEnv("G2G", 1, coast, num_envs=2, autoreset_mode="same_step")
+    env.reset(seed=0)
+    for _ in range(env.cell_steps):
+        obs, r, term, trunc, info = env.step(np.zeros(env.action_space.shape))
+    assert trunc.all() and info["_final_obs"].all()
+    assert info["final_obs"].shape == obs.shape and not np.array_equal(info["final_obs"], obs)
+    assert info["final_info"]["_T_s"].all()
+    # the new episodes run on: one more step ends nothing
+    _, _, term, trunc, _ = env.step(np.zeros(env.action_space.shape))
+    assert not (term | trunc).any()
+
+
+def test_normalized_view_and_norm_bounded_action(coast):
+    """The normalised observation is inside its Box and carries v_max and the time left; a
+    normalised action's norm is clipped to 1 (x v_max), so every bound is reachable."""
+    from oneocean.envs import NORM_FIELDS, OceanVectorEnv, normalize
+
+    env = OceanVectorEnv("FT", 1, coast, num_envs=2, n_agents=3, obs_mode="normalized",
+                         action_mode="normalized")
+    obs, _ = env.reset(seed=1)
+    assert obs.shape == (2, 3, len(NORM_FIELDS)) and env.observation_space.contains(obs)
+    assert np.allclose(obs[..., NORM_FIELDS.index("v_max_ms")], env.v_max)
+    assert np.allclose(obs[..., NORM_FIELDS.index("time_left")], 1.0)
+    assert env.action_space.low.min() == -1.0 and env.action_space.high.max() == 1.0
+    v = env._to_velocity(np.broadcast_to([1.0, 0.0, 0.0], env.action_space.shape))
+    np.testing.assert_allclose(v[..., 0], env.v_max)
+    v = env._to_velocity(np.ones(env.action_space.shape))
+    np.testing.assert_allclose(np.linalg.norm(v, axis=-1), env.v_max)
+    for _ in range(5):
+        obs, *_ = env.step(np.zeros(env.action_space.shape))
+    assert np.allclose(obs[..., NORM_FIELDS.index("time_left")], 1.0 - 5 / env.cell_steps)
+    raw = np.array([[30.0, 4.0, 40.0, 0.3, -0.1, 12.0, np.nan, np.nan]
+                    + [5.0, 0.0] + [np.nan] * 4])
+    n = normalize(raw[None], 2.0, 1000.0, np.array([0.5]))[0, 0]
+    np.testing.assert_allclose(n[:3], np.array([30, 4, 40]) / (np.hypot(50, 4) + 10))
+    np.testing.assert_allclose(n[3], np.log1p(np.hypot(50, 4)) / np.log1p(1000.0))
+    np.testing.assert_allclose(n[4:9], [0.15, -0.05, 0.12, 1.0, 0.0])
+    np.testing.assert_allclose(n[9:11], [5 / 15, 0.0])
+    assert n[11:15].tolist() == [0, 0, 0, 0] and n[15] == 2.0 and n[16] == 0.5
+
+
+def test_dense_reward_pays_progress_and_success_only_as_a_signal(coast):
+    """Moving toward the goal earns reward, standing still earns none; the metrics and
+    ``is_success`` in info are the task's own, whatever the reward."""
+    from oneocean.envs import OceanVectorEnv, dense_reward
+
+    r = dense_reward(np.array([[10.0], [10.0], [10.0]]), np.array([[9.0], [10.0], [40.0]]),
+                     np.array([0, 1, 0]), np.array([0, 0, 0]), np.array([False, False, True]),
+                     1.0, 1.0)
+    np.testing.assert_allclose(r, [0.1, -0.1, 1.0])   # progress; a violation; a cue jump
+    env = OceanVectorEnv("SK", 1, coast, num_envs=2, reward="dense",
+                         autoreset_mode="disabled")
+    obs, _ = env.reset(seed=2)
+    _, r_go, *_ = env.step(_toward_goal(obs, env.v_max))
+    sparse = OceanVectorEnv("SK", 1, coast, num_envs=2, autoreset_mode="disabled")
+    sparse.reset(seed=2)
+    _, r_sp, *_ = sparse.step(_toward_goal(obs, env.v_max))
+    assert (r_sp == 0).all() and np.isfinite(r_go).all() and (np.abs(r_go) <= 0.2 + 1e-9).all()
+
+
+def test_rgb_render_shows_land_water_and_agents(coast):
+    from oneocean.envs import OceanEnv
+    from oneocean.render import AGENT_RGB, LAND_RGB
+
+    env = OceanEnv("G2G", 1, coast, render_mode="rgb_array")
+    env.reset(seed=0)
+    img = env.render()
+    assert img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3
+    assert max(img.shape[:2]) >= 200
+    assert (img == AGENT_RGB).all(-1).sum() >= 9                 # the vehicle's 5 x 5 mark
+    land = (img == LAND_RGB.astype(np.uint8)).all(-1).mean()
+    assert 0.0 < land < 1.0 and np.isclose(land, np.asarray(coast.land >= 0.5).mean(), atol=0.05)
+    assert OceanEnv("G2G", 1, coast).render() is None           # no render mode: nothing
+
+
+def test_bad_env_options_fail_in_one_line(coast):
+    from oneocean.envs import OceanVectorEnv
+
+    for kw, what in (({"autoreset_mode": "sometimes"}, "autoreset_mode"),
+                     ({"obs_mode": "pixels"}, "obs_mode"), ({"reward": "shaped"}, "reward"),
+                     ({"action_mode": "torque"}, "action_mode"),
+                     ({"render_mode": "human"}, "render_mode")):
+        with pytest.raises(ConfigError, match=what) as exc:
+            OceanVectorEnv("G2G", 1, coast, num_envs=1, **kw)
+        assert "\n" not in str(exc.value)
+
+
+# ------------------------------------------------------------ ecosystem checkers, every task
+ALL_TASKS = ("G2G", "SK", "RF", "DPT", "AS", "PI", "FT", "SPC", "UPL", "FH")
+
+
+@pytest.fixture(scope="module")
+def default_grid():
+    """The default region's grid (what an env without a grid uses)."""
+    from oneocean.defaults import resolve_grid
+
+    return resolve_grid(None)
+
+
+@pytest.mark.parametrize("task", ALL_TASKS)
+def test_every_task_passes_gymnasium_check_env(task, default_grid):
+    from gymnasium.utils.env_checker import check_env
+
+    from oneocean.envs import OceanEnv
+
+    env = OceanEnv(task, 1, default_grid, obs_mode="normalized", action_mode="normalized",
+                   render_mode="rgb_array")
+    check_env(env)
+    obs, _ = env.reset(seed=7)
+    assert env.observation_space.contains(obs)
+
+
+@pytest.mark.parametrize("task", ALL_TASKS)
+def test_every_task_passes_pettingzoo_api_and_seed_tests(task, default_grid):
+    from pettingzoo.test import parallel_api_test, parallel_seed_test
+
+    from oneocean.envs import parallel_env
+
+    parallel_api_test(parallel_env(task, 1, default_grid), num_cycles=20)
+    parallel_seed_test(lambda: parallel_env(task, 1, default_grid), num_cycles=20)
+
+
+def test_gymnasium_ids_make_the_envs(default_grid):
+    import gymnasium as gym
+
+    import oneocean  # noqa: F401  (registers the ids)
+
+    env = gym.make("OneOcean/SK-T2-v0", grid=default_grid)
+    assert env.spec.id == "OneOcean/SK-T2-v0" and env.unwrapped.venv.tier == 2
+    venv = gym.make_vec("OneOcean/G2G-T1-v0", num_envs=3, grid=default_grid,
+                        vectorization_mode="vector_entry_point")
+    obs, _ = venv.reset(seed=1)
+    assert obs.shape[0] == 3 and venv.metadata["autoreset_mode"].name == "NEXT_STEP"
+
+
+def test_gymnasium_vector_wrappers_accept_the_vector_env(default_grid):
+    """Gymnasium's vector wrappers that need NEXT_STEP autoreset take the env as it is."""
+    from gymnasium.wrappers.vector import NormalizeObservation, RecordEpisodeStatistics
+
+    from oneocean.envs import OceanVectorEnv
+
+    env = RecordEpisodeStatistics(NormalizeObservation(
+        OceanVectorEnv("SK", 1, default_grid, num_envs=4, obs_mode="normalized")))
+    obs, _ = env.reset(seed=0)
+    for _ in range(5):
+        obs, r, term, trunc, info = env.step(np.zeros(env.action_space.shape))
+    assert np.isfinite(obs).all() and obs.shape == (4, 1, 17)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -41,11 +42,44 @@ def _verify(args) -> int:
     return 1 if bad else 0
 
 
-def _evaluate(args) -> int:
-    from .errors import OneOceanError
-    from .evaluate import evaluate_to_file
+def _os_error(exc: OSError) -> str:
+    """One line for an OSError: the file and the system's reason."""
+    where = exc.filename if exc.filename is not None else ""
+    reason = exc.strerror or str(exc)
+    return f"{where}: {reason}" if where else reason
 
+
+def _check_out(out) -> str | None:
+    """Why ``--out`` cannot be written (checked before the run), or None."""
+    path = Path(out)
+    if path.is_dir():
+        return f"--out {out}: is a folder; give the output Parquet file's path"
+    parent = path.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        return f"--out {out}: {parent} is not a folder"
+    if not os.access(parent, os.W_OK | os.X_OK):
+        return f"--out {out}: cannot write in {parent} (permission denied)"
+    return None
+
+
+def _evaluate(args) -> int:
+    """Every expected error (bad input, a missing or unreadable file, a bad policy spec) is
+    one line on stderr and exit status 2; errors raised inside the policy keep their
+    traceback (they are the policy's own)."""
+    from .errors import OneOceanError
+
+    def fail(message: str) -> int:
+        print(f"oneocean evaluate: {message}", file=sys.stderr)
+        return 2
+
+    problem = _check_out(args.out)
+    if problem:
+        return fail(problem)
     try:
+        from .evaluate import evaluate_to_file
+
         scene = None
         if args.scene is not None:
             from .backends.mujoco.store import load_scene
@@ -58,8 +92,9 @@ def _evaluate(args) -> int:
                                  currents=not args.currents_off, backend=args.backend,
                                  scene=scene)
     except OneOceanError as exc:
-        print(f"oneocean evaluate: {exc}", file=sys.stderr)
-        return 2
+        return fail(str(exc))
+    except OSError as exc:
+        return fail(_os_error(exc))
     import pandas as pd
 
     df = pd.read_parquet(args.out)
@@ -98,8 +133,10 @@ def main(argv=None) -> int:
     p.add_argument("--task", required=True)
     p.add_argument("--tier", type=int, required=True)
     p.add_argument("--policy", required=True, help="module:callable, obs (E,N,D) -> (E,N,3)")
-    p.add_argument("--grid", default="results/exports/synthetic_coast/scene/grid.npz",
-                   help="grid export (default: the default region's scene variant)")
+    p.add_argument("--grid", default=None,
+                   help="grid export (.npz) or region config (.yaml; synthetic or local-file "
+                        "sources); default: the default region's grid, built into the cache "
+                        "($ONEOCEAN_CACHE_DIR or ~/.cache/oneocean) on first use")
     p.add_argument("--out", required=True, help="output Parquet path")
     p.add_argument("--name", default=None, help="method name in the table (default: callable)")
     p.add_argument("--episodes", type=int, default=50)

@@ -100,6 +100,64 @@ def validate_config(config: dict, schema: dict | None = None) -> dict:
 
 
 def _check_semantics(cfg: dict) -> None:
+    _check_data(cfg)
+    _check_held_out(cfg["rollouts"])
+    if int(cfg["rollouts"]["seed"]) in [int(x) for x in cfg["bc"]["train_seeds"]]:
+        raise ConfigError(f"config key 'bc.train_seeds': {cfg['bc']['train_seeds']} contains "
+                          f"the evaluation seed {cfg['rollouts']['seed']} (rollouts.seed); "
+                          "training seeds must be disjoint from it")
+    for m in cfg["llm"]["models"]:
+        if not (m.get("model_path") or (m.get("base_url") and m.get("model"))):
+            raise ConfigError(f"config key 'llm.models' entry {m['name']!r}: needs base_url "
+                              "and model (an endpoint) or model_path (a local GGUF file)")
+    names = [m["name"] for m in cfg["llm"]["models"]]
+    if len(set(names)) != len(names):
+        raise ConfigError(f"config key 'llm.models': duplicate name in {names}")
+    _check_scenes(cfg)
+    register_llm_methods(cfg)
+
+
+#: The sections a region's product depends on (what :func:`validate_data_config` checks).
+DATA_SECTIONS = ("region", "sources", "synthetic", "cmems", "gebco", "etopo", "files",
+                 "variants")
+
+
+def validate_data_config(config: dict, where: str = "config") -> dict:
+    """Validate and fill only the sections a region's product depends on
+    (:data:`DATA_SECTIONS`: the region, its sources and their blocks, the variants) against
+    the packaged schema, with the same region and source checks as :func:`validate_config`.
+    Other top-level keys must be known to the schema but are not checked (no plugins, no task
+    registry). Returns a new dict of just those sections, defaults filled.
+
+    Raises
+    ------
+    ConfigError
+        One line: ``where`` and the first bad key.
+    """
+    if not isinstance(config, dict):
+        raise ConfigError(f"{where}: the top level must be a mapping")
+    schema = yaml.safe_load(SCHEMA_PATH.read_text())
+    props = schema["properties"]
+    unknown = sorted(set(config) - set(props))
+    if unknown:
+        raise ConfigError(f"{where}: unknown key '{unknown[0]}' (known keys here: "
+                          f"{', '.join(sorted(props))})")
+    sub = {k: copy.deepcopy(config[k]) for k in DATA_SECTIONS if k in config}
+    data_schema = {**schema, "properties": {k: props[k] for k in DATA_SECTIONS}}
+    validator = _Filling(data_schema, format_checker=jsonschema.FormatChecker())
+    errors = sorted(validator.iter_errors(sub), key=lambda e: list(map(str, e.absolute_path)))
+    if errors:
+        raise ConfigError(f"{where}: config {_key(errors[0])}")
+    try:
+        _check_data(sub)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+    return sub
+
+
+def _check_data(cfg: dict) -> None:
+    """The region and source checks the schema cannot express: bbox and time order, and the
+    file or URL each source kind needs."""
     bbox = cfg["region"]["bbox"]
     if not bbox["west"] < bbox["east"]:
         raise ConfigError("config key 'region.bbox': west must be less than east "
@@ -128,20 +186,6 @@ def _check_semantics(cfg: dict) -> None:
     if src["tides"] and src["currents"] == "files" and not cfg["files"]["tides"]:
         raise ConfigError("config key 'files.tides' is required when sources.tides is true and "
                           "sources.currents is 'files' (or set sources.tides: false)")
-    _check_held_out(cfg["rollouts"])
-    if int(cfg["rollouts"]["seed"]) in [int(x) for x in cfg["bc"]["train_seeds"]]:
-        raise ConfigError(f"config key 'bc.train_seeds': {cfg['bc']['train_seeds']} contains "
-                          f"the evaluation seed {cfg['rollouts']['seed']} (rollouts.seed); "
-                          "training seeds must be disjoint from it")
-    for m in cfg["llm"]["models"]:
-        if not (m.get("model_path") or (m.get("base_url") and m.get("model"))):
-            raise ConfigError(f"config key 'llm.models' entry {m['name']!r}: needs base_url "
-                              "and model (an endpoint) or model_path (a local GGUF file)")
-    names = [m["name"] for m in cfg["llm"]["models"]]
-    if len(set(names)) != len(names):
-        raise ConfigError(f"config key 'llm.models': duplicate name in {names}")
-    _check_scenes(cfg)
-    register_llm_methods(cfg)
 
 
 def _check_scenes(cfg: dict) -> None:

@@ -1,34 +1,64 @@
-"""The step API: every task as a Gymnasium vector env and a PettingZoo parallel env.
+"""The step API: every task as a Gymnasium env / vector env and a PettingZoo parallel env.
 
-Both run the same episode loop, task hooks and metrics as the fused rollouts
+All of them run the same episode loop, task hooks and metrics as the fused rollouts
 (:mod:`oneocean.tasks.loop`): a ``step`` writes the agents' actions into the loop's external
-action slots and advances every running episode by one step.
+action slots and advances every running episode by one step. Success, the metrics and the
+paper's tables always use the task's own criteria; the reward is only a training signal.
 
 Spaces (per agent; ``N`` = team size)
-    observation
+    observation, ``obs_mode="raw"`` (default)
         ``OBS_DIM`` float64 values, :data:`oneocean.tasks.common.OBS_FIELDS`: the task's goal
         cue (goal point minus the agent's navigation estimate of its position, world m), its
         current estimate (forecast plus filtered in-situ samples, :mod:`oneocean.sensing`,
-        m s-1), depth and altitude above the seafloor (m), the pollution
-        probe (SPC, PI), the three nearest teammates' horizontal offsets (m). Values the task
-        does not define (no field, fewer teammates) are 0 here (NaN in recorded observations).
-    action
+        m s-1), depth and altitude above the seafloor (m), the pollution probe (SPC, PI), the
+        three nearest teammates' horizontal offsets (m). Values the task does not define (no
+        field, fewer teammates) are 0 here (NaN in recorded observations).
+    observation, ``obs_mode="normalized"``
+        :data:`NORM_FIELDS` (:func:`normalize`): the goal cue as ``g / (|g| + 10 m)`` (a unit
+        vector far away, metres / 10 close in) and ``log(1 + |g|) / log(1 + reach)`` with
+        ``reach = v_max x time limit`` (the task's range); the current estimate / ``v_max``;
+        depth / 100 m (clipped to 5); altitude clipped to 50 m, / 50 m (1 where undefined);
+        ``log(1 + probe)``; each teammate's offset / (distance + 10 m); and what the tier
+        sets: ``v_max`` (m s-1) and the fraction of the time limit left.
+    action, ``action_mode="velocity"`` (default)
         3 float64: the desired velocity relative to the water, world frame (x east, y down,
         z north), m s-1, as in the paper; the loop clips its norm to the vehicle's ``v_max``
-        (the Box bounds are +-v_max per component). Heading is left to the vehicle.
-    reward
-        1 on the step an episode ends in success, else 0 (the benchmark scores episodes with
-        the task's metrics, which every ended episode reports in ``info``).
+        (the Box bounds are +-v_max per component).
+    action, ``action_mode="normalized"``
+        3 float64 in [-1, 1]: the desired velocity in units of ``v_max``, its norm clipped to 1
+        (every bound is reachable: a unit vector along an axis is full speed that way).
+    reward, ``reward="sparse"`` (default)
+        1 on the step an episode ends in success, else 0.
+    reward, ``reward="dense"``
+        :func:`dense_reward`: progress toward the goal cue, penalties for rejected moves and
+        near-collisions, and the success reward.
 
-Episodes
-    ``reset(seed=s)`` starts the same episodes as ``run_cell(..., seed=s)`` (episode ``e`` of
-    a vector env is episode ``e`` of the cell), so a policy scored through the step API and a
-    fused method see identical scenarios. An episode ends with ``terminated`` (the task's own
-    end: success or a terminal failure) or ``truncated`` (the time limit). Autoreset is
-    ``DISABLED``: finished sub-envs ignore further actions until ``reset``.
+Episodes and resets
+    ``reset(seed=s)`` starts the same episodes as ``run_cell(..., seed=s)``: sub-env ``j``
+    runs the cell's episode ``j`` first. An episode ends with ``terminated`` (the task's own
+    end: success or a terminal failure) or ``truncated`` (the time limit). Autoreset
+    (Gymnasium's ``AutoresetMode``):
+
+    * ``next_step`` (default): the ``step`` after an episode ended resets that sub-env (its
+      action is ignored; reward 0) and returns the new episode's first observation;
+    * ``same_step``: the step that ends an episode returns the next episode's first
+      observation, the final one in ``info["final_obs"]`` (and ``info["final_info"]``);
+    * ``disabled``: finished sub-envs ignore further actions until ``reset`` -- what
+      evaluation uses (:mod:`oneocean.evaluate`), so episode ``e`` is the cell's episode ``e``.
+
+    New episodes come from a pool sampled in one go per seed (``pool`` episodes per
+    sub-env): the pool of seed ``s`` holds the cell's episodes ``0, 1, ...`` of ``s`` and
+    sub-envs draw them in the order they finish; a spent pool is followed by one of seed
+    :func:`pool_seed` ``(s, 1)``, ``(s, 2)``, ...
+
+    ``info`` carries, for sub-envs whose episode ended at this step, every result column of the
+    cell table (``success``, ``T_s``, ``E``, ``coll_ratio``, ``violations`` and the task's
+    metrics) and ``is_success``, with Gymnasium's ``_<key>`` masks.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -36,17 +66,102 @@ import gymnasium as gym
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 
+from .errors import ConfigError
 from .tasks import Cell
-from .tasks.common import ACT_FIELDS, OBS_DIM, OBS_FIELDS
+from .tasks.common import ACT_FIELDS, OBS_DIM, OBS_FIELDS, N_MATES
+from .tasks.loop import FINISHED, NEW
 from .backends.protocol import Rollout
+
+AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP,
+                   "disabled": AutoresetMode.DISABLED}
+OBS_MODES = ("raw", "normalized")
+ACTION_MODES = ("velocity", "normalized")
+REWARDS = ("sparse", "dense")
+
+#: The normalised observation's fields (``obs_mode="normalized"``; see the module docstring).
+NORM_FIELDS = (("goal_ux", "goal_uy", "goal_uz", "goal_log_dist", "current_e", "current_n",
+                "depth", "altitude", "pollution_log")
+               + tuple(f"mate{m + 1}_{c}" for m in range(N_MATES) for c in ("ux", "uz"))
+               + ("v_max_ms", "time_left"))
+NORM_DIM = len(NORM_FIELDS)
+#: Length scales of the normalised view, m.
+GOAL_SCALE_M, MATE_SCALE_M, DEPTH_SCALE_M, ALTITUDE_CLIP_M = 10.0, 10.0, 100.0, 50.0
+#: Dense reward: weight of the progress term (per step, progress in units of v_max dt) and
+#: the penalties per rejected move and per step with a near-collision.
+PROGRESS_WEIGHT, VIOLATION_PENALTY, COLLISION_PENALTY = 0.1, 0.1, 0.1
+
+
+def pool_seed(seed: int, index: int) -> int:
+    """The seed of the ``index``-th pool after the first (the first is ``seed`` itself)."""
+    if index == 0:
+        return int(seed)
+    return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0] >> 1)
+
+
+def _choice(name: str, value: str, valid) -> str:
+    if value not in valid:
+        raise ConfigError(f"{name}: {value!r} is not one of {', '.join(valid)}")
+    return value
+
+
+def normalize(obs: np.ndarray, v_max: float, reach: float, time_left) -> np.ndarray:
+    """The normalised view (..., NORM_DIM) of raw observations ``obs`` (..., OBS_DIM) (NaN
+    for undefined values); ``time_left`` broadcasts over the leading axes (per episode)."""
+    o = np.asarray(obs, dtype=np.float64)
+    out = np.zeros(o.shape[:-1] + (NORM_DIM,))
+    g = np.nan_to_num(o[..., 0:3])
+    d = np.sqrt((g * g).sum(-1))
+    out[..., 0:3] = g / (d + GOAL_SCALE_M)[..., None]
+    out[..., 3] = np.log1p(d) / math.log1p(max(reach, 1.0))
+    out[..., 4:6] = np.nan_to_num(o[..., 3:5]) / v_max
+    out[..., 6] = np.clip(np.nan_to_num(o[..., 5]) / DEPTH_SCALE_M, 0.0, 5.0)
+    alt = o[..., 6]
+    out[..., 7] = np.where(np.isfinite(alt), np.clip(alt, 0.0, ALTITUDE_CLIP_M), ALTITUDE_CLIP_M)
+    out[..., 7] /= ALTITUDE_CLIP_M
+    p = o[..., 7]
+    out[..., 8] = np.where(np.isfinite(p), np.log1p(np.maximum(p, 0.0)), 0.0)
+    for m in range(N_MATES):
+        dx, dz = o[..., 8 + 2 * m], o[..., 9 + 2 * m]
+        ok = np.isfinite(dx) & np.isfinite(dz)
+        dm = np.sqrt(np.where(ok, dx * dx + dz * dz, 0.0)) + MATE_SCALE_M
+        out[..., 9 + 2 * m] = np.where(ok, dx / dm, 0.0)
+        out[..., 10 + 2 * m] = np.where(ok, dz / dm, 0.0)
+    out[..., 15] = v_max
+    out[..., 16] = np.asarray(time_left, dtype=np.float64)[(...,) + (None,) * (o.ndim - 2)]
+    return out
+
+
+def dense_reward(d_prev, d_now, new_viol, new_coll, success, v_max: float, dt: float):
+    """The opt-in dense reward of one step per sub-env: ``PROGRESS_WEIGHT`` x the team's mean
+    progress toward its goal cues in units of ``v_max dt`` (each agent's clipped to [-2, 2];
+    an agent whose cue jumped by more than ``2 v_max dt + 1 m`` -- a new waypoint, slot or
+    target -- counts 0 that step), minus ``VIOLATION_PENALTY`` per rejected move, minus
+    ``COLLISION_PENALTY`` if the step had a near-collision, plus 1 on success. ``d_prev``,
+    ``d_now``: (E, N) distances to the goal cue, m."""
+    step = v_max * dt
+    delta = d_prev - d_now
+    jump = np.abs(delta) > 2.0 * step + 1.0
+    prog = np.where(jump | ~np.isfinite(delta), 0.0, np.clip(delta / step, -2.0, 2.0))
+    return (PROGRESS_WEIGHT * prog.mean(-1) - VIOLATION_PENALTY * new_viol
+            - COLLISION_PENALTY * (new_coll > 0) + success.astype(np.float64))
+
+
+def _cue_distance(raw: np.ndarray) -> np.ndarray:
+    """(..., N) distance to the goal cue of raw observations, m (NaN where undefined)."""
+    g = raw[..., 0:3]
+    return np.sqrt((g * g).sum(-1))
 
 
 class _Cell(Cell):
-    """A :class:`~oneocean.tasks.Cell` that builds externally driven :class:`Episodes`."""
+    """A :class:`~oneocean.tasks.Cell` that builds externally driven episodes."""
 
     def __init__(self, task: str, tier: int, grid, *, dynamics: str = "6dof",
                  n_agents: int | None = None, currents: bool = True, vehicle=None,
                  backend: str = "core", scene=None):
+        if scene is None:
+            from .defaults import resolve_grid
+
+            grid = resolve_grid(grid)      # None: the default region's grid
         super().__init__(grid, task, tier, n_agents=n_agents, currents=currents,
                          vehicle=vehicle, backend=backend, scene=scene)
         self.dynamics = dynamics
@@ -56,90 +171,326 @@ class _Cell(Cell):
         """Externally driven episodes ``0 .. n_episodes-1`` of ``seed`` on the backend."""
         return self.episodes(self.reset(n_episodes, seed), None, self.dynamics, seed)
 
-    def obs_space(self, shape) -> spaces.Box:
-        return spaces.Box(-np.inf, np.inf, shape=shape, dtype=np.float64)
 
-    def act_space(self, shape) -> spaces.Box:
-        return spaces.Box(-self.v_max, self.v_max, shape=shape, dtype=np.float64)
+class _Pool:
+    """A batch of pre-sampled episodes that sub-envs draw in order: every episode waits
+    parked (the loop skips it) until drawn, then begins."""
 
+    def __init__(self, cell: _Cell, n: int, seed: int, park: bool):
+        self.batch = cell.batch(n, seed)
+        self.n = n
+        self.drawn = 0
+        self.live = 0                      # drawn episodes still owned by a sub-env
+        if park:
+            self.batch.LS.status[:] = FINISHED
 
-def _clean(obs: np.ndarray) -> np.ndarray:
-    return np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
+    def draw(self, k: int) -> np.ndarray:
+        """Draw the next ``k`` (at most what is left) parked episodes and begin them."""
+        e = np.arange(self.drawn, min(self.n, self.drawn + k))
+        self.drawn += e.size
+        self.batch.LS.status[e] = NEW
+        self.live += e.size
+        return e
 
 
 class OceanVectorEnv(VectorEnv):
-    """``num_envs`` episodes of one (task, tier) cell advanced together by the fused loop.
+    """``num_envs`` episodes of one (task, tier) cell advanced together by the task's loop.
 
-    Observation (num_envs, N, OBS_DIM), action (num_envs, N, 3), reward/terminated/truncated
-    (num_envs,). ``info`` carries, for sub-envs whose episode ended at this step, every
-    result column of the cell table (``success``, ``T_s``, ``E``, ``coll_ratio``,
-    ``violations`` and the task's metrics) with Gymnasium's ``_<key>`` masks.
+    Observation (num_envs, N, D), action (num_envs, N, 3), reward/terminated/truncated
+    (num_envs,); see the module docstring for the modes.
 
     Parameters
     ----------
-    task, tier : the cell; grid : a :class:`~oneocean.engine.grid.Grid` or a grid export path
-    (None with ``scene``); num_envs : episodes per batch; dynamics, n_agents, currents,
-    vehicle : as ``run_cell``; backend, scene : the execution backend (``core``, or
-    ``mujoco`` with a :class:`oneocean.backends.mujoco.scenes.Scene`), as
-    :class:`~oneocean.tasks.Cell`.
+    task, tier : the cell
+    grid : a :class:`~oneocean.engine.grid.Grid`, a grid export path, a region config, or
+        None: the default region's grid (:func:`oneocean.defaults.resolve_grid`; ignored
+        with ``scene``)
+    num_envs : sub-envs
+    autoreset_mode : ``next_step`` (default), ``same_step`` or ``disabled`` (or Gymnasium's
+        ``AutoresetMode``)
+    obs_mode : ``raw`` or ``normalized``; action_mode : ``velocity`` or ``normalized``;
+    reward : ``sparse`` or ``dense``
+    pool : episodes sampled per sub-env at a time (autoreset modes)
+    render_mode : None or ``rgb_array`` (a top-down view of sub-env 0: :meth:`render`)
+    dynamics, n_agents, currents, vehicle : as ``run_cell``; backend, scene : the execution
+        backend (``core``, or ``mujoco`` with a :class:`oneocean.backends.mujoco.scenes.Scene`)
     """
 
-    metadata = {"autoreset_mode": AutoresetMode.DISABLED, "render_modes": []}
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"]}
 
-    def __init__(self, task: str, tier: int, grid, num_envs: int = 8, **kw):
+    def __init__(self, task: str, tier: int, grid=None, num_envs: int = 8, *,
+                 autoreset_mode="next_step", obs_mode: str = "raw",
+                 action_mode: str = "velocity", reward: str = "sparse", pool: int = 4,
+                 render_mode: str | None = None, **kw):
+        if isinstance(autoreset_mode, AutoresetMode):
+            autoreset_mode = {v: k for k, v in AUTORESET_MODES.items()}[autoreset_mode]
+        self.autoreset = _choice("autoreset_mode", autoreset_mode, tuple(AUTORESET_MODES))
+        self.obs_mode = _choice("obs_mode", obs_mode, OBS_MODES)
+        self.action_mode = _choice("action_mode", action_mode, ACTION_MODES)
+        self.reward_mode = _choice("reward", reward, REWARDS)
+        if render_mode not in (None, "rgb_array"):
+            raise ConfigError(f"render_mode: {render_mode!r} is not one of None, rgb_array")
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "autoreset_mode": AUTORESET_MODES[self.autoreset]}
         self.cell = _Cell(task, tier, grid, **kw)
+        self.task, self.tier = task, int(tier)
         n = self.cell.n_agents
+        self.n_agents = n
         self.num_envs = int(num_envs)
-        self.single_observation_space = self.cell.obs_space((n, OBS_DIM))
-        self.single_action_space = self.cell.act_space((n, len(ACT_FIELDS)))
-        self.observation_space = self.cell.obs_space((self.num_envs, n, OBS_DIM))
-        self.action_space = self.cell.act_space((self.num_envs, n, len(ACT_FIELDS)))
-        self.obs_fields = OBS_FIELDS
-        self.batch: Rollout | None = None
+        if self.num_envs < 1:
+            raise ConfigError(f"num_envs: must be >= 1, got {num_envs}")
+        self.pool_size = self.num_envs * max(1, int(pool))
+        p = self.cell.params
+        self.v_max = self.cell.v_max
+        self.dt = float(p["dt_s"])
+        self.reach = self.v_max * float(p["time_limit_s"])
+        self.single_observation_space = self._obs_space((n,))
+        self.single_action_space = self._act_space((n,))
+        self.observation_space = self._obs_space((self.num_envs, n))
+        self.action_space = self._act_space((self.num_envs, n))
+        self.obs_fields = OBS_FIELDS if self.obs_mode == "raw" else NORM_FIELDS
+        self._pools: list[_Pool] = []
+        self._seed = None
 
+    # ------------------------------------------------------------------ spaces
+    def _obs_space(self, lead) -> spaces.Box:
+        if self.obs_mode == "raw":
+            return spaces.Box(-np.inf, np.inf, shape=tuple(lead) + (OBS_DIM,), dtype=np.float64)
+        lo = np.array([-1, -1, -1, 0, -10, -10, 0, 0, 0] + [-1] * (2 * N_MATES) + [0, 0], float)
+        hi = np.array([1, 1, 1, 10, 10, 10, 5, 1, 50] + [1] * (2 * N_MATES) + [10, 1], float)
+        return spaces.Box(np.broadcast_to(lo, tuple(lead) + lo.shape).copy(),
+                          np.broadcast_to(hi, tuple(lead) + hi.shape).copy(), dtype=np.float64)
+
+    def _act_space(self, lead) -> spaces.Box:
+        b = self.v_max if self.action_mode == "velocity" else 1.0
+        return spaces.Box(-b, b, shape=tuple(lead) + (len(ACT_FIELDS),), dtype=np.float64)
+
+    # ------------------------------------------------------------------ pools
+    def _new_pool(self, n: int) -> _Pool:
+        pool = _Pool(self.cell, n, pool_seed(self._seed, self._n_pools),
+                     park=self.autoreset != "disabled")
+        self._n_pools += 1
+        self._pools.append(pool)
+        return pool
+
+    def _draw(self, envs: np.ndarray) -> None:
+        """Give every sub-env in ``envs`` its next episode (in sub-env order) and begin it."""
+        envs = np.asarray(envs, dtype=np.int64)
+        done = 0
+        while done < envs.size:
+            pool = self._pools[-1] if self._pools else None
+            if pool is None or pool.drawn >= pool.n:
+                pool = self._new_pool(self.pool_size)
+            e = pool.draw(envs.size - done)
+            for j, ej in zip(envs[done:done + e.size], e):
+                self._owner[j] = pool
+                self._ep[j] = ej
+            done += e.size
+            self._group_cache = None
+            pool.batch.run(0)              # begin the drawn episodes (step 0 not taken)
+        self._d_prev[envs] = np.nan
+        self._viol_prev[envs] = 0
+        self._coll_prev[envs] = 0
+
+    def _release(self, envs) -> None:
+        for j in envs:
+            self._owner[j].live -= 1
+        self._pools = [p for p in self._pools if p.live > 0 or p.drawn < p.n]
+
+    def _groups(self):
+        """(pool, sub-env rows, episode rows) per pool that owns sub-envs (cached until the
+        ownership changes)."""
+        if self._group_cache is None:
+            by = {}
+            for j, p in enumerate(self._owner):
+                by.setdefault(id(p), (p, []))[1].append(j)
+            self._group_cache = [(p, np.array(js), self._ep[np.array(js)])
+                                 for p, js in by.values()]
+        return self._group_cache
+
+    def _gather(self, what: str) -> np.ndarray:
+        """Per sub-env rows of a batch attribute (``k``, ``done``, ``res``, ``viol``,
+        ``coll``)."""
+        groups = self._groups()
+        out = None
+        for pool, js, eps in groups:
+            b = pool.batch
+            src = (b.res if what == "res" else
+                   getattr(b.LS, "status" if what == "done" else what))
+            if len(groups) == 1:
+                out = src[eps]
+                break
+            if out is None:
+                out = np.empty((self.num_envs,) + src.shape[1:], dtype=src.dtype)
+            out[js] = src[eps]
+        return out == FINISHED if what == "done" else out
+
+    def _raw_obs(self, envs=None) -> np.ndarray:
+        """Raw observations (len(envs), N, OBS_DIM) of sub-envs ``envs`` (default all)."""
+        want = np.arange(self.num_envs) if envs is None else np.asarray(envs)
+        out = np.empty((self.num_envs, self.n_agents, OBS_DIM))
+        mask = np.zeros(self.num_envs, dtype=bool)
+        mask[want] = True
+        for pool, js, eps in self._groups():
+            sel = mask[js]
+            if not sel.any():
+                continue
+            e = eps[sel]
+            o = pool.batch.observe(int(e.min()), int(e.max()) + 1)
+            out[js[sel]] = o[e]
+        return out if envs is None else out[want]
+
+    def _obs(self, raw: np.ndarray, envs=None) -> np.ndarray:
+        if self.obs_mode == "raw":
+            out = raw.copy()
+            out[~np.isfinite(out)] = 0.0
+            return out
+        k = self._gather("k")
+        k = k if envs is None else k[np.asarray(envs)]
+        left = 1.0 - k / float(self.cell_steps)
+        return normalize(raw, self.v_max, self.reach, left)
+
+    @property
+    def batch(self) -> Rollout | None:
+        """With autoreset disabled: the rollout of the cell's episodes ``0 .. num_envs-1``
+        (:class:`oneocean.backends.protocol.Rollout`; its ``results()`` once all ended)."""
+        if self.autoreset != "disabled" or not self._pools:
+            return None
+        return self._pools[0].batch
+
+    @property
+    def cell_steps(self) -> int:
+        return self._pools[0].batch.n_steps if self._pools else 0
+
+    # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         if options and "reset_mask" in options:
-            raise ValueError("OceanVectorEnv: autoreset is DISABLED and partial resets are "
-                             "not supported; call reset() for the whole batch")
+            raise ValueError("OceanVectorEnv: partial resets are made by autoreset; call "
+                             "reset() for the whole batch")
         super().reset(seed=seed)
         self._seed = int(seed) if seed is not None else int(self.np_random.integers(2**31))
-        self.batch = self.cell.batch(self.num_envs, self._seed)
-        self.batch.run(0)            # begin every episode (step 0 not taken)
-        return _clean(self.batch.observe()), {}
+        self._pools, self._n_pools = [], 0
+        self._group_cache = None
+        self._owner: list[_Pool | None] = [None] * self.num_envs
+        self._ep = np.zeros(self.num_envs, dtype=np.int64)
+        self._pending = np.zeros(self.num_envs, dtype=bool)
+        self._d_prev = np.full((self.num_envs, self.n_agents), np.nan)
+        self._viol_prev = np.zeros(self.num_envs, dtype=np.int64)
+        self._coll_prev = np.zeros(self.num_envs, dtype=np.int64)
+        if self.autoreset == "disabled":
+            pool = self._new_pool(self.num_envs)
+            pool.drawn = pool.live = self.num_envs
+            self._owner = [pool] * self.num_envs
+            self._ep = np.arange(self.num_envs)
+            pool.batch.run(0)
+        else:
+            self._draw(np.arange(self.num_envs))
+        raw = self._raw_obs()
+        self._d_prev = _cue_distance(raw)
+        return self._obs(raw), {}
+
+    def _to_velocity(self, actions) -> np.ndarray:
+        a = np.asarray(actions, dtype=np.float64)
+        want = (self.num_envs, self.n_agents, len(ACT_FIELDS))
+        if a.shape != want:
+            raise ConfigError(f"actions: expected shape {want}, got {a.shape}")
+        if self.action_mode == "normalized":
+            norm = np.sqrt((a * a).sum(-1, keepdims=True))
+            a = self.v_max * a / np.maximum(norm, 1.0)
+        return a
 
     def step(self, actions):
-        b = self.batch
-        if b is None:
+        if not self._pools:
             raise RuntimeError("OceanVectorEnv: call reset() before step()")
-        was_done = b.done.copy()
-        b.set_actions(actions)
-        live = ~was_done
-        k_next = int(b.k[live].max()) + 1 if live.any() else 0
-        b.run(k_next)
-        ended = b.done & ~was_done
-        success = b.res[:, 0] > 0.5
-        truncated = ended & (b.k >= b.n_steps) & ~success
+        a = self._to_velocity(actions)
+        reset_now = np.flatnonzero(self._pending)      # NEXT_STEP: these reset, not step
+        stepping = ~self._pending
+        for pool, js, eps in self._groups():
+            sel = stepping[js]
+            pool.batch.ext[eps[sel]] = a[js[sel]]
+        was_done = self._gather("done")
+        for pool, _, _ in self._groups():
+            pool.batch.run(-1)
+        done = self._gather("done")
+        ended = done & ~was_done & stepping
+        res = self._gather("res")
+        success = ended & (res[:, 0] > 0.5)
+        truncated = ended & ~success & (self._gather("k") >= self.cell_steps)
         terminated = ended & ~truncated
-        reward = (ended & success).astype(np.float64)
+        raw = self._raw_obs()
+        if self.reward_mode == "sparse":
+            reward = success.astype(np.float64)
+        else:
+            d_now = _cue_distance(raw)
+            viol, coll = self._gather("viol"), self._gather("coll")
+            reward = dense_reward(self._d_prev, d_now, viol - self._viol_prev,
+                                  coll - self._coll_prev, success, self.v_max, self.dt)
+            self._viol_prev, self._coll_prev = viol, coll
+            self._d_prev = d_now
+        reward = np.where(stepping, reward, 0.0)
         info: dict = {}
         if ended.any():
-            for j, col in enumerate(b.columns):
-                info[col] = np.where(ended, b.res[:, j], np.nan)
+            cols = self._owner[int(np.flatnonzero(ended)[0])].batch.columns
+            for c, col in enumerate(cols):
+                info[col] = np.where(ended, res[:, c], np.nan)
                 info["_" + col] = ended.copy()
-        return _clean(b.observe()), reward, terminated, truncated, info
+            info["is_success"] = success.copy()
+            info["_is_success"] = ended.copy()
+        obs = self._obs(raw)
+        if self.autoreset == "next_step":
+            if reset_now.size:
+                self._release(reset_now)
+                self._draw(reset_now)
+                fresh = self._raw_obs(reset_now)
+                obs[reset_now] = self._obs(fresh, reset_now)
+                self._d_prev[reset_now] = _cue_distance(fresh)
+                terminated[reset_now] = truncated[reset_now] = False
+            self._pending = ended
+        elif self.autoreset == "same_step" and ended.any():
+            idx = np.flatnonzero(ended)
+            info["final_obs"] = obs.copy()
+            info["_final_obs"] = ended.copy()
+            info["final_info"] = {k: v for k, v in info.items()
+                                  if k not in ("final_obs", "_final_obs")}
+            info["_final_info"] = ended.copy()
+            self._release(idx)
+            self._draw(idx)
+            fresh = self._raw_obs(idx)
+            obs[idx] = self._obs(fresh, idx)
+            self._d_prev[idx] = _cue_distance(fresh)
+        return obs, reward, terminated, truncated, info
+
+    def render(self):
+        """A top-down RGB view (H, W, 3) uint8 of sub-env 0 (``render_mode="rgb_array"``):
+        the current speed at the surface at the episode's time, land, the agents and their
+        goal cues."""
+        if self.render_mode != "rgb_array" or not self._pools:
+            return None
+        from .render import topdown_rgb
+
+        b = self._owner[0].batch
+        e = int(self._ep[0])
+        raw = self._raw_obs(np.array([0]))[0]
+        return topdown_rgb(self.cell.grid, b.state[e], raw[:, 0:3],
+                           float(b.t0[e] + b.k[e] * self.dt))
 
     def close(self, **kwargs):
-        self.batch = None
+        self._pools = []
+        self._group_cache = None
 
 
 class OceanEnv(gym.Env):
-    """Single-episode view of :class:`OceanVectorEnv` (``num_envs = 1``): observation
-    (N, OBS_DIM), action (N, 3). For ``check_env`` and single-env code."""
+    """Single-episode view of :class:`OceanVectorEnv` (``num_envs = 1``, autoreset
+    disabled): observation (N, D), action (N, 3); parameters as the vector env's."""
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": ["rgb_array"]}
 
-    def __init__(self, task: str, tier: int, grid, **kw):
-        self.venv = OceanVectorEnv(task, tier, grid, num_envs=1, **kw)
+    def __init__(self, task: str, tier: int, grid=None, *, render_mode: str | None = None,
+                 **kw):
+        kw.pop("autoreset_mode", None)
+        self.venv = OceanVectorEnv(task, tier, grid, num_envs=1, autoreset_mode="disabled",
+                                   render_mode=render_mode, **kw)
+        self.render_mode = render_mode
         self.observation_space = self.venv.single_observation_space
         self.action_space = self.venv.single_action_space
 
@@ -153,26 +504,34 @@ class OceanEnv(gym.Env):
         obs, r, term, trunc, info = self.venv.step(np.asarray(action)[None])
         one = {k: (v[0] if isinstance(v, np.ndarray) else v) for k, v in info.items()
                if not k.startswith("_")}
+        if "is_success" in one:
+            one["is_success"] = bool(one["is_success"])
         return obs[0], float(r[0]), bool(term[0]), bool(trunc[0]), one
 
+    def render(self):
+        return self.venv.render()
 
-def parallel_env(task: str, tier: int, grid, **kw):
+
+def parallel_env(task: str, tier: int, grid=None, **kw):
     """A PettingZoo ``ParallelEnv`` of one episode of a (multi-agent) task; agents are
-    ``vehicle_0 .. vehicle_{N-1}``, each with an ``OBS_DIM`` observation and a 3-vector
-    action (see the module docstring)."""
+    ``vehicle_0 .. vehicle_{N-1}``, each with one agent's observation and a 3-vector action
+    (see the module docstring; ``kw`` as :class:`OceanVectorEnv`: the modes, the backend)."""
     from pettingzoo import ParallelEnv
 
     class OceanParallelEnv(ParallelEnv):
-        metadata = {"name": f"oneocean_{task.lower()}_t{int(tier)}", "render_modes": []}
+        metadata = {"name": f"oneocean_{task.lower()}_t{int(tier)}",
+                    "render_modes": ["rgb_array"]}
 
         def __init__(self):
-            self.venv = OceanVectorEnv(task, tier, grid, num_envs=1, **kw)
-            n = self.venv.cell.n_agents
+            kw.pop("autoreset_mode", None)
+            self.venv = OceanVectorEnv(task, tier, grid, num_envs=1, autoreset_mode="disabled",
+                                       **kw)
+            n = self.venv.n_agents
             self.possible_agents = [f"vehicle_{i}" for i in range(n)]
             self.agents = []
-            self._obs_space = self.venv.cell.obs_space((OBS_DIM,))
-            self._act_space = self.venv.cell.act_space((len(ACT_FIELDS),))
-            self.render_mode = None
+            self._obs_space = self.venv._obs_space(())
+            self._act_space = self.venv._act_space(())
+            self.render_mode = self.venv.render_mode
 
         def observation_space(self, agent):
             return self._obs_space
@@ -194,7 +553,8 @@ def parallel_env(task: str, tier: int, grid, **kw):
                 if name in actions:
                     a[0, i] = actions[name]
             obs, r, term, trunc, info = self.venv.step(a)
-            metrics = {k: float(v[0]) for k, v in info.items() if not k.startswith("_")}
+            metrics = {k: (bool(v[0]) if k == "is_success" else float(v[0]))
+                       for k, v in info.items() if not k.startswith("_")}
             agents = list(self.agents)
             out = ({x: obs[0, self.possible_agents.index(x)] for x in agents},
                    {x: float(r[0]) for x in agents},
@@ -206,7 +566,7 @@ def parallel_env(task: str, tier: int, grid, **kw):
             return out
 
         def render(self):
-            return None
+            return self.venv.render()
 
         def close(self):
             self.venv.close()

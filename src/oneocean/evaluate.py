@@ -8,15 +8,20 @@ frame (x east, y down, z north), m s-1, clipped to the vehicle's ``v_max``. If t
 a ``reset(n_episodes, n_agents)`` method it is called before the first step. Rows of finished
 episodes are ignored.
 
+The grid is anything :func:`oneocean.defaults.resolve_grid` takes; None (the default) is the
+default region's grid, built into the cache on first use.
+
 Python::
 
     from oneocean.evaluate import evaluate
+    df = evaluate(my_policy, "G2G", 2)                  # the default region's grid
     df = evaluate(my_policy, "G2G", 2, "results/exports/synthetic_coast/scene/grid.npz")
 
 Command line::
 
+    oneocean evaluate --task G2G --tier 2 --policy mypkg.mod:act --out mine.parquet
     oneocean evaluate --task G2G --tier 2 --policy mypkg.mod:act \\
-        --grid results/exports/synthetic_coast/scene/grid.npz --out mine.parquet
+        --grid results/exports/<region>/scene/grid.npz --out mine.parquet
 """
 
 from __future__ import annotations
@@ -39,6 +44,9 @@ def load_policy(spec: str):
         mod = importlib.import_module(mod_name)
     except ImportError as exc:
         raise ConfigError(f"policy {spec!r}: cannot import module {mod_name!r} ({exc})") from None
+    except SyntaxError as exc:
+        raise ConfigError(f"policy {spec!r}: cannot import module {mod_name!r} (SyntaxError: "
+                          f"{exc.msg}, {exc.filename} line {exc.lineno})") from None
     obj = mod
     for part in attr.split("."):
         if not hasattr(obj, part):
@@ -49,21 +57,27 @@ def load_policy(spec: str):
     return obj
 
 
-def evaluate(policy, task: str, tier: int, grid, *, episodes: int = 50,
+def evaluate(policy, task: str, tier: int, grid=None, *, episodes: int = 50,
              seed: int = EVALUATION_SEED,
              dynamics: str = "6dof", n_agents: int | None = None, currents: bool = True,
              vehicle=None, name: str = "user", backend: str = "core",
              scene=None) -> pd.DataFrame:
     """Run ``policy`` on ``episodes`` episodes of a (task, tier) cell through the step API's
     loop; returns the cell table (:func:`oneocean.tasks.cell_frame`) with ``method = name``.
-    ``backend``/``scene``: the execution backend (:class:`oneocean.tasks.Cell`); the same
-    episodes, judge and metrics on either."""
+    ``grid``: what :func:`oneocean.defaults.resolve_grid` takes (None: the default region's
+    grid; ignored with ``scene``). ``backend``/``scene``: the execution backend
+    (:class:`oneocean.tasks.Cell`); the same episodes, judge and metrics on either."""
     from .envs import OceanVectorEnv
     from .tasks import cell_frame
 
+    if scene is None:
+        from .defaults import resolve_grid
+
+        grid = resolve_grid(grid)
+
     env = OceanVectorEnv(task, tier, grid, num_envs=int(episodes), dynamics=dynamics,
                          n_agents=n_agents, currents=currents, vehicle=vehicle,
-                         backend=backend, scene=scene)
+                         backend=backend, scene=scene, autoreset_mode="disabled")
     obs, _ = env.reset(seed=int(seed))
     b = env.batch
     if hasattr(policy, "reset"):
@@ -82,10 +96,11 @@ def evaluate(policy, task: str, tier: int, grid, *, episodes: int = 50,
     return df
 
 
-def evaluate_to_file(policy_spec: str, out_path, task: str, tier: int, grid_path, *,
+def evaluate_to_file(policy_spec: str, out_path, task: str, tier: int, grid_path=None, *,
                      name: str | None = None, **kw) -> dict:
     """:func:`evaluate` a ``module:callable`` policy and write the cell's Parquet table
-    atomically (with its manifest entry), like the workflow's rollout cells."""
+    atomically (with its manifest entry), like the workflow's rollout cells (``grid_path``:
+    as :func:`evaluate`'s ``grid``)."""
     from .engine import write_metrics
     from .tasks.common import tier_params
 

@@ -319,6 +319,17 @@ def builtin_task_ids() -> tuple[str, ...]:
     return _builtin_tasks
 
 
+def packaged_task_ids() -> tuple[str, ...]:
+    """:func:`builtin_task_ids` from the packaged tier tables' file names, without reading
+    them (a table's ``spec.id`` is its file name; :func:`builtin_task_ids` checks it): for
+    callers that must stay cheap, such as the Gymnasium registration at ``import oneocean``."""
+    if _tasks is not None:
+        return _builtin_tasks
+    stems = {f.stem for f in _tasks_dir().glob("*.yaml")}
+    return (tuple(t for t in PAPER_TASKS if t in stems)
+            + tuple(sorted(stems - set(PAPER_TASKS))))
+
+
 def scene_tasks() -> tuple[str, ...]:
     """The registered tasks whose tier table has a ``scene_tiers`` block (the tasks that run
     in a scene, on either backend), in :func:`task_ids` order."""

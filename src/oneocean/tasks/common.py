@@ -8,6 +8,8 @@ feasibility) and everything else every episode shares is in the one episode loop
 
 from __future__ import annotations
 
+import copy
+import functools
 import math
 from importlib import resources
 from pathlib import Path
@@ -104,11 +106,22 @@ def _tiers_dir() -> Path:
 
 def load_task_table(task_id: str, path: str | Path | None = None) -> dict:
     """The tier table of one task (its registry spec's ``table_path``, for the built-ins
-    ``data/tasks/<ID>.yaml``): agents, dt, harder, tiers (and the registry's ``spec``)."""
+    ``data/tasks/<ID>.yaml``): agents, dt, harder, tiers (and the registry's ``spec``).
+    Parsed once per file version (a fresh copy every call: callers may change it)."""
     if path is None:
         from ..registry import task_spec
 
         path = task_spec(task_id).table_path
+    f = Path(path)
+    try:
+        stamp = f.stat()
+    except OSError as exc:
+        raise ConfigError(f"{f}: cannot read tier table ({exc.strerror})") from None
+    return copy.deepcopy(_task_table(str(f.resolve()), stamp.st_mtime_ns, stamp.st_size))
+
+
+@functools.lru_cache(maxsize=64)
+def _task_table(path: str, mtime_ns: int, size: int) -> dict:
     f = Path(path)
     try:
         doc = yaml.safe_load(f.read_text())

@@ -34,8 +34,20 @@ def learned_method(method: str) -> bool:
         return False
 
 
-def over_episodes(kernel, n_episodes: int, *args) -> None:
-    """Run ``kernel(*args, e_lo, e_hi)`` over episodes ``0 .. n_episodes-1`` on
+_EXECUTOR: ThreadPoolExecutor | None = None
+
+
+def _executor(n_threads: int) -> ThreadPoolExecutor:
+    """A process-wide thread pool of at least ``n_threads`` workers (kept between calls: the
+    step API calls the kernels every step)."""
+    global _EXECUTOR
+    if _EXECUTOR is None or _EXECUTOR._max_workers < n_threads:
+        _EXECUTOR = ThreadPoolExecutor(max_workers=n_threads)
+    return _EXECUTOR
+
+
+def over_range(kernel, lo: int, hi: int, *args) -> None:
+    """Run ``kernel(*args, e_lo, e_hi)`` over episodes ``lo .. hi-1`` on
     ``numba.get_num_threads()`` threads, each a contiguous block of episodes.
 
     Task kernels are serial ``njit(cache=True, nogil=True)`` loops over a block of episodes,
@@ -44,18 +56,40 @@ def over_episodes(kernel, n_episodes: int, *args) -> None:
     without, same machine and load). Every episode is still computed by one thread with
     counter-based random streams, so results do not depend on the thread count (tested).
     """
+    lo, hi = int(lo), int(hi)
+    if hi - lo <= 1:               # one episode: no split (and no thread-count query)
+        kernel(*args, lo, hi)
+        return
     import numba
 
-    n_thr = max(1, min(int(numba.get_num_threads()), int(n_episodes)))
+    n_thr = max(1, min(int(numba.get_num_threads()), hi - lo))
     if n_thr == 1:
-        kernel(*args, 0, int(n_episodes))
+        kernel(*args, lo, hi)
         return
-    bounds = np.linspace(0, int(n_episodes), n_thr + 1).astype(np.int64)
-    with ThreadPoolExecutor(max_workers=n_thr) as pool:
-        futures = [pool.submit(kernel, *args, int(bounds[j]), int(bounds[j + 1]))
-                   for j in range(n_thr)]
-        for f in futures:
-            f.result()
+    bounds = np.linspace(lo, hi, n_thr + 1).astype(np.int64)
+    futures = [_executor(n_thr).submit(kernel, *args, int(bounds[j]), int(bounds[j + 1]))
+               for j in range(n_thr)]
+    for f in futures:
+        f.result()
+
+
+def fast_entry(dispatcher, args):
+    """The compiled entry point of the numba ``dispatcher`` for the types of ``args`` (all
+    its arguments), which skips numba's per-call type resolution (about 20 us with the
+    loop's NamedTuple arguments, several times a small batch's step); the dispatcher itself
+    where no compiled version matches or numba's internals differ. Valid while the arguments
+    keep their types."""
+    try:
+        sig = tuple(dispatcher.typeof_pyval(a) for a in args)
+        cres = dispatcher.overloads.get(sig)
+        return cres.entry_point if cres is not None else dispatcher
+    except Exception:   # pragma: no cover - a numba without these internals
+        return dispatcher
+
+
+def over_episodes(kernel, n_episodes: int, *args) -> None:
+    """:func:`over_range` over episodes ``0 .. n_episodes-1``."""
+    over_range(kernel, 0, n_episodes, *args)
 
 
 class Episodes:
@@ -156,6 +190,7 @@ class Episodes:
                              float(getattr(mod, "R_COLL_M", DEFAULT_R_COLL_M)),
                              make_net(net, mod.TASK_ID, n_ep, n_ag) if learned else no_net())
         self.LS = new_loop_state(n_ep, n_ag)
+        self._entries: dict = {}   # compiled entry points of the kernels (fast_entry)
         self.t0 = np.ascontiguousarray(init["t0"], dtype=np.float64)
         #: which of the task's candidate episodes these are (:meth:`oneocean.tasks.Cell.reset`)
         self.candidate = np.asarray(init.get("candidate", np.arange(n_ep)), dtype=np.int64)
@@ -174,9 +209,11 @@ class Episodes:
         # and RF routes) writes its plan tokens into W now, from what it knows: the loop's
         # params and state (its information level LP.sens, the episode's forecast LS.fc) and
         # the agents' known state; with external actions these are the heuristic's plan,
-        # the task's default mission plan, which the observation's goal cue reads
+        # the task's default mission plan, which the observation's goal cue reads (skipped
+        # where the cue does not read it: the policy's PREPARE_EXTERNAL = False)
         prepare = getattr(pol, "prepare", None)
-        if prepare is not None:
+        if prepare is not None and (method is not None
+                                    or getattr(pol, "PREPARE_EXTERNAL", True)):
             prepare(grid, self.P, self.W, self.M, self.t0, self.LP, self.LS, self.known_state)
 
     # ------------------------------------------------------------------ stepping
@@ -203,11 +240,16 @@ class Episodes:
         return self.LS.status == FINISHED
 
     def run(self, k_stop: int | None = None) -> "Episodes":
-        """Advance every running episode up to step ``k_stop`` (default: to its end)."""
+        """Advance every running episode up to step ``k_stop`` (default: to its end); a
+        negative ``k_stop`` advances each by ``-k_stop`` steps from where it is (the step
+        API, whose episodes may be at different steps)."""
         k_stop = self.n_steps if k_stop is None else int(k_stop)
-        over_episodes(self.kern._kernel, self.n_episodes, self.grid, self.vehicle.params,
-                      self.LP, self.P, self.W, self.M, self.LS, self.t0, self.state, self.cmd,
-                      self.ext, self.obs, self.act, self.res, k_stop)
+        args = (self.grid, self.vehicle.params, self.LP, self.P, self.W, self.M, self.LS,
+                self.t0, self.state, self.cmd, self.ext, self.obs, self.act, self.res, k_stop)
+        fn = self._entries.get("run")
+        over_episodes(fn or self.kern._kernel, self.n_episodes, *args)
+        if fn is None:     # compiled (or loaded) now: later calls skip numba's dispatch
+            self._entries["run"] = fast_entry(self.kern._kernel, args + (0, 1))
         return self
 
     def run_planned(self, planner, every: int) -> "Episodes":
@@ -233,13 +275,21 @@ class Episodes:
             raise ConfigError(f"actions: expected shape {self.ext.shape}, got {a.shape}")
         self.ext[...] = a
 
-    def observe(self) -> np.ndarray:
-        """(E, N, OBS_DIM) observation of every agent before its next step (NaN rows for
-        finished episodes are not cleared: check :attr:`done`)."""
+    def observe(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
+        """(E, N, OBS_DIM) observation of every agent before its next step (a finished
+        episode's is that of its last state: check :attr:`done`); with ``lo``/``hi`` only
+        episodes ``lo .. hi-1`` are observed (the other rows are NaN)."""
+        hi = self.n_episodes if hi is None else int(hi)
         nobs = np.full((self.n_episodes, 1, self.n_agents, OBS_DIM), np.nan)
         nact = np.zeros((self.n_episodes, 1, self.n_agents, len(ACT_FIELDS)))
-        over_episodes(self.kern._observe_kernel, self.n_episodes, self.grid, self.LP, self.P,
-                      self.W, self.LS, self.t0, self.state, nobs, nact)
+        if hi > lo:
+            args = (self.grid, self.LP, self.P, self.W, self.LS, self.t0, self.state, nobs,
+                    nact)
+            fn = self._entries.get("observe")
+            over_range(fn or self.kern._observe_kernel, lo, hi, *args)
+            if fn is None:
+                self._entries["observe"] = fast_entry(self.kern._observe_kernel,
+                                                      args + (0, 1))
         return nobs[:, 0]
 
     def results(self) -> dict:

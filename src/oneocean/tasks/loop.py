@@ -315,8 +315,10 @@ def finish_episode(finish, grid, P, W, LP, LS, state, res, e, k):
 @hot_kernel(inline="always")
 def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
                 grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act_rec, res, e, k_stop):
-    """Advance episode ``e`` up to step ``k_stop`` (or its end); write ``res[e]`` when it
-    ends. Serial; the per-task kernel runs it for every episode of its block.
+    """Advance episode ``e`` up to step ``k_stop`` (or its end; a negative ``k_stop``
+    advances it by ``-k_stop`` steps from where it is, so episodes at different steps move
+    together); write ``res[e]`` when it ends. Serial; the per-task kernel runs it for every
+    episode of its block.
 
     ``LP.phase`` says which part of a step this call runs: ``FULL`` (the core backend:
     whole steps, each agent deciding and moving in turn through :func:`advance_agent`),
@@ -334,6 +336,7 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
         LS.status[e] = RUNNING
         stop = begin(grid, P, W, state, e)
     k = LS.k[e]
+    k_lim = k_stop if k_stop >= 0 else k - k_stop
     energy = LS.energy[e]
     viol = LS.viol[e]
     coll = LS.coll[e]
@@ -341,7 +344,7 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
     cur = LS.cur[e]
     counting = LS.k_succ[e] < 0   # standard metrics accumulate up to success (REACHED)
     if LP.phase == FULL:
-        while k < n_steps and k < k_stop and not stop:
+        while k < n_steps and k < k_lim and not stop:
             t = t0[e] + k * dt
             pre_step(grid, P, W, state, e, k, t)
             X = known_state(LP, LS, state, e)   # the policy's view (the truth for the oracle)
@@ -357,7 +360,7 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
             k, stop, counting, coll, dmin = end_step(post_step, grid, P, W, LP, LS, state, e,
                                                      k, t, counting, coll, dmin)
     elif LP.phase == DECIDE:
-        if k < n_steps and k < k_stop and not stop:
+        if k < n_steps and k < k_lim and not stop:
             t = t0[e] + k * dt
             pre_step(grid, P, W, state, e, k, t)
             X = known_state(LP, LS, state, e)
@@ -375,7 +378,7 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
                 LS.cw[e, i, 0] = ce
                 LS.cw[e, i, 1] = cn
     else:   # JUDGE: the backend moved every agent of step k
-        if k < n_steps and k < k_stop and not stop:
+        if k < n_steps and k < k_lim and not stop:
             t = t0[e] + k * dt
             for i in range(n_ag):
                 energy, viol = account_agent(after_agent, grid, P, W, LP, LS, state, e, k, i,

@@ -59,22 +59,35 @@ class SteppedEpisodes(Episodes):
                          int(k_stop), 0, self.n_episodes)
 
     def run(self, k_stop: int | None = None) -> "SteppedEpisodes":
-        """Advance every running episode up to step ``k_stop`` (default: to its end), one
-        step at a time: decide (the task's kernel), move (the physics), judge (the kernel)."""
+        """Advance every running episode up to step ``k_stop`` (default: to its end; a
+        negative ``k_stop``: by ``-k_stop`` steps from where each is), one step at a time:
+        decide (the task's kernel), move (the physics), judge (the kernel)."""
         k_stop = self.n_steps if k_stop is None else int(k_stop)
         LS = self.LS
+        if k_stop < 0:
+            for _ in range(-k_stop):
+                live = (LS.status != FINISHED) & (LS.k < self.n_steps)
+                if not live.any():
+                    break
+                self._step(live, -1)
+            return self
         while True:
             live = (LS.status != FINISHED) & (LS.k < min(k_stop, self.n_steps))
             if not live.any():
                 return self
-            self._call(self._decide, k_stop)
-            moving = live & (LS.status != FINISHED)   # a task's begin may end an episode
-            codes = self.physics.step(self.state, self.cmd, LS.cw, live=moving)
-            codes = np.where(codes != OK, codes, self._feasibility())
-            LS.code[moving] = codes[moving]
-            self._call(self._judge, k_stop)
-            if self.trace is not None:
-                self.trace.append(self.state.copy())
+            self._step(live, k_stop)
+
+    def _step(self, live: np.ndarray, k_stop: int) -> None:
+        """One step of the ``live`` episodes: decide, move, judge."""
+        LS = self.LS
+        self._call(self._decide, k_stop)
+        moving = live & (LS.status != FINISHED)   # a task's begin may end an episode
+        codes = self.physics.step(self.state, self.cmd, LS.cw, live=moving)
+        codes = np.where(codes != OK, codes, self._feasibility())
+        LS.code[moving] = codes[moving]
+        self._call(self._judge, k_stop)
+        if self.trace is not None:
+            self.trace.append(self.state.copy())
 
     def _feasibility(self) -> np.ndarray:
         """(E, N) the core's feasibility code of every agent's new position on the grid

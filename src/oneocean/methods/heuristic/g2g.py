@@ -98,6 +98,11 @@ def straight_plan(grid, M: G2GPolicy, start, goal, depth: float, t0: float, dura
                          np.array([float(t0), math.nan]), math.nan, True)
 
 
+#: The task's observation cue does not read this policy's plan tokens (its route and speed
+#: schedule), so a rollout with external actions (the step API) skips :func:`prepare`.
+PREPARE_EXTERNAL = False
+
+
 def prepare(grid, P, W, M: G2GPolicy, t0, LP=None, LS=None, X=None) -> None:
     """The Python planner: plan every episode not yet planned (``W.planned``) from the start
     the method knows (``X``: the known state, else the task's start) on the field it knows

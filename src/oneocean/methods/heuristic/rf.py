@@ -89,6 +89,11 @@ def straight_plan(grid, M: RFPolicy, route_xz, depth: float, t0: float, duration
                          np.full(p.shape[0], math.nan), math.nan, True)
 
 
+#: The task's observation cue does not read this policy's plan tokens (its route and speed
+#: schedule), so a rollout with external actions (the step API) skips :func:`prepare`.
+PREPARE_EXTERNAL = False
+
+
 def prepare(grid, P, W, M: RFPolicy, t0, LP=None, LS=None, X=None) -> None:
     """The Python planner: the speed schedule of every episode not yet planned
     (``W.planned``) on the field the method knows (``LP.sens.true_current``: the truth, else

@@ -1,0 +1,120 @@
+"""Step API speed beside the fused kernel on the same task, tier and grid (printed figures).
+
+For each task (default G2G, FT, SPC at tier 2) and each batch size (1, 16, 256, 4096
+sub-envs; ``--envs``), in one run:
+
+* ``reset``: the wall time of ``OceanVectorEnv.reset`` (episode sampling and the batch's
+  set-up), per sub-env; and ``autoreset``: the mean time per sub-env reset under
+  ``next_step`` autoreset over the run (pooled sampling, amortised);
+* ``step``: env-steps per second of ``step()`` with a fixed action (raw view, velocity
+  actions), and the microseconds per ``step()`` call;
+* ``fused``: agent-steps per second of the task's fused kernel running the heuristic on the
+  same episodes (``Cell.run``), the speed the step API is measured against.
+
+One numba thread (``NUMBA_NUM_THREADS=1`` is set here unless given); the first call of each
+kind is a warm-up (compilation), not timed. The grid is the default region's (built and
+cached on first use: :func:`oneocean.defaults.default_grid_path`) unless ``--grid``.
+
+Usage::
+
+    python benchmarks/step_api.py
+    python benchmarks/step_api.py --tasks G2G --envs 1 16 --steps 200     # quick look
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+
+def _grid(path):
+    from oneocean.engine import load_grid
+
+    if path:
+        return load_grid(path)
+    from oneocean.defaults import resolve_grid
+
+    return resolve_grid(None)
+
+
+def measure(task: str, tier: int, grid, n_envs: int, steps: int) -> dict:
+    import numpy as np
+
+    from oneocean.envs import OceanVectorEnv
+
+    env = OceanVectorEnv(task, tier, grid, num_envs=n_envs, autoreset_mode="next_step")
+    env.reset(seed=0)                                   # warm-up (compile)
+    env.step(np.zeros(env.action_space.shape))
+    t = time.perf_counter()
+    env.reset(seed=1)
+    t_reset = time.perf_counter() - t
+    a = np.zeros(env.action_space.shape)
+    a[..., 0] = 0.5 * env.v_max
+    n_resets = 0
+    t = time.perf_counter()
+    for _ in range(steps):
+        _, _, term, trunc, _ = env.step(a)
+        n_resets += int((term | trunc).sum())
+    t_steps = time.perf_counter() - t
+    # time spent on autoresets: the same run's pool builds, timed separately
+    t = time.perf_counter()
+    k = 0
+    while time.perf_counter() - t < 0.5 or k < 1:
+        env._new_pool(env.pool_size)
+        k += 1
+    t_pool = (time.perf_counter() - t) / k / env.pool_size
+    return {"reset_ms_per_env": 1e3 * t_reset / n_envs, "pool_ms_per_env": 1e3 * t_pool,
+            "env_steps_s": steps * n_envs / t_steps, "us_per_step": 1e6 * t_steps / steps,
+            "agents": env.n_agents, "episodes_ended": n_resets}
+
+
+def fused(task: str, tier: int, grid, n_episodes: int) -> float:
+    from oneocean.tasks import Cell
+
+    cell = Cell(grid, task, tier)
+    cell.run("heuristic", 2, 0, "6dof")                 # warm-up
+    init = cell.reset(n_episodes, 1)
+    ep = cell.episodes(init, "heuristic", "6dof", 1)
+    t = time.perf_counter()
+    ep.run()
+    dt = time.perf_counter() - t
+    steps = int(ep.k.sum()) * cell.n_agents
+    return steps / dt
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--tasks", nargs="+", default=["G2G", "FT", "SPC"])
+    p.add_argument("--tier", type=int, default=2)
+    p.add_argument("--envs", nargs="+", type=int, default=[1, 16, 256, 4096])
+    p.add_argument("--steps", type=int, default=0,
+                   help="steps per timing (default: 2000 at 1 env down to 50 at 4096)")
+    p.add_argument("--grid", default=None, help="grid export (default: the default region)")
+    args = p.parse_args(argv)
+    grid = _grid(args.grid)
+    print(f"# step API vs fused kernel: tier {args.tier}, {os.environ['NUMBA_NUM_THREADS']} "
+          f"numba thread(s), {platform.processor() or platform.machine()}, "
+          f"python {sys.version.split()[0]}; load average {os.getloadavg()[0]:.2f}")
+    print(f"{'task':5} {'envs':>5} {'reset ms/env':>13} {'autoreset ms/env':>17} "
+          f"{'env-steps/s':>12} {'us/step()':>10} {'agent-steps/s':>14} {'fused agent-steps/s':>20}"
+          f" {'step API / fused':>17}")
+    for task in args.tasks:
+        f = fused(task, args.tier, grid, 64)
+        for n in args.envs:
+            steps = args.steps or max(50, min(2000, 200000 // n))
+            m = measure(task, args.tier, grid, n, steps)
+            agent_steps = m["env_steps_s"] * m["agents"]
+            print(f"{task:5} {n:>5} {m['reset_ms_per_env']:>13.3f} {m['pool_ms_per_env']:>17.3f} "
+                  f"{m['env_steps_s']:>12,.0f} {m['us_per_step']:>10.1f} {agent_steps:>14,.0f} "
+                  f"{f:>20,.0f} {agent_steps / f:>17.2f}", flush=True)
+    print(f"# load average at end: {os.getloadavg()[0]:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
