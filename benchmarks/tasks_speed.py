@@ -114,7 +114,7 @@ from oneocean.envs import OceanVectorEnv
 from oneocean.tasks import Cell
 from oneocean.tasks.episodes import Episodes
 task, tier, n, grid, steps = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4], 200
-env = OceanVectorEnv(task, tier, grid, num_envs=n)
+env = OceanVectorEnv(task, tier, grid, num_envs=n, autoreset_mode="disabled")
 env.reset(seed=0)
 a = np.zeros(env.action_space.shape)
 env.step(a)                                   # compile / warm up

@@ -91,12 +91,20 @@ def test_step_api_and_cell_file_on_the_scene_backend(scenes, tmp_path):
     from oneocean.evaluate import evaluate
 
     scene = scenes["open_water"]
-    env = OceanVectorEnv("G2G", 1, None, num_envs=2, backend="mujoco", scene=scene)
+    env = OceanVectorEnv("G2G", 1, None, num_envs=2, backend="mujoco", scene=scene,
+                         autoreset_mode="disabled")
     obs, _ = env.reset(seed=3)
     assert isinstance(env.batch, SceneEpisodes) and np.isfinite(obs).all()
     for _ in range(5):
         obs, rew, term, trunc, info = env.step(np.zeros((2, 1, 3)))
     assert np.isfinite(obs).all() and not term.any()
+    auto = OceanVectorEnv("G2G", 1, None, num_envs=2, backend="mujoco", scene=scene)
+    obs2, _ = auto.reset(seed=3)              # autoreset: the same first episodes
+    np.testing.assert_array_equal(obs2, env.reset(seed=3)[0])
+    for _ in range(5):
+        obs2, *_ = auto.step(np.zeros((2, 1, 3)))
+        obs, *_ = env.step(np.zeros((2, 1, 3)))
+    np.testing.assert_array_equal(obs2, obs)
 
     def goal_seeker(o):   # a user's policy: fly at the goal cue at 1.5 m/s
         g = o[..., :3]
