@@ -29,12 +29,14 @@ def base_config() -> dict:
 @pytest.fixture(autouse=True)
 def _forget_llm_methods():
     """A config with ``llm.models`` registers ``llm_<name>`` methods in the process
-    (:func:`oneocean.config.register_llm_methods`); forget them after each test, so tests
-    that list the registry's methods do not depend on which test ran before."""
+    (:func:`oneocean.config.register_llm_methods`), and reading a packaged method's cells
+    registers it (``ppo``: :data:`oneocean.registry.PACKAGED_METHODS`); forget them after
+    each test, so tests that list the registry's methods do not depend on which test ran
+    before."""
     from oneocean import registry
 
     before = set(registry.method_names())
     yield
     for name in set(registry.method_names()) - before:
-        if name.startswith("llm_"):
+        if name.startswith("llm_") or name in registry.PACKAGED_METHODS:
             registry.unregister_method(name)

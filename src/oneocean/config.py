@@ -28,7 +28,8 @@ def load_schema(path: str | Path | None = None) -> dict:
     """The config schema (the packaged one unless ``path``), with ``rollouts.tasks`` and
     ``rollouts.methods`` restricted to the tasks and methods registered now, and
     ``rollouts.tasks`` defaulting to the packaged task ladder; ``scenes.tasks`` restricted to
-    (and defaulting to) the tasks with scene tiers, ``scenes.methods`` to the methods."""
+    (and defaulting to) the tasks with scene tiers, ``scenes.methods`` to the methods;
+    ``rl.tasks`` restricted to the tasks and defaulting to the navigation family's."""
     if path is None:
         text = (resources.files("oneocean") / "data" / "config.schema.yaml").read_text()
     else:
@@ -47,6 +48,11 @@ def load_schema(path: str | Path | None = None) -> dict:
         scenes["tasks"].setdefault("default", list(registry.scene_tasks()))
     if "methods" in scenes:
         scenes["methods"]["items"] = {"enum": list(registry.method_names())}
+    rl = schema.get("properties", {}).get("rl", {}).get("properties", {})
+    if "tasks" in rl:   # the PPO baseline: default the navigation family's (single-vehicle)
+        rl["tasks"]["items"] = {"enum": list(registry.task_ids())}
+        rl["tasks"].setdefault("default", [t for t in registry.builtin_task_ids()
+                                           if registry.task_spec(t).family == "navigation"])
     return schema
 
 
@@ -106,6 +112,13 @@ def _check_semantics(cfg: dict) -> None:
         raise ConfigError(f"config key 'bc.train_seeds': {cfg['bc']['train_seeds']} contains "
                           f"the evaluation seed {cfg['rollouts']['seed']} (rollouts.seed); "
                           "training seeds must be disjoint from it")
+    held = [int(cfg["rollouts"]["seed"])] + [
+        int(x) for x in (cfg["rollouts"].get("replicate") or {}).get("seeds", [])]
+    both = sorted(set(int(x) for x in cfg["rl"]["seeds"]) & set(held))
+    if both:
+        raise ConfigError(f"config key 'rl.seeds': {both} is an evaluation seed (rollouts.seed "
+                          "or rollouts.replicate.seeds); training seeds must be disjoint "
+                          "from them")
     for m in cfg["llm"]["models"]:
         if not (m.get("model_path") or (m.get("base_url") and m.get("model"))):
             raise ConfigError(f"config key 'llm.models' entry {m['name']!r}: needs base_url "

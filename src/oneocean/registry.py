@@ -172,6 +172,12 @@ BUILTIN_METHODS = (
                "point) is kept, the network replaces its velocity law.", short="BC"),
 )
 
+#: Methods shipped in the package that are not built in (the workflow's rollouts never run
+#: them by default; their own rules do): name -> ``"module:attribute"`` of its
+#: :class:`MethodSpec` (the module registers it at import). :func:`method_spec` registers it
+#: on first lookup, so a table reads such a method's cell files in any process.
+PACKAGED_METHODS = {"ppo": "oneocean.methods.ppo.policy:METHOD"}
+
 _tasks: dict[str, TaskSpec] | None = None     # id -> spec, canonical order (lazy)
 _builtin_tasks: tuple[str, ...] = ()
 _families: dict[str, str] = dict(BUILTIN_FAMILIES)
@@ -400,7 +406,11 @@ def builtin_method_names() -> tuple[str, ...]:
 
 
 def method_spec(name: str) -> MethodSpec:
-    """The spec of method ``name``; unknown is a one-line ConfigError listing valid names."""
+    """The spec of method ``name`` (a :data:`PACKAGED_METHODS` entry is imported first);
+    unknown is a one-line ConfigError listing valid names."""
+    if name not in _methods and name in PACKAGED_METHODS:
+        mod, attr = PACKAGED_METHODS[name].split(":")
+        register_method(getattr(importlib.import_module(mod), attr))
     if name not in _methods:
         _invalid("method", name, tuple(_methods))
     return _methods[name]

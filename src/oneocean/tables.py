@@ -585,7 +585,10 @@ def task_success_ci_frame(cell_files) -> pd.DataFrame:
     (registry orders, then tier): ``family, task, n_agents, method, label, tier, sr, lo, hi``
     (percent, Wilson 95 %), ``n`` (episodes), ``applicable``, ``tasks`` (1), ``reason``; then
     per (method, tier) a ``task == "Macro"`` row: the unweighted mean over the tasks the
-    region hosts, stratified-bootstrap interval, ``tasks`` = how many it averages."""
+    region hosts, stratified-bootstrap interval, ``tasks`` = how many it averages. A method
+    without a cell of every task the table has at a tier (e.g. a baseline trained only on the
+    single-vehicle tasks) has no macro row at that tier: its mean would be over other tasks
+    than the rest of the row's."""
     from . import registry
 
     cells = _data_grounded(load_cell_frames(cell_files))
@@ -600,8 +603,10 @@ def task_success_ci_frame(cell_files) -> pd.DataFrame:
                      "reason": str(c["reason"] or "")})
     for m in _methods(cells):
         for k in sorted(set(cells.loc[cells["method"] == m, "tier"])):
-            mac = _macro(cells, m, k)
             sel = cells[(cells["method"] == m) & (cells["tier"] == k)]
+            if set(sel["task"]) != set(cells.loc[cells["tier"] == k, "task"]):
+                continue
+            mac = _macro(cells, m, k)
             rows.append({"family": "", "task": "Macro", "n_agents": pd.NA, "method": m,
                          "label": registry.method_spec(m).short, "tier": int(k),
                          "sr": mac["sr"], "lo": mac["lo"], "hi": mac["hi"],
@@ -638,7 +643,11 @@ def task_success_frame(cell_files) -> pd.DataFrame:
     out = sr.reset_index().rename(columns={"task": "Task"})
     out.insert(0, "Family", out["Task"].map(first["family"]))
     out.insert(2, "N", out["Task"].map(first["n_agents"]).astype(int))
-    macro = {"Family": "", "Task": "Macro", "N": pd.NA, **sr.mean(axis=0).to_dict()}
+    mac = long[long["task"] == "Macro"]
+    mac = {f"{registry.method_spec(m).short} T{t}": v
+           for m, t, v in zip(mac["method"], mac["tier"], mac["sr"])}
+    macro = {"Family": "", "Task": "Macro", "N": pd.NA,
+             **{c: mac.get(c, math.nan) for c in sr.columns}}
     return pd.concat([out, pd.DataFrame([macro])], ignore_index=True)
 
 
@@ -681,12 +690,19 @@ def task_success_latex(long: pd.DataFrame, cells: pd.DataFrame, region: str | No
     if (long["task"] == "Macro").any():
         rows += [("rule",), ["Macro", ""] + texts("Macro", "{:.1f}")]
     over = _hosted(long[long["task"] == "Macro"], len(tasks))
+    have = set(zip(long.loc[long["task"] == "Macro", "method"],
+                   long.loc[long["task"] == "Macro", "tier"]))
+    part = per.groupby(["method", "tier"], sort=False)["task"].nunique()
+    part = [f"{_escape(registry.method_spec(m).short)} T{k}: {n} of the {len(tasks)} tasks"
+            for (m, k), n in part.items() if (m, k) not in have]
+    no_macro = (" No macro for a method run on only some of the tasks ("
+                + "; ".join(part) + ").") if part else ""
     caption = (_protocol(cells, region, "Success rate (\\%) per task, method and tier")
                + " Each cell: SR with its Wilson 95\\% interval; N: agents. Macro: the "
                "unweighted mean over the tasks the region hosts" + over + ", with a "
                "stratified-bootstrap 95\\% interval (episodes resampled within each task, "
                "seeded). Best non-oracle method per task and tier in bold (the oracle is a "
-               "privileged solvability check, not a baseline)." + _na_note(cells))
+               "privileged solvability check, not a baseline)." + no_macro + _na_note(cells))
     return _latex(header, rows, caption, _label("tab:task_success", region),
                   align="lr" + "r" * len(cols), wide=True)
 
@@ -724,7 +740,9 @@ def headline_frame(cell_files, tiers=(2, 3), metric_tier: int = 3,
       mean includes the failures), with
       ``<key>_state``: ``ok``, ``n/a`` (the region cannot host the cell) or ``missing``.
 
-    Every value has ``_lo`` / ``_hi`` (95 %)."""
+    Every value has ``_lo`` / ``_hi`` (95 %). A method without a cell of every task the
+    table has at tier k has no ``T<k>`` aggregates (NaN, ``_tasks`` 0): they would average
+    other tasks than the other methods'."""
     from . import registry
 
     cells = _data_grounded(load_cell_frames(cell_files))
@@ -734,6 +752,13 @@ def headline_frame(cell_files, tiers=(2, 3), metric_tier: int = 3,
         row = {"method": m, "label": registry.method_spec(m).short}
         for k in tiers:
             sel = cm[cm["tier"] == k]
+            if set(sel["task"]) != set(cells.loc[cells["tier"] == k, "task"]):
+                # run on only some of the tier's tasks: no aggregate over other tasks than
+                # the other methods' (Table V shows its per-task rates)
+                for key in ("sr", "E", "coll"):
+                    row[f"T{k}_{key}"] = row[f"T{k}_{key}_lo"] = row[f"T{k}_{key}_hi"] = math.nan
+                row[f"T{k}_sr_tasks"] = row[f"T{k}_coll_tasks"] = 0
+                continue
             mac = _macro(cells, m, k)
             row[f"T{k}_sr"], row[f"T{k}_sr_lo"], row[f"T{k}_sr_hi"] = (
                 mac["sr"], mac["lo"], mac["hi"])

@@ -507,3 +507,63 @@ def paper_inputs():
     return PAPER_TABLES + [f"results/tables/{REGION}/planning_performance.tex",
                            f"results/tables/{REGION}/planning_cost.tex"] + scene + figs
 
+
+# ---- input functions and params of rules/rl.smk
+def rl_episodes():
+    """Episodes per PPO evaluation cell (rl.episodes; null: rollouts.episodes)."""
+    e = config["rl"]["episodes"]
+    return int(config["rollouts"]["episodes"] if e is None else e)
+
+
+def rl_evaluation_seeds():
+    """The seeds PPO never trains on: the evaluation seed and the replicate seeds."""
+    r = config["rollouts"]
+    return [int(r["seed"])] + [int(s) for s in (r.get("replicate") or {}).get("seeds", [])]
+
+
+def rl_cell_targets(kind="parquet"):
+    """The PPO cells (or their provenance records): every rl task at every rl.tiers_eval."""
+    if not config["rl"]["enabled"]:
+        return []
+    d = "results/rollouts" if kind == "parquet" else "results/provenance/rollouts"
+    ext = "parquet" if kind == "parquet" else "json"
+    return expand(f"{d}/{{region}}/{{variant}}/{{task}}/tier{{tier}}/ppo.{ext}",
+                  region=REGION, variant=config["rollouts"]["variant"],
+                  task=config["rl"]["tasks"], tier=config["rl"]["tiers_eval"])
+
+
+def rl_table_cells():
+    """Table V over the RL tasks: the configured methods' ladder cells of those tasks and
+    tiers, and the PPO cells."""
+    rl = config["rl"]
+    want = {(t, f"tier{k}") for t in rl["tasks"] for k in rl["tiers_eval"]}
+    return [p for p in rollout_targets() if Path(p).parts[-3:-1] in want] + rl_cell_targets()
+
+
+def rl_targets():
+    """Everything rl_baselines builds (nothing when rl.enabled is false)."""
+    if not config["rl"]["enabled"]:
+        return []
+    v = config["rollouts"]["variant"]
+    return (expand("results/rl/{region}/{variant}/{task}/{name}", region=REGION, variant=v,
+                   task=config["rl"]["tasks"], name=["policy.zip", "training_report.json"])
+            + rl_cell_targets()
+            + [f"results/tables/{REGION}/task_success_by_tier_rl.tex",
+               f"results/manifest/{REGION}.rl.json"])
+
+
+def rl_provenance():
+    """The provenance records of this stage (its manifest's inputs)."""
+    v = config["rollouts"]["variant"]
+    return (expand("results/provenance/rl/{region}/{variant}/{task}/policy.json",
+                   region=REGION, variant=v, task=config["rl"]["tasks"])
+            + rl_cell_targets("prov")
+            + [f"results/provenance/tables/{REGION}/task_success_by_tier_rl.json"])
+
+
+def rl_run(wc):
+    """What an evaluation cell runs: the rollouts' episodes, seed, dynamics and forcing
+    (oneocean.methods.ppo.policy refuses a forcing the step API cannot apply)."""
+    r = config["rollouts"]
+    return {"episodes": rl_episodes(), "seed": int(r["seed"]), "dynamics": r["dynamics"],
+            "current_gain": r["current_gain"], "tide": r["tide"], "backend": r["backend"]}

@@ -16,5 +16,6 @@ Four kinds (``oneocean.registry.MethodSpec.kind``):
   (:mod:`oneocean.methods.llm`, one per configured model).
 * ``callable``: any Python function ``obs -> action`` (:mod:`oneocean.evaluate`),
   stepped through the loop's external-action path; this is how a user scores their own policy
-  (:func:`oneocean.evaluate.evaluate`, ``oneocean evaluate``).
+  (:func:`oneocean.evaluate.evaluate`, ``oneocean evaluate``), and how ``ppo``
+  (:mod:`oneocean.methods.ppo`, a PPO network trained through the step API) is scored.
 """

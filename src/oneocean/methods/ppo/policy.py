@@ -1,0 +1,142 @@
+"""The trained PPO network as a method of kind ``callable``, and its cell files.
+
+:func:`load` turns a ``policy.zip`` (:mod:`.train`) into the callable
+:func:`oneocean.evaluate.evaluate` scores: it receives the raw observations (E, N, OBS_DIM)
+the evaluation gives every policy, maps them through :func:`oneocean.envs.normalize` exactly
+as the training env did (the vehicle's ``v_max``, the task's reach ``v_max x time limit``, the
+fraction of the time limit left, counted in calls since ``reset``), takes the network's
+deterministic action and returns it in m s-1 (``v_max`` times the action, its norm clipped to
+1: the env's ``action_mode="normalized"``).
+
+:func:`evaluate_to_file` scores it on exactly a workflow cell's episodes (the evaluation
+seed, ``rollouts.episodes``; :func:`oneocean.evaluate.evaluate`) and writes the cell file in
+the rollout cells' layout and record (:func:`oneocean.tasks.rollout_to_file`), so the tables
+read it like any other method's.
+
+Importing this module registers the method ``ppo`` (kind ``callable``: Python ``obs ->
+action`` through the step API, not a network inside the compiled loop) and imports neither
+torch nor Stable-Baselines3.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...registry import MethodSpec, register_method
+from ...vocab import EVALUATION_SEED
+
+#: The method ``ppo`` (registered at import).
+METHOD = register_method(MethodSpec(
+    "ppo", "PPO", "callable", "shared sensor models",
+    "Proximal policy optimisation (Stable-Baselines3 defaults, MlpPolicy), one policy per "
+    "single-vehicle task trained on the step API's normalised observations and actions with "
+    "the dense reward, on training seeds disjoint from the evaluation seed, for a fixed "
+    "budget of environment steps; evaluated with deterministic actions.", short="PPO"))
+
+
+def episode_constants(task: str, tier: int) -> dict:
+    """What the normalised view needs for a (task, tier), as the env computes it:
+    ``v_max`` (m s-1, the task's vehicle), ``reach`` (m, ``v_max x time_limit_s``) and
+    ``n_steps`` (the episode length in steps)."""
+    from ...engine import load_vehicle
+    from ...tasks.common import episode_steps, load_task_table, tier_params
+
+    table = load_task_table(task)
+    params = tier_params(task, int(tier))
+    v_max = float(load_vehicle(table.get("vehicle")).v_max)
+    return {"v_max": v_max, "reach": v_max * float(params["time_limit_s"]),
+            "n_steps": episode_steps({**params, "dt_s": float(table["dt_s"])})}
+
+
+class PPOPolicy:
+    """A trained PPO network as ``policy(obs) -> actions`` for one (task, tier).
+
+    ``obs``: (E, N, OBS_DIM) raw observations (undefined values 0); returns (E, N, 3) m s-1.
+    ``reset(n_episodes, n_agents)`` restarts the step count (``time_left``), as
+    :func:`oneocean.evaluate.evaluate` calls it before the first step.
+    """
+
+    def __init__(self, model, task: str, tier: int):
+        c = episode_constants(task, tier)
+        self.model = model
+        self.task, self.tier = task, int(tier)
+        self.v_max, self.reach, self.n_steps = c["v_max"], c["reach"], c["n_steps"]
+        self.k = 0
+
+    def reset(self, n_episodes: int | None = None, n_agents: int | None = None) -> None:
+        import torch
+
+        torch.set_num_threads(1)       # after the env's numba threads started (train.py)
+        self.k = 0
+
+    def normalized(self, obs) -> np.ndarray:
+        """The training env's observation (E, N, NORM_DIM) of raw ``obs`` at this step."""
+        from ...envs import normalize
+
+        o = np.asarray(obs, dtype=np.float64)
+        left = max(0.0, 1.0 - self.k / float(self.n_steps))
+        return normalize(o, self.v_max, self.reach, np.full(o.shape[0], left))
+
+    def __call__(self, obs) -> np.ndarray:
+        x = self.normalized(obs)
+        e, n, d = x.shape
+        a, _ = self.model.predict(x.reshape(e * n, d), deterministic=True)
+        a = np.asarray(a, dtype=np.float64).reshape(e, n, -1)
+        norm = np.sqrt((a * a).sum(-1, keepdims=True))
+        self.k += 1
+        return self.v_max * a / np.maximum(norm, 1.0)
+
+
+def load(path, task: str, tier: int) -> PPOPolicy:
+    """The ``policy.zip`` at ``path`` as a :class:`PPOPolicy` for ``task`` at ``tier``."""
+    from stable_baselines3 import PPO
+
+    return PPOPolicy(PPO.load(str(path), device="cpu"), task, tier)
+
+
+def evaluate_to_file(policy_path, grid_path, out_path, task: str, tier: int, *,
+                     episodes: int = 50, seed: int = EVALUATION_SEED, dynamics: str = "6dof",
+                     current_gain: float = 1.0, tide=None, backend: str = "core",
+                     threads: int = 1) -> dict:
+    """Score the policy on the cell's episodes (:func:`oneocean.evaluate.evaluate`, method
+    ``ppo``) and write its Parquet file atomically with the rollout cells' record (task, tier,
+    method, dynamics, vehicle, seed, forcing, tier parameters, ``applicable``) plus the
+    policy's sha256; a cell the region cannot host is written as not applicable. Returns the
+    manifest entry (:func:`oneocean.engine.write_metrics`).
+
+    ``current_gain``, ``tide``, ``backend``: the workflow's run settings; the evaluation runs
+    the data currents as they are on the core backend, so anything else is a ConfigError
+    (never a cell under other forcing than its record says)."""
+    import numba
+
+    from ...engine import load_grid, load_vehicle, write_metrics
+    from ...errors import ConfigError, NotApplicable
+    from ...evaluate import evaluate
+    from ...io import sha256_file
+    from ...tasks import n_agents_for, na_frame, task_module
+    from ...tasks.common import load_task_table, tier_params
+
+    if float(current_gain) != 1.0 or tide is not None or backend != "core":
+        raise ConfigError(f"ppo cell {task} tier {tier}: the policy is scored through "
+                          "oneocean.evaluate, which runs the data currents (current_gain 1, "
+                          "no synthetic tide) on the core backend; got current_gain="
+                          f"{current_gain}, tide={tide}, backend={backend!r}")
+    numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    params = tier_params(task, int(tier))
+    vehicle = load_vehicle(load_task_table(task).get("vehicle"))
+    n = n_agents_for(task, None)
+    meta = {"task": task, "tier": int(tier), "method": METHOD.name, "dynamics": dynamics,
+            "vehicle": vehicle.name, "v_max_ms": vehicle.v_max, "n_agents": n,
+            "episodes": int(episodes), "seed": int(seed),
+            "current_gain": float(params.get("current_gain", 1.0)), "tide": None,
+            "currents": True, "tier_params": params, "applicable": True, "reason": "",
+            "backend": "core", "policy": "oneocean.methods.ppo.policy:load",
+            "policy_sha256": sha256_file(policy_path)}
+    grid = load_grid(grid_path)
+    try:
+        df = evaluate(load(policy_path, task, tier), task, tier, grid, episodes=int(episodes),
+                      seed=int(seed), dynamics=dynamics, name=METHOD.name)
+    except NotApplicable as exc:
+        df = na_frame(task_module(task), int(tier), METHOD.name, n, dynamics, True, int(seed))
+        meta.update(applicable=False, reason=str(exc))
+    return write_metrics(df, out_path, meta=meta)

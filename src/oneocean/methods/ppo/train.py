@@ -1,0 +1,278 @@
+"""Train the PPO baseline of one task: SB3 defaults, a fixed budget, training seeds only.
+
+Environment: the task's :class:`~oneocean.envs.OceanVectorEnv` at each training tier
+(``n_envs`` sub-envs per tier, ``autoreset_mode="same_step"``, ``obs_mode="normalized"``,
+``action_mode="normalized"``, ``reward="dense"``), all tiers' sub-envs in one
+:class:`~oneocean.sb3.SB3VecEnv`; the episodes are the env's pools of the training seed
+(:func:`oneocean.envs.pool_seed`, :func:`oneocean.sb3.block_seed` per tier), never the
+evaluation seed's.
+
+Algorithm: ``PPO("MlpPolicy", env, seed=seed, device="cpu")`` with Stable-Baselines3's
+default hyperparameters (:data:`PPO_CHANGES` lists what differs from them: nothing), for
+``budget_steps`` SB3 timesteps (one per agent per control step: environment steps for a
+single-vehicle task), in whole rollouts of ``n_steps x n_envs x tiers``.
+
+Determinism: the same seed, budget and settings give the same weights (and so the same
+``policy.zip`` bytes): ``set_random_seed(seed)``, one torch thread (also after the env's numba
+kernels have started their threads), the CPU, and a byte-stable zip (:func:`save_stable`).
+The training report's wall times are the only values that change between runs.
+
+Several training seeds (``seeds``) train one run each with the same budget; the run kept for
+evaluation is the one with the highest final success rate on its *training* episodes (the
+first on a tie); every run's learning curve is in the report.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import ConfigError
+from ...vocab import EVALUATION_SEED
+
+#: The documented range of PPO training seeds: every seed below the evaluation seed (the
+#: workflow's replicate seeds lie above it). A training seed outside it is refused.
+TRAINING_SEEDS = range(0, EVALUATION_SEED)
+#: Changes to Stable-Baselines3's default PPO hyperparameters (none: the defaults).
+PPO_CHANGES: dict = {}
+#: The training env's modes (the policy maps raw observations and m s-1 actions through them).
+ENV_MODES = {"obs_mode": "normalized", "action_mode": "normalized", "reward": "dense",
+             "autoreset_mode": "same_step"}
+#: Share of the rollouts (the last ones) whose finished episodes give the final success rate.
+FINAL_SHARE = 0.1
+#: Entries of the SB3 ``data`` record that depend on the wall clock (not saved).
+_VOLATILE = ["start_time", "ep_info_buffer", "ep_success_buffer"]
+
+
+def check_training_seeds(seeds, evaluation_seeds=(EVALUATION_SEED,)) -> list[int]:
+    """The training seeds as ints; a ConfigError if one is outside :data:`TRAINING_SEEDS`,
+    repeated, or an evaluation seed."""
+    out = [int(s) for s in seeds]
+    if not out:
+        raise ConfigError("rl.seeds: at least one training seed is needed")
+    held = {int(s) for s in evaluation_seeds}
+    for s in out:
+        if s in held:
+            raise ConfigError(f"rl.seeds: {s} is an evaluation seed ({sorted(held)}); "
+                              "training seeds must be disjoint from it")
+        if s not in TRAINING_SEEDS:
+            raise ConfigError(f"rl.seeds: {s} is outside the training seed range "
+                              f"{TRAINING_SEEDS.start}-{TRAINING_SEEDS.stop - 1}")
+    if len(set(out)) != len(out):
+        raise ConfigError(f"rl.seeds: duplicate seed in {out}")
+    return out
+
+
+def episode_seeds(seed: int, blocks: int, pools: int) -> list[int]:
+    """Every seed whose episodes a training run with ``blocks`` vector envs that each drew
+    ``pools`` pools used (:func:`oneocean.sb3.block_seed`, :func:`oneocean.envs.pool_seed`)."""
+    from ...envs import pool_seed
+    from ...sb3 import block_seed
+
+    return [pool_seed(block_seed(seed, b), i) for b in range(blocks) for i in range(pools)]
+
+
+def _threads_one() -> None:
+    """One torch thread and one numba thread (the env's numba threads and torch's share an
+    OpenMP runtime: more threads than cores makes every small torch op wait)."""
+    import numba
+    import torch
+
+    numba.set_num_threads(1)
+    torch.set_num_threads(1)
+
+
+def make_env(task: str, tiers, grid, n_envs: int, *, dynamics: str = "6dof"):
+    """The training env: one :class:`~oneocean.envs.OceanVectorEnv` of ``n_envs`` sub-envs per
+    tier (:data:`ENV_MODES`) in one :class:`~oneocean.sb3.SB3VecEnv`."""
+    from ...engine import load_grid
+    from ...engine.grid import Grid
+    from ...envs import OceanVectorEnv
+    from ...sb3 import SB3VecEnv
+
+    if grid is not None and not isinstance(grid, Grid):
+        grid = load_grid(grid)
+    return SB3VecEnv([OceanVectorEnv(task, int(k), grid, num_envs=int(n_envs),
+                                     dynamics=dynamics, **ENV_MODES) for k in tiers])
+
+
+def _curve_callback(n_agents: int):
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Curve(BaseCallback):
+        """Per rollout: finished episodes, their success rate and mean return, and the mean
+        reward per step (one row per sub-env episode: a team's agents count once)."""
+
+        def __init__(self):
+            super().__init__()
+            self.rows: list[dict] = []
+            self.episodes: list[tuple[int, bool, float]] = []   # (rollout, success, return)
+
+        def _on_rollout_start(self) -> None:
+            self._r_sum, self._r_n = 0.0, 0
+            self._succ, self._ret = [], []
+
+        def _on_step(self) -> bool:
+            r = np.asarray(self.locals["rewards"], dtype=np.float64)
+            self._r_sum += float(r.sum())
+            self._r_n += r.size
+            for row, (info, done) in enumerate(zip(self.locals["infos"],
+                                                   self.locals["dones"])):
+                if done and row % n_agents == 0 and "episode" in info:
+                    self._succ.append(bool(info["is_success"]))
+                    self._ret.append(float(info["episode"]["r"]))
+            return True
+
+        def _on_rollout_end(self) -> None:
+            k = len(self.rows)
+            n = len(self._succ)
+            self.rows.append({
+                "rollout": k, "timesteps": int(self.num_timesteps), "episodes": n,
+                "success_rate": (float(np.mean(self._succ)) if n else None),
+                "mean_episode_return": (float(np.mean(self._ret)) if n else None),
+                "mean_reward": self._r_sum / max(self._r_n, 1)})
+            self.episodes += [(k, s, r) for s, r in zip(self._succ, self._ret)]
+
+    return Curve()
+
+
+def train(task: str, grid, *, tiers=(1, 2, 3), budget_steps: int = 1_000_000,
+          n_envs: int = 8, seed: int = 0, dynamics: str = "6dof",
+          evaluation_seeds=(EVALUATION_SEED,), ppo_kwargs=None, log=None):
+    """Train PPO on ``task`` for ``budget_steps`` timesteps with one training ``seed``
+    (``ppo_kwargs``: hyperparameters other than :data:`PPO_CHANGES`, e.g. a small
+    ``n_steps`` for a smoke test; recorded in the report).
+
+    Returns ``(model, run)``: the SB3 model and the run's record (seed, timesteps, wall time,
+    ``final_success`` and ``final_episodes``: the success rate over the episodes that ended in
+    the last :data:`FINAL_SHARE` of the rollouts, ``curve``: one row per rollout with
+    ``timesteps, episodes, success_rate, mean_episode_return, mean_reward``).
+    """
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.utils import set_random_seed
+
+    seed = check_training_seeds([seed], evaluation_seeds)[0]
+    tiers = [int(k) for k in tiers]
+    env = make_env(task, tiers, grid, n_envs, dynamics=dynamics)
+    env.seed(seed)
+    env.reset()                      # starts the env's numba threads before torch's are set
+    _threads_one()
+    set_random_seed(seed)
+    model = PPO("MlpPolicy", env, seed=seed, device="cpu", verbose=0,
+                **{**PPO_CHANGES, **(ppo_kwargs or {})})
+    curve = _curve_callback(env.venvs[0].n_agents)
+    t0 = time.perf_counter()
+    model.learn(total_timesteps=int(budget_steps), callback=curve)
+    wall = time.perf_counter() - t0
+    pools = max(v._n_pools for v in env.venvs)
+    used = episode_seeds(seed, len(env.venvs), pools)
+    held = {int(s) for s in evaluation_seeds}
+    assert not held & set(used), f"training episodes of seed {seed} reach an evaluation seed"
+    n_roll = len(curve.rows)
+    last = max(1, int(math.ceil(FINAL_SHARE * n_roll)))
+    fin = [s for k, s, _ in curve.episodes if k >= n_roll - last]
+    run = {"seed": seed, "timesteps": int(model.num_timesteps), "rollouts": n_roll,
+           "wall_time_s": round(wall, 1), "episodes": len(curve.episodes),
+           "final_success": float(np.mean(fin)) if fin else None,
+           "final_episodes": len(fin), "final_rollouts": last,
+           "episode_pools": int(pools), "curve": curve.rows}
+    env.close()
+    if log is not None:
+        log.info("PPO %s seed %d: %d steps in %.0f s, final training success %s over %d "
+                 "episodes", task, seed, run["timesteps"], wall, run["final_success"],
+                 len(fin))
+    return model, run
+
+
+def hyperparameters(model) -> dict:
+    """The PPO hyperparameters a model trained with (SB3's defaults plus :data:`PPO_CHANGES`)."""
+    out = {k: getattr(model, k) for k in ("n_steps", "batch_size", "n_epochs", "gamma",
+                                            "gae_lambda", "ent_coef", "vf_coef",
+                                            "max_grad_norm", "normalize_advantage", "target_kl")}
+    out["learning_rate"] = model.learning_rate if not callable(model.learning_rate) else "schedule"
+    out["clip_range"] = model.clip_range(1.0) if callable(model.clip_range) else model.clip_range
+    out["net_arch"] = str(model.policy.net_arch)
+    out["activation_fn"] = model.policy.activation_fn.__name__
+    out["n_envs"] = int(model.n_envs)
+    return out
+
+
+def save_stable(model, path) -> None:
+    """Save the SB3 ``.zip`` atomically and byte-stably: without the wall-clock entries
+    (:data:`_VOLATILE`) and with every member's time stamp at 1980-01-01 (members in SB3's
+    order, deflated)."""
+    import io
+
+    from ...io import atomic_path
+
+    buf = io.BytesIO()
+    model.save(buf, exclude=list(_VOLATILE))
+    buf.seek(0)
+    with atomic_path(path, suffix=".zip") as tmp, zipfile.ZipFile(buf) as src, \
+            zipfile.ZipFile(tmp, "w") as dst:
+        for info in src.infolist():
+            out = zipfile.ZipInfo(info.filename, date_time=(1980, 1, 1, 0, 0, 0))
+            out.compress_type = zipfile.ZIP_DEFLATED
+            out.external_attr = 0o644 << 16
+            dst.writestr(out, src.read(info))
+
+
+def train_to_files(grid_path, policy_path, report_path, task: str, *, tiers=(1, 2, 3),
+                   budget_steps: int = 1_000_000, n_envs: int = 8, seeds=(0,),
+                   dynamics: str = "6dof", evaluation_seeds=(EVALUATION_SEED,),
+                   ppo_kwargs=None, log=None) -> dict:
+    """Train one run per seed (:func:`train`), keep the run with the best final training
+    success, write its ``policy.zip`` (:func:`save_stable`) and the training report (JSON)
+    atomically; returns the report."""
+    from importlib.metadata import version
+
+    from ...io import sha256_file, write_json_atomic
+    from ...registry import task_spec
+
+    seeds = check_training_seeds(seeds, evaluation_seeds)
+    spec = task_spec(task)
+    if spec.agents_default != 1:
+        raise ConfigError(f"rl.tasks: {task} is a team task ({spec.agents_default} agents); "
+                          "the PPO baseline trains single-vehicle tasks")
+    runs, best, best_model = [], None, None
+    for s in seeds:
+        model, run = train(task, grid_path, tiers=tiers, budget_steps=budget_steps,
+                           n_envs=n_envs, seed=s, dynamics=dynamics,
+                           evaluation_seeds=evaluation_seeds, ppo_kwargs=ppo_kwargs,
+                           log=log)
+        runs.append(run)
+        score = -1.0 if run["final_success"] is None else run["final_success"]
+        if best is None or score > best[0]:
+            best, best_model = (score, run), model
+    save_stable(best_model, policy_path)
+    sel = best[1]
+    report = {
+        "method": "ppo", "task": task, "tiers": [int(k) for k in tiers],
+        "budget_steps": int(budget_steps), "n_envs_per_tier": int(n_envs),
+        "dynamics": dynamics, "env": dict(ENV_MODES),
+        "seeds": seeds, "selected_seed": sel["seed"],
+        "selection": "highest final success on the training episodes (first on a tie)",
+        "training_seed_range": [TRAINING_SEEDS.start, TRAINING_SEEDS.stop - 1],
+        "evaluation_seeds_excluded": sorted(int(s) for s in evaluation_seeds),
+        "algorithm": "stable_baselines3.PPO MlpPolicy",
+        "ppo_changes": {**PPO_CHANGES, **(ppo_kwargs or {})},
+        "hyperparameters": hyperparameters(best_model),
+        "final_success": sel["final_success"], "final_episodes": sel["final_episodes"],
+        "final_share": FINAL_SHARE,
+        "wall_time_s": round(sum(r["wall_time_s"] for r in runs), 1),
+        "policy_sha256": sha256_file(policy_path),
+        "versions": {p: version(p) for p in ("stable_baselines3", "torch", "gymnasium")},
+        "runs": runs,
+    }
+    write_json_atomic(report_path, report)
+    return report
+
+
+def read_report(path) -> dict:
+    """A training report (:func:`train_to_files`)."""
+    return json.loads(Path(path).read_text())
