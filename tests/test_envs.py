@@ -368,3 +368,32 @@ def test_gymnasium_vector_wrappers_accept_the_vector_env(default_grid):
     for _ in range(5):
         obs, r, term, trunc, info = env.step(np.zeros(env.action_space.shape))
     assert np.isfinite(obs).all() and obs.shape == (4, 1, 17)
+
+
+def test_a_seed_the_cell_cannot_host_moves_on_to_the_next_pool_seed(default_grid):
+    """UPL tier 1 finds no episode in its current regime among seed 14's candidates on the
+    default region: an env moves on to the next pool seed; evaluation (strict) says so."""
+    from oneocean.envs import OceanVectorEnv, pool_seed
+    from oneocean.errors import NotApplicable
+
+    strict = OceanVectorEnv("UPL", 1, default_grid, num_envs=1, autoreset_mode="disabled",
+                            strict_seed=True)
+    with pytest.raises(NotApplicable, match="current regime"):
+        strict.reset(seed=14)
+    env = OceanVectorEnv("UPL", 1, default_grid, num_envs=1, autoreset_mode="disabled")
+    obs, _ = env.reset(seed=14)
+    served = next(i for i in range(1, 16)
+                  if _hosts(env.cell, pool_seed(14, i)))
+    init = env.cell.reset(1, pool_seed(14, served))
+    np.testing.assert_array_equal(env.batch.state[0, :, :3], init["pos0"][0])
+    assert np.isfinite(obs).all()
+
+
+def _hosts(cell, seed) -> bool:
+    from oneocean.errors import NotApplicable
+
+    try:
+        cell.reset(1, seed)
+        return True
+    except NotApplicable:
+        return False

@@ -49,7 +49,9 @@ Episodes and resets
     New episodes come from a pool sampled in one go per seed (``pool`` episodes per
     sub-env): the pool of seed ``s`` holds the cell's episodes ``0, 1, ...`` of ``s`` and
     sub-envs draw them in the order they finish; a spent pool is followed by one of seed
-    :func:`pool_seed` ``(s, 1)``, ``(s, 2)``, ...
+    :func:`pool_seed` ``(s, 1)``, ``(s, 2)``, ... A seed whose episodes the cell cannot host
+    (a task whose scenario finds no candidate in the tier's current regime for it) is
+    skipped for the next pool seed, except with ``strict_seed=True`` (evaluation).
 
     ``info`` carries, for sub-envs whose episode ended at this step, every result column of the
     cell table (``success``, ``T_s``, ``E``, ``coll_ratio``, ``violations`` and the task's
@@ -66,7 +68,7 @@ import gymnasium as gym
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 
-from .errors import ConfigError
+from .errors import ConfigError, NotApplicable
 from .tasks import Cell
 from .tasks.common import ACT_FIELDS, OBS_DIM, OBS_FIELDS, N_MATES
 from .tasks.loop import FINISHED, NEW
@@ -89,6 +91,8 @@ GOAL_SCALE_M, MATE_SCALE_M, DEPTH_SCALE_M, ALTITUDE_CLIP_M = 10.0, 10.0, 100.0, 
 #: Dense reward: weight of the progress term (per step, progress in units of v_max dt) and
 #: the penalties per rejected move and per step with a near-collision.
 PROGRESS_WEIGHT, VIOLATION_PENALTY, COLLISION_PENALTY = 0.1, 0.1, 0.1
+#: Pool seeds tried before a reset gives up on a cell that cannot host episodes.
+SEED_TRIES = 16
 
 
 def pool_seed(seed: int, index: int) -> int:
@@ -211,6 +215,9 @@ class OceanVectorEnv(VectorEnv):
     obs_mode : ``raw`` or ``normalized``; action_mode : ``velocity`` or ``normalized``;
     reward : ``sparse`` or ``dense``
     pool : episodes sampled per sub-env at a time (autoreset modes)
+    strict_seed : a seed whose episodes the cell cannot host raises ``NotApplicable``
+        (evaluation: :func:`oneocean.evaluate.evaluate`) instead of moving on to the next
+        pool seed
     render_mode : None or ``rgb_array`` (a top-down view of sub-env 0: :meth:`render`)
     dynamics, n_agents, currents, vehicle : as ``run_cell``; backend, scene : the execution
         backend (``core``, or ``mujoco`` with a :class:`oneocean.backends.mujoco.scenes.Scene`)
@@ -221,7 +228,7 @@ class OceanVectorEnv(VectorEnv):
     def __init__(self, task: str, tier: int, grid=None, num_envs: int = 8, *,
                  autoreset_mode="next_step", obs_mode: str = "raw",
                  action_mode: str = "velocity", reward: str = "sparse", pool: int = 4,
-                 render_mode: str | None = None, **kw):
+                 render_mode: str | None = None, strict_seed: bool = False, **kw):
         if isinstance(autoreset_mode, AutoresetMode):
             autoreset_mode = {v: k for k, v in AUTORESET_MODES.items()}[autoreset_mode]
         self.autoreset = _choice("autoreset_mode", autoreset_mode, tuple(AUTORESET_MODES))
@@ -231,6 +238,7 @@ class OceanVectorEnv(VectorEnv):
         if render_mode not in (None, "rgb_array"):
             raise ConfigError(f"render_mode: {render_mode!r} is not one of None, rgb_array")
         self.render_mode = render_mode
+        self.strict_seed = bool(strict_seed)
         self.metadata = {**self.metadata, "autoreset_mode": AUTORESET_MODES[self.autoreset]}
         self.cell = _Cell(task, tier, grid, **kw)
         self.task, self.tier = task, int(tier)
@@ -267,11 +275,22 @@ class OceanVectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ pools
     def _new_pool(self, n: int) -> _Pool:
-        pool = _Pool(self.cell, n, pool_seed(self._seed, self._n_pools),
-                     park=self.autoreset != "disabled")
-        self._n_pools += 1
-        self._pools.append(pool)
-        return pool
+        """The next pool of ``n`` episodes. A seed whose episodes the cell cannot host (the
+        task's scenario finds no valid candidate: ``NotApplicable``) is followed by the next
+        pool seed, up to :data:`SEED_TRIES` of them, unless ``strict_seed`` (evaluation)."""
+        for attempt in range(1 if self.strict_seed else SEED_TRIES):
+            try:
+                pool = _Pool(self.cell, n, pool_seed(self._seed, self._n_pools),
+                             park=self.autoreset != "disabled")
+            except NotApplicable:
+                self._n_pools += 1
+                if self.strict_seed or attempt == SEED_TRIES - 1:
+                    raise
+                continue
+            self._n_pools += 1
+            self._pools.append(pool)
+            return pool
+        raise AssertionError("unreachable")  # pragma: no cover
 
     def _draw(self, envs: np.ndarray) -> None:
         """Give every sub-env in ``envs`` its next episode (in sub-env order) and begin it."""

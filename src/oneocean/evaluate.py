@@ -77,7 +77,8 @@ def evaluate(policy, task: str, tier: int, grid=None, *, episodes: int = 50,
 
     env = OceanVectorEnv(task, tier, grid, num_envs=int(episodes), dynamics=dynamics,
                          n_agents=n_agents, currents=currents, vehicle=vehicle,
-                         backend=backend, scene=scene, autoreset_mode="disabled")
+                         backend=backend, scene=scene, autoreset_mode="disabled",
+                         strict_seed=True)
     obs, _ = env.reset(seed=int(seed))
     b = env.batch
     if hasattr(policy, "reset"):
