@@ -458,11 +458,7 @@ class OceanVectorEnv(VectorEnv):
         obs = self._obs(raw)
         if self.autoreset == "next_step":
             if reset_now.size:
-                self._release(reset_now)
-                self._draw(reset_now)
-                fresh = self._raw_obs(reset_now)
-                obs[reset_now] = self._obs(fresh, reset_now)
-                self._d_prev[reset_now] = _cue_distance(fresh)
+                self._replace_episodes(reset_now, obs)
                 terminated[reset_now] = truncated[reset_now] = False
             self._pending = ended
         elif self.autoreset == "same_step" and ended.any():
@@ -472,12 +468,17 @@ class OceanVectorEnv(VectorEnv):
             info["final_info"] = {k: v for k, v in info.items()
                                   if k not in ("final_obs", "_final_obs")}
             info["_final_info"] = ended.copy()
-            self._release(idx)
-            self._draw(idx)
-            fresh = self._raw_obs(idx)
-            obs[idx] = self._obs(fresh, idx)
-            self._d_prev[idx] = _cue_distance(fresh)
+            self._replace_episodes(idx, obs)
         return obs, reward, terminated, truncated, info
+
+    def _replace_episodes(self, envs: np.ndarray, obs: np.ndarray) -> None:
+        """Autoreset: give sub-envs ``envs`` their next episodes and write those episodes'
+        first observations into ``obs``."""
+        self._release(envs)
+        self._draw(envs)
+        fresh = self._raw_obs(envs)
+        obs[envs] = self._obs(fresh, envs)
+        self._d_prev[envs] = _cue_distance(fresh)
 
     def render(self):
         """A top-down RGB view (H, W, 3) uint8 of sub-env 0 (``render_mode="rgb_array"``):

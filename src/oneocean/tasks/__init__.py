@@ -357,12 +357,13 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
     # what could be refused for other reasons than the overrides, checked before the run
     from ..registry import method_spec
     from ..sensing import INFO_LEVELS
+    from .episodes import learned_method
 
     method_spec(method)
     if info is not None and info not in INFO_LEVELS:
         raise ConfigError(f"unknown information level {info!r}; valid: "
                           f"{', '.join(INFO_LEVELS)}")
-    if method_spec(method).kind == "learned" and net is None:
+    if learned_method(method) and net is None:
         raise ConfigError(f"task {task}: method {method!r} needs its trained weights")
     try:
         df = cell.run(method, episodes, seed, dynamics, net=net, info=info)
