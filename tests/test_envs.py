@@ -397,3 +397,95 @@ def _hosts(cell, seed) -> bool:
         return True
     except NotApplicable:
         return False
+
+
+# ------------------------------------------------------------ the fused step, the run's forcing
+def _trace(env, steps, seed, rng_seed=0):
+    """Every output of a reset and ``steps`` steps (sub-env 0 heads for its goal cue and ends
+    early, the others act at random), for equality checks."""
+    rng = np.random.default_rng(rng_seed)
+    obs = env.reset(seed=seed)[0]
+    out = [obs]
+    ends = 0
+    for _ in range(steps):
+        a = rng.uniform(-1.0, 1.0, env.action_space.shape) * env.action_space.high
+        a[0] = env.v_max * obs[0, :, 0:3] / np.maximum(
+            np.linalg.norm(obs[0, :, 0:3], axis=-1, keepdims=True), 1e-9)
+        obs, r, term, trunc, info = env.step(a)
+        out += [obs, r, term, trunc]
+        out += [np.asarray(info[k]) for k in sorted(info) if not isinstance(info[k], dict)]
+        ends += int((term | trunc).sum())
+    return out, ends
+
+
+@pytest.mark.parametrize("mode", ["next_step", "same_step", "disabled"])
+def test_fused_step_equals_run_then_observe(coast, monkeypatch, mode):
+    """``step`` advances and observes in one compiled call (``Episodes.step_observe``); it
+    gives exactly what the two calls it replaces give (``run(-1)``, then ``observe``), over
+    autoresets across several pools and with sub-envs on different episodes."""
+    from oneocean import envs
+
+    def make():
+        return envs.OceanVectorEnv("G2G", 1, coast, num_envs=3, autoreset_mode=mode, pool=1,
+                                   reward="dense")
+
+    env = make()
+    env.reset(seed=5)
+    steps = env.cell_steps + (5 if mode == "disabled" else env.cell_steps // 2)
+    fused, ends = _trace(env, steps, 5)
+
+    def two_calls(batch, lo, hi):
+        batch.run(-1)
+        return batch.observe()
+
+    monkeypatch.setattr(envs, "_step_observe", two_calls)
+    plain, _ = _trace(make(), steps, 5)
+    assert len(fused) == len(plain)
+    for x, y in zip(fused, plain):
+        np.testing.assert_array_equal(x, y)
+    assert ends >= 3
+
+
+def test_evaluate_runs_the_forcing_it_is_given(coast):
+    """``current_gain`` and ``tide`` reach the rollout: replaying the heuristic's actions of
+    a forced cell through ``evaluate`` with the same forcing gives that cell's metrics (and
+    differs from the unforced cell)."""
+    tide = {"amplitude_ms": 0.2, "period_s": 44712.0}
+    forced, _, act = run_cell(coast, "G2G", 1, "heuristic", episodes=3, seed=2,
+                              dynamics="6dof", observations=True, current_gain=1.5, tide=tide)
+    df = evaluate(Replay(act), "G2G", 1, coast, episodes=3, seed=2, current_gain=1.5,
+                  tide=tide)
+    pd.testing.assert_frame_equal(df[METRIC_COLS], forced[METRIC_COLS])
+    plain = evaluate(Replay(act), "G2G", 1, coast, episodes=3, seed=2)
+    # the same actions in other water: the currents the vehicle met differ
+    assert (forced["current_speed_ms"] != plain["current_speed_ms"]).all()
+
+
+def test_evaluate_gives_a_normalized_policy_the_envs_view(coast):
+    """A policy that declares ``obs_mode``/``action_mode = "normalized"`` gets the env's
+    normalised observations (what it trained on) and its actions are read in units of
+    ``v_max``: full speed east normalised equals v_max east in m/s, episode by episode."""
+    from oneocean.envs import NORM_DIM, OceanVectorEnv
+
+    class East:
+        obs_mode = action_mode = "normalized"
+
+        def __init__(self):
+            self.seen = []
+
+        def __call__(self, obs):
+            self.seen.append(obs.copy())
+            a = np.zeros(obs.shape[:2] + (3,))
+            a[..., 0] = 1.0
+            return a
+
+    pol = East()
+    norm = evaluate(pol, "G2G", 1, coast, episodes=3, seed=1)
+    v_max = OceanVectorEnv("G2G", 1, coast, num_envs=1).v_max
+    vel = evaluate(lambda o: np.broadcast_to([v_max, 0.0, 0.0], o.shape[:2] + (3,)),
+                   "G2G", 1, coast, episodes=3, seed=1)
+    pd.testing.assert_frame_equal(norm[METRIC_COLS], vel[METRIC_COLS])
+    env = OceanVectorEnv("G2G", 1, coast, num_envs=3, autoreset_mode="disabled",
+                         obs_mode="normalized")
+    np.testing.assert_array_equal(pol.seen[0], env.reset(seed=1)[0])
+    assert pol.seen[0].shape == (3, 1, NORM_DIM)

@@ -230,8 +230,11 @@ def test_train_save_load_evaluate_round_trip(grid_path, tmp_path):
     assert list(df["candidate"]) == list(ref["candidate"])          # the same episodes
     pol = load(a / "policy.zip", "SK", 3)
     pol.reset(1, 1)
+    # it declares the views it trained on: the env's normalised observation in, the action
+    # in units of v_max out (inside the Box; the env clips its norm to 1)
+    assert pol.obs_mode == "normalized" and pol.action_mode == "normalized"
     act = pol(np.zeros((2, 1, 17)))
-    assert act.shape == (2, 1, 3) and np.all(np.linalg.norm(act, axis=-1) <= pol.v_max + 1e-9)
+    assert act.shape == (2, 1, 3) and np.all(np.abs(act) <= 1.0)
     # Table V: a PPO row (SR, Wilson interval) only when its cells exist
     long = task_success_table([heur, a / "ppo.parquet"], tmp_path / "t5.tex")
     row = long[(long["task"] == "SK") & (long["method"] == "ppo")].iloc[0]
@@ -321,3 +324,24 @@ def test_rl_baselines_is_its_own_target(tmp_path):
                           str(tmp_path / "bad.yaml"), "--", "rl_baselines"],
                          capture_output=True, text=True)
     assert out.returncode != 0 and "evaluation seed" in out.stdout + out.stderr
+
+
+# ------------------------------------------------------------------ the README's example
+
+def test_readme_train_and_score_example_runs():
+    """The README's train-and-score block runs as written (with a smaller training budget)
+    and prints a success rate in [0, 1] over the evaluation seed's episodes."""
+    import re
+
+    text = (REPO / "README.md").read_text()
+    head = text.index("**Train and score")
+    block = re.search(r"```python\n(.*?)```", text[head:], re.S).group(1)
+    assert "learn(100_000)" in block and "evaluate(PPOPolicy(" in block
+    code = block.replace("learn(100_000)", "learn(512)").replace(
+        'evaluate(PPOPolicy(model, "SK", 1), "SK", 1)',
+        'evaluate(PPOPolicy(model, "SK", 1), "SK", 1, episodes=4)')
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=REPO, timeout=900)
+    assert out.returncode == 0, out.stderr[-2000:]
+    sr = float(out.stdout.strip().splitlines()[-1])
+    assert 0.0 <= sr <= 1.0 and sr * 4 == round(sr * 4)

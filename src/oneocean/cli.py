@@ -90,7 +90,11 @@ def _evaluate(args) -> int:
                                  name=args.name, episodes=args.episodes, seed=args.seed,
                                  dynamics=args.dynamics, n_agents=args.n_agents,
                                  currents=not args.currents_off, backend=args.backend,
-                                 scene=scene)
+                                 scene=scene, current_gain=args.current_gain,
+                                 tide=(None if args.tide is None else
+                                       {"amplitude_ms": args.tide[0],
+                                        "period_s": args.tide[1]}),
+                                 obs_mode=args.obs_mode, action_mode=args.action_mode)
     except OneOceanError as exc:
         return fail(str(exc))
     except OSError as exc:
@@ -145,6 +149,17 @@ def main(argv=None) -> int:
     p.add_argument("--dynamics", default="6dof")
     p.add_argument("--n-agents", type=int, default=None)
     p.add_argument("--currents-off", action="store_true", help="the currents-off ablation")
+    p.add_argument("--current-gain", type=float, default=1.0,
+                   help="gain on the data currents u, v (default 1: the data as they are)")
+    p.add_argument("--tide", type=float, nargs=2, default=None,
+                   metavar=("AMPLITUDE_MS", "PERIOD_S"),
+                   help="a synthetic tide term, e.g. --tide 0.3 44712 (M2)")
+    p.add_argument("--obs-mode", choices=("raw", "normalized"), default=None,
+                   help="the observation view the policy gets (default: the policy's own "
+                        "obs_mode attribute, else raw)")
+    p.add_argument("--action-mode", choices=("velocity", "normalized"), default=None,
+                   help="how the policy's actions are read (default: the policy's own "
+                        "action_mode attribute, else velocity in m/s)")
     p.add_argument("--backend", choices=("core", "mujoco"), default="core",
                    help="what moves the agents (mujoco needs --scene)")
     p.add_argument("--scene", default=None,

@@ -93,6 +93,7 @@ GOAL_SCALE_M, MATE_SCALE_M, DEPTH_SCALE_M, ALTITUDE_CLIP_M = 10.0, 10.0, 100.0, 
 PROGRESS_WEIGHT, VIOLATION_PENALTY, COLLISION_PENALTY = 0.1, 0.1, 0.1
 #: Pool seeds tried before a reset gives up on a cell that cannot host episodes.
 SEED_TRIES = 16
+_NONE = np.zeros(0, dtype=np.int64)
 
 
 def pool_seed(seed: int, index: int) -> int:
@@ -150,6 +151,17 @@ def dense_reward(d_prev, d_now, new_viol, new_coll, success, v_max: float, dt: f
             - COLLISION_PENALTY * (new_coll > 0) + success.astype(np.float64))
 
 
+def _step_observe(batch: Rollout, lo: int, hi: int) -> np.ndarray:
+    """One step of every running episode of ``batch`` (all within ``lo .. hi-1``) and the
+    next observation (E, N, OBS_DIM), rows ``lo .. hi-1`` valid: the backend's fused
+    ``step_observe`` where it has one (the core), else ``run(-1)`` and ``observe``."""
+    fused = getattr(batch, "step_observe", None)
+    if fused is not None:
+        return fused(lo, hi)
+    batch.run(-1)
+    return batch.observe()
+
+
 def _cue_distance(raw: np.ndarray) -> np.ndarray:
     """(..., N) distance to the goal cue of raw observations, m (NaN where undefined)."""
     g = raw[..., 0:3]
@@ -161,13 +173,14 @@ class _Cell(Cell):
 
     def __init__(self, task: str, tier: int, grid, *, dynamics: str = "6dof",
                  n_agents: int | None = None, currents: bool = True, vehicle=None,
-                 backend: str = "core", scene=None):
+                 current_gain: float = 1.0, tide=None, backend: str = "core", scene=None):
         if scene is None:
             from .defaults import resolve_grid
 
             grid = resolve_grid(grid)      # None: the default region's grid
         super().__init__(grid, task, tier, n_agents=n_agents, currents=currents,
-                         vehicle=vehicle, backend=backend, scene=scene)
+                         vehicle=vehicle, current_gain=current_gain, tide=tide,
+                         backend=backend, scene=scene)
         self.dynamics = dynamics
         self.v_max = float(self.vehicle.v_max)
 
@@ -219,8 +232,10 @@ class OceanVectorEnv(VectorEnv):
         (evaluation: :func:`oneocean.evaluate.evaluate`) instead of moving on to the next
         pool seed
     render_mode : None or ``rgb_array`` (a top-down view of sub-env 0: :meth:`render`)
-    dynamics, n_agents, currents, vehicle : as ``run_cell``; backend, scene : the execution
-        backend (``core``, or ``mujoco`` with a :class:`oneocean.backends.mujoco.scenes.Scene`)
+    dynamics, n_agents, currents, vehicle, current_gain, tide : as ``run_cell`` (the run's
+        forcing: gain on the data currents, a synthetic tide term; episodes are the same
+        under any forcing); backend, scene : the execution backend (``core``, or ``mujoco``
+        with a :class:`oneocean.backends.mujoco.scenes.Scene`)
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"]}
@@ -317,14 +332,23 @@ class OceanVectorEnv(VectorEnv):
         self._pools = [p for p in self._pools if p.live > 0 or p.drawn < p.n]
 
     def _groups(self):
-        """(pool, sub-env rows, episode rows) per pool that owns sub-envs (cached until the
-        ownership changes)."""
+        """(pool, sub-env rows, episode rows, lo, hi, whole) per pool that owns sub-envs
+        (cached until the ownership changes): ``lo .. hi-1`` spans the pool's owned episodes
+        (every running episode of the pool), ``whole`` says the rows are sub-envs
+        ``0 .. num_envs-1`` on episodes ``lo .. hi-1`` in order (slices suffice)."""
         if self._group_cache is None:
             by = {}
             for j, p in enumerate(self._owner):
                 by.setdefault(id(p), (p, []))[1].append(j)
-            self._group_cache = [(p, np.array(js), self._ep[np.array(js)])
-                                 for p, js in by.values()]
+            groups = []
+            for p, js in by.values():
+                js = np.array(js)
+                eps = self._ep[js]
+                lo, hi = int(eps.min()), int(eps.max()) + 1
+                whole = (js.size == self.num_envs and hi - lo == js.size
+                         and bool(np.all(eps == np.arange(lo, hi))))
+                groups.append((p, js, eps, lo, hi, whole))
+            self._group_cache = groups
         return self._group_cache
 
     def _gather(self, what: str) -> np.ndarray:
@@ -332,7 +356,7 @@ class OceanVectorEnv(VectorEnv):
         ``coll``)."""
         groups = self._groups()
         out = None
-        for pool, js, eps in groups:
+        for pool, js, eps, _, _, _ in groups:
             b = pool.batch
             src = (b.res if what == "res" else
                    getattr(b.LS, "status" if what == "done" else what))
@@ -350,7 +374,7 @@ class OceanVectorEnv(VectorEnv):
         out = np.empty((self.num_envs, self.n_agents, OBS_DIM))
         mask = np.zeros(self.num_envs, dtype=bool)
         mask[want] = True
-        for pool, js, eps in self._groups():
+        for pool, js, eps, _, _, _ in self._groups():
             sel = mask[js]
             if not sel.any():
                 continue
@@ -359,9 +383,11 @@ class OceanVectorEnv(VectorEnv):
             out[js[sel]] = o[e]
         return out if envs is None else out[want]
 
-    def _obs(self, raw: np.ndarray, envs=None) -> np.ndarray:
+    def _obs(self, raw: np.ndarray, envs=None, inplace: bool = False) -> np.ndarray:
+        """The observation of raw observations ``raw`` of sub-envs ``envs`` (default all) in
+        the env's view (``inplace``: the raw view may overwrite ``raw``)."""
         if self.obs_mode == "raw":
-            out = raw.copy()
+            out = raw if inplace else raw.copy()
             out[~np.isfinite(out)] = 0.0
             return out
         k = self._gather("k")
@@ -422,21 +448,42 @@ class OceanVectorEnv(VectorEnv):
         if not self._pools:
             raise RuntimeError("OceanVectorEnv: call reset() before step()")
         a = self._to_velocity(actions)
-        reset_now = np.flatnonzero(self._pending)      # NEXT_STEP: these reset, not step
-        stepping = ~self._pending
-        for pool, js, eps in self._groups():
-            sel = stepping[js]
-            pool.batch.ext[eps[sel]] = a[js[sel]]
-        was_done = self._gather("done")
-        for pool, _, _ in self._groups():
-            pool.batch.run(-1)
-        done = self._gather("done")
-        ended = done & ~was_done & stepping
-        res = self._gather("res")
-        success = ended & (res[:, 0] > 0.5)
-        truncated = ended & ~success & (self._gather("k") >= self.cell_steps)
+        n = self.num_envs
+        # NEXT_STEP: these reset, not step
+        reset_now = np.flatnonzero(self._pending) if self._pending.any() else _NONE
+        # one compiled call per pool: the step of every running episode, then every agent's
+        # next observation (a finished episode -- NEXT_STEP's pending ones included -- is
+        # not stepped, so its action row is never read)
+        groups = self._groups()
+        if len(groups) == 1 and groups[0][5]:          # one pool, sub-env j on episode lo + j
+            pool, _, _, lo, hi, _ = groups[0]
+            b = pool.batch
+            st = b.LS.status[lo:hi]
+            was_done = st == FINISHED
+            b.ext[lo:hi] = a
+            raw = _step_observe(b, lo, hi)[lo:hi].copy()
+            done = st == FINISHED
+            groups = ()
+        else:
+            raw = np.empty((n, self.n_agents, OBS_DIM))
+            was_done = np.empty(n, dtype=bool)
+            done = np.empty(n, dtype=bool)
+        for pool, js, eps, lo, hi, _ in groups:
+            b = pool.batch
+            st = b.LS.status
+            was_done[js] = st[eps] == FINISHED
+            b.ext[eps] = a[js]
+            raw[js] = _step_observe(b, lo, hi)[eps]
+            done[js] = st[eps] == FINISHED
+        ended = done & ~was_done
+        truncated = np.zeros(n, dtype=bool)
+        if ended.any():
+            res = self._gather("res")
+            success = ended & (res[:, 0] > 0.5)
+            truncated = ended & ~success & (self._gather("k") >= self.cell_steps)
+        else:
+            success = np.zeros(n, dtype=bool)
         terminated = ended & ~truncated
-        raw = self._raw_obs()
         if self.reward_mode == "sparse":
             reward = success.astype(np.float64)
         else:
@@ -446,7 +493,8 @@ class OceanVectorEnv(VectorEnv):
                                   coll - self._coll_prev, success, self.v_max, self.dt)
             self._viol_prev, self._coll_prev = viol, coll
             self._d_prev = d_now
-        reward = np.where(stepping, reward, 0.0)
+        if reset_now.size:
+            reward[reset_now] = 0.0
         info: dict = {}
         if ended.any():
             cols = self._owner[int(np.flatnonzero(ended)[0])].batch.columns
@@ -455,7 +503,7 @@ class OceanVectorEnv(VectorEnv):
                 info["_" + col] = ended.copy()
             info["is_success"] = success.copy()
             info["_is_success"] = ended.copy()
-        obs = self._obs(raw)
+        obs = self._obs(raw, inplace=True)
         if self.autoreset == "next_step":
             if reset_now.size:
                 self._replace_episodes(reset_now, obs)

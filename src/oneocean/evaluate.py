@@ -6,7 +6,10 @@ A policy is any Python callable ``policy(obs) -> actions`` on a batch: ``obs`` i
 every agent) and ``actions`` (E, N, 3): the desired velocity relative to the water, world
 frame (x east, y down, z north), m s-1, clipped to the vehicle's ``v_max``. If the object has
 a ``reset(n_episodes, n_agents)`` method it is called before the first step. Rows of finished
-episodes are ignored.
+episodes are ignored. A policy trained on the step API's normalised views says so with
+``obs_mode = "normalized"`` and/or ``action_mode = "normalized"`` attributes (or
+:func:`evaluate`'s arguments): it then gets the env's normalised observations and returns
+actions in units of ``v_max``, exactly as in training.
 
 The grid is anything :func:`oneocean.defaults.resolve_grid` takes; None (the default) is the
 default region's grid, built into the cache on first use.
@@ -61,12 +64,21 @@ def evaluate(policy, task: str, tier: int, grid=None, *, episodes: int = 50,
              seed: int = EVALUATION_SEED,
              dynamics: str = "6dof", n_agents: int | None = None, currents: bool = True,
              vehicle=None, name: str = "user", backend: str = "core",
-             scene=None) -> pd.DataFrame:
+             scene=None, current_gain: float = 1.0, tide=None, obs_mode: str | None = None,
+             action_mode: str | None = None) -> pd.DataFrame:
     """Run ``policy`` on ``episodes`` episodes of a (task, tier) cell through the step API's
     loop; returns the cell table (:func:`oneocean.tasks.cell_frame`) with ``method = name``.
+
     ``grid``: what :func:`oneocean.defaults.resolve_grid` takes (None: the default region's
     grid; ignored with ``scene``). ``backend``/``scene``: the execution backend
-    (:class:`oneocean.tasks.Cell`); the same episodes, judge and metrics on either."""
+    (:class:`oneocean.tasks.Cell`); the same episodes, judge and metrics on either.
+    ``current_gain``/``tide``: the run's forcing (:class:`oneocean.tasks.Cell`: a gain on the
+    data currents and a synthetic tide term, e.g. ``{"amplitude_ms": 0.3, "period_s":
+    44712}``; the episodes stay the same). ``obs_mode``/``action_mode``: the views of
+    :class:`oneocean.envs.OceanVectorEnv` the policy was built for (``raw`` / ``velocity``
+    by default, or ``normalized``: what a policy trained on the normalised view sees and
+    returns, computed by the env exactly as in training); None takes the policy's own
+    ``obs_mode`` / ``action_mode`` attribute where it has one."""
     from .envs import OceanVectorEnv
     from .tasks import cell_frame
 
@@ -74,11 +86,13 @@ def evaluate(policy, task: str, tier: int, grid=None, *, episodes: int = 50,
         from .defaults import resolve_grid
 
         grid = resolve_grid(grid)
-
+    obs_mode = obs_mode or getattr(policy, "obs_mode", "raw")
+    action_mode = action_mode or getattr(policy, "action_mode", "velocity")
     env = OceanVectorEnv(task, tier, grid, num_envs=int(episodes), dynamics=dynamics,
                          n_agents=n_agents, currents=currents, vehicle=vehicle,
-                         backend=backend, scene=scene, autoreset_mode="disabled",
-                         strict_seed=True)
+                         current_gain=current_gain, tide=tide, backend=backend, scene=scene,
+                         autoreset_mode="disabled", strict_seed=True, obs_mode=obs_mode,
+                         action_mode=action_mode)
     obs, _ = env.reset(seed=int(seed))
     b = env.batch
     if hasattr(policy, "reset"):
@@ -109,9 +123,13 @@ def evaluate_to_file(policy_spec: str, out_path, task: str, tier: int, grid_path
     name = name or policy_spec.split(":", 1)[1]
     df = evaluate(policy, task, tier, grid_path, name=name, **kw)
     scene = kw.get("scene")
+    params = tier_params(task, int(tier), scene is not None)
+    # the forcing the rollout ran (as the workflow's cells record it: the run's gain times
+    # the tier's own current_gain)
     meta = {"dynamics": kw.get("dynamics", "6dof"), "policy": policy_spec,
-            "tier_params": tier_params(task, int(tier), scene is not None),
-            "backend": kw.get("backend", "core")}
+            "tier_params": params, "backend": kw.get("backend", "core"),
+            "current_gain": float(kw.get("current_gain", 1.0))
+            * float(params.get("current_gain", 1.0)), "tide": kw.get("tide")}
     if scene is not None:
         from .tasks import scene_record
 

@@ -38,4 +38,12 @@ def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
         _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
 
 
+@njit(cache=True, nogil=True)
+def _step_kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, nobs, nact,
+                 e_lo, e_hi):
+    for e in range(e_lo, e_hi):
+        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, -1)
+        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
+
+
 fresh_cache(_kernel, __file__, TASK.__file__, POLICY.__file__, routing.__file__)

@@ -292,6 +292,35 @@ class Episodes:
                                                       args + (0, 1))
         return nobs[:, 0]
 
+    def step_observe(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
+        """Advance every running episode of ``lo .. hi-1`` by one step and return the next
+        observation of every agent (E, N, OBS_DIM), rows ``lo .. hi-1`` valid: ``run(-1)``
+        then ``observe(lo, hi)`` in one compiled call (the step API's step). Every running
+        episode must lie in ``lo .. hi-1``. The array is the batch's own buffer, overwritten
+        by the next call: copy what you keep."""
+        hi = self.n_episodes if hi is None else int(hi)
+        call = self._entries.get("step")
+        if call is None:
+            kern = getattr(self.kern, "_step_kernel", None)
+            if kern is None:       # a plugin's kernel module without the fused step
+                self.run(-1)
+                return self.observe(lo, hi)
+            self._nobs = np.full((self.n_episodes, 1, self.n_agents, OBS_DIM), np.nan)
+            nact = np.zeros((self.n_episodes, 1, self.n_agents, len(ACT_FIELDS)))
+            # the arguments are the batch's own arrays, updated in place: built once
+            args = (self.grid, self.vehicle.params, self.LP, self.P, self.W, self.M, self.LS,
+                    self.t0, self.state, self.cmd, self.ext, self.obs, self.act, self.res,
+                    self._nobs, nact)
+            over_range(kern, lo, hi, *args)        # compiles (or loads) on first use
+            self._entries["step"] = (fast_entry(kern, args + (0, 1)), args)
+            return self._nobs[:, 0]
+        fn, args = call
+        if hi - lo == 1:
+            fn(*args, lo, hi)
+        else:
+            over_range(fn, lo, hi, *args)
+        return self._nobs[:, 0]
+
     def results(self) -> dict:
         """The per-episode result columns (finished episodes; see ``STANDARD`` + METRICS)."""
         if not self.done.all():

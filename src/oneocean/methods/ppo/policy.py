@@ -1,12 +1,11 @@
 """The trained PPO network as a method of kind ``callable``, and its cell files.
 
 :func:`load` turns a ``policy.zip`` (:mod:`.train`) into the callable
-:func:`oneocean.evaluate.evaluate` scores: it receives the raw observations (E, N, OBS_DIM)
-the evaluation gives every policy, maps them through :func:`oneocean.envs.normalize` exactly
-as the training env did (the vehicle's ``v_max``, the task's reach ``v_max x time limit``, the
-fraction of the time limit left, counted in calls since ``reset``), takes the network's
-deterministic action and returns it in m s-1 (``v_max`` times the action, its norm clipped to
-1: the env's ``action_mode="normalized"``).
+:func:`oneocean.evaluate.evaluate` scores: it declares the normalised views it was trained
+on, so the evaluation gives it the env's normalised observations (:func:`oneocean.envs.
+normalize`: the vehicle's ``v_max``, the task's reach ``v_max x time limit``, the fraction of
+the time limit left) and reads its deterministic action in units of ``v_max`` (norm clipped
+to 1: the env's ``action_mode="normalized"``), exactly as the training env did.
 
 :func:`evaluate_to_file` scores it on exactly a workflow cell's episodes (the evaluation
 seed, ``rollouts.episodes``; :func:`oneocean.evaluate.evaluate`) and writes the cell file in
@@ -51,40 +50,41 @@ def episode_constants(task: str, tier: int) -> dict:
 class PPOPolicy:
     """A trained PPO network as ``policy(obs) -> actions`` for one (task, tier).
 
-    ``obs``: (E, N, OBS_DIM) raw observations (undefined values 0); returns (E, N, 3) m s-1.
-    ``reset(n_episodes, n_agents)`` restarts the step count (``time_left``), as
-    :func:`oneocean.evaluate.evaluate` calls it before the first step.
+    It declares the views it was trained on (``obs_mode = action_mode = "normalized"``), so
+    :func:`oneocean.evaluate.evaluate` gives it the env's normalised observations (E, N,
+    NORM_DIM), computed exactly as in training, and reads its actions in units of ``v_max``
+    (norm clipped to 1); it returns the network's deterministic action (E, N, 3).
+    :meth:`normalized` maps raw observations to that view for use outside the env.
     """
+
+    obs_mode = "normalized"
+    action_mode = "normalized"
 
     def __init__(self, model, task: str, tier: int):
         c = episode_constants(task, tier)
         self.model = model
         self.task, self.tier = task, int(tier)
         self.v_max, self.reach, self.n_steps = c["v_max"], c["reach"], c["n_steps"]
-        self.k = 0
 
     def reset(self, n_episodes: int | None = None, n_agents: int | None = None) -> None:
         import torch
 
         torch.set_num_threads(1)       # after the env's numba threads started (train.py)
-        self.k = 0
 
-    def normalized(self, obs) -> np.ndarray:
-        """The training env's observation (E, N, NORM_DIM) of raw ``obs`` at this step."""
+    def normalized(self, obs, k: int = 0) -> np.ndarray:
+        """The training env's view (E, N, NORM_DIM) of raw ``obs`` (NaN where undefined) at
+        step ``k`` of the episodes."""
         from ...envs import normalize
 
         o = np.asarray(obs, dtype=np.float64)
-        left = max(0.0, 1.0 - self.k / float(self.n_steps))
+        left = max(0.0, 1.0 - int(k) / float(self.n_steps))
         return normalize(o, self.v_max, self.reach, np.full(o.shape[0], left))
 
     def __call__(self, obs) -> np.ndarray:
-        x = self.normalized(obs)
+        x = np.asarray(obs, dtype=np.float64)
         e, n, d = x.shape
         a, _ = self.model.predict(x.reshape(e * n, d), deterministic=True)
-        a = np.asarray(a, dtype=np.float64).reshape(e, n, -1)
-        norm = np.sqrt((a * a).sum(-1, keepdims=True))
-        self.k += 1
-        return self.v_max * a / np.maximum(norm, 1.0)
+        return np.asarray(a, dtype=np.float64).reshape(e, n, -1)
 
 
 def load(path, task: str, tier: int) -> PPOPolicy:
@@ -104,9 +104,10 @@ def evaluate_to_file(policy_path, grid_path, out_path, task: str, tier: int, *,
     policy's sha256; a cell the region cannot host is written as not applicable. Returns the
     manifest entry (:func:`oneocean.engine.write_metrics`).
 
-    ``current_gain``, ``tide``, ``backend``: the workflow's run settings; the evaluation runs
-    the data currents as they are on the core backend, so anything else is a ConfigError
-    (never a cell under other forcing than its record says)."""
+    ``current_gain``, ``tide``: the workflow's run forcing (the same episodes under any
+    forcing, :class:`oneocean.tasks.Cell`); ``backend``: the evaluation runs on the core
+    backend, so another is a ConfigError (never a cell under another backend than its record
+    says)."""
     import numba
 
     from ...engine import load_grid, load_vehicle, write_metrics
@@ -116,11 +117,9 @@ def evaluate_to_file(policy_path, grid_path, out_path, task: str, tier: int, *,
     from ...tasks import n_agents_for, na_frame, task_module
     from ...tasks.common import load_task_table, tier_params
 
-    if float(current_gain) != 1.0 or tide is not None or backend != "core":
-        raise ConfigError(f"ppo cell {task} tier {tier}: the policy is scored through "
-                          "oneocean.evaluate, which runs the data currents (current_gain 1, "
-                          "no synthetic tide) on the core backend; got current_gain="
-                          f"{current_gain}, tide={tide}, backend={backend!r}")
+    if backend != "core":
+        raise ConfigError(f"ppo cell {task} tier {tier}: the policy is scored on the core "
+                          f"backend; got backend={backend!r}")
     numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
     params = tier_params(task, int(tier))
     vehicle = load_vehicle(load_task_table(task).get("vehicle"))
@@ -128,14 +127,16 @@ def evaluate_to_file(policy_path, grid_path, out_path, task: str, tier: int, *,
     meta = {"task": task, "tier": int(tier), "method": METHOD.name, "dynamics": dynamics,
             "vehicle": vehicle.name, "v_max_ms": vehicle.v_max, "n_agents": n,
             "episodes": int(episodes), "seed": int(seed),
-            "current_gain": float(params.get("current_gain", 1.0)), "tide": None,
+            "current_gain": float(current_gain) * float(params.get("current_gain", 1.0)),
+            "tide": tide,
             "currents": True, "tier_params": params, "applicable": True, "reason": "",
             "backend": "core", "policy": "oneocean.methods.ppo.policy:load",
             "policy_sha256": sha256_file(policy_path)}
     grid = load_grid(grid_path)
     try:
         df = evaluate(load(policy_path, task, tier), task, tier, grid, episodes=int(episodes),
-                      seed=int(seed), dynamics=dynamics, name=METHOD.name)
+                      seed=int(seed), dynamics=dynamics, name=METHOD.name,
+                      current_gain=float(current_gain), tide=tide)
     except NotApplicable as exc:
         df = na_frame(task_module(task), int(tier), METHOD.name, n, dynamics, True, int(seed))
         meta.update(applicable=False, reason=str(exc))
