@@ -169,6 +169,19 @@ def test_cli_evaluate_writes_the_cell_table(tmp_path, coast):
                           "--out", str(tmp_path / "x.parquet")], cwd=tmp_path,
                          capture_output=True, text=True)
     assert bad.returncode == 2 and not (tmp_path / "x.parquet").exists()
+    # the user's file joins Table V beside a workflow cell, with no registration first
+    from oneocean.tables import task_success_table
+    from oneocean.tasks import rollout_to_file
+    from oneocean.vocab import EVALUATION_SEED
+
+    heur = tmp_path / "heuristic.parquet"
+    rollout_to_file(grid, heur, "G2G", 1, "heuristic", 3, EVALUATION_SEED, "6dof")
+    long = task_success_table([heur, out], tmp_path / "t5.tex")
+    row = long[(long["task"] == "G2G") & (long["method"] == "act")].iloc[0]
+    assert row["label"] == "act" and row["n"] == 3
+    assert np.isclose(row["sr"], 100.0 * df["success"].mean())
+    assert row["lo"] <= row["sr"] <= row["hi"]
+    assert "act T1" in (tmp_path / "t5.tex").read_text()
 
 
 # ---------------------------------------------------------------------------------- RL use

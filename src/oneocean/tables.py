@@ -185,6 +185,27 @@ def _ablation_condition(cond: str, label: str, key: tuple, info: str,
                                               + labels), (2, *key, "+".join(parts)))
 
 
+
+def _user_method(method: str, policies: list) -> None:
+    """Check that ``method`` is registered; a method that is not, whose every cell file was
+    written by ``oneocean evaluate`` (its record names the scored ``policy``), is registered
+    as a user's method (kind ``callable``, labelled by its name) so the tables take its
+    cells; anything else unregistered is the registry's one-line ConfigError."""
+    from . import registry
+    from .errors import ConfigError
+
+    try:
+        registry.method_spec(method)        # built in, packaged or registered
+        return
+    except ConfigError:
+        pass
+    if policies and all(isinstance(p, str) and p for p in policies):
+        registry.register_method(registry.MethodSpec(
+            method, method, "callable", "its own (step API observations)",
+            f"a user's policy scored with oneocean evaluate ({', '.join(sorted(set(policies)))})"))
+        return
+    registry.method_spec(method)
+
 def load_cell_frames(cell_files) -> pd.DataFrame:
     """One row per cell file, in canonical order (registry task order, registry method order,
     tier, condition): ``task, tier, method, currents, current_gain, tide, condition,
@@ -226,18 +247,19 @@ def load_cell_frames(cell_files) -> pd.DataFrame:
                                           "seed")},
                      "n": int(len(df)), "k": int(df["success"].sum()),
                      "success": df["success"].to_numpy(dtype=bool), "episodes": df,
-                     "file": str(f)})
+                     "file": str(f), "policy": c["meta"].get("policy")})
     cols = ["task", "tier", "method", "currents", "current_gain", "tide", "condition",
             "condition_label", "condition_key", "info", "tier_overrides", "ablation",
             "applicable", "reason", "vehicle", "n_agents", "seed", "n", "k", "success",
-            "episodes", "file"]
+            "episodes", "file", "policy"]
     if not rows:
-        return pd.DataFrame(columns=cols)
+        return pd.DataFrame(columns=cols[:-1])
     cells = pd.DataFrame(rows, columns=cols)
     for t in cells["task"].unique():
         registry.task_spec(t)                     # an unregistered task: one-line error
     for m in cells["method"].unique():
-        registry.method_spec(m)
+        _user_method(m, list(cells.loc[cells["method"] == m, "policy"]))
+    cells = cells.drop(columns="policy")
     t_order = {t: i for i, t in enumerate(registry.task_ids())}
     m_order = {m: i for i, m in enumerate(registry.method_names())}
     cells["_o"] = [(t_order[t], m_order[m], k, c) for t, m, k, c in
