@@ -19,6 +19,7 @@ import numpy as np
 import yaml
 
 from ..engine import status as st
+from ..engine.constraints import check_move
 from ..engine._jit import hot_kernel
 from ..engine.grid import Grid, sample_current_data, sample_elevation, synthetic_tide
 from ..engine.rng import PURPOSE_TASK
@@ -334,9 +335,101 @@ def path_clear(grid: Grid, p0, p1, clearance: float, land_threshold: float = 0.5
     p0 = np.asarray(p0, dtype=np.float64)
     p1 = np.asarray(p1, dtype=np.float64)
     n = max(2, int(math.ceil(float(np.linalg.norm(p1 - p0)) / spacing_m)) + 1)
-    w = np.linspace(0.0, 1.0, n)[:, None]
-    return bool(np.all(feasibility(grid, p0 + w * (p1 - p0), land_threshold, clearance)
-                       == st.OK))
+    if p0.shape != (3,) or p1.shape != (3,):
+        w = np.linspace(0.0, 1.0, n)[:, None]
+        return bool(np.all(feasibility(grid, p0 + w * (p1 - p0), land_threshold, clearance)
+                           == st.OK))
+    return bool(_call(_segment_clear, grid, float(p0[0]), float(p0[1]), float(p0[2]),
+                      float(p1[0]), float(p1[1]), float(p1[2]), int(n),
+                      float(land_threshold), float(clearance)))
+
+
+@hot_kernel
+def _segment_clear(grid, ax, ay, az, bx, by, bz, n, land_threshold, clearance):
+    """:func:`path_clear`'s test, compiled: the points ``p0 + w (p1 - p0)`` at ``w =
+    np.linspace(0, 1, n)`` (the same values) all pass :func:`~oneocean.engine.constraints.
+    check_move`; stops at the first that fails."""
+    dx = bx - ax
+    dy = by - ay
+    dz = bz - az
+    step = 1.0 / (n - 1)
+    for i in range(n):
+        w = 1.0 if i == n - 1 else i * step + 0.0
+        if check_move(grid, ax + w * dx, ay + w * dy, az + w * dz, land_threshold,
+                      clearance) != OK:
+            return False
+    return True
+
+
+_ENTRIES: dict = {}
+_MAX_ENTRIES = 16
+
+
+def _call(kernel, grid, *args):
+    """``kernel(grid, *args)`` through its compiled entry point for these argument types
+    (:func:`oneocean.tasks.episodes.fast_entry`: no numba dispatch, which costs several us
+    with the Grid's many arrays); the entry is kept per kernel and grid (the Grid itself
+    is kept with it, so its id is not reused; at most ``_MAX_ENTRIES``, then the cache
+    starts over, so few grids are held)."""
+    key = (id(kernel), id(grid))
+    hit = _ENTRIES.get(key)
+    if hit is not None and hit[0] is grid:
+        return hit[1](grid, *args)
+    from .episodes import fast_entry
+
+    out = kernel(grid, *args)          # compiles (or loads) the version for these types
+    if len(_ENTRIES) >= _MAX_ENTRIES:
+        _ENTRIES.clear()
+    _ENTRIES[key] = (grid, fast_entry(kernel, (grid,) + args))
+    return out
+
+
+def feasible_codes(grid: Grid, xyz, land_threshold: float, clearance: float) -> np.ndarray:
+    """:func:`oneocean.engine.constraints.feasibility` (the same codes) through the compiled
+    entry (:func:`_call`): for the resets' many small checks."""
+    from ..engine.constraints import check_points
+
+    xyz = np.ascontiguousarray(np.atleast_2d(xyz), dtype=np.float64)
+    return _call(check_points, grid, xyz, float(land_threshold), float(clearance),
+                 np.empty(xyz.shape[0], dtype=np.int64))
+
+
+#: Candidates of one start point (:func:`sample_route`), drawn ``_SPAWN_BATCH`` at a time.
+_SPAWN_MAX = 4096
+_SPAWN_BATCH = 64
+
+
+def _spawn_one(grid: Grid, rng: np.random.Generator, y: float, land_threshold: float,
+               clearance: float) -> np.ndarray:
+    """``spawn_positions(grid, rng, 1, {"y": (y, y)}, land_threshold=..., clearance=...,
+    max_candidates=4096)[0]`` (:func:`oneocean.engine.constraints.spawn_positions`): the same
+    draws from ``rng`` and the same point, without its per-call overhead. Where no candidate
+    is valid the generator is rewound and ``spawn_positions`` itself raises its ConfigError."""
+    from ..engine.constraints import check_points, spawn_positions
+
+    state = rng.bit_generator.state
+    xl, xh = float(grid.x0), float(grid.x_max)
+    zl, zh = float(grid.z0), float(grid.z_max)
+    y = float(y)
+    lt, cl = float(land_threshold), float(clearance)
+    codes = np.empty(_SPAWN_BATCH, dtype=np.int64)
+    cand = np.empty((_SPAWN_BATCH, 3))
+    tried = 0
+    while tried < _SPAWN_MAX:
+        m = int(min(_SPAWN_BATCH, _SPAWN_MAX - tried))
+        if m != _SPAWN_BATCH:   # pragma: no cover - 4096 is a multiple of 64
+            break
+        cand[:, 0] = rng.uniform(xl, xh, m)
+        cand[:, 2] = rng.uniform(zl, zh, m)
+        cand[:, 1] = rng.uniform(y, y, m)
+        tried += m
+        _call(check_points, grid, cand, lt, cl, codes)
+        ok = np.flatnonzero(codes == st.OK)
+        if ok.size:
+            return cand[ok[0]].copy()
+    rng.bit_generator.state = state
+    return spawn_positions(grid, rng, 1, {"y": (y, y)}, land_threshold=land_threshold,
+                           clearance=clearance, max_candidates=_SPAWN_MAX)[0]
 
 
 def sample_route(grid: Grid, rng: np.random.Generator, n_legs: int, leg_m: float,
@@ -371,8 +464,6 @@ def sample_route(grid: Grid, rng: np.random.Generator, n_legs: int, leg_m: float
         If no valid route was found in ``tries`` attempts (never a silent fallback): the
         region cannot host this cell.
     """
-    from ..engine.constraints import spawn_positions
-
     n_legs = int(n_legs)
     lo, hi = float(depth_m[0]), float(depth_m[1])
     out = np.empty((n_legs + 1, 3))
@@ -380,8 +471,7 @@ def sample_route(grid: Grid, rng: np.random.Generator, n_legs: int, leg_m: float
     for _ in range(int(tries)):
         y = rng.uniform(lo, hi)
         try:
-            out[0] = spawn_positions(grid, rng, 1, {"y": (y, y)}, land_threshold=land_threshold,
-                                     clearance=clearance, max_candidates=4096)[0]
+            out[0] = _spawn_one(grid, rng, y, land_threshold, clearance)
         except ConfigError as exc:
             spawn_fails += 1
             if spawn_fails >= 5:   # no valid water at these depths: fail now, loudly

@@ -217,20 +217,35 @@ def reference_energy(grid, tier: dict, start, goal, depth: float, t0: float,
     return float(r.cost)
 
 
-def energy_budgets(task: str, tier: dict, n_ep: int, reference) -> tuple:
-    """``(eref, budget)`` (E,) J: each episode's least transit energy ``reference(e)`` and
-    its allocation ``(1 + energy_reserve) * eref``; both inf without an ``energy_reserve``
-    (the transits G2G and RF)."""
+def energy_budgets(task: str, tier: dict, n_ep: int, reference=None, *, batch=None) -> tuple:
+    """``(eref, budget)`` (E,) J: each episode's least transit energy ``reference(e)`` (or
+    all at once: ``batch()`` (E,)) and its allocation ``(1 + energy_reserve) * eref``; both
+    inf without an ``energy_reserve`` (the transits G2G and RF)."""
     eref = np.full(n_ep, math.inf)
     budget = np.full(n_ep, math.inf)
     reserve = tier.get("energy_reserve")
     if reserve is not None:
         if not float(reserve) >= 0.0:
             raise ConfigError(f"task {task}: energy_reserve must be >= 0, got {reserve!r}")
-        for e in range(n_ep):
-            eref[e] = reference(e)
+        if batch is not None:
+            eref[:] = batch()
+        else:
+            for e in range(n_ep):
+                eref[e] = reference(e)
         budget = (1.0 + float(reserve)) * eref
     return eref, budget
+
+
+def reference_energies(grid, tier: dict, start, goal, t0, power=None) -> np.ndarray:
+    """:func:`reference_energy` (E,) J of every episode (``start``, ``goal`` (E, 3) m, the
+    depth the goal's), the same bits, in one compiled call
+    (:func:`oneocean.tasks.routing.mission_costs`)."""
+    pw, v_max = power if power is not None else task_power(tier)
+    start = np.asarray(start, dtype=np.float64)
+    goal = np.asarray(goal, dtype=np.float64)
+    routes = np.stack([start[:, [0, 2]], goal[:, [0, 2]]], axis=1)
+    return routing.mission_costs(grid, routes, goal[:, 1], t0, float(tier["time_limit_s"]),
+                                 v_max, pw)
 
 
 def make(grid, tier: dict, init: dict):
@@ -244,8 +259,7 @@ def make(grid, tier: dict, init: dict):
     pw, v_max = task_power(tier)
     eref, budget = energy_budgets(
         TASK_ID, tier, n_ep,
-        lambda e: reference_energy(grid, tier, start[e, [0, 2]], goal[e, [0, 2]],
-                                   float(goal[e, 1]), float(init["t0"][e]), (pw, v_max)))
+        batch=lambda: reference_energies(grid, tier, start, goal, init["t0"], (pw, v_max)))
     wps = np.zeros((n_ep, MAX_VERTICES, 2))
     wps[:, 0] = start[:, [0, 2]]
     wps[:, 1] = goal[:, [0, 2]]

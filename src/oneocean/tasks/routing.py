@@ -35,7 +35,6 @@ vehicle that flies one speed (:func:`cruise_speed`).
 
 from __future__ import annotations
 
-import heapq
 import math
 from functools import lru_cache
 from pathlib import Path
@@ -47,7 +46,7 @@ from numba import njit
 
 from ..engine._jit import hot_kernel
 from ..engine.dynamics import vehicles_file
-from ..engine.grid import sample_land
+from ..engine.grid import sample_current, sample_elevation, sample_land
 from ..errors import ConfigError
 from ..sensing.kernels import forecast
 
@@ -268,6 +267,115 @@ def _segment(cur, times, free, x0, z0, h, ax, az, bx, bz, speeds, ph, pk, hold, 
 
 
 @njit(cache=True)
+def _heap_push(hc, hn, size, c, n):
+    """Push (c, n) on the binary min-heap ``hc``/``hn`` of ``size`` entries (ordered on
+    (cost, node), as heapq orders the tuples); returns the new size (capacity: the caller's)."""
+    k = size
+    while k > 0:
+        p = (k - 1) >> 1
+        pc = hc[p]
+        if pc < c or (pc == c and hn[p] < n):
+            break
+        hc[k] = pc
+        hn[k] = hn[p]
+        k = p
+    hc[k] = c
+    hn[k] = n
+    return size + 1
+
+
+@njit(cache=True)
+def _heap_pop(hc, hn, size):
+    """Remove the root of the heap of ``size`` entries; returns the new size."""
+    size -= 1
+    if size == 0:
+        return 0
+    c = hc[size]
+    n = hn[size]
+    k = 0
+    while True:
+        a = 2 * k + 1
+        if a >= size:
+            break
+        b = a + 1
+        if b < size and (hc[b] < hc[a] or (hc[b] == hc[a] and hn[b] < hn[a])):
+            a = b
+        if c < hc[a] or (c == hc[a] and n < hn[a]):
+            break
+        hc[k] = hc[a]
+        hn[k] = hn[a]
+        k = a
+    hc[k] = c
+    hn[k] = n
+    return size
+
+
+@njit(cache=True)
+def _heap_grow(hc, hn):
+    c2 = np.empty(2 * hc.shape[0])
+    n2 = np.empty(2 * hc.shape[0], np.int64)
+    c2[:hc.shape[0]] = hc
+    n2[:hn.shape[0]] = hn
+    return c2, n2
+
+
+@njit(cache=True)
+def _local_cmax(cur, reach):
+    """(ny, nx): the fastest current speed (over every time) at the nodes within ``reach``
+    cells of each node (the window ``i - reach .. i + reach + 1``, clamped): every current
+    an edge of at most ``reach`` cells from the node interpolates is no faster. inf where
+    that window holds a current that is not finite."""
+    nt, ny, nx = cur.shape[0], cur.shape[1], cur.shape[2]
+    node = np.zeros((ny, nx))
+    for t in range(nt):
+        for j in range(ny):
+            for i in range(nx):
+                ce = cur[t, j, i, 0]
+                cn = cur[t, j, i, 1]
+                s2 = ce * ce + cn * cn
+                if not math.isfinite(s2):
+                    node[j, i] = math.inf
+                elif s2 > node[j, i]:
+                    node[j, i] = s2
+    row = np.empty((ny, nx))
+    for j in range(ny):
+        for i in range(nx):
+            m = 0.0
+            for a in range(max(i - reach, 0), min(i + reach + 2, nx)):
+                if node[j, a] > m:
+                    m = node[j, a]
+            row[j, i] = m
+    out = np.empty((ny, nx))
+    for j in range(ny):
+        for i in range(nx):
+            m = 0.0
+            for b in range(max(j - reach, 0), min(j + reach + 2, ny)):
+                if row[b, i] > m:
+                    m = row[b, i]
+            out[j, i] = math.sqrt(m)
+    return out
+
+
+@njit(cache=True)
+def _cost_rate(cmax, speeds, ph, pk):
+    """A lower bound of the cost per metre of a piece where no current is faster than
+    ``cmax``: the ground speed is at most ``cmax + u``, so ``min_u P(u) / (cmax + u)``
+    (``P = 1`` for time), less 1e-6 of it for round-off; 0 when ``cmax`` is not finite."""
+    if not math.isfinite(cmax):
+        return 0.0
+    energy = ph > 0.0 or pk > 0.0
+    rate = math.inf
+    for s in range(speeds.shape[0]):
+        u = speeds[s]
+        r = ((ph + pk * u * u * u) if energy else 1.0) / (cmax + u)
+        if r < rate:
+            rate = r
+    if not (math.isfinite(rate) and rate > 0.0):
+        return 0.0
+    return (1.0 - 1e-6) * rate
+
+
+@njit(cache=True)
 def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0, step,
               edges):
     """Time-dependent Dijkstra (cost: time or energy, time carried along) from the point s to
@@ -283,11 +391,24 @@ def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold,
     done = np.zeros(nn, np.uint8)
     nos = np.empty(0, np.int64)
     r_att = 2.3 * h
+    # lower bounds of the edges' costs: an edge whose bound cannot improve its end node's
+    # cost is not integrated (the relaxation would not take it: the same search, bit for bit)
+    reach = 0
+    elen = np.empty(edges.shape[0])
+    for k in range(edges.shape[0]):
+        di = float(edges[k, 0])
+        dj = float(edges[k, 1])
+        elen[k] = h * math.sqrt(di * di + dj * dj)
+        reach = max(reach, abs(edges[k, 0]), abs(edges[k, 1]))
+    cloc = _local_cmax(cur, reach)
     bt, bc = _segment(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0,
                       step, True, nos)
     goal_parent = -1 if math.isfinite(bc) else -2
-    heap = [(0.0, np.int64(0))]
-    heap.pop()
+    # binary min-heap on (cost, node), lazy deletion: the keys are distinct (a node is pushed
+    # again only with a strictly smaller cost), so it pops in the order heapq did
+    hc = np.empty(max(64, 4 * nn))
+    hn = np.empty(hc.shape[0], np.int64)
+    size = 0
     # the start attaches to the nodes around it
     i_lo = max(int(math.floor((sx - x0) / h - 2.3)), 0)
     i_hi = min(int(math.ceil((sx - x0) / h + 2.3)), nx - 1)
@@ -306,9 +427,13 @@ def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold,
                 cost[n] = ca
                 tarr[n] = ta
                 parent[n] = -1
-                heapq.heappush(heap, (ca, n))
-    while len(heap) > 0:
-        c, n = heapq.heappop(heap)
+                size = _heap_push(hc, hn, size, ca, n)
+                if size == hc.shape[0]:
+                    hc, hn = _heap_grow(hc, hn)
+    while size > 0:
+        c = hc[0]
+        n = hn[0]
+        size = _heap_pop(hc, hn, size)
         if done[n] == 1 or c > cost[n]:
             continue
         if c >= bc:
@@ -326,13 +451,14 @@ def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold,
                 bc = c + cg
                 bt = tg
                 goal_parent = n
+        rate = _cost_rate(cloc[j, i], speeds, ph, pk)
         for k in range(edges.shape[0]):
             ii = i + edges[k, 0]
             jj = j + edges[k, 1]
             if ii < 0 or jj < 0 or ii >= nx or jj >= ny:
                 continue
             m = jj * nx + ii
-            if done[m] == 1 or not free[jj, ii] > 0.0:
+            if done[m] == 1 or not free[jj, ii] > 0.0 or c + rate * elen[k] >= cost[m]:
                 continue
             tm, cm = _segment(cur, times, free, x0, z0, h, px, pz, x0 + ii * h, z0 + jj * h,
                               speeds, ph, pk, hold, t, step, False, nos)
@@ -340,7 +466,9 @@ def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold,
                 cost[m] = c + cm
                 tarr[m] = tm
                 parent[m] = n
-                heapq.heappush(heap, (c + cm, m))
+                size = _heap_push(hc, hn, size, c + cm, m)
+                if size == hc.shape[0]:
+                    hc, hn = _heap_grow(hc, hn)
     return cost, tarr, parent, goal_parent, bc, bt
 
 
@@ -637,22 +765,38 @@ def field_from_grid(grid, lat: Lattice, depth: float, times, clearance: float,
     sample_currents` at every node at depth ``depth`` m and every time of ``times``) and
     ``free`` (ny, nx): the smaller of the water depth below ``depth + clearance`` m and
     ``(land_threshold - land_margin - land) * h`` (land and shallows <= 0)."""
-    from ..engine.grid import sample_currents, sample_elevation_points
+    times = np.ascontiguousarray(times, dtype=np.float64).reshape(-1)
+    cur = np.empty((times.size, lat.ny, lat.nx, 2))
+    free = np.empty((lat.ny, lat.nx))
+    _fill_field(grid, float(lat.x0), float(lat.z0), float(lat.h), float(depth), times,
+                float(clearance), float(land_threshold), float(land_margin), cur, free)
+    return cur, free
 
-    times = np.asarray(times, dtype=np.float64).reshape(-1)
-    xs = lat.x0 + np.arange(lat.nx) * lat.h
-    zs = lat.z0 + np.arange(lat.ny) * lat.h
-    X, Z = np.meshgrid(xs, zs)
-    xz = np.ascontiguousarray(np.column_stack([X.ravel(), Z.ravel()]))
-    n = xz.shape[0]
-    xyz = np.column_stack([xz[:, 0], np.full(n, float(depth)), xz[:, 1]])
-    pts = np.tile(xyz, (times.size, 1))
-    c = sample_currents(grid, pts, np.repeat(times, n)).reshape(times.size, lat.ny, lat.nx, 2)
-    elev = sample_elevation_points(grid, xz, np.empty(n)).reshape(lat.ny, lat.nx)
-    land = _land_points(grid, xz, np.empty(n)).reshape(lat.ny, lat.nx)
-    free = np.minimum(-elev - (float(depth) + float(clearance)),
-                      (float(land_threshold) - float(land_margin) - land) * lat.h)
-    return np.ascontiguousarray(c), np.ascontiguousarray(free)
+
+@hot_kernel   # no reference counting: the grid's arrays are read at every node
+def _fill_field(grid, x0, z0, h, depth, times, clearance, land_threshold, land_margin, cur,
+                free):
+    """:func:`field_from_grid` into ``cur`` (nt, ny, nx, 2) and ``free`` (ny, nx): node
+    ``(j, i)`` at ``(x0 + i h, z0 + j h)``, every value as the engine's vectorised samplers
+    give it (``sample_currents``, ``sample_elevation_points``, ``np.minimum``)."""
+    ny, nx = free.shape
+    for t in range(times.shape[0]):
+        tt = times[t]
+        for j in range(ny):
+            z = z0 + j * h
+            for i in range(nx):
+                ce, cn = sample_current(grid, x0 + i * h, depth, z, tt)
+                cur[t, j, i, 0] = ce
+                cur[t, j, i, 1] = cn
+    dc = depth + clearance
+    lm = land_threshold - land_margin
+    for j in range(ny):
+        z = z0 + j * h
+        for i in range(nx):
+            x = x0 + i * h
+            a = -sample_elevation(grid, x, z) - dc
+            b = (lm - sample_land(grid, x, z)) * h
+            free[j, i] = a if (a <= b or a != a) else b
 
 
 @njit(cache=True)
@@ -740,6 +884,152 @@ def plan_mission(grid, points, depth: float, t0: float, duration: float, v_max: 
         return schedule(*args, pts, speeds, t0, power=pw, hold=HOLD_MS, piece=piece)
     return plan_route(*args, pts[0], pts[-1], speeds, t0, power=pw, hold=HOLD_MS,
                       piece=piece)
+
+
+# ------------------------------------------------------------------------------ batched costs
+
+@njit(cache=True)
+def _path_cost(cur, times, free, x0, z0, h, path, speeds, ph, pk, hold, t0, step):
+    """The cost of :func:`schedule` on ``path`` (the sum of its segments' costs, inf from
+    the first impassable one), without the route."""
+    nos = np.empty(0, np.int64)
+    t = t0
+    cost = 0.0
+    for k in range(1, path.shape[0]):
+        ax = path[k - 1, 0]
+        az = path[k - 1, 1]
+        bx = path[k, 0]
+        bz = path[k, 1]
+        L = math.sqrt((bx - ax) ** 2 + (bz - az) ** 2)
+        if L <= 0.0:
+            continue
+        t1, c = _segment(cur, times, free, x0, z0, h, ax, az, bx, bz, speeds, ph, pk, hold,
+                         t, step, k == 1, nos)
+        if not math.isfinite(c):
+            return math.inf
+        t = t1
+        cost += c
+    return cost
+
+
+@njit(cache=True)
+def _route_cost(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0, step,
+                edges):
+    """The cost of :func:`plan_route` (Dijkstra, string pulling, the schedule of the pulled
+    path), without the route."""
+    cost, tarr, parent, gp, bc, bt = _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz,
+                                               speeds, ph, pk, hold, t0, step, edges)
+    if gp == -2:
+        return math.inf
+    nx = free.shape[1]
+    cnt = 0
+    n = gp
+    while n >= 0:
+        cnt += 1
+        n = parent[n]
+    path = np.empty((cnt + 2, 2))
+    cum = np.empty(cnt + 2)
+    tt = np.empty(cnt + 2)
+    path[0, 0] = sx
+    path[0, 1] = sz
+    cum[0] = 0.0
+    tt[0] = t0
+    n = gp
+    k = cnt
+    while n >= 0:
+        path[k, 0] = x0 + (n % nx) * h
+        path[k, 1] = z0 + (n // nx) * h
+        cum[k] = cost[n]
+        tt[k] = tarr[n]
+        k -= 1
+        n = parent[n]
+    path[cnt + 1, 0] = gx
+    path[cnt + 1, 1] = gz
+    cum[cnt + 1] = bc
+    tt[cnt + 1] = bt
+    keep = _pull(cur, times, free, x0, z0, h, path, cum, tt, speeds, ph, pk, hold, step)
+    return _path_cost(cur, times, free, x0, z0, h, path[keep], speeds, ph, pk, hold, t0, step)
+
+
+@njit(cache=True, nogil=True)
+def _mission_costs(grid, ts, pts, npts, depth, t0, lat_f, lat_n, t_lo, t_hi, speeds, ph, pk,
+                   hold, step, clearance, land_threshold, land_margin, fixed, edges, out, lo,
+                   hi):
+    for e in range(lo, hi):
+        if npts[e] < 2:
+            continue
+        times = ts[t_lo[e]:t_hi[e] + 1].copy()
+        nx = lat_n[e, 0]
+        ny = lat_n[e, 1]
+        x0 = lat_f[e, 0]
+        z0 = lat_f[e, 1]
+        h = lat_f[e, 2]
+        cur = np.empty((times.shape[0], ny, nx, 2))
+        free = np.empty((ny, nx))
+        _fill_field(grid, x0, z0, h, depth[e], times, clearance, land_threshold, land_margin,
+                    cur, free)
+        m = npts[e]
+        if fixed:
+            out[e] = _path_cost(cur, times, free, x0, z0, h, pts[e, :m], speeds, ph, pk, hold,
+                                t0[e], step)
+        else:
+            out[e] = _route_cost(cur, times, free, x0, z0, h, pts[e, 0, 0], pts[e, 0, 1],
+                                 pts[e, m - 1, 0], pts[e, m - 1, 1], speeds, ph, pk, hold,
+                                 t0[e], step, edges)
+
+
+def _time_window(ts: np.ndarray, t0: float, duration: float) -> tuple[int, int]:
+    """The index range ``lo .. hi`` of :func:`field_times` in the time axis ``ts``."""
+    if ts.size == 1:
+        return 0, 0
+    lo = max(int(np.searchsorted(ts, t0, side="right")) - 1, 0)
+    hi = min(int(np.searchsorted(ts, t0 + duration, side="left")), ts.size - 1)
+    return lo, hi
+
+
+def mission_costs(grid, routes, depths, t0s, duration: float, v_max: float,
+                  power: PowerModel | None, *, fixed: bool = False, clearance: float = 5.0,
+                  land_threshold: float = 0.5) -> np.ndarray:
+    """``plan_mission(grid, routes[e], depths[e], t0s[e], duration, v_max, power,
+    fixed=fixed).cost`` (J or s) of every episode ``e``, the same bits, in one compiled call
+    (episodes on :func:`oneocean.tasks.episodes.over_range`'s threads) instead of one plan
+    each; inf where a route has a point off the grid (:func:`within_grid`).
+
+    ``routes``: (E, n, 2) (x, z) m, or a sequence of (n_e, 2) arrays: the start and goal of
+    a transit (``fixed=False``: the least-energy route's cost), or the fixed route's
+    vertices (``fixed=True``: its best speed schedule's cost)."""
+    from .episodes import over_range
+
+    routes = [np.asarray(r, dtype=np.float64).reshape(-1, 2) for r in routes]
+    n_ep = len(routes)
+    n_max = max([r.shape[0] for r in routes], default=2)
+    pts = np.zeros((n_ep, n_max, 2))
+    npts = np.zeros(n_ep, np.int64)          # 0: not planned (inf)
+    lat_f = np.ones((n_ep, 3))
+    lat_n = np.full((n_ep, 2), 2, np.int64)
+    t_lo = np.zeros(n_ep, np.int64)
+    t_hi = np.zeros(n_ep, np.int64)
+    depth = np.ascontiguousarray(depths, dtype=np.float64).reshape(-1)
+    t0 = np.ascontiguousarray(t0s, dtype=np.float64).reshape(-1)
+    ts = np.ascontiguousarray(grid.time_s, dtype=np.float64)
+    for e, r in enumerate(routes):
+        if not within_grid(grid, r):
+            continue
+        length = float(np.hypot(*np.diff(r, axis=0).T).sum())
+        h = lattice_spacing(length)
+        lat = lattice(grid, r, (200.0 if fixed else 0.25 * length + 300.0), h)
+        lat_f[e] = lat.x0, lat.z0, lat.h
+        lat_n[e] = lat.nx, lat.ny
+        t_lo[e], t_hi[e] = _time_window(ts, float(t0[e]), float(duration))
+        pts[e, :r.shape[0]] = r
+        npts[e] = r.shape[0]
+    out = np.full(n_ep, math.inf)
+    speeds = np.ascontiguousarray(mission_speeds(v_max), dtype=np.float64)
+    ph, pk = (0.0, 0.0) if power is None else (float(power.hotel_w), float(power.k))
+    over_range(_mission_costs, 0, n_ep, grid, ts, pts, npts, depth, t0, lat_f, lat_n, t_lo,
+               t_hi, speeds, ph, pk, float(HOLD_MS), float(PIECE_M), float(clearance),
+               float(land_threshold), 0.1, bool(fixed), EDGES, out)
+    return out
 
 
 def within_grid(grid, points) -> bool:

@@ -64,12 +64,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..engine.constraints import DEFAULT_LAND_THRESHOLD, feasibility
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine.dynamics import PSI, wrap_angle
 from ..engine._jit import hot_kernel
 from ..engine.grid import sample_currents
 from ..engine import status as st
 from ..errors import ConfigError, NotApplicable
+from .common import feasible_codes
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, need_tier,
                      sample_route, start_times)
 from .loop import GO, REACHED
@@ -156,8 +157,8 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
             for _ in range(_RELEASE_TRIES):
                 b = rng.uniform(-math.pi, math.pi)
                 p = station[e] + offset * np.array([math.sin(b), 0.0, math.cos(b)])
-                if feasibility(grid, p[None], DEFAULT_LAND_THRESHOLD,
-                               MIN_ALTITUDE_M)[0] == st.OK:
+                if feasible_codes(grid, p[None], DEFAULT_LAND_THRESHOLD,
+                                  MIN_ALTITUDE_M)[0] == st.OK:
                     pos0[e] = p
                     break
             else:

@@ -81,11 +81,12 @@ import numpy as np
 
 from ..engine import status as st
 from ..engine._jit import hot_kernel
-from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError, NotApplicable
 from ..sensing import perception, perception_values
 from ..sensing.kernels import PURPOSE_PERCEPTION, draw, polar_fix
+from .common import feasible_codes
 from .common import (OK, STANDARD, current_at, episode_generators, episode_steps, need_tier,
                      path_clear, start_times)
 
@@ -164,7 +165,7 @@ def _site_candidates(grid, rng, lo: float, hi: float, n: int = 4096) -> np.ndarr
     xz[:, 1] = rng.uniform(grid.z0, grid.z_max, n)
     floor = -sample_elevation_points(grid, xz, np.empty(n))
     xyz = np.stack([xz[:, 0], np.zeros(n), xz[:, 1]], axis=1)
-    ok = (feasibility(grid, xyz, DEFAULT_LAND_THRESHOLD, 0.0) == st.OK) & (floor >= lo) & \
+    ok = (feasible_codes(grid, xyz, DEFAULT_LAND_THRESHOLD, 0.0) == st.OK) & (floor >= lo) & \
         (floor <= hi)
     return xz[ok]
 
@@ -175,7 +176,7 @@ def _try_site(grid, rng, x: float, z: float, start_distance: float):
     obj = np.array([x, floor - OBJ_HALF_HEIGHT_M, z])
     phase = rng.uniform(0.0, 2.0 * np.pi)
     slots = obj + slot_offsets(phase)
-    if np.any(feasibility(grid, slots, DEFAULT_LAND_THRESHOLD, CLEARANCE_M + SLOT_MARGIN_M)
+    if np.any(feasible_codes(grid, slots, DEFAULT_LAND_THRESHOLD, CLEARANCE_M + SLOT_MARGIN_M)
               != st.OK):
         return None
     above = np.array([x, obj[1] - SLOT_RISE_M, z])
@@ -187,7 +188,7 @@ def _try_site(grid, rng, x: float, z: float, start_distance: float):
         p = np.array([x + r * math.sin(a), START_DEPTH_M, z + r * math.cos(a)])
         if got and np.min(np.linalg.norm(starts[:got] - p, axis=1)) < START_SEPARATION_M:
             continue
-        if feasibility(grid, p[None], DEFAULT_LAND_THRESHOLD, CLEARANCE_M)[0] != st.OK:
+        if feasible_codes(grid, p[None], DEFAULT_LAND_THRESHOLD, CLEARANCE_M)[0] != st.OK:
             continue
         if not path_clear(grid, p, above, CLEARANCE_M, DEFAULT_LAND_THRESHOLD, spacing_m=5.0):
             continue

@@ -1,0 +1,126 @@
+"""The fast episode-sampling paths give the same values as the plain ones they replace: the
+batched reference energies (``routing.mission_costs``) equal one ``plan_mission`` per episode,
+the compiled field equals the engine's vectorised samplers, the compiled ``path_clear`` and
+start-point draw equal the numpy versions (same points, same random draws)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from oneocean import engine as E
+from oneocean.engine import status as st
+from oneocean.engine.constraints import spawn_positions
+from oneocean.engine.grid import sample_currents, sample_elevation_points
+from oneocean.tasks import g2g, rf, routing
+from oneocean.tasks.common import _spawn_one, path_clear
+from oneocean.testing import make_test_grid
+
+G2G_TIER = {"time_limit_s": 3600.0, "goal_distance_m": 1200.0, "goal_radius_m": 10.0,
+            "energy_reserve": 0.1, "dt_s": 1.0}
+RF_TIER = {"time_limit_s": 3600.0, "n_waypoints": 3, "leg_m": 500.0, "wp_radius_m": 15.0,
+           "xte_max_m": 30.0, "energy_reserve": 0.1, "dt_s": 1.0}
+
+
+@pytest.fixture(scope="module")
+def coast():
+    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+
+
+def test_g2g_reference_energies_equal_one_plan_per_episode(coast):
+    init = g2g.reset(coast, G2G_TIER, 1, 5, seed=2)
+    start, goal = init["pos0"][:, 0], init["goal"]
+    batch = g2g.reference_energies(coast, G2G_TIER, start, goal, init["t0"])
+    one = [g2g.reference_energy(coast, G2G_TIER, start[e, [0, 2]], goal[e, [0, 2]],
+                                float(goal[e, 1]), float(init["t0"][e])) for e in range(5)]
+    assert np.isfinite(batch).all()
+    np.testing.assert_array_equal(batch, np.array(one))
+    # and make's allocation is (1 + reserve) x that
+    _, W = g2g.make(coast, G2G_TIER, init)
+    np.testing.assert_array_equal(W.eref, batch)
+    np.testing.assert_array_equal(W.budget, 1.1 * batch)
+
+
+def test_g2g_reference_off_grid_is_inf(coast):
+    start = np.array([[coast.x0 + 500.0, 5.0, coast.z0 + 500.0]] * 2)
+    goal = start.copy()
+    goal[1, 0] = coast.x_max + 100.0          # off the grid
+    goal[0, 0] += 300.0
+    e = g2g.reference_energies(coast, G2G_TIER, start, goal, [0.0, 0.0])
+    assert math.isinf(e[1])
+    assert e[0] == g2g.reference_energy(coast, G2G_TIER, start[0, [0, 2]], goal[0, [0, 2]],
+                                        5.0, 0.0)
+
+
+def test_rf_reference_energies_equal_one_schedule_per_episode(coast):
+    init = rf.reset(coast, RF_TIER, 1, 4, seed=1)
+    batch = rf.reference_energies(coast, RF_TIER, init["route"], init["t0"])
+    one = [rf.reference_energy(coast, RF_TIER, init["route"][e], float(init["t0"][e]))
+           for e in range(4)]
+    np.testing.assert_array_equal(batch, np.array(one))
+
+
+def _field_numpy(grid, lat, depth, times, clearance, lt=0.5, lm=0.1):
+    """field_from_grid as it was written with the engine's vectorised samplers."""
+    xs = lat.x0 + np.arange(lat.nx) * lat.h
+    zs = lat.z0 + np.arange(lat.ny) * lat.h
+    X, Z = np.meshgrid(xs, zs)
+    xz = np.ascontiguousarray(np.column_stack([X.ravel(), Z.ravel()]))
+    n = xz.shape[0]
+    xyz = np.column_stack([xz[:, 0], np.full(n, float(depth)), xz[:, 1]])
+    c = sample_currents(grid, np.tile(xyz, (times.size, 1)), np.repeat(times, n))
+    elev = sample_elevation_points(grid, xz, np.empty(n)).reshape(lat.ny, lat.nx)
+    land = routing._land_points(grid, xz, np.empty(n)).reshape(lat.ny, lat.nx)
+    free = np.minimum(-elev - (float(depth) + float(clearance)), (lt - lm - land) * lat.h)
+    return c.reshape(times.size, lat.ny, lat.nx, 2), free
+
+
+def test_field_from_grid_equals_the_vectorised_samplers(coast):
+    pts = np.array([[coast.x0 + 300.0, coast.z0 + 400.0], [coast.x0 + 2100.0, coast.z0 + 2500.0]])
+    lat = routing.lattice(coast, pts, 400.0, 75.0)
+    times = routing.field_times(coast, 1800.0, 7200.0)
+    cur, free = routing.field_from_grid(coast, lat, 4.0, times, 5.0)
+    cur0, free0 = _field_numpy(coast, lat, 4.0, times, 5.0)
+    np.testing.assert_array_equal(cur, cur0)
+    np.testing.assert_array_equal(free, free0)
+
+
+def test_path_clear_equals_the_linspace_check(coast):
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        p0 = np.array([rng.uniform(coast.x0, coast.x_max), rng.uniform(0.0, 20.0),
+                       rng.uniform(coast.z0, coast.z_max)])
+        p1 = p0 + rng.normal(0.0, 400.0, 3) * np.array([1.0, 0.01, 1.0])
+        n = max(2, int(math.ceil(float(np.linalg.norm(p1 - p0)) / 20.0)) + 1)
+        w = np.linspace(0.0, 1.0, n)[:, None]
+        want = bool(np.all(E.feasibility(coast, p0 + w * (p1 - p0), 0.5, 5.0) == st.OK))
+        assert path_clear(coast, p0, p1, 5.0, 0.5, spacing_m=20.0) == want
+
+
+def test_spawn_one_draws_as_spawn_positions(coast):
+    for seed in range(20):
+        a = np.random.default_rng(seed)
+        b = np.random.default_rng(seed)
+        y = a.uniform(2.0, 10.0)
+        assert b.uniform(2.0, 10.0) == y
+        p = _spawn_one(coast, a, y, 0.5, 5.0)
+        q = spawn_positions(coast, b, 1, {"y": (y, y)}, land_threshold=0.5, clearance=5.0,
+                            max_candidates=4096)[0]
+        np.testing.assert_array_equal(p, q)
+        assert a.random() == b.random()       # the streams moved alike
+
+
+def test_spawn_one_failure_is_spawn_positions_error(coast):
+    from oneocean.errors import ConfigError
+
+    a = np.random.default_rng(0)
+    b = np.random.default_rng(0)
+    with pytest.raises(ConfigError) as ea:
+        _spawn_one(coast, a, 5.0, 0.5, 1e4)          # no water 10 km deep
+    with pytest.raises(ConfigError) as eb:
+        spawn_positions(coast, b, 1, {"y": (5.0, 5.0)}, land_threshold=0.5, clearance=1e4,
+                        max_candidates=4096)
+    assert str(ea.value) == str(eb.value)
+    assert a.random() == b.random()
