@@ -97,15 +97,19 @@ def work_size(n_species, nz, nx):
     return nz * (nx + 1) + (nz + 1) * nx + 3 * n_species * n_species + n_species
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def _vanleer(a, b):
-    """Van Leer limited slope from the backward and forward differences ``a`` and ``b``."""
-    if a * b <= 0.0:
-        return 0.0
-    return 2.0 * a * b / (a + b)
+    """Van Leer limited slope from the backward and forward differences ``a`` and ``b``.
+
+    Inlined into the transport's face loops (a call per face cost as much as the face's
+    arithmetic) and branch-free: the quotient is computed either way and selected (its
+    callers use the numpy error model, so ``a + b == 0`` gives inf/NaN there, unused, instead
+    of raising). The same value as the branching form (``a * b > 0`` implies ``a + b != 0``)."""
+    q = 2.0 * a * b / (a + b)
+    return 0.0 if a * b <= 0.0 else q
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _clean(u):
     """Velocity read from a face: NaN or inf count as 0 (no flow)."""
     if math.isfinite(u):
@@ -113,7 +117,7 @@ def _clean(u):
     return 0.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def _transport_substep(C, s, u_face_x, v_face_z, land, h, dt, kappa, open_bc, work):
     """One forward-Euler flux-form sub-step of species ``s``; returns the mass that left."""
     nz = C.shape[1]
@@ -228,35 +232,40 @@ def _transport_substep(C, s, u_face_x, v_face_z, land, h, dt, kappa, open_bc, wo
 
 @numba.njit(cache=True)
 def _max_face_speeds(u_face_x, v_face_z, land, open_bc):
-    """Largest |u| over x-faces and |v| over z-faces that can carry flux."""
+    """Largest |u| over x-faces and |v| over z-faces that can carry flux (the boundary faces
+    outside the inner loops, the maximum as a select: the same value, fewer branches)."""
     nz = land.shape[0]
     nx = land.shape[1]
+    open_w = (open_bc & OPEN_WEST) != 0
+    open_e = (open_bc & OPEN_EAST) != 0
     umax = 0.0
     for j in range(nz):
-        for f in range(nx + 1):
-            if f == 0:
-                ok = (open_bc & OPEN_WEST) != 0 and land[j, 0] == 0
-            elif f == nx:
-                ok = (open_bc & OPEN_EAST) != 0 and land[j, nx - 1] == 0
-            else:
-                ok = land[j, f - 1] == 0 and land[j, f] == 0
-            if ok:
+        if open_w and land[j, 0] == 0:
+            a = abs(_clean(u_face_x[j, 0]))
+            umax = a if a > umax else umax
+        for f in range(1, nx):
+            if land[j, f - 1] == 0 and land[j, f] == 0:
                 a = abs(_clean(u_face_x[j, f]))
-                if a > umax:
-                    umax = a
+                umax = a if a > umax else umax
+        if open_e and land[j, nx - 1] == 0:
+            a = abs(_clean(u_face_x[j, nx]))
+            umax = a if a > umax else umax
     vmax = 0.0
-    for f in range(nz + 1):
+    if (open_bc & OPEN_SOUTH) != 0:
         for i in range(nx):
-            if f == 0:
-                ok = (open_bc & OPEN_SOUTH) != 0 and land[0, i] == 0
-            elif f == nz:
-                ok = (open_bc & OPEN_NORTH) != 0 and land[nz - 1, i] == 0
-            else:
-                ok = land[f - 1, i] == 0 and land[f, i] == 0
-            if ok:
+            if land[0, i] == 0:
+                a = abs(_clean(v_face_z[0, i]))
+                vmax = a if a > vmax else vmax
+    for f in range(1, nz):
+        for i in range(nx):
+            if land[f - 1, i] == 0 and land[f, i] == 0:
                 a = abs(_clean(v_face_z[f, i]))
-                if a > vmax:
-                    vmax = a
+                vmax = a if a > vmax else vmax
+    if (open_bc & OPEN_NORTH) != 0:
+        for i in range(nx):
+            if land[nz - 1, i] == 0:
+                a = abs(_clean(v_face_z[nz, i]))
+                vmax = a if a > vmax else vmax
     return umax, vmax
 
 

@@ -68,14 +68,16 @@ from numba import njit
 
 from ..engine import status as st
 from ..engine._jit import hot_kernel
-from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, feasibility
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move
+from ..engine.grid import locate_time, sample_current_at, synthetic_tide
 from ..engine.rng import PURPOSE_TASK, hash64, uniform01
 from ..errors import ConfigError, NotApplicable
 from ..models.fish import (fish_params, fraction_inside_circle, init_school, school_centroid,
                            school_spread, step_school)
 from ..sensing import perception, perception_values
 from ..sensing.kernels import polar_fix
-from .common import (PURPOSE_TASK_NOISE, STANDARD, current_at, episode_generators, need_tier,
+from .common import feasible_codes
+from .common import (PURPOSE_TASK_NOISE, STANDARD, episode_generators, need_tier,
                      path_clear, sample_route, start_times)
 
 TASK_ID = "FH"
@@ -114,7 +116,7 @@ _TIER_KEYS = ("current_band", "time_limit_s", "fish_count",
 def _ok(grid, xz: np.ndarray, clearance: float) -> np.ndarray:
     """Feasibility (bool, (n,)) of horizontal points ``xz`` (n, 2) at ``FISH_DEPTH_M``."""
     xyz = np.stack([xz[:, 0], np.full(len(xz), FISH_DEPTH_M), xz[:, 1]], axis=1)
-    return feasibility(grid, xyz, DEFAULT_LAND_THRESHOLD, clearance) == st.OK
+    return feasible_codes(grid, xyz, DEFAULT_LAND_THRESHOLD, clearance) == st.OK
 
 
 def _try_episode(grid, rng, n_fish: int, distance: float, radius: float):
@@ -145,7 +147,7 @@ def _try_episode(grid, rng, n_fish: int, distance: float, radius: float):
         p = np.array([s0[0] + r * math.sin(th), FISH_DEPTH_M, s0[2] + r * math.cos(th)])
         if got and np.min(np.linalg.norm(starts[:got] - p, axis=1)) < START_SEPARATION_M:
             continue
-        if feasibility(grid, p[None], DEFAULT_LAND_THRESHOLD, CLEARANCE_M)[0] != st.OK:
+        if feasible_codes(grid, p[None], DEFAULT_LAND_THRESHOLD, CLEARANCE_M)[0] != st.OK:
             continue
         starts[got] = p
         got += 1
@@ -314,11 +316,15 @@ def make(grid, tier: dict, init: dict):
 @njit(cache=True)
 def _fish_step(grid, fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, t, dt, land_thr, gx, gz,
                gvx, gvz):
-    """Sample the current at every fish, advance the school into ``g*``, keep beached fish."""
+    """Sample the current at every fish, advance the school into ``g*``, keep beached fish.
+    (:func:`~.common.current_at` at one time ``t``: the time located and the synthetic tide
+    taken once per step, not per fish; the same arithmetic.)"""
+    ti0, ti1, wt = locate_time(grid, t)
+    te, tn = synthetic_tide(grid, t)
     for f in range(fx.shape[0]):
-        ce, cn = current_at(grid, fx[f], FISH_DEPTH_M, fz[f], t)
-        cx[f] = ce
-        cz[f] = cn
+        ce, cn = sample_current_at(grid, fx[f], FISH_DEPTH_M, fz[f], ti0, ti1, wt)
+        cx[f] = ce + te
+        cz[f] = cn + tn
     step_school(fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, dt, gx, gz, gvx, gvz)
     for f in range(fx.shape[0]):
         if check_move(grid, gx[f], FISH_DEPTH_M, gz[f], land_thr, FISH_CLEARANCE_M) != st.OK:

@@ -78,10 +78,11 @@ import numpy as np
 
 from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, spawn_positions
-from ..engine.grid import sample_elevation, sample_elevation_points
+from ..engine.grid import (locate_time, sample_current_at, sample_elevation,
+                           sample_elevation_points, synthetic_tide)
 from ..errors import ConfigError, NotApplicable
 from ..models import pollution as pol
-from .common import (STANDARD, current_at, episode_generators, need_tier, need_tokens,
+from .common import (STANDARD, episode_generators, need_tier, need_tokens,
                      start_times)
 
 TASK_ID = "PI"
@@ -319,7 +320,11 @@ def _to_local(x, z, ox, oz, ca, sa):
 
 @hot_kernel
 def _refresh_faces(grid, frame, uf, vf, e, nx, nz, h, t):
-    """Sample the near-bottom current at every face of episode ``e``'s field, in local axes."""
+    """Sample the near-bottom current at every face of episode ``e``'s field, in local axes
+    (:func:`~.common.current_at` at one time ``t``: the time located and the synthetic tide
+    taken once per refresh, not per face; the same arithmetic)."""
+    ti0, ti1, wt = locate_time(grid, t)
+    te, tn = synthetic_tide(grid, t)
     ox = frame[e, 0]
     oz = frame[e, 1]
     ca = frame[e, 2]
@@ -335,7 +340,9 @@ def _refresh_faces(grid, frame, uf, vf, e, nx, nz, h, t):
             y = -sample_elevation(grid, x, z) - NEAR_BOTTOM_M
             if y < 0.5:
                 y = 0.5
-            ce, cn = current_at(grid, x, y, z, t)
+            ce, cn = sample_current_at(grid, x, y, z, ti0, ti1, wt)
+            ce = ce + te
+            cn = cn + tn
             uf[e, j, f] = ce * ca + cn * sa
     for f in range(nz + 1):
         for i in range(nx):
@@ -346,7 +353,9 @@ def _refresh_faces(grid, frame, uf, vf, e, nx, nz, h, t):
             y = -sample_elevation(grid, x, z) - NEAR_BOTTOM_M
             if y < 0.5:
                 y = 0.5
-            ce, cn = current_at(grid, x, y, z, t)
+            ce, cn = sample_current_at(grid, x, y, z, ti0, ti1, wt)
+            ce = ce + te
+            cn = cn + tn
             vf[e, f, i] = -ce * sa + cn * ca
 
 

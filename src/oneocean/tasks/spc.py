@@ -65,12 +65,13 @@ from typing import NamedTuple
 import numpy as np
 
 from ..engine import status as st
-from ..engine.constraints import DEFAULT_LAND_THRESHOLD, feasibility, spawn_positions
-from ..engine.grid import sample_current_data
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD
+from ..engine.grid import (locate_time, sample_current_at, sample_current_data,
+                           synthetic_tide)
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError, NotApplicable
 from ..models import pollution as pol
-from .common import (STANDARD, current_at, episode_generators, episode_steps, need_tier,
+from .common import (STANDARD, episode_generators, episode_steps, need_tier,
                      need_tokens, path_clear, start_times)
 from .loop import GO, REACHED
 
@@ -116,7 +117,17 @@ def staging_offsets(n: int) -> np.ndarray:
 
 def _surface_ok(grid, xz) -> np.ndarray:
     xyz = np.stack([xz[:, 0], np.full(len(xz), SURFACE_Y_M), xz[:, 1]], axis=1)
-    return feasibility(grid, xyz, DEFAULT_LAND_THRESHOLD, CLEARANCE_M) == st.OK
+    return _surface_codes(grid, xyz) == st.OK
+
+
+def _surface_codes(grid, xyz) -> np.ndarray:
+    """``feasibility(grid, xyz, DEFAULT_LAND_THRESHOLD, CLEARANCE_M)`` of C-contiguous
+    float64 points, through the compiled entry (no numba dispatch per call)."""
+    from ..engine.constraints import check_points
+    from .common import _call
+
+    return _call(check_points, grid, xyz, float(DEFAULT_LAND_THRESHOLD), float(CLEARANCE_M),
+                 np.empty(xyz.shape[0], dtype=np.int64))
 
 
 def field_frame(domain_m: float) -> tuple[int, float]:
@@ -174,20 +185,21 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     ci = np.arange(n) * FIELD_H_M
     # the mean data current (gain and tides dropped: same geometry with currents off)
     raw = grid._replace(gain=1.0, tide_layers=0)
+    from .common import _call, _spawn_one
+
     for e, rng in enumerate(rngs):
         found = False
         for _ in range(1000):
-            try:
-                c = spawn_positions(grid, rng, 1, {"y": (SURFACE_Y_M, SURFACE_Y_M)},
-                                    land_threshold=DEFAULT_LAND_THRESHOLD,
-                                    clearance=CLEARANCE_M, max_candidates=4096)[0]
+            try:   # spawn_positions(grid, rng, 1, {"y": (SURFACE_Y_M,) * 2}, ...)[0]
+                c = _spawn_one(grid, rng, SURFACE_Y_M, DEFAULT_LAND_THRESHOLD, CLEARANCE_M)
             except ConfigError as exc:
                 raise NotApplicable(f"task {TASK_ID} reset (episode {e}): {exc}") from None
             cxz = np.array([c[0], c[2]])
             if not _surface_ok(grid, cxz + rings).all():
                 continue
             # the response base lies up-current of the spill: the slick drifts away from it
-            ue, un = sample_current_data(raw, c[0], SURFACE_Y_M, c[2], t0[e])
+            ue, un = _call(sample_current_data, raw, float(c[0]), float(SURFACE_Y_M),
+                           float(c[2]), float(t0[e]))
             a = rng.uniform(-STAGING_SPREAD_RAD, STAGING_SPREAD_RAD)
             if math.isfinite(ue) and math.isfinite(un) and ue * ue + un * un > 1e-6:
                 a += math.atan2(-ue, -un)
@@ -210,8 +222,12 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
                                 f"land within {CLEAR_RADII * R:g} m with a clear staging point "
                                 f"{dist:g} m away; the grid has no such water for this tier")
         x0, z0 = cxz[0] - half, cxz[1] - half
-        X, Z = np.meshgrid(x0 + ci, z0 + ci)
-        ok = _surface_ok(grid, np.stack([X.ravel(), Z.ravel()], 1)).reshape(n, n)
+        # the cell centres (x0 + ci[i], z0 + ci[j]), row j (np.meshgrid's order)
+        xyz = np.empty((n * n, 3))
+        xyz[:, 0] = np.tile(x0 + ci, n)
+        xyz[:, 1] = SURFACE_Y_M
+        xyz[:, 2] = np.repeat(z0 + ci, n)
+        ok = (_surface_codes(grid, xyz) == st.OK).reshape(n, n)
         land[e] = (~ok).astype(np.uint8)
         C0[e] = pol.make_spill(n, n, FIELD_H_M, cxz, R, SPILL_MASS_KG, rng, x0=x0, z0=z0,
                                land=land[e])
@@ -231,19 +247,23 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
 @hot_kernel
 def _refresh_faces(grid, uf, vf, x0, z0, h, y, t):
-    """Sample the surface current at the field's face centres (see pollution module doc)."""
+    """Sample the surface current at the field's face centres (see pollution module doc):
+    :func:`~.common.current_at` at one time ``t``, the time located and the synthetic tide
+    taken once per refresh instead of per face (the same arithmetic)."""
     nz = uf.shape[0]
     nx = vf.shape[1]
+    ti0, ti1, wt = locate_time(grid, t)
+    te, tn = synthetic_tide(grid, t)
     for j in range(nz):
         z = z0 + j * h
         for i in range(nx + 1):
-            ce, cn = current_at(grid, x0 + (i - 0.5) * h, y, z, t)
-            uf[j, i] = ce
+            ce, cn = sample_current_at(grid, x0 + (i - 0.5) * h, y, z, ti0, ti1, wt)
+            uf[j, i] = ce + te
     for j in range(nz + 1):
         z = z0 + (j - 0.5) * h
         for i in range(nx):
-            ce, cn = current_at(grid, x0 + i * h, y, z, t)
-            vf[j, i] = cn
+            ce, cn = sample_current_at(grid, x0 + i * h, y, z, ti0, ti1, wt)
+            vf[j, i] = cn + tn
 
 
 
