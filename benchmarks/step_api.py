@@ -4,10 +4,12 @@ For each task (default G2G, FT, SPC at tier 2) and each batch size (1, 16, 256, 
 sub-envs; ``--envs``), in one run:
 
 * ``reset``: the wall time of ``OceanVectorEnv.reset`` (episode sampling and the batch's
-  set-up), per sub-env; and ``autoreset``: the mean time per sub-env reset under
-  ``next_step`` autoreset over the run (pooled sampling, amortised);
+  set-up), per sub-env: it samples the first pool, ``--pool`` episodes per sub-env (4, the
+  env's default); and ``ms/episode``: the time per episode of building a pool (what every
+  autoreset costs, amortised: sampling, the task's set-up and the first observation);
 * ``step``: env-steps per second of ``step()`` with a fixed action (raw view, velocity
-  actions), and the microseconds per ``step()`` call;
+  actions), and the microseconds per ``step()`` call, wall and CPU (the process's CPU
+  time: what a loaded machine does not inflate as much);
 * ``fused``: agent-steps per second of the task's fused kernel running the heuristic on the
   same episodes (``Cell.run``), the speed the step API is measured against.
 
@@ -42,12 +44,13 @@ def _grid(path):
     return resolve_grid(None)
 
 
-def measure(task: str, tier: int, grid, n_envs: int, steps: int) -> dict:
+def measure(task: str, tier: int, grid, n_envs: int, steps: int, pool: int = 4) -> dict:
     import numpy as np
 
     from oneocean.envs import OceanVectorEnv
 
-    env = OceanVectorEnv(task, tier, grid, num_envs=n_envs, autoreset_mode="next_step")
+    env = OceanVectorEnv(task, tier, grid, num_envs=n_envs, autoreset_mode="next_step",
+                         pool=pool)
     env.reset(seed=0)                                   # warm-up (compile)
     env.step(np.zeros(env.action_space.shape))
     t = time.perf_counter()
@@ -56,11 +59,12 @@ def measure(task: str, tier: int, grid, n_envs: int, steps: int) -> dict:
     a = np.zeros(env.action_space.shape)
     a[..., 0] = 0.5 * env.v_max
     n_resets = 0
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     for _ in range(steps):
         _, _, term, trunc, _ = env.step(a)
         n_resets += int((term | trunc).sum())
     t_steps = time.perf_counter() - t
+    c_steps = time.process_time() - c
     # time spent on autoresets: the same run's pool builds, timed separately
     t = time.perf_counter()
     k = 0
@@ -70,6 +74,7 @@ def measure(task: str, tier: int, grid, n_envs: int, steps: int) -> dict:
     t_pool = (time.perf_counter() - t) / k / env.pool_size
     return {"reset_ms_per_env": 1e3 * t_reset / n_envs, "pool_ms_per_env": 1e3 * t_pool,
             "env_steps_s": steps * n_envs / t_steps, "us_per_step": 1e6 * t_steps / steps,
+            "cpu_us_per_step": 1e6 * c_steps / steps,
             "agents": env.n_agents, "episodes_ended": n_resets}
 
 
@@ -95,22 +100,25 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int, default=0,
                    help="steps per timing (default: 2000 at 1 env down to 50 at 4096)")
     p.add_argument("--grid", default=None, help="grid export (default: the default region)")
+    p.add_argument("--pool", type=int, default=4,
+                   help="episodes sampled per sub-env per pool (the env's pool; default 4)")
     args = p.parse_args(argv)
     grid = _grid(args.grid)
     print(f"# step API vs fused kernel: tier {args.tier}, {os.environ['NUMBA_NUM_THREADS']} "
           f"numba thread(s), {platform.processor() or platform.machine()}, "
           f"python {sys.version.split()[0]}; load average {os.getloadavg()[0]:.2f}")
-    print(f"{'task':5} {'envs':>5} {'reset ms/env':>13} {'autoreset ms/env':>17} "
-          f"{'env-steps/s':>12} {'us/step()':>10} {'agent-steps/s':>14} {'fused agent-steps/s':>20}"
+    print(f"{'task':5} {'envs':>5} {'reset ms/env':>13} {'ms/episode':>11} "
+          f"{'env-steps/s':>12} {'us/step()':>10} {'cpu us/step()':>13} {'agent-steps/s':>14} {'fused agent-steps/s':>20}"
           f" {'step API / fused':>17}")
     for task in args.tasks:
         f = fused(task, args.tier, grid, 64)
         for n in args.envs:
             steps = args.steps or max(50, min(2000, 200000 // n))
-            m = measure(task, args.tier, grid, n, steps)
+            m = measure(task, args.tier, grid, n, steps, args.pool)
             agent_steps = m["env_steps_s"] * m["agents"]
-            print(f"{task:5} {n:>5} {m['reset_ms_per_env']:>13.3f} {m['pool_ms_per_env']:>17.3f} "
-                  f"{m['env_steps_s']:>12,.0f} {m['us_per_step']:>10.1f} {agent_steps:>14,.0f} "
+            print(f"{task:5} {n:>5} {m['reset_ms_per_env']:>13.3f} {m['pool_ms_per_env']:>11.3f} "
+                  f"{m['env_steps_s']:>12,.0f} {m['us_per_step']:>10.1f} {m['cpu_us_per_step']:>13.1f} "
+                  f"{agent_steps:>14,.0f} "
                   f"{f:>20,.0f} {agent_steps / f:>17.2f}", flush=True)
     print(f"# load average at end: {os.getloadavg()[0]:.2f}")
     return 0
