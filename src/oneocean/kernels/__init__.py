@@ -13,7 +13,11 @@ two: it passes the task's hooks and the policy's ``plan`` / ``act`` to the one l
   (:class:`oneocean.tasks.episodes.Episodes` fused; the scene backend's
   :class:`oneocean.backends.mujoco.episodes.SteppedEpisodes` in its decide and judge phases);
 * ``_observe_kernel``: the next observation of every agent (:func:`~oneocean.tasks.loop.
-  observe_next`), for the step API.
+  observe_next`), for the step API;
+* ``_step_kernel``: one step of every running episode of a block, then its agents' next
+  observation, in one call (the step API's ``step``:
+  :meth:`oneocean.tasks.episodes.Episodes.step_observe`; optional: a kernel module without
+  it is stepped by ``_kernel`` and observed by ``_observe_kernel``).
 
 These wrappers are all numba's on-disk cache needs: a kernel is cached only when the hooks
 reach the inlined loop as module globals (:mod:`oneocean.tasks.loop`), so each task has one
