@@ -412,17 +412,13 @@ def _spawn_one(grid: Grid, rng: np.random.Generator, y: float, land_threshold: f
     zl, zh = float(grid.z0), float(grid.z_max)
     y = float(y)
     lt, cl = float(land_threshold), float(clearance)
-    codes = np.empty(_SPAWN_BATCH, dtype=np.int64)
-    cand = np.empty((_SPAWN_BATCH, 3))
-    tried = 0
-    while tried < _SPAWN_MAX:
-        m = int(min(_SPAWN_BATCH, _SPAWN_MAX - tried))
-        if m != _SPAWN_BATCH:   # pragma: no cover - 4096 is a multiple of 64
-            break
+    m = _SPAWN_BATCH
+    codes = np.empty(m, dtype=np.int64)
+    cand = np.empty((m, 3))
+    for _ in range(_SPAWN_MAX // m):          # 4096 is a multiple of 64
         cand[:, 0] = rng.uniform(xl, xh, m)
         cand[:, 2] = rng.uniform(zl, zh, m)
         cand[:, 1] = rng.uniform(y, y, m)
-        tried += m
         _call(check_points, grid, cand, lt, cl, codes)
         ok = np.flatnonzero(codes == st.OK)
         if ok.size:

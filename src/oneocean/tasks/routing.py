@@ -752,10 +752,7 @@ def field_times(grid, t0: float, duration: float) -> np.ndarray:
     """The grid's own time axis over ``[t0, t0 + duration]`` (plus the bracketing times), on
     which the product's currents are linear in time: the planner's ``times``."""
     ts = np.asarray(grid.time_s, dtype=np.float64)
-    if ts.size == 1:
-        return ts.copy()
-    lo = max(int(np.searchsorted(ts, t0, side="right")) - 1, 0)
-    hi = min(int(np.searchsorted(ts, t0 + duration, side="left")), ts.size - 1)
+    lo, hi = _time_window(ts, t0, duration)
     return ts[lo:hi + 1].copy()
 
 
