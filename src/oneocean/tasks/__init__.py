@@ -106,6 +106,17 @@ class Cell:
         ``episodes`` whose episode current (:func:`~.common.site_speeds` at the candidate's
         ``regime_points``, else its start positions, over ``[t0, t0 + time_limit_s]``) lies in
         the tier's :class:`~.common.Regime` are kept; ``init["candidate"]`` records which.
+        Either way a candidate is kept only where the product defines currents at those
+        points. Candidate ``c`` is drawn from its own stream (``SeedSequence([seed, c,
+        purpose])``), so it does not depend on how many are drawn.
+        A task module may split its ``reset`` in two (SPC does): ``reset_candidates(grid,
+        tier, n_agents, n, seed)`` (per candidate, what this check needs: ``t0`` and
+        ``regime_points`` or ``pos0``, plus any arrays its build needs) and
+        ``reset_build(grid, tier, n_agents, cand, seed)`` (the ``reset`` dict of the
+        candidates ``cand``: the ``reset_candidates`` dict with every per-candidate array
+        indexed by the kept candidates, ``cand["candidate"]`` their indices). Then the check
+        runs first and only the kept candidates are built; the episodes are ``reset``'s bit
+        for bit. Without the split every candidate is built by ``reset``, then checked.
         Raises :class:`~oneocean.errors.NotApplicable` (naming the cell) when the region
         cannot host it."""
         try:
@@ -115,23 +126,25 @@ class Cell:
 
     def _reset(self, episodes: int, seed: int) -> dict:
         from ..engine.grid import current_coverage
-        from .common import current_regime, site_speeds
+        from .common import site_speeds
 
         band = self.params.get("current_band")
         duration = float(self.params["time_limit_s"])
         n_cand = (episodes if band is None else
                   int(np.ceil(2.0 * episodes / max(float(band[1]) - float(band[0]), 0.05))))
+        split = hasattr(self.mod, "reset_candidates") and hasattr(self.mod, "reset_build")
+        draw = self.mod.reset_candidates if split else self.mod.reset
         regime = None
         for _ in range(REGIME_DRAWS):
-            init = self.mod.reset(self.grid_reset, self.params, self.n_agents, n_cand, seed)
-            pts = np.asarray(init.pop("regime_points", init["pos0"]), dtype=np.float64)
+            init = draw(self.grid_reset, self.params, self.n_agents, n_cand, seed)
+            pts = np.asarray(init["regime_points"] if "regime_points" in init else
+                             init["pos0"], dtype=np.float64)
             # episodes only where the product defines currents (never in water it does not
             # cover, where the engine's current is 0: docs/contracts.md §5)
             ok = (current_coverage(self.grid_reset, pts.reshape(-1, 3)) >= 1.0).reshape(
                 n_cand, -1).all(axis=1)
             if band is not None:
-                regime = current_regime(self.grid_reset, self.params,
-                                        float(np.median(pts[..., 1])))
+                regime = self._regime(float(np.median(pts[..., 1])))
                 speed = np.full(n_cand, np.nan)
                 speed[ok] = site_speeds(self.grid_reset, pts[ok], init["t0"][ok], duration)
                 ok &= (speed >= regime.lo) & (speed <= regime.hi)
@@ -148,9 +161,25 @@ class Cell:
         self.regime = regime
         out = {k: (v[keep] if isinstance(v, np.ndarray) and v.ndim and v.shape[0] == n_cand
                    else v) for k, v in init.items()}
+        if split:
+            out["candidate"] = keep.astype(np.int64)
+            out = self.mod.reset_build(self.grid_reset, self.params, self.n_agents, out, seed)
+        out.pop("regime_points", None)
         out["candidate"] = keep.astype(np.int64)
         return out
 
+    def _regime(self, depth_m: float):
+        """:func:`~.common.current_regime` of this cell's tier at ``depth_m`` on
+        ``grid_reset``, computed once per (band, depth) and cell."""
+        from .common import current_regime
+
+        key = (repr(self.params.get("current_band")), float(depth_m))
+        cache = self.__dict__.setdefault("_regimes", {})
+        hit = cache.get(key)
+        if hit is None or hit[0] is not self.grid_reset:
+            hit = cache[key] = (self.grid_reset,
+                                current_regime(self.grid_reset, self.params, depth_m))
+        return hit[1]
 
     def episodes(self, init: dict, method: str | None, dynamics: str, seed: int, **kw):
         """The rollout (:class:`oneocean.backends.protocol.Rollout`) of the episodes ``init``

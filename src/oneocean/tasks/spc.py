@@ -49,12 +49,13 @@ Methods
     models of :mod:`oneocean.sensing`; oracle: the exact map every step, true current and
     position).
 
-Module layout: as :mod:`oneocean.tasks.g2g` (``reset``; ``SPCParams`` / ``SPCWork`` and
-``make``: the per-episode field, land mask, face velocities, mass accumulators and the
-policy's plan tokens and map scratch with a leading episode axis; env hooks ``begin``,
-``pre_step`` (face refresh), ``cue``, ``post_step`` (removal in agent order, field step,
-success reached), ``finish``; the map scratch is sized by the policy (``make``'s
-``tokens``); the compiled loop is :mod:`oneocean.kernels.spc`).
+Module layout: as :mod:`oneocean.tasks.g2g` (``reset``, split as ``reset_candidates`` /
+``reset_build`` so that ``Cell.reset`` builds only the spills its current band keeps;
+``SPCParams`` / ``SPCWork`` and ``make``: the per-episode field, land mask, face
+velocities, mass accumulators and the policy's plan tokens and map scratch with a leading
+episode axis; env hooks ``begin``, ``pre_step`` (face refresh), ``cue``, ``post_step``
+(removal in agent order, field step, success reached), ``finish``; the map scratch is sized
+by the policy (``make``'s ``tokens``); the compiled loop is :mod:`oneocean.kernels.spc`).
 """
 
 from __future__ import annotations
@@ -154,12 +155,40 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
         ``pos0`` (E, N, 3) starts, m; ``psi0`` (E, N) headings toward the spill, rad;
         ``t0`` (E,) start times, s; ``C0`` (E, 1, n, n) initial field, kg m-2;
         ``land`` (E, n, n) uint8 frozen cells; ``origin`` (E, 2) world (x, z) of cell (0, 0)
-        centre, m; ``report`` (E, 2) initial spill centroid (x, z), m.
+        centre, m; ``report`` (E, 2) initial spill centroid (x, z), m; ``regime_points``
+        (E, 1, 3) the spill centroid at the surface (``Cell.reset``).
 
     Raises
     ------
     ConfigError
         Team size outside 2..10, missing tier keys, or no valid spill/staging geometry.
+
+    The same as :func:`reset_build` of :func:`reset_candidates` (the split ``Cell.reset``
+    uses to build only the candidates it keeps).
+    """
+    cand = reset_candidates(grid, tier, n_agents, n_episodes, seed)
+    cand["candidate"] = np.arange(int(n_episodes), dtype=np.int64)
+    return reset_build(grid, tier, n_agents, cand, seed)
+
+
+def _spill_box(n: int, half: float, R: float) -> slice:
+    """The field cells (per axis, the same for x and z) that can hold spill mass: the spill
+    (:func:`~oneocean.models.pollution.make_spill`) is cut at ``2 R`` from the spill centre,
+    the field's centre; one cell of margin for round-off."""
+    off = np.arange(n) * FIELD_H_M - half
+    inside = np.flatnonzero(np.abs(off) <= 2.0 * R + FIELD_H_M)
+    return slice(int(inside[0]), int(inside[-1]) + 1)
+
+
+def reset_candidates(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
+    """What ``Cell.reset``'s band check needs of candidates ``0 .. n_episodes-1`` (``t0`` and
+    ``regime_points``: the spill centroid) and what :func:`reset_build` needs to finish them.
+
+    Per candidate (its own stream): the start time, the spill site and staging search, the
+    spill (its mass lies within ``2 spill_radius_m`` of the site, so only the land cells of
+    that box are checked: the field is bit for bit the one of the full land mask) and its
+    centroid. ``spill`` (E, b, b) holds the box of the initial field, ``starts`` (E, N, 2)
+    the agents' (x, z) starts; the full land mask is :func:`reset_build`'s.
     """
     n_agents = int(n_agents)
     if not 2 <= n_agents <= 10:
@@ -177,12 +206,16 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     ang = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
     rings = np.concatenate([[[0.0, 0.0]]] + [r * np.stack([np.sin(ang), np.cos(ang)], 1)
                                              for r in np.linspace(0.5, CLEAR_RADII, 3) * R])
-    pos0 = np.empty((n_episodes, n_agents, 3))
-    C0 = np.empty((n_episodes, 1, n, n))
-    land = np.empty((n_episodes, n, n), dtype=np.uint8)
+    box = _spill_box(n, half, R)
+    b = box.stop - box.start
+    starts_all = np.empty((n_episodes, n_agents, 2))
+    spill = np.empty((n_episodes, b, b))
     origin = np.empty((n_episodes, 2))
     report = np.empty((n_episodes, 2))
     ci = np.arange(n) * FIELD_H_M
+    land = np.zeros((n, n), dtype=np.uint8)     # the box's land cells, none outside it
+    xyz = np.empty((b * b, 3))
+    xyz[:, 1] = SURFACE_Y_M
     # the mean data current (gain and tides dropped: same geometry with currents off)
     raw = grid._replace(gain=1.0, tide_layers=0)
     from .common import _call, _spawn_one
@@ -222,27 +255,56 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
                                 f"land within {CLEAR_RADII * R:g} m with a clear staging point "
                                 f"{dist:g} m away; the grid has no such water for this tier")
         x0, z0 = cxz[0] - half, cxz[1] - half
+        # the box's cell centres (x0 + ci[i], z0 + ci[j]), row j, as the full mask has them
+        xyz[:, 0] = np.tile(x0 + ci[box], b)
+        xyz[:, 2] = np.repeat(z0 + ci[box], b)
+        land[box, box] = (_surface_codes(grid, xyz) != st.OK).reshape(b, b)
+        C = pol.make_spill(n, n, FIELD_H_M, cxz, R, SPILL_MASS_KG, rng, x0=x0, z0=z0, land=land)
+        spill[e] = C[0, box, box]
+        if np.count_nonzero(C.view(np.int64)) != np.count_nonzero(spill[e].view(np.int64)):
+            raise RuntimeError(f"task {TASK_ID} reset (episode {e}): spill mass outside its "
+                               f"box")   # never: make_spill cuts the blob at 2 R
+        origin[e] = (x0, z0)
+        xc, zc, _ = pol.centroid(C, 0, x0, z0, FIELD_H_M)
+        report[e] = (xc, zc)
+        starts_all[e] = starts
+    # the current regime is judged where the slick drifts: the spill's centre at the surface
+    site = np.column_stack([report[:, 0], np.full(n_episodes, SURFACE_Y_M), report[:, 1]])
+    return {"t0": t0, "regime_points": site[:, None, :], "starts": starts_all,
+            "spill": spill, "origin": origin, "report": report}
+
+
+def reset_build(grid, tier: dict, n_agents: int, cand: dict, seed: int) -> dict:
+    """The episodes (:func:`reset`'s dict) of the candidates ``cand``: a
+    :func:`reset_candidates` dict, every per-candidate array indexed by the chosen
+    candidates (``cand["candidate"]`` their indices, unused here): the full land mask, the
+    initial field, the starts and headings."""
+    R = float(tier["spill_radius_m"])
+    n, half = field_frame(float(tier["domain_m"]))
+    box = _spill_box(n, half, R)
+    t0, starts, origin, report = cand["t0"], cand["starts"], cand["origin"], cand["report"]
+    n_episodes = t0.shape[0]
+    pos0 = np.empty((n_episodes, int(n_agents), 3))
+    C0 = np.zeros((n_episodes, 1, n, n))
+    land = np.empty((n_episodes, n, n), dtype=np.uint8)
+    ci = np.arange(n) * FIELD_H_M
+    xyz = np.empty((n * n, 3))
+    xyz[:, 1] = SURFACE_Y_M
+    for e in range(n_episodes):
+        x0, z0 = origin[e]
         # the cell centres (x0 + ci[i], z0 + ci[j]), row j (np.meshgrid's order)
-        xyz = np.empty((n * n, 3))
         xyz[:, 0] = np.tile(x0 + ci, n)
-        xyz[:, 1] = SURFACE_Y_M
         xyz[:, 2] = np.repeat(z0 + ci, n)
         ok = (_surface_codes(grid, xyz) == st.OK).reshape(n, n)
         land[e] = (~ok).astype(np.uint8)
-        C0[e] = pol.make_spill(n, n, FIELD_H_M, cxz, R, SPILL_MASS_KG, rng, x0=x0, z0=z0,
-                               land=land[e])
-        origin[e] = (x0, z0)
-        xc, zc, _ = pol.centroid(C0[e], 0, x0, z0, FIELD_H_M)
-        report[e] = (xc, zc)
-        pos0[e, :, 0] = starts[:, 0]
+        C0[e, 0, box, box] = cand["spill"][e]
+        pos0[e, :, 0] = starts[e, :, 0]
         pos0[e, :, 1] = SURFACE_Y_M
-        pos0[e, :, 2] = starts[:, 1]
+        pos0[e, :, 2] = starts[e, :, 1]
     d = report[:, None, :] - pos0[:, :, [0, 2]]
     psi0 = np.arctan2(d[..., 0], d[..., 1])
-    # the current regime is judged where the slick drifts: the spill's centre at the surface
-    site = np.column_stack([report[:, 0], np.full(n_episodes, SURFACE_Y_M), report[:, 1]])
     return {"pos0": pos0, "psi0": psi0, "t0": t0, "C0": C0, "land": land, "origin": origin,
-            "report": report, "regime_points": site[:, None, :]}
+            "report": report, "regime_points": cand["regime_points"]}
 
 
 @hot_kernel
