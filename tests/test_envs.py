@@ -431,32 +431,40 @@ def _trace(env, steps, seed, rng_seed=0):
     return out, ends
 
 
+@pytest.mark.parametrize("view", [("raw", "velocity", "sparse"),
+                                  ("normalized", "normalized", "dense")])
 @pytest.mark.parametrize("mode", ["next_step", "same_step", "disabled"])
-def test_fused_step_equals_run_then_observe(coast, monkeypatch, mode):
-    """``step`` advances and observes in one compiled call (``Episodes.step_observe``); it
-    gives exactly what the two calls it replaces give (``run(-1)``, then ``observe``), over
-    autoresets across several pools and with sub-envs on different episodes."""
+def test_fused_step_equals_run_then_observe(coast, monkeypatch, mode, view):
+    """``step`` advances and observes in one compiled call (the actions written, the raw
+    view's undefined values zeroed and the end flags read in the kernel too:
+    ``Episodes.env_step``); it gives exactly what the Python path with the two calls it
+    replaces gives (``run(-1)``, then ``observe``), over autoresets across several pools,
+    with sub-envs on different episodes, in both views and with both rewards."""
     from oneocean import envs
 
-    def make():
-        return envs.OceanVectorEnv("G2G", 1, coast, num_envs=3, autoreset_mode=mode, pool=1,
-                                   reward="dense")
+    obs_mode, action_mode, reward = view
 
-    env = make()
+    def make(n):
+        return envs.OceanVectorEnv("G2G", 1, coast, num_envs=n, autoreset_mode=mode, pool=1,
+                                   obs_mode=obs_mode, action_mode=action_mode, reward=reward)
+
+    env = make(3)
     env.reset(seed=5)
     steps = env.cell_steps + (5 if mode == "disabled" else env.cell_steps // 2)
-    fused, ends = _trace(env, steps, 5)
+    fused = [_trace(make(n), steps, 5) for n in (3, 1)]
 
     def two_calls(batch, lo, hi):
         batch.run(-1)
         return batch.observe()
 
     monkeypatch.setattr(envs, "_step_observe", two_calls)
-    plain, _ = _trace(make(), steps, 5)
-    assert len(fused) == len(plain)
-    for x, y in zip(fused, plain):
-        np.testing.assert_array_equal(x, y)
-    assert ends >= 3
+    monkeypatch.setattr(envs.OceanVectorEnv, "_fused_env_step", lambda *a: None)
+    plain = [_trace(make(n), steps, 5) for n in (3, 1)]
+    for (f, ends), (p, _) in zip(fused, plain):
+        assert len(f) == len(p)
+        for x, y in zip(f, p):
+            np.testing.assert_array_equal(x, y)
+    assert fused[0][1] >= 3
 
 
 def test_evaluate_runs_the_forcing_it_is_given(coast):

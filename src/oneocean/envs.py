@@ -71,7 +71,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from .errors import ConfigError, NotApplicable
 from .tasks import Cell
 from .tasks.common import ACT_FIELDS, OBS_DIM, OBS_FIELDS, N_MATES
-from .tasks.loop import FINISHED, NEW
+from .tasks.loop import ENV_ENDED, ENV_SUCCESS, ENV_TRUNCATED, FINISHED, NEW, EnvIO
 from .backends.protocol import Rollout
 
 AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP,
@@ -272,6 +272,13 @@ class OceanVectorEnv(VectorEnv):
         self.observation_space = self._obs_space((self.num_envs, n))
         self.action_space = self._act_space((self.num_envs, n))
         self.obs_fields = OBS_FIELDS if self.obs_mode == "raw" else NORM_FIELDS
+        self._act_shape = (self.num_envs, n, len(ACT_FIELDS))
+        self._obs_shape = (self.num_envs, n, OBS_DIM)
+        self._flags = np.zeros(self.num_envs, dtype=np.int64)
+        # the raw view leaves the compiled step ready (undefined values 0) unless the dense
+        # reward needs the undefined cues
+        self._clean = int(self.obs_mode == "raw" and self.reward_mode == "sparse")
+        self._normalized = int(self.action_mode == "normalized")
         self._pools: list[_Pool] = []
         self._seed = None
 
@@ -332,10 +339,10 @@ class OceanVectorEnv(VectorEnv):
         self._pools = [p for p in self._pools if p.live > 0 or p.drawn < p.n]
 
     def _groups(self):
-        """(pool, sub-env rows, episode rows, lo, hi, whole) per pool that owns sub-envs
+        """(pool, sub-env rows, episode rows, lo, hi, rows) per pool that owns sub-envs
         (cached until the ownership changes): ``lo .. hi-1`` spans the pool's owned episodes
-        (every running episode of the pool), ``whole`` says the rows are sub-envs
-        ``0 .. num_envs-1`` on episodes ``lo .. hi-1`` in order (slices suffice)."""
+        (every running episode of the pool), ``rows`` (pool size,) the sub-env of each of
+        the pool's episodes (-1: none)."""
         if self._group_cache is None:
             by = {}
             for j, p in enumerate(self._owner):
@@ -345,9 +352,9 @@ class OceanVectorEnv(VectorEnv):
                 js = np.array(js)
                 eps = self._ep[js]
                 lo, hi = int(eps.min()), int(eps.max()) + 1
-                whole = (js.size == self.num_envs and hi - lo == js.size
-                         and bool(np.all(eps == np.arange(lo, hi))))
-                groups.append((p, js, eps, lo, hi, whole))
+                rows = np.full(p.n, -1, dtype=np.int64)
+                rows[eps] = js
+                groups.append((p, js, eps, lo, hi, rows))
             self._group_cache = groups
         return self._group_cache
 
@@ -419,6 +426,7 @@ class OceanVectorEnv(VectorEnv):
         self._owner: list[_Pool | None] = [None] * self.num_envs
         self._ep = np.zeros(self.num_envs, dtype=np.int64)
         self._pending = np.zeros(self.num_envs, dtype=bool)
+        self._n_pending = 0
         self._d_prev = np.full((self.num_envs, self.n_agents), np.nan)
         self._viol_prev = np.zeros(self.num_envs, dtype=np.int64)
         self._coll_prev = np.zeros(self.num_envs, dtype=np.int64)
@@ -447,69 +455,68 @@ class OceanVectorEnv(VectorEnv):
     def step(self, actions):
         if not self._pools:
             raise RuntimeError("OceanVectorEnv: call reset() before step()")
-        a = self._to_velocity(actions)
         n = self.num_envs
         # NEXT_STEP: these reset, not step
-        reset_now = np.flatnonzero(self._pending) if self._pending.any() else _NONE
+        reset_now = np.flatnonzero(self._pending) if self._n_pending else _NONE
         # one compiled call per pool: the step of every running episode, then every agent's
         # next observation (a finished episode -- NEXT_STEP's pending ones included -- is
         # not stepped, so its action row is never read)
         groups = self._groups()
-        if len(groups) == 1 and groups[0][5]:          # one pool, sub-env j on episode lo + j
-            pool, _, _, lo, hi, _ = groups[0]
-            b = pool.batch
-            st = b.LS.status[lo:hi]
-            was_done = st == FINISHED
-            b.ext[lo:hi] = a
-            raw = _step_observe(b, lo, hi)[lo:hi].copy()
-            done = st == FINISHED
-            groups = ()
+        fast = self._fused_env_step(actions, groups)
+        if fast is not None:
+            raw, flags = fast
+            if not np.count_nonzero(flags):            # no episode ended at this step
+                ended = None
+            else:
+                ended = (flags & ENV_ENDED) != 0
+                success = (flags & ENV_SUCCESS) != 0
+                truncated = (flags & ENV_TRUNCATED) != 0
         else:
-            raw = np.empty((n, self.n_agents, OBS_DIM))
-            was_done = np.empty(n, dtype=bool)
-            done = np.empty(n, dtype=bool)
-        for pool, js, eps, lo, hi, _ in groups:
-            b = pool.batch
-            st = b.LS.status
-            was_done[js] = st[eps] == FINISHED
-            b.ext[eps] = a[js]
-            raw[js] = _step_observe(b, lo, hi)[eps]
-            done[js] = st[eps] == FINISHED
-        ended = done & ~was_done
-        truncated = np.zeros(n, dtype=bool)
-        if ended.any():
-            res = self._gather("res")
-            success = ended & (res[:, 0] > 0.5)
-            truncated = ended & ~success & (self._gather("k") >= self.cell_steps)
-        else:
-            success = np.zeros(n, dtype=bool)
-        terminated = ended & ~truncated
-        if self.reward_mode == "sparse":
-            reward = success.astype(np.float64)
-        else:
-            d_now = _cue_distance(raw)
-            viol, coll = self._gather("viol"), self._gather("coll")
-            reward = dense_reward(self._d_prev, d_now, viol - self._viol_prev,
-                                  coll - self._coll_prev, success, self.v_max, self.dt)
-            self._viol_prev, self._coll_prev = viol, coll
-            self._d_prev = d_now
-        if reset_now.size:
-            reward[reset_now] = 0.0
+            raw, ended = self._step_groups(self._to_velocity(actions), groups)
+            if ended is not None:
+                res = self._gather("res")
+                success = ended & (res[:, 0] > 0.5)
+                truncated = ended & ~success & (self._gather("k") >= self.cell_steps)
         info: dict = {}
-        if ended.any():
+        if ended is None:
+            terminated = np.zeros(n, dtype=bool)
+            truncated = np.zeros(n, dtype=bool)
+            success = None
+        else:
+            terminated = ended & ~truncated
+            res = self._gather("res")
             cols = self._owner[int(np.flatnonzero(ended)[0])].batch.columns
             for c, col in enumerate(cols):
                 info[col] = np.where(ended, res[:, c], np.nan)
                 info["_" + col] = ended.copy()
             info["is_success"] = success.copy()
             info["_is_success"] = ended.copy()
-        obs = self._obs(raw, inplace=True)
+        if self.reward_mode == "sparse":
+            reward = np.zeros(n) if success is None else success.astype(np.float64)
+        else:
+            d_now = _cue_distance(raw)
+            viol, coll = self._gather("viol"), self._gather("coll")
+            reward = dense_reward(self._d_prev, d_now, viol - self._viol_prev,
+                                  coll - self._coll_prev,
+                                  np.zeros(n, dtype=bool) if success is None else success,
+                                  self.v_max, self.dt)
+            self._viol_prev, self._coll_prev = viol, coll
+            self._d_prev = d_now
+        if reset_now.size:
+            reward[reset_now] = 0.0
+        obs = raw if (fast is not None and self._clean) else self._obs(raw, inplace=True)
         if self.autoreset == "next_step":
             if reset_now.size:
                 self._replace_episodes(reset_now, obs)
                 terminated[reset_now] = truncated[reset_now] = False
-            self._pending = ended
-        elif self.autoreset == "same_step" and ended.any():
+            if ended is None:
+                if self._n_pending:
+                    self._pending[:] = False
+                    self._n_pending = 0
+            else:
+                self._pending = ended
+                self._n_pending = int(ended.sum())
+        elif self.autoreset == "same_step" and ended is not None:
             idx = np.flatnonzero(ended)
             info["final_obs"] = obs.copy()
             info["_final_obs"] = ended.copy()
@@ -518,6 +525,43 @@ class OceanVectorEnv(VectorEnv):
             info["_final_info"] = ended.copy()
             self._replace_episodes(idx, obs)
         return obs, reward, terminated, truncated, info
+
+    def _fused_env_step(self, actions, groups):
+        """The step of every sub-env (each pool's running episodes) with the actions
+        written, the raw observations (non-finite values already 0 where ``_clean``) and
+        the end flags (``ENV_*``) in one compiled call per pool; None (nothing done) where a
+        pool's backend has no such call."""
+        if len(groups) == 1:
+            if getattr(groups[0][0].batch, "env_step", None) is None:
+                return None
+        elif not all(hasattr(g[0].batch, "env_step") for g in groups):
+            return None
+        a = np.ascontiguousarray(actions, dtype=np.float64)
+        if a.shape != self._act_shape:
+            raise ConfigError(f"actions: expected shape {self._act_shape}, got {a.shape}")
+        out = np.empty(self._obs_shape)
+        for pool, _, _, lo, hi, rows in groups:
+            if not pool.batch.env_step(EnvIO(a, out, self._flags, rows, self._normalized,
+                                             self._clean), lo, hi):
+                return None       # a kernel module without the fused step (every pool's)
+        return out, self._flags
+
+    def _step_groups(self, a: np.ndarray, groups):
+        """The step of every pool's running episodes (``a`` velocities per sub-env): raw
+        observations and the sub-envs whose episode ended at this step (None: none)."""
+        n = self.num_envs
+        raw = np.empty((n, self.n_agents, OBS_DIM))
+        was_done = np.empty(n, dtype=bool)
+        done = np.empty(n, dtype=bool)
+        for pool, js, eps, lo, hi, _ in groups:
+            b = pool.batch
+            st = b.LS.status
+            was_done[js] = st[eps] == FINISHED
+            b.ext[eps] = a[js]
+            raw[js] = _step_observe(b, lo, hi)[eps]
+            done[js] = st[eps] == FINISHED
+        ended = done & ~was_done
+        return raw, (ended if ended.any() else None)
 
     def _replace_episodes(self, envs: np.ndarray, obs: np.ndarray) -> None:
         """Autoreset: give sub-envs ``envs`` their next episodes and write those episodes'

@@ -15,9 +15,13 @@ two: it passes the task's hooks and the policy's ``plan`` / ``act`` to the one l
 * ``_observe_kernel``: the next observation of every agent (:func:`~oneocean.tasks.loop.
   observe_next`), for the step API;
 * ``_step_kernel``: one step of every running episode of a block, then its agents' next
-  observation, in one call (the step API's ``step``:
-  :meth:`oneocean.tasks.episodes.Episodes.step_observe`; optional: a kernel module without
-  it is stepped by ``_kernel`` and observed by ``_observe_kernel``).
+  observation, in one call, with the step API's side of it (``io``,
+  :class:`~oneocean.tasks.loop.EnvIO`: the sub-envs' actions in, their observations and end
+  flags out; :meth:`oneocean.tasks.episodes.Episodes.env_step` and ``step_observe``), and
+  ``_step_boxed``, the same call with its arguments in one
+  :class:`~oneocean.tasks.loop.StepArgs` (one object to unbox per call, not every array);
+  optional: a kernel module without them is stepped by ``_kernel`` and observed by
+  ``_observe_kernel``.
 
 These wrappers are all numba's on-disk cache needs: a kernel is cached only when the hooks
 reach the inlined loop as module globals (:mod:`oneocean.tasks.loop`), so each task has one

@@ -20,7 +20,8 @@ from ..engine.dynamics import CMD_DIM, model_id, new_state
 from ..errors import ConfigError
 from .common import (ACT_FIELDS, CLEARANCE_M, OBS_DIM, STANDARD, episode_steps, need_tier,
                      rollout_results)
-from .loop import EXTERNAL, FUSED, FINISHED, LEARNED, LoopParams, new_loop_state
+from .loop import (EXTERNAL, FUSED, FINISHED, LEARNED, LoopParams, env_io, new_loop_state,
+                   step_args)
 
 
 def learned_method(method: str) -> bool:
@@ -299,27 +300,50 @@ class Episodes:
         episode must lie in ``lo .. hi-1``. The array is the batch's own buffer, overwritten
         by the next call: copy what you keep."""
         hi = self.n_episodes if hi is None else int(hi)
+        if not self._fused_step(lo, hi, None):       # a plugin's kernel without the fused step
+            self.run(-1)
+            return self.observe(lo, hi)
+        return self._nobs[:, 0]
+
+    def env_step(self, io, lo: int, hi: int) -> bool:
+        """:meth:`step_observe` with the step API's side (:class:`~oneocean.tasks.loop.EnvIO`:
+        episode ``e`` is sub-env ``io.rows[e]``) in the same compiled call: the sub-envs'
+        actions written, their observations and end flags read. False (nothing done) for a
+        kernel module without the fused step."""
+        call = self._entries.get("step")
+        if call is not None and hi - lo == 1:          # the common case, kept lean
+            call[0](*call[1], io, lo, hi)
+            return True
+        return self._fused_step(int(lo), int(hi), io)
+
+    def _fused_step(self, lo: int, hi: int, io) -> bool:
         call = self._entries.get("step")
         if call is None:
             kern = getattr(self.kern, "_step_kernel", None)
-            if kern is None:       # a plugin's kernel module without the fused step
-                self.run(-1)
-                return self.observe(lo, hi)
+            if kern is None:
+                return False
             self._nobs = np.full((self.n_episodes, 1, self.n_agents, OBS_DIM), np.nan)
             nact = np.zeros((self.n_episodes, 1, self.n_agents, len(ACT_FIELDS)))
-            # the arguments are the batch's own arrays, updated in place: built once
+            self._no_io = env_io(0, self.n_agents, OBS_DIM)
+            # the arguments are the batch's own arrays, updated in place: built once (in one
+            # struct where the kernel module reads one: a call unboxes one object)
             args = (self.grid, self.vehicle.params, self.LP, self.P, self.W, self.M, self.LS,
                     self.t0, self.state, self.cmd, self.ext, self.obs, self.act, self.res,
                     self._nobs, nact)
-            over_range(kern, lo, hi, *args)        # compiles (or loads) on first use
-            self._entries["step"] = (fast_entry(kern, args + (0, 1)), args)
-            return self._nobs[:, 0]
+            boxed = getattr(self.kern, "_step_boxed", None)
+            if boxed is not None:
+                kern, args = boxed, (step_args(*args),)
+            io = self._no_io if io is None else io
+            over_range(kern, lo, hi, *args, io)        # compiles (or loads) on first use
+            self._entries["step"] = (fast_entry(kern, args + (io, 0, 1)), args)
+            return True
         fn, args = call
+        io = self._no_io if io is None else io
         if hi - lo == 1:
-            fn(*args, lo, hi)
+            fn(*args, io, lo, hi)
         else:
-            over_range(fn, lo, hi, *args)
-        return self._nobs[:, 0]
+            over_range(fn, lo, hi, *args, io)
+        return True
 
     def results(self) -> dict:
         """The per-episode result columns (finished episodes; see ``STANDARD`` + METRICS)."""

@@ -86,6 +86,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit, types
+from numba.experimental import structref
 
 from ..engine.constraints import min_pairwise_distance
 from ..engine.dynamics import STATE_DIM, clip_action
@@ -172,6 +174,107 @@ def new_loop_state(n_episodes: int, n_agents: int) -> LoopState:
                      np.zeros((E, N, STATE_DIM)), np.zeros((E, N, 2)), np.zeros((E, N, 3)),
                      np.zeros((E, N, 2)), np.zeros((E, 5)), np.zeros(E),
                      np.zeros((E, N)), np.zeros((E, N, 2)), np.zeros((E, N), np.int64))
+
+
+#: ``flags`` bits of the step API's fused step (:func:`env_step_out`): the episode ended at
+#: this step; it ended in success; it ended at the time limit without success.
+ENV_ENDED, ENV_SUCCESS, ENV_TRUNCATED = 1, 2, 4
+
+
+class EnvIO(NamedTuple):
+    """The step API's side of a fused step (``_step_kernel`` of a kernel module) for ``n``
+    sub-envs. No rows in ``a``/``out``: a plain step (``step_observe``)."""
+    a: np.ndarray        # (n, N, 3) float64 actions (velocity m s-1, or units of v_max)
+    out: np.ndarray      # (n, N, OBS_DIM) float64 the next observations (raw view)
+    flags: np.ndarray    # (n,) int64 ENV_* bits
+    rows: np.ndarray     # (E,) int64 the sub-env of each episode of the batch (-1: none)
+    normalized: int      # 1: ``a`` in units of v_max, its norm clipped to 1
+    clean: int           # 1: undefined (non-finite) observation values written as 0
+
+
+def env_io(n: int, n_agents: int, obs_dim: int) -> EnvIO:
+    """An :class:`EnvIO` with no rows (a plain fused step)."""
+    return EnvIO(np.zeros((n, n_agents, 3)), np.zeros((n, n_agents, obs_dim)),
+                 np.zeros(n, np.int64), np.zeros(0, np.int64), 0, 0)
+
+
+#: The fused step's arguments in :class:`StepArgs` (a kernel module's ``_step_kernel``
+#: arguments before ``io``).
+STEP_FIELDS = ("grid", "vp", "LP", "P", "W", "M", "LS", "t0", "state", "cmd", "ext", "obs",
+               "act", "res", "nobs", "nact")
+
+
+@structref.register
+class StepArgsType(types.StructRef):
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(t)) for name, t in fields)
+
+
+class StepArgs(structref.StructRefProxy):
+    """A batch's fused-step arguments (:data:`STEP_FIELDS`: its own arrays, shared, not
+    copied) in one numba struct: a compiled call unboxes one object instead of every array
+    of the grid and the loop (about 6 us a call with them; the step API's step at one env
+    is a few us of work). Built by :func:`step_args`; read by a kernel module's
+    ``_step_boxed``."""
+
+
+structref.define_proxy(StepArgs, StepArgsType, STEP_FIELDS)
+
+
+@njit(cache=True)
+def step_args(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, nobs, nact):
+    """The :class:`StepArgs` of these arrays (compiled per argument types, cached)."""
+    return StepArgs(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, nobs, nact)
+
+
+@hot_kernel(inline="always")
+def env_step_in(LP, LS, ext, io, e):
+    """Before episode ``e``'s fused step: its sub-env's action (if it has one) into
+    ``ext[e]`` (the normalised view scaled as ``v_max * a / max(|a|, 1)``, numpy's
+    arithmetic); returns whether the episode had already ended."""
+    was = LS.status[e] == FINISHED
+    if io.a.shape[0] > 0 and io.rows[e] >= 0:
+        j = io.rows[e]
+        for i in range(io.a.shape[1]):
+            x = io.a[j, i, 0]
+            y = io.a[j, i, 1]
+            z = io.a[j, i, 2]
+            if io.normalized != 0:
+                m = math.sqrt(x * x + y * y + z * z)
+                if not (m > 1.0 or m != m):
+                    m = 1.0
+                x = LP.v_max * x / m
+                y = LP.v_max * y / m
+                z = LP.v_max * z / m
+            ext[e, i, 0] = x
+            ext[e, i, 1] = y
+            ext[e, i, 2] = z
+    return was
+
+
+@hot_kernel(inline="always")
+def env_step_out(LP, LS, res, nobs, io, e, was):
+    """After episode ``e``'s fused step and observation (``nobs[e, 0]``): its sub-env's
+    observation into ``io.out`` and its :data:`ENV_ENDED` / ``ENV_SUCCESS`` /
+    ``ENV_TRUNCATED` bits into ``io.flags``."""
+    if io.out.shape[0] == 0 or io.rows[e] < 0:
+        return
+    j = io.rows[e]
+    o = nobs[e, 0]
+    for i in range(o.shape[0]):
+        for d in range(o.shape[1]):
+            v = o[i, d]
+            if io.clean != 0 and not math.isfinite(v):
+                v = 0.0
+            io.out[j, i, d] = v
+    f = 0
+    if LS.status[e] == FINISHED and not was:
+        f = ENV_ENDED
+        if res[e, C_SUCCESS] > 0.5:
+            f |= ENV_SUCCESS
+        elif LS.k[e] >= LP.n_steps:
+            f |= ENV_TRUNCATED
+    io.flags[j] = f
 
 
 @hot_kernel(inline="always")
