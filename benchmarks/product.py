@@ -1,16 +1,24 @@
-"""Benchmarks of the product stage (issue 2 targets; prints figures, asserts nothing).
+"""Benchmarks of the product stage (prints figures, asserts nothing).
 
 (a) Wall time of ``snakemake --cores 2 exports`` on the default config, in a scratch copy of the
     repository (goal < 60 s including Snakemake start-up).
 (b) Peak RSS of ``build_product`` merging a synthetic currents source of >= 4 GB on disk
     (goal < 1.5 GB): the source is generated lazily, one time step at a time, in a child
     process; the merge runs in another child whose peak RSS comes from ``os.wait4``.
+(c) A product several times larger than a dask worker's memory limit, built on a
+    ``dask.distributed`` LocalCluster (``--workers`` processes of one thread, each limited to
+    ``--worker-memory-mb``; config ``product.scheduler``) and, as the baseline in the same run,
+    on the local threads scheduler; each as a zarr store (``--format``). Prints the product's
+    size, wall time, the peak RSS of every worker process (``resource.getrusage`` inside the
+    worker) and of the process that drives the build.
 
 Usage::
 
-    python benchmarks/product.py            # both parts, full 4 GB source
+    python benchmarks/product.py            # all parts, full 4 GB source
     python benchmarks/product.py --quick    # smoke run: ~0.1 GB source
     python benchmarks/product.py --skip-workflow --workdir /big/tmp --keep
+    python benchmarks/product.py --only-distributed            # part (c), ~40 s here
+    python benchmarks/product.py --only-distributed --worker-memory-mb 500 --days 8
 """
 
 from __future__ import annotations
@@ -126,23 +134,131 @@ def bench_rss(workdir: Path, quick: bool) -> None:
           f"peak RSS {rss / GB:.2f} GB (goal < {GOAL_RSS_GB} GB) {verdict}")
 
 
+def distributed_config(days: int) -> dict:
+    """The default region at 0.001 deg (401 x 301 nodes, 7 levels), hourly over ``days``: each
+    time step holds u, v (7 levels) and u_tide, v_tide, 7.7 MB as float32."""
+    with open(REPO / "config" / "config.yaml") as fh:
+        cfg = yaml.safe_load(fh)
+    cfg["region"]["time"] = {"start": "2025-01-01T00:00:00",
+                             "end": f"2025-01-{1 + days:02d}T00:00:00"}
+    cfg["synthetic"]["resolution_deg"] = 0.001
+    cfg["variants"]["public"] = {"extent_fraction": 1.0, "resolution_deg": 0.001,
+                                 "hours": 24 * days, "max_depth_m": 120.0}
+    return cfg
+
+
+DISTRIBUTED = """
+import json, resource, sys, time
+cfg_path, cur, bat, out, meta, workers, limit_mb = sys.argv[1:8]
+cfg = json.load(open(cfg_path))
+from distributed import LocalCluster, Client
+from oneocean.product import build_product
+
+def peak_rss():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+with LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
+                  memory_limit=f"{limit_mb}MB", dashboard_address=None,
+                  silence_logs=40) as cluster:
+    cfg["product"] = {"scheduler": cluster.scheduler_address}
+    t0 = time.perf_counter()
+    build_product(cur, bat, cfg, "public", out, meta)
+    wall = time.perf_counter() - t0
+    with Client(cluster.scheduler_address) as client:
+        rss = sorted(client.run(peak_rss).values())
+json.dump({"wall": wall, "worker_peak_rss": rss, "client_peak_rss": peak_rss()},
+          open(sys.argv[8], "w"))
+"""
+
+
+def _size(path: Path) -> int:
+    return sum(f.stat().st_size for f in path.rglob("*") if f.is_file()) if path.is_dir() \
+        else path.stat().st_size
+
+
+def bench_distributed(workdir: Path, days: int, workers: int, limit_mb: int, fmt: str) -> None:
+    """(c) A product several times a worker's memory limit: distributed vs local threads."""
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        print("(c) distributed: SKIPPED (pip install 'oneocean[distributed]')")
+        return
+    cfg = distributed_config(days)
+    cfg_path = workdir / "config.json"
+    cfg_path.write_text(json.dumps(cfg))
+    cur, bat = workdir / "currents.nc", workdir / "bathymetry.nc"
+    wall, rss, rc = _child(GENERATE, str(cfg_path), str(cur), str(bat))
+    if rc != 0:
+        print(f"(c) generating the synthetic source FAILED (exit {rc})")
+        return
+    print(f"(c) synthetic source: {cur.stat().st_size / GB:.2f} GB on disk, generated in "
+          f"{wall:.1f} s")
+    name = "product.zarr" if fmt == "zarr" else "product.nc"
+    rows = []
+    out, meta = workdir / "threads" / name, workdir / "threads" / "metadata.json"
+    wall, rss, rc = _child(MERGE, str(cfg_path), str(cur), str(bat), str(out), str(meta))
+    if rc != 0:
+        print(f"(c) build_product on local threads FAILED (exit {rc})")
+        return
+    grid = json.loads(meta.read_text())["grid"]
+    nbytes = 4 * grid["nt"] * grid["ny"] * grid["nx"] * (2 * grid["nz"] + 2)
+    rows.append(("local threads", wall, f"{rss / 2 ** 20:.0f} (1 process)", _size(out)))
+    dout, dmeta = workdir / "distributed" / name, workdir / "distributed" / "metadata.json"
+    res = workdir / "distributed.json"
+    wall, rss, rc = _child(DISTRIBUTED, str(cfg_path), str(cur), str(bat), str(dout),
+                           str(dmeta), str(workers), str(limit_mb), str(res))
+    if rc != 0:
+        print(f"(c) build_product on the distributed cluster FAILED (exit {rc})")
+        return
+    r = json.loads(res.read_text())
+    workers_mb = ", ".join(f"{b / 2 ** 20:.0f}" for b in r["worker_peak_rss"])
+    rows.append((f"distributed {workers}x1 thread, limit {limit_mb} MB", r["wall"],
+                 f"workers {workers_mb}; driver {r['client_peak_rss'] / 2 ** 20:.0f}",
+                 _size(dout)))
+    same = (json.loads(meta.read_text())["product"]["sha256"]
+            == json.loads(dmeta.read_text())["product"]["sha256"])
+    print(f"(c) product {grid['nt']} x {grid['nz']} x {grid['ny']} x {grid['nx']}, "
+          f"{nbytes / 2 ** 20:.0f} MB as float32 in memory "
+          f"({nbytes / (limit_mb * 2 ** 20):.1f} x the worker limit), format {fmt}")
+    print(f"    {'scheduler':<40} {'wall s':>7}  {'on disk MB':>10}  peak RSS MB")
+    for label, w, peak, size in rows:
+        print(f"    {label:<40} {w:>7.1f}  {size / 2 ** 20:>10.0f}  {peak}")
+    print(f"    same bytes on both schedulers: {'yes' if same else 'NO'}")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small source (smoke run)")
     ap.add_argument("--skip-workflow", action="store_true", help="only part (b)")
-    ap.add_argument("--skip-rss", action="store_true", help="only part (a)")
+    ap.add_argument("--skip-rss", action="store_true", help="skip part (b)")
+    ap.add_argument("--only-distributed", action="store_true", help="only part (c)")
+    ap.add_argument("--skip-distributed", action="store_true", help="skip part (c)")
+    ap.add_argument("--days", type=int, default=1,
+                    help="(c) days of hourly data (default 1: a 0.18 GB product; 5 days, "
+                         "0.93 GB, stalls 400 MB workers: their memory grows with the steps)")
+    ap.add_argument("--workers", type=int, default=2, help="(c) worker processes (default 2)")
+    ap.add_argument("--worker-memory-mb", type=int, default=400,
+                    help="(c) memory limit of each worker (default 400; a worker's Python, "
+                         "numpy, dask and zarr take ~200 MB, and dask pauses a worker at 80%% "
+                         "of its limit, so much less stalls the build)")
+    ap.add_argument("--format", choices=("zarr", "netcdf"), default="zarr",
+                    help="(c) product format (default zarr)")
     ap.add_argument("--workdir", type=Path, default=None, help="scratch folder (default: tmp)")
     ap.add_argument("--keep", action="store_true", help="keep the scratch folder")
     args = ap.parse_args(argv)
     workdir = Path(tempfile.mkdtemp(prefix="oneocean-bench-", dir=args.workdir))
     print(f"scratch: {workdir}  cpus: {os.cpu_count()}  python: {sys.version.split()[0]}")
     try:
-        if not args.skip_workflow:
+        if not (args.skip_workflow or args.only_distributed):
             (workdir / "a").mkdir()
             bench_workflow(workdir / "a")
-        if not args.skip_rss:
+        if not (args.skip_rss or args.only_distributed):
             (workdir / "b").mkdir()
             bench_rss(workdir / "b", args.quick)
+        if not args.skip_distributed:
+            (workdir / "c").mkdir()
+            bench_distributed(workdir / "c", 1 if args.quick else args.days, args.workers,
+                              args.worker_memory_mb, args.format)
     finally:
         if args.keep:
             print(f"kept {workdir}")

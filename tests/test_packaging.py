@@ -2,9 +2,9 @@
 virtual environment (no network), it loads and validates the config, a tier table, the task
 registry and the vehicles file without the source checkout."""
 
+import json
 import os
 import shutil
-import site
 import subprocess
 import sys
 import textwrap
@@ -50,6 +50,35 @@ def _run(cmd, **kw):
     return res
 
 
+def _outer_path(inner_path: list[str]) -> list[str]:
+    """The directories on this interpreter's ``sys.path`` a nested venv lacks (in order),
+    without the checkout's: its site-packages, a venv's or the base's, a user site, dirs added
+    by ``.pth`` files or PYTHONPATH, wherever this run finds its dependencies."""
+    seen, out = set(inner_path), []
+    for entry in sys.path:
+        p = os.path.realpath(entry or ".")
+        if p in seen or not os.path.isdir(p) or Path(p).is_relative_to(REPO):
+            continue
+        seen.add(p)
+        out.append(p)
+    return out
+
+
+def _see_this_environment(py: Path, env: dict) -> None:
+    """Let the venv of interpreter ``py`` import what this interpreter imports.
+
+    ``venv --system-site-packages`` shows the *base* interpreter's packages, which is not
+    this environment when the tests run inside a virtual environment (or find packages via
+    ``.pth`` files or PYTHONPATH). A ``.pth`` file in the new venv appends this interpreter's
+    path directories after the venv's own site-packages (so the wheel installed there wins;
+    the listed directories' own ``.pth`` hooks, e.g. an editable oneocean, stay inactive).
+    """
+    probe = ("import json, os, sys, sysconfig; print(json.dumps([sysconfig.get_path('purelib'),"
+             " [os.path.realpath(p or '.') for p in sys.path]]))")
+    site_dir, inner = json.loads(_run([str(py), "-c", probe], env=env).stdout)
+    Path(site_dir, "_outer_env.pth").write_text("\n".join(_outer_path(inner)) + "\n")
+
+
 def test_wheel_installs_and_reads_its_package_data(tmp_path):
     # build from a copy of the sources, so the build leaves nothing in the checkout
     src = tmp_path / "src_copy"
@@ -76,16 +105,9 @@ def test_wheel_installs_and_reads_its_package_data(tmp_path):
     # PYTHONPATH that could point back at a source tree)
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
     venv = tmp_path / "venv"
-    _run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(venv)])
+    _run([sys.executable, "-m", "venv", "--without-pip", str(venv)])
     py = venv / "bin" / "python"
-    if sys.prefix != sys.base_prefix:
-        # run from a virtual environment: --system-site-packages shows the base interpreter's
-        # packages, not this environment's, so point the new venv at this one's site dirs
-        # (paths only: their .pth hooks, e.g. an editable oneocean, stay inactive)
-        site_dir = _run([str(py), "-c", "import sysconfig; print(sysconfig.get_path("
-                         "'purelib'))"], env=env).stdout.strip()
-        Path(site_dir, "_outer_env.pth").write_text(
-            "\n".join(site.getsitepackages()) + "\n")
+    _see_this_environment(py, env)
     _run([str(py), "-m", "pip", "install", "--no-deps", "--no-index", "--ignore-installed",
           "-q", str(wheel)], cwd=tmp_path, env=env)
     script = tmp_path / "check_install.py"

@@ -12,9 +12,12 @@ from .vocab import EVALUATION_SEED
 
 
 def _verify(args) -> int:
-    """Verify every region's manifest in ``results/manifest/`` (or one manifest file)."""
+    """Verify every region's manifest in ``results/manifest/`` (or one manifest file): one
+    ``MISMATCH <path>: <what is wrong>`` line per bad artifact, every artifact checked; exit
+    status 1 if any artifact (or manifest) is bad, 2 if there is no manifest."""
     import json
 
+    from .errors import DataError
     from .manifest import verify
 
     target = Path(args.results)
@@ -29,7 +32,12 @@ def _verify(args) -> int:
         return 2
     bad = 0
     for manifest in manifests:
-        problems = verify(manifest, root=results.resolve().parent)
+        try:
+            problems = verify(manifest, root=results.resolve().parent)
+        except DataError as exc:    # the manifest itself is unreadable: the others still run
+            bad += 1
+            print(f"oneocean verify: {exc}", file=sys.stderr)
+            continue
         for line in problems:
             print(f"MISMATCH {line}")
         if problems:

@@ -9,6 +9,8 @@ This module fills the defaults and turns the first violation into a one-line
 from __future__ import annotations
 
 import copy
+import math
+import re
 from datetime import datetime
 from importlib import resources
 from pathlib import Path
@@ -85,6 +87,108 @@ def _key(error: jsonschema.ValidationError) -> str:
     return f"key '{path or '<root>'}': {error.message}"
 
 
+_INT = re.compile(r"[-+]?[0-9]+")
+_BOOLS = {"true": True, "yes": True, "on": True, "false": False, "no": False, "off": False}
+_NULLS = ("null", "Null", "NULL", "~")
+
+
+def _types(schema: dict) -> set:
+    t = schema.get("type", ())
+    return {t} if isinstance(t, str) else set(t)
+
+
+def _scalar(text: str, schema: dict):
+    """``text`` as the integer/number/boolean/null the schema asks for (``text`` itself when
+    the schema accepts a string there or the text is no such value)."""
+    types, enum = _types(schema), schema.get("enum")
+    if "string" in types or (enum is not None and text in enum) or (
+            not types and enum is None):
+        return text
+    s = text.strip()
+    candidates = []
+    if _INT.fullmatch(s):
+        candidates.append(int(s))
+    else:
+        try:
+            value = float(s)
+        except ValueError:
+            pass
+        else:
+            if math.isfinite(value):
+                candidates.append(value)
+    if s.lower() in _BOOLS:
+        candidates.append(_BOOLS[s.lower()])
+    if s in _NULLS:
+        candidates.append(None)
+    for value in candidates:
+        if enum is not None:
+            if any(type(value) is type(e) and value == e for e in enum):
+                return value
+        elif value is None:
+            if "null" in types:
+                return None
+        elif isinstance(value, bool):
+            if "boolean" in types:
+                return value
+        elif isinstance(value, int):
+            if types & {"integer", "number"}:
+                return value
+        elif "number" in types:
+            return value
+        elif "integer" in types and value.is_integer():
+            return int(value)
+    return text
+
+
+def coerce_strings(instance, schema: dict, root: dict | None = None):
+    """``instance`` with strings that spell a number, boolean or null turned into that value
+    wherever ``schema`` asks for an integer, number, boolean or null and not a string (dicts
+    and lists are changed in place; the result must be used for a scalar ``instance``).
+
+    ``snakemake --config 'rollouts={"episodes": 5}'`` parses nested values as strings
+    (``"5"``); this lets such overrides validate while ``"five"`` still fails validation.
+    """
+    root = schema if root is None else root
+    ref = schema.get("$ref")
+    if isinstance(ref, str) and ref.startswith("#/"):
+        target = root
+        for part in ref[2:].split("/"):
+            target = target.get(part, {})
+        schema = {**target, **{k: v for k, v in schema.items() if k != "$ref"}}
+    for sub in schema.get("allOf", ()):
+        instance = coerce_strings(instance, sub, root)
+    branches = list(schema.get("oneOf", ())) + list(schema.get("anyOf", ()))
+    if branches:
+        def valid(value, sub):
+            return jsonschema.Draft202012Validator(
+                {**sub, "$defs": root.get("$defs", {})}).is_valid(value)
+
+        if any(valid(instance, sub) for sub in branches):
+            return instance     # already valid as it is: nothing to coerce
+        for sub in branches:    # else the first branch the coerced value is valid against
+            trial = coerce_strings(copy.deepcopy(instance), sub, root)
+            if valid(trial, sub):
+                if isinstance(instance, (dict, list)) and type(trial) is type(instance):
+                    instance.clear()
+                    (instance.update if isinstance(instance, dict) else instance.extend)(trial)
+                    return instance
+                return trial
+        return instance
+    if isinstance(instance, str):
+        return _scalar(instance, schema)
+    if isinstance(instance, dict):
+        props = schema.get("properties", {})
+        extra = schema.get("additionalProperties")
+        for key in list(instance):
+            sub = props.get(key, extra if isinstance(extra, dict) else None)
+            if sub is not None:
+                instance[key] = coerce_strings(instance[key], sub, root)
+    elif isinstance(instance, list) and isinstance(schema.get("items"), dict):
+        for i, item in enumerate(instance):
+            instance[i] = coerce_strings(item, schema["items"], root)
+    return instance
+
+
 def validate_config(config: dict, schema: dict | None = None) -> dict:
     """Import the config's ``plugins`` (they may register tasks and methods), then validate
     ``config`` in place against ``schema`` (default :func:`load_schema`), fill defaults, and
@@ -97,6 +201,7 @@ def validate_config(config: dict, schema: dict | None = None) -> dict:
     """
     registry.load_plugins(config.get("plugins") if isinstance(config, dict) else None)
     schema = schema or load_schema()
+    coerce_strings(config, schema)   # e.g. snakemake --config 'rollouts={"episodes": "5"}'
     validator = _Filling(schema, format_checker=jsonschema.FormatChecker())
     errors = sorted(validator.iter_errors(config), key=lambda e: list(map(str, e.absolute_path)))
     if errors:
@@ -157,6 +262,7 @@ def validate_data_config(config: dict, where: str = "config") -> dict:
                           f"{', '.join(sorted(props))})")
     sub = {k: copy.deepcopy(config[k]) for k in DATA_SECTIONS if k in config}
     data_schema = {**schema, "properties": {k: props[k] for k in DATA_SECTIONS}}
+    coerce_strings(sub, data_schema)
     validator = _Filling(data_schema, format_checker=jsonschema.FormatChecker())
     errors = sorted(validator.iter_errors(sub), key=lambda e: list(map(str, e.absolute_path)))
     if errors:

@@ -18,6 +18,17 @@ class ConfigError(OneOceanError):
     """A configuration key is unknown, ill-typed, or out of range."""
 
 
+class DiskFullError(OneOceanError):
+    """The disk (or the user's quota) filled up while an artifact was being written; the
+    partial file was removed. ``path`` is the artifact, ``free`` the free bytes on its
+    filesystem when the write failed (``None`` if unknown)."""
+
+    def __init__(self, path, free: int | None = None, what: str = "the disk is full"):
+        self.path, self.free, self.what = path, free, what
+        room = "" if free is None else f" ({free} bytes = {free / 1e6:.1f} MB free)"
+        super().__init__(f"{path}: cannot write: {what}{room}; no partial file was left")
+
+
 class CredentialsError(OneOceanError):
     """Credentials for a remote data service are missing."""
 

@@ -27,7 +27,8 @@ import numpy as np
 import xarray as xr
 
 from .errors import DataError
-from .io import sha256_file, write_npz_atomic
+from .io import write_npz_atomic
+from .zarrio import open_product, sha256_path
 
 __all__ = ["export_grid", "export_temporal", "metres_per_degree", "default_point",
            "point_weights", "EARTH_RADIUS_M"]
@@ -54,7 +55,7 @@ def _time_axis(times: np.ndarray) -> tuple[float, np.ndarray]:
 
 def _source_meta(product_path, ds: xr.Dataset, meta: dict | None) -> dict:
     return {**(meta or {}), "source_path": str(product_path),
-            "source_sha256": sha256_file(product_path),
+            "source_sha256": sha256_path(product_path),
             "region": str(ds.attrs.get("region", (meta or {}).get("region", ""))),
             "variant": str(ds.attrs.get("variant", (meta or {}).get("variant", ""))),
             "source_kind": str(ds.attrs.get("source", "")),
@@ -62,13 +63,14 @@ def _source_meta(product_path, ds: xr.Dataset, meta: dict | None) -> dict:
 
 
 def _open(product_path) -> xr.Dataset:
-    """Open a product lazily with a small HDF5 chunk cache (it is read once, step by step)."""
+    """Open a product (NetCDF file or zarr store, by suffix) lazily, with a small HDF5 chunk
+    cache for NetCDF (it is read once, step by step)."""
     from .product import netcdf_chunk_cache
 
     try:
         with netcdf_chunk_cache():
-            return xr.open_dataset(product_path, cache=False)
-    except (OSError, ValueError) as err:
+            return open_product(product_path, cache=False)
+    except (OSError, ValueError, KeyError) as err:
         raise DataError(f"{product_path}: cannot open the product ({err})") from None
 
 
@@ -83,7 +85,7 @@ def export_grid(product_path, out_path, meta: dict | None = None) -> None:
     Parameters
     ----------
     product_path : path
-        A product NetCDF (contracts §2).
+        A product, NetCDF file or zarr store (contracts §2).
     out_path : path
         Output ``.npz``; ``u, v`` (nt, nz, ny, nx) float32 m s-1, held below the deepest valid
         level, zero where ``current_mask == 0``; ``u_tide, v_tide`` (nt, ny, nx) float32, zero
@@ -280,7 +282,7 @@ def export_temporal(product_path, out_path, lat: float | None, lon: float | None
     Parameters
     ----------
     product_path : path
-        A product NetCDF (contracts §2).
+        A product, NetCDF file or zarr store (contracts §2).
     out_path : path
         Output ``.npz`` with ``time`` datetime64[s] (nt,), ``time_s``, ``u, v, u_tide, v_tide``
         float64 (nt,) m s-1, ``lat, lon, depth`` float64 (), ``indices_json``, ``meta_json``.

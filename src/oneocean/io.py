@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import io
 import json
 import os
+import shutil
 import tempfile
 import zipfile
 from pathlib import Path
@@ -47,16 +49,60 @@ def sha256_file(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
+#: Free bytes on a filesystem below which a failed write there is taken for a full disk:
+#: HDF5 (hence netCDF4) reports a full disk as "NetCDF: HDF error", with no errno.
+DISK_FULL_BYTES = 4 * 1024 * 1024
+
+_FULL_ERRNOS = {errno.ENOSPC: "the disk is full", errno.EDQUOT: "the disk quota is exceeded"}
+
+
+def _free_bytes(directory: Path) -> int | None:
+    try:
+        return int(shutil.disk_usage(directory).free)
+    except OSError:
+        return None
+
+
+def disk_full_reason(exc: BaseException, directory: str | os.PathLike) -> str | None:
+    """Why writing into ``directory`` failed with ``exc`` if the disk (or quota) is full, else
+    None: an ``ENOSPC``/``EDQUOT`` errno anywhere in the exception's chain, "No space left on
+    device" in its message, or an I/O error (``OSError``/``RuntimeError``, e.g. netCDF4's HDF
+    error) while less than :data:`DISK_FULL_BYTES` are free there."""
+    seen, e = set(), exc
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if isinstance(e, OSError) and e.errno in _FULL_ERRNOS:
+            return _FULL_ERRNOS[e.errno]
+        if "No space left on device" in str(e):
+            return _FULL_ERRNOS[errno.ENOSPC]
+        e = e.__cause__ or e.__context__
+    if isinstance(exc, (OSError, RuntimeError)):
+        free = _free_bytes(Path(directory))
+        if free is not None and free < DISK_FULL_BYTES:
+            return _FULL_ERRNOS[errno.ENOSPC]
+    return None
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; rename it onto ``path`` only on success.
 
-    On any exception the temporary file is removed, so no partial artifact is left behind.
+    On any exception the temporary file is removed, so no partial artifact is left behind. A
+    failure because the disk is full (see :func:`disk_full_reason`) becomes a one-line
+    :class:`~oneocean.errors.DiskFullError` naming ``path`` and the free space left.
     """
+    from .errors import DiskFullError
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix or ".tmp",
-                               dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.",
+                                   suffix=suffix or path.suffix or ".tmp", dir=path.parent)
+    except OSError as exc:
+        what = disk_full_reason(exc, path.parent if path.parent.is_dir() else ".")
+        if what:
+            raise DiskFullError(path, _free_bytes(path.parent), what) from exc
+        raise
     os.close(fd)
     tmp = Path(tmp)
     try:
@@ -64,9 +110,20 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         if tmp.exists():  # mkstemp creates 0600; give the file the usual umask permissions
             os.chmod(tmp, 0o666 & ~_UMASK)
         os.replace(tmp, path)
-    except BaseException:
+    except DiskFullError as exc:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
+        if Path(exc.path) == tmp:   # a nested atomic writer of our temporary file: name ours
+            raise DiskFullError(path, exc.free, exc.what) from exc.__cause__
+        raise
+    except BaseException as exc:
+        # measured before the partial file is removed: the free space when the write failed
+        what = disk_full_reason(exc, path.parent) if isinstance(exc, Exception) else None
+        free = _free_bytes(path.parent) if what else None
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        if what:
+            raise DiskFullError(path, free, what) from exc
         raise
 
 

@@ -15,7 +15,13 @@ import subprocess
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
-from .io import canonical_json, config_hash, sha256_file, write_json_atomic
+from .io import canonical_json, config_hash, write_json_atomic
+from .zarrio import is_zarr, path_bytes, sha256_path
+
+
+def _is_store(path) -> bool:
+    """A zarr store (a ``.zarr`` directory), hashed like a file."""
+    return is_zarr(path) and Path(path).is_dir()
 
 #: Packages whose versions are recorded with every artifact.
 TRACKED_PACKAGES = ("oneocean", "numpy", "xarray", "netCDF4", "dask", "numba", "pandas",
@@ -23,7 +29,9 @@ TRACKED_PACKAGES = ("oneocean", "numpy", "xarray", "netCDF4", "dask", "numba", "
 
 #: File suffixes whose container format may embed write-time metadata: for these the manifest
 #: also stores a hash of the decoded content, which ``verify`` accepts when bytes differ.
-CONTENT_HASHED = (".nc", ".nc4")
+#: A zarr store (a ``.zarr`` directory) is hashed over its files (:func:`oneocean.zarrio.
+#: store_sha256`) and gets a content hash too.
+CONTENT_HASHED = (".nc", ".nc4", ".zarr")
 
 
 @functools.lru_cache(maxsize=1)
@@ -51,20 +59,20 @@ def git_commit(cwd: str | None = None) -> str:
 
 
 def content_hash(path: str | os.PathLike) -> str | None:
-    """Hash of the decoded variables for NetCDF files, ``None`` for other formats."""
-    if not str(path).endswith(CONTENT_HASHED):
+    """Hash of the decoded variables for NetCDF files and zarr stores, ``None`` for other
+    formats."""
+    if not str(path).rstrip("/").endswith(CONTENT_HASHED):
         return None
-    import xarray as xr
-
     from .io import dataset_content_hash
+    from .zarrio import open_product
 
-    with xr.open_dataset(path, decode_times=False, mask_and_scale=False) as ds:
+    with open_product(path, decode_times=False, mask_and_scale=False) as ds:
         return dataset_content_hash(ds)
 
 
 def file_record(path: str | os.PathLike) -> dict:
     p = Path(path)
-    rec = {"path": p.as_posix(), "sha256": sha256_file(p), "bytes": p.stat().st_size}
+    rec = {"path": p.as_posix(), "sha256": sha256_path(p), "bytes": path_bytes(p)}
     ch = content_hash(p)
     if ch is not None:
         rec["content_sha256"] = ch
@@ -77,7 +85,7 @@ def job_provenance(rule: str, wildcards: dict, outputs: list, inputs: list, para
         "rule": rule,
         "wildcards": dict(sorted(wildcards.items())),
         "outputs": [file_record(o) for o in outputs],
-        "inputs": [file_record(i) for i in inputs if Path(i).is_file()],
+        "inputs": [file_record(i) for i in inputs if Path(i).is_file() or _is_store(i)],
         "params": params,
         "params_sha256": config_hash(params),
         "packages": package_versions(),
@@ -113,35 +121,81 @@ def collect_manifest(provenance_files, out_path) -> dict:
     return manifest
 
 
+def _reason(exc: BaseException, path) -> str:
+    """A decoder's or the OS's complaint on one line, without the file's own name."""
+    text = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+    names = (str(path), os.fspath(Path(path).resolve()))
+    for name in [repr(n) for n in names] + list(names):
+        text = text.replace(f": {name}", "").replace(name, "")
+    return " ".join(text.split())[:200] or type(exc).__name__
+
+
+def _check(p: Path, rec: dict) -> str | None:
+    """What is wrong with file ``p`` against its manifest record ``rec`` (which holds
+    ``sha256`` and, for NetCDF, ``content_sha256``), or None when it matches."""
+    if not (p.is_file() or _is_store(p)):
+        return "missing"
+    try:
+        if sha256_path(p) == rec["sha256"]:
+            return None
+    except OSError as exc:
+        return f"cannot be read ({_reason(exc, p)})"
+    if not rec.get("content_sha256"):
+        return "sha256 differs from the manifest"
+    try:
+        content = content_hash(p)
+    except Exception as exc:  # noqa: BLE001 (any decoder failure means a corrupt file)
+        return f"cannot be decoded ({_reason(exc, p)})"
+    if content != rec["content_sha256"]:
+        return "content hash differs from the manifest"
+    return None
+
+
 def verify(manifest_path: str | os.PathLike,
            root: str | os.PathLike = ".") -> list[str]:
-    """Recompute every hash in the manifest; return one problem line per mismatching artifact.
+    """Recompute every hash in the manifest; return one problem line per bad artifact.
 
-    An artifact is bad when it is missing, when its bytes changed (for NetCDF: when both its
-    bytes and its decoded content changed), or when any input it was made from changed.
+    An artifact is bad when it is missing or unreadable, when its bytes changed (for NetCDF:
+    when its bytes changed and its decoded content changed or cannot be decoded), or when any
+    input it was made from is bad in the same way. Every artifact is checked; a corrupt file
+    is a problem line, never an exception.
+
+    Raises
+    ------
+    DataError
+        The manifest itself cannot be read or is not a manifest (one line naming it).
     """
+    from .errors import DataError
+
     root = Path(root)
-    with open(manifest_path) as fh:
-        manifest = json.load(fh)
+    try:
+        with open(manifest_path) as fh:
+            manifest = json.load(fh)
+        artifacts = manifest["artifacts"]
+        items = list(artifacts.items())
+    except OSError as exc:
+        raise DataError(f"{manifest_path}: cannot read the manifest "
+                        f"({exc.strerror or exc})") from None
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise DataError(f"{manifest_path}: not a oneocean manifest "
+                        f"({_reason(exc, manifest_path)})") from None
     problems = []
-    for path, rec in manifest["artifacts"].items():
-        p = root / path
-        if not p.is_file():
-            problems.append(f"{path}: missing")
-            continue
-        if sha256_file(p) != rec["sha256"]:
-            if not (rec.get("content_sha256") and content_hash(p) == rec["content_sha256"]):
-                problems.append(f"{path}: bytes changed since rule '{rec['rule']}' wrote it")
+    for path, rec in items:
+        try:
+            bad = _check(root / path, rec)
+            if bad:
+                problems.append(f"{path}: {bad}" if bad == "missing" else
+                                f"{path}: {bad} (written by rule '{rec['rule']}')")
                 continue
-        for inp in rec["inputs"]:
-            ip = root / inp["path"]
-            if not ip.is_file():
-                problems.append(f"{path}: input {inp['path']} is missing")
-                break
-            if sha256_file(ip) != inp["sha256"] and not (
-                    inp.get("content_sha256") and content_hash(ip) == inp["content_sha256"]):
-                problems.append(f"{path}: input {inp['path']} changed since it was made")
-                break
+            for inp in rec["inputs"]:
+                bad = _check(root / inp["path"], inp)
+                if bad:
+                    problems.append(f"{path}: input {inp['path']} is missing" if bad == "missing"
+                                    else f"{path}: input {inp['path']} changed since it was "
+                                    f"made: {bad}")
+                    break
+        except (KeyError, TypeError, AttributeError) as exc:
+            problems.append(f"{path}: malformed manifest record ({type(exc).__name__}: {exc})")
     return problems
 
 

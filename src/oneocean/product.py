@@ -1,9 +1,13 @@
 """Merge canonical currents, tides and bathymetry onto one regular grid per dataset variant.
 
-The product (contracts §2) is a CF-1.11 NetCDF with ``u, v`` (time, depth, latitude,
-longitude), optional ``u_tide, v_tide`` (time, latitude, longitude), ``elevation``,
-``land_mask``, ``current_mask`` and ``valid_mask``, written atomically, chunk by chunk (one
-time step at a time), with no write-time attributes so two runs give byte-identical files.
+The product (contracts §2) is a CF-1.11 NetCDF file (or, with ``product.format: zarr``, a zarr
+store with the same variables and attributes; :mod:`oneocean.zarrio`) with ``u, v`` (time,
+depth, latitude, longitude), optional ``u_tide, v_tide`` (time, latitude, longitude),
+``elevation``, ``land_mask``, ``current_mask`` and ``valid_mask``, written atomically, chunk by
+chunk (one time step at a time), with no write-time attributes so two runs give byte-identical
+files.
+The computation runs on dask's threads scheduler, or on a ``dask.distributed`` cluster given by
+``product.scheduler`` (its address); both give the same bytes.
 
 Regridding rule (NaN-aware bilinear, "normalised convolution")
 -----------------------------------------------------------------
@@ -27,6 +31,7 @@ level) is water without currents, not land.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import warnings
 from functools import partial
@@ -38,16 +43,19 @@ import xarray as xr
 
 from . import __version__
 from .errors import ConfigError, DataError
-from .io import atomic_path, canonical_json, config_hash, dataset_content_hash, sha256_file
+from .io import atomic_path, canonical_json, config_hash, dataset_content_hash
 from .io import write_json_atomic
 from .ncio import netcdf_chunk_cache, netcdf_encoding, write_netcdf_atomic
+from .zarrio import ZARR_SUFFIX, atomic_dir, is_zarr, open_product, sha256_path, write_zarr
+from .zarrio import zarr_encoding
 from .sources import open_bathymetry, open_currents
 from .sources.base import validate
 from .vocab import CF
 
 __all__ = ["build_product", "summarise_product", "variant_grid", "bilinear_plan",
            "regrid_bilinear", "bilinear_weight", "netcdf_encoding", "write_netcdf_atomic",
-           "product_config", "netcdf_chunk_cache"]
+           "product_config", "netcdf_chunk_cache", "product_options", "compute_scheduler",
+           "open_product"]
 
 _DIMS4 = ("time", "depth", "latitude", "longitude")
 _DIMS3 = ("time", "latitude", "longitude")
@@ -222,6 +230,50 @@ def product_config(cfg: dict, variant: str) -> dict:
     return snap
 
 
+def product_options(cfg: dict) -> dict:
+    """The config's ``product`` block with its defaults: ``format`` ("netcdf" | "zarr") and
+    ``scheduler`` (a ``dask.distributed`` scheduler address, or None for local threads)."""
+    opts = {"format": "netcdf", "scheduler": None, **(cfg.get("product") or {})}
+    if opts["format"] not in ("netcdf", "zarr"):
+        raise ConfigError(f"product.format: Invalid value {opts['format']!r}. Valid options "
+                          "are (netcdf, zarr)")
+    if opts["scheduler"] is not None and not str(opts["scheduler"]).strip():
+        opts["scheduler"] = None
+    return opts
+
+
+@contextlib.contextmanager
+def compute_scheduler(address: str | None = None):
+    """Run dask computations inside the block on local threads (``address`` None) or on the
+    ``dask.distributed`` scheduler at ``address`` (e.g. ``tcp://host:8786``).
+
+    The client is closed on exit; the cluster is left running. Its workers must see the
+    product's input and output paths (a zarr product's chunks are written by the workers).
+
+    Raises
+    ------
+    ConfigError
+        ``distributed`` is not installed, or no scheduler answers at ``address``.
+    """
+    if not address:
+        with dask.config.set(scheduler="threads"):
+            yield None
+        return
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ConfigError("product.scheduler: the 'distributed' package is not installed "
+                          "(pip install 'oneocean[distributed]')") from None
+    try:
+        client = Client(address, timeout="20s", set_as_default=True)
+    except (OSError, TimeoutError, ValueError) as exc:
+        reason = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise ConfigError(f"product.scheduler: cannot connect to {address} ({reason})") \
+            from None
+    with client:
+        yield client
+
+
 def _parse_time(value) -> np.datetime64:
     return np.datetime64(str(value).replace("Z", ""), "ns")
 
@@ -393,18 +445,25 @@ def build_product(currents_path, bathymetry_path, cfg: dict, variant: str, out_p
     variant : str
         A key of ``cfg["variants"]``.
     out_path : path
-        The product NetCDF (written atomically, one time step at a time; byte-identical reruns).
+        The product: a NetCDF file, or a zarr store when it ends in ``.zarr`` (written
+        atomically, one time step per chunk; byte-identical reruns).
     metadata_path : path
         Per-variant metadata JSON: settings, grid, realised time coverage, depth levels,
         statistics (:func:`summarise_product`), source kinds and the content hash.
+
+    The dask scheduler is ``cfg["product"]["scheduler"]`` (:func:`compute_scheduler`).
 
     Raises
     ------
     DataError
         The variant's extent, time window or depth range lies outside the inputs, or no valid
         current remains; no file is written.
+    ConfigError
+        ``product.scheduler`` is set but ``distributed`` is missing or the scheduler does not
+        answer.
     """
-    with netcdf_chunk_cache():
+    opts = product_options(cfg)
+    with netcdf_chunk_cache(), compute_scheduler(opts["scheduler"]):
         _build(currents_path, bathymetry_path, cfg, variant, out_path, metadata_path)
 
 
@@ -429,8 +488,7 @@ def _build(currents_path, bathymetry_path, cfg, variant, out_path, metadata_path
     src = {n: sub[n].chunk({d: (1 if d == "time" else -1) for d in sub[n].dims}).data
            for n in names}
 
-    with dask.config.set(scheduler="threads"):
-        ok_uv, ok_tide = _all_time_valid(src, has_tide)
+    ok_uv, ok_tide = _all_time_valid(src, has_tide)
     w_uv = bilinear_weight(ok_uv, py, px)
     valid = ((w_uv >= _MIN_WEIGHT - 1e-12) & (elev < 0.0)[None]
              & (depth[:, None, None] <= -elev[None] + 1e-9))
@@ -440,16 +498,21 @@ def _build(currents_path, bathymetry_path, cfg, variant, out_path, metadata_path
     land = elev >= 0.0
     current = valid.any(axis=0)
 
+    # the per-node arrays every block needs are graph keys of their own (delayed), so a
+    # distributed scheduler ships them to each worker once, not with every task
+    shared = {"uv": dict(valid=ok_uv, weight=w_uv, keep=valid)}
+    if has_tide:
+        shared["tide"] = dict(valid=ok_tide, weight=bilinear_weight(ok_tide, py, px), keep=~land)
+    shared = {k: {n: dask.delayed(a, pure=True) for n, a in v.items()} for k, v in shared.items()}
     data = {}
     for n in names:
         uv = n in ("u", "v")
-        fn = partial(_regrid_block, valid=ok_uv if uv else ok_tide,
-                     weight=w_uv if uv else bilinear_weight(ok_tide, py, px), plan_y=py,
-                     plan_x=px, keep=valid if uv else ~land)
+        fn = partial(_regrid_block, plan_y=py, plan_x=px)
         plane = ((depth.size,) if uv else ()) + (lat.size, lon.size)
         chunks = ((1,) * times.size,) + tuple((s,) for s in plane)
         data[n] = (_DIMS4 if uv else _DIMS3,
-                   da.map_blocks(fn, src[n], dtype=np.float32, chunks=chunks), _var_attrs(n))
+                   da.map_blocks(fn, src[n], dtype=np.float32, chunks=chunks,
+                                 **shared["uv" if uv else "tide"]), _var_attrs(n))
     data["elevation"] = (_DIMS2, elev.astype(np.float32), _var_attrs("elevation"))
     data["land_mask"] = (_DIMS2, land.astype(np.int8), _var_attrs("land_mask"))
     data["current_mask"] = (_DIMS2, current.astype(np.int8), _var_attrs("current_mask"))
@@ -460,14 +523,18 @@ def _build(currents_path, bathymetry_path, cfg, variant, out_path, metadata_path
     product = xr.Dataset(data, coords={k: (k, v, _COORD_ATTRS[k]) for k, v in coords.items()},
                          attrs=attrs)
 
-    with atomic_path(out_path, suffix=".nc") as tmp:
-        with dask.config.set(scheduler="threads"):
+    zarr = is_zarr(out_path)
+    with (atomic_dir(out_path, suffix=ZARR_SUFFIX) if zarr
+          else atomic_path(out_path, suffix=".nc")) as tmp:
+        if zarr:
+            write_zarr(product, tmp, zarr_encoding(product, netcdf_encoding(product)))
+        else:
             write_netcdf_atomic(product, tmp, netcdf_encoding(product))
-        with xr.open_dataset(tmp) as written:
+        with open_product(tmp) as written:
             content = dataset_content_hash(written)
         meta = {
             "region": attrs["region"], "variant": variant,
-            "product": {"path": str(out_path), "sha256": sha256_file(tmp),
+            "product": {"path": str(out_path), "sha256": sha256_path(tmp),
                         "content_hash": content},
             "settings": {"variant": dict(vcfg), "region": cfg["region"],
                          "sources": cfg.get("sources", {})},
@@ -509,7 +576,7 @@ def summarise_product(path) -> dict:
         ``land_mask == 0``); ``current_fraction`` (share of nodes with currents,
         ``current_mask == 1``; water without currents = ocean - current fraction).
     """
-    with netcdf_chunk_cache(), xr.open_dataset(path) as ds:
+    with netcdf_chunk_cache(), open_product(path) as ds:
         lat, lon = ds["latitude"].values, ds["longitude"].values
         times = ds["time"].values
         has_tide = int(ds.attrs.get("has_tide", 0)) == 1

@@ -11,6 +11,7 @@ from oneocean.config import llm_method, validate_config
 from oneocean.errors import ConfigError
 from oneocean.registry import method_names, task_ids
 from oneocean.vocab import TIERS, VARIANTS
+from oneocean.zarrio import is_zarr, product_filename
 
 try:
     # imports config["plugins"] first (they may register tasks and methods), then validates
@@ -64,7 +65,7 @@ def product_targets():
         "results/product/{region}/{variant}/{name}",
         region=REGION,
         variant=VARIANTS,
-        name=["product.nc", "metadata.json"],
+        name=[PRODUCT_NAME, "metadata.json"],
     )
 
 

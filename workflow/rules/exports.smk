@@ -18,8 +18,14 @@ rule export_grid:
     benchmark:
         "results/benchmarks/exports/{region}/{variant}/grid.tsv"
     params:
-        code=code_version("oneocean.exports"),
+        code=code_version("oneocean.exports", "oneocean.zarrio"),
     threads: 1
+    # measured <= 13 s, 380 MB (group: see merge_variant)
+    resources:
+        mem_mb=1000,
+        runtime=15,
+    group:
+        "variant"
     script:
         "../scripts/export_grid.py"
 
@@ -38,7 +44,13 @@ rule export_temporal:
         "results/benchmarks/exports/{region}/{variant}/temporal.tsv"
     params:
         point=lambda wc: config["temporal_export"],
-        code=code_version("oneocean.exports"),
+        code=code_version("oneocean.exports", "oneocean.zarrio"),
     threads: 1
+    # measured <= 13 s, 315 MB (group: see merge_variant)
+    resources:
+        mem_mb=1000,
+        runtime=15,
+    group:
+        "variant"
     script:
         "../scripts/export_temporal.py"

@@ -2,6 +2,12 @@
 # never refetched when already present).
 
 
+# Downloads run on the submit host (compute nodes are often offline); seconds of work.
+localrules:
+    fetch_currents,
+    fetch_bathymetry,
+
+
 rule fetch_currents:
     conda:
         PY_ENV

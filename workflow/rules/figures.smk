@@ -5,6 +5,12 @@
 FIGURES_CODE = code_version("oneocean.figures", "oneocean.ladder")
 
 
+# Figures drawn from finished cells: on the submit host, not submitted.
+localrules:
+    figure_ladder,
+    figure_team_sweep,
+
+
 rule figure_current_field:
     conda:
         PY_ENV
@@ -22,6 +28,12 @@ rule figure_current_field:
         view=lambda wc: config["figure"],
         code=FIGURES_CODE,
     threads: 1
+    # no benchmark recorded: sized like the exports of the same variant
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    group:
+        "variant"
     script:
         "../scripts/figure_current_field.py"
 
@@ -37,6 +49,10 @@ rule figure_pollution_species:
         seed=lambda wc: config["rollouts"]["seed"],
         code=FIGURES_CODE + code_version("oneocean.models"),
     threads: 1
+    # no benchmark recorded: sized conservatively (one small reaction-model run)
+    resources:
+        mem_mb=1000,
+        runtime=15,
     script:
         "../scripts/figure_paper.py"
 
@@ -80,6 +96,10 @@ rule figure_snapshots:
         dynamics=lambda wc: config["rollouts"]["dynamics"],
         code=FIGURES_CODE + code_version("oneocean.snapshots") + tasks_code(config["snapshots"]["tasks"]),
     threads: 1
+    # no benchmark recorded: sized conservatively (one episode per task, cached kernels)
+    resources:
+        mem_mb=2000,
+        runtime=30,
     script:
         "../scripts/figure_snapshots.py"
 

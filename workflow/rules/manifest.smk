@@ -1,6 +1,10 @@
 # The manifest: every artifact's provenance collected in one hash-tracked file.
 
 
+localrules:
+    manifest,
+
+
 rule manifest:
     conda:
         PY_ENV

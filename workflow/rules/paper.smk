@@ -4,6 +4,12 @@
 
 PAPER_TEX = str(Path(workflow.current_basedir).parents[1] / "paper" / "main.tex")
 
+
+# latexmk on the submit host (where TeX is installed, beside the tables and figures).
+localrules:
+    paper,
+
+
 rule paper:
     conda:
         LATEX_ENV

@@ -10,6 +10,10 @@ if not config["llm"]["models"]:
           "skipped and their rows omitted", file=sys.stderr)
 
 
+localrules:
+    table_planning,
+
+
 rule planning_cell:
     conda:
         PY_ENV
@@ -30,6 +34,12 @@ rule planning_cell:
         run=_planning_run,
         code=rollout_code,
     threads: lambda wc: config["rollouts"]["threads"]
+    # measured <= 15 s, 300 MB; group "planning": `--group-components planning=6`
+    resources:
+        mem_mb=1000,
+        runtime=15,
+    group:
+        "planning"
     script:
         "../scripts/planning_cell.py"
 
@@ -56,6 +66,10 @@ rule planning_llm_cell:
         cache_dir=config["llm"]["cache_dir"],
         code=lambda wc: task_code(wc.task) + LLM_CODE,
     threads: lambda wc: config["rollouts"]["threads"]
+    # no benchmark recorded: sized conservatively (waits on the LLM endpoint)
+    resources:
+        mem_mb=1000,
+        runtime=120,
     script:
         "../scripts/planning_llm_cell.py"
 

@@ -13,6 +13,10 @@ RL_CODE = code_version("oneocean.methods.ppo", "oneocean.sb3", "oneocean.envs",
 
 if config["rl"]["enabled"]:
 
+    localrules:
+        table_task_success_rl,
+        manifest_rl,
+
     # One PPO policy per task: training seeds only (checked against rl_evaluation_seeds()).
     rule rl_train:
         conda:
@@ -35,6 +39,10 @@ if config["rl"]["enabled"]:
             evaluation_seeds=lambda wc: rl_evaluation_seeds(),
             code=lambda wc: {"rl": RL_CODE, "task": task_code(wc.task)},
         threads: 1
+        # no benchmark recorded: sized conservatively (PPO training budget)
+        resources:
+            mem_mb=4000,
+            runtime=240,
         script:
             "../scripts/rl_train.py"
 
@@ -56,6 +64,10 @@ if config["rl"]["enabled"]:
             run=rl_run,
             code=lambda wc: {"rl": RL_CODE, "task": task_code(wc.task)},
         threads: 1
+        # no benchmark recorded: sized conservatively
+        resources:
+            mem_mb=2000,
+            runtime=30,
         script:
             "../scripts/rl_cell.py"
 

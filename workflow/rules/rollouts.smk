@@ -2,6 +2,15 @@
 # job per task runs all its cells (rollout_task; bc's after training: rollout_task_bc), each
 # cell's episodes batched inside one numba kernel call, one file per cell.
 
+# Cluster resources (`--executor slurm`, profiles/slurm): runtime in minutes, mem_mb in MB,
+# at least twice the figures results/benchmarks/ records for the default config on a 2-core
+# machine (kernels: <= 285 s, 645 MB; a task's cells: <= 275 s, 690 MB; team sweep 115 s).
+# Rule group "rollouts": many per-task jobs of a few minutes each; `--group-components
+# rollouts=5` submits five of them as one cluster job.
+localrules:
+    table_ladder,
+
+
 # Each task's episode kernel is compiled once, into numba's on-disk cache, before any job
 # runs it: without this, every job that starts before the cache exists compiles the same
 # kernel again (30-45 s each on a cold machine).
@@ -23,6 +32,9 @@ rule compile_kernel:
         dynamics=lambda wc: config["rollouts"]["dynamics"],
         code=rollout_code,
     threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
     script:
         "../scripts/compile_kernel.py"
 
@@ -52,6 +64,11 @@ if _BASE_CELLS:
         params:
             cells=_cell_params(_BASE_CELLS),
         threads: lambda wc: config["rollouts"]["threads"]
+        resources:
+            mem_mb=2000,
+            runtime=60,
+        group:
+            "rollouts"
         script:
             "../scripts/rollout_cells.py"
 
@@ -78,6 +95,11 @@ if _BC_CELLS:
         params:
             cells=_cell_params(_BC_CELLS),
         threads: lambda wc: config["rollouts"]["threads"]
+        resources:
+            mem_mb=2000,
+            runtime=60,
+        group:
+            "rollouts"
         script:
             "../scripts/rollout_cells.py"
 
@@ -110,6 +132,11 @@ for _task in config["rollouts"]["tasks"]:
         params:
             cells=_ablation_params(_task, _cells),
         threads: lambda wc: config["rollouts"]["threads"]
+        resources:
+            mem_mb=2000,
+            runtime=60,
+        group:
+            "rollouts"
         script:
             "../scripts/rollout_cells.py"
 
@@ -134,6 +161,11 @@ rule rollout_team:
     params:
         cells=_team_params,
     threads: lambda wc: config["rollouts"]["threads"]
+    resources:
+        mem_mb=2000,
+        runtime=60,
+    group:
+        "rollouts"
     script:
         "../scripts/rollout_cells.py"
 

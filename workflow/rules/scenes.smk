@@ -102,6 +102,10 @@ SCENE_CODE = code_version("oneocean.backends", "oneocean.tasks", "oneocean.metho
                           "oneocean.sensing", "oneocean.engine", "oneocean.data")
 
 
+localrules:
+    table_scenes,
+
+
 rule scene_build:
     conda:
         PY_ENV
@@ -119,6 +123,12 @@ rule scene_build:
         spec=lambda wc: scene_spec(wc.scene),
         code=code_version("oneocean.backends"),
     threads: 1
+    # no benchmark recorded: sized conservatively; group "scenes": a scene's build and media
+    resources:
+        mem_mb=2000,
+        runtime=15,
+    group:
+        "scenes"
     script:
         "../scripts/scene_build.py"
 
@@ -163,6 +173,10 @@ for _scene, _backend in scene_runs():
             cells=_scene_cell_params(_scene, _backend),
             backend=_backend,
         threads: 1
+        # measured <= 451 s, 710 MB (MuJoCo), 27 s (core)
+        resources:
+            mem_mb=2000,
+            runtime=60,
         script:
             "../scripts/scene_cells.py"
 
@@ -190,6 +204,12 @@ rule scene_media:
         physics_step_s=SCENE_CFG["physics_step_s"],
         code=SCENE_CODE,
     threads: 1
+    # no benchmark recorded: sized conservatively (offscreen rendering; group: see scene_build)
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    group:
+        "scenes"
     script:
         "../scripts/scene_media.py"
 

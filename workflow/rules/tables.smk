@@ -1,6 +1,19 @@
 # Tables: LaTeX (booktabs) tables collected by the paper_tables target.
 
 
+# Tables read finished cells and write a few kB: run on the submit host, not submitted.
+localrules:
+    table_dataset_variants,
+    table_task_ladder,
+    table_headline,
+    table_task_success,
+    table_difficulty,
+    table_currents_ablation,
+    table_information_ablation,
+    table_tier_stressors,
+    paper_tables,
+
+
 rule table_dataset_variants:
     conda:
         PY_ENV

@@ -1,0 +1,199 @@
+"""Zarr stores for large products: deterministic, atomic writing, hashing and format dispatch.
+
+A product is a NetCDF file (``.nc``) or a zarr store (``.zarr``, a directory); the suffix picks
+the format everywhere (:func:`is_zarr`, :func:`open_product`). Stores are zarr format 2 with
+consolidated metadata (``.zmetadata``), fixed chunks (one time step, as the NetCDF product) and a
+fixed zstd compressor, and nothing time-of-writing in their attributes, so the same inputs give
+the same bytes whichever dask scheduler computed them. They are written into a temporary
+directory beside the target and renamed into place, so a failed write leaves no partial store.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+import xarray as xr
+
+from .io import _free_bytes, _UMASK, disk_full_reason, sha256_file
+
+__all__ = ["ZARR_SUFFIX", "PRODUCT_FORMATS", "is_zarr", "product_filename", "zarr_encoding",
+           "write_zarr", "write_zarr_atomic", "atomic_dir", "open_product", "store_sha256",
+           "sha256_path", "path_bytes"]
+
+ZARR_SUFFIX = ".zarr"
+#: Product formats (config ``product.format``) and their file suffixes.
+PRODUCT_FORMATS = {"netcdf": ".nc", "zarr": ZARR_SUFFIX}
+_ZSTD_LEVEL = 3
+_TIME_UNITS = "seconds since 1970-01-01 00:00:00"
+#: Files a workflow engine may drop into a directory output; not part of the store's content.
+_IGNORED = frozenset({".snakemake_timestamp"})
+
+
+def is_zarr(path) -> bool:
+    """True when ``path`` names a zarr store (suffix ``.zarr``, trailing slash allowed)."""
+    return os.fspath(path).rstrip("/\\").endswith(ZARR_SUFFIX)
+
+
+def product_filename(fmt: str = "netcdf") -> str:
+    """The product's file name for config ``product.format``: ``product.nc`` or ``product.zarr``.
+    """
+    from .errors import ConfigError
+
+    if fmt not in PRODUCT_FORMATS:
+        raise ConfigError(f"product.format: Invalid value {fmt!r}. Valid options are "
+                          f"({', '.join(PRODUCT_FORMATS)})")
+    return "product" + PRODUCT_FORMATS[fmt]
+
+
+def zarr_encoding(ds: xr.Dataset, netcdf_enc: dict) -> dict:
+    """Deterministic zarr encoding with the chunks and dtypes of the NetCDF encoding.
+
+    Parameters
+    ----------
+    ds : xr.Dataset
+    netcdf_enc : dict
+        :func:`oneocean.ncio.netcdf_encoding` of ``ds`` (its ``chunksizes`` and ``dtype``).
+
+    Returns
+    -------
+    dict
+        Per variable: ``dtype``, ``chunks`` (whole coordinates; one time step for data), a zstd
+        compressor at a fixed level, NaN fill for floats and none for integers; time as float64
+        seconds since 1970-01-01.
+    """
+    from numcodecs import Zstd
+
+    enc: dict = {}
+    for name, var in ds.variables.items():
+        nc = netcdf_enc[name]
+        chunks = nc.get("chunksizes") or tuple(var.shape)
+        e = {"chunks": tuple(int(c) for c in chunks) if var.ndim else None,
+             "compressors": [Zstd(level=_ZSTD_LEVEL)]}
+        if np.issubdtype(var.dtype, np.datetime64):
+            e.update(dtype="float64", units=_TIME_UNITS, calendar="proleptic_gregorian",
+                     _FillValue=None)
+        elif np.issubdtype(var.dtype, np.integer):
+            e.update(dtype=str(var.dtype), _FillValue=None)
+        elif name in ds.coords:
+            e.update(dtype="float64", _FillValue=None)
+        else:
+            e.update(dtype=nc["dtype"], _FillValue=np.dtype(nc["dtype"]).type(np.nan))
+        if e["chunks"] is None:
+            del e["chunks"]
+        enc[name] = e
+    return enc
+
+
+@contextlib.contextmanager
+def atomic_dir(path, suffix: str = ".tmp") -> Iterator[Path]:
+    """Yield an empty temporary directory beside ``path``; rename it onto ``path`` on success.
+
+    ``suffix`` ends the temporary name (``.zarr`` lets :func:`open_product` recognise it). An
+    existing ``path`` is replaced (moved aside, then removed after the rename). On any
+    exception the temporary directory is removed, so no partial store is left behind; a full
+    disk becomes a one-line :class:`~oneocean.errors.DiskFullError` naming ``path``.
+    """
+    from .errors import DiskFullError
+
+    path = Path(os.fspath(path).rstrip("/\\"))
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent))
+    except OSError as exc:
+        what = disk_full_reason(exc, path.parent if path.parent.is_dir() else ".")
+        if what:
+            raise DiskFullError(path, _free_bytes(path.parent), what) from exc
+        raise
+    try:
+        yield tmp
+        os.chmod(tmp, 0o777 & ~_UMASK)     # mkdtemp creates 0700
+        old = None
+        if path.exists() or path.is_symlink():
+            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".old",
+                                        dir=path.parent))
+            os.replace(path, old / "store")
+        os.replace(tmp, path)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException as exc:
+        what = disk_full_reason(exc, path.parent) if isinstance(exc, Exception) else None
+        free = _free_bytes(path.parent) if what else None
+        shutil.rmtree(tmp, ignore_errors=True)
+        if what:
+            raise DiskFullError(path, free, what) from exc
+        raise
+
+
+def write_zarr(ds: xr.Dataset, store, encoding: dict) -> None:
+    """Write ``ds`` (numpy- or dask-backed) into the (empty or absent) directory ``store``.
+
+    Dask-backed variables are computed by the active dask scheduler (threads, or a
+    ``dask.distributed`` client, whose workers then write the chunks: ``path``'s directory must
+    be visible to them), one chunk per store object, so the bytes do not depend on scheduling.
+    Metadata are consolidated (``.zmetadata``). Not atomic: see :func:`write_zarr_atomic`.
+    """
+    ds.to_zarr(os.fspath(store), mode="w", consolidated=True, zarr_format=2,
+               encoding=encoding, compute=True)
+
+
+def write_zarr_atomic(ds: xr.Dataset, path, encoding: dict) -> None:
+    """:func:`write_zarr` into a temporary directory beside ``path``, renamed onto it on
+    success (no partial store is left on failure)."""
+    with atomic_dir(path) as tmp:
+        write_zarr(ds, tmp, encoding)
+
+
+def open_product(path, **kwargs) -> xr.Dataset:
+    """Open a product (NetCDF file or zarr store, by suffix) lazily with xarray.
+
+    ``kwargs`` go to :func:`xarray.open_dataset` (e.g. ``decode_times``, ``cache``); a zarr
+    store is opened with its consolidated metadata.
+    """
+    if is_zarr(path):
+        kwargs.pop("cache", None)
+        return xr.open_dataset(path, engine="zarr", consolidated=True, **kwargs)
+    return xr.open_dataset(path, **kwargs)
+
+
+def _store_files(root: Path) -> list:
+    files = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames.sort()
+        for f in filenames:
+            if f not in _IGNORED:
+                full = Path(dirpath) / f
+                files.append((full.relative_to(root).as_posix(), full))
+    return sorted(files)
+
+
+def store_sha256(path) -> str:
+    """Hex sha256 of a directory store over its files in sorted relative-path order: each
+    file's path, size and the sha256 of its bytes (``.snakemake_timestamp`` is left out)."""
+    root = Path(path)
+    if not root.is_dir():
+        raise FileNotFoundError(f"{path}: not a directory")
+    h = hashlib.sha256()
+    for rel, full in _store_files(root):
+        h.update(f"{rel}\n{full.stat().st_size}\n".encode())
+        h.update(bytes.fromhex(sha256_file(full)))
+    return h.hexdigest()
+
+
+def sha256_path(path) -> str:
+    """sha256 of a file's bytes, or :func:`store_sha256` of a zarr store (a directory)."""
+    return store_sha256(path) if Path(path).is_dir() and is_zarr(path) else sha256_file(path)
+
+
+def path_bytes(path) -> int:
+    """Size of a file, or the total size of a store's files."""
+    p = Path(path)
+    if p.is_dir():
+        return int(sum(full.stat().st_size for _, full in _store_files(p)))
+    return int(p.stat().st_size)
