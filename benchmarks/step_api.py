@@ -11,7 +11,11 @@ sub-envs; ``--envs``), in one run:
   actions), and the microseconds per ``step()`` call, wall and CPU (the process's CPU
   time: what a loaded machine does not inflate as much);
 * ``fused``: agent-steps per second of the task's fused kernel running the heuristic on the
-  same episodes (``Cell.run``), the speed the step API is measured against.
+  same episodes (``Cell.run``), the speed the step API is measured against; ``step API /
+  fused`` is the wall-clock ratio (the step API's autoresets, hence their episode sampling,
+  included), ``CPU, no sampling`` the ratio of CPU agent-steps/s with the autoresets' pool
+  builds taken out of the step API's time (at the same run's cost per episode): the step
+  against the kernel, both without sampling.
 
 One numba thread (``NUMBA_NUM_THREADS=1`` is set here unless given); the first call of each
 kind is a warm-up (compilation), not timed. The grid is the default region's (built and
@@ -59,12 +63,14 @@ def measure(task: str, tier: int, grid, n_envs: int, steps: int, pool: int = 4) 
     a = np.zeros(env.action_space.shape)
     a[..., 0] = 0.5 * env.v_max
     n_resets = 0
+    pools_before = env._n_pools
     t, c = time.perf_counter(), time.process_time()
     for _ in range(steps):
         _, _, term, trunc, _ = env.step(a)
         n_resets += int((term | trunc).sum())
     t_steps = time.perf_counter() - t
     c_steps = time.process_time() - c
+    pools_before_end = env._n_pools
     # time spent on autoresets: the same run's pool builds, timed separately
     t = time.perf_counter()
     k = 0
@@ -72,7 +78,10 @@ def measure(task: str, tier: int, grid, n_envs: int, steps: int, pool: int = 4) 
         env._new_pool(env.pool_size)
         k += 1
     t_pool = (time.perf_counter() - t) / k / env.pool_size
-    return {"reset_ms_per_env": 1e3 * t_reset / n_envs, "pool_ms_per_env": 1e3 * t_pool,
+    # the autoresets' pool builds inside the timed steps (at the same run's cost per episode)
+    sampling = (pools_before_end - pools_before) * env.pool_size * t_pool
+    return {"cpu_us_per_step_no_sampling": 1e6 * max(c_steps - sampling, 0.0) / steps,
+            "reset_ms_per_env": 1e3 * t_reset / n_envs, "pool_ms_per_env": 1e3 * t_pool,
             "env_steps_s": steps * n_envs / t_steps, "us_per_step": 1e6 * t_steps / steps,
             "cpu_us_per_step": 1e6 * c_steps / steps,
             "agents": env.n_agents, "episodes_ended": n_resets}
@@ -85,11 +94,11 @@ def fused(task: str, tier: int, grid, n_episodes: int) -> float:
     cell.run("heuristic", 2, 0, "6dof")                 # warm-up
     init = cell.reset(n_episodes, 1)
     ep = cell.episodes(init, "heuristic", "6dof", 1)
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     ep.run()
-    dt = time.perf_counter() - t
+    dt, dc = time.perf_counter() - t, time.process_time() - c
     steps = int(ep.k.sum()) * cell.n_agents
-    return steps / dt
+    return steps / dt, steps / dc
 
 
 def main(argv=None) -> int:
@@ -109,17 +118,22 @@ def main(argv=None) -> int:
           f"python {sys.version.split()[0]}; load average {os.getloadavg()[0]:.2f}")
     print(f"{'task':5} {'envs':>5} {'reset ms/env':>13} {'ms/episode':>11} "
           f"{'env-steps/s':>12} {'us/step()':>10} {'cpu us/step()':>13} {'agent-steps/s':>14} {'fused agent-steps/s':>20}"
-          f" {'step API / fused':>17}")
+          f" {'step API / fused':>17} {'CPU, no sampling':>17}")
     for task in args.tasks:
-        f = fused(task, args.tier, grid, 64)
+        f, f_cpu = fused(task, args.tier, grid, 64)
         for n in args.envs:
             steps = args.steps or max(50, min(2000, 200000 // n))
             m = measure(task, args.tier, grid, n, steps, args.pool)
             agent_steps = m["env_steps_s"] * m["agents"]
+            # CPU agent-steps/s of step() without the autoresets' sampling, over the fused
+            # kernel's CPU agent-steps/s (which samples nothing while it runs)
+            cpu_ratio = (n * m["agents"] / max(m["cpu_us_per_step_no_sampling"], 1e-9) * 1e6
+                         / f_cpu)
             print(f"{task:5} {n:>5} {m['reset_ms_per_env']:>13.3f} {m['pool_ms_per_env']:>11.3f} "
                   f"{m['env_steps_s']:>12,.0f} {m['us_per_step']:>10.1f} {m['cpu_us_per_step']:>13.1f} "
                   f"{agent_steps:>14,.0f} "
-                  f"{f:>20,.0f} {agent_steps / f:>17.2f}", flush=True)
+                  f"{f:>20,.0f} {agent_steps / f:>17.2f} "
+                  f"{cpu_ratio:>17.2f}", flush=True)
     print(f"# load average at end: {os.getloadavg()[0]:.2f}")
     return 0
 
