@@ -5,20 +5,23 @@
 (b) Peak RSS of ``build_product`` merging a synthetic currents source of >= 4 GB on disk
     (goal < 1.5 GB): the source is generated lazily, one time step at a time, in a child
     process; the merge runs in another child whose peak RSS comes from ``os.wait4``.
-(c) A product several times larger than a dask worker's memory limit, built on a
-    ``dask.distributed`` LocalCluster (``--workers`` processes of one thread, each limited to
-    ``--worker-memory-mb``; config ``product.scheduler``) and, as the baseline in the same run,
-    on the local threads scheduler; each as a zarr store (``--format``). Prints the product's
-    size, wall time, the peak RSS of every worker process (``resource.getrusage`` inside the
-    worker) and of the process that drives the build.
+(c) A product several times larger than a dask worker's memory limit (default 7 days: 1.3 GB
+    as float32, 3.2 x a 400 MB worker), built on a ``dask.distributed`` LocalCluster
+    (``--workers`` processes of one thread, each limited to ``--worker-memory-mb``; config
+    ``product.scheduler``) and, as the baseline in the same run, on the local threads
+    scheduler; each as a zarr store (``--format``). Prints the product's size next to the
+    worker limit, the wall times, the peak RSS of every worker process (``resource.getrusage``
+    inside the worker) and of the processes that drive the builds, and whether both schedulers
+    wrote the same bytes. A distributed build that has not finished after ``--timeout`` seconds
+    is reported as stalled (with each worker's status and memory) and the script exits 1.
 
 Usage::
 
     python benchmarks/product.py            # all parts, full 4 GB source
     python benchmarks/product.py --quick    # smoke run: ~0.1 GB source
     python benchmarks/product.py --skip-workflow --workdir /big/tmp --keep
-    python benchmarks/product.py --only-distributed            # part (c), ~40 s here
-    python benchmarks/product.py --only-distributed --worker-memory-mb 500 --days 8
+    python benchmarks/product.py --only-distributed            # part (c), ~4 min here
+    python benchmarks/product.py --only-distributed --worker-memory-mb 500 --days 9
 """
 
 from __future__ import annotations
@@ -148,8 +151,8 @@ def distributed_config(days: int) -> dict:
 
 
 DISTRIBUTED = """
-import json, resource, sys, time
-cfg_path, cur, bat, out, meta, workers, limit_mb = sys.argv[1:8]
+import json, os, resource, sys, threading, time
+cfg_path, cur, bat, out, meta, workers, limit_mb, res, timeout = sys.argv[1:10]
 cfg = json.load(open(cfg_path))
 from distributed import LocalCluster, Client
 from oneocean.product import build_product
@@ -159,15 +162,27 @@ def peak_rss():
 
 with LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
                   memory_limit=f"{limit_mb}MB", dashboard_address=None,
-                  silence_logs=40) as cluster:
+                  silence_logs=40) as cluster, Client(cluster.scheduler_address) as client:
     cfg["product"] = {"scheduler": cluster.scheduler_address}
+    failed = []
+    def run():
+        try:
+            build_product(cur, bat, cfg, "public", out, meta)
+        except BaseException as exc:
+            failed.append(f"{type(exc).__name__}: {exc}")
     t0 = time.perf_counter()
-    build_product(cur, bat, cfg, "public", out, meta)
+    job = threading.Thread(target=run, daemon=True)
+    job.start()
+    job.join(float(timeout))
     wall = time.perf_counter() - t0
-    with Client(cluster.scheduler_address) as client:
-        rss = sorted(client.run(peak_rss).values())
-json.dump({"wall": wall, "worker_peak_rss": rss, "client_peak_rss": peak_rss()},
-          open(sys.argv[8], "w"))
+    rss = sorted(client.run(peak_rss).values())
+    workers = client.scheduler_info()["workers"].values()
+    state = [f"{w['status']} at {w['metrics']['memory'] / 1e6:.0f} MB" for w in workers]
+    json.dump({"wall": wall, "worker_peak_rss": rss, "client_peak_rss": peak_rss(),
+               "stalled": job.is_alive(), "workers": state, "error": failed},
+              open(res, "w"))
+    if job.is_alive() or failed:
+        os._exit(3)       # the build thread cannot be stopped; leave without waiting for it
 """
 
 
@@ -176,13 +191,30 @@ def _size(path: Path) -> int:
         else path.stat().st_size
 
 
-def bench_distributed(workdir: Path, days: int, workers: int, limit_mb: int, fmt: str) -> None:
-    """(c) A product several times a worker's memory limit: distributed vs local threads."""
+def _child_timeout(code: str, timeout: float, *args: str) -> tuple[float, int | None]:
+    """Run ``python -c code args`` with a hard timeout: (wall s, exit status, or None when the
+    child and its process group were killed after ``timeout`` s)."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-c", code, *args], start_new_session=True)
+    try:
+        proc.wait(timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, 9)
+        proc.wait()
+        return time.perf_counter() - t0, None
+    return time.perf_counter() - t0, proc.returncode
+
+
+def bench_distributed(workdir: Path, days: int, workers: int, limit_mb: int, fmt: str,
+                      timeout: float) -> bool:
+    """(c) A product several times a worker's memory limit: distributed vs local threads.
+
+    Returns False when a build failed or did not finish within ``timeout`` s (a stall)."""
     try:
         import distributed  # noqa: F401
     except ImportError:
         print("(c) distributed: SKIPPED (pip install 'oneocean[distributed]')")
-        return
+        return True
     cfg = distributed_config(days)
     cfg_path = workdir / "config.json"
     cfg_path.write_text(json.dumps(cfg))
@@ -190,8 +222,8 @@ def bench_distributed(workdir: Path, days: int, workers: int, limit_mb: int, fmt
     wall, rss, rc = _child(GENERATE, str(cfg_path), str(cur), str(bat))
     if rc != 0:
         print(f"(c) generating the synthetic source FAILED (exit {rc})")
-        return
-    print(f"(c) synthetic source: {cur.stat().st_size / GB:.2f} GB on disk, generated in "
+        return False
+    print(f"(c) synthetic source: {cur.stat().st_size / 1e9:.2f} GB on disk, generated in "
           f"{wall:.1f} s")
     name = "product.zarr" if fmt == "zarr" else "product.nc"
     rows = []
@@ -199,31 +231,41 @@ def bench_distributed(workdir: Path, days: int, workers: int, limit_mb: int, fmt
     wall, rss, rc = _child(MERGE, str(cfg_path), str(cur), str(bat), str(out), str(meta))
     if rc != 0:
         print(f"(c) build_product on local threads FAILED (exit {rc})")
-        return
+        return False
     grid = json.loads(meta.read_text())["grid"]
     nbytes = 4 * grid["nt"] * grid["ny"] * grid["nx"] * (2 * grid["nz"] + 2)
-    rows.append(("local threads", wall, f"{rss / 2 ** 20:.0f} (1 process)", _size(out)))
+    limit = limit_mb * 1e6                    # dask reads "400MB" as 400e6 bytes
+    print(f"(c) product {grid['nt']} x {grid['nz']} x {grid['ny']} x {grid['nx']}, "
+          f"{nbytes / 1e6:.0f} MB as float32 in memory, worker limit {limit_mb} MB "
+          f"(product = {nbytes / limit:.1f} x the worker limit), format {fmt}")
+    rows.append(("local threads (1 process)", wall, f"process {rss / 1e6:.0f}", _size(out)))
     dout, dmeta = workdir / "distributed" / name, workdir / "distributed" / "metadata.json"
     res = workdir / "distributed.json"
-    wall, rss, rc = _child(DISTRIBUTED, str(cfg_path), str(cur), str(bat), str(dout),
-                           str(dmeta), str(workers), str(limit_mb), str(res))
-    if rc != 0:
-        print(f"(c) build_product on the distributed cluster FAILED (exit {rc})")
-        return
-    r = json.loads(res.read_text())
-    workers_mb = ", ".join(f"{b / 2 ** 20:.0f}" for b in r["worker_peak_rss"])
-    rows.append((f"distributed {workers}x1 thread, limit {limit_mb} MB", r["wall"],
-                 f"workers {workers_mb}; driver {r['client_peak_rss'] / 2 ** 20:.0f}",
+    wall, rc = _child_timeout(DISTRIBUTED, timeout + 60.0, str(cfg_path), str(cur),
+                                 str(bat), str(dout), str(dmeta), str(workers), str(limit_mb),
+                                 str(res), str(timeout))
+    r = json.loads(res.read_text()) if rc is not None and res.is_file() else None
+    if r is None or r["stalled"] or r["error"]:
+        if r is None:
+            why = f"killed after {wall:.0f} s (exit {rc})"
+        elif r["stalled"]:
+            why = (f"did not finish within {timeout:.0f} s: STALLED, workers "
+                   f"{'; '.join(r['workers'])} (dask pauses a worker at 80% of its limit)")
+        else:
+            why = f"FAILED: {r['error'][0]}"
+        print(f"(c) build_product on the distributed cluster {why}")
+        return False
+    workers_mb = ", ".join(f"{b / 1e6:.0f}" for b in r["worker_peak_rss"])
+    rows.append((f"distributed {workers} x 1 thread, limit {limit_mb} MB", r["wall"],
+                 f"workers {workers_mb}; driver {r['client_peak_rss'] / 1e6:.0f}",
                  _size(dout)))
     same = (json.loads(meta.read_text())["product"]["sha256"]
             == json.loads(dmeta.read_text())["product"]["sha256"])
-    print(f"(c) product {grid['nt']} x {grid['nz']} x {grid['ny']} x {grid['nx']}, "
-          f"{nbytes / 2 ** 20:.0f} MB as float32 in memory "
-          f"({nbytes / (limit_mb * 2 ** 20):.1f} x the worker limit), format {fmt}")
-    print(f"    {'scheduler':<40} {'wall s':>7}  {'on disk MB':>10}  peak RSS MB")
+    print(f"    {'scheduler':<42} {'wall s':>7}  {'on disk MB':>10}  peak RSS MB")
     for label, w, peak, size in rows:
-        print(f"    {label:<40} {w:>7.1f}  {size / 2 ** 20:>10.0f}  {peak}")
+        print(f"    {label:<42} {w:>7.1f}  {size / 1e6:>10.0f}  {peak}")
     print(f"    same bytes on both schedulers: {'yes' if same else 'NO'}")
+    return same
 
 
 def main(argv=None) -> int:
@@ -233,9 +275,9 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-rss", action="store_true", help="skip part (b)")
     ap.add_argument("--only-distributed", action="store_true", help="only part (c)")
     ap.add_argument("--skip-distributed", action="store_true", help="skip part (c)")
-    ap.add_argument("--days", type=int, default=1,
-                    help="(c) days of hourly data (default 1: a 0.18 GB product; 5 days, "
-                         "0.93 GB, stalls 400 MB workers: their memory grows with the steps)")
+    ap.add_argument("--days", type=int, default=7,
+                    help="(c) days of hourly data (default 7: a 1.3 GB product, 3.2 x the "
+                         "default worker limit; ~4 min here with both builds)")
     ap.add_argument("--workers", type=int, default=2, help="(c) worker processes (default 2)")
     ap.add_argument("--worker-memory-mb", type=int, default=400,
                     help="(c) memory limit of each worker (default 400; a worker's Python, "
@@ -243,11 +285,15 @@ def main(argv=None) -> int:
                          "of its limit, so much less stalls the build)")
     ap.add_argument("--format", choices=("zarr", "netcdf"), default="zarr",
                     help="(c) product format (default zarr)")
+    ap.add_argument("--timeout", type=float, default=300.0,
+                    help="(c) seconds the distributed build may take before it is reported as "
+                         "stalled (default 300)")
     ap.add_argument("--workdir", type=Path, default=None, help="scratch folder (default: tmp)")
     ap.add_argument("--keep", action="store_true", help="keep the scratch folder")
     args = ap.parse_args(argv)
     workdir = Path(tempfile.mkdtemp(prefix="oneocean-bench-", dir=args.workdir))
     print(f"scratch: {workdir}  cpus: {os.cpu_count()}  python: {sys.version.split()[0]}")
+    ok = True
     try:
         if not (args.skip_workflow or args.only_distributed):
             (workdir / "a").mkdir()
@@ -257,14 +303,15 @@ def main(argv=None) -> int:
             bench_rss(workdir / "b", args.quick)
         if not args.skip_distributed:
             (workdir / "c").mkdir()
-            bench_distributed(workdir / "c", 1 if args.quick else args.days, args.workers,
-                              args.worker_memory_mb, args.format)
+            ok = bench_distributed(workdir / "c", 1 if args.quick else args.days,
+                                   args.workers, args.worker_memory_mb, args.format,
+                                   args.timeout) and ok
     finally:
         if args.keep:
             print(f"kept {workdir}")
         else:
             shutil.rmtree(workdir, ignore_errors=True)
-    return 0
+    return 0 if ok else 1
 
 
 if __name__ == "__main__":

@@ -50,6 +50,12 @@ def test_distributed_build_identical_to_threads(inputs, tmp_path, processes):
         # the client was closed: nothing is left as dask's default scheduler
         with distributed.Client(cluster.scheduler_address) as client:
             assert len(client.scheduler_info()["workers"]) == 2
+            # the workers' HDF5 chunk cache was small during the build and is restored after it
+            if processes:
+                import netCDF4
+
+                caches = client.run(lambda: netCDF4.get_chunk_cache()[0])
+                assert set(caches.values()) == {netCDF4.get_chunk_cache()[0]}
     assert sha256_file(tmp_path / "product.nc") == sha256_file(threads / "product.nc")
     assert store_sha256(tmp_path / "product.zarr") == store_sha256(threads / "product.zarr")
     for name in ("product.nc", "product.zarr"):

@@ -191,3 +191,68 @@ def test_product_format_config(tmp_path):
         product_filename("hdf5")
     # a NetCDF product keeps its plain-file hash
     assert sha256_file(CONFIG) == file_record(CONFIG)["sha256"]
+
+
+@pytest.mark.parametrize("product", ["product.nc", "product.zarr"])
+def test_zarr_exports_equal_npz_and_load_identically(built, tmp_path, product):
+    from oneocean.engine import load_grid
+    from oneocean.zarrio import read_arrays_zarr
+
+    for kind in ("grid", "temporal"):
+        paths = {fmt: tmp_path / f"{kind}.{fmt}" for fmt in ("npz", "zarr")}
+        for path in paths.values():
+            if kind == "grid":
+                export_grid(built[product], path, {"variant": "tiny"})
+            else:
+                export_temporal(built[product], path, None, None, None, {"variant": "tiny"})
+        a, b = read_npz(paths["npz"], kind), read_npz(paths["zarr"], kind)
+        assert sorted(a) == sorted(b)
+        for key in a:                     # every array, meta_json included: same dtype, values
+            assert a[key].dtype == b[key].dtype and a[key].shape == b[key].shape, key
+            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+        assert (paths["zarr"] / ".zmetadata").is_file()
+        assert read_arrays_zarr(paths["zarr"]).keys() == b.keys()
+        # deterministic bytes; rewriting replaces the store and leaves nothing beside it
+        h = store_sha256(paths["zarr"])
+        if kind == "grid":
+            export_grid(built[product], paths["zarr"], {"variant": "tiny"})
+        else:
+            export_temporal(built[product], paths["zarr"], None, None, None, {"variant": "tiny"})
+        assert store_sha256(paths["zarr"]) == h
+        rec = file_record(paths["zarr"])      # the manifest hashes the store and its arrays
+        assert rec["sha256"] == h and rec["content_sha256"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "grid.npz", "grid.zarr", "temporal.npz", "temporal.zarr"]
+    # the engine loads a zarr grid export to an identical Grid
+    g_npz, g_zarr = load_grid(tmp_path / "grid.npz"), load_grid(tmp_path / "grid.zarr")
+    assert type(g_npz) is type(g_zarr) and g_npz._fields == g_zarr._fields
+    for field, x, y in zip(g_npz._fields, g_npz, g_zarr):
+        assert type(x) is type(y), field
+        if isinstance(x, np.ndarray):
+            assert x.dtype == y.dtype, field
+            np.testing.assert_array_equal(x, y, err_msg=field)
+        else:
+            assert x == y or (x != x and y != y), field
+
+
+def test_zarr_export_missing_or_bad_is_one_line(tmp_path):
+    from oneocean.errors import DataError
+
+    with pytest.raises(DataError, match=r"grid\.zarr: grid export not found"):
+        read_npz(tmp_path / "grid.zarr", "grid export")
+    (tmp_path / "bad.zarr").mkdir()
+    with pytest.raises(DataError, match=r"bad\.zarr: not a readable zarr grid export"):
+        read_npz(tmp_path / "bad.zarr", "grid export")
+
+
+def test_export_format_config():
+    from oneocean.zarrio import export_filename
+
+    cfg = load_config(CONFIG)
+    assert cfg["exports"] == {"format": "npz"}
+    assert export_filename("grid") == "grid.npz"
+    assert export_filename("temporal", "zarr") == "temporal.zarr"
+    with pytest.raises(ConfigError, match="exports.format"):
+        load_config(CONFIG, overrides={"exports": {"format": "hdf5"}})
+    with pytest.raises(ConfigError, match="exports.format"):
+        export_filename("grid", "hdf5")

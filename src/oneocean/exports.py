@@ -1,7 +1,10 @@
 """Backend exports of a product: the grid export (contracts §3) and the temporal export (§4).
 
-Both are ``.npz`` files written with :func:`oneocean.io.write_npz_atomic` (byte-deterministic)
-and record the product's path, sha256 and the indices used for the extraction.
+Both are ``.npz`` files written with :func:`oneocean.io.write_npz_atomic` (byte-deterministic),
+or, when the output path ends in ``.zarr`` (config ``exports.format: zarr``), zarr stores of the
+same arrays (:func:`oneocean.zarrio.write_arrays_zarr`: consolidated, atomic, deterministic);
+:func:`oneocean.io.read_npz`, hence the engine's ``load_grid`` and the scene backend, read
+either. They record the product's path, sha256 and the indices used for the extraction.
 
 Metres mapping: an equirectangular local tangent plane at the centre of the product grid,
 ``x = (lon - origin_lon) * m_per_deg_lon`` (east), ``z = (lat - origin_lat) * m_per_deg_lat``
@@ -28,7 +31,7 @@ import xarray as xr
 
 from .errors import DataError
 from .io import write_npz_atomic
-from .zarrio import open_product, sha256_path
+from .zarrio import is_zarr, open_product, sha256_path, write_arrays_zarr
 
 __all__ = ["export_grid", "export_temporal", "metres_per_degree", "default_point",
            "point_weights", "EARTH_RADIUS_M"]
@@ -62,6 +65,14 @@ def _source_meta(product_path, ds: xr.Dataset, meta: dict | None) -> dict:
             "config_hash": str(ds.attrs.get("config_hash", ""))}
 
 
+def _write_export(out_path, arrays: dict) -> None:
+    """An export's arrays as ``.npz``, or as a zarr store when ``out_path`` ends in ``.zarr``."""
+    if is_zarr(out_path):
+        write_arrays_zarr(out_path, arrays)
+    else:
+        write_npz_atomic(out_path, arrays)
+
+
 def _open(product_path) -> xr.Dataset:
     """Open a product (NetCDF file or zarr store, by suffix) lazily, with a small HDF5 chunk
     cache for NetCDF (it is read once, step by step)."""
@@ -87,9 +98,10 @@ def export_grid(product_path, out_path, meta: dict | None = None) -> None:
     product_path : path
         A product, NetCDF file or zarr store (contracts §2).
     out_path : path
-        Output ``.npz``; ``u, v`` (nt, nz, ny, nx) float32 m s-1, held below the deepest valid
-        level, zero where ``current_mask == 0``; ``u_tide, v_tide`` (nt, ny, nx) float32, zero
-        where ``current_mask == 0`` or without tide; axes, ``land_mask``, ``valid_mask``,
+        Output ``.npz`` (or a zarr store of the same arrays when it ends in ``.zarr``); ``u, v``
+        (nt, nz, ny, nx) float32 m s-1, held below the deepest valid level, zero where
+        ``current_mask == 0``; ``u_tide, v_tide`` (nt, ny, nx) float32, zero where
+        ``current_mask == 0`` or without tide; axes, ``land_mask``, ``valid_mask``,
         ``current_mask`` (ny, nx) uint8, the lat/lon <-> metres mapping and ``meta_json``
         (see contracts §3).
     meta : dict, optional
@@ -145,7 +157,7 @@ def export_grid(product_path, out_path, meta: dict | None = None) -> None:
         "current_mask": current.astype(np.uint8),
         "meta_json": np.array(json.dumps(info, sort_keys=True)),
     }
-    write_npz_atomic(out_path, arrays)
+    _write_export(out_path, arrays)
 
 
 def default_point(ds: xr.Dataset) -> tuple[float, float]:
@@ -284,8 +296,9 @@ def export_temporal(product_path, out_path, lat: float | None, lon: float | None
     product_path : path
         A product, NetCDF file or zarr store (contracts §2).
     out_path : path
-        Output ``.npz`` with ``time`` datetime64[s] (nt,), ``time_s``, ``u, v, u_tide, v_tide``
-        float64 (nt,) m s-1, ``lat, lon, depth`` float64 (), ``indices_json``, ``meta_json``.
+        Output ``.npz`` (or a zarr store of the same arrays when it ends in ``.zarr``) with
+        ``time`` datetime64[s] (nt,), ``time_s``, ``u, v, u_tide, v_tide`` float64 (nt,) m s-1,
+        ``lat, lon, depth`` float64 (), ``indices_json``, ``meta_json``.
     lat, lon : float or None
         Point (degrees); None for :func:`default_point`.
     depth_m : float or None
@@ -353,4 +366,4 @@ def export_temporal(product_path, out_path, lat: float | None, lon: float | None
                                                              "depth_m_requested": requested}},
                                          sort_keys=True)),
     }
-    write_npz_atomic(out_path, arrays)
+    _write_export(out_path, arrays)

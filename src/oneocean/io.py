@@ -166,10 +166,15 @@ _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 
 
 def read_npz(path: str | os.PathLike, what: str) -> dict:
-    """Every array of an ``.npz`` file (no pickles), read into memory; a missing or unreadable
-    file is a one-line :class:`~oneocean.errors.DataError` naming it as ``what``."""
+    """Every array of an ``.npz`` file (no pickles), or of a zarr store written by
+    :func:`oneocean.zarrio.write_arrays_zarr` (a path ending in ``.zarr``), read into memory;
+    a missing or unreadable file is a one-line :class:`~oneocean.errors.DataError` naming it
+    as ``what``."""
     from .errors import DataError
+    from .zarrio import is_zarr, read_arrays_zarr
 
+    if is_zarr(path):
+        return read_arrays_zarr(path, what)
     path = Path(os.fspath(path))
     if not path.is_file():
         raise DataError(f"{path}: {what} not found")

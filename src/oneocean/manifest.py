@@ -59,13 +59,15 @@ def git_commit(cwd: str | None = None) -> str:
 
 
 def content_hash(path: str | os.PathLike) -> str | None:
-    """Hash of the decoded variables for NetCDF files and zarr stores, ``None`` for other
-    formats."""
+    """Hash of the decoded variables for NetCDF files and zarr stores (products, or the
+    arrays of a zarr export), ``None`` for other formats."""
     if not str(path).rstrip("/").endswith(CONTENT_HASHED):
         return None
     from .io import dataset_content_hash
-    from .zarrio import open_product
+    from .zarrio import arrays_content_hash, is_arrays_store, open_product
 
+    if is_arrays_store(path):                 # a zarr export: named arrays, no dimensions
+        return arrays_content_hash(path)
     with open_product(path, decode_times=False, mask_and_scale=False) as ds:
         return dataset_content_hash(ds)
 

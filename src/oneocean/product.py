@@ -249,6 +249,9 @@ def compute_scheduler(address: str | None = None):
 
     The client is closed on exit; the cluster is left running. Its workers must see the
     product's input and output paths (a zarr product's chunks are written by the workers).
+    While the client is connected, the workers open NetCDF files with the small HDF5 chunk
+    cache of :func:`~oneocean.ncio.netcdf_chunk_cache` (a worker plugin, removed on exit), so a
+    worker's memory does not grow with the time steps it reads.
 
     Raises
     ------
@@ -271,7 +274,47 @@ def compute_scheduler(address: str | None = None):
         raise ConfigError(f"product.scheduler: cannot connect to {address} ({reason})") \
             from None
     with client:
-        yield client
+        plugin = _worker_chunk_cache_plugin()
+        client.register_plugin(plugin, name=plugin.name)
+        try:
+            yield client
+        finally:
+            with contextlib.suppress(Exception):     # a cluster gone already: nothing to undo
+                client.unregister_worker_plugin(plugin.name)
+
+
+def _worker_chunk_cache_plugin(size_bytes: int | None = None):
+    """A ``distributed`` worker plugin that gives the workers the small HDF5 chunk cache of
+    :func:`netcdf_chunk_cache` while the client is connected (restored on teardown).
+
+    The inputs are opened and read inside the workers, where netCDF4's default cache (64 MiB per
+    variable and open file) is kept for the worker's lifetime: it grows with every time step
+    read until u and v hold ~130 MB more per worker, beyond a small worker's pause threshold
+    (80 % of its limit). That memory is unmanaged (dask cannot spill it), so the paused
+    workers never resume and the build stalls.
+    """
+    from distributed import WorkerPlugin
+
+    from .ncio import _CHUNK_CACHE_BYTES
+
+    size = int(_CHUNK_CACHE_BYTES if size_bytes is None else size_bytes)
+
+    class NetCDFChunkCache(WorkerPlugin):
+        name = "oneocean-netcdf-chunk-cache"
+
+        def setup(self, worker):
+            import netCDF4
+
+            self.old = netCDF4.get_chunk_cache()
+            netCDF4.set_chunk_cache(size, self.old[1], self.old[2])
+
+        def teardown(self, worker):
+            import netCDF4
+
+            if getattr(self, "old", None):
+                netCDF4.set_chunk_cache(*self.old)
+
+    return NetCDFChunkCache()
 
 
 def _parse_time(value) -> np.datetime64:

@@ -23,17 +23,22 @@ import xarray as xr
 
 from .io import _free_bytes, _UMASK, disk_full_reason, sha256_file
 
-__all__ = ["ZARR_SUFFIX", "PRODUCT_FORMATS", "is_zarr", "product_filename", "zarr_encoding",
-           "write_zarr", "write_zarr_atomic", "atomic_dir", "open_product", "store_sha256",
-           "sha256_path", "path_bytes"]
+__all__ = ["ZARR_SUFFIX", "PRODUCT_FORMATS", "EXPORT_FORMATS", "is_zarr", "product_filename",
+           "export_filename", "zarr_encoding", "write_zarr", "write_zarr_atomic", "atomic_dir",
+           "open_product", "store_sha256", "sha256_path", "path_bytes", "write_arrays_zarr",
+           "read_arrays_zarr", "is_arrays_store", "arrays_content_hash"]
 
 ZARR_SUFFIX = ".zarr"
 #: Product formats (config ``product.format``) and their file suffixes.
 PRODUCT_FORMATS = {"netcdf": ".nc", "zarr": ZARR_SUFFIX}
+#: Export formats (config ``exports.format``) and their file suffixes.
+EXPORT_FORMATS = {"npz": ".npz", "zarr": ZARR_SUFFIX}
 _ZSTD_LEVEL = 3
 _TIME_UNITS = "seconds since 1970-01-01 00:00:00"
 #: Files a workflow engine may drop into a directory output; not part of the store's content.
 _IGNORED = frozenset({".snakemake_timestamp"})
+#: The group attribute of a store of named arrays (an export), :func:`write_arrays_zarr`.
+_ARRAYS_ATTR = {"oneocean_store": "arrays"}
 
 
 def is_zarr(path) -> bool:
@@ -50,6 +55,17 @@ def product_filename(fmt: str = "netcdf") -> str:
         raise ConfigError(f"product.format: Invalid value {fmt!r}. Valid options are "
                           f"({', '.join(PRODUCT_FORMATS)})")
     return "product" + PRODUCT_FORMATS[fmt]
+
+
+def export_filename(kind: str, fmt: str = "npz") -> str:
+    """An export's file name for config ``exports.format``: ``<kind>.npz`` or ``<kind>.zarr``
+    (``kind`` is ``grid`` or ``temporal``)."""
+    from .errors import ConfigError
+
+    if fmt not in EXPORT_FORMATS:
+        raise ConfigError(f"exports.format: Invalid value {fmt!r}. Valid options are "
+                          f"({', '.join(EXPORT_FORMATS)})")
+    return kind + EXPORT_FORMATS[fmt]
 
 
 def zarr_encoding(ds: xr.Dataset, netcdf_enc: dict) -> dict:
@@ -148,6 +164,75 @@ def write_zarr_atomic(ds: xr.Dataset, path, encoding: dict) -> None:
     success (no partial store is left on failure)."""
     with atomic_dir(path) as tmp:
         write_zarr(ds, tmp, encoding)
+
+
+def write_arrays_zarr(path, arrays) -> None:
+    """Write named arrays (an export's ``.npz`` content) as a zarr store, atomically.
+
+    One zarr array per name with the array's dtype and shape (0-d and fixed-width unicode
+    included), zarr format 2, consolidated metadata, a fixed zstd compressor, no fill value and
+    no array attributes; arrays of 3 or more dimensions are chunked one step of their first axis at
+    a time (the time axis of the exports), others are one chunk. The group's only attribute,
+    ``oneocean_store: arrays``, tells it from a product (:func:`is_arrays_store`). The bytes
+    depend only on the arrays. :func:`read_arrays_zarr` gives back the same mapping.
+    """
+    import zarr
+    from numcodecs import Zstd
+
+    with atomic_dir(path, suffix=ZARR_SUFFIX) as tmp:
+        group = zarr.open_group(store=os.fspath(tmp), mode="w", zarr_format=2)
+        group.attrs.update(_ARRAYS_ATTR)
+        for name in sorted(arrays):
+            a = np.asarray(arrays[name])           # 0-d stays 0-d
+            if a.dtype.kind not in "biufcMmU":
+                raise TypeError(f"{path}: array {name!r} has dtype {a.dtype}, not storable")
+            chunks = (1,) + a.shape[1:] if a.ndim >= 3 else a.shape
+            z = group.create_array(name, shape=a.shape, dtype=a.dtype,
+                                   chunks=tuple(max(int(c), 1) for c in chunks),
+                                   compressors=Zstd(level=_ZSTD_LEVEL), fill_value=None)
+            z[...] = a
+        zarr.consolidate_metadata(os.fspath(tmp), zarr_format=2)
+
+
+def is_arrays_store(path) -> bool:
+    """True when ``path`` is a zarr store written by :func:`write_arrays_zarr`."""
+    import json
+
+    attrs = Path(os.fspath(path).rstrip("/\\")) / ".zattrs"
+    try:
+        return json.loads(attrs.read_text()).get("oneocean_store") == "arrays"
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def arrays_content_hash(path) -> str:
+    """sha256 of the decoded arrays of a :func:`write_arrays_zarr` store (names, dtypes,
+    shapes and values, in name order)."""
+    from .io import array_digest
+
+    h = hashlib.sha256()
+    for name, arr in read_arrays_zarr(path).items():
+        array_digest(h, name, arr)
+    return h.hexdigest()
+
+
+def read_arrays_zarr(path, what: str = "export") -> dict:
+    """Every array of a store written by :func:`write_arrays_zarr`, read into memory
+    (``{name: ndarray}``, 0-d arrays as 0-d ndarrays); a missing or unreadable store is a
+    one-line :class:`~oneocean.errors.DataError` naming it as ``what``."""
+    import zarr
+
+    from .errors import DataError
+
+    root = Path(os.fspath(path).rstrip("/\\"))
+    if not root.is_dir():
+        raise DataError(f"{root}: {what} not found")
+    try:
+        group = zarr.open_consolidated(os.fspath(root), mode="r", zarr_format=2)
+        return {name: np.asarray(group[name][...]) for name in sorted(group.array_keys())}
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        reason = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise DataError(f"{root}: not a readable zarr {what} ({reason})") from None
 
 
 def open_product(path, **kwargs) -> xr.Dataset:

@@ -11,7 +11,7 @@ from oneocean.config import llm_method, validate_config
 from oneocean.errors import ConfigError
 from oneocean.registry import method_names, task_ids
 from oneocean.vocab import TIERS, VARIANTS
-from oneocean.zarrio import is_zarr, product_filename
+from oneocean.zarrio import export_filename, is_zarr, product_filename
 
 try:
     # imports config["plugins"] first (they may register tasks and methods), then validates
@@ -71,10 +71,10 @@ def product_targets():
 
 def export_targets():
     return expand(
-        "results/exports/{region}/{variant}/{name}.npz",
+        "results/exports/{region}/{variant}/{name}",
         region=REGION,
         variant=VARIANTS,
-        name=["grid", "temporal"],
+        name=[export_filename(k, config["exports"]["format"]) for k in ("grid", "temporal")],
     )
 
 

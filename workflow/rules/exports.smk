@@ -1,6 +1,13 @@
 # Stage 3: backend exports of each variant (grid for the core backend, a point time series
 # for the scene backend).
 
+# grid.npz / temporal.npz (config exports.format: npz, the default) or grid.zarr /
+# temporal.zarr (zarr stores: directories)
+EXPORT_GRID_PATH = "results/exports/{region}/{variant}/" + export_filename(
+    "grid", config["exports"]["format"])
+EXPORT_TEMPORAL_PATH = "results/exports/{region}/{variant}/" + export_filename(
+    "temporal", config["exports"]["format"])
+
 
 rule export_grid:
     conda:
@@ -11,7 +18,7 @@ rule export_grid:
     input:
         product=rules.merge_variant.output.nc,
     output:
-        npz="results/exports/{region}/{variant}/grid.npz",
+        npz=directory(EXPORT_GRID_PATH) if is_zarr(EXPORT_GRID_PATH) else EXPORT_GRID_PATH,
         prov="results/provenance/exports/{region}/{variant}/grid.json",
     log:
         "logs/exports/{region}/{variant}/grid.log",
@@ -36,7 +43,8 @@ rule export_temporal:
     input:
         product=rules.merge_variant.output.nc,
     output:
-        npz="results/exports/{region}/{variant}/temporal.npz",
+        npz=(directory(EXPORT_TEMPORAL_PATH) if is_zarr(EXPORT_TEMPORAL_PATH)
+             else EXPORT_TEMPORAL_PATH),
         prov="results/provenance/exports/{region}/{variant}/temporal.json",
     log:
         "logs/exports/{region}/{variant}/temporal.log",

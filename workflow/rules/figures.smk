@@ -79,7 +79,8 @@ rule figure_snapshots:
     conda:
         PY_ENV
     input:
-        grid=lambda wc: f"results/exports/{wc.region}/{config['rollouts']['variant']}/grid.npz",
+        grid=lambda wc: EXPORT_GRID_PATH.format(region=wc.region,
+                                                variant=config["rollouts"]["variant"]),
         kernels=lambda wc: [f"results/kernels/{wc.region}/{config['rollouts']['variant']}/{t}.json"
                             for t in config["snapshots"]["tasks"]],
     output:

@@ -110,8 +110,8 @@ rule scene_build:
     conda:
         PY_ENV
     input:
-        grid="results/exports/{region}/{variant}/grid.npz",
-        temporal="results/exports/{region}/{variant}/temporal.npz",
+        grid=EXPORT_GRID_PATH,
+        temporal=EXPORT_TEMPORAL_PATH,
     output:
         xml="results/scenes/{region}/{variant}/{scene}/scene.xml",
         grid="results/scenes/{region}/{variant}/{scene}/grid.npz",
@@ -157,7 +157,7 @@ for _scene, _backend in scene_runs():
             scene=f"results/scenes/{{region}}/{{variant}}/{_scene}/scene.json",
             scene_grid=f"results/scenes/{{region}}/{{variant}}/{_scene}/grid.npz",
             xml=f"results/scenes/{{region}}/{{variant}}/{_scene}/scene.xml",
-            temporal="results/exports/{region}/{variant}/temporal.npz",
+            temporal=EXPORT_TEMPORAL_PATH,
             kernels=scene_kernels,
             weights=scene_weights,
         output:

@@ -240,9 +240,10 @@ def load_grid(src, current_gain: float = 1.0, tide=None, use_tide_layers: bool =
     Parameters
     ----------
     src : path-like or mapping
-        A ``grid.npz`` written by the export stage, or an in-memory mapping with the same keys
-        (e.g. :func:`oneocean.testing.make_test_grid`); ``current_mask`` is optional (derived
-        from ``valid_mask``; checked against it when present). Currents at invalid levels may
+        A ``grid.npz`` (or ``grid.zarr`` store) written by the export stage, or an in-memory
+        mapping with the same keys (e.g. :func:`oneocean.testing.make_test_grid`);
+        ``current_mask`` is optional (derived from ``valid_mask``; checked against it when
+        present). Currents at invalid levels may
         be 0 or already held (the export's layout): they are re-derived from the valid levels.
     current_gain : float
         Gain g on the data currents u, v (not on the tide layers), dimensionless.
