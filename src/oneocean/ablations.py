@@ -47,9 +47,25 @@ SENSORS, CURRENTS_OFF, ORACLE = "sensors", "currents_off", "oracle"
 # ------------------------------------------------------------------------------ stressor cells
 
 def stressor_keys(task: str, low: int = LOW_TIER, high: int = HIGH_TIER) -> list[str]:
-    """The keys of ``task``'s tier table (its ``harder`` block, in order) whose ``low``- and
-    ``high``-tier values differ; a key missing from either tier is left out (it has no value
-    to set), so are keys whose values are equal (they tighten nothing)."""
+    """The keys of ``task``'s tier table whose ``low``- and ``high``-tier values differ.
+
+    A key missing from either tier is left out (it has no value to set), so are keys whose
+    values are equal (they tighten nothing).
+
+    Parameters
+    ----------
+    task : str
+        A task id.
+    low : int, default ``LOW_TIER``
+        The easy tier.
+    high : int, default ``HIGH_TIER``
+        The hard tier.
+
+    Returns
+    -------
+    list of str
+        Keys of the table's ``harder`` block, in its order; empty if the task lacks a tier.
+    """
     from .tasks.common import load_task_table
 
     tiers = load_task_table(task)["tiers"]
@@ -60,10 +76,26 @@ def stressor_keys(task: str, low: int = LOW_TIER, high: int = HIGH_TIER) -> list
 
 
 def stressor_cells(task: str, low: int = LOW_TIER, high: int = HIGH_TIER) -> list[dict]:
-    """The stressor cells of ``task``: per key of :func:`stressor_keys`, ``low`` with the key
-    at its ``high`` value, then ``high`` with the key at its ``low`` value. Each a dict
-    ``{tier, key, from_tier, overrides}`` (``overrides`` is the ``tier_overrides`` argument
-    of :func:`oneocean.tasks.run_cell`)."""
+    """The stressor cells of ``task``, two per key of :func:`stressor_keys`.
+
+    Per key: ``low`` with the key at its ``high`` value, then ``high`` with the key at its
+    ``low`` value.
+
+    Parameters
+    ----------
+    task : str
+        A task id.
+    low : int, default ``LOW_TIER``
+        The easy tier.
+    high : int, default ``HIGH_TIER``
+        The hard tier.
+
+    Returns
+    -------
+    list of dict
+        ``{tier, key, from_tier, overrides}`` per cell (``overrides`` is the
+        ``tier_overrides`` argument of :func:`oneocean.tasks.run_cell`).
+    """
     from .tasks.common import load_task_table
 
     tiers = load_task_table(task)["tiers"]
@@ -146,15 +178,31 @@ def _info_conditions(cells: pd.DataFrame, method: str, tier: int) -> list[tuple]
 
 def information_frame(cell_files, tier: int = HIGH_TIER,
                       method: str = "heuristic") -> pd.DataFrame:
-    """The information ablation as data: one row per task with any of its cells (registry
-    order): ``family, task, primary, primary_higher`` and per column ``c`` (``sensors``, the
-    information levels with cells, e.g. ``true_current`` and ``true_position``,
-    ``currents_off``, ``oracle``): ``c_sr, c_lo, c_hi`` (SR %, Wilson 95 %), ``c_k``, ``c_n``,
-    ``c_state`` (``ok``, ``n/a``: the region cannot host it, ``missing``: not run),
-    ``c_metric, c_metric_lo, c_metric_hi`` (mean of the task's primary metric over the
+    """The information ablation as data: one row per task with any of its cells.
+
+    Tasks in registry order; columns ``family, task, primary, primary_higher`` and per column
+    ``c`` (``sensors``, the information levels with cells, e.g. ``true_current`` and
+    ``true_position``, ``currents_off``, ``oracle``): ``c_sr, c_lo, c_hi`` (SR %, Wilson 95 %),
+    ``c_k``, ``c_n``, ``c_state`` (``ok``, ``n/a``: the region cannot host it, ``missing``: not
+    run), ``c_metric, c_metric_lo, c_metric_hi`` (mean of the task's primary metric over the
     episodes where it is defined, seeded-bootstrap 95 %); ``same_episodes`` (every column
-    replays the sensors cell's episodes: equal ``candidate`` draws; NA without the sensors
-    cell) and ``reason`` (the n/a cells' reasons)."""
+    replays the sensors cell's episodes: equal ``candidate`` draws; NA without the sensors cell)
+    and ``reason`` (the n/a cells' reasons).
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`oneocean.tables.load_cell_frames`' rows.
+    tier : int, default ``HIGH_TIER``
+        The tier.
+    method : str, default "heuristic"
+        The method whose information is varied (the oracle is the reference column).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The columns above.
+    """
     from . import registry
 
     cells = T.load_cell_frames(cell_files)
@@ -195,6 +243,26 @@ def information_frame(cell_files, tier: int = HIGH_TIER,
 
 def information_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: str,
                       region: str | None = None) -> str:
+    """The information-ablation table as LaTeX: per task an SR line and a primary-metric line.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        :func:`information_frame`'s rows.
+    cells : pandas.DataFrame
+        :func:`oneocean.tables.load_cell_frames`' rows, for the caption.
+    tier : int
+        The tier.
+    method : str
+        The method (its label is named in the caption).
+    region : str, optional
+        The region, named in the caption and the label.
+
+    Returns
+    -------
+    str
+        The ``table*`` (label ``tab:information_<method>_t<tier>[:<region>]``).
+    """
     from . import registry
 
     conds = [c for c in dict.fromkeys(col[:-len("_state")] for col in df.columns
@@ -260,8 +328,26 @@ def information_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: 
 
 def information_table(cell_files, out_tex, tier: int = HIGH_TIER, method: str = "heuristic",
                       region: str | None = None) -> pd.DataFrame:
-    """Write the information-ablation table (:func:`information_frame`) and its numbers as
-    Parquet beside it."""
+    """Write the information-ablation table and its numbers as Parquet beside it.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`oneocean.tables.load_cell_frames`' rows.
+    out_tex : path-like
+        The ``.tex`` file.
+    tier : int, default ``HIGH_TIER``
+        The tier.
+    method : str, default "heuristic"
+        The method.
+    region : str, optional
+        The region, named in the caption and the label.
+
+    Returns
+    -------
+    pandas.DataFrame
+        :func:`information_frame`'s rows.
+    """
     cells = T.load_cell_frames(cell_files)
     df = information_frame(cells, tier, method)
     T._write(df, information_latex(df, cells, tier, method, region), out_tex,
@@ -273,9 +359,25 @@ def information_table(cell_files, out_tex, tier: int = HIGH_TIER, method: str = 
 # ------------------------------------------------------------------------------ stressors
 
 def drop_share(sr_low: float, sr_low_key: float, sr_high: float) -> float:
-    """The share of the ``low`` -> ``high`` drop in SR (points) that one key alone produces at
-    the low tier: ``(sr_low - sr_low_key) / (sr_low - sr_high)``; NaN when a rate is missing
-    or the drop is below :data:`MIN_DROP_PTS`."""
+    """The share of the low -> high drop in SR that one key alone produces at the low tier.
+
+    ``(sr_low - sr_low_key) / (sr_low - sr_high)``.
+
+    Parameters
+    ----------
+    sr_low : float
+        SR of the low tier's cell, %.
+    sr_low_key : float
+        SR of the low tier with the key at its high-tier value, %.
+    sr_high : float
+        SR of the high tier's cell, %.
+
+    Returns
+    -------
+    float
+        The share (1: the whole drop); NaN when a rate is None or not finite, or the drop is
+        below :data:`MIN_DROP_PTS` points.
+    """
     vals = (sr_low, sr_low_key, sr_high)
     if any(v is None or not np.isfinite(v) for v in vals):
         return math.nan
@@ -300,8 +402,10 @@ def _value(v) -> str:
 
 def stressor_frame(cell_files, method: str = "heuristic", low: int = LOW_TIER,
                    high: int = HIGH_TIER) -> pd.DataFrame:
-    """The stressor table as data: one row per (task, key) for every task with any of its
-    cells (registry order) and every key of :func:`stressor_keys` (the tier table's order):
+    """The stressor table as data: one row per (task, key).
+
+    Every task with any of its cells (registry order) and every key of
+    :func:`stressor_keys` (the tier table's order). Columns:
 
     ``family, task, key, low_value, high_value`` (canonical JSON); the ladder's cells
     ``T<low>_*`` and ``T<high>_*`` and the key's cells ``T<low>_plus_key_*`` (the low tier
@@ -313,7 +417,24 @@ def stressor_frame(cell_files, method: str = "heuristic", low: int = LOW_TIER,
     rejects Tier ``low`` with it, ``n/a``: a cell is missing or not hostable);
     ``over_three_quarters`` (share > :data:`MAX_SHARE`; NA when the share is n/a); per task
     ``check`` (``pass``: every key's share evaluated and none above; ``FAIL``: a key above;
-    ``n/a``) and ``check_note``; ``reason`` (the row's n/a cells' reasons)."""
+    ``n/a``) and ``check_note``; ``reason`` (the row's n/a cells' reasons).
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`oneocean.tables.load_cell_frames`' rows.
+    method : str, default "heuristic"
+        The method.
+    low : int, default ``LOW_TIER``
+        The easy tier.
+    high : int, default ``HIGH_TIER``
+        The hard tier.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The columns above; ``attrs`` holds ``low`` and ``high``.
+    """
     from . import registry
     from .tasks.common import load_task_table
 
@@ -383,7 +504,18 @@ def _conflict(c) -> bool:
 
 
 def flagged(value) -> bool:
-    """An ``over_three_quarters`` value as a plain bool (NA: False)."""
+    """An ``over_three_quarters`` value as a plain bool.
+
+    Parameters
+    ----------
+    value : bool, None or pandas.NA
+        The value.
+
+    Returns
+    -------
+    bool
+        ``bool(value)``; False for None and NA.
+    """
     return value is not None and value is not pd.NA and bool(value)
 
 
@@ -440,6 +572,24 @@ def _value_text(v: str) -> str:
 
 def stressor_latex(df: pd.DataFrame, cells: pd.DataFrame, method: str,
                    region: str | None = None) -> str:
+    """The stressor table as LaTeX, with each task's check verdict in the caption.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        :func:`stressor_frame`'s rows (its ``attrs`` give the tiers).
+    cells : pandas.DataFrame
+        :func:`oneocean.tables.load_cell_frames`' rows, for the caption.
+    method : str
+        The method (its label is named in the caption).
+    region : str, optional
+        The region, named in the caption and the label.
+
+    Returns
+    -------
+    str
+        The ``table*`` (label ``tab:stressors_<method>[:<region>]``).
+    """
     from . import registry
 
     low, high = df.attrs.get("low", LOW_TIER), df.attrs.get("high", HIGH_TIER)
@@ -504,8 +654,28 @@ def stressor_latex(df: pd.DataFrame, cells: pd.DataFrame, method: str,
 
 def stressor_table(cell_files, out_tex, method: str = "heuristic", low: int = LOW_TIER,
                    high: int = HIGH_TIER, region: str | None = None) -> pd.DataFrame:
-    """Write the stressor table (:func:`stressor_frame`) and its numbers as Parquet beside
-    it."""
+    """Write the stressor table (:func:`stressor_frame`) and its numbers as Parquet beside it.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`oneocean.tables.load_cell_frames`' rows.
+    out_tex : path-like
+        The ``.tex`` file.
+    method : str, default "heuristic"
+        The method.
+    low : int, default ``LOW_TIER``
+        The easy tier.
+    high : int, default ``HIGH_TIER``
+        The hard tier.
+    region : str, optional
+        The region, named in the caption and the label.
+
+    Returns
+    -------
+    pandas.DataFrame
+        :func:`stressor_frame`'s rows.
+    """
     cells = T.load_cell_frames(cell_files)
     df = stressor_frame(cells, method, low, high)
     T._write(df, stressor_latex(df, cells, method, region), out_tex,

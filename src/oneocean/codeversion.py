@@ -31,7 +31,23 @@ def _files(entry: Path) -> list[Path]:
 
 
 def module_file(module: str) -> Path:
-    """The source file of a dotted module name (not imported)."""
+    """The source file of a dotted module name (the module itself is not imported).
+
+    Parameters
+    ----------
+    module : str
+        A dotted module name, e.g. ``"oneocean.tasks.g2g"``.
+
+    Returns
+    -------
+    pathlib.Path
+        The resolved source file.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such module, or it has no source file.
+    """
     spec = importlib.util.find_spec(module)
     if spec is None or spec.origin is None:
         raise FileNotFoundError(f"code version: module {module} not found")
@@ -44,10 +60,23 @@ TASK_DEPENDS = {"RF": ("G2G",)}
 
 
 def task_files(task: str) -> list[Path]:
-    """The files a rollout cell of ``task`` depends on (:data:`ROLLOUT_SHARED` plus the
-    task's module, its heuristic twin ``methods/heuristic/<module>.py`` and its kernel module
+    """The files a rollout cell of ``task`` depends on.
+
+    These are :data:`ROLLOUT_SHARED` plus the task's module, its heuristic twin
+    ``methods/heuristic/<module>.py`` and its kernel module
     (:attr:`~oneocean.registry.TaskSpec.kernel_module`), and its tier table; and those of
-    the tasks it imports, :data:`TASK_DEPENDS`)."""
+    the tasks it imports, :data:`TASK_DEPENDS`.
+
+    Parameters
+    ----------
+    task : str
+        A registered task id, e.g. ``"G2G"``.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The resolved files, sorted, without duplicates.
+    """
     from .registry import task_spec
 
     spec = task_spec(task)
@@ -62,7 +91,18 @@ def task_files(task: str) -> list[Path]:
 
 
 def files_hash(files) -> str:
-    """sha256 over the files' package-relative names and bytes, in sorted order."""
+    """sha256 over the files' package-relative names and bytes, in sorted order.
+
+    Parameters
+    ----------
+    files : iterable of str or os.PathLike
+        The files; one outside the package is named by its base name only.
+
+    Returns
+    -------
+    str
+        The hex digest.
+    """
     h = hashlib.sha256()
     for f in sorted(Path(p).resolve() for p in files):
         try:
@@ -76,10 +116,32 @@ def files_hash(files) -> str:
 
 @functools.lru_cache(maxsize=None)
 def task_code(task: str) -> str:
-    """:func:`files_hash` of :func:`task_files` (cached per process: one workflow parse)."""
+    """:func:`files_hash` of :func:`task_files` (cached per process: one workflow parse).
+
+    Parameters
+    ----------
+    task : str
+        A registered task id.
+
+    Returns
+    -------
+    str
+        The hex digest: the code version of the task's rollout cells.
+    """
     return files_hash(task_files(task))
 
 
 def tasks_code(tasks) -> str:
-    """The code version of a job over several tasks (e.g. the BC teacher dataset)."""
+    """The code version of a job over several tasks (e.g. the BC teacher dataset).
+
+    Parameters
+    ----------
+    tasks : iterable of str
+        Registered task ids.
+
+    Returns
+    -------
+    str
+        :func:`files_hash` of the union of their :func:`task_files`.
+    """
     return files_hash(sorted({f for t in tasks for f in task_files(t)}))

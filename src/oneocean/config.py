@@ -27,11 +27,23 @@ SCHEMA_PATH = Path(str(resources.files("oneocean") / "data" / "config.schema.yam
 
 
 def load_schema(path: str | Path | None = None) -> dict:
-    """The config schema (the packaged one unless ``path``), with ``rollouts.tasks`` and
-    ``rollouts.methods`` restricted to the tasks and methods registered now, and
-    ``rollouts.tasks`` defaulting to the packaged task ladder; ``scenes.tasks`` restricted to
-    (and defaulting to) the tasks with scene tiers, ``scenes.methods`` to the methods;
-    ``rl.tasks`` restricted to the tasks and defaulting to the navigation family's."""
+    """The config schema, with the task and method enums of the registry filled in.
+
+    ``rollouts.tasks`` and ``rollouts.methods`` are restricted to the tasks and methods
+    registered now, ``rollouts.tasks`` defaulting to the packaged task ladder; ``scenes.tasks``
+    is restricted to (and defaults to) the tasks with scene tiers, ``scenes.methods`` to the
+    methods; ``rl.tasks`` is restricted to the tasks and defaults to the navigation family's.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        A schema YAML file; default the packaged one (:data:`SCHEMA_PATH`).
+
+    Returns
+    -------
+    dict
+        The JSON schema (a new dict on every call).
+    """
     if path is None:
         text = (resources.files("oneocean") / "data" / "config.schema.yaml").read_text()
     else:
@@ -141,12 +153,28 @@ def _scalar(text: str, schema: dict):
 
 
 def coerce_strings(instance, schema: dict, root: dict | None = None):
-    """``instance`` with strings that spell a number, boolean or null turned into that value
-    wherever ``schema`` asks for an integer, number, boolean or null and not a string (dicts
-    and lists are changed in place; the result must be used for a scalar ``instance``).
+    """Turn strings that spell a number, boolean or null into that value where the schema asks.
 
-    ``snakemake --config 'rollouts={"episodes": 5}'`` parses nested values as strings
-    (``"5"``); this lets such overrides validate while ``"five"`` still fails validation.
+    A string is converted wherever ``schema`` asks for an integer, number, boolean or null and
+    not a string. ``snakemake --config 'rollouts={"episodes": 5}'`` parses nested values as
+    strings (``"5"``); this lets such overrides validate while ``"five"`` still fails
+    validation.
+
+    Parameters
+    ----------
+    instance : object
+        The config (or a part of it); dicts and lists are changed in place.
+    schema : dict
+        The JSON schema (or subschema) ``instance`` must match; local ``$ref``, ``allOf``,
+        ``oneOf`` and ``anyOf`` are followed.
+    root : dict, optional
+        The whole schema, against which ``$ref`` resolves; default ``schema``.
+
+    Returns
+    -------
+    object
+        ``instance`` coerced: the same dict or list, or the new scalar (which the caller must
+        use for a scalar ``instance``).
     """
     root = schema if root is None else root
     ref = schema.get("$ref")
@@ -190,9 +218,24 @@ def coerce_strings(instance, schema: dict, root: dict | None = None):
 
 
 def validate_config(config: dict, schema: dict | None = None) -> dict:
-    """Import the config's ``plugins`` (they may register tasks and methods), then validate
-    ``config`` in place against ``schema`` (default :func:`load_schema`), fill defaults, and
-    return it.
+    """Validate ``config`` in place against the schema, fill defaults, and return it.
+
+    First the config's ``plugins`` are imported (they may register tasks and methods); strings
+    are coerced (:func:`coerce_strings`); after the schema, the checks it cannot express run
+    (region and sources, held-out seeds, LLM models, scenes) and one ``planner`` method per
+    ``llm.models`` entry is registered (:func:`register_llm_methods`).
+
+    Parameters
+    ----------
+    config : dict
+        The merged config, changed in place.
+    schema : dict, optional
+        The JSON schema; default :func:`load_schema`.
+
+    Returns
+    -------
+    dict
+        ``config``, validated, defaults filled.
 
     Raises
     ------
@@ -241,11 +284,24 @@ DATA_SECTIONS = ("region", "sources", "synthetic", "cmems", "gebco", "etopo", "f
 
 
 def validate_data_config(config: dict, where: str = "config") -> dict:
-    """Validate and fill only the sections a region's product depends on
-    (:data:`DATA_SECTIONS`: the region, its sources and their blocks, the variants) against
-    the packaged schema, with the same region and source checks as :func:`validate_config`.
-    Other top-level keys must be known to the schema but are not checked (no plugins, no task
-    registry). Returns a new dict of just those sections, defaults filled.
+    """Validate and fill only the sections a region's product depends on.
+
+    The sections are :data:`DATA_SECTIONS` (the region, its sources and their blocks, the
+    variants); they are checked against the packaged schema, with the same region and source
+    checks as :func:`validate_config`. Other top-level keys must be known to the schema but
+    are not checked (no plugins, no task registry).
+
+    Parameters
+    ----------
+    config : dict
+        A config (or a region file's mapping); not changed.
+    where : str, default "config"
+        Names the config in the errors, e.g. a region file's path.
+
+    Returns
+    -------
+    dict
+        A new dict of just those sections, defaults filled.
 
     Raises
     ------
@@ -337,13 +393,37 @@ def _check_scenes(cfg: dict) -> None:
 
 
 def llm_method(model: dict) -> str:
-    """The method name of an ``llm.models`` entry."""
+    """The method name of an ``llm.models`` entry.
+
+    Parameters
+    ----------
+    model : dict
+        An ``llm.models`` entry (its ``name`` is used).
+
+    Returns
+    -------
+    str
+        ``llm_<name>``.
+    """
     return f"llm_{model['name']}"
 
 
 def register_llm_methods(cfg: dict) -> list[str]:
-    """Register one ``planner`` method per ``llm.models`` entry (``llm_<name>``), so paths,
-    wildcards and tables know them; returns their names."""
+    """Register one ``planner`` method per ``llm.models`` entry, so paths, wildcards and tables
+    know them.
+
+    A method already registered under the name is kept as it is.
+
+    Parameters
+    ----------
+    cfg : dict
+        The config (its ``llm.models``; a missing or empty ``llm`` registers nothing).
+
+    Returns
+    -------
+    list of str
+        The methods' names, ``llm_<name>`` (:func:`llm_method`), in ``llm.models`` order.
+    """
     out = []
     for m in (cfg.get("llm") or {}).get("models") or []:
         name = llm_method(m)
@@ -386,7 +466,25 @@ def _check_held_out(rollouts: dict) -> None:
 
 
 def load_config(*paths: str | Path, overrides: dict | None = None) -> dict:
-    """Deep-merge YAML files (later wins) and ``overrides``, then validate."""
+    """Deep-merge YAML files (later wins) and ``overrides``, then validate.
+
+    Parameters
+    ----------
+    *paths : str or pathlib.Path
+        Config YAML files, each a mapping at the top level (an empty file is an empty one).
+    overrides : dict, optional
+        Merged last, over the files.
+
+    Returns
+    -------
+    dict
+        The validated config, defaults filled (:func:`validate_config`).
+
+    Raises
+    ------
+    ConfigError
+        A file is missing, not valid YAML or not a mapping, or the merged config is invalid.
+    """
     merged: dict = {}
     for p in paths:
         try:
@@ -405,6 +503,20 @@ def load_config(*paths: str | Path, overrides: dict | None = None) -> dict:
 
 
 def deep_update(base: dict, new: dict) -> dict:
+    """Merge ``new`` into ``base`` recursively: mappings merge, anything else replaces.
+
+    Parameters
+    ----------
+    base : dict
+        The mapping to update, in place.
+    new : dict
+        The values that win; copied deeply into ``base``.
+
+    Returns
+    -------
+    dict
+        ``base``.
+    """
     for k, v in new.items():
         if isinstance(v, dict) and isinstance(base.get(k), dict):
             deep_update(base[k], v)

@@ -4,7 +4,14 @@ from __future__ import annotations
 
 
 class OneOceanError(ValueError):
-    """Bad input or configuration. ``str(err)`` is a single line meant for the user."""
+    """Bad input or configuration. ``str(err)`` is a single line meant for the user.
+
+    Parameters
+    ----------
+    message : str
+        What went wrong, naming the file or key; runs of whitespace (newlines included) are
+        collapsed to single spaces.
+    """
 
     def __init__(self, message: str):
         super().__init__(" ".join(str(message).split()))
@@ -19,9 +26,19 @@ class ConfigError(OneOceanError):
 
 
 class DiskFullError(OneOceanError):
-    """The disk (or the user's quota) filled up while an artifact was being written; the
-    partial file was removed. ``path`` is the artifact, ``free`` the free bytes on its
-    filesystem when the write failed (``None`` if unknown)."""
+    """The disk (or the user's quota) filled up while an artifact was being written.
+
+    The partial file was removed. The three arguments are kept as attributes of the same names.
+
+    Parameters
+    ----------
+    path : path-like
+        The artifact being written.
+    free : int, optional
+        Free bytes on its filesystem when the write failed (None if unknown).
+    what : str, default "the disk is full"
+        The cause, as it appears in the message.
+    """
 
     def __init__(self, path, free: int | None = None, what: str = "the disk is full"):
         self.path, self.free, self.what = path, free, what
@@ -34,6 +51,7 @@ class CredentialsError(OneOceanError):
 
 
 class NotApplicable(ConfigError):
-    """A region cannot host a task cell (e.g. no water deep enough, no site in the tier's
-    current regime). Not a crash: the workflow writes the cell as not applicable with this
-    one-line reason and the tables show it so."""
+    """A region cannot host a task cell.
+
+    E.g. no water deep enough, no site in the tier's current regime. Not a crash: the workflow
+    writes the cell as not applicable with this one-line reason and the tables show it so."""

@@ -39,7 +39,24 @@ from .vocab import EVALUATION_SEED
 
 
 def load_policy(spec: str):
-    """``"package.module:attr"`` -> the object (a one-line ConfigError if it is not there)."""
+    """Import a policy from its ``"package.module:attr"`` spec.
+
+    Parameters
+    ----------
+    spec : str
+        ``module:attr``; ``attr`` may be dotted (``mod:Class.method``).
+
+    Returns
+    -------
+    callable
+        The object named by ``spec``.
+
+    Raises
+    ------
+    ConfigError
+        One line, if ``spec`` has no ``:``, the module does not import, the attribute is
+        missing or the object is not callable.
+    """
     if ":" not in spec:
         raise ConfigError(f"policy {spec!r}: expected 'module:callable', e.g. mypkg.mod:act")
     mod_name, attr = spec.split(":", 1)
@@ -66,19 +83,67 @@ def evaluate(policy, task: str, tier: int, grid=None, *, episodes: int = 50,
              vehicle=None, name: str = "user", backend: str = "core",
              scene=None, current_gain: float = 1.0, tide=None, obs_mode: str | None = None,
              action_mode: str | None = None) -> pd.DataFrame:
-    """Run ``policy`` on ``episodes`` episodes of a (task, tier) cell through the step API's
-    loop; returns the cell table (:func:`oneocean.tasks.cell_frame`) with ``method = name``.
+    """Run ``policy`` on ``episodes`` episodes of a (task, tier) cell through the step API's loop.
 
-    ``grid``: what :func:`oneocean.defaults.resolve_grid` takes (None: the default region's
-    grid; ignored with ``scene``). ``backend``/``scene``: the execution backend
-    (:class:`oneocean.tasks.Cell`); the same episodes, judge and metrics on either.
-    ``current_gain``/``tide``: the run's forcing (:class:`oneocean.tasks.Cell`: a gain on the
-    data currents and a synthetic tide term, e.g. ``{"amplitude_ms": 0.3, "period_s":
-    44712}``; the episodes stay the same). ``obs_mode``/``action_mode``: the views of
-    :class:`oneocean.envs.OceanVectorEnv` the policy was built for (``raw`` / ``velocity``
-    by default, or ``normalized``: what a policy trained on the normalised view sees and
-    returns, computed by the env exactly as in training); None takes the policy's own
-    ``obs_mode`` / ``action_mode`` attribute where it has one."""
+    The same episodes, judge and metrics as the workflow's rollout cells, on either backend.
+
+    Parameters
+    ----------
+    policy : callable
+        ``policy(obs) -> actions``: ``obs`` (E, N, OBS_DIM) float64, ``actions`` (E, N, 3),
+        see the module docstring. Non-finite actions are replaced by 0.
+    task : str
+        A registered task id, e.g. ``"G2G"``.
+    tier : int
+        1, 2 or 3.
+    grid : Grid, path-like or mapping, optional
+        What :func:`oneocean.defaults.resolve_grid` takes (None: the default region's grid;
+        ignored with ``scene``).
+    episodes : int, default 50
+        Number of episodes E, all run at once.
+    seed : int, default ``EVALUATION_SEED``
+        Evaluation seed (:data:`oneocean.vocab.EVALUATION_SEED`, held out from calibration);
+        a seed whose episodes the cell cannot host raises ``NotApplicable``.
+    dynamics : str, default "6dof"
+        Vehicle model: ``kinematic``, ``3dof``, ``4dof`` or ``6dof``.
+    n_agents : int, optional
+        Team size N (default: the task's own).
+    currents : bool, default True
+        False: the currents-off ablation (the same episodes).
+    vehicle : Vehicle, optional
+        The vehicle (:func:`oneocean.engine.load_vehicle`; default: the task table's).
+    name : str, default "user"
+        The ``method`` column of the table.
+    backend : str, default "core"
+        The execution backend (:class:`oneocean.tasks.Cell`): ``core`` or ``mujoco`` (which
+        needs ``scene``).
+    scene : Scene, optional
+        A :class:`oneocean.backends.mujoco.scenes.Scene` to run in.
+    current_gain : float, default 1.0
+        Gain on the data currents u, v (1: the data as they are); the episodes stay the same.
+    tide : dict, optional
+        A synthetic tide term, e.g. ``{"amplitude_ms": 0.3, "period_s": 44712}`` (m s-1, s);
+        the episodes stay the same.
+    obs_mode : str, optional
+        The observation view the policy was built for (:class:`oneocean.envs.OceanVectorEnv`):
+        ``raw`` or ``normalized``; None takes the policy's ``obs_mode`` attribute, else ``raw``.
+    action_mode : str, optional
+        ``velocity`` (m s-1) or ``normalized`` (units of ``v_max``); None takes the policy's
+        ``action_mode`` attribute, else ``velocity``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The cell table (:func:`oneocean.tasks.cell_frame`), one row per episode, with
+        ``method = name`` and a ``candidate`` column after ``seed``.
+
+    Raises
+    ------
+    ConfigError
+        If the policy returns actions of the wrong shape (or on a bad argument).
+    NotApplicable
+        If the region cannot host the cell's episodes for ``seed``.
+    """
     from .envs import OceanVectorEnv
     from .tasks import cell_frame
 
@@ -113,9 +178,33 @@ def evaluate(policy, task: str, tier: int, grid=None, *, episodes: int = 50,
 
 def evaluate_to_file(policy_spec: str, out_path, task: str, tier: int, grid_path=None, *,
                      name: str | None = None, **kw) -> dict:
-    """:func:`evaluate` a ``module:callable`` policy and write the cell's Parquet table
-    atomically (with its manifest entry), like the workflow's rollout cells (``grid_path``:
-    as :func:`evaluate`'s ``grid``)."""
+    """:func:`evaluate` a ``module:callable`` policy and write the cell's Parquet table.
+
+    Written atomically, with the run's configuration in the file's metadata, like the
+    workflow's rollout cells.
+
+    Parameters
+    ----------
+    policy_spec : str
+        ``module:callable`` (:func:`load_policy`).
+    out_path : path-like
+        The output ``.parquet`` file.
+    task : str
+        A registered task id.
+    tier : int
+        1, 2 or 3.
+    grid_path : path-like, optional
+        As :func:`evaluate`'s ``grid``.
+    name : str, optional
+        The ``method`` column (default: the callable's name in ``policy_spec``).
+    **kw
+        Further keyword arguments of :func:`evaluate`.
+
+    Returns
+    -------
+    dict
+        The manifest entry (:func:`oneocean.engine.write_metrics`).
+    """
     from .engine import write_metrics
     from .tasks.common import tier_params
 

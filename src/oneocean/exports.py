@@ -41,8 +41,19 @@ EARTH_RADIUS_M = 6371008.8
 
 
 def metres_per_degree(lat0_deg: float) -> tuple[float, float]:
-    """Metres per degree of latitude and of longitude at latitude ``lat0_deg`` (equirectangular,
-    spherical Earth)."""
+    """Metres per degree of latitude and of longitude at a latitude (equirectangular, spherical
+    Earth of radius :data:`EARTH_RADIUS_M`).
+
+    Parameters
+    ----------
+    lat0_deg : float
+        The latitude, degrees.
+
+    Returns
+    -------
+    m_per_deg_lat, m_per_deg_lon : float
+        Metres per degree of latitude, and of longitude (scaled by ``cos(lat0_deg)``), m.
+    """
     m_lat = np.pi * EARTH_RADIUS_M / 180.0
     return float(m_lat), float(m_lat * np.cos(np.deg2rad(lat0_deg)))
 
@@ -101,11 +112,16 @@ def export_grid(product_path, out_path, meta: dict | None = None) -> None:
         Output ``.npz`` (or a zarr store of the same arrays when it ends in ``.zarr``); ``u, v``
         (nt, nz, ny, nx) float32 m s-1, held below the deepest valid level, zero where
         ``current_mask == 0``; ``u_tide, v_tide`` (nt, ny, nx) float32, zero where
-        ``current_mask == 0`` or without tide; axes, ``land_mask``, ``valid_mask``,
-        ``current_mask`` (ny, nx) uint8, the lat/lon <-> metres mapping and ``meta_json``
-        (see contracts §3).
+        ``current_mask == 0`` or without tide; axes, ``elevation`` (ny, nx) float32 m,
+        ``land_mask`` (ny, nx) float32, ``valid_mask`` (nz, ny, nx) uint8, ``current_mask``
+        (ny, nx) uint8, the lat/lon <-> metres mapping and ``meta_json`` (see contracts §3).
     meta : dict, optional
         Extra fields for ``meta_json`` (e.g. region, variant).
+
+    Raises
+    ------
+    DataError
+        The product cannot be opened.
     """
     from .engine.grid import fill_columns
 
@@ -161,8 +177,26 @@ def export_grid(product_path, out_path, meta: dict | None = None) -> None:
 
 
 def default_point(ds: xr.Dataset) -> tuple[float, float]:
-    """A default point in water: the node of a wettest column (most valid depth levels) closest
-    to the domain centre (in metres; ties go to the lowest flat index). Returns (lat, lon)."""
+    """A default point in water: the node of a wettest column closest to the domain centre.
+
+    A wettest column has the most valid depth levels; the distance is measured in metres, ties
+    go to the lowest flat index.
+
+    Parameters
+    ----------
+    ds : xr.Dataset
+        A product (its ``latitude``, ``longitude`` and ``valid_mask``).
+
+    Returns
+    -------
+    lat, lon : float
+        The node, degrees.
+
+    Raises
+    ------
+    DataError
+        The product has no valid water column.
+    """
     lat, lon = ds["latitude"].values, ds["longitude"].values
     count = ds["valid_mask"].values.astype(np.int64).sum(axis=0)
     if count.max() == 0:
@@ -204,15 +238,19 @@ def point_weights(glat: np.ndarray, glon: np.ndarray, depth: np.ndarray, land: n
 
     Parameters
     ----------
-    glat, glon : (ny,), (nx,) float64, ascending grid axes (degrees)
-    depth : (nz,) float64, ascending levels (m, positive down)
-    land : (ny, nx) int, 1 = land (from the bathymetry)
-    valid : (nz, ny, nx) int, 1 = valid current
+    glat, glon : (ny,), (nx,) float64
+        The grid axes, ascending, degrees.
+    depth : (nz,) float64
+        The levels, ascending, m, positive down.
+    land : (ny, nx) int
+        1 = land (from the bathymetry).
+    valid : (nz, ny, nx) int
+        1 = valid current.
     lat, lon : float
         The point (degrees).
     depth_m : float or None
         Depth (m, positive down); None = the first level.
-    where : str
+    where : str, default "product"
         Names the product in error messages.
     elevation : (ny, nx) float, optional
         Bathymetry (m, positive up): the depth must not lie below its bilinear seafloor.
@@ -278,7 +316,18 @@ def point_weights(glat: np.ndarray, glon: np.ndarray, depth: np.ndarray, land: n
 
 
 def hold_column(valid_column: np.ndarray) -> np.ndarray:
-    """:func:`oneocean.engine.grid.hold_levels` of one column (nz,) -> (nz,) source levels."""
+    """:func:`oneocean.engine.grid.hold_levels` of one column.
+
+    Parameters
+    ----------
+    valid_column : (nz,) bool or int
+        1 = the product defines a current at this level.
+
+    Returns
+    -------
+    (nz,) int64
+        The level each level reads (a column without a valid level reads level 0).
+    """
     from .engine.grid import hold_levels
 
     return hold_levels(np.asarray(valid_column).reshape(-1, 1, 1))[:, 0, 0]
@@ -312,8 +361,9 @@ def export_temporal(product_path, out_path, lat: float | None, lon: float | None
     Raises
     ------
     DataError
-        The point lies outside the grid or below the deepest level's cell, on land, outside the
-        currents' coverage, or below the seafloor.
+        The product cannot be opened or has no valid water column, or the point lies outside
+        the grid or below the deepest level's cell, on land, outside the currents' coverage, or
+        below the seafloor.
     """
     with _open(product_path) as ds:
         glat, glon = ds["latitude"].values, ds["longitude"].values

@@ -51,16 +51,35 @@ _PDF_META = {"Creator": None, "Producer": None, "CreationDate": None}
 
 
 def palette(n: int | None = None) -> list[tuple[float, float, float]]:
-    """The figures' qualitative colours (seaborn ``colorblind``), ``n`` of them (default 10)."""
+    """The figures' qualitative colours (seaborn ``colorblind``).
+
+    Parameters
+    ----------
+    n : int, optional
+        How many (default: the palette's 10; more repeat it).
+
+    Returns
+    -------
+    list of tuple of float
+        RGB triples in [0, 1].
+    """
     import seaborn as sns
 
     return list(sns.color_palette("colorblind", n))
 
 
 def style_rc() -> dict:
-    """The rcParams every figure is drawn with: seaborn's ``ticks`` style at ``paper`` scale,
-    DejaVu Sans (shipped with matplotlib, so the same glyphs everywhere), 8 pt text, the
-    :func:`palette` as colour cycle, TrueType fonts in the PDF."""
+    """The rcParams every figure is drawn with.
+
+    Seaborn's ``ticks`` style at ``paper`` scale, DejaVu Sans (shipped with matplotlib, so the
+    same glyphs everywhere), 8 pt text, the :func:`palette` as colour cycle, TrueType fonts in
+    the PDF.
+
+    Returns
+    -------
+    dict
+        The rcParams, for :func:`matplotlib.rc_context`.
+    """
     import seaborn as sns
     from cycler import cycler
 
@@ -85,7 +104,13 @@ def style_rc() -> dict:
 
 @contextlib.contextmanager
 def paper_style():
-    """Context in which a figure is built and saved (see :func:`style_rc`)."""
+    """Context in which a figure is built and saved (see :func:`style_rc`).
+
+    Yields
+    ------
+    None
+        The body runs with the figures' rcParams.
+    """
     import matplotlib
 
     with matplotlib.rc_context(style_rc()):
@@ -93,8 +118,24 @@ def paper_style():
 
 
 def new_figure(width_in: float, height_in: float, layout: str | None = "constrained"):
-    """A matplotlib Figure with its own Agg canvas (no pyplot state); call inside
-    :func:`paper_style`."""
+    """A matplotlib Figure with its own Agg canvas (no pyplot state).
+
+    Call it inside :func:`paper_style`.
+
+    Parameters
+    ----------
+    width_in : float
+        Width, inches (e.g. :data:`COLUMN_IN`, :data:`PAGE_IN`).
+    height_in : float
+        Height, inches.
+    layout : str or None, default "constrained"
+        Matplotlib's layout engine.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
+    """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -104,15 +145,23 @@ def new_figure(width_in: float, height_in: float, layout: str | None = "constrai
 
 
 def freeze_layout(fig, ndigits: int = 6) -> None:
-    """Run the figure's layout engine once, round every axes position (and the figure-level
-    titles) to ``ndigits`` decimals of the figure size, and switch the engine off.
+    """Run the figure's layout engine once, round the positions, and switch the engine off.
 
-    Constrained layout's solver (kiwisolver) orders its variables by memory address, so the
-    positions it returns can differ in the last bit from one call to the next, depending on
-    what the process allocated before; the PDF writes coordinates with six decimals, and a
-    position that falls on a rounding tie then changes the file's bytes (seen: one legend line
-    at 127.3096875 pt). Rounded positions take that noise out; the shift is below 1e-6 of the
-    figure size, far below a pixel."""
+    Every axes position (and the figure-level titles) is rounded to ``ndigits`` decimals of
+    the figure size. Constrained layout's solver (kiwisolver) orders its variables by memory
+    address, so the positions it returns can differ in the last bit from one call to the
+    next, depending on what the process allocated before; the PDF writes coordinates with six
+    decimals, and a position that falls on a rounding tie then changes the file's bytes.
+    Rounded positions take that noise out; the shift is below 1e-6 of the figure size, far
+    below a pixel. A figure without a layout engine is left as it is.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    ndigits : int, default 6
+        Decimals kept, in figure-size units.
+    """
     if fig.get_layout_engine() is None:
         return
     fig.draw_without_rendering()
@@ -127,9 +176,23 @@ def freeze_layout(fig, ndigits: int = 6) -> None:
 
 
 def save_figure(fig, out_png) -> tuple[Path, Path]:
-    """Write ``fig`` as ``out_png`` and the PDF beside it (same stem), each atomically and
-    byte-stable (fixed metadata, frozen layout: :func:`freeze_layout`). Returns
-    ``(png, pdf)``."""
+    """Write ``fig`` as ``out_png`` and the PDF beside it (same stem).
+
+    Each is written atomically and byte-stable (fixed metadata, frozen layout:
+    :func:`freeze_layout`); the PNG at :data:`DPI`.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    out_png : path-like
+        The PNG path.
+
+    Returns
+    -------
+    png, pdf : pathlib.Path
+        The two files.
+    """
     png = Path(out_png)
     pdf = png.with_suffix(".pdf")
     freeze_layout(fig)
@@ -502,12 +565,43 @@ def plot_pollution_species(out_png, seed: int = 0, *, times_s=(300.0, 1200.0, 27
     the times ``times_s``; each panel gives the species' mass on the grid, each column the
     budget (on the grid, escaped through open sides, degraded). Deterministic for a seed.
 
+    Parameters
+    ----------
+    out_png : path-like
+        The PNG (the PDF goes beside it: :func:`save_figure`).
+    seed : int, default 0
+        Seed of the coast's phase and the spill's placement and shape.
+    times_s : sequence of float, default (300.0, 1200.0, 2700.0)
+        Snapshot times, s (>= 0; sorted, rounded to whole steps).
+    dt_s : float, default 10.0
+        Time step, s (> 0).
+    nx, nz : int, default 80, 56
+        Cells along x (east) and z (north).
+    h_m : float, default 10.0
+        Cell size, m.
+    spill_kg : float, default 1000.0
+        Mass of the initial spill, kg.
+    leak_kg_s : float, default 0.15
+        Rate of the continuous leak, kg s-1.
+    current_ms : float, default 0.12
+        Uniform eastward drift, m s-1.
+    eddy_ms : float, default 0.2
+        Peak speed of the eddy, m s-1.
+    kappa_m2s : float, default 1.5
+        Diffusivity, m2 s-1.
+
     Returns
     -------
     dict
         ``times_s`` (nt,), ``species``, ``mass_kg`` (n_species, nt) on the grid,
-        ``emitted_kg`` / ``escaped_kg`` / ``degraded_kg`` (nt,) cumulative, ``fields``
-        (nt, n_species, nz, nx) kg m-2, ``land`` (nz, nx), ``png``, ``pdf``.
+        ``initial_kg`` (the spill's mass on the grid), ``emitted_kg`` / ``escaped_kg`` /
+        ``degraded_kg`` (nt,) cumulative, ``fields`` (nt, n_species, nz, nx) kg m-2,
+        ``land`` (nz, nx) uint8, ``png``, ``pdf``.
+
+    Raises
+    ------
+    ValueError
+        If ``times_s`` is empty or negative, or ``dt_s`` is not positive.
     """
     from matplotlib.colors import ListedColormap, PowerNorm
 
@@ -623,8 +717,18 @@ def _task_order(present, tasks=None) -> list[str]:
 
 
 def ladder_numbers(cell_files, tasks=None, method: str = "heuristic"):
-    """The numbers Fig. 6 plots, from cell files (:func:`oneocean.ladder.load_cells`): only
-    ``method``'s cells with currents on; not-applicable cells are left out.
+    """The numbers Fig. 6 plots, from cell files (:func:`oneocean.ladder.load_cells`).
+
+    Only ``method``'s cells with currents on; not-applicable cells are left out.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like
+        Rollout cell files.
+    tasks : sequence of str, optional
+        The tasks, in order (default: every task present, in registry order).
+    method : str, default "heuristic"
+        The method.
 
     Returns
     -------
@@ -634,6 +738,12 @@ def ladder_numbers(cell_files, tasks=None, method: str = "heuristic"):
     drops : DataFrame
         One row per task: ``task`` and, per consecutive tier pair ``(a, b)`` among the tiers
         present, a column ``"T{a}-T{b}"`` = SR(a) - SR(b) in points (NaN if either is missing).
+        ``attrs["tiers"]`` lists the tiers.
+
+    Raises
+    ------
+    DataError
+        No cell files, or more than one cell of ``method`` per (task, tier).
     """
     from .ladder import load_cells, wilson
 
@@ -679,11 +789,27 @@ def plot_ladder(cell_files, out_png, tasks=None, method: str = "heuristic") -> d
     not-applicable (or missing) cells are marked n/a. ``tasks`` selects and orders the tasks
     (default: every task present, in registry order).
 
+    Parameters
+    ----------
+    cell_files : iterable of path-like
+        Rollout cell files.
+    out_png : path-like
+        The PNG (the PDF goes beside it: :func:`save_figure`).
+    tasks : sequence of str, optional
+        The tasks, in order.
+    method : str, default "heuristic"
+        The method.
+
     Returns
     -------
     dict
         ``rates`` and ``drops`` (:func:`ladder_numbers`, exactly what is plotted), ``png``,
         ``pdf``.
+
+    Raises
+    ------
+    DataError
+        As :func:`ladder_numbers`.
     """
     import seaborn as sns
 
@@ -755,13 +881,33 @@ def plot_ladder(cell_files, out_png, tasks=None, method: str = "heuristic") -> d
 # ------------------------------------------------------------------------------------------
 
 def team_sweep_numbers(cell_files) -> pd.DataFrame:
-    """The numbers Fig. 7 plots: one row per team size ``n_agents`` (from each cell's record,
-    else its column), over the applicable cells with currents on (all of one task, tier and
-    method). Columns: ``n_agents, n, k, sr, sr_lo, sr_hi`` (%, Wilson 95 %),
-    ``cleanup, cleanup_lo, cleanup_hi`` (mean cleanup rate, %, seeded bootstrap 95 %),
-    ``T_s, T_lo, T_hi`` (mean time to success, s, bootstrap), ``coll_pct`` (mean
-    near-collision ratio, %), ``E`` (mean control effort) and ``task, tier, method,
-    target_pct`` (the success target fraction of the cells' tier, % or NaN)."""
+    """The numbers Fig. 7 plots: one row per team size.
+
+    Over the applicable cells with currents on, all of one task, tier and method; the team
+    size ``n_agents`` comes from each cell's record, else its column.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like
+        The sweep's cell files (of a task with a ``cleanup_rate`` metric, i.e. SPC), one per
+        team size.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Sorted by team size: ``n_agents, n, k, sr, sr_lo, sr_hi`` (%, Wilson 95 %),
+        ``cleanup, cleanup_lo, cleanup_hi`` (mean cleanup rate, %, seeded bootstrap 95 %),
+        ``T_s, T_lo, T_hi`` (mean time to success, s, bootstrap; the time limit counts for
+        failed episodes), ``coll_pct`` (mean near-collision ratio, %), ``E`` (mean control
+        effort, m2 s-1) and ``task, tier, method, target_pct`` (the success target fraction
+        of the cells' tier, %, or NaN).
+
+    Raises
+    ------
+    DataError
+        No applicable cell with currents on, cells of more than one (task, tier, method),
+        or more than one cell per team size.
+    """
     from .ladder import BOOT_SEED, read_cell, wilson
     from .planning import mean_ci
 
@@ -811,12 +957,25 @@ def plot_team_sweep(cell_files, out_png) -> dict:
     error bars) vs N, in %, with the tier's cleanup target when the cells record it. Right:
     mean time to success ``T_s`` (s, bootstrap 95 % bars; the time limit counts for failed
     episodes) and the mean near-collision ratio (%, right axis) vs N, each T point annotated
-    with the mean control effort E in thousands (m² s⁻¹).
+    with the mean control effort E in thousands (m² s⁻¹). Where the region hosts no cell,
+    the figure says so instead (an empty ``sweep``).
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like
+        The sweep's cell files, one per team size.
+    out_png : path-like
+        The PNG (the PDF goes beside it: :func:`save_figure`).
 
     Returns
     -------
     dict
         ``sweep`` (:func:`team_sweep_numbers`, exactly what is plotted), ``png``, ``pdf``.
+
+    Raises
+    ------
+    DataError
+        As :func:`team_sweep_numbers`, but for no applicable cell.
     """
     from matplotlib.lines import Line2D
     from matplotlib.ticker import MaxNLocator

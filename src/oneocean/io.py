@@ -22,9 +22,26 @@ os.umask(_UMASK)
 
 
 def read_yaml_mapping(path: str | os.PathLike, what: str) -> dict:
-    """A YAML file whose top level is a mapping (``what`` names the file in the errors: e.g.
-    ``"task table"``); an unreadable file, invalid YAML or another top level is a one-line
-    ``ConfigError`` naming the file."""
+    """Read a YAML file whose top level is a mapping.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The YAML file.
+    what : str
+        Names the file in the errors, e.g. ``"task table"``.
+
+    Returns
+    -------
+    dict
+        The file's top-level mapping.
+
+    Raises
+    ------
+    ConfigError
+        The file is unreadable, not valid YAML, or its top level is not a mapping (one line,
+        naming the file).
+    """
     import yaml
 
     from .errors import ConfigError
@@ -41,7 +58,18 @@ def read_yaml_mapping(path: str | os.PathLike, what: str) -> dict:
 
 
 def sha256_file(path: str | os.PathLike) -> str:
-    """Hex sha256 of a file's bytes, read in 1 MiB chunks."""
+    """Hex sha256 of a file's bytes, read in 1 MiB chunks.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+
+    Returns
+    -------
+    str
+        The hex digest.
+    """
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(_CHUNK), b""):
@@ -64,10 +92,25 @@ def _free_bytes(directory: Path) -> int | None:
 
 
 def disk_full_reason(exc: BaseException, directory: str | os.PathLike) -> str | None:
-    """Why writing into ``directory`` failed with ``exc`` if the disk (or quota) is full, else
-    None: an ``ENOSPC``/``EDQUOT`` errno anywhere in the exception's chain, "No space left on
-    device" in its message, or an I/O error (``OSError``/``RuntimeError``, e.g. netCDF4's HDF
-    error) while less than :data:`DISK_FULL_BYTES` are free there."""
+    """Why writing into ``directory`` failed with ``exc`` if the disk (or quota) is full.
+
+    A full disk is an ``ENOSPC``/``EDQUOT`` errno anywhere in the exception's chain, "No space
+    left on device" in a message of the chain, or an I/O error (``OSError``/``RuntimeError``,
+    e.g. netCDF4's HDF error) while less than :data:`DISK_FULL_BYTES` are free there.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The exception the write raised.
+    directory : str or os.PathLike
+        The directory written into (its free space is measured).
+
+    Returns
+    -------
+    str or None
+        ``"the disk is full"`` or ``"the disk quota is exceeded"``; None when the failure is
+        not a full disk.
+    """
     seen, e = set(), exc
     while e is not None and id(e) not in seen:
         seen.add(id(e))
@@ -87,9 +130,26 @@ def disk_full_reason(exc: BaseException, directory: str | os.PathLike) -> str | 
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; rename it onto ``path`` only on success.
 
-    On any exception the temporary file is removed, so no partial artifact is left behind. A
-    failure because the disk is full (see :func:`disk_full_reason`) becomes a one-line
-    :class:`~oneocean.errors.DiskFullError` naming ``path`` and the free space left.
+    On any exception the temporary file is removed, so no partial artifact is left behind. The
+    temporary file gets the usual umask permissions before the rename.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to create or replace; its parent directory is created if missing.
+    suffix : str, optional
+        Ends the temporary file's name; default ``path``'s suffix, or ``.tmp`` if it has none.
+
+    Yields
+    ------
+    pathlib.Path
+        The temporary file (created empty) to write.
+
+    Raises
+    ------
+    DiskFullError
+        The disk (or quota) is full (see :func:`disk_full_reason`); one line naming ``path``
+        and the free space left.
     """
     from .errors import DiskFullError
 
@@ -128,16 +188,51 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically (:func:`atomic_path`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to create or replace.
+    data : bytes
+        The file's content.
+    """
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` to ``path`` as UTF-8, atomically (:func:`atomic_path`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to create or replace.
+    text : str
+        The file's content.
+    """
     write_bytes_atomic(path, text.encode("utf-8"))
 
 
 def canonical_json(obj) -> str:
-    """JSON with sorted keys and fixed separators: equal objects give equal bytes."""
+    """JSON with sorted keys and fixed separators: equal objects give equal bytes.
+
+    Parameters
+    ----------
+    obj : object
+        JSON-serialisable data; numpy scalars and arrays and :class:`pathlib.Path` are
+        converted (to numbers, lists and strings).
+
+    Returns
+    -------
+    str
+        The JSON text, indented by 2, ending in a newline.
+
+    Raises
+    ------
+    TypeError
+        ``obj`` holds a value JSON cannot represent.
+    """
     return json.dumps(obj, sort_keys=True, indent=2, default=_json_default) + "\n"
 
 
@@ -154,11 +249,31 @@ def _json_default(o):
 
 
 def write_json_atomic(path: str | os.PathLike, obj) -> None:
+    """Write ``obj`` as :func:`canonical_json` to ``path``, atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to create or replace.
+    obj : object
+        JSON-serialisable data (see :func:`canonical_json`).
+    """
     write_text_atomic(path, canonical_json(obj))
 
 
 def config_hash(obj) -> str:
-    """sha256 of the canonical JSON of a config snapshot."""
+    """sha256 of the canonical JSON of a config snapshot.
+
+    Parameters
+    ----------
+    obj : object
+        The config (or any JSON-serialisable data, see :func:`canonical_json`).
+
+    Returns
+    -------
+    str
+        Hex sha256 of :func:`canonical_json` of ``obj``.
+    """
     return hashlib.sha256(canonical_json(obj).encode()).hexdigest()
 
 
@@ -166,10 +281,26 @@ _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 
 
 def read_npz(path: str | os.PathLike, what: str) -> dict:
-    """Every array of an ``.npz`` file (no pickles), or of a zarr store written by
-    :func:`oneocean.zarrio.write_arrays_zarr` (a path ending in ``.zarr``), read into memory;
-    a missing or unreadable file is a one-line :class:`~oneocean.errors.DataError` naming it
-    as ``what``."""
+    """Every array of an ``.npz`` file (no pickles) or an arrays zarr store, read into memory.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An ``.npz`` file, or a store written by :func:`oneocean.zarrio.write_arrays_zarr` (a
+        path ending in ``.zarr``).
+    what : str
+        What the file is, for the error message.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        The arrays by name.
+
+    Raises
+    ------
+    DataError
+        The file is missing or unreadable (one line, naming it as ``what``).
+    """
     from .errors import DataError
     from .zarrio import is_zarr, read_arrays_zarr
 
@@ -190,6 +321,13 @@ def write_npz_atomic(path: str | os.PathLike, arrays: Mapping[str, np.ndarray]) 
 
     ``numpy.savez`` stamps the current time into every zip member; here members are written
     in sorted order with a fixed timestamp, uncompressed, so identical inputs give identical bytes.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to create or replace.
+    arrays : Mapping[str, numpy.ndarray]
+        The arrays by name (member ``<name>.npy``); object arrays are refused (no pickles).
     """
     with atomic_path(path, suffix=".npz") as tmp:
         with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED) as zf:
@@ -202,6 +340,18 @@ def write_npz_atomic(path: str | os.PathLike, arrays: Mapping[str, np.ndarray]) 
 
 
 def array_digest(h: "hashlib._Hash", name: str, arr: np.ndarray) -> None:
+    """Feed an array's name, dtype, shape and values into the hash ``h``.
+
+    Parameters
+    ----------
+    h : hashlib hash object
+        The running hash, updated in place.
+    name : str
+        The array's name.
+    arr : array_like
+        The array; string and object arrays are hashed by their values' ``str`` joined with
+        ``\\x1f``, others by their C-contiguous bytes.
+    """
     arr = np.ascontiguousarray(np.asarray(arr))
     h.update(name.encode())
     h.update(str(arr.dtype).encode())
@@ -217,6 +367,16 @@ def dataset_content_hash(ds) -> str:
 
     Used for formats (NetCDF/HDF5) whose bytes may embed write-time metadata. Variables are
     streamed chunk by chunk along their first dimension so large products never load whole.
+
+    Parameters
+    ----------
+    ds : xr.Dataset
+        The dataset (lazily opened is fine).
+
+    Returns
+    -------
+    str
+        The hex digest.
     """
     h = hashlib.sha256()
     h.update(canonical_json({k: _attr(v) for k, v in ds.attrs.items()}).encode())

@@ -4,7 +4,7 @@ macro aggregates, and the protocol's checks, from per-episode cell tables.
 Pure functions of the cell files the workflow writes (``results/rollouts/...parquet``, each
 with its own record, :func:`oneocean.engine.recording.read_metrics_meta`); the workflow's
 ``table_ladder`` rule and ``benchmarks/ladder.py`` both go through :func:`ladder_frame`,
-:func:`macro_frame` and :func:`run_checks`, so the README's ladder table is the workflow's own
+:func:`macro_rate` and :func:`run_checks`, so the README's ladder table is the workflow's own
 output (``oneocean ladder-readme`` splices it in).
 
 Intervals: Wilson score interval for a rate (per cell); for a macro (the unweighted mean of the
@@ -30,7 +30,22 @@ BOOT_SEED = 20250101
 
 
 def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
-    """Wilson score interval (lo, hi) of ``k`` successes in ``n`` trials, as fractions."""
+    """Wilson score interval of ``k`` successes in ``n`` trials.
+
+    Parameters
+    ----------
+    k : int
+        Successes.
+    n : int
+        Trials.
+    z : float, default ``Z95``
+        Normal quantile of the two-sided level (95 %).
+
+    Returns
+    -------
+    tuple of float
+        ``(lo, hi)`` as fractions in [0, 1]; NaNs for ``n <= 0``.
+    """
     if n <= 0:
         return (math.nan, math.nan)
     p = k / n
@@ -41,17 +56,32 @@ def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
 
 
 def read_cell(path) -> tuple[pd.DataFrame, dict]:
-    """A cell file's per-episode table and its identity: ``task, tier, method, currents,
-    run_gain`` (the run's gain g on the data currents, a tier's own gain divided out),
-    ``tide`` (the synthetic tide term or None), ``forcing`` (``data``: the product's currents
-    as they are, ``off``, ``gain``: another gain, ``tide``: a synthetic tide added),
-    ``applicable, reason, vehicle, n_agents, seed``, and what an ablation cell changed:
-    ``info`` (the information level the method was given instead of its own sensing, e.g.
-    ``true_current``; ``""`` for its own), ``tier_overrides`` (the tier parameters it
-    replaced, ``{}`` for none) and ``ablation`` (either of the two: such a cell is never one
-    of the ladder's normal cells). The identity comes from the file's own record (a workflow
-    cell), else from its columns (e.g. a user's ``oneocean evaluate`` file). The one reader
-    of cell files (tables, figures and the ladder use it)."""
+    """A cell file's per-episode table and its identity.
+
+    The one reader of cell files (tables, figures and the ladder use it). The identity comes
+    from the file's own record (a workflow cell), else from its first row's columns (e.g. a
+    user's ``oneocean evaluate`` file).
+
+    Parameters
+    ----------
+    path : path-like
+        A cell's Parquet file (``results/rollouts/...parquet``).
+
+    Returns
+    -------
+    df : pandas.DataFrame
+        One row per episode.
+    identity : dict
+        ``task, tier, method, currents``; ``run_gain`` (the run's gain g on the data
+        currents, a tier's own gain divided out); ``tide`` (the synthetic tide term or
+        None); ``forcing`` (``data``: the product's currents as they are, ``off``, ``gain``:
+        another gain, ``tide``: a synthetic tide added); ``applicable, reason, vehicle,
+        n_agents, seed``; what an ablation cell changed: ``info`` (the information level the
+        method was given instead of its own sensing, e.g. ``true_current``; ``""`` for its
+        own), ``tier_overrides`` (the tier parameters it replaced, ``{}`` for none) and
+        ``ablation`` (either of the two: such a cell is never one of the ladder's normal
+        cells); and ``meta``, the file's whole record.
+    """
     from .engine.recording import read_metrics_meta
 
     df = pd.read_parquet(path)
@@ -83,20 +113,44 @@ def read_cell(path) -> tuple[pd.DataFrame, dict]:
 
 
 def own_info(method) -> str:
-    """The information level ``method`` senses with by default (:data:`oneocean.sensing.
-    INFO_LEVELS`): ``truth`` for the oracle, ``sensors`` for every other method."""
+    """The information level ``method`` senses with by default.
+
+    Parameters
+    ----------
+    method : str
+        A method name.
+
+    Returns
+    -------
+    str
+        One of :data:`oneocean.sensing.INFO_LEVELS`: ``truth`` for the oracle, ``sensors``
+        for every other method.
+    """
     from .methods.heuristic import SENSING
 
     return SENSING.get(str(method), "sensors")
 
 
 def load_cells(files) -> pd.DataFrame:
-    """One row per cell file: ``task, tier, method, currents, forcing, info, ablation,
-    applicable, reason, vehicle, n_agents, seed, n, k``, the episodes' success vector
-    (``success``, a numpy bool array) and the current speed each episode met (``current``,
-    m s-1; empty for a file without the column); :func:`read_cell` says what each is. The ladder and its
-    macros use the ``data`` and ``off`` cells only, never an ablation cell (an information
-    level or tier override)."""
+    """Read cell files into one row per file.
+
+    The ladder and its macros use the ``data`` and ``off`` cells only, never an ablation
+    cell (an information level or tier override).
+
+    Parameters
+    ----------
+    files : iterable of path-like
+        Cell files (:func:`read_cell`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``task, tier, method, currents, forcing, info, ablation, applicable, reason,
+        vehicle, n_agents, seed`` (:func:`read_cell` says what each is), ``n`` episodes,
+        ``k`` successes, ``success`` (the episodes' success, a bool array) and ``current``
+        (the current speed each episode met, m s-1, a float64 array; empty for a file
+        without the column).
+    """
     rows = []
     for f in files:
         df, c = read_cell(f)
@@ -112,7 +166,17 @@ def load_cells(files) -> pd.DataFrame:
 
 @dataclass(frozen=True)
 class Rate:
-    """A success rate in percent with its 95 % interval (NaN when not applicable)."""
+    """A success rate in percent with its 95 % interval (NaN when not applicable).
+
+    Attributes
+    ----------
+    sr : float
+        Success rate, %.
+    lo, hi : float
+        Bounds of the 95 % interval, %.
+    n : int
+        Episodes.
+    """
 
     sr: float
     lo: float
@@ -121,6 +185,20 @@ class Rate:
 
 
 def cell_rate(k: int, n: int) -> Rate:
+    """A cell's success rate with its Wilson 95 % interval.
+
+    Parameters
+    ----------
+    k : int
+        Successes.
+    n : int
+        Episodes.
+
+    Returns
+    -------
+    Rate
+        Rate and bounds in %; the rate is NaN for ``n = 0``.
+    """
     lo, hi = wilson(k, n)
     return Rate(100.0 * k / n if n else math.nan, 100.0 * lo, 100.0 * hi, n)
 
@@ -136,8 +214,22 @@ def _data_and_off(cells: pd.DataFrame) -> pd.DataFrame:
 
 
 def ladder_frame(cells: pd.DataFrame) -> pd.DataFrame:
-    """Per (task, method, currents, tier): ``sr, lo, hi, n, applicable, reason`` (the data
-    and currents-off cells; other forcings have their own table)."""
+    """The ladder's rates: one row per data or currents-off cell.
+
+    Other forcings and ablation cells have their own tables.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        :func:`load_cells`' rows.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``task, method, currents, tier, sr, lo, hi, n, applicable, reason, vehicle``: the
+        success rate and its Wilson 95 % bounds in % (NaN and ``n = 0`` for a cell that is
+        not applicable).
+    """
     out = []
     for _, c in _data_and_off(cells).iterrows():
         r = cell_rate(c["k"], c["n"]) if c["applicable"] else Rate(math.nan, math.nan,
@@ -150,8 +242,28 @@ def ladder_frame(cells: pd.DataFrame) -> pd.DataFrame:
 
 
 def macro_rate(cells: pd.DataFrame, method: str, tier: int, currents: bool = True) -> dict:
-    """Macro success rate (%) of one (method, tier, currents) over the applicable tasks, with
-    a stratified-bootstrap 95 % interval (episodes resampled within each task)."""
+    """Macro success rate of one (method, tier, currents) over the applicable tasks.
+
+    The unweighted mean of the tasks' rates, with a stratified-bootstrap 95 % interval
+    (:func:`stratified_macro`, tasks in sorted order); data and currents-off cells only.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        :func:`load_cells`' rows.
+    method : str
+        The method.
+    tier : int
+        The tier.
+    currents : bool, default True
+        False: the currents-off cells.
+
+    Returns
+    -------
+    dict
+        ``sr, lo, hi`` (%, NaN without applicable cells), ``tasks`` (applicable tasks with
+        episodes, averaged) and ``na`` (selected cells left out).
+    """
     cells = _data_and_off(cells)
     sel = cells[(cells["method"] == method) & (cells["tier"] == tier)
                 & (cells["currents"] == currents)]
@@ -166,9 +278,23 @@ def macro_rate(cells: pd.DataFrame, method: str, tier: int, currents: bool = Tru
 
 
 def stratified_macro(groups, seed: int = BOOT_SEED) -> tuple[float, float, float]:
-    """Unweighted mean (%) over groups (tasks) of their success rates, with a 95 % interval
-    from a seeded stratified bootstrap (episodes resampled within each group, in the given
-    order). Empty groups are skipped; none left: NaNs."""
+    """Unweighted mean over groups (tasks) of their success rates, with a bootstrap interval.
+
+    The 95 % interval comes from a seeded stratified bootstrap (:data:`N_BOOT` replicates,
+    episodes resampled within each group, in the given order). Empty groups are skipped.
+
+    Parameters
+    ----------
+    groups : iterable of array_like
+        Each group's per-episode success (bool or 0/1).
+    seed : int, default ``BOOT_SEED``
+        Bootstrap seed.
+
+    Returns
+    -------
+    tuple of float
+        ``(mean, lo, hi)`` in %; NaNs when no group has episodes.
+    """
     succ = [np.asarray(g, dtype=np.float64) for g in groups if len(g)]
     if not succ:
         return (math.nan, math.nan, math.nan)
@@ -183,6 +309,21 @@ def stratified_macro(groups, seed: int = BOOT_SEED) -> tuple[float, float, float
 
 @dataclass(frozen=True)
 class Check:
+    """One protocol check's outcome (:func:`run_checks`).
+
+    Attributes
+    ----------
+    name : str
+        What is checked.
+    measured : str
+        The measured value(s), as text.
+    target : str
+        The target, as text (``"reported"``: no target).
+    passed : bool or None
+        The verdict; None when it could not be evaluated (missing cells) or is only
+        reported.
+    """
+
     name: str
     measured: str
     target: str
@@ -190,12 +331,24 @@ class Check:
 
 
 def run_checks(cells: pd.DataFrame) -> list[Check]:
-    """The protocol's checks on the evaluation cells, reported as measured: heuristic Tier-2
-    macro SR in [60, 90] %, Tier-3 macro in [20, 50] %, heuristic SR non-increasing
-    T1 -> T3 with T1 > T3 per task, oracle >= 90 % in every cell with a 95 % Wilson lower
-    bound >= 80 %, the heuristic at least 10 points below the oracle at Tier 3 in every task
-    (what it lacks is information); the currents-off gap of the heuristic's Tier-3 macro is
-    reported, not a target (``passed`` None)."""
+    """The protocol's checks on the evaluation cells, reported as measured.
+
+    Heuristic Tier-2 macro SR in [60, 90] %, Tier-3 macro in [20, 50] %, heuristic SR
+    non-increasing T1 -> T3 with T1 > T3 per task, oracle >= 90 % in every cell with a 95 %
+    Wilson lower bound >= 80 %, the heuristic at least 10 points below the oracle at Tier 3 in
+    every task (what it lacks is information); the currents-off gap of the heuristic's Tier-3
+    macro is reported, not a target (``passed`` None).
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        :func:`load_cells`' rows.
+
+    Returns
+    -------
+    list of Check
+        The checks, in that order.
+    """
     out: list[Check] = []
     lad = ladder_frame(cells)
     h = lad[(lad["method"] == "heuristic") & lad["currents"]]
@@ -305,10 +458,24 @@ def _ladder_table(cells: pd.DataFrame) -> tuple[list[str], list[str]]:
 
 
 def current_markdown(cells: pd.DataFrame, method: str = "heuristic") -> list[str]:
-    """Each tier's current in absolute terms: per task and tier, the median [10th, 90th
-    percentile] over ``method``'s episodes of the true current speed the agents met (m/s,
-    mean over agents and steps) and the median as a percentage of the vehicle's speed limit.
-    Empty without such cells."""
+    """Each tier's current in absolute terms, as Markdown table lines.
+
+    Per task and tier, the median [10th, 90th percentile] over ``method``'s episodes of the
+    true current speed the agents met (m/s, mean over agents and steps) and the median as a
+    percentage of the vehicle's speed limit.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        :func:`load_cells`' rows (data-current cells with a ``current`` array are used).
+    method : str, default "heuristic"
+        The method whose episodes are summarised.
+
+    Returns
+    -------
+    list of str
+        The table's lines; empty without such cells.
+    """
     from . import registry
     from .engine.dynamics import load_vehicle
 
@@ -354,10 +521,29 @@ def _check_lines(cells: pd.DataFrame, skip_missing: bool = False) -> list[str]:
 
 def ladder_markdown(cells: pd.DataFrame, region: str, seed: int | None = None,
                     replicate: pd.DataFrame | None = None) -> str:
-    """The ladder as a Markdown table (SR % [95 % Wilson CI] per task x tier x method, macro
-    rows with bootstrap intervals), the n/a reasons, and the checks' verdicts; then, per
-    replicate seed (``replicate``: cells of other held-out seeds), the same table and checks
-    of its methods and the macro's change from the evaluation seed."""
+    """The ladder as Markdown: the table, the n/a reasons and the checks' verdicts.
+
+    The table gives SR % [95 % Wilson CI] per task x tier x method and macro rows with
+    bootstrap intervals. Then, per replicate seed (``replicate``: cells of other held-out
+    seeds), the same table and checks of its methods and the macro's change from the
+    evaluation seed.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        :func:`load_cells`' rows of the evaluation seed.
+    region : str
+        The region's name, for the heading line.
+    seed : int, optional
+        The evaluation seed, for the text.
+    replicate : pandas.DataFrame, optional
+        :func:`load_cells`' rows of the replicate seeds.
+
+    Returns
+    -------
+    str
+        The Markdown, ending with a newline.
+    """
     lines, notes = _ladder_table(cells)
     out = [f"Region `{region}`" + (f", evaluation seed {seed}" if seed is not None else "")
            + ": success rate % [95 % CI] (Wilson per cell; macro: stratified bootstrap).", "",
@@ -393,8 +579,21 @@ def ladder_markdown(cells: pd.DataFrame, region: str, seed: int | None = None,
 
 def write_ladder(cell_files, out_md, region: str, seed: int | None = None,
                  replicate=()) -> None:
-    """Write :func:`ladder_markdown` of the cell files (and the replicate seeds' cell files)
-    atomically (the workflow's ``table_ladder`` rule)."""
+    """Write :func:`ladder_markdown` of the cell files atomically (the ``table_ladder`` rule).
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like
+        The evaluation seed's cell files.
+    out_md : path-like
+        The Markdown file (``results/tables/<region>/ladder.md``).
+    region : str
+        The region's name.
+    seed : int, optional
+        The evaluation seed, for the text.
+    replicate : sequence of path-like, default ()
+        The replicate seeds' cell files.
+    """
     from .io import write_text_atomic
 
     rep = load_cells(list(replicate)) if len(replicate) else None
@@ -403,13 +602,45 @@ def write_ladder(cell_files, out_md, region: str, seed: int | None = None,
 
 
 def readme_markers(region: str) -> tuple[str, str]:
+    """The HTML comments that delimit a region's ladder block in the README.
+
+    Parameters
+    ----------
+    region : str
+        The region's name.
+
+    Returns
+    -------
+    tuple of str
+        ``(begin, end)`` marker lines.
+    """
     return (f"<!-- ladder:{region}:begin (generated: oneocean ladder-readme) -->",
             f"<!-- ladder:{region}:end -->")
 
 
 def splice_readme(readme, ladder_md, region: str) -> bool:
-    """Replace the README's block between :func:`readme_markers` of ``region`` with the
-    workflow's ``results/tables/<region>/ladder.md``; returns True if the README changed."""
+    """Replace a region's ladder block in the README with the workflow's ladder table.
+
+    Parameters
+    ----------
+    readme : path-like
+        The Markdown file holding the block between :func:`readme_markers` of ``region``;
+        rewritten atomically only if it changes.
+    ladder_md : path-like
+        The workflow's ``results/tables/<region>/ladder.md``.
+    region : str
+        The region's name.
+
+    Returns
+    -------
+    bool
+        True if the README changed.
+
+    Raises
+    ------
+    ConfigError
+        If the README has no block for ``region`` or ``ladder_md`` does not exist.
+    """
     from .errors import ConfigError
     from .io import write_text_atomic
     from pathlib import Path

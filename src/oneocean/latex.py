@@ -37,10 +37,32 @@ def _need(program: str) -> str:
 
 def compile_pdf(tex_path, out_pdf, *, pretex: str = "", log_path=None,
                 engine: str = "latexmk") -> Path:
-    """Compile ``tex_path`` to ``out_pdf`` (atomically) with ``latexmk -pdf`` (or a single
-    ``pdflatex`` run: ``engine="pdflatex"``), running TeX code ``pretex`` first (e.g.
-    ``\\def\\region{...}``). Any LaTeX error is a one-line :class:`ConfigError` naming the
-    file and the first error line; the full TeX log goes to ``log_path`` if given."""
+    """Compile ``tex_path`` to ``out_pdf`` (atomically, byte-reproducibly).
+
+    Parameters
+    ----------
+    tex_path : path-like
+        The ``.tex`` file; its inputs are found relative to its own folder.
+    out_pdf : path-like
+        The output PDF.
+    pretex : str, default ""
+        TeX code run first (e.g. ``\\def\\region{...}``).
+    log_path : path-like, optional
+        Where to write the full TeX log.
+    engine : str, default "latexmk"
+        ``latexmk`` (``latexmk -pdf``); any other value runs a single ``pdflatex`` pass.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out_pdf``.
+
+    Raises
+    ------
+    ConfigError
+        One line, if ``tex_path`` does not exist, the TeX program is not installed, or LaTeX
+        fails (naming the file and the first error line).
+    """
     tex_path = Path(tex_path).resolve()
     if not tex_path.is_file():
         raise ConfigError(f"{tex_path}: no such LaTeX file")
@@ -74,8 +96,19 @@ def compile_pdf(tex_path, out_pdf, *, pretex: str = "", log_path=None,
 
 
 def standalone_table(table_tex) -> str:
-    """A minimal document around one generated table (the packages the tables need), for
-    compiling it on its own."""
+    """A minimal document around one generated table, for compiling it on its own.
+
+    Parameters
+    ----------
+    table_tex : path-like
+        The table's ``.tex`` file (input by its absolute path).
+
+    Returns
+    -------
+    str
+        LaTeX source of an ``article`` loading the packages the tables need
+        (:data:`oneocean.tables.LATEX_PACKAGES`).
+    """
     from .tables import LATEX_PACKAGES
 
     path = Path(table_tex).resolve()
@@ -85,8 +118,31 @@ def standalone_table(table_tex) -> str:
 
 
 def build_paper(tex_path, out_pdf, region: str, results_dir, log_path=None) -> Path:
-    """The paper: ``tex_path`` (``paper/main.tex``) with ``\\region`` and ``\\resultsdir``
-    set to this region and results folder."""
+    """Compile the paper with ``\\region`` and ``\\resultsdir`` set to a region and results folder.
+
+    Parameters
+    ----------
+    tex_path : path-like
+        The paper source (``paper/main.tex``).
+    out_pdf : path-like
+        The output PDF.
+    region : str
+        The region name, defined as ``\\region``.
+    results_dir : path-like
+        The results folder, defined as ``\\resultsdir`` (absolute).
+    log_path : path-like, optional
+        Where to write the full TeX log.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out_pdf``.
+
+    Raises
+    ------
+    ConfigError
+        As :func:`compile_pdf`.
+    """
     results = Path(results_dir).resolve().as_posix()
     return compile_pdf(tex_path, out_pdf, log_path=log_path,
                        pretex=f"\\def\\region{{{region}}}\\def\\resultsdir{{{results}}}")

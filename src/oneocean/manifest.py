@@ -36,6 +36,13 @@ CONTENT_HASHED = (".nc", ".nc4", ".zarr")
 
 @functools.lru_cache(maxsize=1)
 def package_versions() -> dict:
+    """The installed versions of :data:`TRACKED_PACKAGES` (cached for the process).
+
+    Returns
+    -------
+    dict
+        ``{package: version}``; None for a package that is not installed.
+    """
     out = {}
     for name in TRACKED_PACKAGES:
         try:
@@ -47,7 +54,19 @@ def package_versions() -> dict:
 
 @functools.lru_cache(maxsize=1)
 def git_commit(cwd: str | None = None) -> str:
-    """The checked-out commit (with ``+dirty`` if tracked files changed), or ``unknown``."""
+    """The checked-out git commit (cached for the process).
+
+    Parameters
+    ----------
+    cwd : str, optional
+        A folder inside the repository (default: the current directory).
+
+    Returns
+    -------
+    str
+        The commit hash, with ``+dirty`` if tracked files changed, or ``"unknown"`` outside
+        a repository or without git.
+    """
     try:
         rev = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True,
                              text=True, check=True).stdout.strip()
@@ -59,8 +78,18 @@ def git_commit(cwd: str | None = None) -> str:
 
 
 def content_hash(path: str | os.PathLike) -> str | None:
-    """Hash of the decoded variables for NetCDF files and zarr stores (products, or the
-    arrays of a zarr export), ``None`` for other formats."""
+    """Hash of the decoded variables of a NetCDF file or zarr store.
+
+    Parameters
+    ----------
+    path : path-like
+        A product (``.nc``, ``.nc4``, ``.zarr``) or the arrays store of a zarr export.
+
+    Returns
+    -------
+    str or None
+        The content hash; None for a path without a :data:`CONTENT_HASHED` suffix.
+    """
     if not str(path).rstrip("/").endswith(CONTENT_HASHED):
         return None
     from .io import dataset_content_hash
@@ -73,6 +102,19 @@ def content_hash(path: str | os.PathLike) -> str | None:
 
 
 def file_record(path: str | os.PathLike) -> dict:
+    """The manifest record of one file or zarr store.
+
+    Parameters
+    ----------
+    path : path-like
+        The artifact.
+
+    Returns
+    -------
+    dict
+        ``{"path", "sha256", "bytes"}``, plus ``"content_sha256"`` (:func:`content_hash`) for
+        NetCDF files and zarr stores.
+    """
     p = Path(path)
     rec = {"path": p.as_posix(), "sha256": sha256_path(p), "bytes": path_bytes(p)}
     ch = content_hash(p)
@@ -82,7 +124,26 @@ def file_record(path: str | os.PathLike) -> dict:
 
 
 def job_provenance(rule: str, wildcards: dict, outputs: list, inputs: list, params: dict) -> dict:
-    """Provenance of one job: its outputs (hashed), inputs (hashed), params and environment."""
+    """Provenance of one job: its outputs (hashed), inputs (hashed), params and environment.
+
+    Parameters
+    ----------
+    rule : str
+        The Snakemake rule.
+    wildcards : dict
+        The job's wildcards (stored sorted by key).
+    outputs : list of path-like
+        The job's outputs; each is hashed (:func:`file_record`).
+    inputs : list of path-like
+        The job's inputs; those that are files or zarr stores are hashed, others skipped.
+    params : dict
+        The job's JSON-able parameters (stored, and hashed as ``params_sha256``).
+
+    Returns
+    -------
+    dict
+        ``{rule, wildcards, outputs, inputs, params, params_sha256, packages, git_commit}``.
+    """
     return {
         "rule": rule,
         "wildcards": dict(sorted(wildcards.items())),
@@ -96,13 +157,43 @@ def job_provenance(rule: str, wildcards: dict, outputs: list, inputs: list, para
 
 
 def write_job_provenance(path, rule, wildcards, outputs, inputs, params) -> dict:
+    """Write one job's provenance (:func:`job_provenance`) as JSON, atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        The provenance file (``results/provenance/<rule>/<wildcards>.json``).
+    rule, wildcards, outputs, inputs, params
+        As :func:`job_provenance`.
+
+    Returns
+    -------
+    dict
+        The record written.
+    """
     prov = job_provenance(rule, wildcards, outputs, inputs, params)
     write_json_atomic(path, prov)
     return prov
 
 
 def collect_manifest(provenance_files, out_path) -> dict:
-    """Merge job provenance files into one manifest keyed by artifact path."""
+    """Merge job provenance files into one manifest keyed by artifact path.
+
+    Parameters
+    ----------
+    provenance_files : iterable of path-like
+        The jobs' provenance JSON files, read in sorted order (a later job's record of the
+        same path wins).
+    out_path : path-like
+        The manifest JSON, written atomically.
+
+    Returns
+    -------
+    dict
+        ``{"schema": "oneocean-manifest/1", "artifacts": {path: record}}``: each output's
+        file record with its job's rule, wildcards, inputs, params, packages, git commit
+        and provenance file.
+    """
     artifacts = {}
     for pf in sorted(map(str, provenance_files)):
         with open(pf) as fh:
@@ -161,6 +252,18 @@ def verify(manifest_path: str | os.PathLike,
     when its bytes changed and its decoded content changed or cannot be decoded), or when any
     input it was made from is bad in the same way. Every artifact is checked; a corrupt file
     is a problem line, never an exception.
+
+    Parameters
+    ----------
+    manifest_path : path-like
+        The manifest JSON (:func:`collect_manifest`).
+    root : path-like, default "."
+        The folder the manifest's artifact paths are relative to.
+
+    Returns
+    -------
+    list of str
+        One line per bad artifact (empty: everything verifies).
 
     Raises
     ------

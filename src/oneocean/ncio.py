@@ -26,6 +26,15 @@ def netcdf_chunk_cache(size_bytes: int = _CHUNK_CACHE_BYTES):
     The library default (64 MiB per variable) fills up when a product is streamed one time step
     at a time and adds ~0.5 GB of resident memory across inputs and outputs; every stage here
     reads or writes each chunk once, so a small cache costs nothing. Restored on exit.
+
+    Parameters
+    ----------
+    size_bytes : int, default 4 MiB
+        The cache size per variable, bytes (the number of slots and the preemption are kept).
+
+    Yields
+    ------
+    None
     """
     import netCDF4
 
@@ -46,6 +55,21 @@ def netcdf_encoding(ds: xr.Dataset, zlib: bool = True, complevel: int = 1) -> di
     Floating data variables become float32 with a NaN fill, integer ones keep their dtype with no
     fill, coordinates float64 with no fill, time float64 seconds since 1970; data chunks hold one
     time step (capped at ~16 MB by splitting latitude).
+
+    Parameters
+    ----------
+    ds : xr.Dataset
+        The dataset to write.
+    zlib : bool, default True
+        Compress data variables with zlib (and the shuffle filter); coordinates never are.
+    complevel : int, default 1
+        The zlib level, 1 to 9.
+
+    Returns
+    -------
+    dict
+        Per variable: ``dtype``, ``fill_value`` (False: none), ``zlib``, and for data variables
+        ``complevel``, ``shuffle`` and ``chunksizes`` (None for scalars and coordinates).
     """
     enc: dict = {}
     for name, var in ds.variables.items():
@@ -85,6 +109,20 @@ def write_netcdf_atomic(ds: xr.Dataset, path, encoding: dict) -> None:
     across chunks), so memory stays at ~one time chunk of every variable and the HDF5 layout,
     hence the file's bytes, do not depend on thread scheduling. ``datetime64`` coordinates are
     written as float64 seconds since 1970-01-01. Nothing time-of-writing is recorded.
+
+    Parameters
+    ----------
+    ds : xr.Dataset
+        The dataset to write.
+    path : str or os.PathLike
+        The NetCDF file to create or replace (via :func:`~oneocean.io.atomic_path`).
+    encoding : dict
+        Per-variable encoding, :func:`netcdf_encoding`.
+
+    Raises
+    ------
+    DiskFullError
+        The disk (or quota) is full.
     """
     import netCDF4
 

@@ -35,8 +35,23 @@ LLM_COLUMNS = ("llm_calls", "llm_fallbacks", "llm_latency_s", "llm_prompt_tokens
 
 
 def load_suite(files) -> pd.DataFrame:
-    """Every episode of the suite's cell files, with ``task``, ``method``, ``label`` (the
-    method's table label) and the LLM accounting columns (0 where a method has none)."""
+    """Every episode of the suite's cell files in one table.
+
+    Cells that are not applicable or have no episodes are left out.
+
+    Parameters
+    ----------
+    files : iterable of path-like
+        The suite's cell files.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The cells' rows with ``task``, ``method``, ``label`` (the method's table label: the
+        registry's, else the one its file records) and the :data:`LLM_COLUMNS` (0 where a
+        method has none); an empty frame with columns ``task, method, label, episode,
+        success`` when no cell has episodes.
+    """
     from . import registry
     from .engine.recording import read_metrics_meta
 
@@ -62,7 +77,18 @@ def load_suite(files) -> pd.DataFrame:
 
 
 def not_applicable(files) -> list[str]:
-    """``"<task> (<method>)"`` of every cell file the region could not host."""
+    """The cells the region could not host.
+
+    Parameters
+    ----------
+    files : iterable of path-like
+        The suite's cell files.
+
+    Returns
+    -------
+    list of str
+        ``"<task> (<method>)"`` of every cell file recorded as not applicable.
+    """
     from .engine.recording import read_metrics_meta
 
     out = []
@@ -74,7 +100,20 @@ def not_applicable(files) -> list[str]:
 
 
 def mean_ci(x, seed: int = BOOT_SEED) -> tuple[float, float, float]:
-    """Mean and seeded percentile-bootstrap 95 % interval of ``x`` (NaN-free values)."""
+    """Mean and seeded percentile-bootstrap 95 % interval of the finite values of ``x``.
+
+    Parameters
+    ----------
+    x : array_like
+        Values; NaN and infinite ones are dropped.
+    seed : int, default ``BOOT_SEED``
+        Bootstrap seed (:data:`oneocean.ladder.N_BOOT` replicates).
+
+    Returns
+    -------
+    tuple of float
+        ``(mean, lo, hi)``; NaNs when no finite value is left.
+    """
     x = np.asarray(x, dtype=np.float64)
     x = x[np.isfinite(x)]
     if x.size == 0:
@@ -99,7 +138,24 @@ def _rate(s) -> tuple[float, float, float]:
 
 
 def performance_frame(df: pd.DataFrame, tasks=tuple(SUITE_TASKS)) -> pd.DataFrame:
-    """Table IV as numbers: one row per method; ``*_lo`` / ``*_hi`` are 95 % bounds."""
+    """Table IV as numbers: one row per method.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        :func:`load_suite`'s episodes.
+    tasks : sequence of str, default ``tuple(SUITE_TASKS)``
+        The suite's tasks (keys of :data:`SUITE_TASKS`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``method, label``; ``sr_avg`` (macro SR over the tasks with episodes, %,
+        stratified bootstrap); per task ``<T>_n`` episodes, ``<T>_sr`` (%, Wilson) and
+        ``<T>_metric`` (mean of the key metric, seeded bootstrap); ``T_s`` (mean episode
+        time, s) and ``E`` (mean team energy proxy, m2 s-1). Each value has ``_lo`` /
+        ``_hi`` columns, its 95 % bounds.
+    """
     rows = []
     for m in _methods(df):
         d = df[df["method"] == m]
@@ -121,8 +177,27 @@ def performance_frame(df: pd.DataFrame, tasks=tuple(SUITE_TASKS)) -> pd.DataFram
 
 
 def cost_frame(df: pd.DataFrame, cost_episodes: int, tasks=tuple(SUITE_TASKS)) -> pd.DataFrame:
-    """Table VI as numbers over episodes ``0 .. cost_episodes-1`` of every cell: one row per
-    method (per-episode means; ``ms_per_call`` = total latency / total calls)."""
+    """Table VI as numbers over episodes ``0 .. cost_episodes-1`` of every cell.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        :func:`load_suite`'s episodes.
+    cost_episodes : int
+        Episodes counted per cell (the first ones).
+    tasks : sequence of str, default ``tuple(SUITE_TASKS)``
+        The suite's tasks, for the macro SR.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per method: ``method, label, episodes``; ``sr_avg, sr_avg_lo, sr_avg_hi``
+        (macro SR, %, stratified-bootstrap 95 % interval); per-episode means ``calls``,
+        ``latency_s`` (s), ``prompt_tokens``, ``output_tokens``, ``total_tokens``;
+        ``ms_per_call`` (total latency / total calls, ms; 0 without calls) and
+        ``fallback_pct`` (% of calls that fell back to the heuristic's plan; NaN without
+        calls).
+    """
     d0 = df[df["episode"] < int(cost_episodes)]
     rows = []
     for m in _methods(d0):
@@ -171,6 +246,26 @@ def _esc(s: str) -> str:
 
 def performance_latex(perf: pd.DataFrame, *, tier: int, gain: float, episodes: int,
                       note: str = "") -> str:
+    """Table IV as a LaTeX booktabs table (best value per column in bold).
+
+    Parameters
+    ----------
+    perf : pandas.DataFrame
+        :func:`performance_frame`'s rows.
+    tier : int
+        The suite's tier, for the caption.
+    gain : float
+        The suite's gain on the currents, for the caption.
+    episodes : int
+        Episodes per task and method, for the caption.
+    note : str, default ""
+        A sentence appended to the caption.
+
+    Returns
+    -------
+    str
+        The LaTeX table (label ``tab:planning_performance``).
+    """
     tasks = [t for t in SUITE_TASKS if f"{t}_sr" in perf]
     header = ["Method"]
     cols = [[_esc(v) for v in perf["label"]]]
@@ -198,6 +293,26 @@ def performance_latex(perf: pd.DataFrame, *, tier: int, gain: float, episodes: i
 
 def cost_latex(cost: pd.DataFrame, *, tier: int, gain: float, episodes: int,
                note: str = "") -> str:
+    """Table VI as a LaTeX booktabs table.
+
+    Parameters
+    ----------
+    cost : pandas.DataFrame
+        :func:`cost_frame`'s rows.
+    tier : int
+        The suite's tier, for the caption.
+    gain : float
+        The suite's gain on the currents, for the caption.
+    episodes : int
+        Episodes counted per task (``cost_episodes``), for the caption.
+    note : str, default ""
+        A sentence appended to the caption.
+
+    Returns
+    -------
+    str
+        The LaTeX table (label ``tab:planning_cost``).
+    """
     header = ["Method", "Avg SR (\\%)", "Calls", "Lat. (s)", "ms/call", "Prompt tok.",
               "Output tok.", "Total tok.", "Fallback (\\%)"]
     cols = [[_esc(v) for v in cost["label"]],
@@ -217,7 +332,18 @@ def cost_latex(cost: pd.DataFrame, *, tier: int, gain: float, episodes: int,
 
 
 def omitted_note(configured_llms) -> str:
-    """The caption's sentence on LLM rows."""
+    """The caption's sentence on LLM rows.
+
+    Parameters
+    ----------
+    configured_llms : sequence of str
+        The configured LLM planners (config ``llm.models``).
+
+    Returns
+    -------
+    str
+        A sentence saying no LLM endpoint is configured, or ``""`` when one is.
+    """
     if configured_llms:
         return ""
     return ("No LLM endpoint is configured (config llm.models is empty), so no LLM rows: "
@@ -226,7 +352,34 @@ def omitted_note(configured_llms) -> str:
 
 def planning_tables(cell_files, perf_tex, cost_tex, *, tier: int, gain: float, episodes: int,
                     cost_episodes: int, configured_llms=()) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Write Table IV and VI (LaTeX, plus the numbers as Parquet beside each ``.tex``)."""
+    """Write Tables IV and VI: LaTeX, plus the numbers as Parquet beside each ``.tex``.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like
+        The suite's cell files.
+    perf_tex : path-like
+        Table IV's ``.tex`` (its numbers go to the same path with ``.parquet``).
+    cost_tex : path-like
+        Table VI's ``.tex`` (likewise).
+    tier : int
+        The suite's tier.
+    gain : float
+        The suite's gain on the currents.
+    episodes : int
+        Episodes per task and method, for Table IV's caption.
+    cost_episodes : int
+        The first episodes of each cell counted in Table VI.
+    configured_llms : sequence of str, default ()
+        The configured LLM planners (:func:`omitted_note`).
+
+    Returns
+    -------
+    perf : pandas.DataFrame
+        :func:`performance_frame`'s rows.
+    cost : pandas.DataFrame
+        :func:`cost_frame`'s rows.
+    """
     from .engine.recording import write_metrics
     from pathlib import Path
 

@@ -83,6 +83,11 @@ def variant_grid(bbox: dict, variant_cfg: dict) -> dict:
     dict
         ``west, east, south, north`` (float, the kept extent), ``resolution_deg``,
         ``longitude`` (nx,) and ``latitude`` (ny,) float64 ascending nodes, centred in the extent.
+
+    Raises
+    ------
+    ConfigError
+        ``extent_fraction`` outside (0, 1], or ``resolution_deg`` not positive.
     """
     f, res = float(variant_cfg["extent_fraction"]), float(variant_cfg["resolution_deg"])
     if not 0.0 < f <= 1.0:
@@ -104,9 +109,11 @@ def bilinear_plan(src: np.ndarray, dst: np.ndarray, what: str = "axis") -> tuple
 
     Parameters
     ----------
-    src : (n,) float64, ascending
+    src : (n,) float64
+        Source node coordinates, ascending (e.g. degrees).
     dst : (m,) float64
-    what : str
+        Target node coordinates, same units.
+    what : str, default "axis"
         Names the file/axis in the error message.
 
     Returns
@@ -148,7 +155,20 @@ def _lerp(a: np.ndarray, plan_y: tuple, plan_x: tuple) -> np.ndarray:
 
 
 def bilinear_weight(valid: np.ndarray, plan_y: tuple, plan_x: tuple) -> np.ndarray:
-    """Bilinear weight carried by valid source nodes, (..., ny, nx) float64 in [0, 1]."""
+    """Bilinear weight carried by valid source nodes.
+
+    Parameters
+    ----------
+    valid : (..., ny_src, nx_src) bool
+        Which source nodes are valid.
+    plan_y, plan_x : tuple
+        :func:`bilinear_plan` results for the latitude and longitude axes.
+
+    Returns
+    -------
+    (..., ny, nx) float64
+        Sum of the bilinear weights of the valid surrounding source nodes, in [0, 1].
+    """
     return _lerp(np.asarray(valid, np.float64), plan_y, plan_x)
 
 
@@ -161,10 +181,11 @@ def regrid_bilinear(field: np.ndarray, valid: np.ndarray, plan_y: tuple, plan_x:
     ----------
     field : (..., ny_src, nx_src) float
         Source values; entries where ``valid`` is False are ignored (may be NaN).
-    valid : (..., ny_src, nx_src) bool, broadcastable to ``field``
+    valid : (..., ny_src, nx_src) bool
+        Which source nodes are valid; broadcastable to ``field``.
     plan_y, plan_x : tuple
         :func:`bilinear_plan` results for the latitude and longitude axes.
-    min_weight : float
+    min_weight : float, default 0.5
         Minimum valid bilinear weight for a defined result.
     weight : (..., ny, nx) float64, optional
         Precomputed :func:`bilinear_weight` of ``valid`` (saves work when ``valid`` is reused).
@@ -223,7 +244,22 @@ def _source_files(ds: xr.Dataset, path) -> list:
 
 
 def product_config(cfg: dict, variant: str) -> dict:
-    """The part of the config a variant's product depends on (hashed into ``config_hash``)."""
+    """The part of the config a variant's product depends on (hashed into ``config_hash``).
+
+    Parameters
+    ----------
+    cfg : dict
+        The config (or a region's configuration, :func:`oneocean.defaults.region_config`).
+    variant : str
+        A key of ``cfg["variants"]``.
+
+    Returns
+    -------
+    dict
+        ``region``, ``sources``, ``synthetic``, ``cmems``, ``gebco``, ``etopo``, ``files``
+        (those present in ``cfg``, not copied) and ``variant``: the variant's block with its
+        ``name``.
+    """
     keys = ("region", "sources", "synthetic", "cmems", "gebco", "etopo", "files")
     snap = {k: cfg[k] for k in keys if k in cfg}
     snap["variant"] = {"name": variant, **cfg["variants"][variant]}
@@ -231,8 +267,25 @@ def product_config(cfg: dict, variant: str) -> dict:
 
 
 def product_options(cfg: dict) -> dict:
-    """The config's ``product`` block with its defaults: ``format`` ("netcdf" | "zarr") and
-    ``scheduler`` (a ``dask.distributed`` scheduler address, or None for local threads)."""
+    """The config's ``product`` block with its defaults.
+
+    Parameters
+    ----------
+    cfg : dict
+        The config; a missing or empty ``product`` block gives the defaults.
+
+    Returns
+    -------
+    dict
+        A new dict: ``format`` (``"netcdf"``, the default, or ``"zarr"``) and ``scheduler`` (a
+        ``dask.distributed`` scheduler address, or None, also for a blank one, for local
+        threads), with any other keys of the block.
+
+    Raises
+    ------
+    ConfigError
+        ``product.format`` is neither ``netcdf`` nor ``zarr``.
+    """
     opts = {"format": "netcdf", "scheduler": None, **(cfg.get("product") or {})}
     if opts["format"] not in ("netcdf", "zarr"):
         raise ConfigError(f"product.format: Invalid value {opts['format']!r}. Valid options "
@@ -244,14 +297,23 @@ def product_options(cfg: dict) -> dict:
 
 @contextlib.contextmanager
 def compute_scheduler(address: str | None = None):
-    """Run dask computations inside the block on local threads (``address`` None) or on the
-    ``dask.distributed`` scheduler at ``address`` (e.g. ``tcp://host:8786``).
+    """Run dask computations inside the block on local threads or a ``dask.distributed`` cluster.
 
     The client is closed on exit; the cluster is left running. Its workers must see the
     product's input and output paths (a zarr product's chunks are written by the workers).
     While the client is connected, the workers open NetCDF files with the small HDF5 chunk
     cache of :func:`~oneocean.ncio.netcdf_chunk_cache` (a worker plugin, removed on exit), so a
     worker's memory does not grow with the time steps it reads.
+
+    Parameters
+    ----------
+    address : str, optional
+        The scheduler's address (e.g. ``tcp://host:8786``); None or empty: local threads.
+
+    Yields
+    ------
+    distributed.Client or None
+        The connected client (the default client inside the block), or None on threads.
 
     Raises
     ------
@@ -494,16 +556,19 @@ def build_product(currents_path, bathymetry_path, cfg: dict, variant: str, out_p
         Per-variant metadata JSON: settings, grid, realised time coverage, depth levels,
         statistics (:func:`summarise_product`), source kinds and the content hash.
 
-    The dask scheduler is ``cfg["product"]["scheduler"]`` (:func:`compute_scheduler`).
-
     Raises
     ------
     DataError
         The variant's extent, time window or depth range lies outside the inputs, or no valid
         current remains; no file is written.
     ConfigError
+        ``variant`` is not in ``cfg["variants"]``, ``product.format`` is invalid, or
         ``product.scheduler`` is set but ``distributed`` is missing or the scheduler does not
         answer.
+
+    Notes
+    -----
+    The dask scheduler is ``cfg["product"]["scheduler"]`` (:func:`compute_scheduler`).
     """
     opts = product_options(cfg)
     with netcdf_chunk_cache(), compute_scheduler(opts["scheduler"]):
@@ -605,6 +670,11 @@ def _iso(t) -> str:
 
 def summarise_product(path) -> dict:
     """Headline numbers of a product, streamed one time step at a time.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The product (NetCDF file or zarr store, :func:`open_product`).
 
     Returns
     -------

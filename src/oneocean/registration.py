@@ -39,20 +39,46 @@ def _ids() -> tuple[str, ...]:
 
 
 def env_id(task: str, tier: int) -> str:
-    """The Gymnasium id of a (task, tier): ``OneOcean/<TASK>-T<tier>-v0``."""
+    """The Gymnasium id of a (task, tier): ``OneOcean/<TASK>-T<tier>-v0``.
+
+    Parameters
+    ----------
+    task : str
+        A task id, e.g. ``"G2G"``.
+    tier : int
+        1, 2 or 3.
+
+    Returns
+    -------
+    str
+        The id.
+    """
     return f"{NAMESPACE}/{task}-T{int(tier)}-v{VERSION}"
 
 
 def env_ids() -> tuple[str, ...]:
-    """Every Gymnasium id :func:`register_envs` registers, task by task."""
+    """Every Gymnasium id :func:`register_envs` registers, task by task.
+
+    Returns
+    -------
+    tuple of str
+        The ids, tiers 1-3 of each built-in task in turn.
+    """
     return tuple(env_id(t, k) for t in _ids() for k in TIERS)
 
 
 def register_envs() -> tuple[str, ...]:
-    """Register ``OneOcean/<TASK>-T<tier>-v0`` for every built-in task and tiers 1-3 with
-    Gymnasium (``entry_point`` :class:`oneocean.envs.OceanEnv`, ``vector_entry_point``
-    :class:`oneocean.envs.OceanVectorEnv`, kwargs ``{"task", "tier"}``, no step limit).
-    Idempotent: ids already registered are left as they are. Returns the ids."""
+    """Register ``OneOcean/<TASK>-T<tier>-v0`` with Gymnasium for every built-in task and tier.
+
+    ``entry_point`` :class:`oneocean.envs.OceanEnv`, ``vector_entry_point``
+    :class:`oneocean.envs.OceanVectorEnv`, kwargs ``{"task", "tier"}``, no step limit.
+    Idempotent: ids already registered are left as they are.
+
+    Returns
+    -------
+    tuple of str
+        Every id (:func:`env_ids`), whether newly registered or not.
+    """
     from gymnasium.envs.registration import register, registry
 
     ids = []
@@ -72,9 +98,17 @@ _parallel: dict = {}
 
 
 def parallel_ids():
-    """``OneOcean/<TASK>-T<tier>-parallel-v0`` -> (task, tier) for every built-in team task
-    (default team size > 1: its tier table's ``agents.default``) and tier (a read-only
-    mapping)."""
+    """The PettingZoo-side ids of the built-in team tasks.
+
+    A team task has a default team size > 1 (its tier table's ``agents.default``). Computed
+    on first use and cached.
+
+    Returns
+    -------
+    mappingproxy
+        Read-only ``{"OneOcean/<TASK>-T<tier>-parallel-v0": (task, tier)}`` for every team
+        task and tier 1-3.
+    """
     if not _parallel:
         from types import MappingProxyType
 
@@ -87,9 +121,27 @@ def parallel_ids():
 
 
 def make_parallel(env_id: str, grid=None, **kw):
-    """The PettingZoo ``ParallelEnv`` of a parallel id (:data:`PARALLEL_IDS`):
-    :func:`oneocean.envs.parallel_env` ``(task, tier, grid, **kw)``; ``grid`` None is the
-    default region's grid. An unknown id is a one-line ConfigError listing valid ones."""
+    """The PettingZoo ``ParallelEnv`` of a parallel id (:data:`PARALLEL_IDS`).
+
+    Parameters
+    ----------
+    env_id : str
+        ``OneOcean/<TASK>-T<tier>-parallel-v0`` (:func:`parallel_ids`).
+    grid : Grid, path-like or mapping, optional
+        As :func:`oneocean.defaults.resolve_grid`; None is the default region's grid.
+    **kw
+        Keywords of :class:`oneocean.envs.OceanVectorEnv` (modes, backend, ...).
+
+    Returns
+    -------
+    pettingzoo.ParallelEnv
+        :func:`oneocean.envs.parallel_env` ``(task, tier, grid, **kw)``.
+
+    Raises
+    ------
+    ConfigError
+        One line listing valid ids, if ``env_id`` is not registered.
+    """
     ids = parallel_ids()
     if env_id not in ids:
         from .errors import ConfigError

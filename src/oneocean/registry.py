@@ -58,7 +58,35 @@ class TaskSpec:
 
     ``metrics[0]`` is the primary metric; ``higher_is_better[m]`` says which way metric ``m``
     improves (tables bold the best value with it). ``family_label`` (optional) names a new
-    family in tables; a known family keeps its label.
+    family in tables; a known family keeps its label. Invalid fields raise a one-line
+    ConfigError.
+
+    Attributes
+    ----------
+    id : str
+        Task id: a letter followed by letters, digits or ``_`` (e.g. ``"G2G"``).
+    label : str
+        Human label (e.g. ``"Go-to-goal"``).
+    family : str
+        Family id (:func:`families`).
+    module : str
+        Dotted name of the module with the task's hooks.
+    agents_default : int
+        Default team size.
+    agents_range : tuple of int
+        ``(lo, hi)`` team sizes, ``1 <= lo <= agents_default <= hi``.
+    metrics : tuple of str
+        Metric column names, the primary first.
+    higher_is_better : mapping of str to bool
+        Per metric, whether higher is better (a read-only mapping).
+    dt_s : float
+        Control step, s (> 0).
+    table_path : str
+        Path of the task's tier-table YAML.
+    family_label : str, default ""
+        Table label of a new family.
+    kernel : str, default ""
+        Dotted name of the module binding the compiled loop (default: ``module``).
     """
 
     id: str
@@ -114,8 +142,10 @@ class TaskSpec:
 
     @property
     def kernel_module(self) -> str:
-        """The module binding the task's compiled loop (``kernel``; default ``module``: a
-        plugin may define its kernel beside its hooks; :mod:`oneocean.kernels`)."""
+        """The module binding the task's compiled loop (:mod:`oneocean.kernels`).
+
+        ``kernel``, default ``module``: a plugin may define its kernel beside its hooks.
+        """
         return self.kernel or self.module
 
     @property
@@ -128,7 +158,23 @@ class TaskSpec:
 class MethodSpec:
     """One method: how it runs (``kind``) and what it sees (``information``).
 
-    ``short`` is the column label in tables (defaults to ``label``).
+    ``short`` is the column label in tables (defaults to ``label``). Invalid fields raise a
+    one-line ConfigError.
+
+    Attributes
+    ----------
+    name : str
+        Method name: a letter followed by letters, digits or ``_``.
+    label : str
+        Human label.
+    kind : str
+        How it runs, one of :data:`METHOD_KINDS`.
+    information : str
+        What it sees (e.g. ``"shared sensor models"``).
+    description : str
+        One or two sentences for the docs.
+    short : str, default ""
+        Column label in tables (``""``: ``label``).
     """
 
     name: str
@@ -192,10 +238,10 @@ def _tasks_dir() -> Path:
 
 
 def load_task_spec(path: str | Path) -> TaskSpec:
-    """Build a :class:`TaskSpec` from a tier-table YAML's ``spec:`` block plus its ``agents``
-    and ``dt_s`` keys (does not register it: see :func:`register_task`).
+    """Build a :class:`TaskSpec` from a tier-table YAML.
 
-    The block::
+    From its ``spec:`` block plus its ``agents`` and ``dt_s`` keys; it is not registered
+    (see :func:`register_task`). The block::
 
         spec:
           id: G2G
@@ -207,7 +253,20 @@ def load_task_spec(path: str | Path) -> TaskSpec:
           metrics:                      # primary first; better: higher | lower
             - {name: final_error_m, better: lower}
 
-    Raises ConfigError (one line naming the file and key) on a missing or ill-typed key.
+    Parameters
+    ----------
+    path : path-like
+        The tier-table YAML.
+
+    Returns
+    -------
+    TaskSpec
+        The spec (``table_path`` is the resolved path).
+
+    Raises
+    ------
+    ConfigError
+        One line naming the file and key, on a missing, unknown or ill-typed key.
     """
     path = Path(path).resolve()
     doc = read_yaml_mapping(path, "task table")
@@ -288,8 +347,23 @@ def _add_family(spec: TaskSpec) -> None:
 def register_task(spec: TaskSpec | str | Path) -> TaskSpec:
     """Register a task at run time (a :class:`TaskSpec`, or the path of its tier-table YAML).
 
-    Registering the same spec again is a no-op; another spec under an existing id is a
-    ConfigError. Returns the registered spec.
+    Registering the same spec again is a no-op. A new family gets its ``family_label``
+    (default: the family id capitalised).
+
+    Parameters
+    ----------
+    spec : TaskSpec or path-like
+        The spec, or the path of its tier-table YAML (:func:`load_task_spec`).
+
+    Returns
+    -------
+    TaskSpec
+        The registered spec.
+
+    Raises
+    ------
+    ConfigError
+        Another spec under an existing id (or a bad YAML).
     """
     tasks = _discover()
     if not isinstance(spec, TaskSpec):
@@ -306,7 +380,18 @@ def register_task(spec: TaskSpec | str | Path) -> TaskSpec:
 
 
 def unregister_task(task_id: str) -> None:
-    """Remove a task registered at run time (built-in tasks cannot be removed)."""
+    """Remove a task registered at run time; an id that is not registered is ignored.
+
+    Parameters
+    ----------
+    task_id : str
+        The task id.
+
+    Raises
+    ------
+    ConfigError
+        If the task is built in (it cannot be removed).
+    """
     tasks = _discover()
     if task_id in _builtin_tasks:
         raise ConfigError(f"task {task_id!r} is built in and cannot be unregistered")
@@ -314,21 +399,40 @@ def unregister_task(task_id: str) -> None:
 
 
 def task_ids() -> tuple[str, ...]:
-    """Every task id: the paper's ladder in its order, then registered extras in
-    registration order."""
+    """Every registered task id.
+
+    Returns
+    -------
+    tuple of str
+        The paper's ladder in its order, other packaged tasks (sorted), then tasks
+        registered at run time in registration order.
+    """
     return tuple(_discover())
 
 
 def builtin_task_ids() -> tuple[str, ...]:
-    """The task ids shipped with the package (the paper's ladder first)."""
+    """The task ids shipped with the package.
+
+    Returns
+    -------
+    tuple of str
+        The paper's ladder in its order, then other packaged tasks (sorted).
+    """
     _discover()
     return _builtin_tasks
 
 
 def packaged_task_ids() -> tuple[str, ...]:
-    """:func:`builtin_task_ids` from the packaged tier tables' file names, without reading
-    them (a table's ``spec.id`` is its file name; :func:`builtin_task_ids` checks it): for
-    callers that must stay cheap, such as the Gymnasium registration at ``import oneocean``."""
+    """:func:`builtin_task_ids` from the packaged tier tables' file names, without reading them.
+
+    A table's ``spec.id`` is its file name (:func:`builtin_task_ids` checks it). For callers
+    that must stay cheap, such as the Gymnasium registration at ``import oneocean``.
+
+    Returns
+    -------
+    tuple of str
+        The paper's tasks present, in its order, then the other packaged tasks (sorted).
+    """
     if _tasks is not None:
         return _builtin_tasks
     stems = {f.stem for f in _tasks_dir().glob("*.yaml")}
@@ -337,14 +441,35 @@ def packaged_task_ids() -> tuple[str, ...]:
 
 
 def scene_tasks() -> tuple[str, ...]:
-    """The registered tasks whose tier table has a ``scene_tiers`` block (the tasks that run
-    in a scene, on either backend), in :func:`task_ids` order."""
+    """The registered tasks that run in a scene, on either backend.
+
+    Returns
+    -------
+    tuple of str
+        The tasks whose tier table has a ``scene_tiers`` block, in :func:`task_ids` order.
+    """
     return tuple(t for t in task_ids()
                  if read_yaml_mapping(task_spec(t).table_path, "tier table").get("scene_tiers"))
 
 
 def task_spec(task_id: str) -> TaskSpec:
-    """The spec of ``task_id``; an unknown id is a one-line ConfigError listing valid ids."""
+    """The spec of a registered task.
+
+    Parameters
+    ----------
+    task_id : str
+        The task id.
+
+    Returns
+    -------
+    TaskSpec
+        Its spec.
+
+    Raises
+    ------
+    ConfigError
+        One line listing valid ids, for an unknown id.
+    """
     tasks = _discover()
     if task_id not in tasks:
         _invalid("task", task_id, tuple(tasks))
@@ -352,12 +477,34 @@ def task_spec(task_id: str) -> TaskSpec:
 
 
 def families() -> tuple[str, ...]:
-    """Family ids of the registered tasks, in order of first appearance in :func:`task_ids`."""
+    """Family ids of the registered tasks.
+
+    Returns
+    -------
+    tuple of str
+        In order of first appearance in :func:`task_ids`.
+    """
     return tuple(dict.fromkeys(s.family for s in _discover().values()))
 
 
 def family_label(family: str) -> str:
-    """The human label of a family (e.g. ``"Navigation / Tracking"``)."""
+    """The human label of a family.
+
+    Parameters
+    ----------
+    family : str
+        A family id (built in, declared or of a registered task).
+
+    Returns
+    -------
+    str
+        Its label, e.g. ``"Navigation / Tracking"``.
+
+    Raises
+    ------
+    ConfigError
+        One line listing valid ids, for an unknown family.
+    """
     _discover()
     if family not in _families:
         _invalid("family", family, tuple(_families))
@@ -365,7 +512,20 @@ def family_label(family: str) -> str:
 
 
 def register_family(family: str, label: str) -> None:
-    """Declare a new family's label (before registering its tasks; optional)."""
+    """Declare a new family's label (before registering its tasks; optional).
+
+    Parameters
+    ----------
+    family : str
+        The family id: a letter followed by letters, digits or ``_``.
+    label : str
+        Its table label (non-empty).
+
+    Raises
+    ------
+    ConfigError
+        A bad id or label, or a known family with another label.
+    """
     _check_family_label(family, label, f"family {family!r}")
     if not _ID.match(str(family)):
         raise ConfigError(f"family {family!r}: must be a letter followed by letters, digits "
@@ -376,7 +536,23 @@ def register_family(family: str, label: str) -> None:
 # ------------------------------------------------------------------------------ methods
 
 def register_method(spec: MethodSpec) -> MethodSpec:
-    """Register a method (same spec again is a no-op; another spec under a name is an error)."""
+    """Register a method; the same spec again is a no-op.
+
+    Parameters
+    ----------
+    spec : MethodSpec
+        The method.
+
+    Returns
+    -------
+    MethodSpec
+        The registered spec.
+
+    Raises
+    ------
+    ConfigError
+        If ``spec`` is not a MethodSpec, or another spec is registered under its name.
+    """
     if not isinstance(spec, MethodSpec):
         raise ConfigError(f"register_method: expected a MethodSpec, got {type(spec).__name__}")
     old = _methods.get(spec.name)
@@ -389,25 +565,63 @@ def register_method(spec: MethodSpec) -> MethodSpec:
 
 
 def unregister_method(name: str) -> None:
-    """Remove a method registered at run time (built-in methods cannot be removed)."""
+    """Remove a method registered at run time; a name that is not registered is ignored.
+
+    Parameters
+    ----------
+    name : str
+        The method name.
+
+    Raises
+    ------
+    ConfigError
+        If the method is built in (it cannot be removed).
+    """
     if name in _builtin_methods:
         raise ConfigError(f"method {name!r} is built in and cannot be unregistered")
     _methods.pop(name, None)
 
 
 def method_names() -> tuple[str, ...]:
-    """Every method name: the built-ins, then registered extras in registration order."""
+    """Every registered method name.
+
+    Returns
+    -------
+    tuple of str
+        The built-ins, then methods registered at run time in registration order.
+    """
     return tuple(_methods)
 
 
 def builtin_method_names() -> tuple[str, ...]:
-    """The packaged methods (the config's default ``rollouts.methods``)."""
+    """The built-in methods (the config's default ``rollouts.methods``).
+
+    Returns
+    -------
+    tuple of str
+        The names of :data:`BUILTIN_METHODS`, in order.
+    """
     return tuple(m for m in _methods if m in _builtin_methods)
 
 
 def method_spec(name: str) -> MethodSpec:
-    """The spec of method ``name`` (a :data:`PACKAGED_METHODS` entry is imported first);
-    unknown is a one-line ConfigError listing valid names."""
+    """The spec of a method (a :data:`PACKAGED_METHODS` entry is imported and registered first).
+
+    Parameters
+    ----------
+    name : str
+        The method name.
+
+    Returns
+    -------
+    MethodSpec
+        Its spec.
+
+    Raises
+    ------
+    ConfigError
+        One line listing valid names, for an unknown name.
+    """
     if name not in _methods and name in PACKAGED_METHODS:
         mod, attr = PACKAGED_METHODS[name].split(":")
         register_method(getattr(importlib.import_module(mod), attr))
@@ -421,8 +635,21 @@ def method_spec(name: str) -> MethodSpec:
 def load_plugins(modules: Iterable[str] | None) -> list[str]:
     """Import each dotted module name (a plugin registers tasks/methods at import).
 
-    Returns the names imported. A name that is not a string or cannot be imported is a
-    one-line ConfigError naming it.
+    Parameters
+    ----------
+    modules : list or tuple of str, optional
+        Dotted module names (the config key ``plugins``); None: none.
+
+    Returns
+    -------
+    list of str
+        The names imported.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the entry, for ``modules`` that is not a list, a name that is not a
+        dotted module name, or a module that cannot be imported.
     """
     if modules is None:
         return []

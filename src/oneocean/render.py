@@ -17,9 +17,28 @@ GOAL_RGB = np.array([40, 220, 60], dtype=np.uint8)
 
 
 def topdown_rgb(grid, positions, goal_offsets, t: float, size: int = 256) -> np.ndarray:
-    """(H, W, 3) uint8 top-down view of ``grid`` at time ``t`` s: ``positions`` (N, >=3)
-    world (x east, y down, z north) m, ``goal_offsets`` (N, 3) the agents' goal cues relative
-    to them (NaN: none). The longer side has ``size`` pixels."""
+    """A top-down RGB view of ``grid`` at time ``t`` with the agents and their goal cues.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    positions : array_like
+        (N, >=3) agent positions, world frame (x east, y down, z north), m; only columns 0
+        (x) and 2 (z) are used, e.g. the agents' state rows.
+    goal_offsets : array_like
+        (N, 3) each agent's goal cue relative to it, m (NaN: none).
+    t : float
+        Time, s since the grid's ``time0_unix_s``; the currents are sampled at 0.5 m depth.
+    size : int, default 256
+        Target pixels along the longer side: each grid node is an integer
+        ``max(1, size // max(nx, ny))`` pixels square.
+
+    Returns
+    -------
+    numpy.ndarray
+        (H, W, 3) uint8 image, north up.
+    """
     from .engine.grid import sample_currents
 
     nx, ny = int(grid.nx), int(grid.ny)

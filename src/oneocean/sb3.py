@@ -58,8 +58,21 @@ _BLOCK_WORD = 0x5B3
 
 
 def block_seed(seed: int, block: int) -> int:
-    """The seed of the ``block``-th vector env when an adapter over several is seeded with
-    ``seed`` (the first gets ``seed`` itself)."""
+    """The seed of the ``block``-th vector env when an adapter over several is seeded.
+
+    Parameters
+    ----------
+    seed : int
+        The adapter's seed.
+    block : int
+        The vector env's index in the adapter's list, from 0.
+
+    Returns
+    -------
+    int
+        ``seed`` itself for block 0, else a non-negative 31-bit seed drawn from
+        ``numpy.random.SeedSequence([seed, 0x5B3, block])``.
+    """
     if block == 0:
         return int(seed)
     return int(np.random.SeedSequence([int(seed), _BLOCK_WORD, int(block)])
@@ -67,7 +80,23 @@ def block_seed(seed: int, block: int) -> int:
 
 
 def agent_space(space):
-    """One agent's ``Box`` (the last axis) of a per-sub-env ``Box`` (N, D)."""
+    """One agent's ``Box`` (the last axis) of a per-sub-env ``Box`` (N, D).
+
+    Parameters
+    ----------
+    space : gymnasium.spaces.Box
+        A sub-env's observation or action space, shape (N, D): one row per agent.
+
+    Returns
+    -------
+    gymnasium.spaces.Box
+        Shape (D,), the first row's bounds, the same dtype.
+
+    Raises
+    ------
+    ValueError
+        The agents' rows have different bounds.
+    """
     from gymnasium import spaces
 
     lo, hi = np.asarray(space.low), np.asarray(space.high)
@@ -97,7 +126,19 @@ def _build():
     class SB3VecEnv(VecEnv):
         """Stable-Baselines3 ``VecEnv`` over one :class:`~oneocean.envs.OceanVectorEnv` (or a
         list of them) in ``autoreset_mode="same_step"``: one SB3 env per agent per sub-env
-        (see :mod:`oneocean.sb3`)."""
+        (see :mod:`oneocean.sb3`).
+
+        Parameters
+        ----------
+        venv : OceanVectorEnv or list of OceanVectorEnv
+            Vector envs made with ``autoreset_mode="same_step"``, with equal per-agent
+            spaces; their rows follow one another.
+
+        Raises
+        ------
+        ValueError
+            No vector env, one in another autoreset mode, or per-agent spaces that differ.
+        """
 
         def __init__(self, venv):
             venvs = list(venv) if isinstance(venv, (list, tuple)) else [venv]
@@ -137,6 +178,13 @@ def _build():
 
         # ---------------------------------------------------------------- stepping
         def reset(self):
+            """Reset every vector env (seeded by the last :meth:`seed`, then unseeded).
+
+            Returns
+            -------
+            (rows, D) ndarray
+                The first observation of every row.
+            """
             out = []
             seed, self._next_seed = self._next_seed, None
             self._threads = _torch_threads()
@@ -152,9 +200,34 @@ def _build():
             return np.concatenate(out)
 
         def step_async(self, actions):
+            """Store the actions for :meth:`step_wait`.
+
+            Parameters
+            ----------
+            actions : (rows, 3) array_like
+                One agent's action per row.
+            """
             self._actions = np.asarray(actions)
 
         def step_wait(self):
+            """Step every vector env with the stored actions.
+
+            Returns
+            -------
+            obs : (rows, D) ndarray
+                The next observations (a new episode's first where one ended).
+            rewards : (rows,) float32
+                The team's (sub-env's) reward.
+            dones : (rows,) bool
+                ``terminated | truncated`` of the sub-env.
+            infos : list of dict
+                Per row; see the module docstring for the keys of a row whose episode ended.
+
+            Raises
+            ------
+            RuntimeError
+                No :meth:`step_async` before.
+            """
             if self._actions is None:
                 raise RuntimeError("SB3VecEnv: step_wait() without step_async()")
             acts, self._actions = self._actions, None
@@ -194,20 +267,49 @@ def _build():
 
         # ---------------------------------------------------------------- seeding, render
         def seed(self, seed=None):
-            """Seed the next :meth:`reset` (None: the env draws its own seed); returns the
-            seed for every row."""
+            """Seed the next :meth:`reset`.
+
+            Parameters
+            ----------
+            seed : int, optional
+                The seed (the ``b``-th vector env gets :func:`block_seed` ``(seed, b)``);
+                None: the envs draw their own seeds.
+
+            Returns
+            -------
+            list
+                The seed (int or None) for every row.
+            """
             self._next_seed = None if seed is None else int(seed)
             return [self._next_seed] * self.num_envs
 
         def render(self, mode=None):
-            """The ``rgb_array`` view (H, W, 3) uint8 of sub-env 0 (None without
-            ``render_mode="rgb_array"``)."""
+            """The ``rgb_array`` view of sub-env 0.
+
+            Parameters
+            ----------
+            mode : str, optional
+                Ignored: the vector env's ``render_mode`` decides.
+
+            Returns
+            -------
+            (H, W, 3) uint8 ndarray or None
+                The frame; None without ``render_mode="rgb_array"``.
+            """
             return self.venvs[0].render()
 
         def get_images(self):
+            """The ``rgb_array`` view of sub-env 0, in a list.
+
+            Returns
+            -------
+            list
+                One frame (or None, see :meth:`render`).
+            """
             return [self.venvs[0].render()]
 
         def close(self):
+            """Close every vector env."""
             for v in self.venvs:
                 v.close()
 
@@ -221,21 +323,79 @@ def _build():
             return idx, by
 
         def get_attr(self, attr_name, indices=None):
+            """An attribute of the vector env behind each requested row.
+
+            Parameters
+            ----------
+            attr_name : str
+                The attribute.
+            indices : None, int or iterable of int, optional
+                The rows; None: all.
+
+            Returns
+            -------
+            list
+                The value per requested row.
+            """
             idx, _ = self._targets(indices)
             return [getattr(self.venvs[int(self._owner[k])], attr_name) for k in idx]
 
         def set_attr(self, attr_name, value, indices=None):
+            """Set an attribute on the vector envs behind the requested rows (once each).
+
+            Parameters
+            ----------
+            attr_name : str
+                The attribute.
+            value : object
+                Its new value.
+            indices : None, int or iterable of int, optional
+                The rows; None: all.
+            """
             _, by = self._targets(indices)
             for b in by:
                 setattr(self.venvs[b], attr_name, value)
 
         def env_method(self, method_name, *method_args, indices=None, **method_kwargs):
+            """Call a method of the vector envs behind the requested rows (once per vector env).
+
+            Parameters
+            ----------
+            method_name : str
+                The method.
+            *method_args
+                Its positional arguments.
+            indices : None, int or iterable of int, optional
+                The rows; None: all.
+            **method_kwargs
+                Its keyword arguments.
+
+            Returns
+            -------
+            list
+                Each requested row's vector env's result.
+            """
             idx, by = self._targets(indices)
             res = {b: getattr(self.venvs[b], method_name)(*method_args, **method_kwargs)
                    for b in by}
             return [res[int(self._owner[k])] for k in idx]
 
         def env_is_wrapped(self, wrapper_class, indices=None):
+            """Whether the rows' envs are wrapped in ``wrapper_class``: never (no Gymnasium
+            wrappers).
+
+            Parameters
+            ----------
+            wrapper_class : type
+                A Gymnasium wrapper class.
+            indices : None, int or iterable of int, optional
+                The rows; None: all.
+
+            Returns
+            -------
+            list of bool
+                False per requested row.
+            """
             idx, _ = self._targets(indices)
             return [False] * len(idx)
 

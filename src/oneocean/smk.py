@@ -1,4 +1,5 @@
-"""The thin adapter every ``workflow/scripts/*.py`` uses: log, run one function, record provenance."""
+"""The thin adapter every ``workflow/scripts/*.py`` uses: log, run one function, record
+provenance."""
 
 from __future__ import annotations
 
@@ -23,7 +24,20 @@ def _plain(obj):
 
 
 def optional_input(snakemake, name: str):
-    """The path of a named input an input function may leave empty (``[]``), else None."""
+    """The path of a named input an input function may leave empty (``[]``).
+
+    Parameters
+    ----------
+    snakemake : snakemake.script.Snakemake
+        The job's ``snakemake`` object.
+    name : str
+        The input's name.
+
+    Returns
+    -------
+    str or None
+        The (first) path, or None when the input is missing or empty.
+    """
     value = getattr(snakemake.input, name, None)
     if value is None or isinstance(value, str):
         return value or None
@@ -70,7 +84,15 @@ def run(snakemake, func) -> None:
 
     The output named ``prov`` receives the provenance of every other output. A
     :class:`~oneocean.errors.OneOceanError` is reported as its one-line message (no traceback)
-    and the job fails; Snakemake then removes the job's outputs.
+    and the job fails; Snakemake then removes the job's outputs. Before ``func``, the config's
+    ``plugins`` are loaded and its LLM planners registered, as in the workflow's own process.
+
+    Parameters
+    ----------
+    snakemake : snakemake.script.Snakemake
+        The job's ``snakemake`` object; its outputs must include ``prov``.
+    func : callable
+        ``func(snakemake)``, the job's work.
     """
     log = _logger(snakemake)
     _guarded(snakemake, log, func)
@@ -94,6 +116,19 @@ def run_cells(snakemake, func) -> None:
     same order. Each cell gets its own provenance record, as if it had been a job of its own
     (its wildcards, its output, the job's inputs, its params), so the manifest and
     ``oneocean verify`` see one entry per cell file. Errors are handled as in :func:`run`.
+
+    Parameters
+    ----------
+    snakemake : snakemake.script.Snakemake
+        The job's ``snakemake`` object.
+    func : callable
+        ``func(snakemake, cell, path)``: runs one cell (a dict of ``params.cells``) into its
+        output file ``path``.
+
+    Raises
+    ------
+    RuntimeError
+        The numbers of cells, parquet outputs and provenance outputs differ.
     """
     log = _logger(snakemake)
     cells = list(snakemake.params.cells)

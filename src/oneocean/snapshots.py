@@ -62,7 +62,31 @@ PLUME_FLOOR = 0.01
 
 
 class Frame(NamedTuple):
-    """One snapshot of an episode (the state after ``k`` steps)."""
+    """One snapshot of an episode (the state after ``k`` steps).
+
+    Attributes
+    ----------
+    frac : float
+        Requested fraction of the episode's actual length.
+    k : int
+        Steps taken.
+    t_s : float
+        Time since the episode's start, s (``k dt``).
+    xz : numpy.ndarray
+        (N, 2) agents' horizontal positions (x east, z north), m.
+    depth : numpy.ndarray
+        (N,) agents' depths, m (positive down).
+    trail : numpy.ndarray
+        (N, m, 2) agents' (x, z) at the steps ``trail_k`` (last: ``xz``), m.
+    trail_k : numpy.ndarray
+        (m,) int64 steps of the trail samples (0 .. k).
+    track : numpy.ndarray
+        (m, 2) the task's tracked point at ``trail_k`` ((0, 2) if none), m.
+    field : dict
+        The task's arrays at this step (:data:`VIEWS`).
+    stats : dict
+        The task's numbers at this step (floats).
+    """
     frac: float             # requested fraction of the episode's actual length
     k: int                  # steps taken
     t_s: float              # time since the episode's start, s (k dt)
@@ -76,7 +100,37 @@ class Frame(NamedTuple):
 
 
 class EpisodeFrames(NamedTuple):
-    """One episode and its snapshots (:func:`episode_frames`)."""
+    """One episode and its snapshots (:func:`episode_frames`).
+
+    Attributes
+    ----------
+    task : str
+        The task id.
+    tier : int
+        The tier.
+    method : str
+        The method.
+    seed : int
+        The cell's seed.
+    episode : int
+        Row of ``Cell.reset(episodes, seed)``.
+    candidate : int
+        The task's candidate episode it is (``init["candidate"]``).
+    dt : float
+        Step, s.
+    n_steps : int
+        Time limit, steps.
+    k_end : int
+        Actual length, steps.
+    success : bool
+        Whether the episode succeeded.
+    metrics : dict
+        The episode's result row (STANDARD + the task's METRICS), floats.
+    static : dict
+        The task's fixed geometry (:data:`VIEWS`).
+    frames : tuple of Frame
+        One per requested time, in the order given.
+    """
     task: str
     tier: int
     method: str
@@ -93,8 +147,28 @@ class EpisodeFrames(NamedTuple):
 
 
 class TaskView(NamedTuple):
-    """What of a task's work arrays Fig. 5 shows (functions of an :class:`Episodes` batch
-    ``ep`` and the episode index ``e``)."""
+    """What of a task's work arrays Fig. 5 shows.
+
+    Functions of an :class:`~oneocean.tasks.Episodes` batch ``ep`` and the episode index
+    ``e``, or of the recorded episode.
+
+    Attributes
+    ----------
+    static : callable
+        ``(ep, e) -> dict`` of the episode's fixed geometry.
+    field : callable
+        ``(ep, e) -> (dict of arrays, dict of floats)`` at the current step.
+    track : callable or None
+        ``(ep, e) ->`` (2,) tracked point (x, z), m; None: nothing tracked.
+    extent : callable
+        ``(EpisodeFrames) ->`` (n, 2) points the crop must hold, m.
+    draw : callable
+        ``(ax, EpisodeFrames, Frame, centre, style) -> None``.
+    legend : callable
+        ``(style) ->`` list of legend handles.
+    label : callable
+        ``(Frame) ->`` one or two short lines of numbers for the panel.
+    """
     static: Callable        # (ep, e) -> dict of the episode's fixed geometry
     field: Callable         # (ep, e) -> (dict of arrays, dict of floats) at the current step
     track: Callable | None  # (ep, e) -> (2,) tracked point (x, z), or None
@@ -125,22 +199,40 @@ def episode_frames(grid, task: str, tier: int = 2, method: str = "heuristic",
                    dynamics: str = "6dof", *, episodes: int | None = None,
                    trail_every: int = TRAIL_EVERY, n_agents: int | None = None
                    ) -> EpisodeFrames:
-    """Run episode ``episode`` of the cell (``task``, ``tier``, ``method``, ``seed``) on
-    ``grid`` and record it at ``times`` (fractions of its actual length; see the module doc).
+    """Run one episode of a cell and record it at a few fractions of its actual length.
+
+    See the module docstring for which episode and which steps.
 
     Parameters
     ----------
-    grid : Grid or path
+    grid : Grid or path-like
         A loaded grid export or its ``.npz`` path (:class:`oneocean.tasks.Cell`).
+    task : str
+        The task id.
+    tier : int, default 2
+        The tier.
+    method : str, default "heuristic"
+        A fused method (the task's heuristic or oracle).
+    seed : int, default 1000
+        The cell's seed.
+    episode : int, default 0
+        The row of ``Cell.reset(episodes, seed)`` to run.
+    times : sequence of float, default ``DEFAULT_TIMES``
+        Snapshot times, fractions in [0, 1] of the episode's actual length.
+    dynamics : str, default "6dof"
+        Vehicle model: ``kinematic``, ``3dof``, ``4dof`` or ``6dof``.
     episodes : int, optional
         Episodes of the rollout cell the episode is drawn from (``Cell.reset(episodes,
         seed)``); default ``episode + 1``.
-    trail_every : int
+    trail_every : int, default ``TRAIL_EVERY``
         Trail sampling interval, steps.
+    n_agents : int, optional
+        Team size (default: the task's own).
 
     Returns
     -------
     EpisodeFrames
+        The episode, its result and one :class:`Frame` per time.
 
     Raises
     ------
@@ -484,8 +576,21 @@ GENERIC = TaskView(_none_static, _none_field, None, _agents_extent, _none_draw,
 # ------------------------------------------------------------------------------------------
 
 def area_of_interest(ef: EpisodeFrames) -> tuple[float, float, float]:
-    """The square crop of an episode's row: ``(cx, cz, half_side)`` m, holding the agents'
-    trails and the task's extent (:data:`VIEWS`) with a margin."""
+    """The square crop of an episode's row.
+
+    It holds the agents' trails and the task's extent (:data:`VIEWS`) with a margin
+    (:data:`AOI_MARGIN`, :data:`AOI_PAD_M`).
+
+    Parameters
+    ----------
+    ef : EpisodeFrames
+        The recorded episode (:func:`episode_frames`).
+
+    Returns
+    -------
+    tuple of float
+        ``(cx, cz, half_side)``: centre (x east, z north) and half the side, m.
+    """
     pts = np.asarray(VIEWS.get(ef.task, GENERIC).extent(ef), dtype=np.float64)
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     c = 0.5 * (lo + hi)
@@ -642,12 +747,42 @@ def plot_snapshots(grid_path, out_png, tasks=FIG5_TASKS, tier: int = 2, seed: in
     step. The last column holds the row's legend, its outcome and colour bars. A task the
     region cannot host (:class:`~oneocean.errors.NotApplicable`) gets a one-line note row.
 
+    Parameters
+    ----------
+    grid_path : path-like
+        The grid export (``.npz``).
+    out_png : path-like
+        The PNG (the PDF goes beside it: :func:`oneocean.figures.save_figure`).
+    tasks : sequence of str, default ``FIG5_TASKS``
+        The rows, in order.
+    tier : int, default 2
+        The tier.
+    seed : int, default 1000
+        The cells' seed.
+    method : str, default "heuristic"
+        A fused method.
+    episode : int, default 0
+        The row of ``Cell.reset(episodes, seed)`` shown.
+    episodes : int, optional
+        As :func:`episode_frames`.
+    times : sequence of float, default ``DEFAULT_TIMES``
+        The columns: fractions in [0, 1] of each episode's actual length.
+    dynamics : str, default "6dof"
+        Vehicle model.
+
     Returns
     -------
     dict
-        ``tasks``: per task :func:`_summary` (``applicable``, ``reason``, ``success``,
-        ``k_end``, ``times_s``, ``steps``, ``metrics``, ``aoi``, ``stats`` per frame, ...);
-        ``tier``, ``seed``, ``method``, ``episode``, ``dynamics``, ``png``, ``pdf``.
+        ``tasks``: per task a JSON-able summary (``applicable``, ``reason``, ``episode``,
+        ``candidate``, ``success``, ``k_end``, ``n_steps``, ``dt_s``, ``times_s``,
+        ``steps``, ``fracs``, ``metrics``, ``aoi``, ``n_agents``, ``stats`` per frame; only
+        the first two for a task that is not applicable); ``tier``, ``seed``, ``method``,
+        ``episode``, ``episodes``, ``dynamics``, ``png``, ``pdf``.
+
+    Raises
+    ------
+    ConfigError
+        No tasks, or bad ``times`` / ``episode`` (:func:`episode_frames`).
     """
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize, PowerNorm

@@ -71,9 +71,21 @@ LATEX_PACKAGES = ("booktabs", "graphicx", "amssymb")
 
 
 def fit_width(tex: str) -> str:
-    """Shrink the tabular of a table to the line width when (and only when) it is wider:
-    the tabular is set in a box, measured, and scaled with graphicx's ``\\resizebox`` if it
-    does not fit (plain LaTeX, no extra package); a narrow table is left at its size."""
+    """Shrink the tabular of a table to the line width when (and only when) it is wider.
+
+    The tabular is set in a box, measured, and scaled with graphicx's ``\\resizebox`` if it
+    does not fit (plain LaTeX, no extra package); a narrow table is left at its size.
+
+    Parameters
+    ----------
+    tex : str
+        LaTeX with one ``tabular`` environment (only the first is wrapped).
+
+    Returns
+    -------
+    str
+        The same LaTeX with the tabular wrapped in the measuring box.
+    """
     return (tex.replace("\\begin{tabular}", "\\begingroup\\setbox0=\\hbox{\\begin{tabular}", 1)
             .replace("\\end{tabular}", "\\end{tabular}}%\n\\ifdim\\wd0>\\linewidth"
                      "\\resizebox{\\linewidth}{!}{\\box0}\\else\\mbox{\\box0}\\fi\\endgroup", 1))
@@ -82,7 +94,31 @@ def fit_width(tex: str) -> str:
 def to_booktabs(df: pd.DataFrame, caption: str, label: str,
                 best: Mapping[str, Best] | None = None, precision: int = 2,
                 column_format: str | None = None, na_rep: str = "--") -> str:
-    """Render ``df`` as a booktabs table; columns in ``best`` get their best value in bold."""
+    """Render ``df`` as a booktabs table; columns in ``best`` get their best value in bold.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The table; the index is not shown.
+    caption : str
+        The LaTeX caption.
+    label : str
+        The LaTeX label.
+    best : mapping of str to {"max", "min"}, optional
+        Numeric columns whose maximum (or minimum) is set in bold (every tied value).
+    precision : int, default 2
+        Decimals of floats.
+    column_format : str, optional
+        The tabular's column spec (default: ``l`` per column).
+    na_rep : str, default "--"
+        Text of missing values.
+
+    Returns
+    -------
+    str
+        The LaTeX table (``table`` environment, placement ``t``), fitted to the line width
+        (:func:`fit_width`).
+    """
     styler = df.style.format(precision=precision, na_rep=na_rep)
     for col, how in (best or {}).items():
         if col in df.columns and pd.api.types.is_numeric_dtype(df[col]) and df[col].notna().any():
@@ -100,7 +136,20 @@ def _escape(text: str) -> str:
 
 
 def dataset_variants_frame(metadata_files) -> pd.DataFrame:
-    """One row per variant from the per-variant metadata JSON files."""
+    """The dataset-variants table as data: one row per variant.
+
+    Parameters
+    ----------
+    metadata_files : iterable of path-like
+        The per-variant metadata JSON files of the ocean product.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Display columns (variant, extent in degrees lon/lat, grid size, resolution in
+        degrees, time coverage, depth count, mean and maximum surface current speed in m/s,
+        the maximum with tides, ocean fraction, source), rows ordered tiny, scene, public.
+    """
     rows = []
     for path in metadata_files:
         with open(path) as fh:
@@ -126,6 +175,15 @@ def dataset_variants_frame(metadata_files) -> pd.DataFrame:
 
 
 def dataset_variants_table(metadata_files, out_tex) -> None:
+    """Write the dataset-variants table (:func:`dataset_variants_frame`) as LaTeX, atomically.
+
+    Parameters
+    ----------
+    metadata_files : iterable of path-like
+        The per-variant metadata JSON files.
+    out_tex : path-like
+        The ``.tex`` file.
+    """
     df = dataset_variants_frame(metadata_files)
     tex = to_booktabs(
         df.assign(**{"Res. (deg)": df["Res. (deg)"].map(lambda r: f"{r:.4f}")}),
@@ -207,21 +265,37 @@ def _user_method(method: str, policies: list) -> None:
     registry.method_spec(method)
 
 def load_cell_frames(cell_files) -> pd.DataFrame:
-    """One row per cell file, in canonical order (registry task order, registry method order,
-    tier, condition): ``task, tier, method, currents, current_gain, tide, condition,
-    condition_label, applicable, reason, vehicle, n_agents, seed, n, k, success, episodes,
-    file``.
+    """Read cell files into one row per cell, in canonical order.
 
-    ``episodes`` is the cell's per-episode DataFrame, ``success`` its success vector (the
-    columns of :func:`oneocean.ladder.load_cells`, so its macros apply). Identity comes from
-    the file's record, else from its columns (a user's ``oneocean evaluate`` file).
-    ``current_gain`` is the run's gain g (a tier's own gain divided out), ``tide`` the
-    synthetic tide as canonical JSON (None: none). An ablation cell (:func:`oneocean.ladder.
-    read_cell`: ``info``, an information level instead of the method's sensors;
-    ``tier_overrides``, canonical JSON of the replaced tier parameters, ``""`` for none;
-    ``ablation``) has its own condition (``info-<level>``, ``set-<key>``), never
-    ``data-grounded``. An unregistered task or method, or two files for the same cell, is a
-    ConfigError (never silently dropped or pooled).
+    The order is registry task order, registry method order, tier, condition. Identity
+    comes from the file's record, else from its columns (a user's ``oneocean evaluate``
+    file). A method that is not registered but whose every file was written by ``oneocean
+    evaluate`` is registered as a user's method (kind ``callable``) so the tables take it.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files; a DataFrame (rows of this function) is returned as it is.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``task, tier, method, currents``; ``current_gain`` (the run's gain g, a tier's own
+        gain divided out); ``tide`` (the synthetic tide as canonical JSON, None: none);
+        ``condition, condition_label, condition_key`` (the forcing condition's id, table
+        label and sort key: ``data-grounded``, ``currents-off``, ``gain-<g>``,
+        ``tide-...``); ``info`` and ``tier_overrides`` (canonical JSON, ``""`` for none) and
+        ``ablation`` of an ablation cell (:func:`oneocean.ladder.read_cell`), whose
+        condition gets ``info-<level>`` / ``set-<key>`` and is never ``data-grounded``;
+        ``applicable, reason, vehicle, n_agents, seed``; ``n`` episodes, ``k`` successes,
+        ``success`` (bool array; the columns of :func:`oneocean.ladder.load_cells`, so its
+        macros apply), ``episodes`` (the cell's per-episode DataFrame) and ``file``.
+
+    Raises
+    ------
+    ConfigError
+        An unregistered task or method, or two files for the same cell (never silently
+        dropped or pooled).
     """
     from . import registry
     from .errors import ConfigError
@@ -304,7 +378,18 @@ def _cell(cells: pd.DataFrame, task: str, method: str, tier: int):
 # ------------------------------------------------------------------------------ intervals
 
 def rate_ci(success) -> tuple[float, float, float]:
-    """Success rate (%) of a success vector with its Wilson 95 % interval (NaN if empty)."""
+    """Success rate of a success vector with its Wilson 95 % interval.
+
+    Parameters
+    ----------
+    success : array_like
+        Per-episode success (bool).
+
+    Returns
+    -------
+    tuple of float
+        ``(sr, lo, hi)`` in %; NaNs if empty.
+    """
     from .ladder import wilson
 
     s = np.asarray(success, dtype=bool)
@@ -315,8 +400,20 @@ def rate_ci(success) -> tuple[float, float, float]:
 
 
 def mean_ci(x, seed: int | None = None) -> tuple[float, float, float]:
-    """Mean and seeded percentile-bootstrap 95 % interval of the finite values of ``x``
-    (:func:`oneocean.planning.mean_ci`; NaN when none)."""
+    """Mean and seeded percentile-bootstrap 95 % interval of the finite values of ``x``.
+
+    Parameters
+    ----------
+    x : array_like
+        Values; non-finite ones are dropped.
+    seed : int, optional
+        Bootstrap seed (default :data:`oneocean.ladder.BOOT_SEED`).
+
+    Returns
+    -------
+    tuple of float
+        ``(mean, lo, hi)`` (:func:`oneocean.planning.mean_ci`); NaNs when no finite value.
+    """
     from .ladder import BOOT_SEED
     from .planning import mean_ci as _mean_ci
 
@@ -324,9 +421,23 @@ def mean_ci(x, seed: int | None = None) -> tuple[float, float, float]:
 
 
 def pooled_mean_ci(groups, seed: int | None = None) -> tuple[float, float, float]:
-    """Mean over every finite value of the groups (tasks) pooled, with a stratified
-    percentile-bootstrap 95 % interval (values resampled within each group, groups in the
-    given order; seeded). No finite value: NaNs."""
+    """Mean of the finite values of several groups (tasks) pooled, with a bootstrap interval.
+
+    The 95 % interval is a seeded stratified percentile bootstrap (values resampled within
+    each group, groups in the given order).
+
+    Parameters
+    ----------
+    groups : iterable of array_like
+        Each group's values; non-finite ones are dropped.
+    seed : int, optional
+        Bootstrap seed (default :data:`oneocean.ladder.BOOT_SEED`).
+
+    Returns
+    -------
+    tuple of float
+        ``(mean, lo, hi)``; NaNs when no finite value.
+    """
     from .ladder import BOOT_SEED, N_BOOT
 
     xs = [np.asarray(g, dtype=np.float64) for g in groups]
@@ -344,11 +455,24 @@ def pooled_mean_ci(groups, seed: int | None = None) -> tuple[float, float, float
 
 
 def diff_ci(pairs, seed: int | None = None) -> tuple[float, float, float]:
-    """Difference in points of success rates, ``mean over pairs of (SR(a) - SR(b))``, for
-    ``pairs = [(success_a, success_b), ...]`` (one pair: one task's drop; several: a macro
-    drop over the tasks), with a seeded percentile-bootstrap 95 % interval (every success
-    vector resampled independently, pairs in the given order). Pairs with an empty side are
-    skipped; none left: NaNs."""
+    """Difference of success rates in points, ``mean over pairs of (SR(a) - SR(b))``.
+
+    One pair gives one task's drop; several a macro drop over the tasks. The 95 % interval
+    is a seeded percentile bootstrap (every success vector resampled independently, pairs
+    in the given order).
+
+    Parameters
+    ----------
+    pairs : iterable of (array_like, array_like)
+        ``(success_a, success_b)`` per task; pairs with an empty side are skipped.
+    seed : int, optional
+        Bootstrap seed (default :data:`oneocean.ladder.BOOT_SEED`).
+
+    Returns
+    -------
+    tuple of float
+        ``(diff, lo, hi)`` in percentage points; NaNs when no pair is left.
+    """
     from .ladder import BOOT_SEED, N_BOOT
 
     pairs = [(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
@@ -518,12 +642,24 @@ def _family_rows(tasks: list[str], body: dict[str, list[str]]) -> list:
 # ------------------------------------------------------------------------------ Table II
 
 def ladder_spec_frame(tasks=None) -> pd.DataFrame:
-    """Table II as data: one row per task (registry order): ``family, task, label,
-    agents_default, agents_lo, agents_hi, vehicle, primary, primary_higher`` and per tier
-    ``T<k>_time_limit_s``, ``T<k>_band_lo``, ``T<k>_band_hi`` (the current band: quantiles
-    of the region's own speeds, ``current_band``; NaN where a table lacks the key),
-    ``T<k>_ms_lo``, ``T<k>_ms_hi`` (an absolute band in m s-1, ``current_ms``, where a task's
-    table has one instead) and ``T<k>_params`` (every tier parameter, canonical JSON)."""
+    """Table II as data: one row per task, from the registry and the tier tables.
+
+    Parameters
+    ----------
+    tasks : sequence of str, optional
+        The tasks, in order (default: :func:`oneocean.registry.task_ids`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``family, task, label, agents_default, agents_lo, agents_hi, vehicle, primary,
+        primary_higher, calibration_seeds`` (JSON list) and per tier k
+        ``T<k>_time_limit_s`` (s), ``T<k>_band_lo``, ``T<k>_band_hi`` (the current band:
+        quantiles of the region's own speeds, ``current_band``; NaN where a table lacks
+        the key), ``T<k>_ms_lo``, ``T<k>_ms_hi`` (an absolute band in m s-1,
+        ``current_ms``, where a task's table has one instead) and ``T<k>_params`` (every
+        tier parameter, canonical JSON; ``""`` for a tier the task lacks).
+    """
     from . import registry
     from .tasks.common import load_task_table
 
@@ -566,6 +702,18 @@ def _tier_cell(row, k: int) -> str:
 
 
 def ladder_spec_latex(df: pd.DataFrame) -> str:
+    """Table II as LaTeX: tasks grouped by family, each tier's time limit and current band.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        :func:`ladder_spec_frame`'s rows.
+
+    Returns
+    -------
+    str
+        The ``table*`` (label ``tab:task_ladder``).
+    """
     tiers = sorted(int(c[1:].split("_")[0]) for c in df.columns if c.endswith("_params"))
     header = ["ID", "Task", "Agents", "Vehicle", "Primary metric"] + [f"Tier {k}" for k in tiers]
     body = {}
@@ -594,7 +742,20 @@ def ladder_spec_latex(df: pd.DataFrame) -> str:
 
 
 def ladder_spec_table(out_tex, tasks=None) -> pd.DataFrame:
-    """Write Table II (no cell files needed) and its numbers as Parquet."""
+    """Write Table II (no cell files needed) and its numbers as Parquet.
+
+    Parameters
+    ----------
+    out_tex : path-like
+        The ``.tex`` file; the numbers go beside it as ``.parquet``.
+    tasks : sequence of str, optional
+        As :func:`ladder_spec_frame`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        :func:`ladder_spec_frame`'s rows.
+    """
     df = ladder_spec_frame(tasks)
     _write(df, ladder_spec_latex(df), out_tex, {"table": "task_ladder"})
     return df
@@ -603,14 +764,27 @@ def ladder_spec_table(out_tex, tasks=None) -> pd.DataFrame:
 # ------------------------------------------------------------------------------ Table V
 
 def task_success_ci_frame(cell_files) -> pd.DataFrame:
-    """Table V as data, long: one row per (task, method, tier) of the data-grounded cells
-    (registry orders, then tier): ``family, task, n_agents, method, label, tier, sr, lo, hi``
-    (percent, Wilson 95 %), ``n`` (episodes), ``applicable``, ``tasks`` (1), ``reason``; then
-    per (method, tier) a ``task == "Macro"`` row: the unweighted mean over the tasks the
-    region hosts, stratified-bootstrap interval, ``tasks`` = how many it averages. A method
-    without a cell of every task the table has at a tier (e.g. a baseline trained only on the
-    single-vehicle tasks) has no macro row at that tier: its mean would be over other tasks
-    than the rest of the row's."""
+    """Table V as data, long: one row per (task, method, tier), then the macro rows.
+
+    A method without a cell of every task the table has at a tier (e.g. a baseline trained
+    only on the single-vehicle tasks) has no macro row at that tier: its mean would be over
+    other tasks than the rest of the row's.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`load_cell_frames`' rows; only the data-grounded cells
+        are used.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Per cell (registry orders, then tier): ``family, task, n_agents, method, label, tier,
+        sr, lo, hi`` (%, Wilson 95 %), ``n`` (episodes), ``applicable``, ``tasks`` (1),
+        ``reason``; then per (method, tier) a ``task == "Macro"`` row: the unweighted mean
+        over the tasks the region hosts with its stratified-bootstrap interval, ``tasks`` =
+        how many it averages.
+    """
     from . import registry
 
     cells = _data_grounded(load_cell_frames(cell_files))
@@ -642,15 +816,29 @@ def task_success_ci_frame(cell_files) -> pd.DataFrame:
 
 
 def task_success_frame(cell_files) -> pd.DataFrame:
-    """Per-task success rate (%) by method and tier (the point estimates of
-    :func:`task_success_ci_frame`, wide), plus a macro (unweighted mean over the tasks the
-    region hosts) row.
+    """Per-task success rate (%) by method and tier, wide, plus a macro row.
 
-    Rows follow :func:`oneocean.registry.task_ids` (the paper's order, then registered extras)
-    with the registry's family labels; columns follow the registry's method order, labelled
-    with each method's ``short`` label (``"Heur T2"``). A task or method in the rollouts that
-    is not registered is a ConfigError (never silently dropped). A cell the region cannot
-    host is NaN (n/a), never 0 %.
+    The point estimates of :func:`task_success_ci_frame`; the macro is the unweighted mean over
+    the tasks the region hosts. Rows follow :func:`oneocean.registry.task_ids` (the paper's
+    order, then registered extras) with the registry's family labels; columns follow the
+    registry's method order, labelled with each method's ``short`` label (``"Heur T2"``). A task
+    or method in the rollouts that is not registered is a ConfigError (never silently dropped).
+    A cell the region cannot host is NaN (n/a), never 0 %.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``Family, Task, N`` (agents) and one column per (method, tier), ``"<short> T<k>"``.
+
+    Raises
+    ------
+    ConfigError
+        A task or method that is not registered.
     """
     from . import registry
 
@@ -675,6 +863,25 @@ def task_success_frame(cell_files) -> pd.DataFrame:
 
 def task_success_latex(long: pd.DataFrame, cells: pd.DataFrame, region: str | None = None,
                        privileged=PRIVILEGED) -> str:
+    """Table V as LaTeX: SR [Wilson 95 %] per task, method and tier, and the macro row.
+
+    Parameters
+    ----------
+    long : pandas.DataFrame
+        :func:`task_success_ci_frame`'s rows.
+    cells : pandas.DataFrame
+        The data-grounded :func:`load_cell_frames` rows, for the caption (seeds, episodes,
+        n/a cells).
+    region : str, optional
+        The region, named in the caption and the label.
+    privileged : sequence of str, default ``PRIVILEGED``
+        Methods never set in bold.
+
+    Returns
+    -------
+    str
+        The ``table*`` (label ``tab:task_success[:<region>]``).
+    """
     from . import registry
 
     per = long[long["task"] != "Macro"]
@@ -730,8 +937,24 @@ def task_success_latex(long: pd.DataFrame, cells: pd.DataFrame, region: str | No
 
 
 def task_success_table(cell_files, out_tex, region: str | None = None) -> pd.DataFrame:
-    """Write Table V (the workflow's ``table_task_success`` rule) and its numbers
-    (:func:`task_success_ci_frame`) as Parquet beside the ``.tex``."""
+    """Write Table V and its numbers as Parquet beside the ``.tex``.
+
+    The workflow's ``table_task_success`` rule.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+    out_tex : path-like
+        The ``.tex`` file.
+    region : str, optional
+        The region, named in the caption and the label.
+
+    Returns
+    -------
+    pandas.DataFrame
+        :func:`task_success_ci_frame`'s rows (what the Parquet holds).
+    """
     cells = _data_grounded(load_cell_frames(cell_files))
     long = task_success_ci_frame(cells)
     _write(long, task_success_latex(long, cells, region), out_tex,
@@ -750,7 +973,9 @@ def _by_task(sel: pd.DataFrame, column: str, scale: float = 1.0) -> list[np.ndar
 
 def headline_frame(cell_files, tiers=(2, 3), metric_tier: int = 3,
                    metrics=HEADLINE_METRICS) -> pd.DataFrame:
-    """Table III as data: one row per method (registry order) with data-grounded cells:
+    """Table III as data: one row per method (registry order) with data-grounded cells.
+
+    Columns:
 
     * per tier k of ``tiers``: ``T<k>_sr`` (macro SR over the tasks the region hosts,
       stratified bootstrap; ``T<k>_sr_tasks``), ``T<k>_E`` (mean E over every episode of the
@@ -759,12 +984,31 @@ def headline_frame(cell_files, tiers=(2, 3), metric_tier: int = 3,
     * at ``metric_tier``, per key metric of ``metrics`` (:data:`HEADLINE_METRICS`): a rate
       (Wilson) or a mean of the finite values (seeded bootstrap; SK's ``rms_error_m``, the
       station-keeping RMS over the episode's window, is defined for every episode, so its
-      mean includes the failures), with
-      ``<key>_state``: ``ok``, ``n/a`` (the region cannot host the cell) or ``missing``.
+      mean includes the failures), with ``<key>_state``: ``ok``, ``n/a`` (the region cannot
+      host the cell) or ``missing``.
 
     Every value has ``_lo`` / ``_hi`` (95 %). A method without a cell of every task the
     table has at tier k has no ``T<k>`` aggregates (NaN, ``_tasks`` 0): they would average
-    other tasks than the other methods'."""
+    other tasks than the other methods'.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`load_cell_frames`' rows; only the data-grounded cells
+        are used.
+    tiers : sequence of int, default (2, 3)
+        The tiers with macro SR, E and Coll columns.
+    metric_tier : int, default 3
+        The tier of the key metrics.
+    metrics : sequence of tuple, default ``HEADLINE_METRICS``
+        ``(key, task, column, header, format)`` per key metric.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per method: ``method, label`` and the columns above. E is the team energy
+        proxy, m2 s-1; Coll is in %.
+    """
     from . import registry
 
     cells = _data_grounded(load_cell_frames(cell_files))
@@ -809,6 +1053,30 @@ def headline_frame(cell_files, tiers=(2, 3), metric_tier: int = 3,
 def headline_latex(df: pd.DataFrame, cells: pd.DataFrame, tiers=(2, 3), metric_tier: int = 3,
                    metrics=HEADLINE_METRICS, region: str | None = None,
                    privileged=PRIVILEGED) -> str:
+    """Table III as LaTeX: one row per method, best non-privileged value per column in bold.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        :func:`headline_frame`'s rows.
+    cells : pandas.DataFrame
+        The data-grounded :func:`load_cell_frames` rows, for the caption.
+    tiers : sequence of int, default (2, 3)
+        As :func:`headline_frame`.
+    metric_tier : int, default 3
+        As :func:`headline_frame`.
+    metrics : sequence of tuple, default ``HEADLINE_METRICS``
+        As :func:`headline_frame`; the task's ``higher_is_better`` decides the bold.
+    region : str, optional
+        The region, named in the caption and the label.
+    privileged : sequence of str, default ``PRIVILEGED``
+        Methods never set in bold.
+
+    Returns
+    -------
+    str
+        The ``table*`` (label ``tab:headline[:<region>]``).
+    """
     from . import registry
 
     header = ["Method"]
@@ -858,7 +1126,26 @@ def headline_latex(df: pd.DataFrame, cells: pd.DataFrame, tiers=(2, 3), metric_t
 
 def headline_table(cell_files, out_tex, tiers=(2, 3), metric_tier: int = 3,
                    region: str | None = None) -> pd.DataFrame:
-    """Write Table III and its numbers (:func:`headline_frame`) as Parquet."""
+    """Write Table III and its numbers (:func:`headline_frame`) as Parquet.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+    out_tex : path-like
+        The ``.tex`` file; the numbers go beside it as ``.parquet``.
+    tiers : sequence of int, default (2, 3)
+        As :func:`headline_frame`.
+    metric_tier : int, default 3
+        As :func:`headline_frame`.
+    region : str, optional
+        The region, named in the caption and the label.
+
+    Returns
+    -------
+    pandas.DataFrame
+        :func:`headline_frame`'s rows.
+    """
     cells = _data_grounded(load_cell_frames(cell_files))
     df = headline_frame(cells, tiers, metric_tier)
     _write(df, headline_latex(df, cells, tiers, metric_tier, region=region), out_tex,
@@ -870,15 +1157,29 @@ def headline_table(cell_files, out_tex, tiers=(2, 3), metric_tier: int = 3,
 # ------------------------------------------------------------------------------ difficulty
 
 def difficulty_frame(cell_files, method: str = "heuristic") -> pd.DataFrame:
-    """The difficulty ladder of one method as data: one row per task (registry order) with
-    data-grounded cells of ``method``, then a ``Macro`` row.
+    """The difficulty ladder of one method as data: one row per task, then a ``Macro`` row.
+
+    Tasks in registry order, those with data-grounded cells of ``method``.
 
     Per tier k: ``T<k>_sr, T<k>_lo, T<k>_hi`` (Wilson; macro: stratified bootstrap over the
     hosted tasks, ``T<k>_tasks``), ``T<k>_n`` (episodes), ``T<k>_state`` (``ok``, ``n/a``,
     ``missing``). Per pair of consecutive tiers a < b: ``drop_T<a>_T<b>`` = SR(a) - SR(b) in
     points (positive: tier b is harder) with ``_lo`` / ``_hi`` from a seeded bootstrap of the
     difference (both cells resampled independently); the macro drop is the mean over the
-    tasks hosted at both tiers (``drop_T<a>_T<b>_tasks``), a stratified bootstrap."""
+    tasks hosted at both tiers (``drop_T<a>_T<b>_tasks``), a stratified bootstrap.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+    method : str, default "heuristic"
+        The method.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``family, task`` and the columns above (rates and drops in %, points).
+    """
     from . import registry
 
     cells = _data_grounded(load_cell_frames(cell_files))
@@ -931,6 +1232,24 @@ def difficulty_frame(cell_files, method: str = "heuristic") -> pd.DataFrame:
 
 def difficulty_latex(df: pd.DataFrame, cells: pd.DataFrame, method: str,
                      region: str | None = None) -> str:
+    """The difficulty-ladder table as LaTeX: SR per tier and the drops between tiers.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        :func:`difficulty_frame`'s rows.
+    cells : pandas.DataFrame
+        The data-grounded :func:`load_cell_frames` rows, for the caption.
+    method : str
+        The method (its label is named in the caption).
+    region : str, optional
+        The region, named in the caption and the label.
+
+    Returns
+    -------
+    str
+        The ``table*`` (label ``tab:difficulty_<method>[:<region>]``).
+    """
     from . import registry
 
     tiers = sorted(int(c[1:].split("_")[0]) for c in df.columns
@@ -968,7 +1287,24 @@ def difficulty_latex(df: pd.DataFrame, cells: pd.DataFrame, method: str,
 
 def difficulty_table(cell_files, out_tex, method: str = "heuristic",
                      region: str | None = None) -> pd.DataFrame:
-    """Write the difficulty-ladder table of ``method`` and its numbers as Parquet."""
+    """Write the difficulty-ladder table of ``method`` and its numbers as Parquet.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+    out_tex : path-like
+        The ``.tex`` file; the numbers go beside it as ``.parquet``.
+    method : str, default "heuristic"
+        The method.
+    region : str, optional
+        The region, named in the caption and the label.
+
+    Returns
+    -------
+    pandas.DataFrame
+        :func:`difficulty_frame`'s rows.
+    """
     cells = _data_grounded(load_cell_frames(cell_files))
     df = difficulty_frame(cells, method)
     _write(df, difficulty_latex(df, cells, method, region), out_tex,
@@ -995,14 +1331,31 @@ def _condition_note(cond: str, label: str, tide: str | None, gain: float) -> str
 
 
 def ablation_frame(cell_files, tier: int = 3, method: str = "heuristic") -> pd.DataFrame:
-    """The forcing ablation of ``method`` at ``tier`` as data, long: one row per (task,
-    condition) with a cell, then per condition a ``Macro`` row. Conditions come from each
+    """The forcing ablation of ``method`` at ``tier`` as data, long.
+
+    One row per (task, condition) with a cell, then per condition a ``Macro`` row.
+    Information and tier-override ablation cells are left out. Conditions come from each
     cell's record (:func:`load_cell_frames`: ``currents`` False = currents off; the run's
     ``current_gain`` g; ``tide``), ordered data-grounded, other gains (ascending), with tide,
     currents off. Columns: ``family, task, condition, condition_label, current_gain, tide,
     sr, lo, hi`` (Wilson; macro: stratified bootstrap over the hosted tasks), ``n``,
     ``applicable``, ``tasks``, ``same_episodes`` (the cell replays the data-grounded cell's
-    episodes: equal ``candidate`` draws; None without a data-grounded cell to compare)."""
+    episodes: equal ``candidate`` draws; None without a data-grounded cell to compare).
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+    tier : int, default 3
+        The tier.
+    method : str, default "heuristic"
+        The method.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The columns above; ``sr, lo, hi`` in %.
+    """
     from . import registry
 
     cells = _forcing_only(load_cell_frames(cell_files))
@@ -1047,6 +1400,26 @@ def ablation_frame(cell_files, tier: int = 3, method: str = "heuristic") -> pd.D
 
 def ablation_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: str,
                    region: str | None = None) -> str:
+    """The forcing-ablation table as LaTeX: SR per task under each condition, and the macros.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        :func:`ablation_frame`'s rows.
+    cells : pandas.DataFrame
+        :func:`load_cell_frames` rows (forcing conditions only), for the caption.
+    tier : int
+        The tier.
+    method : str
+        The method (its label is named in the caption).
+    region : str, optional
+        The region, named in the caption and the label.
+
+    Returns
+    -------
+    str
+        The ``table`` (label ``tab:ablation_<method>_t<tier>[:<region>]``).
+    """
     from . import registry
 
     conds = list(dict.fromkeys(df.loc[df["task"] == "Macro", "condition"]))
@@ -1099,8 +1472,28 @@ def ablation_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: str
 
 def ablation_table(cell_files, out_tex, tier: int = 3, method: str = "heuristic",
                    region: str | None = None) -> pd.DataFrame:
-    """Write the forcing-ablation table (every condition with cells of ``method`` at
-    ``tier``) and its numbers as Parquet."""
+    """Write the forcing-ablation table and its numbers as Parquet.
+
+    Every forcing condition with cells of ``method`` at ``tier`` is a column.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like or pandas.DataFrame
+        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+    out_tex : path-like
+        The ``.tex`` file; the numbers go beside it as ``.parquet``.
+    tier : int, default 3
+        The tier.
+    method : str, default "heuristic"
+        The method.
+    region : str, optional
+        The region, named in the caption and the label.
+
+    Returns
+    -------
+    pandas.DataFrame
+        :func:`ablation_frame`'s rows.
+    """
     cells = _forcing_only(load_cell_frames(cell_files))
     df = ablation_frame(cells, tier, method)
     _write(df, ablation_latex(df, cells, tier, method, region), out_tex,

@@ -41,17 +41,42 @@ def make_test_grid(nt: int = 13, nz: int = 5, ny: int = 40, nx: int = 50, *,
 
     Parameters
     ----------
-    nt, nz, ny, nx : int
+    nt, nz, ny, nx : int, default 13, 5, 40, 50
         Grid size (time, depth, north, east). ``nt=49, nz=7, ny=150, nx=200`` is the size of
         the ``public`` variant (48 h hourly, 0.002 deg over 0.3 x 0.4 deg).
-    dx_m, dz_m : float
+    dx_m, dz_m : float, default 150.0
         Spacing east / north, m.
-    dt_s : float
+    dt_s : float, default 3600.0
         Time step of the fields, s.
     depths : array-like, optional
-        Depth levels, m (positive down); default ``geomspace``-like levels to ``max_depth_m``.
-    speed_ms, tide_ms : float
+        Depth levels, m (positive down), shape ``(nz,)``; default 0.5 m, then ``nz - 1``
+        levels spaced geometrically from 2 m to ``max_depth_m``.
+    max_depth_m : float, default 60.0
+        Deepest default level, m; the seafloor deepens toward ``1.25 * max_depth_m`` and the
+        currents decay with depth on the scale ``0.6 * max_depth_m``.
+    speed_ms, tide_ms : float, default 0.5, 0.2
         Scale of the ocean currents and of the tidal currents, m s-1.
+    has_tide : bool, default True
+        Give M2 tide layers (``u_tide, v_tide``, zero on land); False: zero layers and
+        ``has_tide`` 0.
+    land : bool, default True
+        A coast with land along the west edge; False: no land, a seafloor deepening from
+        ``0.75 * max_depth_m`` in the west to ``1.25 * max_depth_m`` in the east.
+    origin_lat, origin_lon : float, default 50.25, -4.40
+        The grid centre (the local tangent plane's origin), degrees.
+    time0_unix_s : float, default 1735689600.0
+        POSIX time of the first field, s (2025-01-01T00:00Z).
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        The grid export's arrays (``current_mask`` left out: the loader derives it from
+        ``valid_mask``); ``u, v`` (nt, nz, ny, nx) float32 m s-1, zero where not valid.
+
+    Raises
+    ------
+    ConfigError
+        ``depths`` does not have shape ``(nz,)``.
     """
     if depths is None:
         depths = np.concatenate([[0.5], np.geomspace(2.0, max_depth_m, nz - 1)]) if nz > 1 \
@@ -120,9 +145,30 @@ def make_test_grid(nt: int = 13, nz: int = 5, ny: int = 40, nx: int = 50, *,
 
 def uniform_grid(ce: float = 0.0, cn: float = 0.0, *, depth_m: float = 100.0, nx: int = 21,
                  ny: int = 21, dx_m: float = 100.0, nt: int = 2, dt_s: float = 86400.0) -> dict:
-    """A land-free grid export with a spatially and temporally uniform current (ce, cn) m s-1.
+    """A land-free grid export with a spatially and temporally uniform current.
 
-    Flat seafloor at ``depth_m``; used by tests that need exact, known disturbances.
+    Flat seafloor at ``depth_m``, two depth levels (0 and ``depth_m / 2``), no tide; used by
+    tests that need exact, known disturbances. Otherwise as :func:`make_test_grid`.
+
+    Parameters
+    ----------
+    ce, cn : float, default 0.0
+        The current east / north, m s-1.
+    depth_m : float, default 100.0
+        Water depth everywhere, m.
+    nx, ny : int, default 21
+        Grid size east / north.
+    dx_m : float, default 100.0
+        Node spacing east and north, m.
+    nt : int, default 2
+        Number of time steps.
+    dt_s : float, default 86400.0
+        Time step of the fields, s.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        The grid export's arrays (the keys of :func:`make_test_grid`).
     """
     g = make_test_grid(nt=nt, nz=2, ny=ny, nx=nx, dx_m=dx_m, dz_m=dx_m, dt_s=dt_s,
                        depths=[0.0, 0.5 * depth_m], max_depth_m=depth_m, has_tide=False,

@@ -88,7 +88,27 @@ CF = {
 
 
 def validate_choice(value, options, name: str):
-    """Return ``value`` if it is one of ``options``; otherwise raise a one-line ConfigError."""
+    """Return ``value`` if it is one of ``options``; otherwise raise a one-line ConfigError.
+
+    Parameters
+    ----------
+    value : object
+        The value to check.
+    options : collection
+        The valid values (membership test; listed in the error message).
+    name : str
+        The key or argument name, for the message.
+
+    Returns
+    -------
+    object
+        ``value`` itself.
+
+    Raises
+    ------
+    ConfigError
+        If ``value`` is not in ``options``.
+    """
     if value not in options:
         opts = ", ".join(repr(o) for o in options)
         raise ConfigError(f"{name}: invalid value {value!r}. Valid options are ({opts}).")

@@ -42,12 +42,38 @@ _ARRAYS_ATTR = {"oneocean_store": "arrays"}
 
 
 def is_zarr(path) -> bool:
-    """True when ``path`` names a zarr store (suffix ``.zarr``, trailing slash allowed)."""
+    """Whether ``path`` names a zarr store (suffix ``.zarr``, trailing slash allowed).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A product or export path; only its name is looked at, it need not exist.
+
+    Returns
+    -------
+    bool
+        True when the name ends in ``.zarr``.
+    """
     return os.fspath(path).rstrip("/\\").endswith(ZARR_SUFFIX)
 
 
 def product_filename(fmt: str = "netcdf") -> str:
-    """The product's file name for config ``product.format``: ``product.nc`` or ``product.zarr``.
+    """The product's file name for config ``product.format``.
+
+    Parameters
+    ----------
+    fmt : str, default "netcdf"
+        ``"netcdf"`` or ``"zarr"`` (the keys of :data:`PRODUCT_FORMATS`).
+
+    Returns
+    -------
+    str
+        ``product.nc`` or ``product.zarr``.
+
+    Raises
+    ------
+    ConfigError
+        ``fmt`` is not a product format.
     """
     from .errors import ConfigError
 
@@ -58,8 +84,25 @@ def product_filename(fmt: str = "netcdf") -> str:
 
 
 def export_filename(kind: str, fmt: str = "npz") -> str:
-    """An export's file name for config ``exports.format``: ``<kind>.npz`` or ``<kind>.zarr``
-    (``kind`` is ``grid`` or ``temporal``)."""
+    """An export's file name for config ``exports.format``.
+
+    Parameters
+    ----------
+    kind : str
+        The export: ``"grid"`` or ``"temporal"``.
+    fmt : str, default "npz"
+        ``"npz"`` or ``"zarr"`` (the keys of :data:`EXPORT_FORMATS`).
+
+    Returns
+    -------
+    str
+        ``<kind>.npz`` or ``<kind>.zarr``.
+
+    Raises
+    ------
+    ConfigError
+        ``fmt`` is not an export format.
+    """
     from .errors import ConfigError
 
     if fmt not in EXPORT_FORMATS:
@@ -74,6 +117,7 @@ def zarr_encoding(ds: xr.Dataset, netcdf_enc: dict) -> dict:
     Parameters
     ----------
     ds : xr.Dataset
+        The product to write.
     netcdf_enc : dict
         :func:`oneocean.ncio.netcdf_encoding` of ``ds`` (its ``chunksizes`` and ``dtype``).
 
@@ -111,10 +155,26 @@ def zarr_encoding(ds: xr.Dataset, netcdf_enc: dict) -> dict:
 def atomic_dir(path, suffix: str = ".tmp") -> Iterator[Path]:
     """Yield an empty temporary directory beside ``path``; rename it onto ``path`` on success.
 
-    ``suffix`` ends the temporary name (``.zarr`` lets :func:`open_product` recognise it). An
-    existing ``path`` is replaced (moved aside, then removed after the rename). On any
-    exception the temporary directory is removed, so no partial store is left behind; a full
-    disk becomes a one-line :class:`~oneocean.errors.DiskFullError` naming ``path``.
+    An existing ``path`` is replaced (moved aside, then removed after the rename). On any
+    exception the temporary directory is removed, so no partial store is left behind.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The store to create or replace (a trailing slash is ignored); its parent directory is
+        created if missing.
+    suffix : str, default ".tmp"
+        Ends the temporary directory's name (``.zarr`` lets :func:`open_product` recognise it).
+
+    Yields
+    ------
+    pathlib.Path
+        The temporary directory to write into.
+
+    Raises
+    ------
+    DiskFullError
+        The disk (or quota) is full (see :func:`~oneocean.io.disk_full_reason`); names ``path``.
     """
     from .errors import DiskFullError
 
@@ -151,17 +211,42 @@ def write_zarr(ds: xr.Dataset, store, encoding: dict) -> None:
     """Write ``ds`` (numpy- or dask-backed) into the (empty or absent) directory ``store``.
 
     Dask-backed variables are computed by the active dask scheduler (threads, or a
-    ``dask.distributed`` client, whose workers then write the chunks: ``path``'s directory must
+    ``dask.distributed`` client, whose workers then write the chunks: ``store``'s directory must
     be visible to them), one chunk per store object, so the bytes do not depend on scheduling.
     Metadata are consolidated (``.zmetadata``). Not atomic: see :func:`write_zarr_atomic`.
+
+    Parameters
+    ----------
+    ds : xr.Dataset
+        The dataset to write.
+    store : str or os.PathLike
+        The store's directory; its content is overwritten.
+    encoding : dict
+        Per-variable zarr encoding, :func:`zarr_encoding`.
     """
     ds.to_zarr(os.fspath(store), mode="w", consolidated=True, zarr_format=2,
                encoding=encoding, compute=True)
 
 
 def write_zarr_atomic(ds: xr.Dataset, path, encoding: dict) -> None:
-    """:func:`write_zarr` into a temporary directory beside ``path``, renamed onto it on
-    success (no partial store is left on failure)."""
+    """:func:`write_zarr` into a temporary directory beside ``path``, renamed onto it on success.
+
+    No partial store is left on failure (:func:`atomic_dir`).
+
+    Parameters
+    ----------
+    ds : xr.Dataset
+        The dataset to write.
+    path : str or os.PathLike
+        The store to create or replace.
+    encoding : dict
+        Per-variable zarr encoding, :func:`zarr_encoding`.
+
+    Raises
+    ------
+    DiskFullError
+        The disk (or quota) is full.
+    """
     with atomic_dir(path) as tmp:
         write_zarr(ds, tmp, encoding)
 
@@ -175,6 +260,21 @@ def write_arrays_zarr(path, arrays) -> None:
     a time (the time axis of the exports), others are one chunk. The group's only attribute,
     ``oneocean_store: arrays``, tells it from a product (:func:`is_arrays_store`). The bytes
     depend only on the arrays. :func:`read_arrays_zarr` gives back the same mapping.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The store to create or replace.
+    arrays : Mapping[str, array_like]
+        The arrays by name; dtypes of kind bool, integer, float, complex, datetime, timedelta
+        or fixed-width unicode.
+
+    Raises
+    ------
+    TypeError
+        An array has another dtype (e.g. object).
+    DiskFullError
+        The disk (or quota) is full.
     """
     import zarr
     from numcodecs import Zstd
@@ -195,7 +295,19 @@ def write_arrays_zarr(path, arrays) -> None:
 
 
 def is_arrays_store(path) -> bool:
-    """True when ``path`` is a zarr store written by :func:`write_arrays_zarr`."""
+    """Whether ``path`` is a zarr store written by :func:`write_arrays_zarr`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A store (or any path).
+
+    Returns
+    -------
+    bool
+        True when the store's ``.zattrs`` has ``oneocean_store: arrays``; False when it does
+        not, or cannot be read.
+    """
     import json
 
     attrs = Path(os.fspath(path).rstrip("/\\")) / ".zattrs"
@@ -206,8 +318,24 @@ def is_arrays_store(path) -> bool:
 
 
 def arrays_content_hash(path) -> str:
-    """sha256 of the decoded arrays of a :func:`write_arrays_zarr` store (names, dtypes,
-    shapes and values, in name order)."""
+    """sha256 of the decoded arrays of a :func:`write_arrays_zarr` store.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The store.
+
+    Returns
+    -------
+    str
+        Hex sha256 over the names, dtypes, shapes and values, in name order
+        (:func:`~oneocean.io.array_digest`).
+
+    Raises
+    ------
+    DataError
+        The store is missing or unreadable.
+    """
     from .io import array_digest
 
     h = hashlib.sha256()
@@ -217,9 +345,25 @@ def arrays_content_hash(path) -> str:
 
 
 def read_arrays_zarr(path, what: str = "export") -> dict:
-    """Every array of a store written by :func:`write_arrays_zarr`, read into memory
-    (``{name: ndarray}``, 0-d arrays as 0-d ndarrays); a missing or unreadable store is a
-    one-line :class:`~oneocean.errors.DataError` naming it as ``what``."""
+    """Every array of a store written by :func:`write_arrays_zarr`, read into memory.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The store.
+    what : str, default "export"
+        What the store is, for the error message.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        ``{name: ndarray}`` in name order, 0-d arrays as 0-d ndarrays.
+
+    Raises
+    ------
+    DataError
+        The store is missing or unreadable (one line, naming it as ``what``).
+    """
     import zarr
 
     from .errors import DataError
@@ -238,8 +382,19 @@ def read_arrays_zarr(path, what: str = "export") -> dict:
 def open_product(path, **kwargs) -> xr.Dataset:
     """Open a product (NetCDF file or zarr store, by suffix) lazily with xarray.
 
-    ``kwargs`` go to :func:`xarray.open_dataset` (e.g. ``decode_times``, ``cache``); a zarr
-    store is opened with its consolidated metadata.
+    A zarr store is opened with its consolidated metadata (``cache`` is dropped for it).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The product: ``.zarr`` for a zarr store, a NetCDF file otherwise.
+    **kwargs
+        Passed to :func:`xarray.open_dataset` (e.g. ``decode_times``, ``cache``).
+
+    Returns
+    -------
+    xr.Dataset
+        The lazily opened product.
     """
     if is_zarr(path):
         kwargs.pop("cache", None)
@@ -259,8 +414,26 @@ def _store_files(root: Path) -> list:
 
 
 def store_sha256(path) -> str:
-    """Hex sha256 of a directory store over its files in sorted relative-path order: each
-    file's path, size and the sha256 of its bytes (``.snakemake_timestamp`` is left out)."""
+    """Hex sha256 of a directory store over its files in sorted relative-path order.
+
+    Each file contributes its relative path, size and the sha256 of its bytes
+    (``.snakemake_timestamp`` is left out).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The store's directory.
+
+    Returns
+    -------
+    str
+        The hex digest.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``path`` is not a directory.
+    """
     root = Path(path)
     if not root.is_dir():
         raise FileNotFoundError(f"{path}: not a directory")
@@ -272,12 +445,34 @@ def store_sha256(path) -> str:
 
 
 def sha256_path(path) -> str:
-    """sha256 of a file's bytes, or :func:`store_sha256` of a zarr store (a directory)."""
+    """sha256 of a file's bytes, or :func:`store_sha256` of a zarr store (a directory).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file, or a directory whose name ends in ``.zarr``.
+
+    Returns
+    -------
+    str
+        The hex digest.
+    """
     return store_sha256(path) if Path(path).is_dir() and is_zarr(path) else sha256_file(path)
 
 
 def path_bytes(path) -> int:
-    """Size of a file, or the total size of a store's files."""
+    """Size of a file, or the total size of a store's files.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file or a directory store (``.snakemake_timestamp`` files are not counted).
+
+    Returns
+    -------
+    int
+        The size in bytes.
+    """
     p = Path(path)
     if p.is_dir():
         return int(sum(full.stat().st_size for _, full in _store_files(p)))

@@ -29,7 +29,25 @@ BACKENDS = ("core", "mujoco")
 
 @runtime_checkable
 class Rollout(Protocol):
-    """E episodes of one task under one method, advanced in segments (see module doc)."""
+    """E episodes of one task under one method, advanced in segments (see module doc).
+
+    Attributes
+    ----------
+    n_episodes : int
+        Number of episodes E.
+    n_agents : int
+        Number of agents per episode N.
+    n_steps : int
+        Steps per episode at most (the time limit over ``dt``).
+    dt : float
+        Control step, s.
+    columns : tuple of str
+        The per-episode result columns.
+    P : tuple
+        The task's parameters (its public view, e.g. for a planner).
+    W : tuple
+        The task's per-episode work arrays (plan tokens a planner writes).
+    """
 
     n_episodes: int
     n_agents: int
@@ -52,23 +70,85 @@ class Rollout(Protocol):
         """(E, N, STATE_DIM) the agents' state as the method knows it."""
 
     def run(self, k_stop: int | None = None) -> "Rollout":
-        """Advance every running episode up to step ``k_stop`` (default: its end)."""
+        """Advance every running episode up to step ``k_stop``.
+
+        Parameters
+        ----------
+        k_stop : int, optional
+            Step to stop at; default: each episode's end. A negative value advances each episode
+            by ``-k_stop`` steps from where it is.
+
+        Returns
+        -------
+        Rollout
+            ``self``.
+        """
 
     def run_planned(self, planner, every: int) -> "Rollout":
-        """Run to the end in segments of ``every`` steps, ``planner(self)`` before each."""
+        """Run to the end in segments of ``every`` steps, ``planner(self)`` before each.
+
+        Parameters
+        ----------
+        planner : callable
+            ``planner(rollout)``: reads the batch and writes plan tokens into ``W``.
+        every : int
+            Segment length, steps (>= 1).
+
+        Returns
+        -------
+        Rollout
+            ``self``.
+        """
 
     def set_actions(self, actions) -> None:
-        """External actions (E, N, 3) for the next step(s), m s-1, world frame."""
+        """Set the external actions for the next step(s).
+
+        Parameters
+        ----------
+        actions : array_like
+            (E, N, 3) desired velocity relative to the water, world frame (x east, y down,
+            z north), m s-1; clipped to ``v_max`` by the loop.
+        """
 
     def observe(self) -> np.ndarray:
-        """(E, N, OBS_DIM) every agent's observation before its next step."""
+        """Every agent's observation before its next step.
+
+        Returns
+        -------
+        (E, N, OBS_DIM) float64
+            The observations.
+        """
 
     def results(self) -> dict:
-        """Per-episode result columns once every episode ended."""
+        """Per-episode result columns once every episode ended.
+
+        Returns
+        -------
+        dict
+            Column name to (E,) array.
+        """
 
 
 def check_backend(name: str, where: str = "rollouts.backend") -> str:
-    """``name`` if it is a backend, else a one-line ConfigError naming ``where``."""
+    """Validate an execution backend name.
+
+    Parameters
+    ----------
+    name : str
+        Backend name, one of :data:`BACKENDS`.
+    where : str, default "rollouts.backend"
+        Config key named in the error message.
+
+    Returns
+    -------
+    str
+        ``name``.
+
+    Raises
+    ------
+    ConfigError
+        If ``name`` is not a backend (one line naming ``where``).
+    """
     from ..errors import ConfigError
 
     if name not in BACKENDS:

@@ -17,7 +17,7 @@ No ``fastmath``: NaN tests must stay honest.
 Small kernels that take the :class:`~oneocean.engine.grid.Grid` (15 arrays + 20 scalars,
 ~1 KB when flattened) or many arrays are declared ``inline="always"``: numba passes such
 structs by value, and an out-of-line call copies them on every call (measured ~70 ns per
-``sample_current`` call before inlining).
+``sample_current`` call when not inlined).
 """
 
 from __future__ import annotations
@@ -29,7 +29,23 @@ from numba import njit
 
 
 def hot_kernel(*args, **kwargs):
-    """``numba.njit(cache=True, _nrt=False, error_model="numpy")`` (plus ``kwargs``)."""
+    """``numba.njit(cache=True, _nrt=False, error_model="numpy")``, plus ``kwargs``.
+
+    Use bare (``@hot_kernel``) or with arguments (``@hot_kernel(inline="always")``).
+
+    Parameters
+    ----------
+    *args
+        The function to compile (bare use), or positional arguments of ``numba.njit`` (e.g.
+        explicit signatures).
+    **kwargs
+        Options of ``numba.njit``; they override the defaults above.
+
+    Returns
+    -------
+    numba.core.registry.CPUDispatcher or callable
+        The compiled function (bare use), else a decorator.
+    """
     opts = dict(cache=True, _nrt=False, error_model="numpy")
     opts.update(kwargs)
     if args and callable(args[0]) and len(args) == 1:
@@ -116,8 +132,18 @@ _MARKER = "oneocean-engine.fingerprint"
 
 
 def source_fingerprint(*paths: Path) -> str:
-    """sha256 over the engine's ``.py`` sources and ``paths`` (files, or folders of ``.py``
-    files), plus the numba version."""
+    """Fingerprint of the engine's sources, further sources and the numba version.
+
+    Parameters
+    ----------
+    *paths : path-like
+        Further files, or folders of ``.py`` files, the cached kernels depend on.
+
+    Returns
+    -------
+    str
+        sha256 hex digest over the engine's ``.py`` files, ``paths`` and ``numba.__version__``.
+    """
     import numba
 
     h = hashlib.sha256(numba.__version__.encode())
@@ -129,7 +155,18 @@ def source_fingerprint(*paths: Path) -> str:
 
 
 def cache_dir_of(dispatcher) -> Path | None:
-    """Directory where numba caches ``dispatcher`` (None if caching is off)."""
+    """Directory where numba caches ``dispatcher``.
+
+    Parameters
+    ----------
+    dispatcher : numba dispatcher
+        A function compiled with ``cache=True``.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The cache directory; None if caching is off.
+    """
     cache = getattr(dispatcher, "_cache", None)
     path = getattr(cache, "_cache_path", None)
     return Path(path) if path else None
@@ -138,10 +175,24 @@ def cache_dir_of(dispatcher) -> Path | None:
 def ensure_fresh_cache(dispatcher, module_prefixes: tuple[str, ...], *sources: Path) -> bool:
     """Remove stale numba cache files of ``module_prefixes`` next to ``dispatcher``'s cache.
 
-    The fingerprint covers the engine and ``sources`` (the files or folders the cached kernels
-    depend on). Returns True if files were removed. Call at import time, before any kernel
-    runs; the task layer calls it per task module (:func:`oneocean.tasks.common.fresh_cache`),
-    so editing one task recompiles only that task's kernel.
+    Call at import time, before any kernel runs; the task layer calls it per task module
+    (:func:`oneocean.tasks.common.fresh_cache`), so editing one task recompiles only that task's
+    kernel.
+
+    Parameters
+    ----------
+    dispatcher : numba dispatcher
+        A cached kernel whose cache directory holds the entries.
+    module_prefixes : tuple of str
+        File-name prefixes (``"<module>."``) of the cache entries to drop when stale.
+    *sources : path-like
+        Files or folders the cached kernels depend on, beyond the engine; the fingerprint
+        (:func:`source_fingerprint`) covers both.
+
+    Returns
+    -------
+    bool
+        True if files were removed.
     """
     d = cache_dir_of(dispatcher)
     if d is None or not d.is_dir():

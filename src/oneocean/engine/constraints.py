@@ -25,7 +25,7 @@ DEFAULT_R_COLL_M = 2.0
 
 @hot_kernel(inline="always")
 def check_move(grid, x, y, z, land_threshold, clearance):
-    """Status of a proposed position (world m): OK, OUTSIDE, LAND, SEAFLOOR or NONFINITE.
+    """Status of a proposed position: OK, OUTSIDE, LAND, SEAFLOOR or NONFINITE.
 
     OUTSIDE means beyond the grid's horizontal extent or above the surface (``y < 0``; the
     dynamics keep vehicles at ``y >= 0``, so surfacing is never a violation in a rollout).
@@ -33,12 +33,18 @@ def check_move(grid, x, y, z, land_threshold, clearance):
     Parameters
     ----------
     grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
     x, y, z : float
         Proposed position, m (x east, y depth positive down, z north).
     land_threshold : float
         Rejection threshold on the bilinearly sampled land mask (0..1).
     clearance : float
         Required distance above the seafloor, m: rejected if ``y + clearance > -h(x, z)``.
+
+    Returns
+    -------
+    int
+        Status code (:mod:`oneocean.engine.status`).
     """
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
         return st.NONFINITE
@@ -58,7 +64,24 @@ is_feasible = check_move
 
 @hot_kernel
 def check_points(grid, xyz, land_threshold, clearance, out):
-    """Vectorised :func:`check_move`: ``xyz`` (n, 3) m -> ``out`` (n,) int64 status codes."""
+    """Vectorised :func:`check_move`.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    xyz : (n, 3) float64
+        Proposed positions ``[x, y, z]``, m.
+    land_threshold, clearance : float
+        As in :func:`check_move`.
+    out : (n,) int64
+        Output array, written in place.
+
+    Returns
+    -------
+    (n,) int64
+        ``out``: the status codes.
+    """
     for n in range(xyz.shape[0]):
         out[n] = check_move(grid, xyz[n, 0], xyz[n, 1], xyz[n, 2], land_threshold, clearance)
     return out
@@ -66,9 +89,19 @@ def check_points(grid, xyz, land_threshold, clearance, out):
 
 @hot_kernel(inline="always")
 def min_pairwise_distance(pos):
-    """Smallest distance (m) between any two rows of ``pos`` (n, >=3; columns 0..2 = x, y, z).
+    """Smallest distance between any two rows of ``pos``.
 
-    ``inf`` when n < 2. O(n^2 / 2), meant for n <= ~10 agents.
+    O(n^2 / 2), meant for n <= ~10 agents.
+
+    Parameters
+    ----------
+    pos : (n, >=3) float64
+        Positions; columns 0..2 are x, y, z, m (e.g. a state array's agents).
+
+    Returns
+    -------
+    float
+        The smallest distance, m; ``inf`` when n < 2.
     """
     n = pos.shape[0]
     best = np.inf
@@ -88,7 +121,24 @@ def min_pairwise_distance(pos):
 
 def feasibility(grid: Grid, xyz, land_threshold: float = DEFAULT_LAND_THRESHOLD,
                 clearance: float = DEFAULT_CLEARANCE_M) -> np.ndarray:
-    """Status codes (n,) int64 for points ``xyz`` (n, 3) m."""
+    """Status codes of points (:func:`check_move` at each).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    xyz : array_like
+        (n, 3) points ``[x, y, z]``, m.
+    land_threshold : float, default 0.5
+        Rejection threshold on the sampled land mask (0..1).
+    clearance : float, default 1.0
+        Required distance above the seafloor, m.
+
+    Returns
+    -------
+    (n,) int64
+        Status codes (:mod:`oneocean.engine.status`).
+    """
     xyz = np.ascontiguousarray(np.atleast_2d(xyz), dtype=np.float64)
     return check_points(grid, xyz, float(land_threshold), float(clearance),
                         np.empty(xyz.shape[0], dtype=np.int64))
@@ -136,11 +186,12 @@ def spawn_positions(grid: Grid, rng, n: int, region=None, *,
                     clearance: float = DEFAULT_CLEARANCE_M, min_separation: float = 0.0,
                     max_candidates: int = 200_000, min_current_defined: float = 0.0
                     ) -> np.ndarray:
-    """Draw ``n`` feasible positions (n, 3) m by vectorised rejection sampling, or fail loudly.
+    """Draw ``n`` feasible positions by vectorised rejection sampling, or fail loudly.
 
     Parameters
     ----------
     grid : Grid
+        The grid export.
     rng : int, numpy.random.SeedSequence or numpy.random.Generator
         Randomness; use :func:`oneocean.engine.rng.episode_rng` for per-episode streams.
     n : int
@@ -150,20 +201,26 @@ def spawn_positions(grid: Grid, rng, n: int, region=None, *,
         extent and the surface ``y = 0``), or ``"altitude": (lo, hi)`` m above the seafloor
         instead of ``y``; or ``(x_lo, x_hi, y_lo, y_hi, z_lo, z_hi)``.
     land_threshold, clearance : float
-        As in :func:`check_move`.
-    min_separation : float
+        As in :func:`check_move` (defaults 0.5 and 1.0 m).
+    min_separation : float, default 0.0
         Minimum distance between the returned positions, m (accepted greedily).
-    max_candidates : int
+    max_candidates : int, default 200000
         Give up after this many candidates.
-    min_current_defined : float
+    min_current_defined : float, default 0.0
         Also reject candidates where less than this share of the bilinear weight lies on nodes
         with currents (:func:`oneocean.engine.grid.current_defined`; 1.0 = fully inside the
-        currents' coverage, away from water without currents). 0 (default) = no check.
+        currents' coverage, away from water without currents). 0 = no check.
+
+    Returns
+    -------
+    (n, 3) float64
+        Positions ``[x, y, z]``, m.
 
     Raises
     ------
     ConfigError
-        If fewer than ``n`` valid positions were found, with the rejection reasons counted.
+        If ``n < 0``, ``region`` is malformed, or fewer than ``n`` valid positions were found
+        (with the rejection reasons counted).
     """
     n = int(n)
     if n < 0:

@@ -108,7 +108,7 @@ matrix is diagonal about the origin, so its reaction has no moment.
 
 :func:`step_agent` (the step the episode loop takes, :func:`oneocean.engine.step.advance_agent`)
 is ``step_agent_unsteady`` with ``A = 0``: the loop does not give the dynamics the water's
-acceleration yet. ``A`` is a property of the field, not of the vehicle's samples: it needs the
+acceleration. ``A`` is a property of the field, not of the vehicle's samples: it needs the
 grid at the agent (``dV/dt`` of the time interpolation plus ``(V . grad) V`` of the spatial
 one). The difference of the current sampled at consecutive steps along the vehicle's path is
 ``dV/dt + (v . grad) V``, which differs from ``A`` by ``(nu_r . grad) V``; using it would make
@@ -209,13 +209,40 @@ _VEHICLE_DEFAULTS = {
 
 
 def model_id(name: str) -> int:
-    """Integer id of a dynamics model name (``ConfigError`` naming the options if unknown)."""
+    """Integer id of a dynamics model name.
+
+    Parameters
+    ----------
+    name : str
+        Model name, one of :data:`oneocean.vocab.DYNAMICS` (``kinematic``, ``3dof``, ``4dof``,
+        ``6dof``).
+
+    Returns
+    -------
+    int
+        Model id: ``KINEMATIC`` (0), ``DOF3`` (1), ``DOF4`` (2) or ``DOF6`` (3).
+
+    Raises
+    ------
+    ConfigError
+        If ``name`` is unknown (the message names the options).
+    """
     return MODEL_IDS[validate_choice(name, DYNAMICS, "dynamics")]
 
 
 @dataclass(frozen=True)
 class Vehicle:
-    """A vehicle's parameters: the documented spec (for manifests) and the kernel vector."""
+    """A vehicle's parameters: the documented spec (for manifests) and the kernel vector.
+
+    Attributes
+    ----------
+    name : str
+        Vehicle name (key in ``data/vehicles.yaml``).
+    spec : dict
+        The vehicle's spec as given (file values with any overrides applied).
+    params : (PARAM_DIM,) float64
+        Kernel parameter vector built by :func:`vehicle_params`.
+    """
 
     name: str
     spec: dict
@@ -227,17 +254,56 @@ class Vehicle:
         return float(self.params[P_VMAX])
 
     def substeps(self, dt: float) -> int:
-        """Number of integration substeps the rigid-body models use for a step ``dt`` (s)."""
+        """Number of integration substeps the rigid-body models use for a step ``dt``.
+
+        Parameters
+        ----------
+        dt : float
+            Step, s.
+
+        Returns
+        -------
+        int
+            ``ceil(dt / max_substep_s)``, at least 1.
+        """
         return _nsub(self.params, float(dt))
 
 
 def vehicles_file() -> Path:
-    """The vehicle table, ``data/vehicles.yaml`` (shipped in the wheel)."""
+    """The vehicle table, ``data/vehicles.yaml`` (shipped in the wheel).
+
+    Returns
+    -------
+    pathlib.Path
+        Path of the packaged vehicle table.
+    """
     return Path(str(resources.files("oneocean") / "data" / "vehicles.yaml"))
 
 
 def vehicle_params(spec: Mapping, name: str = "vehicle") -> np.ndarray:
-    """Validate a vehicle spec (see ``data/vehicles.yaml``) and build its parameter vector."""
+    """Validate a vehicle spec (see ``data/vehicles.yaml``) and build its parameter vector.
+
+    Parameters
+    ----------
+    spec : mapping
+        Vehicle spec: every key of ``data/vehicles.yaml``'s vehicles (SI units); ``guidance``,
+        ``pitch_max_deg``, ``thrust_coupling``, ``lift_coefficients``, ``fin_coefficients``,
+        ``fin_angle_max_deg`` and ``turn_radius_min_m`` may be left out (no lift, fins or
+        coupling; holonomic and level).
+    name : str, default "vehicle"
+        Vehicle name, used in error messages.
+
+    Returns
+    -------
+    (PARAM_DIM,) float64
+        Parameter vector for the kernels (layout: the ``P_*`` offsets of this module).
+
+    Raises
+    ------
+    ConfigError
+        If a key is missing or unknown, a value is ill-typed, non-finite or out of range, or the
+        lift coefficients are not dissipative.
+    """
     missing = [k for k in _VEHICLE_KEYS if k not in spec and k not in _VEHICLE_DEFAULTS]
     unknown = [k for k in spec if k not in _VEHICLE_KEYS]
     if missing:
@@ -362,6 +428,17 @@ def load_vehicle(name: str | None = None, overrides: Mapping | None = None,
         Keys replacing the file's values (same units), e.g. ``{"speed_limit_ms": 1.5}``.
     path : path-like, optional
         Alternative YAML file with the same layout.
+
+    Returns
+    -------
+    Vehicle
+        The vehicle's name, spec (with the overrides) and parameter vector.
+
+    Raises
+    ------
+    ConfigError
+        If the file cannot be read or lacks ``vehicles``, the name or an override key is
+        unknown, or the spec is invalid (:func:`vehicle_params`).
     """
     f = Path(path) if path is not None else vehicles_file()
     try:
@@ -383,7 +460,18 @@ def load_vehicle(name: str | None = None, overrides: Mapping | None = None,
 
 
 def vehicle_names(path: str | Path | None = None) -> tuple[str, ...]:
-    """Names of the vehicles in ``data/vehicles.yaml`` (or ``path``), file order."""
+    """Names of the vehicles in ``data/vehicles.yaml`` (or ``path``), file order.
+
+    Parameters
+    ----------
+    path : path-like, optional
+        Alternative YAML file with the same layout; default: :func:`vehicles_file`.
+
+    Returns
+    -------
+    tuple of str
+        Vehicle names.
+    """
     f = Path(path) if path is not None else vehicles_file()
     return tuple(yaml.safe_load(f.read_text())["vehicles"])
 
@@ -393,7 +481,20 @@ def vehicle_names(path: str | Path | None = None) -> tuple[str, ...]:
 
 @hot_kernel(inline="always")
 def clip_action(ax, ay, az, v_max):
-    """Clip the vector (ax, ay, az) m s-1 to Euclidean norm ``v_max`` (direction kept)."""
+    """Clip a velocity vector to Euclidean norm ``v_max`` (direction kept).
+
+    Parameters
+    ----------
+    ax, ay, az : float
+        Velocity components (east, down, north), m s-1.
+    v_max : float
+        Speed limit, m s-1.
+
+    Returns
+    -------
+    tuple of float
+        ``(ax, ay, az)`` scaled down to norm ``v_max`` if longer, else unchanged, m s-1.
+    """
     n2 = ax * ax + ay * ay + az * az
     if n2 > v_max * v_max:
         s = v_max / math.sqrt(n2)
@@ -403,7 +504,18 @@ def clip_action(ax, ay, az, v_max):
 
 @hot_kernel
 def wrap_angle(a):
-    """Wrap an angle (rad) to [-pi, pi)."""
+    """Wrap an angle to [-pi, pi).
+
+    Parameters
+    ----------
+    a : float
+        Angle, rad.
+
+    Returns
+    -------
+    float
+        The equivalent angle in [-pi, pi), rad.
+    """
     return a - _TWO_PI * math.floor((a + math.pi) * _INV_TWO_PI)
 
 
@@ -420,10 +532,20 @@ _C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.1359
 
 @hot_kernel
 def sincos(x):
-    """(sin x, cos x) with fdlibm's kernel polynomials after a Cody-Waite quadrant reduction.
+    """Sine and cosine with fdlibm's kernel polynomials after a Cody-Waite quadrant reduction.
 
-    About 3x faster than two libm calls in this kernel; accurate to ~1 ulp for |x| <= 1e5 (the
-    engine's angles are wrapped to [-pi, pi)); larger arguments fall back to libm.
+    About 3x faster than two libm calls in this kernel; accurate to ~1 ulp for ``|x| <= 1e5``
+    (the engine's angles are wrapped to [-pi, pi)); larger arguments fall back to libm.
+
+    Parameters
+    ----------
+    x : float
+        Angle, rad.
+
+    Returns
+    -------
+    tuple of float
+        ``(sin x, cos x)``.
     """
     if not abs(x) <= 1e5:
         return math.sin(x), math.cos(x)
@@ -1028,11 +1150,29 @@ def step_agent(model, vp, s, cmd, ce, cn, dt):
 
 @hot_kernel(inline="always")
 def step_agent_unsteady(model, vp, s, cmd, ce, cn, acc_e, acc_n, dt):
-    """:func:`step_agent` in water accelerating at ``(acc_e, acc_n)`` m s-2 over the step
-    (its material acceleration ``DV_c/Dt`` at the agent): the rigid-body models add the
-    Froude-Krylov and added-mass force of the water's acceleration (module docs, *Unsteady
-    current*); ``step_agent`` is this with zero acceleration. The kinematic model moves with
-    the water by definition (``p += (a + c) dt``) and ignores it."""
+    """:func:`step_agent` in water accelerating over the step.
+
+    The rigid-body models add the Froude-Krylov and added-mass force of the water's acceleration
+    (module docs, *Unsteady current*); ``step_agent`` is this with zero acceleration. The
+    kinematic model moves with the water by definition (``p += (a + c) dt``) and ignores it.
+
+    Parameters
+    ----------
+    model : int
+        Dynamics model id (``KINEMATIC``, ``DOF3``, ``DOF4``, ``DOF6``).
+    vp : (PARAM_DIM,) float64
+        Vehicle parameters (:func:`vehicle_params`); unused by the kinematic model.
+    s : (STATE_DIM,) float64
+        Agent state, modified in place.
+    cmd : (CMD_DIM,) float64
+        ``[ax, ay, az, psi_cmd, thrust]``; the velocity must already be clipped.
+    ce, cn : float
+        Current (east, north) at the agent, m s-1, frozen over the step.
+    acc_e, acc_n : float
+        The water's material acceleration ``DV_c/Dt`` at the agent (east, north), m s-2.
+    dt : float
+        Step, s.
+    """
     if model == KINEMATIC:
         _step_kinematic(s, cmd, ce, cn, dt)
     else:
@@ -1043,19 +1183,52 @@ def step_agent_unsteady(model, vp, s, cmd, ce, cn, acc_e, acc_n, dt):
 def step_agent_traced(model, vp, s, cmd, ce, cn, dt, trace):
     """:func:`step_agent` of a rigid-body model that also writes its actuator forces.
 
-    ``trace`` (:data:`TRACE_DIM` float64) receives, for the **last substep** of the step:
-    ``[0:6]`` the actuator generalized force per DOF (thruster force / moment, or fin moment
-    for a fin-steered DOF; N | N m), ``[6:12]`` its limit in that substep (thrust_max, or the
-    fin capacity at the substep's u_r; for a coupled thruster group the pure-axis capacity),
-    ``[12]`` the fin sway force and ``[13]`` the fin heave force (N). Use ``dt <=
-    max_substep_s`` to see every substep. For tests and diagnostics.
+    For tests and diagnostics.
+
+    Parameters
+    ----------
+    model : int
+        Rigid-body model id (``DOF3``, ``DOF4``, ``DOF6``).
+    vp : (PARAM_DIM,) float64
+        Vehicle parameters (:func:`vehicle_params`).
+    s : (STATE_DIM,) float64
+        Agent state, modified in place.
+    cmd : (CMD_DIM,) float64
+        ``[ax, ay, az, psi_cmd, thrust]``; the velocity must already be clipped.
+    ce, cn : float
+        Current (east, north) at the agent, m s-1, frozen over the step.
+    dt : float
+        Step, s. Use ``dt <= max_substep_s`` to see every substep.
+    trace : (TRACE_DIM,) float64
+        Receives, for the **last substep** of the step: ``[0:6]`` the actuator generalized
+        force per DOF (thruster force / moment, or fin moment for a fin-steered DOF; N or N m),
+        ``[6:12]`` its limit in that substep (thrust_max, or the fin capacity at the substep's
+        u_r; for a coupled thruster group the pure-axis capacity), ``[12]`` the fin sway force
+        and ``[13]`` the fin heave force (N).
     """
     _step_rigid(model, vp, s, cmd, ce, cn, 0.0, 0.0, dt, trace, True)
 
 
 @hot_kernel
 def kinetic_energy_rel(model, vp, s, ce, cn):
-    """Kinetic energy relative to the water, ``0.5 nu_r^T M nu_r`` (J), of a rigid-body state."""
+    """Kinetic energy relative to the water, ``0.5 nu_r^T M nu_r``, of a rigid-body state.
+
+    Parameters
+    ----------
+    model : int
+        Dynamics model id; roll and pitch are used only by ``DOF6``.
+    vp : (PARAM_DIM,) float64
+        Vehicle parameters (:func:`vehicle_params`).
+    s : (STATE_DIM,) float64
+        Agent state.
+    ce, cn : float
+        Current (east, north) at the agent, m s-1.
+
+    Returns
+    -------
+    float
+        Kinetic energy, J.
+    """
     cps = math.cos(s[PSI])
     sps = math.sin(s[PSI])
     if model == DOF6:
@@ -1083,15 +1256,45 @@ def kinetic_energy_rel(model, vp, s, ce, cn):
 
 
 def potential_energy(vp: np.ndarray, s: np.ndarray) -> float:
-    """Restoring potential energy (J): ``-(W - B) y + BG B (1 - cos(phi) cos(theta))``."""
+    """Restoring potential energy: ``-(W - B) y + BG B (1 - cos(phi) cos(theta))``.
+
+    Parameters
+    ----------
+    vp : (PARAM_DIM,) float64
+        Vehicle parameters (:func:`vehicle_params`).
+    s : (STATE_DIM,) float64
+        Agent state.
+
+    Returns
+    -------
+    float
+        Potential energy, J.
+    """
     return float(-vp[P_WB] * s[Y] + vp[P_BGB] * (1.0 - np.cos(s[PHI]) * np.cos(s[THETA])))
 
 
 def new_state(n_episodes: int, n_agents: int, positions=None, heading=0.0) -> np.ndarray:
-    """A zero-velocity state array (episodes, agents, STATE_DIM) at ``positions`` (E, A, 3) m.
+    """A zero-velocity state array at ``positions``.
 
-    ``heading`` (rad, compass convention) may be a scalar or an (E, A) array; it also sets the
-    yaw loop's heading reference.
+    Parameters
+    ----------
+    n_episodes, n_agents : int
+        Number of episodes E and agents per episode N.
+    positions : array_like, optional
+        (E, N, 3) positions ``(x, y, z)``, m, world frame; default: all zero.
+    heading : float or array_like, default 0.0
+        Heading, rad, compass convention: a scalar or an (E, N) array; it also sets the yaw
+        loop's heading reference.
+
+    Returns
+    -------
+    (E, N, STATE_DIM) float64
+        Vehicle states.
+
+    Raises
+    ------
+    ConfigError
+        If ``positions`` does not have shape (E, N, 3).
     """
     s = np.zeros((int(n_episodes), int(n_agents), STATE_DIM))
     if positions is not None:
@@ -1106,5 +1309,20 @@ def new_state(n_episodes: int, n_agents: int, positions=None, heading=0.0) -> np
 
 
 def make_cmd(ax=0.0, ay=0.0, az=0.0, psi=np.nan, thrust=True) -> np.ndarray:
-    """A command vector ``[ax, ay, az, psi_cmd, thrust]`` (see module docs)."""
+    """A command vector ``[ax, ay, az, psi_cmd, thrust]`` (see module docs).
+
+    Parameters
+    ----------
+    ax, ay, az : float, default 0.0
+        Desired velocity relative to the water (east, down, north), m s-1.
+    psi : float, default nan
+        Commanded heading, rad; NaN: face the commanded horizontal velocity.
+    thrust : bool, default True
+        Controller on (True) or unactuated drift (False).
+
+    Returns
+    -------
+    (CMD_DIM,) float64
+        The command vector.
+    """
     return np.array([ax, ay, az, psi, 1.0 if thrust else 0.0], dtype=np.float64)

@@ -48,8 +48,8 @@ REQUIRED_KEYS = (
     "x0_m", "dx_m", "z0_m", "dz_m", "origin_lat", "origin_lon", "m_per_deg_lat",
     "m_per_deg_lon", "elevation", "land_mask", "valid_mask", "meta_json",
 )
-#: Keys written by the export stage since issue #9 that older exports (and analytic test
-#: grids) may lack; :func:`load_grid` derives them (``current_mask = any(valid_mask)``).
+#: Keys of the grid export that an export (e.g. an analytic test grid) may lack;
+#: :func:`load_grid` derives them (``current_mask = any(valid_mask)``).
 OPTIONAL_KEYS = ("current_mask",)
 
 #: Minimum current-defined share of the bilinear weight for a renormalised value (the same
@@ -64,15 +64,18 @@ class Grid(NamedTuple):
 
     Attributes
     ----------
-    uv : (nt, nz, ny, nx, 2) float32, m s-1
-        Eastward / northward current (u, v interleaved for cache locality); levels without a
-        current hold the column's deepest valid value (:func:`hold_levels`); 0 where
+    uv : (nt, nz, ny, nx, 2) float32
+        Eastward / northward current (u, v interleaved for cache locality), m s-1; levels
+        without a current hold the column's deepest valid value (:func:`hold_levels`); 0 where
         ``current_mask == 0``.
-    uv_tide : (nt, ny, nx, 2) float32, m s-1
-        Tidal current (zeros when the export has none, or where ``current_mask == 0``).
-    elevation : (ny, nx) float32, m, positive up.
-    land : (ny, nx) float32, 1 = land, 0 = water (from the bathymetry).
-    valid : (nz, ny, nx) uint8, 1 = the product defines a current at this level and node.
+    uv_tide : (nt, ny, nx, 2) float32
+        Tidal current, m s-1 (zeros when the export has none, or where ``current_mask == 0``).
+    elevation : (ny, nx) float32
+        Bathymetric elevation, m, positive up.
+    land : (ny, nx) float32
+        Land mask, 1 = land, 0 = water (from the bathymetry).
+    valid : (nz, ny, nx) uint8
+        1 = the product defines a current at this level and node.
     current_mask : (ny, nx) float32
         1 = currents defined at the node (at one level or more), 0 = land or water without
         currents (sampled as 0; see :func:`current_defined`).
@@ -80,13 +83,21 @@ class Grid(NamedTuple):
         1 where the cell with lower-left node (j, i) has currents at all four corners (the
         sampling kernel's fast path: there the weights are plain bilinear); derived.
     time_s, time_inv : (nt,) float64
-        Time axis (s since ``time0_unix_s``) and inverse spacings (1 / s, last entry 0).
-    time_lut : (nlut,) int64 ; time_lut_inv_h : float
+        Time axis (s since ``time0_unix_s``) and inverse spacings (s-1, last entry 0).
+    time_lut : (nlut,) int64
         Lookup table locating a time in O(1): ``lut[int((t - time_s[0]) * inv_h)]``.
+    time_lut_inv_h : float
+        Inverse bin width of ``time_lut``, s-1.
     depth, depth_inv, depth_lut, depth_lut_inv_h
         Same for the depth axis (m, positive down).
-    x0, dx, inv_dx, x_max, nx ; z0, dz, inv_dz, z_max, ny
-        Regular horizontal axes: ``x = x0 + i dx`` (east), ``z = z0 + j dz`` (north), metres.
+    x0, dx, inv_dx, x_max : float
+        Regular east axis ``x = x0 + i dx``, m (``inv_dx`` in m-1; ``x_max`` the last node).
+    nx : int
+        Number of nodes along x.
+    z0, dz, inv_dz, z_max : float
+        Regular north axis ``z = z0 + j dz``, m (``inv_dz`` in m-1; ``z_max`` the last node).
+    ny : int
+        Number of nodes along z.
     gain : float
         Current gain g applied to the data currents u, v (not to the tide layers or the
         synthetic tide term).
@@ -94,8 +105,12 @@ class Grid(NamedTuple):
         1 if the real tide layers are added.
     tide_amp, tide_omega, tide_phase : float
         Synthetic tide term A (m s-1), w (rad s-1), phi (rad); A = 0 disables it.
-    time0_unix_s, origin_lat, origin_lon, m_per_deg_lat, m_per_deg_lon : float
-        Georeference of the world frame (contracts §3).
+    time0_unix_s : float
+        Start of the time axis, s since the Unix epoch.
+    origin_lat, origin_lon : float
+        Latitude and longitude of the world origin, degrees.
+    m_per_deg_lat, m_per_deg_lon : float
+        Metres per degree of latitude and longitude (equirectangular georeference, contracts §3).
     """
 
     uv: np.ndarray
@@ -155,7 +170,7 @@ def _axis_lut(ax: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 def hold_levels(valid: np.ndarray) -> np.ndarray:
-    """Source level of every (level, node) under the hold rule, (nz, ny, nx) int64.
+    """Source level of every (level, node) under the hold rule.
 
     A valid level reads itself; an invalid one reads the nearest valid level above it (so the
     deepest valid value is held down to the bottom of the column), or, above the shallowest
@@ -166,6 +181,11 @@ def hold_levels(valid: np.ndarray) -> np.ndarray:
     ----------
     valid : (nz, ny, nx) bool or int
         1 = the product defines a current at this level and node.
+
+    Returns
+    -------
+    (nz, ny, nx) int64
+        Level index each (level, node) reads.
     """
     ok = np.asarray(valid).astype(bool)
     nz = ok.shape[0]
@@ -177,8 +197,21 @@ def hold_levels(valid: np.ndarray) -> np.ndarray:
 
 
 def fill_columns(a: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """``a`` (..., nz, ny, nx) with every column held by :func:`hold_levels` of ``valid``
-    (nz, ny, nx) and zeroed where the column has no valid level (a new array, ``a``'s dtype)."""
+    """Hold every column of ``a`` by :func:`hold_levels` of ``valid``.
+
+    Parameters
+    ----------
+    a : (..., nz, ny, nx) ndarray
+        Field with levels on the third-last axis.
+    valid : (nz, ny, nx) bool or int
+        1 = the product defines a value at this level and node.
+
+    Returns
+    -------
+    (..., nz, ny, nx) ndarray
+        A new array of ``a``'s dtype: each level holds its source level's value, zeroed where
+        the column has no valid level.
+    """
     ok = np.asarray(valid).astype(bool)
     src = hold_levels(ok).reshape((1,) * (a.ndim - 3) + ok.shape)
     out = np.take_along_axis(np.asarray(a), src, axis=a.ndim - 3)
@@ -243,19 +276,21 @@ def load_grid(src, current_gain: float = 1.0, tide=None, use_tide_layers: bool =
         A ``grid.npz`` (or ``grid.zarr`` store) written by the export stage, or an in-memory
         mapping with the same keys (e.g. :func:`oneocean.testing.make_test_grid`);
         ``current_mask`` is optional (derived from ``valid_mask``; checked against it when
-        present). Currents at invalid levels may
-        be 0 or already held (the export's layout): they are re-derived from the valid levels.
-    current_gain : float
+        present). Currents at invalid levels may be 0 or already held (the export's layout):
+        they are re-derived from the valid levels.
+    current_gain : float, default 1.0
         Gain g on the data currents u, v (not on the tide layers), dimensionless.
     tide : None, mapping or (A, w, phi)
-        Optional synthetic tide term: ``{"amplitude_ms": A, "period_s": P | "omega_rad_s": w,
-        "phase_rad": phi}``.
-    use_tide_layers : bool
+        Optional synthetic tide term: ``{"amplitude_ms": A, "period_s": P, "phase_rad": phi}``
+        (or ``"omega_rad_s": w`` instead of ``"period_s"``); A in m s-1, P in s, w in
+        rad s-1, phi in rad (default 0).
+    use_tide_layers : bool, default True
         Add the export's tide layers when it has them (``has_tide == 1``).
 
     Returns
     -------
     Grid
+        The loaded grid.
 
     Raises
     ------
@@ -408,7 +443,23 @@ def load_grid(src, current_gain: float = 1.0, tide=None, use_tide_layers: bool =
 
 
 def grid_metadata(src) -> dict:
-    """The export's ``meta_json`` as a dict (source path/sha256, variant, region, ...)."""
+    """The export's ``meta_json`` as a dict (source path/sha256, variant, region, ...).
+
+    Parameters
+    ----------
+    src : path-like or mapping
+        A grid export file or an in-memory mapping with its keys (as for :func:`load_grid`).
+
+    Returns
+    -------
+    dict
+        The decoded metadata.
+
+    Raises
+    ------
+    DataError
+        If ``meta_json`` is missing or not valid JSON.
+    """
     d, name = _as_mapping(src)
     if "meta_json" not in d:
         raise DataError(f"{name}: missing fields: meta_json")
@@ -419,7 +470,28 @@ def grid_metadata(src) -> dict:
 
 
 def with_forcing(grid: Grid, current_gain: float | None = None, tide=None) -> Grid:
-    """A copy of ``grid`` sharing its arrays with a different gain and/or synthetic tide."""
+    """A copy of ``grid`` sharing its arrays, with a different gain and/or synthetic tide.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    current_gain : float, optional
+        Gain g on the data currents, dimensionless; default: keep ``grid.gain``.
+    tide : None, mapping or (A, w, phi)
+        Synthetic tide term as for :func:`load_grid`; ``None`` (default) sets none, replacing
+        any the grid had.
+
+    Returns
+    -------
+    Grid
+        The grid with the new forcing.
+
+    Raises
+    ------
+    ConfigError
+        Bad ``current_gain`` or ``tide``.
+    """
     amp, omega, phase = _parse_tide(tide)
     g = grid.gain if current_gain is None else float(current_gain)
     if not np.isfinite(g):
@@ -428,19 +500,56 @@ def with_forcing(grid: Grid, current_gain: float | None = None, tide=None) -> Gr
 
 
 def world_to_lonlat(grid: Grid, x, z):
-    """World metres (x east, z north) -> (lon, lat) degrees (equirectangular, contracts §3)."""
+    """World metres to longitude and latitude (equirectangular, contracts §3).
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export (its georeference).
+    x, z : array_like
+        World coordinates east and north, m.
+
+    Returns
+    -------
+    lon, lat : ndarray
+        Longitude and latitude, degrees, shaped like ``x`` and ``z``.
+    """
     return (grid.origin_lon + np.asarray(x) / grid.m_per_deg_lon,
             grid.origin_lat + np.asarray(z) / grid.m_per_deg_lat)
 
 
 def lonlat_to_world(grid: Grid, lon, lat):
-    """(lon, lat) degrees -> world metres (x east, z north)."""
+    """Longitude and latitude to world metres (equirectangular, contracts §3).
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export (its georeference).
+    lon, lat : array_like
+        Longitude and latitude, degrees.
+
+    Returns
+    -------
+    x, z : ndarray
+        World coordinates east and north, m.
+    """
     return ((np.asarray(lon) - grid.origin_lon) * grid.m_per_deg_lon,
             (np.asarray(lat) - grid.origin_lat) * grid.m_per_deg_lat)
 
 
 def grid_extent(grid: Grid) -> tuple[float, float, float, float]:
-    """(x_min, x_max, z_min, z_max) of the grid nodes, metres."""
+    """The horizontal extent of the grid nodes.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+
+    Returns
+    -------
+    tuple of float
+        ``(x_min, x_max, z_min, z_max)``, m.
+    """
     return grid.x0, grid.x_max, grid.z0, grid.z_max
 
 
@@ -492,15 +601,43 @@ def _hcell(grid, x, z):
 
 @hot_kernel(inline="always")
 def locate_time(grid, t):
-    """(i0, i1, w) of time ``t`` (s since time0) on the grid's time axis (clamped)."""
+    """Locate a time on the grid's time axis (clamped outside it).
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    t : float
+        Time, s since ``time0_unix_s``.
+
+    Returns
+    -------
+    tuple
+        ``(i0, i1, w)``: neighbouring indices (int) and weight (float, 0..1) of ``i1``.
+    """
     return _locate(grid.time_s, grid.time_inv, grid.time_lut, grid.time_lut_inv_h, t)
 
 
 @hot_kernel(inline="always")
 def sample_current_data(grid, x, y, z, t):
-    """Data part of the current, ``(g u + u_tide, g v + v_tide)`` (m s-1), without the synthetic
-    tide term. Bilinear in (x, z) over current-defined nodes (renormalised, see the module
-    docstring), linear in depth ``y`` and time ``t`` (held columns), clamped at the edges.
+    """Data part of the current, ``(g u + u_tide, g v + v_tide)``, without the synthetic tide term.
+
+    Bilinear in (x, z) over current-defined nodes (renormalised, see the module docstring),
+    linear in depth ``y`` and time ``t`` (held columns), clamped at the edges.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    x, y, z : float
+        World position (east, depth positive down, north), m.
+    t : float
+        Time, s since ``time0_unix_s``.
+
+    Returns
+    -------
+    tuple of float
+        ``(ce, cn)``: current east and north, m s-1.
     """
     t0, t1, wt = locate_time(grid, t)
     return sample_current_at(grid, x, y, z, t0, t1, wt)
@@ -508,8 +645,26 @@ def sample_current_data(grid, x, y, z, t):
 
 @hot_kernel(inline="always")
 def sample_current_at(grid, x, y, z, t0, t1, wt):
-    """:func:`sample_current_data` with the time already located (:func:`locate_time`), for
-    loops that sample many agents at one time."""
+    """:func:`sample_current_data` with the time already located (:func:`locate_time`).
+
+    For loops that sample many agents at one time.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    x, y, z : float
+        World position (east, depth positive down, north), m.
+    t0, t1 : int
+        Neighbouring time indices from :func:`locate_time`.
+    wt : float
+        Weight of ``t1``, 0..1.
+
+    Returns
+    -------
+    tuple of float
+        ``(ce, cn)``: current east and north, m s-1, without the synthetic tide term.
+    """
     i, j, wx, wz = _hcell(grid, x, z)
     k0, k1, wk = _locate(grid.depth, grid.depth_inv, grid.depth_lut, grid.depth_lut_inv_h, y)
     a00 = (1.0 - wx) * (1.0 - wz)
@@ -548,7 +703,20 @@ def sample_current_at(grid, x, y, z, t0, t1, wt):
 
 @hot_kernel(inline="always")
 def synthetic_tide(grid, t):
-    """Synthetic tide term A [sin(w t + phi), cos(w t + phi)] (east, north), m s-1."""
+    """Synthetic tide term ``A [sin(w t + phi), cos(w t + phi)]`` (east, north).
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export (its ``tide_amp``, ``tide_omega``, ``tide_phase``).
+    t : float
+        Time, s since ``time0_unix_s``.
+
+    Returns
+    -------
+    tuple of float
+        ``(te, tn)``, m s-1; ``(0, 0)`` when ``tide_amp == 0``.
+    """
     if grid.tide_amp == 0.0:
         return 0.0, 0.0
     ph = grid.tide_omega * t + grid.tide_phase
@@ -557,7 +725,7 @@ def synthetic_tide(grid, t):
 
 @hot_kernel(inline="always")
 def sample_current(grid, x, y, z, t):
-    """Current (ce, cn) in m s-1 at world (x, y, z) m and time t (s since time0).
+    """Current at a world position and time.
 
     ``g (u, v) + (u_tide, v_tide) + A (sin, cos)(w t + phi)``: bilinear in (x, z) over
     current-defined nodes (renormalised; fades to 0 where less than half of the weight is
@@ -565,6 +733,20 @@ def sample_current(grid, x, y, z, t):
     time, clamped outside the grid. The vertical component of the current is zero. (Loops
     over many agents at one time may call :func:`sample_current_data` per agent and
     :func:`synthetic_tide` once.)
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    x, y, z : float
+        World position (east, depth positive down, north), m.
+    t : float
+        Time, s since ``time0_unix_s``.
+
+    Returns
+    -------
+    tuple of float
+        ``(ce, cn)``: current east and north, m s-1.
     """
     ce, cn = sample_current_data(grid, x, y, z, t)
     te, tn = synthetic_tide(grid, t)
@@ -595,24 +777,62 @@ def _bilinear2d(a, i, j, wx, wz):
 
 @hot_kernel(inline="always")
 def sample_elevation(grid, x, z):
-    """Bathymetric elevation h(x, z) in m (positive up), bilinear, clamped at the edges."""
+    """Bathymetric elevation at (x, z), bilinear, clamped at the edges.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    x, z : float
+        World position east and north, m.
+
+    Returns
+    -------
+    float
+        Elevation h(x, z), m, positive up.
+    """
     i, j, wx, wz = _hcell(grid, x, z)
     return _bilinear2d(grid.elevation, i, j, wx, wz)
 
 
 @hot_kernel(inline="always")
 def sample_land(grid, x, z):
-    """Land mask m_land(x, z) in [0, 1], bilinear, clamped at the edges."""
+    """Land mask at (x, z), bilinear, clamped at the edges.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    x, z : float
+        World position east and north, m.
+
+    Returns
+    -------
+    float
+        Land mask m_land(x, z) in [0, 1] (1 = land).
+    """
     i, j, wx, wz = _hcell(grid, x, z)
     return _bilinear2d(grid.land, i, j, wx, wz)
 
 
 @hot_kernel(inline="always")
 def current_defined(grid, x, z):
-    """Share of the bilinear weight at (x, z) on nodes with currents (``current_mask``), 0..1.
+    """Share of the bilinear weight at (x, z) on nodes with currents (``current_mask``).
 
     1 = fully inside the currents' coverage; < 0.5 = the sampled current fades toward 0 (water
     without currents, e.g. outside a CMEMS subset polygon, or land). Clamped at the edges.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    x, z : float
+        World position east and north, m.
+
+    Returns
+    -------
+    float
+        The share, 0..1.
     """
     i, j, wx, wz = _hcell(grid, x, z)
     return _bilinear2d(grid.current_mask, i, j, wx, wz)
@@ -620,14 +840,42 @@ def current_defined(grid, x, z):
 
 @hot_kernel
 def current_defined_points(grid, xz, out):
-    """Vectorised :func:`current_defined`: ``xz`` (n, 2) [x, z] m -> ``out`` (n,)."""
+    """Vectorised :func:`current_defined`.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    xz : (n, 2) float64
+        Points ``[x, z]``, m.
+    out : (n,) float64
+        Output array, written in place.
+
+    Returns
+    -------
+    (n,) float64
+        ``out``.
+    """
     for n in range(xz.shape[0]):
         out[n] = current_defined(grid, xz[n, 0], xz[n, 1])
     return out
 
 
 def current_coverage(grid: Grid, xz) -> np.ndarray:
-    """:func:`current_defined` (n,) at points ``xz`` (n, 2) [x, z] m (or (n, 3) [x, y, z])."""
+    """:func:`current_defined` at many points.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    xz : array_like
+        Points, (n, 2) ``[x, z]`` or (n, 3) ``[x, y, z]``, m.
+
+    Returns
+    -------
+    (n,) float64
+        Share of the bilinear weight on nodes with currents, 0..1.
+    """
     xz = np.atleast_2d(np.asarray(xz, dtype=np.float64))
     if xz.shape[1] == 3:
         xz = xz[:, [0, 2]]
@@ -637,7 +885,24 @@ def current_coverage(grid: Grid, xz) -> np.ndarray:
 
 @hot_kernel
 def sample_current_points(grid, xyz, t, out):
-    """Vectorised :func:`sample_current`: ``xyz`` (n, 3) m, ``t`` (n,) s -> ``out`` (n, 2)."""
+    """Vectorised :func:`sample_current`.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    xyz : (n, 3) float64
+        Points ``[x, y, z]``, m.
+    t : (n,) float64
+        Times, s since ``time0_unix_s``.
+    out : (n, 2) float64
+        Output array, written in place.
+
+    Returns
+    -------
+    (n, 2) float64
+        ``out``: ``[ce, cn]``, m s-1.
+    """
     for n in range(xyz.shape[0]):
         ce, cn = sample_current(grid, xyz[n, 0], xyz[n, 1], xyz[n, 2], t[n])
         out[n, 0] = ce
@@ -647,14 +912,44 @@ def sample_current_points(grid, xyz, t, out):
 
 @hot_kernel
 def sample_elevation_points(grid, xz, out):
-    """Vectorised :func:`sample_elevation`: ``xz`` (n, 2) [x, z] m -> ``out`` (n,) m."""
+    """Vectorised :func:`sample_elevation`.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    xz : (n, 2) float64
+        Points ``[x, z]``, m.
+    out : (n,) float64
+        Output array, written in place.
+
+    Returns
+    -------
+    (n,) float64
+        ``out``: elevation, m, positive up.
+    """
     for n in range(xz.shape[0]):
         out[n] = sample_elevation(grid, xz[n, 0], xz[n, 1])
     return out
 
 
 def sample_currents(grid: Grid, xyz, t) -> np.ndarray:
-    """Currents (n, 2) [ce, cn] m s-1 at points ``xyz`` (n, 3) m and times ``t`` (n,) s."""
+    """Currents at many points and times.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    xyz : array_like
+        (n, 3) points ``[x, y, z]``, m.
+    t : float or array_like
+        Time(s), s since ``time0_unix_s``; a scalar or (n,).
+
+    Returns
+    -------
+    (n, 2) float64
+        ``[ce, cn]``, m s-1.
+    """
     xyz = np.ascontiguousarray(np.atleast_2d(xyz), dtype=np.float64)
     t = np.ascontiguousarray(np.broadcast_to(np.asarray(t, dtype=np.float64), (xyz.shape[0],)))
     return sample_current_points(grid, xyz, t, np.empty((xyz.shape[0], 2)))

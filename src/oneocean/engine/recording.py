@@ -47,10 +47,28 @@ CELL_META_KEY = b"oneocean"
 def write_metrics(df: pd.DataFrame, path, *, meta: Mapping | None = None) -> dict:
     """Write per-episode metrics to Parquet atomically; return the manifest entry.
 
-    ``meta`` (JSON-able; e.g. ``{"dynamics": "6dof", "vehicle": vehicle.spec, "dt_s": 1.0}``)
-    is copied into the entry and stored in the file itself (schema metadata
-    :data:`CELL_META_KEY`, sorted-key JSON: the bytes stay deterministic), so a rollout file
-    records its own configuration (:func:`read_metrics_meta`).
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        One row per episode; the index is not written.
+    path : path-like
+        Output ``.parquet`` file.
+    meta : mapping, optional
+        JSON-able record (e.g. ``{"dynamics": "6dof", "vehicle": vehicle.spec, "dt_s": 1.0}``),
+        copied into the entry and stored in the file itself (schema metadata
+        :data:`CELL_META_KEY`, sorted-key JSON: the bytes stay deterministic), so a rollout file
+        records its own configuration (:func:`read_metrics_meta`).
+
+    Returns
+    -------
+    dict
+        Manifest entry ``{path, kind, sha256, bytes, rows, columns, ...meta}`` with kind
+        ``"episode_metrics"``.
+
+    Raises
+    ------
+    ConfigError
+        If a ``meta`` key clashes with a reserved entry key.
     """
     import json
 
@@ -67,7 +85,18 @@ def write_metrics(df: pd.DataFrame, path, *, meta: Mapping | None = None) -> dic
 
 
 def read_metrics_meta(path) -> dict:
-    """The record :func:`write_metrics` stored in a cell file (``{}`` if none)."""
+    """The record :func:`write_metrics` stored in a cell file.
+
+    Parameters
+    ----------
+    path : path-like
+        A Parquet file written by :func:`write_metrics`.
+
+    Returns
+    -------
+    dict
+        The stored ``meta``; ``{}`` if none.
+    """
     import json
 
     import pyarrow.parquet as pq

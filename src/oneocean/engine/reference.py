@@ -46,7 +46,22 @@ def _cell(grid: Grid, x: float, z: float) -> tuple[int, int, float, float]:
 
 
 def current(grid: Grid, x: float, y: float, z: float, t: float) -> tuple[float, float]:
-    """(ce, cn) m s-1, same definition as :func:`oneocean.engine.grid.sample_current`."""
+    """Current at a world position and time, as :func:`oneocean.engine.grid.sample_current`.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    x, y, z : float
+        World position (east, depth positive down, north), m.
+    t : float
+        Time, s since ``time0_unix_s``.
+
+    Returns
+    -------
+    tuple of float
+        ``(ce, cn)``: current east and north, m s-1.
+    """
     i, j, wx, wz = _cell(grid, x, z)
     w2 = np.array([[(1 - wz) * (1 - wx), (1 - wz) * wx], [wz * (1 - wx), wz * wx]])
     # only nodes with currents count: renormalised by their share (>= 1/2), fading below it
@@ -71,7 +86,24 @@ def current(grid: Grid, x: float, y: float, z: float, t: float) -> tuple[float, 
 
 
 def feasible(grid: Grid, x, y, z, land_threshold, clearance) -> int:
-    """Status code of a position, as :func:`oneocean.engine.constraints.check_move`."""
+    """Status code of a position, as :func:`oneocean.engine.constraints.check_move`.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    x, y, z : float
+        Position, m (x east, y depth positive down, z north).
+    land_threshold : float
+        Rejection threshold on the bilinearly sampled land mask (0..1).
+    clearance : float
+        Required distance above the seafloor, m.
+
+    Returns
+    -------
+    int
+        Status code (:mod:`oneocean.engine.status`).
+    """
     if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
         return st.NONFINITE
     if x < grid.x0 or x > grid.x_max or z < grid.z0 or z > grid.z_max or y < 0:
@@ -88,7 +120,18 @@ def feasible(grid: Grid, x, y, z, land_threshold, clearance) -> int:
 
 
 def rotation(phi: float, theta: float, psi: float) -> np.ndarray:
-    """Fossen zyx rotation body -> NED, (3, 3)."""
+    """Fossen zyx rotation matrix, body to NED.
+
+    Parameters
+    ----------
+    phi, theta, psi : float
+        Roll, pitch and yaw (compass heading), rad.
+
+    Returns
+    -------
+    (3, 3) float64
+        ``R`` with ``v_ned = R v_body``.
+    """
     cf, sf, ct, s_t, cp, sp = (math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta),
                                math.cos(psi), math.sin(psi))
     return np.array([[cp * ct, -sp * cf + cp * s_t * sf, sp * sf + cp * cf * s_t],
@@ -101,7 +144,20 @@ def _skew(a: np.ndarray) -> np.ndarray:
 
 
 def coriolis(mass: np.ndarray, nu: np.ndarray) -> np.ndarray:
-    """Kirchhoff Coriolis-centripetal matrix (6, 6) of a diagonal mass matrix."""
+    """Kirchhoff Coriolis-centripetal matrix of a diagonal mass matrix.
+
+    Parameters
+    ----------
+    mass : (6,) float64
+        Diagonal of ``M = M_RB + M_A`` (kg for surge/sway/heave, kg m2 for roll/pitch/yaw).
+    nu : (6,) float64
+        Body velocity ``(u, v, w, p, q, r)``, m s-1 and rad s-1.
+
+    Returns
+    -------
+    (6, 6) float64
+        ``C(nu)``, skew-symmetric.
+    """
     a = mass[:3] * nu[:3]
     b = mass[3:] * nu[3:]
     c = np.zeros((6, 6))
@@ -113,7 +169,26 @@ def coriolis(mass: np.ndarray, nu: np.ndarray) -> np.ndarray:
 
 def step(model: int, vp: np.ndarray, s: np.ndarray, cmd: np.ndarray, ce: float, cn: float,
          dt: float) -> None:
-    """One step of one agent, in place (same scheme as ``dynamics.step_agent``)."""
+    """One step of one agent, in place (same scheme as ``dynamics.step_agent``).
+
+    It covers the kinematic model and the rigid-body models of holonomic vehicles with box
+    thrust limits: no lift, fins, coupled thruster groups or turn-radius limit.
+
+    Parameters
+    ----------
+    model : int
+        Dynamics model id (``KINEMATIC``, ``DOF3``, ``DOF4``, ``DOF6``).
+    vp : (PARAM_DIM,) float64
+        Vehicle parameters (:func:`oneocean.engine.dynamics.vehicle_params`).
+    s : (STATE_DIM,) float64
+        Agent state, modified in place.
+    cmd : (CMD_DIM,) float64
+        ``[ax, ay, az, psi_cmd, thrust]``; the velocity must already be clipped.
+    ce, cn : float
+        Current (east, north) at the agent, m s-1, frozen over the step.
+    dt : float
+        Step, s.
+    """
     if model == dyn.KINEMATIC:
         a = cmd[:3] if cmd[4] != 0 else np.zeros(3)
         v = a + np.array([ce, 0.0, cn])
@@ -238,10 +313,50 @@ def reference_run(grid: Grid, positions, goals, steps: int, *, dynamics: str = "
     """Roll out a proportional go-to-goal controller with a per-step Python loop.
 
     The action is ``kp (goal - p)``, minus the current at the agent when ``feedforward``,
-    clipped to ``v_max``; ``goals`` (E, A, 3) or (E, A, 4) with a heading command (rad,
-    NaN = free) in the last column.
-    Returns ``{"state" (E, A, STATE_DIM), "energy" (E, A), "violations" (E, A),
-    "status" (E, A), "coll_steps" (E,)}``.
+    clipped to ``v_max``. Every agent starts at rest.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    positions : array_like
+        (E, N, 3) start positions ``[x, y, z]``, m (E episodes, N agents).
+    goals : array_like
+        (E, N, 3) goal positions, m, or (E, N, 4) with a heading command (rad, NaN = free) in
+        the last column.
+    steps : int
+        Number of steps per episode.
+    dynamics : str, default "kinematic"
+        Dynamics model name (:data:`oneocean.vocab.DYNAMICS`).
+    vehicle : Vehicle, optional
+        Vehicle; default: :func:`~oneocean.engine.dynamics.load_vehicle`'s default.
+    dt : float, default 1.0
+        Step, s.
+    kp : float, default 0.3
+        Proportional gain, s-1.
+    feedforward : bool, default True
+        Subtract the current at the agent from the action.
+    thrust : bool, default True
+        Controller on; False: unactuated drift (no energy).
+    v_max : float, optional
+        Speed limit, m s-1; default: the vehicle's.
+    land_threshold : float, default 0.5
+        Rejection threshold on the sampled land mask (0..1).
+    clearance : float, default 1.0
+        Required distance above the seafloor, m.
+    r_coll : float, default 2.0
+        Near-collision distance, m: a step counts when the closest pair is within it.
+    t0 : float, default 0.0
+        Time of step 0, s since ``time0_unix_s``.
+    heading : float or array_like, default 0.0
+        Initial heading, rad (scalar or (E, N)).
+
+    Returns
+    -------
+    dict
+        ``"state"`` (E, N, STATE_DIM) final states, ``"energy"`` (E, N) ``sum ||a||^2 dt``
+        (m2 s-1), ``"violations"`` (E, N) rejected moves, ``"status"`` (E, N) int64 status of
+        the last step and ``"coll_steps"`` (E,) near-collision steps.
     """
     model = dyn.model_id(dynamics)
     veh = vehicle if vehicle is not None else dyn.load_vehicle()

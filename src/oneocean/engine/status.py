@@ -27,6 +27,19 @@ NAMES = {OK: "ok", LAND: "land", SEAFLOOR: "seafloor", OUTSIDE: "outside",
 
 
 def is_violation(code: int) -> bool:
-    """True for codes counted as violations: a rejected move (LAND, SEAFLOOR, OUTSIDE,
-    NONFINITE) or a physical contact in the scene backend (CONTACT)."""
+    """Whether a status code counts as a violation.
+
+    Violations are a rejected move (``LAND``, ``SEAFLOOR``, ``OUTSIDE``, ``NONFINITE``) or a
+    physical contact in the scene backend (``CONTACT``).
+
+    Parameters
+    ----------
+    code : int
+        Status code.
+
+    Returns
+    -------
+    bool
+        True for ``10 <= code < 30``.
+    """
     return 10 <= int(code) < 30

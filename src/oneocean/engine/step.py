@@ -22,21 +22,36 @@ def advance_agent(grid, model, vp, s, cmd, ce, cn, v_max, dt, land_threshold, cl
 
     Parameters
     ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    model : int
+        Dynamics model id (:func:`oneocean.engine.dynamics.model_id`).
+    vp : (PARAM_DIM,) float64
+        Vehicle parameters (:func:`oneocean.engine.dynamics.vehicle_params`).
     s : (STATE_DIM,) float64
         Agent state (see :mod:`oneocean.engine.dynamics`), modified in place.
     cmd : (CMD_DIM,) float64
         ``[ax, ay, az, psi_cmd, thrust]``: desired velocity relative to the water (world m s-1);
         clipped here to ``v_max`` (the executed action a_t is written back into ``cmd``).
     ce, cn : float
-        True current at the agent (m s-1), frozen over the step.
+        True current at the agent (east, north), m s-1, frozen over the step.
+    v_max : float
+        Speed limit of the action, m s-1.
+    dt : float
+        Step, s.
+    land_threshold : float
+        Rejection threshold on the sampled land mask, 0..1
+        (:func:`~oneocean.engine.constraints.check_move`).
+    clearance : float
+        Required distance above the seafloor, m.
 
     Returns
     -------
     energy : float
         ``||a_t||^2 dt`` of the clipped action (m2 s-1), 0 when thrust is off.
     code : int
-        Status of the move (``OK`` or the rejection reason); a rejected move keeps the
-        position and zeroes the velocity.
+        Status of the move (``OK`` or the rejection reason, :mod:`oneocean.engine.status`); a
+        rejected move keeps the position and zeroes the velocity.
     """
     ax, ay, az = dyn.clip_action(cmd[0], cmd[1], cmd[2], v_max)
     cmd[0] = ax

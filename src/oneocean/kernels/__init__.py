@@ -12,8 +12,8 @@ two: it passes the task's hooks and the policy's ``plan`` / ``act`` to the one l
   (``njit(cache=True, nogil=True)``), which both backends run
   (:class:`oneocean.tasks.episodes.Episodes` fused; the scene backend's
   :class:`oneocean.backends.mujoco.episodes.SteppedEpisodes` in its decide and judge phases);
-* ``_observe_kernel``: the next observation of every agent (:func:`~oneocean.tasks.loop.
-  observe_next`), for the step API;
+* ``_observe_kernel``: the next observation of every agent
+  (:func:`~oneocean.tasks.loop.observe_next`), for the step API;
 * ``_step_kernel``: one step of every running episode of a block, then its agents' next
   observation, in one call, with the step API's side of it (``io``,
   :class:`~oneocean.tasks.loop.EnvIO`: the sub-envs' actions in, their observations and end
@@ -37,8 +37,24 @@ import importlib
 
 
 def kernel_module(task_id: str):
-    """The module holding ``task_id``'s compiled loop (``POLICY``, ``_kernel``,
-    ``_observe_kernel``): its spec's ``kernel`` (:class:`oneocean.registry.TaskSpec`)."""
+    """The module holding a task's compiled loop.
+
+    Parameters
+    ----------
+    task_id : str
+        Registered task id.
+
+    Returns
+    -------
+    module
+        The module named by the task spec's ``kernel`` (:class:`oneocean.registry.TaskSpec`),
+        with ``POLICY``, ``_kernel`` and ``_observe_kernel``.
+
+    Raises
+    ------
+    ConfigError
+        If ``task_id`` is not registered.
+    """
     from ..registry import task_spec
 
     return importlib.import_module(task_spec(task_id).kernel_module)

@@ -11,6 +11,7 @@ Per fish ``i`` the swim velocity is updated by, in this order,
    with rate ``w_alignment`` (exact exponential relaxation over ``dt``);
 2. damping: ``v *= exp(-damping * dt)`` (a loitering school does not cruise away);
 3. acceleration ``a`` (norm capped at ``max_accel``) summed from
+
    - local cohesion ``w_cohesion * (neighbour centroid - x)``,
    - global cohesion ``w_cohesion_global * (school centroid - x)``,
    - separation ``w_separation * (1 - d / separation_radius)`` away from each fish closer
@@ -19,6 +20,7 @@ Per fish ``i`` the swim velocity is updated by, in this order,
      ``flee_radius`` (linear decay with distance),
    - jitter: ``jitter * (g_x, g_z)`` with standard normals from a counter-based hash of
      ``(seed, step, fish index)`` (no global RNG state; deterministic on any thread count);
+
    ``v += a * dt``;
 4. speed cap ``|v| <= max_speed``;
 
@@ -116,6 +118,20 @@ def counter_uniform(seed, step, index):
     """Counter-based uniform in [0, 1) from integers ``(seed, step, index)`` (splitmix64).
 
     Pure function: the same triple always gives the same number, in any process or thread.
+
+    Parameters
+    ----------
+    seed : int
+        Stream seed.
+    step : int
+        Step index.
+    index : int
+        Draw index within the step (e.g. ``2 i`` and ``2 i + 1`` for fish ``i``).
+
+    Returns
+    -------
+    float
+        The draw, in [0, 1) (53 random bits).
     """
     z = _splitmix64(np.uint64(seed))
     z = _splitmix64(z ^ np.uint64(step))
@@ -125,7 +141,18 @@ def counter_uniform(seed, step, index):
 
 @numba.njit(cache=True)
 def school_centroid(fx, fz):
-    """Mean fish position ``(x, z)`` in m; NaN for an empty school."""
+    """Mean fish position.
+
+    Parameters
+    ----------
+    fx, fz : (N,) float64
+        Fish positions (world x east, z north), m.
+
+    Returns
+    -------
+    tuple of float
+        ``(x, z)``, m; NaN for an empty school.
+    """
     n = fx.shape[0]
     if n == 0:
         return np.nan, np.nan
@@ -139,7 +166,18 @@ def school_centroid(fx, fz):
 
 @numba.njit(cache=True)
 def school_spread(fx, fz):
-    """RMS distance of the fish from the school centroid (m)."""
+    """RMS distance of the fish from the school centroid.
+
+    Parameters
+    ----------
+    fx, fz : (N,) float64
+        Fish positions (world x east, z north), m.
+
+    Returns
+    -------
+    float
+        RMS distance, m; NaN for an empty school.
+    """
     n = fx.shape[0]
     if n == 0:
         return np.nan
@@ -152,7 +190,22 @@ def school_spread(fx, fz):
 
 @numba.njit(cache=True)
 def fraction_inside_circle(fx, fz, cx, cz, radius):
-    """Fraction of fish within ``radius`` (m) of ``(cx, cz)`` (inclusive); 0 if empty."""
+    """Fraction of fish within ``radius`` of ``(cx, cz)`` (inclusive).
+
+    Parameters
+    ----------
+    fx, fz : (N,) float64
+        Fish positions (world x east, z north), m.
+    cx, cz : float
+        Circle centre, m.
+    radius : float
+        Circle radius, m.
+
+    Returns
+    -------
+    float
+        Fraction in [0, 1]; 0 for an empty school.
+    """
     n = fx.shape[0]
     if n == 0:
         return 0.0
@@ -184,11 +237,17 @@ def step_school(fx, fz, fvx, fvz, agents_x, agents_z, cur_x, cur_z, params, seed
     seed, step : int
         Jitter stream key: the random acceleration of fish ``i`` is a pure function of
         ``(seed, step, i)``.
-    dt : float, s
-        Time step.
+    dt : float
+        Time step, s.
     out_x, out_z, out_vx, out_vz : (N,) float64
         New positions (m) and swim velocities (m s-1). Must not share memory with the inputs
         (an output that starts at an input's address raises ValueError).
+
+    Raises
+    ------
+    ValueError
+        If ``params`` has fewer than 12 values, the arrays' lengths disagree, or an output
+        aliases the input state.
 
     Notes
     -----
@@ -329,6 +388,13 @@ def fish_params(overrides: dict | None = None) -> np.ndarray:
     Returns
     -------
     (12,) float64
+        Parameter vector, order of :data:`FISH_PARAM_NAMES`.
+
+    Raises
+    ------
+    ConfigError
+        If a key is unknown, a value is negative or non-finite, or ``max_speed``,
+        ``perception_radius``, ``separation_radius``, ``flee_radius`` or ``max_accel`` is 0.
     """
     vals = dict(FISH_PARAM_DEFAULTS)
     for key, val in (overrides or {}).items():
@@ -365,6 +431,11 @@ def init_school(n: int, centre, radius: float, seed):
     -------
     fx, fz, fvx, fvz : (n,) float64
         Positions (m) and swim velocities (m s-1, zero).
+
+    Raises
+    ------
+    ConfigError
+        If ``n < 1`` or ``radius <= 0``.
     """
     if int(n) < 1 or not radius > 0:
         raise ConfigError(f"init_school: need n >= 1 and radius > 0 (got {n}, {radius})")

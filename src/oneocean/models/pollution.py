@@ -408,8 +408,8 @@ def step_field(C, kind, params, u_face_x, v_face_z, land, h, dt, kappa, open_bc,
     kappa : float, m2 s-1
         Horizontal diffusivity, same for every species (>= 0).
     open_bc : int
-        Bitmask of open sides (:data:`OPEN_WEST` | :data:`OPEN_EAST` | :data:`OPEN_SOUTH` |
-        :data:`OPEN_NORTH`); 0 (:data:`CLOSED`) closes the domain.
+        Bitmask of open sides, a bitwise OR of :data:`OPEN_WEST`, :data:`OPEN_EAST`,
+        :data:`OPEN_SOUTH` and :data:`OPEN_NORTH`; 0 (:data:`CLOSED`) closes the domain.
     work : (>= work_size(n_species, nz, nx),) float64
         Scratch space, contents irrelevant on entry (see :func:`make_work`).
 
@@ -530,10 +530,33 @@ def emit(C, species, x, z, rate, dt, x0, z0, h):
 
 @numba.njit(cache=True)
 def probe(C, species, x, z, x0, z0, h):
-    """Bilinear concentration of ``species`` at world ``(x, z)`` (kg m-2); 0 outside the extent.
+    """Bilinear concentration of ``species`` at world ``(x, z)``; 0 outside the extent.
 
     Between the extent's edge and the outermost cell centres the value is held constant
     (nearest centre along that axis).
+
+    Parameters
+    ----------
+    C : (n_species, nz, nx) float64
+        Concentration, kg m-2.
+    species : int
+        Species index, ``0 <= species < n_species``.
+    x, z : float
+        Position (world x east, z north), m.
+    x0, z0 : float
+        World centre of cell (0, 0), m.
+    h : float
+        Cell size, m.
+
+    Returns
+    -------
+    float
+        Concentration, kg m-2.
+
+    Raises
+    ------
+    ValueError
+        If ``species`` is out of range.
     """
     if species < 0 or species >= C.shape[0]:
         raise ValueError("probe: species index out of range")
@@ -608,7 +631,20 @@ def remove_in_radius(C, x, z, radius, efficiency, dt, x0, z0, h):
 
 @numba.njit(cache=True)
 def total_mass(C, h):
-    """Total mass over all species and cells: ``sum(C) * h**2`` (kg)."""
+    """Total mass over all species and cells: ``sum(C) * h**2``.
+
+    Parameters
+    ----------
+    C : (n_species, nz, nx) float64
+        Concentration, kg m-2.
+    h : float
+        Cell size, m.
+
+    Returns
+    -------
+    float
+        Mass, kg.
+    """
     acc = 0.0
     for s in range(C.shape[0]):
         for j in range(C.shape[1]):
@@ -619,7 +655,27 @@ def total_mass(C, h):
 
 @numba.njit(cache=True)
 def species_mass(C, species, h):
-    """Mass of one species: ``sum(C[species]) * h**2`` (kg)."""
+    """Mass of one species: ``sum(C[species]) * h**2``.
+
+    Parameters
+    ----------
+    C : (n_species, nz, nx) float64
+        Concentration, kg m-2.
+    species : int
+        Species index, ``0 <= species < n_species``.
+    h : float
+        Cell size, m.
+
+    Returns
+    -------
+    float
+        Mass, kg.
+
+    Raises
+    ------
+    ValueError
+        If ``species`` is out of range.
+    """
     if species < 0 or species >= C.shape[0]:
         raise ValueError("species_mass: species index out of range")
     acc = 0.0
@@ -631,7 +687,29 @@ def species_mass(C, species, h):
 
 @numba.njit(cache=True)
 def centroid(C, species, x0, z0, h):
-    """Mass centroid of ``species``: ``(x_c, z_c, mass)`` in m, m, kg (NaN, NaN, 0 if empty)."""
+    """Mass centroid of ``species``.
+
+    Parameters
+    ----------
+    C : (n_species, nz, nx) float64
+        Concentration, kg m-2.
+    species : int
+        Species index, ``0 <= species < n_species``.
+    x0, z0 : float
+        World centre of cell (0, 0), m.
+    h : float
+        Cell size, m.
+
+    Returns
+    -------
+    tuple of float
+        ``(x_c, z_c, mass)`` in m, m, kg; ``(NaN, NaN, 0)`` if the species holds no mass.
+
+    Raises
+    ------
+    ValueError
+        If ``species`` is out of range.
+    """
     if species < 0 or species >= C.shape[0]:
         raise ValueError("centroid: species index out of range")
     m = 0.0
@@ -686,7 +764,18 @@ def faces_from_centers(uc, vc):
 # ------------------------------------------------------------------------------------------
 
 def make_work(C: np.ndarray) -> np.ndarray:
-    """A zeroed float64 work vector sized for :func:`step_field` on ``C``."""
+    """A zeroed float64 work vector sized for :func:`step_field` on ``C``.
+
+    Parameters
+    ----------
+    C : (n_species, nz, nx) ndarray
+        The concentration array the work vector serves.
+
+    Returns
+    -------
+    (work_size(n_species, nz, nx),) float64
+        Zeros (:func:`work_size`).
+    """
     ns, nz, nx = C.shape
     return np.zeros(work_size(ns, nz, nx), dtype=np.float64)
 
@@ -710,7 +799,15 @@ def field_params(kind: int | str = KIND_TRACER, n_species: int = 1, *, decay: fl
     Returns
     -------
     kind : int
+        :data:`KIND_TRACER` or :data:`KIND_REACTION`.
     params : (n_params,) float64
+        ``[decay]`` (tracer) or ``K.ravel()`` (reaction, row-major), s-1.
+
+    Raises
+    ------
+    ConfigError
+        An unknown kind, a negative decay, a reaction matrix for the tracer kind, or a matrix
+        of the wrong shape, non-finite or with negative off-diagonals.
     """
     if isinstance(kind, str):
         if kind not in KINDS:
@@ -735,19 +832,49 @@ def field_params(kind: int | str = KIND_TRACER, n_species: int = 1, *, decay: fl
 
 
 def cell_centres(nx: int, nz: int, x0: float, z0: float, h: float):
-    """World coordinates of cell centres: ``x (nx,)``, ``z (nz,)`` in m."""
+    """World coordinates of the cell centres.
+
+    Parameters
+    ----------
+    nx, nz : int
+        Grid size (cells along x and z).
+    x0, z0 : float
+        World centre of cell (0, 0), m.
+    h : float
+        Cell size, m.
+
+    Returns
+    -------
+    x : (nx,) float64
+        Centres along x (east), m.
+    z : (nz,) float64
+        Centres along z (north), m.
+    """
     return x0 + h * np.arange(nx, dtype=float), z0 + h * np.arange(nz, dtype=float)
 
 
 def face_coordinates(nx: int, nz: int, x0: float, z0: float, h: float):
-    """World coordinates (m) where :func:`step_field` expects face velocities.
+    """World coordinates where :func:`step_field` expects face velocities.
+
+    Parameters
+    ----------
+    nx, nz : int
+        Grid size (cells along x and z).
+    x0, z0 : float
+        World centre of cell (0, 0), m.
+    h : float
+        Cell size, m.
 
     Returns
     -------
-    xu : (nx + 1,), zu : (nz,)
-        x-faces: ``u_face_x[j, i]`` lives at ``(xu[i], zu[j])``.
-    xv : (nx,), zv : (nz + 1,)
-        z-faces: ``v_face_z[j, i]`` lives at ``(xv[i], zv[j])``.
+    xu : (nx + 1,) float64
+        x of the x-faces, m: ``u_face_x[j, i]`` lives at ``(xu[i], zu[j])``.
+    zu : (nz,) float64
+        z of the x-faces, m.
+    xv : (nx,) float64
+        x of the z-faces, m: ``v_face_z[j, i]`` lives at ``(xv[i], zv[j])``.
+    zv : (nz + 1,) float64
+        z of the z-faces, m.
     """
     xc, zc = cell_centres(nx, nz, x0, z0, h)
     xu = x0 + h * (np.arange(nx + 1, dtype=float) - 0.5)
@@ -786,6 +913,14 @@ def make_spill(nx: int, nz: int, h: float, centre, radius: float, mass: float, r
     Returns
     -------
     C : (n_species, nz, nx) float64, kg m-2
+        Concentration, zero outside ``species``.
+
+    Raises
+    ------
+    ConfigError
+        If ``radius``, ``mass`` or ``h`` is not > 0.
+    DataError
+        If no water cell lies within ``2 radius`` of ``centre``.
     """
     if not (radius > 0 and mass > 0 and h > 0):
         raise ConfigError(f"make_spill: need radius, mass and h > 0 (got {radius}, {mass}, {h})")

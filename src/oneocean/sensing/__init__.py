@@ -43,7 +43,53 @@ INFO_LEVELS = ("sensors", "true_current", "true_position", "true_target", "truth
 
 
 class SensingParams(NamedTuple):
-    """The sensing and navigation models of one rollout (a kernel argument)."""
+    """The sensing and navigation models of one rollout (a kernel argument).
+
+    Built by :func:`sensing_params`; standard deviations are 1 sigma.
+
+    Attributes
+    ----------
+    true_current : int
+        1: the method knows the true current (oracle, ablation).
+    true_position : int
+        1: the method knows its true position (oracle, ablation).
+    true_target : int
+        1: the method perceives the mission target exactly (oracle, ablation).
+    fc_gain_std : float
+        Forecast speed-gain error, relative.
+    fc_dir_std : float
+        Forecast direction error, rad.
+    fc_bias_std : float
+        Forecast bias per horizontal component, m s-1.
+    meas_std : float
+        In-situ current noise per component and sample, m s-1.
+    kf_gain : float
+        Steady-state Kalman gain of the forecast-error filter.
+    start_fix_std : float
+        Start fix error per horizontal axis, m.
+    heading_bias_std : float
+        Dead-reckoning heading bias, rad.
+    scale_std : float
+        Dead-reckoning velocity scale-factor error, relative.
+    vel_noise : float
+        DVL velocity noise per axis and step, m s-1.
+    gnss_std : float
+        GNSS error per horizontal axis, m.
+    surface_depth : float
+        GNSS is received shallower than this, m.
+    fix_every : int
+        An acoustic position fix every this many steps (0: none).
+    fix_std : float
+        Its error per horizontal axis, m.
+    fix_gain : float
+        Steady-state gain of the navigation filter's fix update.
+    fix_seq : int
+        1: the aid tracks the team's vehicles in turn (one per ``fix_every`` steps: a vehicle's
+        fix every ``n_agents * fix_every`` steps, staggered; opt-in ``navigation.sequential``).
+    fix_process_var : float
+        The fix filter's process variance per second, m2 s-1 (the sequential gain is computed
+        in the kernel from the team size).
+    """
     true_current: int        # 1: the method knows the true current (oracle, ablation)
     true_position: int       # 1: the method knows its true position (oracle, ablation)
     true_target: int         # 1: the method perceives the mission target exactly (oracle, ablation)
@@ -117,14 +163,49 @@ def _load(path: str) -> dict:
 
 
 def sensor_table(path: str | Path | None = None) -> dict:
-    """The validated sensor table (``data/sensors.yaml`` unless ``path``)."""
+    """The validated sensor table.
+
+    Parameters
+    ----------
+    path : path-like, optional
+        Sensor table file; default: :data:`SENSORS_YAML` (``data/sensors.yaml``).
+
+    Returns
+    -------
+    dict
+        The parsed table (cached per path; do not modify).
+
+    Raises
+    ------
+    ConfigError
+        If a section or key is missing, unknown, or not a number >= 0.
+    """
     return _load(str(path or SENSORS_YAML))
 
 
 def perception(name: str, path: str | Path | None = None) -> dict:
-    """The parameters of perception model ``name`` (``sensors.yaml`` ``perception.<name>``):
-    how every non-oracle method perceives a mission target (the oracle, and the
-    ``true_target`` ablation, perceive it exactly: ``SensingParams.true_target``)."""
+    """The parameters of perception model ``name`` (``sensors.yaml`` ``perception.<name>``).
+
+    How every non-oracle method perceives a mission target (the oracle, and the
+    ``true_target`` ablation, perceive it exactly: ``SensingParams.true_target``).
+
+    Parameters
+    ----------
+    name : str
+        Perception model name.
+    path : path-like, optional
+        Sensor table file; default: :data:`SENSORS_YAML`.
+
+    Returns
+    -------
+    dict
+        A copy of the model's parameters.
+
+    Raises
+    ------
+    ConfigError
+        If the table has no such model.
+    """
     models = sensor_table(path).get("perception", {})
     if name not in models:
         raise ConfigError(f"{path or SENSORS_YAML}: missing perception model "
@@ -133,8 +214,27 @@ def perception(name: str, path: str | Path | None = None) -> dict:
 
 
 def perception_values(model: dict, name: str, keys) -> list[float]:
-    """The values of ``keys`` of perception model ``name`` (:func:`perception`'s mapping
-    ``model``), in order; a missing key is a one-line ``ConfigError`` naming it."""
+    """The values of ``keys`` of a perception model, in order.
+
+    Parameters
+    ----------
+    model : dict
+        The model's mapping (:func:`perception`).
+    name : str
+        The model's name, for error messages.
+    keys : iterable of str
+        Parameter names.
+
+    Returns
+    -------
+    list of float
+        The values of ``keys``.
+
+    Raises
+    ------
+    ConfigError
+        If a key is missing (one line naming it).
+    """
     for key in keys:
         if key not in model:
             raise ConfigError(f"sensors.yaml: missing 'perception.{name}.{key}'")
@@ -142,22 +242,58 @@ def perception_values(model: dict, name: str, keys) -> list[float]:
 
 
 def kalman_gain(process_std: float, meas_std: float, dt: float) -> float:
-    """Steady-state gain of a scalar Kalman filter tracking a random walk (``process_std``
-    per sqrt(s), over steps of ``dt`` s) from white measurements of std ``meas_std``: the
-    prior variance ``M`` solves ``M^2 = q M + q r`` (q, r the step's process and measurement
-    variances), gain ``M / (M + r)``; 1 when the measurement is exact."""
+    """Steady-state gain of a scalar Kalman filter tracking a random walk.
+
+    The prior variance ``M`` solves ``M^2 = q M + q r`` (``q``, ``r`` the step's process and
+    measurement variances), gain ``M / (M + r)``.
+
+    Parameters
+    ----------
+    process_std : float
+        Random-walk standard deviation per sqrt(s), in the tracked quantity's unit per
+        sqrt(s) (e.g. m s-1 for a current, m for a position, per sqrt(s)).
+    meas_std : float
+        Standard deviation of the white measurements (same unit as the tracked quantity).
+    dt : float
+        Time between updates, s.
+
+    Returns
+    -------
+    float
+        The gain, 0..1; 1 when the measurement is exact, 0 without process noise.
+    """
     from .kernels import steady_gain
 
     return steady_gain.py_func(float(process_std) ** 2 * float(dt), float(meas_std) ** 2)
 
 
 def nav_aid(table: dict, where: str = "task table") -> tuple | None:
-    """A task table's acoustic navigation aid: ``(aid, period_s)`` from its optional
-    ``navigation: {aid: <name in sensors.yaml navigation.aids>, period_s: <s>}``, else None.
+    """A task table's acoustic navigation aid.
 
-    With the optional ``sequential: true`` (opt-in; the aid must declare ``sequential`` in
-    ``sensors.yaml``) the aid tracks the team's vehicles in turn, ``period_s`` being one
-    target's slot of the interrogation sequence: ``(aid, period_s, True)``."""
+    Read from the table's optional ``navigation: {aid: <name in sensors.yaml navigation.aids>,
+    period_s: <s>}``. With the optional ``sequential: true`` (opt-in; the aid must declare
+    ``sequential`` in ``sensors.yaml``) the aid tracks the team's vehicles in turn,
+    ``period_s`` being one target's slot of the interrogation sequence.
+
+    Parameters
+    ----------
+    table : dict
+        The task table.
+    where : str, default "task table"
+        Name of the table, for error messages.
+
+    Returns
+    -------
+    tuple or None
+        ``(aid, period_s)``, or ``(aid, period_s, sequential)`` when ``sequential`` is given
+        (``period_s`` in s); None without ``navigation``.
+
+    Raises
+    ------
+    ConfigError
+        If ``navigation`` is malformed, names an unknown aid, has a period <= 0, or asks a
+        sequential fix of an aid that cannot track several targets.
+    """
     nav = table.get("navigation")
     if nav is None:
         return None
@@ -184,9 +320,28 @@ def nav_aid(table: dict, where: str = "task table") -> tuple | None:
 
 
 def lead_factor(lead_h: float | None, forecast: dict) -> float:
-    """Scale of the forecast-error standard deviations at ``lead_h`` hours (None: the
-    reference lead): ``a + (1 - a) * lead_h / reference_lead_h``, ``a`` the analysis
-    fraction."""
+    """Scale of the forecast-error standard deviations at a forecast lead time.
+
+    ``a + (1 - a) * lead_h / reference_lead_h``, ``a`` the analysis fraction.
+
+    Parameters
+    ----------
+    lead_h : float or None
+        Lead time, h; None: the reference lead (factor 1).
+    forecast : dict
+        The sensor table's ``current.forecast`` section (``analysis_fraction``,
+        ``reference_lead_h`` in h).
+
+    Returns
+    -------
+    float
+        The factor, dimensionless.
+
+    Raises
+    ------
+    ConfigError
+        If ``lead_h < 0``.
+    """
     if lead_h is None:
         return 1.0
     lead = float(lead_h)
@@ -199,9 +354,31 @@ def lead_factor(lead_h: float | None, forecast: dict) -> float:
 def sensing_params(info: str, dt: float, aid: tuple[str, float] | None = None,
                    lead_h: float | None = None,
                    path: str | Path | None = None) -> SensingParams:
-    """The :class:`SensingParams` of a method with information level ``info``
-    (:data:`INFO_LEVELS`), step ``dt`` s, the task's navigation ``aid`` (:func:`nav_aid`)
-    and the forecast's lead time ``lead_h`` hours (a tier's ``forecast_lead_h``)."""
+    """The :class:`SensingParams` of a method.
+
+    Parameters
+    ----------
+    info : str
+        Information level, one of :data:`INFO_LEVELS`.
+    dt : float
+        Step, s.
+    aid : tuple, optional
+        The task's navigation aid (:func:`nav_aid`); None: no acoustic fixes.
+    lead_h : float, optional
+        The forecast's lead time, h (a tier's ``forecast_lead_h``); None: the reference lead.
+    path : path-like, optional
+        Sensor table file; default: :data:`SENSORS_YAML`.
+
+    Returns
+    -------
+    SensingParams
+        The rollout's sensing and navigation parameters.
+
+    Raises
+    ------
+    ConfigError
+        If ``info`` is unknown, ``lead_h < 0``, or the sensor table is invalid.
+    """
     if info not in INFO_LEVELS:
         raise ConfigError(f"sensing: unknown information level {info!r}; valid: "
                           f"{', '.join(INFO_LEVELS)}")

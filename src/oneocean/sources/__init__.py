@@ -34,14 +34,17 @@ def read_currents_file(path: str | os.PathLike,
 
     Parameters
     ----------
-    path : NetCDF with e.g. ``uo``/``vo`` (CMEMS), ``utide``/``vtide`` or canonical names.
-    variables : canonical variables to require, e.g. ``("u_tide", "v_tide")``; default
+    path : str or os.PathLike
+        A NetCDF file with e.g. ``uo``/``vo`` (CMEMS), ``utide``/``vtide`` or canonical names.
+    variables : sequence of str, optional
+        Canonical variables to require (and keep), e.g. ``("u_tide", "v_tide")``; default
         ``u``, ``v`` plus ``u_tide``/``v_tide`` when present.
 
     Returns
     -------
-    xarray.Dataset, dask-backed: ``u``, ``v`` (time, depth, latitude, longitude) float32
-    m s-1, NaN on land; ``u_tide``, ``v_tide`` (time, latitude, longitude).
+    xarray.Dataset
+        Dask-backed: ``u``, ``v`` (time, depth, latitude, longitude) float32 m s-1, NaN on
+        land; ``u_tide``, ``v_tide`` (time, latitude, longitude) float32 m s-1.
 
     Raises
     ------
@@ -56,22 +59,61 @@ def read_bathymetry_file(path: str | os.PathLike) -> xr.Dataset:
 
     Parameters
     ----------
-    path : GEBCO NetCDF/GeoTIFF, ETOPO NetCDF (``z``) or a canonical file.
+    path : str or os.PathLike
+        A GEBCO NetCDF/GeoTIFF, an ETOPO NetCDF (``z``) or a canonical file.
 
     Returns
     -------
-    xarray.Dataset, dask-backed: ``elevation`` (latitude, longitude) float32, m, positive up.
+    xarray.Dataset
+        Dask-backed: ``elevation`` (latitude, longitude) float32, m, positive up.
+
+    Raises
+    ------
+    DataError
+        Missing/corrupt file, missing variable, swapped axes, unsupported units.
     """
     return read(path, "bathymetry")
 
 
 def open_currents(path: str | os.PathLike) -> xr.Dataset:
-    """Open a canonical (or provider) currents file as a validated canonical lazy dataset."""
+    """Open a canonical (or provider) currents file as a validated canonical lazy dataset.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A currents file (see :func:`read_currents_file`).
+
+    Returns
+    -------
+    xarray.Dataset
+        As :func:`read_currents_file`, checked by :func:`~oneocean.sources.base.validate`.
+
+    Raises
+    ------
+    DataError
+        The file cannot be read, or is not a canonical currents dataset.
+    """
     return validate(read_currents_file(path), str(path), "currents")
 
 
 def open_bathymetry(path: str | os.PathLike) -> xr.Dataset:
-    """Open a canonical (or provider) bathymetry file as a validated canonical lazy dataset."""
+    """Open a canonical (or provider) bathymetry file as a validated canonical lazy dataset.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A bathymetry file (see :func:`read_bathymetry_file`).
+
+    Returns
+    -------
+    xarray.Dataset
+        As :func:`read_bathymetry_file`, checked by :func:`~oneocean.sources.base.validate`.
+
+    Raises
+    ------
+    DataError
+        The file cannot be read, or is not a canonical bathymetry dataset.
+    """
     return validate(read_bathymetry_file(path), str(path), "bathymetry")
 
 
@@ -81,9 +123,21 @@ def fetch_currents(cfg: Mapping, out_path: str | os.PathLike,
 
     Parameters
     ----------
-    cfg : validated config dict.
-    out_path : canonical NetCDF to write (atomically; nothing is left on failure).
-    cache_dir : folder for downloads (remote sources); reruns reuse its files.
+    cfg : Mapping
+        The validated config (``region``, ``sources`` and the source kind's section).
+    out_path : str or os.PathLike
+        The canonical NetCDF to write (atomically; nothing is left on failure).
+    cache_dir : str or os.PathLike
+        Folder for downloads (remote sources); reruns reuse its files.
+
+    Raises
+    ------
+    ConfigError
+        An unknown ``sources.currents`` kind, or a required file setting is missing.
+    DataError
+        An input is missing, unreadable or does not cover the region.
+    CredentialsError
+        Copernicus Marine needs credentials that are not available.
 
     Notes
     -----
@@ -105,9 +159,19 @@ def fetch_bathymetry(cfg: Mapping, out_path: str | os.PathLike,
 
     Parameters
     ----------
-    cfg : validated config dict.
-    out_path : canonical NetCDF to write (atomically; nothing is left on failure).
-    cache_dir : folder for downloads (remote GEBCO); reruns reuse its files.
+    cfg : Mapping
+        The validated config (``region``, ``sources`` and the source kind's section).
+    out_path : str or os.PathLike
+        The canonical NetCDF to write (atomically; nothing is left on failure).
+    cache_dir : str or os.PathLike
+        Folder for downloads (remote GEBCO); reruns reuse its files.
+
+    Raises
+    ------
+    ConfigError
+        An unknown ``sources.bathymetry`` kind, or a required file setting is missing.
+    DataError
+        An input is missing, unreadable or does not cover the region.
     """
     kind = validate_choice(cfg["sources"]["bathymetry"], BATHYMETRY_SOURCES,
                            "sources.bathymetry")

@@ -39,9 +39,14 @@ NO_CREDENTIALS = (
 def default_credentials_files() -> list[Path]:
     """Credentials files the toolbox looks for, in its order of preference.
 
-    ``$COPERNICUSMARINE_CREDENTIALS_DIRECTORY`` (or ``~/.copernicusmarine``)
-    ``/.copernicusmarine-credentials`` (written by ``copernicusmarine login``), then the
-    legacy ``~/motuclient/motuclient-python.ini`` and ``~/.netrc``. Resolved at call time.
+    Resolved at call time.
+
+    Returns
+    -------
+    list of pathlib.Path
+        ``$COPERNICUSMARINE_CREDENTIALS_DIRECTORY`` (or ``~/.copernicusmarine``)
+        ``/.copernicusmarine-credentials`` (written by ``copernicusmarine login``), then the
+        legacy ``~/motuclient/motuclient-python.ini`` and ``~/.netrc``; they need not exist.
     """
     home = Path.home()
     base = Path(os.environ.get(ENV_CREDENTIALS_DIRECTORY) or home / ".copernicusmarine")
@@ -54,12 +59,16 @@ def find_credentials(cmems_cfg: Mapping) -> Path | None:
 
     Parameters
     ----------
-    cmems_cfg : the ``cmems`` config section (``credentials_file`` may be null).
+    cmems_cfg : Mapping
+        The ``cmems`` config section (``credentials_file`` may be null).
 
     Returns
     -------
-    None when both environment variables are set, else the credentials file to pass to
-    ``copernicusmarine.subset``.
+    pathlib.Path or None
+        None when both environment variables are set, else the credentials file to pass to
+        ``copernicusmarine.subset``: ``credentials_file`` if set, else the first of
+        :func:`default_credentials_files` that exists (a ``.netrc`` only with a Copernicus
+        Marine host).
 
     Raises
     ------
@@ -99,10 +108,23 @@ def build_request(cfg: Mapping, dataset_id: str, dataset_version: str | None,
 
     Parameters
     ----------
-    cfg : validated config (``region`` section used).
-    dataset_id, dataset_version : Copernicus Marine dataset (version None = service default).
-    variables : provider variable names, e.g. ``("uo", "vo")``.
-    with_depth : add ``minimum_depth=0`` and ``maximum_depth=region.max_depth_m`` (m).
+    cfg : Mapping
+        The validated config (its ``region`` section is used).
+    dataset_id : str
+        The Copernicus Marine dataset id.
+    dataset_version : str or None
+        Its version; None: the service's default.
+    variables : tuple of str
+        Provider variable names, e.g. ``("uo", "vo")``.
+    with_depth : bool
+        Add ``minimum_depth=0`` and ``maximum_depth=region.max_depth_m`` (m).
+
+    Returns
+    -------
+    dict
+        The keywords: dataset, variables, the bbox as minimum/maximum longitude and latitude
+        (degrees), ``start_datetime``/``end_datetime`` (``region.time``) and the selection
+        method; its hash names the cached download.
     """
     region = cfg["region"]
     bbox, window = region["bbox"], region["time"]
@@ -130,6 +152,20 @@ def download(request: Mapping, credentials_file: Path | None, part: Path) -> Non
     ``overwrite=True`` replaces a stale temporary file instead of the toolbox's default of
     writing ``name_(1).nc`` beside it; credentials were checked beforehand, so the toolbox
     never prompts.
+
+    Parameters
+    ----------
+    request : Mapping
+        The ``subset`` keywords (:func:`build_request`).
+    credentials_file : pathlib.Path or None
+        The credentials file (:func:`find_credentials`); None: the environment variables.
+    part : pathlib.Path
+        The file to write.
+
+    Raises
+    ------
+    CredentialsError
+        The service rejected the credentials.
     """
     import copernicusmarine
 
@@ -150,6 +186,28 @@ def fetch(cfg: Mapping, request: Mapping, cache_dir: str | os.PathLike) -> Path:
 
     Credentials are looked up only when a download is needed, so a rerun from the cache
     works offline.
+
+    Parameters
+    ----------
+    cfg : Mapping
+        The validated config (its ``cmems`` section: credentials, ``retries``,
+        ``retry_wait_s``).
+    request : Mapping
+        The ``subset`` keywords (:func:`build_request`).
+    cache_dir : str or os.PathLike
+        Folder of completed downloads.
+
+    Returns
+    -------
+    pathlib.Path
+        The cached NetCDF, ``cmems-<dataset_id>-<key>.nc`` in ``cache_dir``.
+
+    Raises
+    ------
+    CredentialsError
+        A download is needed and no credentials are found, or they are rejected.
+    DataError
+        Every download attempt failed.
     """
     cmems_cfg = cfg["cmems"]
     found: dict[str, Path | None] = {}
@@ -170,11 +228,27 @@ def fetch(cfg: Mapping, request: Mapping, cache_dir: str | os.PathLike) -> Path:
 def currents(cfg: Mapping, cache_dir: str | os.PathLike) -> xr.Dataset:
     """Canonical currents (and, if ``sources.tides``, tides) for the configured region.
 
+    Parameters
+    ----------
+    cfg : Mapping
+        The validated config (``cmems``, ``region``, ``sources.tides``).
+    cache_dir : str or os.PathLike
+        Folder of completed downloads; reruns reuse its files.
+
     Returns
     -------
-    xarray.Dataset with ``u``, ``v`` (m s-1) and optionally ``u_tide``, ``v_tide``; attrs
-    ``source="cmems"``, ``source_files``, ``request`` (JSON), ``dataset_id``,
-    ``dataset_version``, ``toolbox_version`` (and ``tide_*`` equivalents).
+    xarray.Dataset
+        ``u``, ``v`` (m s-1) and optionally ``u_tide``, ``v_tide``; attrs ``source="cmems"``,
+        ``source_files``, ``request`` (JSON), ``dataset_id``, ``dataset_version``,
+        ``toolbox_version`` (and ``tide_request``, ``tide_dataset_id``,
+        ``tide_dataset_version``).
+
+    Raises
+    ------
+    CredentialsError
+        A download is needed and no credentials are found, or they are rejected.
+    DataError
+        A download failed, or the data do not cover the region.
     """
     import copernicusmarine
 

@@ -14,9 +14,24 @@ from .base import file_records, read, to_json
 def bathymetry(cfg: Mapping, cache_dir: str | os.PathLike | None = None) -> xr.Dataset:
     """Canonical ``elevation`` (m, positive up) from ``etopo.path``, cut to the region bbox.
 
+    Parameters
+    ----------
+    cfg : Mapping
+        The validated config (``etopo.path``, ``region.bbox``).
+    cache_dir : str or os.PathLike, optional
+        Unused (the source kinds share one signature).
+
     Returns
     -------
-    xarray.Dataset with attrs ``source="etopo"`` and ``source_files``.
+    xarray.Dataset
+        Canonical, dask-backed; attrs ``source="etopo"`` and ``source_files``.
+
+    Raises
+    ------
+    ConfigError
+        ``etopo.path`` is not set.
+    DataError
+        The file is missing, unreadable or does not cover the bbox.
     """
     path = cfg["etopo"].get("path")
     if not path:

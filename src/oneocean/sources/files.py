@@ -20,19 +20,30 @@ from .base import CURRENT_VARS, TIDE_VARS, VAR_ATTRS, file_records, open_raw, re
 def attach_tides(currents: xr.Dataset, tides: xr.Dataset, name: str) -> xr.Dataset:
     """Put ``u_tide``/``v_tide`` on the coordinates of ``currents``.
 
+    Horizontal: tides are taken as they are when their grid equals the currents' grid (to
+    1e-6 degrees), else bilinearly interpolated onto it. Time: when the axes differ, the tide
+    times inside the currents' time span become the time axis and ``u``/``v`` are linearly
+    interpolated onto them (a single current time is repeated), which
+    ``attrs["time_interpolation"]`` records; tides are never interpolated in time.
+
     Parameters
     ----------
-    currents : canonical ``u``, ``v`` (time, depth, latitude, longitude).
-    tides : canonical ``u_tide``, ``v_tide`` (time, latitude, longitude).
-    name : tide file, for error messages.
+    currents : xarray.Dataset
+        Canonical ``u``, ``v`` (time, depth, latitude, longitude).
+    tides : xarray.Dataset
+        Canonical ``u_tide``, ``v_tide`` (time, latitude, longitude).
+    name : str
+        The tide file, for error messages.
 
     Returns
     -------
-    xarray.Dataset with all four variables on one grid. Horizontal: tides are taken as they
-    are when their grid equals the currents' grid, else bilinearly interpolated onto it.
-    Time: when the axes differ, the tide times inside the currents' time span become the
-    time axis and ``u``/``v`` are linearly interpolated onto them (``attrs
-    ["time_interpolation"]`` says so); tides are never interpolated in time.
+    xarray.Dataset
+        All four variables, float32 m s-1, on one grid, with the currents' attributes.
+
+    Raises
+    ------
+    DataError
+        The tide times do not overlap the currents' times.
     """
     tides = tides[list(TIDE_VARS)]
     same_grid = all(
@@ -91,7 +102,30 @@ def currents(cfg: Mapping, cache_dir: str | os.PathLike | None = None) -> xr.Dat
     """Canonical currents from ``files.currents`` (tides from ``files.tides`` if enabled).
 
     When ``sources.tides`` is true and ``files.tides`` is null, the currents file itself
-    must carry ``utide``/``vtide`` (or ``u_tide``/``v_tide``).
+    must carry ``utide``/``vtide`` (or ``u_tide``/``v_tide``). Cut to the region's bbox, time
+    window and depth (:func:`~oneocean.sources.base.subset`); tides joined by
+    :func:`attach_tides`.
+
+    Parameters
+    ----------
+    cfg : Mapping
+        The validated config (``files``, ``sources.tides``, ``region``).
+    cache_dir : str or os.PathLike, optional
+        Unused (the source kinds share one signature).
+
+    Returns
+    -------
+    xarray.Dataset
+        Canonical, dask-backed; attrs ``source="files"`` and ``source_files`` (the currents
+        file and a separate tide file).
+
+    Raises
+    ------
+    ConfigError
+        ``files.currents`` is not set, or tides are enabled but there is no tide file and the
+        currents file has no tide variables.
+    DataError
+        A file is missing, unreadable or does not cover the region.
     """
     region = cfg["region"]
     path = _required(cfg, "currents")
@@ -115,7 +149,28 @@ def currents(cfg: Mapping, cache_dir: str | os.PathLike | None = None) -> xr.Dat
 
 
 def bathymetry(cfg: Mapping, cache_dir: str | os.PathLike | None = None) -> xr.Dataset:
-    """Canonical ``elevation`` from ``files.bathymetry`` (NetCDF or GeoTIFF)."""
+    """Canonical ``elevation`` from ``files.bathymetry`` (NetCDF or GeoTIFF).
+
+    Parameters
+    ----------
+    cfg : Mapping
+        The validated config (``files.bathymetry``, ``region.bbox``).
+    cache_dir : str or os.PathLike, optional
+        Unused (the source kinds share one signature).
+
+    Returns
+    -------
+    xarray.Dataset
+        Canonical, dask-backed ``elevation`` (m, positive up) cut to the bbox; attrs
+        ``source="files"`` and ``source_files``.
+
+    Raises
+    ------
+    ConfigError
+        ``files.bathymetry`` is not set.
+    DataError
+        The file is missing, unreadable or does not cover the bbox.
+    """
     path = _required(cfg, "bathymetry")
     ds = read(path, "bathymetry", bbox=cfg["region"]["bbox"])
     ds.attrs.update(source="files", source_files=to_json(file_records([path])))

@@ -23,17 +23,31 @@ def open_remote(url: str) -> xr.Dataset:
 
     Parameters
     ----------
-    url : ERDDAP griddap or THREDDS OPeNDAP endpoint of a GEBCO grid.
+    url : str
+        ERDDAP griddap or THREDDS OPeNDAP endpoint of a GEBCO grid.
 
     Returns
     -------
-    xarray.Dataset, lazily indexed: only the slices used later are transferred.
+    xarray.Dataset
+        Lazily indexed: only the slices used later are transferred.
     """
     return xr.open_dataset(url, engine="netcdf4", chunks=None, cache=False)
 
 
 def build_request(cfg: Mapping) -> dict:
-    """What defines a remote GEBCO subset: the URL and the bbox (degrees)."""
+    """What defines a remote GEBCO subset: the URL and the bbox.
+
+    Parameters
+    ----------
+    cfg : Mapping
+        The validated config (``gebco.url``, ``region.bbox``).
+
+    Returns
+    -------
+    dict
+        ``url``, ``variables`` (``["elevation"]``) and ``west``, ``east``, ``south``,
+        ``north`` (float, degrees); its hash names the cached subset.
+    """
     bbox = cfg["region"]["bbox"]
     return {"url": str(cfg["gebco"]["url"]), "variables": ["elevation"],
             **{k: float(bbox[k]) for k in ("west", "east", "south", "north")}}
@@ -49,10 +63,29 @@ def _download_subset(request: Mapping, bbox: Mapping, part: Path) -> None:
 def bathymetry(cfg: Mapping, cache_dir: str | os.PathLike) -> xr.Dataset:
     """Canonical ``elevation`` (m, positive up) from ``gebco.path`` or ``gebco.url``.
 
+    ``gebco.path`` wins when both are set; a URL's subset is downloaded once into
+    ``cache_dir`` (``gebco.retries`` attempts, ``gebco.retry_wait_s`` apart).
+
+    Parameters
+    ----------
+    cfg : Mapping
+        The validated config (``gebco``, ``region.bbox``).
+    cache_dir : str or os.PathLike
+        Folder of completed downloads.
+
     Returns
     -------
-    xarray.Dataset with attrs ``source="gebco"``, ``source_files`` and, for a URL,
-    ``request`` (JSON); the recorded file of a remote subset is its cached copy.
+    xarray.Dataset
+        Canonical, dask-backed, cut to the bbox; attrs ``source="gebco"``, ``source_files``
+        and, for a URL, ``request`` (JSON); the recorded file of a remote subset is its cached
+        copy.
+
+    Raises
+    ------
+    ConfigError
+        Neither ``gebco.path`` nor ``gebco.url`` is set.
+    DataError
+        The file is unreadable or does not cover the bbox, or the download failed.
     """
     g = cfg["gebco"]
     bbox = cfg["region"]["bbox"]

@@ -308,13 +308,25 @@ def _elevation_block(lat, lon, *, scene: _Scene):
 def synthetic_axes(cfg: dict) -> dict:
     """Coordinate axes of the synthetic source.
 
+    Parameters
+    ----------
+    cfg : dict
+        The validated config (``region`` bbox, time and max_depth_m; ``synthetic``
+        resolution_deg, time_step_hours and depths_m).
+
     Returns
     -------
     dict
-        ``longitude`` (nx,) and ``latitude`` (ny,) float64 degrees, ascending, spanning the region
-        bbox at ``synthetic.resolution_deg`` (both ends included); ``time`` (nt,) datetime64[ns]
-        every ``time_step_hours`` across ``region.time``; ``depth`` (nz,) float64 m, the
+        ``longitude`` (nx,) and ``latitude`` (ny,) float64 degrees, ascending, from the west
+        (south) edge of the region bbox every ``synthetic.resolution_deg`` up to the east
+        (north) edge; ``time`` (nt,) datetime64[ns] every ``time_step_hours`` from
+        ``region.time.start`` up to its end; ``depth`` (nz,) float64 m, ascending, the
         ``synthetic.depths_m`` not deeper than ``region.max_depth_m``.
+
+    Raises
+    ------
+    ConfigError
+        A non-positive resolution, an empty time axis, or no depth level.
     """
     syn, reg = cfg["synthetic"], cfg["region"]
     bbox, res = reg["bbox"], float(syn["resolution_deg"])
@@ -396,6 +408,11 @@ def make_currents(cfg: dict, chunks: dict | None = None) -> xr.Dataset:
         ``u``, ``v`` : (time, depth, latitude, longitude) float32, m s-1, NaN on land and below
         the seafloor; ``u_tide``, ``v_tide`` : (time, latitude, longitude) float32, m s-1, NaN on
         land (only when ``sources.tides`` is true). ``attrs["source"] == "synthetic"``.
+
+    Raises
+    ------
+    ConfigError
+        The axes cannot be built (:func:`synthetic_axes`).
     """
     ax = synthetic_axes(cfg)
     scene = _scene(cfg)
@@ -423,6 +440,14 @@ def make_currents(cfg: dict, chunks: dict | None = None) -> xr.Dataset:
 def make_bathymetry(cfg: dict, chunks: dict | None = None) -> xr.Dataset:
     """Synthetic bathymetry/topography on the same grid as :func:`make_currents`.
 
+    Parameters
+    ----------
+    cfg : dict
+        The validated config; uses ``region`` and ``synthetic``.
+    chunks : dict, optional
+        Chunk sizes for ``latitude``, ``longitude`` (default: the whole plane). Values do not
+        depend on the chunking.
+
     Returns
     -------
     xarray.Dataset
@@ -448,8 +473,20 @@ def write_synthetic(cfg: dict, currents_path, bathymetry_path, *, zlib: bool = F
     """Write :func:`make_currents` / :func:`make_bathymetry` as canonical NetCDFs, atomically.
 
     Computed and written ``time_chunk`` time steps at a time (memory ~ that many 3-D fields per
-    variable) with a deterministic layout (byte-identical reruns). ``bathymetry_path`` may be
-    None to write the currents only.
+    variable) with a deterministic layout (byte-identical reruns).
+
+    Parameters
+    ----------
+    cfg : dict
+        The validated config (see :func:`make_currents`).
+    currents_path : str or os.PathLike
+        The currents NetCDF to write.
+    bathymetry_path : str or os.PathLike or None
+        The bathymetry NetCDF to write; None: the currents only.
+    zlib : bool, default False
+        Compress the data variables (level 1).
+    time_chunk : int, default 4
+        Time steps computed and written at a time.
     """
     from ..product import netcdf_encoding, write_netcdf_atomic
 
@@ -461,7 +498,20 @@ def write_synthetic(cfg: dict, currents_path, bathymetry_path, *, zlib: bool = F
 
 
 def scene_summary(cfg: dict) -> dict:
-    """Where the island and canyon are (degrees) and the box size ``extent_m`` [lx, ly] (m)."""
+    """Where the island and canyon are, and the size of the box.
+
+    Parameters
+    ----------
+    cfg : dict
+        The validated config (``region.bbox``, ``synthetic``).
+
+    Returns
+    -------
+    dict
+        ``island_lon``, ``island_lat`` (the island's centre), ``canyon_lon`` (the canyon's
+        mean axis) and ``coast_lat_at_canyon``, degrees; ``extent_m`` [lx, ly], the box's
+        east-west and north-south size, m.
+    """
     s = _scene(cfg)
     lon = s.west + s.island_x * (s.east - s.west)
     lat = s.south + s.island_y * (s.north - s.south)

@@ -125,13 +125,36 @@ def _candidate_nodes(grid, tier) -> np.ndarray:
 
 
 def sample_region(grid, rng, tier, tries: int = 3000, what: str = "region"):
-    """Draw a valid scan region: ``(x_lo, z_lo, x_hi, z_hi, long_axis)``.
+    """Draw a valid scan region.
 
-    ``long_axis`` is 0 when the long side runs along x (east), 1 along z (north).
+    Around a random off-land grid node whose seafloor depth is in range, with a random long
+    axis; valid when the region and its ``REGION_MARGIN_M`` band are water with seafloor depth
+    in ``[seafloor_min_m, seafloor_max_m]`` and the region's relief is at least
+    ``min_relief_m``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    rng : numpy.random.Generator
+        The episode's reset stream.
+    tier : dict
+        Tier parameters (``region_long_m``, ``region_short_m``, ``seafloor_min_m``,
+        ``seafloor_max_m``, ``min_relief_m``).
+    tries : int
+        Attempts before giving up.
+    what : str
+        What is being drawn, for the error message.
+
+    Returns
+    -------
+    tuple
+        ``(x_lo, z_lo, x_hi, z_hi, long_axis)``: the region's bounds, world m, and
+        ``long_axis`` 0 when the long side runs along x (east), 1 along z (north).
 
     Raises
     ------
-    ConfigError
+    NotApplicable
         No valid region in ``tries`` attempts (never a silent fallback).
     """
     nodes = _candidate_nodes(grid, tier)
@@ -155,17 +178,34 @@ def sample_region(grid, rng, tier, tries: int = 3000, what: str = "region"):
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the scan region, start positions and start time of every episode.
 
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        Tier parameters (``data/tasks/AS.yaml``) plus ``dt_s``.
+    n_agents : int
+        Team size N, 1..10.
+    n_episodes : int
+        Number of episodes E.
+    seed : int
+        Run seed (each episode draws from its own reset stream).
+
     Returns
     -------
     dict
         ``region`` (E, 4) ``[x_lo, z_lo, x_hi, z_hi]`` m; ``long_axis`` (E,) int64 (0 = x);
         ``pos0`` (E, N, 3) start positions, m; ``psi0`` (E, N) initial headings (0: north),
-        rad; ``t0`` (E,) start times, s.
+        rad; ``t0`` (E,) start times, s; ``regime_points`` (E, 5, 3) the region's corners and
+        centre at the first agent's start depth, m (``Cell.reset``).
 
     Raises
     ------
     ConfigError
-        Team size outside [1, 10], missing tier keys, or no valid geometry for some episode.
+        Team size outside [1, 10] or missing tier keys; no valid start positions
+        (:func:`~oneocean.engine.constraints.spawn_positions`).
+    NotApplicable
+        No valid scan region for some episode.
     """
     n_agents = int(n_agents)
     if not 1 <= n_agents <= 10:
@@ -200,6 +240,21 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 # ------------------------------------------------------------------------------ env
 
 class ASParams(NamedTuple):
+    """AS's params (one rollout).
+
+    Attributes
+    ----------
+    alt_max : float
+        The sensor's maximum altitude (bottom lock), m.
+    tan_h : float
+        ``tan(half_angle)``: footprint radius per metre of altitude.
+    cell : float
+        Coverage cell side, m.
+    thr : float
+        Coverage fraction of success.
+    t_lim : float
+        Time limit, s (the planner's horizon).
+    """
     alt_max: float          # sensor's maximum altitude (bottom lock), m
     tan_h: float            # tan(half_angle): footprint radius per metre of altitude
     cell: float             # coverage cell side, m
@@ -208,6 +263,34 @@ class ASParams(NamedTuple):
 
 
 class ASWork(NamedTuple):
+    """AS's per-episode work arrays.
+
+    Attributes
+    ----------
+    region : (E, 4) float64
+        ``[x_lo, z_lo, x_hi, z_hi]``, m.
+    long_axis : (E,) int64
+        0: the long side runs along x.
+    ncell : (E, 2) int64
+        Coverage cells along x, z.
+    cov : (E, max cells) uint8
+        Coverage map (row-major, z rows).
+    cnt : (E, 2) int64
+        Covered cells, agent-steps above ``alt_max``.
+    alt_sum : (E,) float64
+        Sum of altitudes over agent-steps, m.
+    wps : (E, N, n_max, 2) float64
+        Plan tokens (the method's, written by its ``prepare``; read by the cue): lawnmower
+        waypoints (x, z) per agent, m.
+    wcount : (E, N) int64
+        Waypoints of each agent.
+    widx : (E, N) int64
+        Current waypoint of each agent.
+    tgt : (E, N, 3) float64
+        The carrot each agent follows (the goal cue), m; NaN until the method writes it.
+    planned : (E,) int64
+        1 once the plan tokens are written.
+    """
     region: np.ndarray      # (E, 4) [x_lo, z_lo, x_hi, z_hi], m
     long_axis: np.ndarray   # (E,) int64, 0 = the long side runs along x
     ncell: np.ndarray       # (E, 2) int64 coverage cells along x, z
@@ -223,9 +306,34 @@ class ASWork(NamedTuple):
 
 
 def make(grid, tier: dict, init: dict, tokens: dict | None = None):
-    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); the plan
-    tokens (the waypoints of every agent's plan, filled by the policy's ``prepare``) hold
-    ``tokens["max_waypoints"]`` per agent (the policy's ``plan_tokens``)."""
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
+
+    The plan tokens (the waypoints of every agent's plan, filled by the policy's
+    ``prepare``) hold ``tokens["max_waypoints"]`` per agent.
+
+    Parameters
+    ----------
+    grid : Grid
+        The rollout's grid export (the ablations' forcing included).
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        The reset's dict (:func:`reset`).
+    tokens : dict
+        The policy's plan tokens (``plan_tokens``); ``max_waypoints``: waypoints per agent.
+
+    Returns
+    -------
+    P : ASParams
+        The env's typed scalars.
+    W : ASWork
+        The env's per-episode work arrays.
+
+    Raises
+    ------
+    ConfigError
+        Missing tier parameters or plan tokens.
+    """
     need_tier(TASK_ID, tier, *_TIER_KEYS)
     tokens = need_tokens(TASK_ID, tokens, "max_waypoints")
     region = np.ascontiguousarray(init["region"], dtype=np.float64)
@@ -279,6 +387,28 @@ def _mark(cov, e, x, z, r, x_lo, z_lo, cell, ncx, ncz):
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
+    """Clear the coverage map and the counters.
+
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : ASParams
+        The task's params (:func:`make`).
+    W : ASWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+
+    Returns
+    -------
+    bool
+        False: the episode starts.
+    """
     for c in range(W.ncell[e, 0] * W.ncell[e, 1]):
         W.cov[e, c] = 0
     W.cnt[e, 0] = 0
@@ -289,12 +419,66 @@ def begin(grid, P, W, state, e):
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
+    """The goal cue: the carrot the method follows (``W.tgt``).
+
+    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : ASParams
+        The task's params (:func:`make`).
+    W : ASWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (its navigation estimate; the truth for
+        the oracle); layout: :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+
+    Returns
+    -------
+    gx, gy, gz : float
+        The goal cue, world m.
+    probe : float
+        NaN (the task has no field).
+    """
     g = W.tgt[e, i]
     return g[0], g[1], g[2], math.nan
 
 
 @hot_kernel(inline="always")
 def after_agent(grid, P, W, state, e, k, i, code):
+    """Image the seafloor under agent ``i``'s new position.
+
+    Env hook (:mod:`oneocean.tasks.loop`), right after the agent moved: its altitude is summed;
+    below ``alt_max`` the cells within the footprint radius ``alt tan_h`` are marked covered;
+    above it the agent-step counts as footprint loss.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : ASParams
+        The task's params (:func:`make`).
+    W : ASWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    code : int
+        Status of the agent's move (:mod:`oneocean.engine.status`).
+    """
     # the sensor images the seafloor under the agent's new position
     s = state[e, i]
     alt = -sample_elevation(grid, s[0], s[2]) - s[1]
@@ -309,11 +493,65 @@ def after_agent(grid, P, W, state, e, k, i, code):
 
 @hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
+    """The success check after the step.
+
+    Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : ASParams
+        The task's params (:func:`make`).
+    W : ASWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    prev : (E, N, 3) float64
+        Positions before the step, world m.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+
+    Returns
+    -------
+    bool
+        True (STOP) once the covered fraction reaches ``P.thr``.
+    """
     return W.cnt[e, 0] >= P.thr * (W.ncell[e, 0] * W.ncell[e, 1])
 
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
+    """Write the AS metrics.
+
+    Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : ASParams
+        The task's params (:func:`make`).
+    W : ASWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Steps the episode ran.
+    row : (C,) float64
+        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
+
+    Returns
+    -------
+    bool
+        Success: the covered fraction reached ``P.thr``.
+    """
     n_ag = state.shape[1]
     n_cells = W.ncell[e, 0] * W.ncell[e, 1]
     covered = W.cnt[e, 0]

@@ -66,7 +66,22 @@ CLEARANCE_M = 1.0
 
 @hot_kernel(inline="always")
 def current_at(grid, x, y, z, t):
-    """True current (ce, cn) m s-1 at world (x, y, z) m, time t s (gain and tides included)."""
+    """True current at a world point and time, gain and tides included.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    x, y, z : float
+        World position (x east, y depth positive down, z north), m.
+    t : float
+        Time, s since the grid's ``time0``.
+
+    Returns
+    -------
+    ce, cn : float
+        Eastward and northward current, m s-1.
+    """
     ce, cn = sample_current_data(grid, x, y, z, t)
     te, tn = synthetic_tide(grid, t)
     return ce + te, cn + tn
@@ -74,7 +89,15 @@ def current_at(grid, x, y, z, t):
 
 @hot_kernel(inline="always")
 def set_velocity_cmd(cmd, ax, ay, az):
-    """Fill a command row with a world-frame velocity request, heading free, thrust on."""
+    """Fill a command row with a world-frame velocity request, heading free, thrust on.
+
+    Parameters
+    ----------
+    cmd : (CMD_DIM,) float64
+        The command row (layout: :mod:`oneocean.engine.dynamics`), written in place.
+    ax, ay, az : float
+        Desired velocity relative to the water, world frame (east, down, north), m s-1.
+    """
     cmd[0] = ax
     cmd[1] = ay
     cmd[2] = az
@@ -84,8 +107,30 @@ def set_velocity_cmd(cmd, ax, ay, az):
 
 @hot_kernel(inline="always")
 def seek(px, py, pz, gx, gy, gz, speed, kp, ce, cn):
-    """Velocity request (relative to water) toward a goal: P-control capped at ``speed``
-    (ground-relative), plus feed-forward cancelling the (probed) current ``(ce, 0, cn)``."""
+    """Velocity request (relative to water) toward a goal, with current feed-forward.
+
+    P-control of the ground velocity, ``min(kp d, speed)`` along the goal direction (``d`` the
+    distance to the goal), plus feed-forward cancelling the (probed) current ``(ce, 0, cn)``.
+
+    Parameters
+    ----------
+    px, py, pz : float
+        Vehicle position, world m.
+    gx, gy, gz : float
+        Goal position, world m.
+    speed : float
+        Cap of the ground speed toward the goal, m s-1.
+    kp : float
+        Proportional gain, s-1.
+    ce, cn : float
+        Current (east, north) to cancel, m s-1.
+
+    Returns
+    -------
+    ax, ay, az : float
+        Velocity request relative to the water, world frame, m s-1 (not clipped; the engine
+        clips it to ``v_max``).
+    """
     dx = gx - px
     dy = gy - py
     dz = gz - pz
@@ -106,9 +151,30 @@ def _tiers_dir() -> Path:
 
 
 def load_task_table(task_id: str, path: str | Path | None = None) -> dict:
-    """The tier table of one task (its registry spec's ``table_path``, for the built-ins
-    ``data/tasks/<ID>.yaml``): agents, dt, harder, tiers (and the registry's ``spec``).
-    Parsed once per file version (a fresh copy every call: callers may change it)."""
+    """The tier table of one task.
+
+    Parsed once per file version; every call returns a fresh copy (callers may change it).
+
+    Parameters
+    ----------
+    task_id : str
+        Registered task id.
+    path : str or Path, optional
+        The table file; default the registry spec's ``table_path`` (for the built-ins
+        ``data/tasks/<ID>.yaml``).
+
+    Returns
+    -------
+    dict
+        ``agents``, ``dt_s``, ``harder``, ``tiers`` (int keys) and the table's other blocks
+        (``spec``, ``scene_tiers``, ``vehicle``, ``calibration``, ...).
+
+    Raises
+    ------
+    ConfigError
+        If the file cannot be read or is malformed (missing key, undeclared tier parameter, bad
+        ``vehicle`` or ``calibration.seeds``).
+    """
     if path is None:
         from ..registry import task_spec
 
@@ -156,11 +222,32 @@ def _task_table(path: str, mtime_ns: int, size: int) -> dict:
 
 
 def tier_params(task_id: str, tier: int, scene: bool = False) -> dict:
-    """The parameters of ``task_id``'s tier ``tier``: its row of the tier table, and in a
-    scene (``scene=True``: either backend on a scene's local grid) with the table's
-    ``scene_tiers`` row on top (the mission at scene scale and the tier's current multiplier
-    ``current_gain``; a task without that block is a one-line ConfigError naming the tasks
-    that have one)."""
+    """The parameters of one tier of a task.
+
+    Parameters
+    ----------
+    task_id : str
+        Registered task id.
+    tier : int
+        Tier number.
+    scene : bool
+        True for a scene (either backend on a scene's local grid): the table's ``scene_tiers``
+        row goes on top (the mission at scene scale and the tier's current multiplier
+        ``current_gain``).
+
+    Returns
+    -------
+    dict
+        The tier's row of the tier table (a copy).
+
+    Raises
+    ------
+    ConfigError
+        Unknown tier, or a scene tier missing from ``scene_tiers``.
+    NotApplicable
+        ``scene=True`` for a task without ``scene_tiers`` (the message names the tasks that
+        have one).
+    """
     table = load_task_table(task_id)
     if tier not in table["tiers"]:
         raise ConfigError(f"task {task_id}: unknown tier {tier!r}; valid tiers are "
@@ -179,7 +266,13 @@ def tier_params(task_id: str, tier: int, scene: bool = False) -> dict:
 
 
 def scene_tasks() -> tuple[str, ...]:
-    """The tasks whose tier table has ``scene_tiers`` (:func:`oneocean.registry.scene_tasks`)."""
+    """The tasks whose tier table has ``scene_tiers``.
+
+    Returns
+    -------
+    tuple of str
+        Task ids (:func:`oneocean.registry.scene_tasks`).
+    """
     from ..registry import scene_tasks as _scene_tasks
 
     return _scene_tasks()
@@ -188,18 +281,65 @@ def scene_tasks() -> tuple[str, ...]:
 # ------------------------------------------------------------------------------ resets
 
 def episode_seed_sequence(seed: int, episode: int, purpose: int) -> np.random.SeedSequence:
+    """The ``SeedSequence`` of one episode's random stream.
+
+    Parameters
+    ----------
+    seed : int
+        Run seed.
+    episode : int
+        Episode index.
+    purpose : int
+        Stream purpose (``PURPOSE_*``).
+
+    Returns
+    -------
+    numpy.random.SeedSequence
+        ``SeedSequence([seed, episode, purpose])``.
+    """
     return np.random.SeedSequence([int(seed), int(episode), int(purpose)])
 
 
 def episode_generators(seed: int, n_episodes: int, purpose: int = PURPOSE_RESET):
-    """One independent ``numpy.random.Generator`` per episode (SeedSequence-derived)."""
+    """One independent random generator per episode.
+
+    Parameters
+    ----------
+    seed : int
+        Run seed.
+    n_episodes : int
+        Number of episodes.
+    purpose : int
+        Stream purpose, default ``PURPOSE_RESET``.
+
+    Returns
+    -------
+    list of numpy.random.Generator
+        Generator ``e`` seeded with :func:`episode_seed_sequence` ``(seed, e, purpose)``.
+    """
     return [np.random.default_rng(episode_seed_sequence(seed, e, purpose))
             for e in range(n_episodes)]
 
 
 def start_times(grid: Grid, rngs, duration_s: float) -> np.ndarray:
-    """Episode start times (s since the grid's time0), uniform over the part of the grid's
-    time span that leaves ``duration_s`` of data; 0 for single-time grids."""
+    """Episode start times, uniform over the part of the grid's time span that leaves
+    ``duration_s`` of data.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    rngs : sequence of numpy.random.Generator
+        One generator per episode; each gives one uniform draw.
+    duration_s : float
+        Episode duration, s.
+
+    Returns
+    -------
+    (len(rngs),) float64
+        Start times, s since the grid's ``time0``; all the grid's first time (no draw) where
+        the span is shorter than ``duration_s`` (e.g. a single-time grid).
+    """
     t_lo = float(grid.time_s[0])
     t_hi = float(grid.time_s[-1]) - float(duration_s)
     if t_hi <= t_lo:
@@ -227,7 +367,31 @@ class Regime(NamedTuple):
 
 
 def current_regime(grid: Grid, tier: dict, depth_m: float) -> Regime | None:
-    """The :class:`Regime` of a tier's ``current_band`` on ``grid`` (None without the key)."""
+    """The :class:`Regime` of a tier's ``current_band`` on ``grid``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    tier : dict
+        Tier parameters; ``current_band`` ``[q_lo, q_hi]``, speed quantiles with
+        ``0 <= q_lo < q_hi <= 1``.
+    depth_m : float
+        Reference depth, m (the quantiles are taken on the grid level nearest it).
+
+    Returns
+    -------
+    Regime or None
+        The regime (``hi`` is inf when ``q_hi == 1``); None when the tier has no
+        ``current_band``.
+
+    Raises
+    ------
+    ConfigError
+        A malformed ``current_band``.
+    NotApplicable
+        No water with currents at ``depth_m``.
+    """
     from ..engine.grid import sample_currents
 
     band = tier.get("current_band")
@@ -259,9 +423,29 @@ def current_regime(grid: Grid, tier: dict, depth_m: float) -> Regime | None:
 
 
 def site_speeds(grid: Grid, points, t0, duration_s: float, n_times: int = 5) -> np.ndarray:
-    """Mean current speed (m s-1) of each candidate episode ``c``: over its ``points[c]``
-    (C, P, 3) world m at ``n_times`` times evenly spread over ``[t0[c], t0[c] + duration_s]``
-    (the current an episode there meets); one vectorised sample for all candidates."""
+    """Mean current speed of each candidate episode, in one vectorised sample.
+
+    The mean over the candidate's points and ``n_times`` times evenly spread over
+    ``[t0[c], t0[c] + duration_s]``: the current an episode there meets.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    points : (C, P, 3) array_like
+        Points of each candidate, world m.
+    t0 : (C,) array_like
+        Start times, s since the grid's ``time0``.
+    duration_s : float
+        Episode duration, s.
+    n_times : int
+        Sample times per candidate.
+
+    Returns
+    -------
+    (C,) float64
+        Mean current speed, m s-1.
+    """
     from ..engine.grid import sample_currents
 
     pts = np.asarray(points, dtype=np.float64)
@@ -275,7 +459,26 @@ def site_speeds(grid: Grid, points, t0, duration_s: float, n_times: int = 5) -> 
 
 
 def site_speed(grid: Grid, points, t0: float, duration_s: float, n_times: int = 5) -> float:
-    """:func:`site_speeds` of one episode at ``points`` (n, 3) from ``t0``."""
+    """:func:`site_speeds` of one episode.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    points : (P, 3) array_like
+        The episode's points, world m.
+    t0 : float
+        Start time, s since the grid's ``time0``.
+    duration_s : float
+        Episode duration, s.
+    n_times : int
+        Sample times.
+
+    Returns
+    -------
+    float
+        Mean current speed, m s-1.
+    """
     pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
     return float(site_speeds(grid, pts[None], [float(t0)], duration_s, n_times)[0])
 
@@ -285,7 +488,7 @@ def site_speed(grid: Grid, points, t0: float, duration_s: float, n_times: int = 
 
 @hot_kernel(inline="always")
 def seek_max(px, py, pz, gx, gy, gz, v_max, kp, ce, cn):
-    """Best-effort velocity request (relative to water, |a| <= ``v_max``) toward a goal.
+    """Best-effort velocity request (relative to water, ``|a| <= v_max``) toward a goal.
 
     Cancels the cross-track part of the current ``(ce, 0, cn)`` first and spends the rest of
     the speed budget along the goal direction ("crabbing"), so the ground track points at the
@@ -293,6 +496,24 @@ def seek_max(px, py, pz, gx, gy, gz, v_max, kp, ce, cn):
     sqrt(v_max^2 - |c_perp|^2))``. At the goal it holds station (``-c``, clipped).
     The navigation tasks' steering: the oracle calls it with the exact current, the heuristic
     with its current estimate (both with the full ``v_max``).
+
+    Parameters
+    ----------
+    px, py, pz : float
+        Vehicle position, world m.
+    gx, gy, gz : float
+        Goal position, world m.
+    v_max : float
+        Speed budget through the water, m s-1 (<= 0: a zero request).
+    kp : float
+        Proportional gain on the distance ``d`` to the goal, s-1.
+    ce, cn : float
+        Current (east, north), m s-1.
+
+    Returns
+    -------
+    ax, ay, az : float
+        Velocity request relative to the water, world frame, m s-1.
     """
     if not v_max > 0.0:
         return 0.0, 0.0, 0.0
@@ -324,10 +545,30 @@ def seek_max(px, py, pz, gx, gy, gz, v_max, kp, ce, cn):
 
 def path_clear(grid: Grid, p0, p1, clearance: float, land_threshold: float = 0.5,
                spacing_m: float | None = None) -> bool:
-    """True if the straight segment ``p0 -> p1`` (world m, (3,)) is feasible every
-    ``spacing_m`` metres (land, grid extent and ``clearance`` m above the seafloor); default
-    20 m, or half the grid's node spacing where that is finer (a scene's local grid, whose
-    thin structures a 20 m check would step over)."""
+    """Whether the straight segment ``p0 -> p1`` is feasible.
+
+    Checked every ``spacing_m`` metres (:func:`oneocean.engine.constraints.feasibility`:
+    land, grid extent and ``clearance`` above the seafloor).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    p0, p1 : (3,) array_like
+        Segment ends, world m.
+    clearance : float
+        Seafloor clearance, m.
+    land_threshold : float
+        Land-mask threshold.
+    spacing_m : float, optional
+        Check spacing, m; default 20 m, or half the grid's node spacing where that is finer
+        (a scene's local grid, whose thin structures a 20 m check would step over).
+
+    Returns
+    -------
+    bool
+        True if every check point is feasible.
+    """
     from ..engine.constraints import feasibility
 
     if spacing_m is None:
@@ -385,8 +626,26 @@ def _call(kernel, grid, *args):
 
 
 def feasible_codes(grid: Grid, xyz, land_threshold: float, clearance: float) -> np.ndarray:
-    """:func:`oneocean.engine.constraints.feasibility` (the same codes) through the compiled
-    entry (:func:`_call`): for the resets' many small checks."""
+    """:func:`oneocean.engine.constraints.feasibility` through the compiled entry point.
+
+    The same codes, without numba's dispatch: for the resets' many small checks.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    xyz : (n, 3) or (3,) array_like
+        Points, world m.
+    land_threshold : float
+        Land-mask threshold.
+    clearance : float
+        Seafloor clearance, m.
+
+    Returns
+    -------
+    (n,) int64
+        Status of each point (:mod:`oneocean.engine.status`; ``OK`` = feasible).
+    """
     from ..engine.constraints import check_points
 
     xyz = np.ascontiguousarray(np.atleast_2d(xyz), dtype=np.float64)
@@ -433,21 +692,37 @@ def sample_route(grid: Grid, rng: np.random.Generator, n_legs: int, leg_m: float
                  max_turn_rad: float = math.pi, land_threshold: float = 0.5,
                  vary_depth: bool = False, tries: int = 2000,
                  what: str = "route") -> np.ndarray:
-    """A random polyline of ``n_legs`` straight legs of ``leg_m`` metres at one depth, whose
-    every leg is clear of land and ``clearance`` m above the seafloor (:func:`path_clear`).
+    """A random polyline of ``n_legs`` straight legs, clear of land and the seafloor.
+
+    Every leg is ``leg_m`` metres long at one depth (or between per-vertex depths with
+    ``vary_depth``), clear of land and ``clearance`` m above the seafloor (:func:`path_clear`).
     ``n_legs = 0`` samples one valid point (a station).
 
     Parameters
     ----------
+    grid : Grid
+        The grid export.
     rng : numpy.random.Generator
         The episode's reset stream.
+    n_legs : int
+        Number of legs (0: one point).
+    leg_m : float
+        Leg length, m.
     depth_m : (lo, hi)
         Range of the (constant) route depth, m, positive down; drawn uniformly per try.
+    clearance : float
+        Seafloor clearance of the start point and of every leg, m.
     max_turn_rad : float
         Largest heading change between consecutive legs, rad (pi = any direction).
+    land_threshold : float
+        Land-mask threshold.
     vary_depth : bool
         Draw every vertex's depth independently in ``depth_m`` (a piecewise-linear depth
         profile whose straight 3-D legs all keep ``clearance``) instead of one depth.
+    tries : int
+        Attempts before giving up.
+    what : str
+        What is being drawn, for the error message.
 
     Returns
     -------
@@ -457,8 +732,8 @@ def sample_route(grid: Grid, rng: np.random.Generator, n_legs: int, leg_m: float
     Raises
     ------
     NotApplicable
-        If no valid route was found in ``tries`` attempts (never a silent fallback): the
-        region cannot host this cell.
+        If no valid route was found in ``tries`` attempts, or no start point at the drawn
+        depths five times (never a silent fallback): the region cannot host this cell.
     """
     n_legs = int(n_legs)
     lo, hi = float(depth_m[0]), float(depth_m[1])
@@ -494,13 +769,27 @@ def sample_route(grid: Grid, rng: np.random.Generator, n_legs: int, leg_m: float
 
 @hot_kernel(inline="always")
 def steer(vx, vy, vz, budget, ce, cn):
-    """Velocity request (relative to water, ``|a| <= budget``) realising the desired ground
-    velocity ``(vx, vy, vz)`` m s-1 under the current ``(ce, 0, cn)``.
+    """Velocity request (relative to water, ``|a| <= budget``) realising a desired ground velocity
+    under the current.
 
     Returns ``v - c`` when it fits the budget; otherwise keeps the ground track along ``v``
     if possible (cancels the cross-track current first, then the along-track ground speed
     closest to ``|v|`` that the rest of the budget allows), else fights the cross current
     with the whole budget. Used for slot / line-of-sight tracking with feed-forward.
+
+    Parameters
+    ----------
+    vx, vy, vz : float
+        Desired ground velocity ``v``, world frame, m s-1.
+    budget : float
+        Speed budget through the water, m s-1 (<= 0: a zero request).
+    ce, cn : float
+        Current ``c = (ce, 0, cn)``, m s-1.
+
+    Returns
+    -------
+    ax, ay, az : float
+        Velocity request relative to the water, world frame, m s-1.
     """
     if not budget > 0.0:
         return 0.0, 0.0, 0.0
@@ -532,10 +821,36 @@ def steer(vx, vy, vz, budget, ce, cn):
 
 @hot_kernel(inline="always")
 def profile_at(ax_, ay_, az_, bx, by, bz, px, pz):
-    """Horizontal projection of (px, pz) on leg a->b.
+    """Horizontal projection of a point on a leg of a depth profile.
 
-    Returns (along-track s m, horizontal leg length m, unit horizontal tangent (tx, tz),
-    target depth at the clamped projection m, profile slope dy/ds, cross-track distance m).
+    Parameters
+    ----------
+    ax_, ay_, az_ : float
+        Leg start (x, target depth, z), m.
+    bx, by, bz : float
+        Leg end (x, target depth, z), m.
+    px, pz : float
+        The point's horizontal position (x, z), m.
+
+    Returns
+    -------
+    s : float
+        Along-track position of the projection from the leg start, m (not clamped).
+    length : float
+        Horizontal leg length, m.
+    tx, tz : float
+        Unit horizontal tangent of the leg.
+    y : float
+        Target depth at the projection clamped to the leg, m.
+    slope : float
+        Profile slope ``dy/ds``.
+    xt : float
+        Horizontal distance from the point to the leg (a segment), m.
+
+    Notes
+    -----
+    A leg shorter than 1e-12 m gives ``s = length = tx = tz = slope = 0``, ``y = by`` and the
+    distance to its end.
     """
     lx = bx - ax_
     lz = bz - az_
@@ -556,10 +871,30 @@ def nav_waypoint(route, nwp, e, px, py, pz, radius, horizontal):
     """The route's active waypoint as the vehicle's mission computer knows it.
 
     ``nwp[e]`` (1..W; W + 1 once the route is done) advances by one when the position the
-    vehicle knows, ``(px, py, pz)`` m, is within ``radius`` m of it (``horizontal``: x and z
-    only). The task's judge keeps its own pointer on the true position, so a waypoint the
-    vehicle believes it reached may not count. At most one waypoint per call (the same
-    position gives the same pointer however often it is asked). Returns the pointer."""
+    vehicle knows is within ``radius`` m of it. The task's judge keeps its own pointer on the
+    true position, so a waypoint the vehicle believes it reached may not count. At most one
+    waypoint per call (the same position gives the same pointer however often it is asked).
+
+    Parameters
+    ----------
+    route : (E, W + 1, 3) float64
+        Route vertices, world m (vertex 0 the start).
+    nwp : (E,) int64
+        The mission computer's waypoint pointers, updated in place.
+    e : int
+        Episode index.
+    px, py, pz : float
+        The position the vehicle knows, world m.
+    radius : float
+        Waypoint radius, m.
+    horizontal : int
+        1: distance in x and z only; 0: 3-D distance.
+
+    Returns
+    -------
+    int
+        The (updated) pointer ``nwp[e]``.
+    """
     w = nwp[e]
     if w <= route.shape[1] - 1:
         dx = px - route[e, w, 0]
@@ -575,8 +910,29 @@ def nav_waypoint(route, nwp, e, px, py, pz, radius, horizontal):
 
 @hot_kernel(inline="always")
 def los_carrot(px, pz, ax_, az_, bx, bz, look):
-    """Line-of-sight carrot on segment a -> b: the projection of p plus ``look`` m, clamped
-    to b. Returns (cx, cz, along, length)."""
+    """Line-of-sight carrot on segment a -> b: the projection of p plus ``look`` m, clamped to the
+    segment.
+
+    Parameters
+    ----------
+    px, pz : float
+        The point p (x, z), m.
+    ax_, az_ : float
+        Segment start (x, z), m.
+    bx, bz : float
+        Segment end (x, z), m.
+    look : float
+        Lookahead along the segment, m.
+
+    Returns
+    -------
+    cx, cz : float
+        The carrot (x, z), m (b for a segment shorter than 1e-9 m).
+    along : float
+        Along-track position of p's projection from a, m (not clamped).
+    length : float
+        Segment length, m.
+    """
     dx = bx - ax_
     dz = bz - az_
     L = math.sqrt(dx * dx + dz * dz)
@@ -601,11 +957,37 @@ def waypoint_carrot(wps, widx, wcount, e, i, px, pz, look, tol, arrive=0.0):
     0 = transit to the first (reached within ``2 tol``), then each leg w-1 -> w is followed
     with a line-of-sight carrot ``look`` m ahead (:func:`los_carrot`), advancing when the
     along-track end is within ``tol``; past the last waypoint the agent holds there.
-    ``arrive > 0`` ends the transit as soon as the agent is within ``arrive`` m, checked
-    before the leg is followed (a vehicle that cannot close on a point inside its turning
-    circle, e.g. a torpedo, would orbit a 2 ``tol`` target: :data:`ARRIVE_M`).
-    ``widx`` is updated in place. Returns ``(gx, gz, w)``: the carrot and the waypoint index
-    this step used (before a ``2 tol`` transit arrival is counted).
+
+    Parameters
+    ----------
+    wps : (E, N, n_max, 2) float64
+        Waypoints (x, z) of every agent, m.
+    widx : (E, N) int64
+        Current waypoint of every agent, updated in place.
+    wcount : (E, N) int64
+        Number of waypoints of every agent.
+    e : int
+        Episode index.
+    i : int
+        Agent index.
+    px, pz : float
+        The agent's position (x, z), m.
+    look : float
+        Carrot lookahead, m.
+    tol : float
+        Leg-end tolerance, m.
+    arrive : float
+        > 0: the transit ends as soon as the agent is within ``arrive`` m of the first
+        waypoint, checked before the leg is followed (a vehicle that cannot close on a point
+        inside its turning circle, e.g. a torpedo, would orbit a ``2 tol`` target:
+        :data:`ARRIVE_M`); 0: off.
+
+    Returns
+    -------
+    gx, gz : float
+        The carrot, m.
+    w : int
+        The waypoint index this step used (before a ``2 tol`` transit arrival is counted).
     """
     w = widx[e, i]
     if (w == 0 and arrive > 0.0
@@ -641,8 +1023,22 @@ def fresh_cache(kernel, module_file: str, *deps) -> bool:
     numba keys a cache entry on the kernel's own file only; a task kernel also inlines (or
     links) the engine, this module, the episode loop (``loop.py``), the sensor models
     (``sensing/kernels.py``) and the learned controller it calls (``learned.py``), and
-    ``deps`` (its task module, its policy module, a model file), so the fingerprint covers
-    exactly those: editing one task recompiles that task alone.
+    ``deps``, so the fingerprint covers exactly those: editing one task recompiles that task
+    alone.
+
+    Parameters
+    ----------
+    kernel : numba dispatcher
+        The kernel module's cached kernel.
+    module_file : str
+        The kernel module's ``__file__``.
+    *deps : path-like
+        Further files it depends on (its task module, its policy module, a model file).
+
+    Returns
+    -------
+    bool
+        True if cache files were removed.
     """
     from ..engine._jit import ensure_fresh_cache
 
@@ -658,8 +1054,27 @@ def fresh_cache(kernel, module_file: str, *deps) -> bool:
 
 
 def need_tokens(task_id: str, tokens, *keys: str) -> dict:
-    """The plan tokens ``tokens`` (a dict from the fused policy's ``plan_tokens``), with a
-    one-line ConfigError naming the ``keys`` it lacks."""
+    """The plan tokens, checked for the keys a task needs.
+
+    Parameters
+    ----------
+    task_id : str
+        Task id, for the message.
+    tokens : dict or None
+        Plan tokens (the fused policy's ``plan_tokens``).
+    *keys : str
+        Keys the task needs.
+
+    Returns
+    -------
+    dict
+        A copy of ``tokens`` (empty for None).
+
+    Raises
+    ------
+    ConfigError
+        One line naming the ``keys`` it lacks.
+    """
     tokens = dict(tokens or {})
     missing = [k for k in keys if k not in tokens]
     if missing:
@@ -669,20 +1084,65 @@ def need_tokens(task_id: str, tokens, *keys: str) -> dict:
 
 
 def need_tier(task_id: str, tier: dict, *keys: str) -> None:
-    """Raise a one-line ConfigError naming the tier parameters ``keys`` missing from ``tier``."""
+    """Check that a tier has the parameters a task needs.
+
+    Parameters
+    ----------
+    task_id : str
+        Task id, for the message.
+    tier : dict
+        Tier parameters.
+    *keys : str
+        Parameters the task needs.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the parameters ``keys`` missing from ``tier``.
+    """
     missing = [k for k in keys if k not in tier]
     if missing:
         raise ConfigError(f"task {task_id}: tier parameters missing: {', '.join(missing)}")
 
 
 def episode_steps(tier: dict) -> int:
-    """Steps of an episode: ``ceil(time_limit_s / dt_s)`` (round-off tolerant)."""
+    """Steps of an episode: ``ceil(time_limit_s / dt_s)`` (round-off tolerant).
+
+    Parameters
+    ----------
+    tier : dict
+        Tier parameters with ``time_limit_s`` and ``dt_s``, s.
+
+    Returns
+    -------
+    int
+        Number of steps.
+    """
     return int(math.ceil(float(tier["time_limit_s"]) / float(tier["dt_s"]) - 1e-9))
 
 
 def rollout_results(res: np.ndarray, columns, obs, act, record: bool) -> dict:
-    """A task kernel's result matrix as the ``rollout`` dict: one (E,) array per column
-    (``success`` bool, ``violations`` int), plus ``obs`` / ``act`` when ``record``."""
+    """A task kernel's result matrix as the ``rollout`` dict.
+
+    Parameters
+    ----------
+    res : (E, C) float64
+        Result rows, one column per name of ``columns``.
+    columns : sequence of str
+        Column names (the task's ``COLUMNS``).
+    obs : (E, n_steps, N, OBS_DIM) float64
+        Recorded observations (:func:`obs_buffers`).
+    act : (E, n_steps, N, 3) float64
+        Recorded actions.
+    record : bool
+        Include ``obs`` and ``act``.
+
+    Returns
+    -------
+    dict
+        One (E,) array per column (``success`` bool, ``violations`` int64, the rest float64),
+        plus ``obs`` / ``act`` when ``record``.
+    """
     out = {k: res[:, i].copy() for i, k in enumerate(columns)}
     out["success"] = out["success"] > 0.5
     out["violations"] = out["violations"].astype(np.int64)
@@ -691,9 +1151,25 @@ def rollout_results(res: np.ndarray, columns, obs, act, record: bool) -> dict:
     return out
 
 def obs_buffers(tier: dict, init: dict, record: bool):
-    """Observation and action buffers of a rollout: ``(E, n_steps, N, OBS_DIM)`` and
-    ``(E, n_steps, N, 3)`` filled with NaN (steps after an episode ends stay NaN) when
-    ``record``, else zero-length step axes (then :func:`observe` does nothing)."""
+    """Observation and action buffers of a rollout.
+
+    Parameters
+    ----------
+    tier : dict
+        Tier parameters (``time_limit_s``, ``dt_s`` when ``record``).
+    init : dict
+        The reset's dict (its ``pos0`` (E, N, 3) gives E and N).
+    record : bool
+        Whether observations are recorded.
+
+    Returns
+    -------
+    obs : (E, n_steps, N, OBS_DIM) float64
+        Filled with NaN (steps after an episode ends stay NaN); zero-length step axis unless
+        ``record`` (then :func:`observe` does nothing).
+    act : (E, n_steps, N, 3) float64
+        The same for the actions.
+    """
     n_ep, n_ag = init["pos0"].shape[:2]
     steps = episode_steps(tier) if record else 0
     return (np.full((n_ep, steps, n_ag, OBS_DIM), np.nan),
@@ -704,13 +1180,42 @@ def obs_buffers(tier: dict, init: dict, record: bool):
 # compile time (measured G2G 64 -> 54 s, SK 84 -> 49 s from a cold cache)
 @hot_kernel
 def observe(obs, act, e, k, i, grid, nav, state, gx, gy, gz, pe, pn, pollution, ax, ay, az):
-    """Record agent ``i``'s observation (``OBS_FIELDS``) and action (``ACT_FIELDS``) at step
-    ``k`` of episode ``e``, before the step; a no-op when ``k >= obs.shape[1]`` (the
-    rollout allocates a zero-length step axis unless observations are requested).
+    """Record agent ``i``'s observation and action at step ``k`` of episode ``e``, before the
+    step.
 
-    The goal cue and the teammates' offsets are relative to the positions the method knows
-    (``nav``: its navigation estimate, the truth for the oracle); depth (pressure sensor)
-    and altitude (the DVL's beams) are measured, so they come from the true ``state``."""
+    A no-op when ``k >= obs.shape[1]`` (the rollout allocates a zero-length step axis unless
+    observations are requested). The goal cue and the teammates' offsets are relative to the
+    positions the method knows (``nav``: its navigation estimate, the truth for the oracle);
+    depth (pressure sensor) and altitude (the DVL's beams) are measured, so they come from the
+    true ``state``.
+
+    Parameters
+    ----------
+    obs : (E, n_steps, N, OBS_DIM) float64
+        Observation buffer (``OBS_FIELDS``), written in place.
+    act : (E, n_steps, N, 3) float64
+        Action buffer (``ACT_FIELDS``), written in place.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    grid : Grid
+        The grid export.
+    nav : (E, N, STATE_DIM) float64
+        The states the method knows.
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    gx, gy, gz : float
+        The goal cue (the task's ``cue``), world m.
+    pe, pn : float
+        The current the method knows at the agent (east, north), m s-1.
+    pollution : float
+        The pollution probe (NaN where the task has no field).
+    ax, ay, az : float
+        The action: velocity request relative to the water, world frame, m s-1.
+    """
     if k >= obs.shape[1]:
         return
     o = obs[e, k, i]

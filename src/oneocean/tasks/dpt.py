@@ -69,11 +69,32 @@ _C_DERR, _C_WP, _C_DMAX, _C_XTE = (len(STANDARD) + i for i in range(len(METRICS)
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the route with its depth profile and the start time of every episode.
 
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        Tier parameters (``data/tasks/DPT.yaml``) plus ``dt_s``.
+    n_agents : int
+        Must be 1 (single-agent task).
+    n_episodes : int
+        Number of episodes E.
+    seed : int
+        Run seed (each episode draws from its own reset stream).
+
     Returns
     -------
     dict
         ``route`` (E, W + 1, 3) vertices (x, target depth, z), m; ``pos0`` (E, 1, 3) m (on
         vertex 0); ``psi0`` (E, 1) facing the first leg, rad; ``t0`` (E,) s.
+
+    Raises
+    ------
+    ConfigError
+        Wrong team size, missing tier keys, ``n_waypoints < 1`` or a negative
+        ``depth_span_m``.
+    NotApplicable
+        No valid route for some episode.
     """
     if int(n_agents) != 1:
         raise ConfigError(f"task {TASK_ID}: single-agent task, got n_agents={n_agents}")
@@ -99,12 +120,37 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
 
 class DPTParams(NamedTuple):
+    """DPT's params (one rollout).
+
+    Attributes
+    ----------
+    radius : float
+        Horizontal waypoint radius, m.
+    depth_tol : float
+        Bound on the RMS depth error for success, m.
+    look : float
+        Horizontal lookahead of the observation's route cue, m.
+    """
     radius: float           # horizontal waypoint radius, m
     depth_tol: float        # bound on the RMS depth error for success, m
     look: float             # horizontal lookahead of the observation's route cue, m
 
 
 class DPTWork(NamedTuple):
+    """DPT's per-episode work arrays.
+
+    Attributes
+    ----------
+    route : (E, W + 1, 3) float64
+        Route vertices (x, target depth, z), m.
+    wp : (E,) int64
+        The judge's active waypoint (true position; 1..W; W + 1 when the route is done).
+    nwp : (E,) int64
+        The mission computer's (known position;
+        :func:`~oneocean.tasks.common.nav_waypoint`).
+    acc : (E, 3) float64
+        Sum of squared depth errors (m2), max depth error (m), sum of cross-track errors (m).
+    """
     route: np.ndarray       # (E, W + 1, 3) route vertices (x, target depth, z), m
     wp: np.ndarray          # (E,) int64 the judge's active waypoint (true position; 1..W;
                             #        W + 1 when the route is done)
@@ -113,7 +159,29 @@ class DPTWork(NamedTuple):
 
 
 def make(grid, tier: dict, init: dict):
-    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
+
+    Parameters
+    ----------
+    grid : Grid
+        The rollout's grid export (the ablations' forcing included).
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        The reset's dict (:func:`reset`).
+
+    Returns
+    -------
+    P : DPTParams
+        The env's typed scalars.
+    W : DPTWork
+        The env's per-episode work arrays.
+
+    Raises
+    ------
+    ConfigError
+        Missing tier parameters.
+    """
     need_tier(TASK_ID, tier, "wp_radius_m", "depth_tol_m")
     route = np.ascontiguousarray(init["route"], dtype=np.float64)
     n_ep = route.shape[0]
@@ -123,6 +191,28 @@ def make(grid, tier: dict, init: dict):
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
+    """Reset the waypoint pointers and accumulators.
+
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : DPTParams
+        The task's params (:func:`make`).
+    W : DPTWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+
+    Returns
+    -------
+    bool
+        True (the episode ends) for a route without waypoints.
+    """
     W.wp[e] = 1
     W.nwp[e] = 1
     W.acc[e, 0] = 0.0
@@ -133,6 +223,40 @@ def begin(grid, P, W, state, e):
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
+    """The route point ``P.look`` m ahead of the agent's known horizontal projection on the
+    active leg, at the profile's depth there.
+
+    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
+
+    The leg is the mission computer's: its pointer ``W.nwp`` is advanced here, on the
+    known horizontal position (:func:`~oneocean.tasks.common.nav_waypoint`); the point is
+    clamped to the waypoint, and once the route is done the cue is the last waypoint.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : DPTParams
+        The task's params (:func:`make`).
+    W : DPTWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (its navigation estimate; the truth for
+        the oracle); layout: :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+
+    Returns
+    -------
+    gx, gy, gz : float
+        The goal cue, world m.
+    probe : float
+        NaN (the task has no field).
+    """
     s = state[e, i]
     wp = nav_waypoint(W.route, W.nwp, e, s[0], s[1], s[2], P.radius, 1)
     if wp > W.route.shape[1] - 1:   # route done as far as the vehicle knows: the last waypoint
@@ -148,6 +272,34 @@ def cue(grid, P, W, state, e, k, i):
 
 @hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
+    """Depth and cross-track error and the judge's waypoint after the step.
+
+    Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : DPTParams
+        The task's params (:func:`make`).
+    W : DPTWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    prev : (E, N, 3) float64
+        Positions before the step, world m.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+
+    Returns
+    -------
+    bool
+        True (STOP) once the last waypoint is reached (horizontally, on the true position).
+    """
     s = state[e, 0]
     wp = W.wp[e]
     a0 = W.route[e, wp - 1]
@@ -167,6 +319,32 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
+    """Write the DPT metrics.
+
+    Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : DPTParams
+        The task's params (:func:`make`).
+    W : DPTWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Steps the episode ran.
+    row : (C,) float64
+        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
+
+    Returns
+    -------
+    bool
+        Success: every waypoint reached and the RMS depth error at most ``P.depth_tol``.
+    """
     a = W.acc[e]
     wp = W.wp[e]
     kk = k if k > 0 else 1

@@ -84,9 +84,28 @@ _C_FERR, _C_EMAX, _C_FINAL = (len(STANDARD) + i for i in range(len(METRICS)))
 
 def wedge_offsets(n: int, spacing: float = SPACING_M,
                   half_angle_deg: float = WEDGE_HALF_ANGLE_DEG) -> np.ndarray:
-    """Slot offsets (n, 2) ``[forward, right]`` m of a wedge, apex first, centred on 0.
+    """Slot offsets of a wedge formation, apex first, centred on 0.
 
     Slot 0 is the apex; slots 1, 2 are the first rank (right, left), 3, 4 the second, ...
+
+    Parameters
+    ----------
+    n : int
+        Number of slots (agents), >= 1.
+    spacing : float
+        Distance between consecutive slots along an arm, m.
+    half_angle_deg : float
+        Angle of the arms off the backward route axis, degrees.
+
+    Returns
+    -------
+    (n, 2) float64
+        Offsets ``[forward, right]``, m, centred on their mean.
+
+    Raises
+    ------
+    ConfigError
+        If ``n < 1``.
     """
     if n < 1:
         raise ConfigError(f"task {TASK_ID}: need at least 1 agent, got {n}")
@@ -102,18 +121,34 @@ def wedge_offsets(n: int, spacing: float = SPACING_M,
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the route (start centroid, goal), the formation frame and start times.
 
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        Tier parameters (``data/tasks/FT.yaml``) plus ``dt_s``.
+    n_agents : int
+        Team size N, >= 2 (:class:`~oneocean.tasks.Cell` checks it against the tier
+        table's range, 2..10).
+    n_episodes : int
+        Number of episodes E.
+    seed : int
+        Run seed (each episode draws from its own reset stream).
+
     Returns
     -------
     dict
         ``pos0`` (E, N, 3) agents in their start slots, m; ``offsets`` (E, N, 3) world-frame
         slot offsets (centred), m; ``start`` and ``goal`` (E, 3) centroid start / goal, m;
-        ``psi0`` (E, N) heading along the route, rad; ``t0`` (E,) s.
+        ``psi0`` (E, N) heading along the route, rad; ``t0`` (E,) s; ``regime_points``
+        (E, 3, 3) the start, midpoint and goal of the centroid's route, m (``Cell.reset``).
 
     Raises
     ------
     ConfigError
-        Team size outside [2, 10] is checked by ``run_cell``; here: missing tier keys or no
-        route along which every slot path is clear.
+        Fewer than 2 agents or missing tier keys.
+    NotApplicable
+        No route along which every slot path is clear.
     """
     n = int(n_agents)
     if n < 2:
@@ -157,6 +192,19 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
 
 class FTParams(NamedTuple):
+    """FT's params (one rollout).
+
+    Attributes
+    ----------
+    radius : float
+        Success radius of the centroid around the goal, m.
+    slot_tol : float
+        Arrival: every agent within this of its slot, m.
+    e_bound : float
+        A slot error above this ends the episode as a failure, m.
+    settle_k : int
+        The bound applies from this step on (``SETTLE_S / dt``).
+    """
     radius: float           # success radius of the centroid around the goal, m
     slot_tol: float         # arrival: every agent within this of its slot, m
     e_bound: float          # a slot error above this ends the episode as a failure, m
@@ -164,6 +212,29 @@ class FTParams(NamedTuple):
 
 
 class FTWork(NamedTuple):
+    """FT's per-episode work arrays.
+
+    Attributes
+    ----------
+    offsets : (E, N, 3) float64
+        World-frame slot offsets (centred), m.
+    start : (E, 3) float64
+        Centroid start, m.
+    goal : (E, 3) float64
+        Centroid goal, m.
+    cen : (E, 3) float64
+        Agents' centroid after the last step (the start before the first), m.
+    acc : (E, 2) float64
+        Sum over steps of the RMS slot error, largest slot error seen, m.
+    won : (E,) int64
+        1 once the team arrived in shape.
+    sigma : (E,) float64
+        Policy: the virtual centre's distance along the route, m.
+    vc : (E, 3) float64
+        Policy: the virtual centre at the start of the step, m.
+    vff : (E, 3) float64
+        Policy: the virtual centre's velocity over the step, m s-1.
+    """
     offsets: np.ndarray     # (E, N, 3) world-frame slot offsets (centred), m
     start: np.ndarray       # (E, 3) centroid start, m
     goal: np.ndarray        # (E, 3) centroid goal, m
@@ -176,7 +247,29 @@ class FTWork(NamedTuple):
 
 
 def make(grid, tier: dict, init: dict):
-    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
+
+    Parameters
+    ----------
+    grid : Grid
+        The rollout's grid export (the ablations' forcing included).
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        The reset's dict (:func:`reset`).
+
+    Returns
+    -------
+    P : FTParams
+        The env's typed scalars.
+    W : FTWork
+        The env's per-episode work arrays.
+
+    Raises
+    ------
+    ConfigError
+        Missing tier parameters.
+    """
     need_tier(TASK_ID, tier, "goal_radius_m", "slot_tol_m", "max_error_m", "dt_s")
     start = np.ascontiguousarray(init["start"], dtype=np.float64)
     n_ep = start.shape[0]
@@ -191,6 +284,28 @@ def make(grid, tier: dict, init: dict):
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
+    """Reset the centroid and the accumulators.
+
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FTParams
+        The task's params (:func:`make`).
+    W : FTWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+
+    Returns
+    -------
+    bool
+        False: the episode starts.
+    """
     for j in range(3):
         W.cen[e, j] = W.start[e, j]
     W.acc[e, 0] = 0.0
@@ -201,10 +316,40 @@ def begin(grid, P, W, state, e):
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
-    """Agent i's slot around the method's virtual centre (the plan token ``W.vc``), led by
-    ``CUE_LEAD_S`` at the centre's pace (``W.vff``): where the slot will be, so the cue says
-    how the formation moves (the heuristic's feed-forward plus its slot tracking is its gain
-    times this offset, the part a learner sees)."""
+    """Agent ``i``'s slot around the method's virtual centre, led by ``CUE_LEAD_S``.
+
+    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
+
+    The slot around the plan token ``W.vc``, led by ``CUE_LEAD_S`` at the centre's pace
+    (``W.vff``): where the slot will be, so the cue says how the formation moves (the
+    heuristic's feed-forward plus its slot tracking is its gain times this offset, the part a
+    learner sees).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FTParams
+        The task's params (:func:`make`).
+    W : FTWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (its navigation estimate; the truth for
+        the oracle); layout: :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+
+    Returns
+    -------
+    gx, gy, gz : float
+        The goal cue, world m.
+    probe : float
+        NaN (the task has no field).
+    """
     return (W.vc[e, 0] + W.offsets[e, i, 0] + CUE_LEAD_S * W.vff[e, 0],
             W.vc[e, 1] + W.offsets[e, i, 1] + CUE_LEAD_S * W.vff[e, 1],
             W.vc[e, 2] + W.offsets[e, i, 2] + CUE_LEAD_S * W.vff[e, 2], math.nan)
@@ -212,7 +357,36 @@ def cue(grid, P, W, state, e, k, i):
 
 @hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
-    """Shape error around the centroid, the error bound, arrival."""
+    """Shape error around the centroid, the error bound, arrival.
+
+    Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FTParams
+        The task's params (:func:`make`).
+    W : FTWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    prev : (E, N, 3) float64
+        Positions before the step, world m.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+
+    Returns
+    -------
+    bool
+        True (STOP) when a slot error exceeds ``e_bound`` from step ``settle_k`` on (failure),
+        or when every agent is within ``slot_tol`` of its slot and the centroid within
+        ``radius`` of the goal (``W.won`` set).
+    """
     st_e = state[e]
     n = st_e.shape[0]
     offsets = W.offsets
@@ -256,6 +430,32 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
+    """Write the FT metrics.
+
+    Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FTParams
+        The task's params (:func:`make`).
+    W : FTWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Steps the episode ran.
+    row : (C,) float64
+        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
+
+    Returns
+    -------
+    bool
+        Success: the team arrived in shape (``W.won``).
+    """
     kk = k if k > 0 else 1
     row[_C_FERR] = W.acc[e, 0] / kk
     row[_C_EMAX] = W.acc[e, 1]

@@ -33,8 +33,7 @@ Methods
     then fly the plan; heuristic: on its forecast, with the sensor models of
     :mod:`oneocean.sensing`; oracle: on the true field, with the true current and position).
 
-Module layout (the template every task module follows; the contract is
-:mod:`oneocean.tasks.loop`)
+Module layout (the template of every task module; the contract: :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset`` (Python: geometry and start times per episode from
     :func:`~oneocean.tasks.common.episode_generators`); ``Params`` / ``Work`` and ``make``
     (the env's typed scalars and per-episode arrays); the env hooks ``begin``, ``cue``,
@@ -74,8 +73,22 @@ BAND_DRAWS = 60
 
 
 def task_power(tier: dict | None = None, task_id: str = TASK_ID):
-    """The power model of the task's vehicle (``data/vehicles.yaml`` ``power:``) and its
-    speed limit (``tier["v_max"]`` when the cell gives it)."""
+    """The power model of the task's vehicle and its speed limit.
+
+    Parameters
+    ----------
+    tier : dict, optional
+        Tier parameters; its ``v_max`` (m s-1), when given, overrides the vehicle's.
+    task_id : str
+        Task whose tier table names the vehicle (``vehicle``).
+
+    Returns
+    -------
+    power : PowerModel
+        The vehicle's power model (``data/vehicles.yaml`` ``power:``).
+    v_max : float
+        Speed limit, m s-1.
+    """
     from ..engine import load_vehicle
     from .common import load_task_table
 
@@ -86,7 +99,25 @@ def task_power(tier: dict | None = None, task_id: str = TASK_ID):
 
 
 def current_band(tier: dict, task_id: str = TASK_ID):
-    """The tier's absolute current band ``current_ms: [lo, hi]`` m/s (None without it)."""
+    """The tier's absolute current band ``current_ms: [lo, hi]``.
+
+    Parameters
+    ----------
+    tier : dict
+        Tier parameters.
+    task_id : str
+        Task id, for the message.
+
+    Returns
+    -------
+    (lo, hi) or None
+        The band, m s-1, with ``0 <= lo < hi``; None without ``current_ms``.
+
+    Raises
+    ------
+    ConfigError
+        A malformed band.
+    """
     band = tier.get("current_ms")
     if band is None:
         return None
@@ -102,11 +133,47 @@ def current_band(tier: dict, task_id: str = TASK_ID):
 
 def draw_in_band(grid, tier: dict, n_episodes: int, seed: int, draw, points, length: float,
                  what: str, task_id: str = TASK_ID):
-    """Candidates ``c = 0, 1, ...`` of ``seed`` (each from its own reset stream,
-    ``SeedSequence([seed, c, PURPOSE_RESET])``: ``draw(rng) -> (t0, geometry)``), keeping
-    the first ``n_episodes`` whose mean current speed at ``points(geometry)`` (n, 3) over
-    the still-water transit of ``length`` m at the cruise speed lies in the tier's
-    ``current_ms`` (all of them without one). Returns (t0 list, geometry list)."""
+    """Draw candidate episodes until enough meet the tier's absolute current band.
+
+    Candidates ``c = 0, 1, ...`` of ``seed``, each from its own reset stream
+    (``SeedSequence([seed, c, PURPOSE_RESET])``), are drawn in batches; the first
+    ``n_episodes`` whose mean current speed at their points over the still-water transit of
+    ``length`` m at the cruise speed lies in the tier's ``current_ms`` are kept (all of them
+    without a band; at most ``BAND_DRAWS`` candidates per episode with one).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    tier : dict
+        Tier parameters.
+    n_episodes : int
+        Episodes to keep.
+    seed : int
+        Run seed.
+    draw : callable
+        ``draw(rng, c) -> (t0, geometry)``: one candidate from its generator.
+    points : callable
+        ``points(geometry) -> (n, 3)`` world m: where the candidate's current is judged.
+    length : float
+        Path length of the mission, m.
+    what : str
+        What is being drawn, for the error message.
+    task_id : str
+        Task whose vehicle and band apply.
+
+    Returns
+    -------
+    t0 : list of float
+        Start times of the kept candidates, s since the grid's ``time0``.
+    geometry : list
+        Their geometries.
+
+    Raises
+    ------
+    NotApplicable
+        If fewer than ``n_episodes`` candidates meet the band.
+    """
     band = current_band(tier, task_id)
     pw, v_max = task_power(tier, task_id)
     window = float(length) / routing.cruise_speed(v_max, pw)
@@ -141,11 +208,15 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     Parameters
     ----------
     grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
     tier : dict
-        Tier parameters (``goal_distance_m``, ``time_limit_s``, ...) plus ``dt_s``.
+        Tier parameters (``data/tasks/G2G.yaml``) plus ``dt_s``.
     n_agents : int
         Must be 1 (single-agent task).
-    n_episodes, seed : int
+    n_episodes : int
+        Number of episodes E.
+    seed : int
+        Run seed (each episode draws from its own reset stream).
 
     Returns
     -------
@@ -156,7 +227,9 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     Raises
     ------
     ConfigError
-        Wrong team size, missing tier keys, or no valid geometry for some episode.
+        Wrong team size or missing tier keys.
+    NotApplicable
+        No valid geometry, or too few episodes in the tier's ``current_ms`` band.
     """
     if int(n_agents) != 1:
         raise ConfigError(f"task {TASK_ID}: single-agent task, got n_agents={n_agents}")
@@ -181,6 +254,19 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
 
 class G2GParams(NamedTuple):
+    """G2G's params (one rollout).
+
+    Attributes
+    ----------
+    radius : float
+        Success radius around the goal, m.
+    t_lim : float
+        Time limit, s (the planners' field window).
+    dt : float
+        Step, s.
+    hotel_w, pk : float
+        Power model of the task's vehicle: ``P = hotel_w + pk u_r^3`` W (``pk`` in W s3 m-3).
+    """
     radius: float           # success radius around the goal, m
     t_lim: float            # time limit, s (the planners' field window)
     dt: float               # step, s
@@ -189,6 +275,32 @@ class G2GParams(NamedTuple):
 
 
 class G2GWork(NamedTuple):
+    """G2G's per-episode work arrays.
+
+    Attributes
+    ----------
+    goal : (E, 3) float64
+        Goal positions, m.
+    start : (E, 3) float64
+        Start positions, m.
+    acc : (E, 4) float64
+        Distance to the goal, closest approach, path length (m), energy used (J).
+    budget : (E,) float64
+        Energy allocation, J (inf: none).
+    eref : (E,) float64
+        Least energy of the transit (the task's plan), J.
+    wps : (E, MAX_VERTICES, 2) float64
+        Plan tokens (:func:`oneocean.tasks.routing.follow_path`), written by the method's
+        prepare hook: route vertices (x, z), m; the straight line until then.
+    wspd : (E, MAX_VERTICES) float64
+        Programmed speed of each segment, m s-1 (the cruise speed until planned).
+    wcount : (E,) int64
+        Vertices.
+    widx : (E,) int64
+        Active segment.
+    planned : (E,) int64
+        1 once the method planned.
+    """
     goal: np.ndarray        # (E, 3) goal positions, m
     start: np.ndarray       # (E, 3) start positions, m
     acc: np.ndarray         # (E, 4) distance to the goal, closest approach, path length (m),
@@ -206,9 +318,31 @@ class G2GWork(NamedTuple):
 
 def reference_energy(grid, tier: dict, start, goal, depth: float, t0: float,
                      power=None) -> float:
-    """``E_ref`` (J): the least energy of the transit on ``grid``'s true field (the task's
-    plan with the planner every method has); inf when the goal is off the grid or no
-    passable route exists. (``power``: :func:`task_power`'s result, if at hand.)"""
+    """``E_ref``: the least energy of one transit on ``grid``'s true field.
+
+    The task's plan with the planner every method has
+    (:func:`oneocean.tasks.routing.plan_mission`).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    tier : dict
+        Tier parameters (``time_limit_s``, optional ``v_max``).
+    start, goal : (3,) array_like
+        Start and goal, world m.
+    depth : float
+        Depth of the transit, m.
+    t0 : float
+        Start time, s since the grid's ``time0``.
+    power : (PowerModel, float), optional
+        :func:`task_power`'s result, if at hand.
+
+    Returns
+    -------
+    float
+        ``E_ref``, J; inf when the goal is off the grid or no passable route exists.
+    """
     pw, v_max = power if power is not None else task_power(tier)
     pts = np.array([start, goal], dtype=np.float64)
     if not routing.within_grid(grid, pts):
@@ -218,9 +352,34 @@ def reference_energy(grid, tier: dict, start, goal, depth: float, t0: float,
 
 
 def energy_budgets(task: str, tier: dict, n_ep: int, reference=None, *, batch=None) -> tuple:
-    """``(eref, budget)`` (E,) J: each episode's least transit energy ``reference(e)`` (or
-    all at once: ``batch()`` (E,)) and its allocation ``(1 + energy_reserve) * eref``; both
-    inf without an ``energy_reserve`` (the transits G2G and RF)."""
+    """Each episode's least transit energy and its energy allocation.
+
+    Parameters
+    ----------
+    task : str
+        Task id, for the message.
+    tier : dict
+        Tier parameters (optional ``energy_reserve`` >= 0).
+    n_ep : int
+        Number of episodes E.
+    reference : callable, optional
+        ``reference(e) -> float``: episode ``e``'s least energy, J.
+    batch : callable, optional
+        ``batch() -> (E,)``: all of them at once, J (used instead of ``reference``).
+
+    Returns
+    -------
+    eref : (E,) float64
+        Least transit energy, J.
+    budget : (E,) float64
+        Allocation ``(1 + energy_reserve) * eref``, J. Both inf without an
+        ``energy_reserve`` (the transits G2G and RF).
+
+    Raises
+    ------
+    ConfigError
+        A negative ``energy_reserve``.
+    """
     eref = np.full(n_ep, math.inf)
     budget = np.full(n_ep, math.inf)
     reserve = tier.get("energy_reserve")
@@ -237,9 +396,26 @@ def energy_budgets(task: str, tier: dict, n_ep: int, reference=None, *, batch=No
 
 
 def reference_energies(grid, tier: dict, start, goal, t0, power=None) -> np.ndarray:
-    """:func:`reference_energy` (E,) J of every episode (``start``, ``goal`` (E, 3) m, the
-    depth the goal's), the same bits, in one compiled call
-    (:func:`oneocean.tasks.routing.mission_costs`)."""
+    """:func:`reference_energy` of every episode, the same bits, in one compiled call.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    tier : dict
+        Tier parameters.
+    start, goal : (E, 3) array_like
+        Starts and goals, world m (the depth is the goal's).
+    t0 : (E,) array_like
+        Start times, s since the grid's ``time0``.
+    power : (PowerModel, float), optional
+        :func:`task_power`'s result, if at hand.
+
+    Returns
+    -------
+    (E,) float64
+        ``E_ref`` per episode, J (:func:`oneocean.tasks.routing.mission_costs`).
+    """
     pw, v_max = power if power is not None else task_power(tier)
     start = np.asarray(start, dtype=np.float64)
     goal = np.asarray(goal, dtype=np.float64)
@@ -249,9 +425,32 @@ def reference_energies(grid, tier: dict, start, goal, t0, power=None) -> np.ndar
 
 
 def make(grid, tier: dict, init: dict):
-    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); with an
-    ``energy_reserve`` the allocation of every episode (:func:`reference_energy` on the
-    rollout's ``grid``: the ablations' forcing included)."""
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
+
+    With an ``energy_reserve`` the allocation of every episode (:func:`reference_energies`
+    on the rollout's ``grid``); the plan tokens hold the straight line at the cruise speed.
+
+    Parameters
+    ----------
+    grid : Grid
+        The rollout's grid export (the ablations' forcing included).
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        The reset's dict (:func:`reset`).
+
+    Returns
+    -------
+    P : G2GParams
+        The env's typed scalars.
+    W : G2GWork
+        The env's per-episode work arrays.
+
+    Raises
+    ------
+    ConfigError
+        Missing tier parameters or a negative ``energy_reserve``.
+    """
     need_tier(TASK_ID, tier, "goal_radius_m", "time_limit_s", "dt_s")
     goal = np.ascontiguousarray(init["goal"], dtype=np.float64)
     start = np.ascontiguousarray(init["pos0"][:, 0], dtype=np.float64)
@@ -279,6 +478,28 @@ def _dist(s, g):
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
+    """Reset the episode's accumulators.
+
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : G2GParams
+        The task's params (:func:`make`).
+    W : G2GWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+
+    Returns
+    -------
+    bool
+        True (the episode ends) if the start is within the goal radius.
+    """
     d = _dist(state[e, 0], W.goal[e])
     W.acc[e, 0] = d
     W.acc[e, 1] = d
@@ -289,13 +510,63 @@ def begin(grid, P, W, state, e):
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
+    """The goal cue: the goal itself.
+
+    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : G2GParams
+        The task's params (:func:`make`).
+    W : G2GWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (its navigation estimate; the truth for
+        the oracle); layout: :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+
+    Returns
+    -------
+    gx, gy, gz : float
+        The goal cue, world m.
+    probe : float
+        NaN (the task has no field).
+    """
     return W.goal[e, 0], W.goal[e, 1], W.goal[e, 2], math.nan
 
 
 @hot_kernel(inline="always")
 def step_energy(grid, P, s, p, t):
-    """Energy (J) of the step that took the vehicle from ``p`` to ``s`` (its state): the
-    power at its speed through the water (ground velocity minus the current where it was)."""
+    """Energy of the step that took the vehicle from ``p`` to ``s``.
+
+    The power at its speed through the water (ground velocity minus the current where it was)
+    over one step.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    P : G2GParams or RFParams
+        Params with ``hotel_w``, ``pk`` and ``dt``.
+    s : (STATE_DIM,) float64
+        The vehicle's state after the step.
+    p : (3,) float64
+        Its position before the step, world m.
+    t : float
+        Time at the start of the step, s since the grid's ``time0``.
+
+    Returns
+    -------
+    float
+        Energy, J.
+    """
     ce, cn = current_at(grid, p[0], p[1], p[2], t)
     ux = s[12] - ce
     uy = s[13]
@@ -306,6 +577,34 @@ def step_energy(grid, P, s, p, t):
 
 @hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
+    """Path length, energy, distance to the goal and closest approach after the step.
+
+    Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : G2GParams
+        The task's params (:func:`make`).
+    W : G2GWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    prev : (E, N, 3) float64
+        Positions before the step, world m.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+
+    Returns
+    -------
+    bool
+        True (STOP) when the agent is within the goal radius.
+    """
     s = state[e, 0]
     p = prev[e, 0]
     a = W.acc[e]
@@ -320,6 +619,32 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
+    """Write the G2G metrics.
+
+    Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : G2GParams
+        The task's params (:func:`make`).
+    W : G2GWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Steps the episode ran.
+    row : (C,) float64
+        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
+
+    Returns
+    -------
+    bool
+        Success: within the goal radius at the end, on at most the energy allocation.
+    """
     a = W.acc[e]
     row[_C_FINAL] = a[0]
     row[_C_MIN] = a[1]

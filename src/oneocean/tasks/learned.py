@@ -57,7 +57,18 @@ N_BASE = len(BASE_FEATURES)
 
 
 def feature_names(tasks) -> tuple[str, ...]:
-    """Every feature, the task one-hot over ``tasks`` last."""
+    """Every feature's name, the task one-hot last.
+
+    Parameters
+    ----------
+    tasks : sequence of str
+        The tasks of the one-hot, in order.
+
+    Returns
+    -------
+    tuple of str
+        ``BASE_FEATURES`` then ``task_<ID>`` per task.
+    """
     return BASE_FEATURES + tuple(f"task_{t}" for t in tasks)
 
 
@@ -81,9 +92,25 @@ class LearnedNet(NamedTuple):
 
 
 def load_weights(path) -> dict:
-    """The arrays of a weights file (``.npz`` holding :data:`WEIGHT_KEYS`, as
-    :func:`oneocean.methods.bc.train.write_weights` writes it); a missing or malformed file
-    is a one-line ``ConfigError`` naming it."""
+    """The arrays of a network weights file.
+
+    Parameters
+    ----------
+    path : str or Path
+        An ``.npz`` holding :data:`WEIGHT_KEYS`, as
+        :func:`oneocean.methods.bc.train.write_weights` writes it.
+
+    Returns
+    -------
+    dict
+        Every array of the file by name.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the file when it is missing, unreadable or lacks a key of
+        :data:`WEIGHT_KEYS`.
+    """
     from ..errors import ConfigError
 
     try:
@@ -99,17 +126,44 @@ def load_weights(path) -> dict:
 
 
 def no_net() -> LearnedNet:
-    """The placeholder the loop carries for every method that is not a network (same numba
-    type as a real network, so all methods share one compiled kernel)."""
+    """The placeholder network the loop carries for every method that is not a network.
+
+    Returns
+    -------
+    LearnedNet
+        A minimal network of the same numba type as a real one, so all methods share one
+        compiled kernel.
+    """
     return LearnedNet(np.zeros(1), np.ones(1), np.zeros((1, 1, 1)), np.zeros((1, 1)),
                  np.zeros(2, np.int64), 0, 1, np.zeros((1, 1, 1, OBS_DIM)),
                  np.zeros((1, 1, 1, 3)), np.zeros((1, 2, 1)))
 
 
 def make_net(weights: dict, task: str, n_episodes: int, n_agents: int) -> LearnedNet:
-    """The loop's :class:`LearnedNet` for ``task`` from a weights file's arrays (``mu``,
-    ``sd``, ``w``, ``b``, ``dims``, ``tasks``: :func:`load_weights`). A task the network was
-    not trained on is a one-line ``ConfigError``."""
+    """The loop's :class:`LearnedNet` for a task from a weights file's arrays.
+
+    Parameters
+    ----------
+    weights : dict
+        The arrays of a weights file (:func:`load_weights`): ``mu``, ``sd``, ``w``, ``b``,
+        ``dims``, ``tasks``.
+    task : str
+        The rollout's task id.
+    n_episodes : int
+        Episodes E of the rollout (the scratch's leading axis).
+    n_agents : int
+        Agents N.
+
+    Returns
+    -------
+    LearnedNet
+        The network with per-episode scratch.
+
+    Raises
+    ------
+    ConfigError
+        One line when the network was not trained on ``task``.
+    """
     from ..errors import ConfigError
 
     tasks = [str(t) for t in weights["tasks"]]
@@ -139,12 +193,23 @@ _SQRT2 = 1.4142135623730951
 
 @hot_kernel(inline="always")
 def log1p_pos(x):
-    """``log(1 + x)`` for ``x >= 0`` in plain arithmetic, so the features have the same bits
-    on every CPU (libm's ``log1p`` has FMA and non-FMA variants that differ in the last bit).
+    """``log(1 + x)`` for ``x >= 0`` in plain arithmetic, the same bits on every CPU.
 
+    libm's ``log1p`` has FMA and non-FMA variants that differ in the last bit.
     ``1 + x = m 2^k`` with ``m`` in ``[1, sqrt 2)`` (exact halvings), the rounding of ``1 + x``
     corrected as fdlibm does, and ``log m = 2 atanh(s)``, ``s = (m - 1) / (m + 1)``, by its
-    series to ``s^21`` (``|s| < 0.172``: truncation below 1e-17). Within 2 ulp of libm."""
+    series to ``s^21`` (``|s| < 0.172``: truncation below 1e-17). Within 2 ulp of libm.
+
+    Parameters
+    ----------
+    x : float
+        Argument, >= 0.
+
+    Returns
+    -------
+    float
+        ``log(1 + x)``; ``x`` itself for ``x >= 1e300``, inf or NaN.
+    """
     if not x < 1e300:
         return x
     y = 1.0 + x
@@ -164,7 +229,19 @@ def log1p_pos(x):
 
 @hot_kernel
 def featurize(o, task, n_tasks, out):
-    """The features (:func:`feature_names`) of one observation row ``o`` into ``out``."""
+    """The features (:func:`feature_names`) of one observation row.
+
+    Parameters
+    ----------
+    o : (OBS_DIM,) float64
+        Observation row (:data:`oneocean.tasks.common.OBS_FIELDS`).
+    task : int
+        Index of the rollout's task in the one-hot.
+    n_tasks : int
+        Size of the one-hot.
+    out : (F,) float64
+        Output, ``F = N_BASE + n_tasks``, written in place.
+    """
     gx = _finite(o[0])
     gy = _finite(o[1])
     gz = _finite(o[2])
@@ -203,11 +280,29 @@ def featurize(o, task, n_tasks, out):
 
 @hot_kernel(inline="always")
 def dense_layer(wl, bl, x, o, n_in, n_out, relu):
-    """One layer, ``o = relu?(bl + x @ wl)`` in a fixed order: per output the bias, then each
-    non-zero input times its weight row, inputs in order (the inner loop runs over contiguous
-    weights and independent outputs, so it vectorises without reordering any sum; the zeros
-    relu leaves in the input are skipped). The in-loop forward pass and the training's
-    (:mod:`oneocean.methods.bc.fit`) both use it, so their outputs agree bit for bit."""
+    """One layer, ``o = relu?(bl + x @ wl)``, in a fixed order of operations.
+
+    Per output the bias, then each non-zero input times its weight row, inputs in order (the
+    inner loop runs over contiguous weights and independent outputs, so it vectorises without
+    reordering any sum; the zeros relu leaves in the input are skipped). The in-loop forward
+    pass and the training's (:mod:`oneocean.methods.bc.fit`) both use it, so their outputs
+    agree bit for bit.
+
+    Parameters
+    ----------
+    wl : (>= n_in, >= n_out) float64
+        Weights, row ``q`` for input ``q``.
+    bl : (>= n_out,) float64
+        Bias.
+    x : (>= n_in,) float64
+        Input.
+    o : (>= n_out,) float64
+        Output, written in place (not aliasing ``x``).
+    n_in, n_out : int
+        Layer widths.
+    relu : bool
+        Apply ``relu`` to the output.
+    """
     for j in range(n_out):
         o[j] = bl[j]
     for q in range(n_in):
@@ -224,8 +319,22 @@ def dense_layer(wl, bl, x, o, n_in, n_out, relu):
 
 @hot_kernel
 def forward(net, x, h):
-    """The network's output (3,) for standardised features ``x`` (``h``: (2, width)
-    scratch; ``x`` may be ``h[0]``): ``relu`` hidden layers, identity output."""
+    """The network's output for standardised features: ``relu`` hidden layers, identity output.
+
+    Parameters
+    ----------
+    net : LearnedNet
+        The network.
+    x : (F,) float64
+        Standardised features; may be ``h[0]``.
+    h : (2, width) float64
+        Activation scratch.
+
+    Returns
+    -------
+    ax, ay, az : float
+        The output: a through-water velocity request in units of ``v_max``.
+    """
     n_layers = net.dims.shape[0] - 1
     cur = 0
     src = x
@@ -241,9 +350,28 @@ def forward(net, x, h):
 
 @hot_kernel
 def learned_act(net, e, i, v_max):
-    """Agent ``i``'s action from its observation in ``net.obs[e, 0, i]`` (written by
+    """Agent ``i``'s action from its observation.
+
+    The observation in ``net.obs[e, 0, i]`` (written by
     :func:`oneocean.tasks.common.observe`): features, standardisation, forward pass, times
-    ``v_max``. World-frame through-water velocity request, m s-1."""
+    ``v_max``.
+
+    Parameters
+    ----------
+    net : LearnedNet
+        The network with its scratch.
+    e : int
+        Episode index.
+    i : int
+        Agent index.
+    v_max : float
+        The vehicle's speed limit, m s-1.
+
+    Returns
+    -------
+    ax, ay, az : float
+        World-frame through-water velocity request, m s-1 (not clipped; the loop clips it).
+    """
     h = net.buf[e]
     x = h[0]
     featurize(net.obs[e, 0, i], net.task, net.n_tasks, x)
@@ -255,6 +383,18 @@ def learned_act(net, e, i, v_max):
 
 @hot_kernel
 def features_rows(obs, task, n_tasks, out):
-    """:func:`featurize` for every row of ``obs`` (R, OBS_DIM) into ``out`` (R, F)."""
+    """:func:`featurize` for every row of an observation matrix.
+
+    Parameters
+    ----------
+    obs : (R, OBS_DIM) float64
+        Observation rows.
+    task : int
+        Index of the rows' task in the one-hot.
+    n_tasks : int
+        Size of the one-hot.
+    out : (R, F) float64
+        Features, written in place.
+    """
     for r in range(obs.shape[0]):
         featurize(obs[r], task, n_tasks, out[r])

@@ -71,11 +71,31 @@ _C_XTE, _C_WP, _C_XMAX, _C_EWH, _C_ERAT = (len(STANDARD) + i for i in range(len(
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the route and start time of every episode.
 
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        Tier parameters (``data/tasks/RF.yaml``) plus ``dt_s``.
+    n_agents : int
+        Must be 1 (single-agent task).
+    n_episodes : int
+        Number of episodes E.
+    seed : int
+        Run seed (each episode draws from its own reset stream).
+
     Returns
     -------
     dict
         ``route`` (E, W + 1, 3) vertices, m (vertex 0 = start, 1..W = waypoints);
         ``pos0`` (E, 1, 3) m; ``psi0`` (E, 1) facing the first leg, rad; ``t0`` (E,) s.
+
+    Raises
+    ------
+    ConfigError
+        Wrong team size, missing tier keys or ``n_waypoints < 1``.
+    NotApplicable
+        No valid route, or too few routes in the tier's ``current_ms`` band.
     """
     if int(n_agents) != 1:
         raise ConfigError(f"task {TASK_ID}: single-agent task, got n_agents={n_agents}")
@@ -102,15 +122,46 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
 
 def regime_points(route):
-    """Where a route's current is judged: its vertices and leg midpoints."""
+    """Where a route's current is judged: its vertices and leg midpoints.
+
+    Parameters
+    ----------
+    route : (W + 1, 3) array_like
+        Route vertices, world m.
+
+    Returns
+    -------
+    (2 W + 1, 3) float64
+        The vertices, then the leg midpoints, world m.
+    """
     r = np.asarray(route, dtype=np.float64)
     return np.concatenate([r, 0.5 * (r[1:] + r[:-1])])
 
 
 @hot_kernel(inline="always")
 def leg_geometry(ax_, ay_, az_, bx, by, bz, px, py, pz):
-    """Projection of point p on segment a->b: (along-track m, cross-track distance m, unit
-    tangent (tx, ty, tz), leg length m). The cross-track distance is to the segment."""
+    """Projection of a point on a 3-D segment.
+
+    Parameters
+    ----------
+    ax_, ay_, az_ : float
+        Segment start a, world m.
+    bx, by, bz : float
+        Segment end b, world m.
+    px, py, pz : float
+        The point p, world m.
+
+    Returns
+    -------
+    along : float
+        Along-track position of the projection from a, m (not clamped).
+    xt : float
+        Distance from p to the segment, m.
+    tx, ty, tz : float
+        Unit tangent (zeros for a segment shorter than 1e-12 m).
+    length : float
+        Segment length, m.
+    """
     lx = bx - ax_
     ly = by - ay_
     lz = bz - az_
@@ -130,6 +181,23 @@ def leg_geometry(ax_, ay_, az_, bx, by, bz, px, py, pz):
 
 
 class RFParams(NamedTuple):
+    """RF's params (one rollout).
+
+    Attributes
+    ----------
+    radius : float
+        Waypoint radius, m.
+    xte_max : float
+        Bound on the mean cross-track error for success, m.
+    look : float
+        Lookahead of the observation's route cue, m.
+    t_lim : float
+        Time limit, s (the planners' field window).
+    dt : float
+        Step, s.
+    hotel_w, pk : float
+        Power model of the task's vehicle: ``P = hotel_w + pk u_r^3`` W (``pk`` in W s3 m-3).
+    """
     radius: float           # waypoint radius, m
     xte_max: float          # bound on the mean cross-track error for success, m
     look: float             # lookahead of the observation's route cue, m
@@ -140,6 +208,35 @@ class RFParams(NamedTuple):
 
 
 class RFWork(NamedTuple):
+    """RF's per-episode work arrays.
+
+    Attributes
+    ----------
+    route : (E, W + 1, 3) float64
+        Route vertices, m.
+    wp : (E,) int64
+        The judge's active waypoint (true position; 1..W; W + 1 when the route is done).
+    nwp : (E,) int64
+        The mission computer's (known position; :func:`~oneocean.tasks.common.nav_waypoint`):
+        the observation's route cue.
+    acc : (E, 3) float64
+        Sum and max of the cross-track error (m), energy used (J).
+    budget : (E,) float64
+        Energy allocation, J (inf: none).
+    eref : (E,) float64
+        Least energy of the route (the task's schedule), J.
+    wps : (E, MAX_VERTICES, 2) float64
+        Plan tokens (:func:`oneocean.tasks.routing.follow_path`), written by the method's
+        prepare hook: vertices (x, z), m; the route's legs until then.
+    wspd : (E, MAX_VERTICES) float64
+        Programmed speed of each segment, m s-1 (the cruise speed until planned).
+    wcount : (E,) int64
+        Vertices.
+    widx : (E,) int64
+        Active segment.
+    planned : (E,) int64
+        1 once the method planned.
+    """
     route: np.ndarray       # (E, W + 1, 3) route vertices, m
     wp: np.ndarray          # (E,) int64 the judge's active waypoint (true position; 1..W;
                             #        W + 1 when the route is done)
@@ -158,9 +255,29 @@ class RFWork(NamedTuple):
 
 
 def reference_energy(grid, tier: dict, route, t0: float, power=None) -> float:
-    """``E_ref`` (J): the least energy of flying ``route`` (W + 1, 3) on ``grid``'s true field
-    (the best speed schedule along it); inf off the grid or where no schedule holds it.
-    (``power``: :func:`~oneocean.tasks.g2g.task_power`'s result, if at hand.)"""
+    """``E_ref``: the least energy of flying a route on ``grid``'s true field.
+
+    The best speed schedule along it (:func:`oneocean.tasks.routing.plan_mission`,
+    ``fixed=True``).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    tier : dict
+        Tier parameters (``time_limit_s``, optional ``v_max``).
+    route : (W + 1, 3) array_like
+        Route vertices, world m (the depth is vertex 0's).
+    t0 : float
+        Start time, s since the grid's ``time0``.
+    power : (PowerModel, float), optional
+        :func:`~oneocean.tasks.g2g.task_power`'s result, if at hand.
+
+    Returns
+    -------
+    float
+        ``E_ref``, J; inf off the grid or where no schedule holds the route.
+    """
     pw, v_max = power if power is not None else task_power(tier, TASK_ID)
     pts = np.ascontiguousarray(np.asarray(route)[:, [0, 2]])
     if not routing.within_grid(grid, pts):
@@ -171,8 +288,26 @@ def reference_energy(grid, tier: dict, route, t0: float, power=None) -> float:
 
 
 def reference_energies(grid, tier: dict, routes, t0, power=None) -> np.ndarray:
-    """:func:`reference_energy` (E,) J of every route ``routes`` (E, W + 1, 3), the same
-    bits, in one compiled call (:func:`oneocean.tasks.routing.mission_costs`)."""
+    """:func:`reference_energy` of every route, the same bits, in one compiled call.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    tier : dict
+        Tier parameters.
+    routes : (E, W + 1, 3) array_like
+        Route vertices, world m.
+    t0 : (E,) array_like
+        Start times, s since the grid's ``time0``.
+    power : (PowerModel, float), optional
+        :func:`~oneocean.tasks.g2g.task_power`'s result, if at hand.
+
+    Returns
+    -------
+    (E,) float64
+        ``E_ref`` per episode, J (:func:`oneocean.tasks.routing.mission_costs`).
+    """
     pw, v_max = power if power is not None else task_power(tier, TASK_ID)
     r = np.asarray(routes, dtype=np.float64)
     return routing.mission_costs(grid, r[:, :, [0, 2]], r[:, 0, 1], t0,
@@ -180,9 +315,33 @@ def reference_energies(grid, tier: dict, routes, t0, power=None) -> np.ndarray:
 
 
 def make(grid, tier: dict, init: dict):
-    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); with an
-    ``energy_reserve`` the allocation of every episode (:func:`reference_energy` on the
-    rollout's ``grid``)."""
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
+
+    With an ``energy_reserve`` the allocation of every episode (:func:`reference_energies`
+    on the rollout's ``grid``); the plan tokens hold the route's legs at the cruise speed.
+
+    Parameters
+    ----------
+    grid : Grid
+        The rollout's grid export (the ablations' forcing included).
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        The reset's dict (:func:`reset`).
+
+    Returns
+    -------
+    P : RFParams
+        The env's typed scalars.
+    W : RFWork
+        The env's per-episode work arrays.
+
+    Raises
+    ------
+    ConfigError
+        Missing tier parameters, more than ``MAX_VERTICES - 1`` waypoints or a negative
+        ``energy_reserve``.
+    """
     need_tier(TASK_ID, tier, "wp_radius_m", "xte_max_m", "time_limit_s", "dt_s")
     route = np.ascontiguousarray(init["route"], dtype=np.float64)
     n_ep, n_v = route.shape[:2]
@@ -205,6 +364,28 @@ def make(grid, tier: dict, init: dict):
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
+    """Reset the waypoint pointers and accumulators.
+
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : RFParams
+        The task's params (:func:`make`).
+    W : RFWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+
+    Returns
+    -------
+    bool
+        True (the episode ends) for a route without waypoints.
+    """
     W.wp[e] = 1
     W.nwp[e] = 1
     W.acc[e, 0] = 0.0
@@ -215,6 +396,39 @@ def begin(grid, P, W, state, e):
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
+    """The route point ``P.look`` m ahead of the agent's known projection on the active leg.
+
+    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
+
+    The leg is the mission computer's: its pointer ``W.nwp`` is advanced here, on the
+    known position (:func:`~oneocean.tasks.common.nav_waypoint`); the point is clamped to the
+    waypoint, and once the route is done the cue is the last waypoint.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : RFParams
+        The task's params (:func:`make`).
+    W : RFWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (its navigation estimate; the truth for
+        the oracle); layout: :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+
+    Returns
+    -------
+    gx, gy, gz : float
+        The goal cue, world m.
+    probe : float
+        NaN (the task has no field).
+    """
     s = state[e, i]
     wp = nav_waypoint(W.route, W.nwp, e, s[0], s[1], s[2], P.radius, 0)
     if wp > W.route.shape[1] - 1:   # route done as far as the vehicle knows: the last waypoint
@@ -230,6 +444,34 @@ def cue(grid, P, W, state, e, k, i):
 
 @hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
+    """Cross-track error, energy and the judge's waypoint after the step.
+
+    Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : RFParams
+        The task's params (:func:`make`).
+    W : RFWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    prev : (E, N, 3) float64
+        Positions before the step, world m.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+
+    Returns
+    -------
+    bool
+        True (STOP) once the last waypoint is reached (on the true position).
+    """
     s = state[e, 0]
     wp = W.wp[e]
     a0 = W.route[e, wp - 1]
@@ -255,6 +497,33 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
+    """Write the RF metrics.
+
+    Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : RFParams
+        The task's params (:func:`make`).
+    W : RFWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Steps the episode ran.
+    row : (C,) float64
+        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
+
+    Returns
+    -------
+    bool
+        Success: every waypoint reached, mean cross-track error at most ``xte_max_m`` and
+        energy within the allocation.
+    """
     a = W.acc[e]
     wp = W.wp[e]
     xte = a[0] / k if k > 0 else 0.0

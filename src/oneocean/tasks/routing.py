@@ -71,7 +71,18 @@ class PowerModel(NamedTuple):
     k: float          # propulsion coefficient, W s3 m-3
 
     def power(self, u):
-        """P(u), W."""
+        """The electrical power ``P(u) = hotel_w + k u^3``.
+
+        Parameters
+        ----------
+        u : float or array_like
+            Speed through the water, m s-1.
+
+        Returns
+        -------
+        float64 or ndarray
+            Power, W (the shape of ``u``).
+        """
         return self.hotel_w + self.k * np.asarray(u, dtype=np.float64) ** 3
 
     @property
@@ -81,7 +92,27 @@ class PowerModel(NamedTuple):
 
 
 def power_model(vehicle: str, path: str | Path | None = None) -> PowerModel:
-    """The :class:`PowerModel` of ``vehicle`` (``power:`` section of ``data/vehicles.yaml``)."""
+    """The :class:`PowerModel` of a vehicle.
+
+    Parameters
+    ----------
+    vehicle : str
+        Vehicle name (a key of the ``power:`` section).
+    path : str or Path, optional
+        The vehicle file; default ``data/vehicles.yaml``
+        (:func:`oneocean.engine.dynamics.vehicles_file`).
+
+    Returns
+    -------
+    PowerModel
+        Cached per file version.
+
+    Raises
+    ------
+    ConfigError
+        If the file cannot be read, has no power model for ``vehicle``, or one of its values
+        is not a number > 0.
+    """
     f = Path(path) if path is not None else vehicles_file()
     try:
         mtime = f.stat().st_mtime_ns
@@ -179,8 +210,23 @@ def _free(free, x0, z0, h, x, z):
 
 @njit(cache=True)
 def ground_speed(ce, cn, ux, uz, u):
-    """Crab-steering ground speed (m s-1) along the unit direction (ux, uz) at speed ``u``
-    through the current (ce, cn); -1 when the cross current reaches ``u``."""
+    """Crab-steering ground speed along a unit direction in a current.
+
+    Parameters
+    ----------
+    ce, cn : float
+        Current (east, north), m s-1.
+    ux, uz : float
+        Unit track direction (x, z).
+    u : float
+        Speed through the water, m s-1.
+
+    Returns
+    -------
+    float
+        Ground speed along the track, m s-1 (``c_par + sqrt(u^2 - c_perp^2)``); -1 when the
+        cross current reaches ``u``.
+    """
     c_par = ce * ux + cn * uz
     qx = ce - c_par * ux
     qz = cn - c_par * uz
@@ -612,11 +658,48 @@ def _speeds_power(speeds, power):
 
 def schedule(cur, times, free, x0: float, z0: float, h: float, path, speeds, t0: float, *,
              power=None, hold: float = 0.0, piece: float | None = None) -> Route:
-    """Fly the fixed polyline ``path`` (n, 2): every segment split into equal pieces of at
-    most ``piece`` m (default ``PIECE * h``), each piece at its best speed of ``speeds``
-    (the fastest when ``power`` is None: cost = time; else the least energy, ``power`` =
-    ``(hotel_w, k)``: ``P(u) = hotel_w + k u^3``), with the current where and when the
-    vehicle gets there. The route returned has one vertex per piece end."""
+    """Fly a fixed polyline: the best speed schedule along it.
+
+    Every segment is split into equal pieces of at most ``piece`` m, each flown at its best
+    speed of ``speeds`` (the fastest when ``power`` is None: cost = time; else the least
+    energy) with the current where and when the vehicle gets there.
+
+    Parameters
+    ----------
+    cur : (nt, ny, nx, 2) array_like
+        The current (east, north) the planner knows at the lattice nodes, m s-1.
+    times : (nt,) array_like
+        Times of ``cur``, s, ascending.
+    free : (ny, nx) array_like
+        Passability margin (> 0: passable; :func:`plan_route`).
+    x0, z0 : float
+        World (x, z) of node (0, 0), m.
+    h : float
+        Node spacing, m.
+    path : (n, 2) array_like
+        The polyline's vertices (x, z), m.
+    speeds : float or array_like
+        Through-water speeds the vehicle may fly, m s-1.
+    t0 : float
+        Departure time, s.
+    power : (hotel_w, k), optional
+        None: cost = time; given: cost = energy, ``P(u) = hotel_w + k u^3`` W.
+    hold : float
+        Cross-current headroom a track needs, m s-1 (:func:`plan_route`).
+    piece : float, optional
+        Longest piece flown at one speed, m (default ``PIECE * h``).
+
+    Returns
+    -------
+    Route
+        One vertex per piece end (collinear pieces at the same speed merged); ``ok`` False and
+        ``cost`` inf when a piece is impassable.
+
+    Raises
+    ------
+    ValueError
+        Inconsistent array shapes, a speed <= 0 or a negative power coefficient.
+    """
     cur, times, free = _arrays(cur, times, free)
     sp, ph, pk = _speeds_power(speeds, power)
     p = np.ascontiguousarray(np.asarray(path, dtype=np.float64).reshape(-1, 2))
@@ -655,19 +738,29 @@ def _merge(r: Route) -> Route:
 def plan_route(cur, times, free, x0: float, z0: float, h: float, start, goal, speeds,
                t0: float, *, power=None, hold: float = 0.0, piece: float | None = None
                ) -> Route:
-    """The best route from ``start`` to ``goal`` (x, z) m leaving at ``t0`` s.
+    """The best route from ``start`` to ``goal`` leaving at ``t0``.
 
     Parameters
     ----------
     cur : (nt, ny, nx, 2) float64
         The current (east, north) m/s the planner knows at node ``(j, i)``, world
         ``(x0 + i h, z0 + j h)``, at ``times`` (nt,) s ascending.
+    times : (nt,) float64
+        Times of ``cur``, s, ascending (sampled linearly, clamped outside).
     free : (ny, nx) float64
         Passability margin: the vehicle may be where its bilinear interpolation is > 0
         (land, too shallow water and anything else forbidden <= 0). Outside the lattice is
         impassable.
+    x0, z0 : float
+        World (x, z) of node (0, 0), m.
+    h : float
+        Node spacing, m (> 0).
+    start, goal : (2,) array_like
+        Start and goal (x, z), m.
     speeds : float or array
         Through-water speeds the vehicle may fly, m/s (one: the fixed-speed problem).
+    t0 : float
+        Departure time, s.
     power : (hotel_w, k), optional
         None: the time-optimal route (each piece at the fastest feasible speed). Given: the
         least-energy route and speed schedule, ``P(u) = hotel_w + k u^3`` W.
@@ -682,7 +775,13 @@ def plan_route(cur, times, free, x0: float, z0: float, h: float, start, goal, sp
     -------
     Route
         Its ``path`` is the string-pulled lattice path re-scheduled piece by piece
-        (:func:`schedule`); deterministic (bit for bit) on every CPU.
+        (:func:`schedule`); deterministic (bit for bit) on every CPU. No passable route:
+        ``ok`` False (see :class:`Route`).
+
+    Raises
+    ------
+    ValueError
+        Inconsistent array shapes, ``h <= 0``, a speed <= 0 or a negative power coefficient.
     """
     cur, times, free = _arrays(cur, times, free)
     sp, ph, pk = _speeds_power(speeds, power)
@@ -717,8 +816,38 @@ def plan_route(cur, times, free, x0: float, z0: float, h: float, start, goal, sp
 
 def route_cost(cur, times, free, x0: float, z0: float, h: float, path, speeds, t0: float, *,
                power=None, hold: float = 0.0, piece: float | None = None) -> float:
-    """The planned cost (time s or energy J, inf: impassable) of flying the polyline
-    ``path`` (:func:`schedule`), e.g. the straight line."""
+    """The planned cost of flying a fixed polyline (:func:`schedule`), e.g. the straight line.
+
+    Parameters
+    ----------
+    cur : (nt, ny, nx, 2) array_like
+        The current (east, north) the planner knows at the lattice nodes, m s-1.
+    times : (nt,) array_like
+        Times of ``cur``, s, ascending.
+    free : (ny, nx) array_like
+        Passability margin (> 0: passable; :func:`plan_route`).
+    x0, z0 : float
+        World (x, z) of node (0, 0), m.
+    h : float
+        Node spacing, m.
+    path : (n, 2) array_like
+        The polyline's vertices (x, z), m.
+    speeds : float or array_like
+        Through-water speeds the vehicle may fly, m s-1.
+    t0 : float
+        Departure time, s.
+    power : (hotel_w, k), optional
+        None: cost = time; given: cost = energy, ``P(u) = hotel_w + k u^3`` W.
+    hold : float
+        Cross-current headroom a track needs, m s-1 (:func:`plan_route`).
+    piece : float, optional
+        Longest piece flown at one speed, m (default ``PIECE * h``).
+
+    Returns
+    -------
+    float
+        Time (s, ``power`` None) or energy (J); inf when impassable.
+    """
     return schedule(cur, times, free, x0, z0, h, path, speeds, t0, power=power, hold=hold,
                     piece=piece).cost
 
@@ -736,8 +865,24 @@ class Lattice(NamedTuple):
 
 
 def lattice(grid, points, pad: float, h: float) -> Lattice:
-    """The lattice of spacing ``h`` m covering the bounding box of ``points`` (n, 2) (x, z)
-    plus ``pad`` m, clipped to the grid's extent."""
+    """The planning lattice covering some points, clipped to the grid's extent.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    points : (n, 2) array_like
+        Points (x, z), m.
+    pad : float
+        Margin around the points' bounding box, m.
+    h : float
+        Node spacing, m.
+
+    Returns
+    -------
+    Lattice
+        At least 2 x 2 nodes.
+    """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     xl = max(float(p[:, 0].min()) - pad, grid.x0)
     xh = min(float(p[:, 0].max()) + pad, grid.x_max)
@@ -749,8 +894,25 @@ def lattice(grid, points, pad: float, h: float) -> Lattice:
 
 
 def field_times(grid, t0: float, duration: float) -> np.ndarray:
-    """The grid's own time axis over ``[t0, t0 + duration]`` (plus the bracketing times), on
-    which the product's currents are linear in time: the planner's ``times``."""
+    """The grid's own time axis over an episode window: the planner's ``times``.
+
+    On it the product's currents are linear in time.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    t0 : float
+        Window start, s since the grid's ``time0``.
+    duration : float
+        Window length, s.
+
+    Returns
+    -------
+    (nt,) float64
+        The grid times in ``[t0, t0 + duration]`` plus the bracketing ones (the single time of
+        a one-time grid).
+    """
     ts = np.asarray(grid.time_s, dtype=np.float64)
     lo, hi = _time_window(ts, t0, duration)
     return ts[lo:hi + 1].copy()
@@ -758,10 +920,34 @@ def field_times(grid, t0: float, duration: float) -> np.ndarray:
 
 def field_from_grid(grid, lat: Lattice, depth: float, times, clearance: float,
                     land_threshold: float = 0.5, land_margin: float = 0.1):
-    """The true field on ``lat``: ``cur`` (nt, ny, nx, 2) (:func:`oneocean.engine.grid.
-    sample_currents` at every node at depth ``depth`` m and every time of ``times``) and
-    ``free`` (ny, nx): the smaller of the water depth below ``depth + clearance`` m and
-    ``(land_threshold - land_margin - land) * h`` (land and shallows <= 0)."""
+    """The true field on a planning lattice.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    lat : Lattice
+        The planning lattice.
+    depth : float
+        Depth of the plan, m (positive down).
+    times : (nt,) array_like
+        Sample times, s since the grid's ``time0`` (:func:`field_times`).
+    clearance : float
+        Seafloor clearance below ``depth``, m.
+    land_threshold : float
+        Land-mask threshold.
+    land_margin : float
+        Margin below ``land_threshold`` that still counts as land.
+
+    Returns
+    -------
+    cur : (nt, ny, nx, 2) float64
+        :func:`oneocean.engine.grid.sample_currents` at every node at ``depth`` and every time
+        of ``times``, m s-1.
+    free : (ny, nx) float64
+        The smaller of the water depth below ``depth + clearance`` (m) and
+        ``(land_threshold - land_margin - land) * h`` (land and shallows <= 0).
+    """
     times = np.ascontiguousarray(times, dtype=np.float64).reshape(-1)
     cur = np.empty((times.size, lat.ny, lat.nx, 2))
     free = np.empty((lat.ny, lat.nx))
@@ -804,9 +990,23 @@ def _land_points(grid, xz, out):
 
 
 def forecast_field(cur, fc, e: int) -> np.ndarray:
-    """``cur`` mapped through episode ``e``'s forecast-error model (``LoopState.fc``;
-    :func:`oneocean.sensing.kernels.forecast` at every node and time): what a vehicle
-    carrying the forecast plans on."""
+    """A field as a vehicle carrying the forecast sees it: what it plans on.
+
+    Parameters
+    ----------
+    cur : (nt, ny, nx, 2) array_like
+        The true field, m s-1.
+    fc : (E, 5) array_like
+        Forecast-error models (``LoopState.fc``).
+    e : int
+        Episode index.
+
+    Returns
+    -------
+    (nt, ny, nx, 2) float64
+        ``cur`` mapped through episode ``e``'s forecast-error model
+        (:func:`oneocean.sensing.kernels.forecast` at every node and time), m s-1.
+    """
     cur = np.ascontiguousarray(cur, dtype=np.float64)
     return _map_forecast(cur, np.ascontiguousarray(fc, dtype=np.float64), int(e),
                          np.empty_like(cur))
@@ -829,7 +1029,19 @@ PIECE_M = 100.0
 
 
 def mission_speeds(v_max: float) -> np.ndarray:
-    """The speeds a mission may program: SPEED_MIN .. v_max in SPEED_STEP steps (and v_max)."""
+    """The speeds a mission may program.
+
+    Parameters
+    ----------
+    v_max : float
+        The vehicle's speed limit, m s-1.
+
+    Returns
+    -------
+    float64 ndarray
+        ``SPEED_MIN`` .. ``v_max`` in ``SPEED_STEP`` steps (and ``v_max``), m s-1; only
+        ``v_max`` when it is at most ``SPEED_MIN``.
+    """
     v = float(v_max)
     if v <= SPEED_MIN:
         return np.array([v])
@@ -838,8 +1050,21 @@ def mission_speeds(v_max: float) -> np.ndarray:
 
 
 def cruise_speed(v_max: float, power: PowerModel | None) -> float:
-    """The programmed speed of a vehicle flying one speed: the mission speed nearest its
-    maximum-range speed (:attr:`PowerModel.range_speed`), else ``v_max``."""
+    """The programmed speed of a vehicle flying one speed.
+
+    Parameters
+    ----------
+    v_max : float
+        The vehicle's speed limit, m s-1.
+    power : PowerModel or None
+        Its power model.
+
+    Returns
+    -------
+    float
+        The mission speed (:func:`mission_speeds`) nearest its maximum-range speed
+        (:attr:`PowerModel.range_speed`); ``v_max`` without a power model, m s-1.
+    """
     s = mission_speeds(v_max)
     if power is None:
         return float(s[-1])
@@ -847,23 +1072,65 @@ def cruise_speed(v_max: float, power: PowerModel | None) -> float:
 
 
 def lattice_spacing(length: float) -> float:
-    """Node spacing of the planning lattice for a route of ``length`` m: length / 40,
-    clipped to 50-200 m (the product's own spacing is 100-250 m)."""
+    """Node spacing of the planning lattice for a route.
+
+    Parameters
+    ----------
+    length : float
+        Route length, m.
+
+    Returns
+    -------
+    float
+        ``length / 40`` clipped to 50-200 m (the product's own spacing is 100-250 m).
+    """
     return float(min(max(float(length) / 40.0, 50.0), 200.0))
 
 
 def plan_mission(grid, points, depth: float, t0: float, duration: float, v_max: float,
                  power: PowerModel | None, *, fixed: bool = False, fc=None, e: int = 0,
                  clearance: float = 5.0, land_threshold: float = 0.5) -> Route:
-    """A vehicle's plan through the field of ``grid`` at ``depth`` m leaving at ``t0`` s.
+    """A vehicle's plan through the field of ``grid`` at one depth.
 
-    ``points`` (n, 2) (x, z) m: the start and the goal of a transit (``fixed=False``: the
-    least-energy route and speed schedule, or the fastest route at ``v_max`` without a
-    power model), or the route's vertices (``fixed=True``: the speed schedule along it).
     The field is the truth sampled on a lattice around the points (:func:`field_from_grid`
-    over ``[t0, t0 + duration]``), or, given ``fc`` (a ``LoopState.fc`` array) the forecast
-    of episode ``e`` of it (:func:`forecast_field`): what a vehicle carrying that forecast
-    plans on.
+    over ``[t0, t0 + duration]``), or, given ``fc``, episode ``e``'s forecast of it
+    (:func:`forecast_field`): what a vehicle carrying that forecast plans on. Speeds:
+    :func:`mission_speeds`; cross-current headroom ``HOLD_MS``; pieces of at most
+    ``PIECE_M``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    points : (n, 2) array_like
+        (x, z) m: the start and goal of a transit (``fixed=False``), or the route's vertices
+        (``fixed=True``).
+    depth : float
+        Depth of the plan, m (positive down).
+    t0 : float
+        Departure time, s since the grid's ``time0``.
+    duration : float
+        Length of the field window, s.
+    v_max : float
+        The vehicle's speed limit, m s-1.
+    power : PowerModel or None
+        Its power model (None: cost = time).
+    fixed : bool
+        False: the least-energy route and speed schedule (the fastest route at ``v_max``
+        without a power model); True: the speed schedule along the fixed route.
+    fc : (E, 5) array_like, optional
+        Forecast-error models (``LoopState.fc``); None: the truth.
+    e : int
+        Episode index into ``fc``.
+    clearance : float
+        Seafloor clearance below ``depth``, m.
+    land_threshold : float
+        Land-mask threshold.
+
+    Returns
+    -------
+    Route
+        The plan; ``cost`` in J with a power model, else s.
     """
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     length = float(np.hypot(*np.diff(pts, axis=0).T).sum())
@@ -987,14 +1254,42 @@ def _time_window(ts: np.ndarray, t0: float, duration: float) -> tuple[int, int]:
 def mission_costs(grid, routes, depths, t0s, duration: float, v_max: float,
                   power: PowerModel | None, *, fixed: bool = False, clearance: float = 5.0,
                   land_threshold: float = 0.5) -> np.ndarray:
-    """``plan_mission(grid, routes[e], depths[e], t0s[e], duration, v_max, power,
-    fixed=fixed).cost`` (J or s) of every episode ``e``, the same bits, in one compiled call
-    (episodes on :func:`oneocean.tasks.episodes.over_range`'s threads) instead of one plan
-    each; inf where a route has a point off the grid (:func:`within_grid`).
+    """The cost of :func:`plan_mission` for every episode, in one compiled call.
 
-    ``routes``: (E, n, 2) (x, z) m, or a sequence of (n_e, 2) arrays: the start and goal of
-    a transit (``fixed=False``: the least-energy route's cost), or the fixed route's
-    vertices (``fixed=True``: its best speed schedule's cost)."""
+    ``plan_mission(grid, routes[e], depths[e], t0s[e], duration, v_max, power,
+    fixed=fixed).cost`` of every episode ``e``, the same bits, with the episodes on
+    :func:`oneocean.tasks.episodes.over_range`'s threads instead of one plan each.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    routes : (E, n, 2) array_like or sequence of (n_e, 2) arrays
+        (x, z) m: the start and goal of a transit (``fixed=False``: the least-energy route's
+        cost), or the fixed route's vertices (``fixed=True``: its best speed schedule's cost).
+    depths : (E,) array_like
+        Depth of each plan, m.
+    t0s : (E,) array_like
+        Departure times, s since the grid's ``time0``.
+    duration : float
+        Length of the field window, s.
+    v_max : float
+        The vehicle's speed limit, m s-1.
+    power : PowerModel or None
+        Its power model (None: cost = time).
+    fixed : bool
+        See ``routes``.
+    clearance : float
+        Seafloor clearance below the depth, m.
+    land_threshold : float
+        Land-mask threshold.
+
+    Returns
+    -------
+    (E,) float64
+        Costs, J (s without a power model); inf where a route has a point off the grid
+        (:func:`within_grid`) or no passable route exists.
+    """
     from .episodes import over_range
 
     routes = [np.asarray(r, dtype=np.float64).reshape(-1, 2) for r in routes]
@@ -1030,7 +1325,20 @@ def mission_costs(grid, routes, depths, t0s, duration: float, v_max: float,
 
 
 def within_grid(grid, points) -> bool:
-    """True if every point (n, 2) (x, z) lies inside the grid's horizontal extent."""
+    """Whether every point lies inside the grid's horizontal extent.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    points : (n, 2) array_like
+        Points (x, z), m.
+
+    Returns
+    -------
+    bool
+        True if all points are inside (edges included).
+    """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     return bool(np.all((p[:, 0] >= grid.x0) & (p[:, 0] <= grid.x_max)
                        & (p[:, 1] >= grid.z0) & (p[:, 1] <= grid.z_max)))
@@ -1040,16 +1348,44 @@ def within_grid(grid, points) -> bool:
 
 @hot_kernel(inline="always")
 def follow_path(wps, wspd, wcount, widx, e, px, pz, look, capture, commit):
-    """Line-of-sight following of episode ``e``'s planned polyline ``wps[e, :wcount[e]]``
-    (x, z) m from the vehicle at (px, pz).
+    """Line-of-sight following of episode ``e``'s planned polyline.
 
-    The active segment ``widx[e]`` advances when the vehicle is within ``capture`` m of its
-    end, or its along-track position is (stored when ``commit``). The carrot is ``look`` m
-    beyond the vehicle's projection on the active segment, along the polyline across
-    straight vertices (where only the programmed speed changes) but never past a corner: a
-    corner vertex (a waypoint, a turn of the route) is steered at until it is captured, so
-    the vehicle visits it, and the carrot cannot pull it to a point whose projection never
-    reaches the segment's end. Returns (carrot x, carrot z, the active segment's speed)."""
+    The active segment ``widx[e]`` advances while the vehicle is within ``capture`` m of its
+    end or its along-track position is within ``capture`` of the end (stored when
+    ``commit``). The carrot is ``look`` m beyond the vehicle's projection on the active
+    segment, along the polyline across straight vertices (where only the programmed speed
+    changes) but never past a corner: a corner vertex (a waypoint, a turn of the route) is
+    steered at until it is captured, so the vehicle visits it, and the carrot cannot pull it to
+    a point whose projection never reaches the segment's end.
+
+    Parameters
+    ----------
+    wps : (E, n_max, 2) float64
+        Plan vertices (x, z), m (plan tokens, :func:`write_plan`).
+    wspd : (E, n_max) float64
+        Programmed through-water speed of each segment, m s-1.
+    wcount : (E,) int64
+        Vertices of each plan.
+    widx : (E,) int64
+        Active segment of each plan.
+    e : int
+        Episode index.
+    px, pz : float
+        Vehicle position (x, z), m.
+    look : float
+        Carrot lookahead, m.
+    capture : float
+        Capture radius of a segment's end, m.
+    commit : int
+        Non-zero: store the advanced segment in ``widx[e]``.
+
+    Returns
+    -------
+    cx, cz : float
+        The carrot, m.
+    u : float
+        The active segment's programmed speed, m s-1.
+    """
     n = wcount[e]
     w = widx[e]
     while w < n - 2:
@@ -1106,9 +1442,27 @@ def follow_path(wps, wspd, wcount, widx, e, px, pz, look, capture, commit):
 
 @hot_kernel(inline="always")
 def hold_speed(u, dx, dz, ce, cn, v_max):
-    """The through-water speed to fly toward (dx, dz) in the current (ce, cn): the programmed
-    ``u``, raised (up to ``v_max``) so the cross current leaves HOLD_MS to spare and the
-    ground speed along the track stays >= G_MIN_MS."""
+    """The through-water speed to fly toward a direction in a current.
+
+    The programmed ``u``, raised (up to ``v_max``) so the cross current leaves ``HOLD_MS`` to
+    spare and the ground speed along the track stays >= ``G_MIN_MS``.
+
+    Parameters
+    ----------
+    u : float
+        Programmed speed, m s-1.
+    dx, dz : float
+        Direction of travel (x, z), any length, m.
+    ce, cn : float
+        Current (east, north), m s-1.
+    v_max : float
+        The vehicle's speed limit, m s-1.
+
+    Returns
+    -------
+    float
+        Speed through the water, m s-1 (``u`` for a zero direction).
+    """
     d = math.sqrt(dx * dx + dz * dz)
     if d <= 1e-9:
         return u
@@ -1129,7 +1483,28 @@ def hold_speed(u, dx, dz, ce, cn, v_max):
 
 
 def write_plan(route: Route, wps, wspd, wcount, widx, e: int) -> None:
-    """Store ``route`` as episode ``e``'s plan tokens (:func:`follow_path`)."""
+    """Store a route as episode ``e``'s plan tokens (:func:`follow_path`).
+
+    Parameters
+    ----------
+    route : Route
+        The plan.
+    wps : (E, n_max, 2) float64
+        Plan vertices, written in place.
+    wspd : (E, n_max) float64
+        Programmed segment speeds, written in place.
+    wcount : (E,) int64
+        Vertex counts, written in place.
+    widx : (E,) int64
+        Active segments, reset to 0.
+    e : int
+        Episode index.
+
+    Raises
+    ------
+    RuntimeError
+        If the route has more vertices than ``wps`` holds.
+    """
     n = route.path.shape[0]
     if n > wps.shape[1]:
         raise RuntimeError(f"plan of episode {e}: {n} vertices, the plan-token array holds "

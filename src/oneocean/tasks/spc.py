@@ -109,7 +109,19 @@ R_COLL_M = 2.0
 
 
 def staging_offsets(n: int) -> np.ndarray:
-    """Start offsets of ``n`` agents around the staging point: a square lattice, (n, 2) m."""
+    """Start offsets of the agents around the staging point: a square lattice.
+
+    Parameters
+    ----------
+    n : int
+        Number of agents.
+
+    Returns
+    -------
+    (n, 2) float64
+        Offsets, m, ``STAGING_SPACING_M`` apart, centred (before the rotation toward the
+        spill that :func:`reset_candidates` applies).
+    """
     cols = int(math.ceil(math.sqrt(n)))
     k = np.arange(n)
     off = np.stack([(k % cols) - 0.5 * (cols - 1), (k // cols) - 0.5 * ((n - 1) // cols)], 1)
@@ -132,7 +144,21 @@ def _surface_codes(grid, xyz) -> np.ndarray:
 
 
 def field_frame(domain_m: float) -> tuple[int, float]:
-    """Cells per side and half-width (centre of cell 0 relative to the spill centre), m."""
+    """The local field's size for a domain width.
+
+    Parameters
+    ----------
+    domain_m : float
+        Domain width, m.
+
+    Returns
+    -------
+    n : int
+        Cells per side (at least 8), ``FIELD_H_M`` each.
+    half : float
+        Offset of cell 0's centre from the spill centre, m (half the distance between the
+        first and last cell centres).
+    """
     n = max(8, int(round(float(domain_m) / FIELD_H_M)))
     return n, 0.5 * (n - 1) * FIELD_H_M
 
@@ -140,14 +166,21 @@ def field_frame(domain_m: float) -> tuple[int, float]:
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the spill, its local field, the staging point and the start time per episode.
 
+    The same as :func:`reset_build` of :func:`reset_candidates` (the split ``Cell.reset``
+    uses to build only the candidates it keeps).
+
     Parameters
     ----------
     grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
     tier : dict
-        Tier parameters (see ``data/tasks/SPC.yaml``) plus ``dt_s``.
+        Tier parameters (``data/tasks/SPC.yaml``) plus ``dt_s``.
     n_agents : int
         Team size, 2..10.
-    n_episodes, seed : int
+    n_episodes : int
+        Number of episodes E.
+    seed : int
+        Run seed (each episode draws from its own reset stream).
 
     Returns
     -------
@@ -161,10 +194,9 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     Raises
     ------
     ConfigError
-        Team size outside 2..10, missing tier keys, or no valid spill/staging geometry.
-
-    The same as :func:`reset_build` of :func:`reset_candidates` (the split ``Cell.reset``
-    uses to build only the candidates it keeps).
+        Team size outside 2..10, missing tier keys, or a spill too large for the domain.
+    NotApplicable
+        No valid spill site with a clear staging point.
     """
     cand = reset_candidates(grid, tier, n_agents, n_episodes, seed)
     cand["candidate"] = np.arange(int(n_episodes), dtype=np.int64)
@@ -181,14 +213,41 @@ def _spill_box(n: int, half: float, R: float) -> slice:
 
 
 def reset_candidates(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
-    """What ``Cell.reset``'s band check needs of candidates ``0 .. n_episodes-1`` (``t0`` and
-    ``regime_points``: the spill centroid) and what :func:`reset_build` needs to finish them.
+    """The first half of :func:`reset`: what ``Cell.reset``'s band check needs of the candidates,
+    and what :func:`reset_build` needs to finish them.
 
     Per candidate (its own stream): the start time, the spill site and staging search, the
     spill (its mass lies within ``2 spill_radius_m`` of the site, so only the land cells of
     that box are checked: the field is bit for bit the one of the full land mask) and its
-    centroid. ``spill`` (E, b, b) holds the box of the initial field, ``starts`` (E, N, 2)
-    the agents' (x, z) starts; the full land mask is :func:`reset_build`'s.
+    centroid.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        Tier parameters (``data/tasks/SPC.yaml``) plus ``dt_s``.
+    n_agents : int
+        Team size, 2..10.
+    n_episodes : int
+        Number of candidates E (candidates ``0 .. E - 1``).
+    seed : int
+        Run seed (each episode draws from its own reset stream).
+
+    Returns
+    -------
+    dict
+        ``t0`` (E,) start times, s; ``regime_points`` (E, 1, 3) the spill centroid at the
+        surface, m; ``starts`` (E, N, 2) the agents' (x, z) starts, m; ``spill`` (E, b, b) the
+        box of the initial field that holds the spill, kg m-2; ``origin`` (E, 2) world (x, z) of
+        cell (0, 0) centre, m; ``report`` (E, 2) initial spill centroid (x, z), m.
+
+    Raises
+    ------
+    ConfigError
+        Team size outside 2..10, missing tier keys, or a spill too large for the domain.
+    NotApplicable
+        No valid spill site with a clear staging point.
     """
     n_agents = int(n_agents)
     if not 2 <= n_agents <= 10:
@@ -275,10 +334,29 @@ def reset_candidates(grid, tier: dict, n_agents: int, n_episodes: int, seed: int
 
 
 def reset_build(grid, tier: dict, n_agents: int, cand: dict, seed: int) -> dict:
-    """The episodes (:func:`reset`'s dict) of the candidates ``cand``: a
-    :func:`reset_candidates` dict, every per-candidate array indexed by the chosen
-    candidates (``cand["candidate"]`` their indices, unused here): the full land mask, the
-    initial field, the starts and headings."""
+    """The second half of :func:`reset`: the episodes of the chosen candidates.
+
+    The full land mask, the initial field, the starts and headings.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        Tier parameters (``spill_radius_m``, ``domain_m``).
+    n_agents : int
+        Team size N.
+    cand : dict
+        A :func:`reset_candidates` dict with every per-candidate array indexed by the chosen
+        candidates (``cand["candidate"]``: their indices, unused here).
+    seed : int
+        Run seed (unused: everything random was drawn by :func:`reset_candidates`).
+
+    Returns
+    -------
+    dict
+        :func:`reset`'s dict.
+    """
     R = float(tier["spill_radius_m"])
     n, half = field_frame(float(tier["domain_m"]))
     box = _spill_box(n, half, R)
@@ -331,6 +409,29 @@ def _refresh_faces(grid, uf, vf, x0, z0, h, y, t):
 
 
 class SPCParams(NamedTuple):
+    """SPC's params (one rollout).
+
+    Attributes
+    ----------
+    dt : float
+        Step, s.
+    n_steps : int
+        Episode length, steps (the time limit).
+    h : float
+        Field cell size, m.
+    y : float
+        Operating depth, m.
+    kappa : float
+        Diffusivity, m2 s-1.
+    rad : float
+        Removal radius, m.
+    eff : float
+        Removal rate, s-1.
+    target : float
+        Success: removed fraction of the initial mass.
+    refresh : int
+        Face velocities are re-sampled every this many steps.
+    """
     dt: float           # step, s
     n_steps: int        # episode length, steps (the time limit)
     h: float            # field cell size, m
@@ -343,6 +444,46 @@ class SPCParams(NamedTuple):
 
 
 class SPCWork(NamedTuple):
+    """SPC's per-episode work arrays.
+
+    Attributes
+    ----------
+    origin : (E, 2) float64
+        World (x, z) of cell (0, 0) centre, m.
+    report : (E, 2) float64
+        Reported initial spill centroid (x, z), m.
+    C : (E, 1, nz, nx) float64
+        Field, kg m-2 (a copy of ``init["C0"]``).
+    land : (E, nz, nx) uint8
+        Frozen cells.
+    uf : (E, nz, nx + 1) float64
+        x-face velocities, m s-1.
+    vf : (E, nz + 1, nx) float64
+        z-face velocities, m s-1.
+    work : (E, work_size) float64
+        Field-step scratch.
+    fpar : (E, 1) float64
+        Field-kind parameters (tracer: unused).
+    acc : (E, 3) float64
+        Initial mass, removed, escaped, kg.
+    k_hit : (E,) int64
+        Steps to the target fraction (-1: not reached).
+    aim : (E, N, 2) float64
+        Goal cue: the point each agent steers to (x, z), m.
+    tgt : (E, N, 2) float64
+        Policy plan tokens (:mod:`oneocean.methods.heuristic.spc`): targets (x, z) at the map
+        time, m.
+    tmap : (E,) float64
+        Map time, s.
+    bm : (E, nb) float64
+        Block masses, kg.
+    bx, bz : (E, nb) float64
+        Block mass centroids x and z, m.
+    cnt : (E, nb) int64
+        Agents per block.
+    done : (E, N) int64
+        Agent assigned.
+    """
     origin: np.ndarray  # (E, 2) world (x, z) of cell (0, 0) centre, m
     report: np.ndarray  # (E, 2) reported initial spill centroid (x, z), m
     C: np.ndarray       # (E, 1, nz, nx) field, kg m-2 (a copy of init C0)
@@ -365,9 +506,34 @@ class SPCWork(NamedTuple):
 
 
 def make(grid, tier: dict, init: dict, tokens: dict | None = None):
-    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); the
-    field is a copy of ``init["C0"]`` (never modified); the policy's map scratch holds
-    ``tokens["map_blocks"]`` blocks (the policy's ``plan_tokens``)."""
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
+
+    The field is a copy of ``init["C0"]`` (never modified); the goal cue starts at the
+    reported spill centroid.
+
+    Parameters
+    ----------
+    grid : Grid
+        The rollout's grid export (the ablations' forcing included).
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        The reset's dict (:func:`reset`).
+    tokens : dict
+        The policy's plan tokens (``plan_tokens``); ``map_blocks``: blocks of the map scratch.
+
+    Returns
+    -------
+    P : SPCParams
+        The env's typed scalars.
+    W : SPCWork
+        The env's per-episode work arrays.
+
+    Raises
+    ------
+    ConfigError
+        Missing tier parameters or plan tokens.
+    """
     need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
     tokens = need_tokens(TASK_ID, tokens, "map_blocks")
     C = np.ascontiguousarray(init["C0"], dtype=np.float64).copy()
@@ -393,6 +559,28 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
+    """Record the initial mass and reset the accumulators.
+
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : SPCParams
+        The task's params (:func:`make`).
+    W : SPCWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+
+    Returns
+    -------
+    bool
+        True (success at step 0, the episode ends) when there is nothing to remove.
+    """
     m0 = pol.total_mass(W.C[e], P.h)
     W.acc[e, 0] = m0
     W.acc[e, 1] = 0.0
@@ -406,12 +594,62 @@ def begin(grid, P, W, state, e):
 
 @hot_kernel(inline="always")
 def pre_step(grid, P, W, state, e, k, t):
+    """Re-sample the face velocities every ``P.refresh`` steps.
+
+    Env hook (:mod:`oneocean.tasks.loop`), before the agents act in step ``k``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : SPCParams
+        The task's params (:func:`make`).
+    W : SPCWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+    """
     if k % P.refresh == 0:
         _refresh_faces(grid, W.uf[e], W.vf[e], W.origin[e, 0], W.origin[e, 1], P.h, P.y, t)
 
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
+    """The goal cue ``W.aim`` at the operating depth, and the pollution probe.
+
+    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : SPCParams
+        The task's params (:func:`make`).
+    W : SPCWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (its navigation estimate; the truth for
+        the oracle); layout: :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+
+    Returns
+    -------
+    gx, gy, gz : float
+        The goal cue, world m.
+    probe : float
+        Surface concentration under the vehicle (its known position), kg m-2.
+    """
     s = state[e, i]
     # surface concentration under the vehicle, kg m-2
     return (W.aim[e, i, 0], P.y, W.aim[e, i, 1],
@@ -420,6 +658,35 @@ def cue(grid, P, W, state, e, k, i):
 
 @hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
+    """Removal by every agent in agent order, then the field step; the success check.
+
+    Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : SPCParams
+        The task's params (:func:`make`).
+    W : SPCWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    prev : (E, N, 3) float64
+        Positions before the step, world m.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+
+    Returns
+    -------
+    int
+        ``REACHED`` once the removed mass reaches the target fraction (the episode runs on to
+        the metric horizon), else ``GO``.
+    """
     S = state[e]
     Ce = W.C[e]
     x0 = W.origin[e, 0]
@@ -440,8 +707,33 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
-    """Fractions at the metric horizon (the end of the episode); success = the target was
-    reached at some step (``W.k_hit``; removal only grows, so it still holds here)."""
+    """Write the fractions at the metric horizon (the end of the episode).
+
+    Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : SPCParams
+        The task's params (:func:`make`).
+    W : SPCWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Steps the episode ran.
+    row : (C,) float64
+        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
+
+    Returns
+    -------
+    bool
+        Success: the target was reached at some step (``W.k_hit``; removal only grows, so it
+        still holds here).
+    """
     a = W.acc[e]
     m0 = a[0]
     success = W.k_hit[e] >= 0

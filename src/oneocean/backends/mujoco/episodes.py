@@ -37,10 +37,23 @@ PHYSICS_STEP_S = 0.02
 
 
 class SteppedEpisodes(Episodes):
-    """Episodes whose agents another physics moves (parameters as :class:`Episodes`, plus
-    ``physics``: an object with ``reset(state)`` and ``step(state, cmd, current, live) ->
-    codes`` as :class:`oneocean.backends.mujoco.physics.ScenePhysics`). ``trace=True`` keeps
-    every step's true state of every episode (:meth:`traced`) for media."""
+    """Episodes whose agents another physics moves.
+
+    ``trace=True`` keeps every step's true state of every episode (:meth:`traced`) for media.
+
+    Parameters
+    ----------
+    mod, grid, tier, init, method, dyn, vehicle, seed
+        As for :class:`~oneocean.tasks.episodes.Episodes`.
+    physics : object
+        The physics, with ``reset(state)`` and ``step(state, cmd, current, live) -> codes``
+        as :class:`oneocean.backends.mujoco.physics.ScenePhysics`.
+    trace : bool, default False
+        Keep every step's true state (:meth:`traced`).
+    **kw
+        Further keywords of :class:`~oneocean.tasks.episodes.Episodes` (``record``, ``info``,
+        ...).
+    """
 
     backend = "stepped"
 
@@ -59,9 +72,21 @@ class SteppedEpisodes(Episodes):
                          int(k_stop), 0, self.n_episodes)
 
     def run(self, k_stop: int | None = None) -> "SteppedEpisodes":
-        """Advance every running episode up to step ``k_stop`` (default: to its end; a
-        negative ``k_stop``: by ``-k_stop`` steps from where each is), one step at a time:
-        decide (the task's kernel), move (the physics), judge (the kernel)."""
+        """Advance every running episode up to step ``k_stop``, one step at a time.
+
+        Each step: decide (the task's kernel), move (the physics), judge (the kernel).
+
+        Parameters
+        ----------
+        k_stop : int, optional
+            Step to stop at; default: each episode's end. A negative value advances each episode
+            by ``-k_stop`` steps from where it is.
+
+        Returns
+        -------
+        SteppedEpisodes
+            ``self``.
+        """
         k_stop = self.n_steps if k_stop is None else int(k_stop)
         LS = self.LS
         if k_stop < 0:
@@ -101,16 +126,43 @@ class SteppedEpisodes(Episodes):
             self.state.shape[:2])
 
     def traced(self) -> np.ndarray:
-        """(steps + 1, E, N, STATE_DIM) the true states kept with ``trace=True``."""
+        """The true states kept with ``trace=True``.
+
+        Returns
+        -------
+        (steps + 1, E, N, STATE_DIM) float64
+            The start state and the state after every step taken.
+
+        Raises
+        ------
+        RuntimeError
+            If the batch was built without ``trace=True``.
+        """
         if self.trace is None:
             raise RuntimeError(f"{type(self).__name__}: built without trace=True")
         return np.stack(self.trace)
 
 
 class SceneEpisodes(SteppedEpisodes):
-    """E episodes of one task in a MuJoCo scene (parameters as :class:`Episodes`, plus the
-    ``scene``, whose local grid ``grid`` is; ``physics_step_s``: MuJoCo's step, s;
-    ``trace`` as :class:`SteppedEpisodes`)."""
+    """E episodes of one task in a MuJoCo scene.
+
+    Parameters
+    ----------
+    mod : module
+        The task module, as for :class:`~oneocean.tasks.episodes.Episodes`.
+    scene : Scene
+        The scene (:class:`oneocean.backends.mujoco.scenes.Scene`).
+    grid : Grid
+        The scene's local grid, ``scene.grid_data`` loaded (:func:`oneocean.engine.load_grid`).
+    tier, init, method, dyn, vehicle, seed
+        As for :class:`~oneocean.tasks.episodes.Episodes`.
+    physics_step_s : float, default 0.02
+        MuJoCo's step, s (:data:`PHYSICS_STEP_S`); ``tier["dt_s"]`` must be a whole number of
+        them.
+    **kw
+        Further keywords of :class:`SteppedEpisodes` (``trace``) and of
+        :class:`~oneocean.tasks.episodes.Episodes`.
+    """
 
     backend = "mujoco"
 

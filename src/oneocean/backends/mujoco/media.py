@@ -36,7 +36,9 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
     Parameters
     ----------
     scene : Scene
+        The scene (:class:`oneocean.backends.mujoco.scenes.Scene`).
     vehicle : str, Vehicle or VehicleModel
+        The vehicle drawn for every agent (:func:`.mjcf.vehicle_model`).
     trajectory : (T, N, STATE_DIM) float64
         Core states over time (positions and attitudes are used; non-finite rows hide the
         vehicle).
@@ -45,13 +47,15 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
         first and last included).
     gif_path : path-like
         Animated GIF of the whole trajectory (at most :data:`MAX_GIF_FRAMES` frames).
-    keyframes : int
-    size : (width, height)
-        Image size, pixels (at most 1280 x 960).
-    fps : int
-        GIF frame rate.
+    keyframes : int, default 3
+        Number of keyframe PNGs (>= 1; fewer when T is shorter).
+    size : (width, height), default (480, 360)
+        Image size, pixels (16..1280 x 16..960).
+    fps : int, default 10
+        GIF frame rate, frames per second.
     azimuth_deg, elevation_deg : float
-        Camera azimuth and elevation (MuJoCo's free-camera convention, degrees).
+        Camera azimuth and elevation (MuJoCo's free-camera convention, degrees; defaults 135
+        and -35).
 
     Returns
     -------

@@ -45,13 +45,12 @@ One free body per model, built from :func:`oneocean.engine.dynamics.load_vehicle
   (MuJoCo's ``implicitfast`` integrator treats an actuator's velocity term implicitly), so the
   linear and quadratic surge, sway, heave, roll, pitch and yaw damping of vehicles.yaml are
   reproduced per axis (exactly at the period's start; the coefficient lags within a period).
-  MuJoCo's own fluid models were tried and are **not** used: on MuJoCo 4.0 the ellipsoid
-  model's blunt drag acts along the velocity with a direction-dependent area, so an ellipsoid
-  with REMUS's hull semi-axes (0.665, 0.095, 0.095 m) has 4.1x its axial drag at 5.7 deg angle
-  of attack (14.5 -> 59.8 N at 1 m/s, blunt coefficient 0.5), and a proxy ellipsoid sized to
-  REMUS's axial/cross-flow ratio (1.62 vs 131 N s2 m-2: semi-axes 2.57 x 0.032 x 0.032 m)
-  made a 1.45 m/s run collapse to 0.53 m/s within 2 s once a small pitch motion (0.007 rad/s)
-  developed; the
+  MuJoCo's own fluid models are **not** used: on MuJoCo 4.0 the ellipsoid model's blunt
+  drag acts along the velocity with a direction-dependent area, so an ellipsoid with REMUS's
+  hull semi-axes (0.665, 0.095, 0.095 m) has 4.1x its axial drag at 5.7 deg angle of attack
+  (14.5 -> 59.8 N at 1 m/s, blunt coefficient 0.5), and a proxy ellipsoid sized to REMUS's
+  axial/cross-flow ratio (1.62 vs 131 N s2 m-2: semi-axes 2.57 x 0.032 x 0.032 m) slows a
+  1.45 m/s run to 0.53 m/s within 2 s once a small pitch motion (0.007 rad/s) develops; the
   inertia-box model cannot be tuned per axis at all. Not modelled here: the hull lift of REMUS
   (``lift_coefficients``), the fin side forces (``Y_uudr``, ``Z_uuds``) and the Munk moments
   of the core's ``C(nu_r)`` (the MuJoCo torpedo is directionally stable, the core's is not);
@@ -108,8 +107,16 @@ ACTUATORS = {
 }
 
 def import_mujoco():
-    """Import MuJoCo, defaulting ``MUJOCO_GL`` to ``egl`` first (offscreen rendering needs the
-    backend chosen before MuJoCo's first import in the process; an explicit setting wins)."""
+    """Import MuJoCo, defaulting ``MUJOCO_GL`` to ``egl`` first.
+
+    Offscreen rendering needs the backend chosen before MuJoCo's first import in the process; an
+    explicit setting wins.
+
+    Returns
+    -------
+    module
+        The ``mujoco`` module.
+    """
     import os
 
     os.environ.setdefault("MUJOCO_GL", "egl")
@@ -127,20 +134,52 @@ _B = np.diag([1.0, -1.0, -1.0])
 
 
 def core_to_mj(xyz) -> np.ndarray:
-    """Core world positions (..., 3) ``(x east, y down, z north)`` -> MuJoCo ``(x, y, z)`` =
-    (east, north, up), metres."""
+    """Core world positions to MuJoCo world positions.
+
+    Parameters
+    ----------
+    xyz : array_like
+        (..., 3) core positions ``(x east, y down, z north)``, m.
+
+    Returns
+    -------
+    (..., 3) float64
+        MuJoCo positions ``(x, y, z)`` = (east, north, up), m.
+    """
     a = np.asarray(xyz, dtype=np.float64)
     return np.stack([a[..., 0], a[..., 2], -a[..., 1]], axis=-1)
 
 
 def mj_to_core(xyz) -> np.ndarray:
-    """MuJoCo world positions (..., 3) (east, north, up) -> core ``(x, y, z)``, metres."""
+    """MuJoCo world positions to core world positions.
+
+    Parameters
+    ----------
+    xyz : array_like
+        (..., 3) MuJoCo positions (east, north, up), m.
+
+    Returns
+    -------
+    (..., 3) float64
+        Core positions ``(x east, y down, z north)``, m.
+    """
     a = np.asarray(xyz, dtype=np.float64)
     return np.stack([a[..., 0], -a[..., 2], a[..., 1]], axis=-1)
 
 
 def euler_to_matrix(phi, theta, psi) -> np.ndarray:
-    """MuJoCo body(FLU)-to-world(ENU) rotation matrices (..., 3, 3) of core Euler angles (rad)."""
+    """MuJoCo body (FLU) to world (ENU) rotation matrices of core Euler angles.
+
+    Parameters
+    ----------
+    phi, theta, psi : array_like
+        Core roll, pitch (nose up) and yaw (compass heading), rad; broadcast together.
+
+    Returns
+    -------
+    (..., 3, 3) float64
+        ``R_mj = A R B`` (module docstring).
+    """
     phi, theta, psi = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64)
                                             for a in (phi, theta, psi)))
     sf, cf = np.sin(phi), np.cos(phi)
@@ -189,12 +228,34 @@ def _mat_to_quat(m: np.ndarray) -> np.ndarray:
 
 
 def euler_to_quat(phi, theta, psi) -> np.ndarray:
-    """MuJoCo body quaternions (w, x, y, z) (..., 4) of core Euler angles (rad)."""
+    """MuJoCo body quaternions of core Euler angles.
+
+    Parameters
+    ----------
+    phi, theta, psi : array_like
+        Core roll, pitch (nose up) and yaw (compass heading), rad; broadcast together.
+
+    Returns
+    -------
+    (..., 4) float64
+        Unit quaternions ``(w, x, y, z)``, ``w >= 0``.
+    """
     return _mat_to_quat(euler_to_matrix(phi, theta, psi))
 
 
 def quat_to_matrix(q) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) of quaternions (w, x, y, z) (..., 4) (normalised here)."""
+    """Rotation matrices of quaternions (normalised here).
+
+    Parameters
+    ----------
+    q : array_like
+        (..., 4) quaternions ``(w, x, y, z)``.
+
+    Returns
+    -------
+    (..., 3, 3) float64
+        Rotation matrices (MuJoCo body to world for a body quaternion).
+    """
     q = np.asarray(q, dtype=np.float64)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
@@ -212,7 +273,18 @@ def quat_to_matrix(q) -> np.ndarray:
 
 
 def quat_to_euler(q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Core Euler angles (phi, theta, psi) (rad; psi in (-pi, pi]) of MuJoCo quaternions."""
+    """Core Euler angles of MuJoCo body quaternions.
+
+    Parameters
+    ----------
+    q : array_like
+        (..., 4) MuJoCo body quaternions ``(w, x, y, z)``.
+
+    Returns
+    -------
+    phi, theta, psi : ndarray
+        Core roll, pitch and yaw (compass heading, in [-pi, pi]), rad, each of shape ``(...)``.
+    """
     m = quat_to_matrix(q)
     # back to Fossen's R (rows north, east, down): r00 = M10, r10 = M00, r20 = -M20,
     # r21 = M21, r22 = M22
@@ -223,8 +295,21 @@ def quat_to_euler(q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def core_to_mj_velocity(rot: np.ndarray, nu: np.ndarray) -> np.ndarray:
-    """Free-joint ``qvel`` (..., 6) from core body velocities ``nu`` (..., 6) = (u, v, w, p, q,
-    r) (FRD, over ground) and MuJoCo body rotations ``rot`` (..., 3, 3)."""
+    """Free-joint ``qvel`` from core body velocities.
+
+    Parameters
+    ----------
+    rot : (..., 3, 3) float64
+        MuJoCo body-to-world rotations (:func:`euler_to_matrix`).
+    nu : array_like
+        (..., 6) core body velocities ``(u, v, w, p, q, r)`` (FRD, over ground), m s-1 and
+        rad s-1.
+
+    Returns
+    -------
+    (..., 6) float64
+        ``qvel``: world linear velocity (m s-1) and FLU body angular velocity (rad s-1).
+    """
     nu = np.asarray(nu, dtype=np.float64)
     flu = nu * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
     out = np.empty(nu.shape)
@@ -239,25 +324,37 @@ def core_to_mj_velocity(rot: np.ndarray, nu: np.ndarray) -> np.ndarray:
 class VehicleModel:
     """Rigid-body parameters of a vehicle in MuJoCo (derived from the core's vehicle spec).
 
+    Parameters
+    ----------
+    vehicle : oneocean.engine.dynamics.Vehicle
+        The core vehicle.
+
     Attributes
     ----------
     vehicle : oneocean.engine.dynamics.Vehicle
+        The core vehicle.
     guidance : str
         ``"holonomic"`` or ``"torpedo"``.
     actuators : tuple of (name, dof)
+        The velocity servos (:data:`ACTUATORS` of the guidance law).
     mass : float
         Rigid-body mass, kg.
     armature : (6,) float
-        Added mass on the free joint's DOFs (world x, y, z; body roll, pitch, yaw).
+        Added mass on the free joint's DOFs (world x, y, z: kg; body roll, pitch, yaw: kg m2).
     m_eff : (6,) float
         Mass + added mass per core DOF (surge, sway, heave, roll, pitch, yaw) as seen by the
         MuJoCo body (surge and sway: rigid mass + the horizontal armature).
     kv : (6,) float
-        Velocity-servo gains ``m_eff / T`` (0 for unactuated DOFs), N s m-1 | N m s rad-1.
+        Velocity-servo gains ``m_eff / T`` (0 for unactuated DOFs), N s m-1 or N m s rad-1.
     damping_linear, damping_quadratic : (6,) float
         ``D_l``, ``D_q`` of vehicles.yaml (core DOF order).
     bg : float
         Metacentric height, m.
+
+    Raises
+    ------
+    ConfigError
+        If the roll/pitch inertia is too small for the metacentric height in the ballast model.
     """
 
     def __init__(self, vehicle):
@@ -305,7 +402,18 @@ class VehicleModel:
         self.geometry = HULL_GEOMETRY.get(self.name) or _inertia_box(self.mass, self.inertia)
 
     def servo_index(self, dof: int) -> int:
-        """Actuator index of a core DOF (-1 when not actuated)."""
+        """Actuator index of a core DOF.
+
+        Parameters
+        ----------
+        dof : int
+            Core DOF index, 0..5 (surge, sway, heave, roll, pitch, yaw).
+
+        Returns
+        -------
+        int
+            Index in :attr:`actuators`; -1 when the DOF is not actuated.
+        """
         for k, (_, d) in enumerate(self.actuators):
             if d == dof:
                 return k
@@ -326,7 +434,19 @@ def _vehicle_model_cached(name: str) -> VehicleModel:
 
 
 def vehicle_model(vehicle) -> VehicleModel:
-    """A :class:`VehicleModel` from a vehicle name, a ``Vehicle`` or a ``VehicleModel``."""
+    """A :class:`VehicleModel` from a vehicle name, a ``Vehicle`` or a ``VehicleModel``.
+
+    Parameters
+    ----------
+    vehicle : str, Vehicle, VehicleModel or None
+        Vehicle name in ``data/vehicles.yaml`` (None: the file's default), a core vehicle, or a
+        model (returned as is).
+
+    Returns
+    -------
+    VehicleModel
+        The model; cached per name.
+    """
     if isinstance(vehicle, VehicleModel):
         return vehicle
     if isinstance(vehicle, str) or vehicle is None:
@@ -469,14 +589,15 @@ def scene_xml(scene, vehicle=None, *, timestep: float = 0.02, n_vehicles: int | 
     Parameters
     ----------
     scene : Scene
+        The scene (:class:`oneocean.backends.mujoco.scenes.Scene`).
     vehicle : str, Vehicle or VehicleModel, optional
         The vehicle (default: none: the scene alone).
-    timestep : float
+    timestep : float, default 0.02
         MuJoCo integration step, s.
     n_vehicles : int, optional
         Place this many copies of the vehicle (bodies ``vehicle0``, ``vehicle1``, ...; for
         rendering: no actuators or contacts).
-    physics : bool
+    physics : bool, default True
         With one vehicle: include the actuators (servos, dampers) and the contact sensor.
 
     Returns
@@ -484,6 +605,11 @@ def scene_xml(scene, vehicle=None, *, timestep: float = 0.02, n_vehicles: int | 
     str
         The MJCF; :func:`build_model` compiles it and applies the runtime-only settings
         (armature per DOF). Deterministic text.
+
+    Raises
+    ------
+    ConfigError
+        If ``timestep <= 0``.
     """
     if not timestep > 0:
         raise ConfigError(f"timestep: must be > 0, got {timestep!r}")
@@ -519,11 +645,23 @@ def scene_xml(scene, vehicle=None, *, timestep: float = 0.02, n_vehicles: int | 
 def build_model(scene, vehicle, *, timestep: float = 0.02):
     """Compile the one-vehicle model of a scene and apply the runtime-only settings.
 
-    The free joint's ``dof_armature`` gets the added mass (:class:`VehicleModel.armature`).
+    The free joint's ``dof_armature`` gets the added mass (:attr:`VehicleModel.armature`).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene (:class:`oneocean.backends.mujoco.scenes.Scene`).
+    vehicle : str, Vehicle or VehicleModel
+        The vehicle (:func:`vehicle_model`).
+    timestep : float, default 0.02
+        MuJoCo integration step, s.
 
     Returns
     -------
-    (mujoco.MjModel, VehicleModel)
+    model : mujoco.MjModel
+        The compiled model.
+    vm : VehicleModel
+        The vehicle's MuJoCo parameters.
     """
     mujoco = import_mujoco()
     vm = vehicle_model(vehicle)

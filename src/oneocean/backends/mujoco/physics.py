@@ -32,8 +32,8 @@ also carries the core controller's feed-forward divided by ``kv``: the damping
 ``(D_l + D_q |nu_r|) c`` at the period's relative velocity and, in roll and pitch, the
 restoring moment ``W BG (cos theta sin phi, sin theta)``. The servo force is then the core's
 ``tau = D(nu_r) c + g(eta) + kv (c - nu_r)`` (without the core's Coriolis and lift
-cancellation), and at steady state the speed through the water equals the command. Thrust off (``cmd[4] == 0``) sets every servo's
-force range to 0 (unactuated drift).
+cancellation), and at steady state the speed through the water equals the command. Thrust off
+(``cmd[4] == 0``) sets every servo's force range to 0 (unactuated drift).
 
 Drag: at the start of every period each damper actuator (:mod:`.mjcf`) gets the coefficient
 ``d_i = D_l,i + D_q,i |nu_r,i|`` of the current relative velocity and, as its control, the
@@ -81,17 +81,20 @@ class ScenePhysics:
     Parameters
     ----------
     scene : Scene
+        The scene (:class:`oneocean.backends.mujoco.scenes.Scene`).
     vehicle : str, Vehicle or VehicleModel
+        The vehicle (:func:`oneocean.backends.mujoco.mjcf.vehicle_model`).
     n_episodes, n_agents : int
-    dt : float
+        Number of episodes E and agents per episode N (>= 1 each).
+    dt : float, default 1.0
         Control step, s (a whole number of ``timestep``).
-    timestep : float
+    timestep : float, default 0.02
         MuJoCo step, s.
-    control_period : float
+    control_period : float, default 0.2
         Longest period of the guidance update inside a step, s (the step is split into the
         fewest equal periods of whole MuJoCo steps that are no longer; at most one MuJoCo
         step). 0: once per step.
-    max_models : int
+    max_models : int, default 64
         Size of the pool of compiled model copies (memory ~1.6 MB each for a 101 x 101
         heightfield); vehicles are advanced in batches of this size.
 
@@ -108,6 +111,13 @@ class ScenePhysics:
         the vehicle it advances (servo force ranges, damper coefficients), so a vehicle's
         parameters (its current, its fin authority) are its own.
     vm : mjcf.VehicleModel
+        The vehicle's MuJoCo parameters.
+
+    Raises
+    ------
+    ConfigError
+        If E or N is below 1, ``dt`` is not a whole number of ``timestep``, or the compiled
+        model is not one free body.
     """
 
     def __init__(self, scene, vehicle, n_episodes: int, n_agents: int, *, dt: float = 1.0,
@@ -183,10 +193,20 @@ class ScenePhysics:
     # ------------------------------------------------------------------ API
 
     def reset(self, state: np.ndarray) -> None:
-        """Start episodes from core states ``state`` (E, N, STATE_DIM); clears the contacts.
+        """Start episodes from core states; clears the contacts.
 
         Each step reads the poses and velocities from the state it is given, so this only
         validates the layout and zeroes :attr:`contacts`.
+
+        Parameters
+        ----------
+        state : (E, N, STATE_DIM) float64
+            Core vehicle states (:mod:`oneocean.engine.dynamics`).
+
+        Raises
+        ------
+        ConfigError
+            If ``state`` has the wrong shape or a non-finite pose or velocity.
         """
         state = np.asarray(state)
         if state.shape != (self.E, self.N, dyn.STATE_DIM):
@@ -218,6 +238,11 @@ class ScenePhysics:
         codes : (E, N) int64
             ``oneocean.engine.status.OK``, :data:`CONTACT` (touched the seafloor or a
             structure during the step) or ``NONFINITE`` (state kept, velocities zeroed).
+
+        Raises
+        ------
+        ConfigError
+            If the shapes of ``state``, ``cmd`` or ``current`` do not match (E, N).
         """
         E, N = self.E, self.N
         if state.shape != (E, N, dyn.STATE_DIM) or cmd.shape != (E, N, dyn.CMD_DIM) \

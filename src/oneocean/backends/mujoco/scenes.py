@@ -140,7 +140,18 @@ class Structure:
         return self.centre[1] - self.half[1] <= 0.0
 
     def contains(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
-        """Whether horizontal points (x east, z north; m) lie inside the footprint."""
+        """Whether horizontal points lie inside the footprint.
+
+        Parameters
+        ----------
+        x, z : array_like
+            Points east and north, m, core world frame (broadcast together).
+
+        Returns
+        -------
+        ndarray of bool
+            True inside the (yawed) footprint, boundary included.
+        """
         s, c = math.sin(self.yaw_rad), math.cos(self.yaw_rad)
         dx = np.asarray(x) - self.centre[0]
         dz = np.asarray(z) - self.centre[2]
@@ -150,6 +161,13 @@ class Structure:
         return (np.abs(le) <= self.half[0]) & (np.abs(ln) <= self.half[2])
 
     def as_dict(self) -> dict:
+        """The structure as a JSON-serialisable dict (for :attr:`Scene.meta`).
+
+        Returns
+        -------
+        dict
+            ``{"name", "centre", "half", "yaw_rad", "kind"}``, tuples as lists.
+        """
         return {"name": self.name, "centre": list(self.centre), "half": list(self.half),
                 "yaw_rad": self.yaw_rad, "kind": self.kind}
 
@@ -165,6 +183,7 @@ class Scene:
     grid_data : dict
         Local grid export (contracts §3 keys), loadable with :func:`oneocean.engine.load_grid`.
     structures : tuple of Structure
+        The scene's structures (none for ``open_water``).
     extent : (x0, x1, z0, z1)
         Horizontal extent of the local grid, m (core world frame).
     anchor : (lat, lon)
@@ -220,7 +239,26 @@ def _num(spec: Mapping, key: str, default, *, positive: bool = False, minimum=No
 
 
 def normalise_spec(spec: Mapping) -> dict:
-    """Validate a scene spec and return it with every default filled in."""
+    """Validate a scene spec and return it with every default filled in.
+
+    Parameters
+    ----------
+    spec : mapping
+        Scene spec (keys as :func:`build_scene`'s ``spec``).
+
+    Returns
+    -------
+    dict
+        ``name``, ``kind``, ``anchor`` (``{lat, lon}`` or None), ``size_m``, ``resolution_m``,
+        ``margin_m``, ``depth_m`` (or None), ``currents``, ``clock`` (``{start, rate}``) and
+        ``structures`` (the kind's parameters of :data:`STRUCTURE_DEFAULTS`, defaults filled).
+
+    Raises
+    ------
+    ConfigError
+        A bad key or value (one line naming the key), or a size, resolution and margin that
+        give too many nodes or no water.
+    """
     if not isinstance(spec, Mapping):
         raise ConfigError(f"scene: spec must be a mapping, got {type(spec).__name__}")
     unknown = [k for k in spec if k not in _TOP_KEYS]
@@ -404,7 +442,7 @@ def build_scene(spec: Mapping, grid_data: Mapping, temporal: Mapping | None = No
         ``name``, ``kind`` (one of :data:`SCENE_KINDS`), ``anchor: {lat, lon}`` (degrees; null =
         the temporal export's point), ``size_m`` (square side, default 400 m),
         ``resolution_m`` (node spacing, default 4 m), ``depth_m`` (flat seafloor depth, m;
-        default: the product's bathymetry), ``currents`` (``temporal`` | ``field``; default
+        default: the product's bathymetry), ``currents`` (``temporal`` or ``field``; default
         temporal), ``clock: {start: "data_start" | seconds since the product's time0,
         rate: dataset seconds per simulated second (default 1)}``, ``structures`` (kind-specific
         parameters, :data:`STRUCTURE_DEFAULTS`).
@@ -417,6 +455,7 @@ def build_scene(spec: Mapping, grid_data: Mapping, temporal: Mapping | None = No
     Returns
     -------
     Scene
+        The built scene.
 
     Raises
     ------
@@ -584,6 +623,7 @@ def scene_files(scene: Scene, out_dir, vehicle=None) -> dict:
     Parameters
     ----------
     scene : Scene
+        The scene (:func:`build_scene`).
     out_dir : path-like
         Output folder (created).
     vehicle : str or Vehicle, optional

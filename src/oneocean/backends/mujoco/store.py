@@ -14,10 +14,34 @@ from ...io import read_npz
 
 
 def build_scene_files(spec: Mapping, grid_path, temporal_path, meta_out) -> dict:
-    """Build the scene ``spec`` (:func:`.scenes.build_scene`) from a grid export and a
-    temporal export and write its files (:func:`.scenes.scene_files`) into the folder of
-    ``meta_out`` (``scene.xml``, ``grid.npz``, ``scene.json``); the spec's ``name`` must be
-    that folder's name. Returns the written paths."""
+    """Build a scene from a grid export and a temporal export and write its files.
+
+    The scene is :func:`.scenes.build_scene` of ``spec``; its files (:func:`.scenes.scene_files`:
+    ``scene.xml``, ``grid.npz``, ``scene.json``) go into the folder of ``meta_out``.
+
+    Parameters
+    ----------
+    spec : mapping
+        Scene spec (:func:`.scenes.build_scene`); its ``name`` must be the output folder's name.
+    grid_path : path-like
+        The product's grid export (``grid.npz``).
+    temporal_path : path-like
+        The product's temporal export.
+    meta_out : path-like
+        The ``scene.json`` to write; its folder receives every file.
+
+    Returns
+    -------
+    dict
+        The written paths, ``{"xml": path, "grid": path, "meta": path}``.
+
+    Raises
+    ------
+    ConfigError
+        If the spec's name does not match the folder, or the spec is invalid.
+    DataError
+        If an export is missing or malformed.
+    """
     from .scenes import build_scene, scene_files
 
     out_dir = Path(meta_out).parent
@@ -30,8 +54,23 @@ def build_scene_files(spec: Mapping, grid_path, temporal_path, meta_out) -> dict
 
 
 def load_scene(meta_path):
-    """The :class:`.scenes.Scene` whose ``scene.json`` is ``meta_path`` (its ``grid.npz``
-    beside it); a missing or malformed file is a one-line DataError naming it."""
+    """The :class:`.scenes.Scene` whose ``scene.json`` is ``meta_path``.
+
+    Parameters
+    ----------
+    meta_path : path-like
+        A ``scene.json`` written by :func:`build_scene_files` (its ``grid.npz`` beside it).
+
+    Returns
+    -------
+    Scene
+        The scene.
+
+    Raises
+    ------
+    DataError
+        If a file is missing or malformed (one line naming it).
+    """
     from .scenes import Scene, Structure
 
     meta_path = Path(meta_path)
@@ -59,13 +98,43 @@ def load_scene(meta_path):
 
 def scene_media(scene, tasks, tiers, seed: int, dynamics: str, frames, media: Mapping,
                 physics_step_s: float | None = None) -> dict:
-    """Fig. 8's media of one scene: episode 0 of ``seed`` of the heuristic in ``scene`` (the
-    scene backend, every step's state traced), on the first (task, tier) of ``tasks`` x
-    ``tiers`` (in that order: each task, its tiers from the last) that the scene can host;
-    the scene alone when it hosts none. Rendered offscreen (:func:`.media.render_media`) into
-    ``frames``: the keyframe PNGs ``<dir>/keyframe_<k>.png`` then the GIF. ``media``: the
-    config's ``scenes.media``. Returns the renderer's record plus ``task`` and ``tier``
-    (None: the scene alone)."""
+    """Fig. 8's media of one scene: an episode of the heuristic, rendered offscreen.
+
+    Episode 0 of ``seed`` of the heuristic in ``scene`` (the scene backend, every step's state
+    traced), on the first (task, tier) of ``tasks`` x ``tiers`` (in that order: each task, its
+    tiers from the highest) that the scene can host; the scene alone when it hosts none.
+    Rendered by :func:`.media.render_media`.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene (:func:`load_scene`).
+    tasks : sequence of str
+        Task ids, in order of preference.
+    tiers : iterable of int
+        Tiers to try per task (highest first).
+    seed : int
+        Run seed.
+    dynamics : str
+        Dynamics model name (:data:`oneocean.vocab.DYNAMICS`).
+    frames : sequence of path-like
+        Output files: the keyframe PNGs ``<dir>/keyframe_<k>.png`` (k = 0, 1, ...), then the GIF.
+    media : mapping
+        The config's ``scenes.media`` (``width``, ``height`` in pixels, ``fps``).
+    physics_step_s : float, optional
+        MuJoCo's step, s; default: the scene backend's.
+
+    Returns
+    -------
+    dict
+        The renderer's record (``png``, ``gif``, ``frames``) plus ``task`` and ``tier`` (None:
+        the scene alone).
+
+    Raises
+    ------
+    ConfigError
+        If the keyframe paths are not ``keyframe_<k>.png`` in order.
+    """
     from ...engine.dynamics import STATE_DIM
     from ...errors import NotApplicable
     from ...tasks import Cell

@@ -5,9 +5,10 @@ Three stages, each a workflow rule and a pure function here:
 * :mod:`.dataset` -- roll out the heuristic on *training* seeds (never the evaluation seed)
   and record, from inside the loop with the true pre-step state, every agent's observation
   and the teacher's action (:func:`~.dataset.build_dataset`);
-* :mod:`.train` -- fit scikit-learn's ``MLPRegressor`` (features: :mod:`oneocean.tasks.learned`) with a
-  validation split by episode, deterministically for a seed (:func:`~.train.train`), and
-  write the weights as arrays plus a training report;
+* :mod:`.train` -- fit a relu MLP by MSE (:mod:`.fit`: the package's own fixed-order fit
+  with scikit-learn ``MLPRegressor``'s semantics; features: :mod:`oneocean.tasks.learned`)
+  with a validation split by episode, deterministically for a seed (:func:`~.train.train`),
+  and write the weights as arrays plus a training report;
 * the network then acts inside the episode loop through the task layer's learned
   controller (:mod:`oneocean.tasks.learned`: the features and the forward pass the loop runs
   for every agent and step, method kind ``learned``), so a BC episode costs about what a

@@ -22,8 +22,27 @@ KEY_COLUMNS = ("task", "tier", "seed", "episode", "step", "agent")
 
 
 def check_seeds(seeds, evaluation_seed: int) -> list[int]:
-    """``seeds`` as ints; a one-line ``ConfigError`` if empty or if it holds the evaluation
-    seed (a network must never be trained on the episodes it is scored on)."""
+    """The training seeds, checked against the evaluation seed.
+
+    A network must never be trained on the episodes it is scored on.
+
+    Parameters
+    ----------
+    seeds : iterable of int
+        Training seeds (``bc.train_seeds``).
+    evaluation_seed : int
+        The evaluation seed (``rollouts.seed``; :data:`oneocean.vocab.EVALUATION_SEED`).
+
+    Returns
+    -------
+    list of int
+        ``seeds`` as ints.
+
+    Raises
+    ------
+    ConfigError
+        One line, if ``seeds`` is empty or holds the evaluation seed.
+    """
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise ConfigError("bc.train_seeds: at least one training seed is needed")
@@ -36,9 +55,44 @@ def check_seeds(seeds, evaluation_seed: int) -> list[int]:
 
 def teacher_rows(cell, seed: int, episodes: int, dynamics: str, stride: int,
                  max_rows: int, info: str | None = None) -> pd.DataFrame:
-    """The teacher's rows of one :class:`oneocean.tasks.Cell` and seed (columns
-    :data:`KEY_COLUMNS` + OBS_FIELDS + ACT_FIELDS + ``v_max_ms``): what the heuristic saw
-    through its sensors (``info``: another information level, for tests)."""
+    """The teacher's rows of one cell and seed: what the heuristic saw through its sensors.
+
+    Runs the heuristic on the cell's ``episodes`` episodes of ``seed`` with the observations
+    recorded inside the loop; keeps every ``stride``-th step of every agent while its episode
+    runs (finite action), at most ``max_rows`` rows (an evenly spaced subset).
+
+    Parameters
+    ----------
+    cell : Cell
+        The (task, tier) cell (:class:`oneocean.tasks.Cell`).
+    seed : int
+        Training seed of the episodes.
+    episodes : int
+        Episodes of the cell.
+    dynamics : str
+        Dynamics model (:data:`oneocean.vocab.DYNAMICS`: ``"kinematic"``, ``"3dof"``,
+        ``"4dof"``, ``"6dof"``).
+    stride : int
+        Keep the steps ``k`` with ``k % stride == 0``.
+    max_rows : int
+        Most rows kept.
+    info : str, optional
+        Another information level than the heuristic's sensors (for tests;
+        :class:`~oneocean.tasks.episodes.Episodes`).
+
+    Returns
+    -------
+    DataFrame
+        Columns :data:`KEY_COLUMNS`, the observation fields
+        (:data:`oneocean.tasks.common.OBS_FIELDS`), the teacher's action
+        (:data:`~oneocean.tasks.common.ACT_FIELDS`, world m s-1 through the water) and the
+        vehicle's ``v_max_ms`` (m s-1).
+
+    Raises
+    ------
+    NotApplicable
+        If the region cannot host the cell (:meth:`oneocean.tasks.Cell.reset`).
+    """
     _, obs, act = cell.run("heuristic", int(episodes), int(seed), dynamics, observations=True,
                            info=info)
     n_ep, n_steps, n_ag, _ = obs.shape
@@ -63,8 +117,41 @@ def teacher_rows(cell, seed: int, episodes: int, dynamics: str, stride: int,
 
 def build_dataset(grid, tasks, tiers, seeds, *, episodes: int, dynamics: str, stride: int,
                   max_rows: int, evaluation_seed: int) -> tuple[pd.DataFrame, list[str]]:
-    """Every (task, tier, seed)'s :func:`teacher_rows`, concatenated in that order; and the
-    cells the region cannot host (one line each: they contribute no rows)."""
+    """Every (task, tier, seed)'s :func:`teacher_rows`, concatenated in that order.
+
+    Parameters
+    ----------
+    grid : Grid or path
+        The grid export (:class:`oneocean.engine.grid.Grid`) or its file.
+    tasks : iterable of str
+        Task ids.
+    tiers : iterable of int
+        Tiers.
+    seeds : iterable of int
+        Training seeds (:func:`check_seeds`).
+    episodes : int
+        Episodes per cell and seed.
+    dynamics : str
+        Dynamics model (:data:`oneocean.vocab.DYNAMICS`).
+    stride : int
+        Step stride of the kept rows.
+    max_rows : int
+        Most rows per cell and seed.
+    evaluation_seed : int
+        The evaluation seed, which ``seeds`` must not hold.
+
+    Returns
+    -------
+    df : DataFrame
+        The rows (:func:`teacher_rows`), with a fresh index.
+    skipped : list of str
+        One line per (cell, seed) the region cannot host (no rows from it).
+
+    Raises
+    ------
+    ConfigError
+        Bad seeds (:func:`check_seeds`), or no cell could be hosted.
+    """
     from ...engine import load_grid
     from ...engine.grid import Grid
     from ...tasks import Cell
@@ -89,8 +176,29 @@ def build_dataset(grid, tasks, tiers, seeds, *, episodes: int, dynamics: str, st
 
 def dataset_to_file(grid_path, out_path, tasks, tiers, seeds, *, episodes: int, dynamics: str,
                     stride: int, max_rows: int, evaluation_seed: int, threads: int = 1) -> dict:
-    """:func:`build_dataset` on a grid export, written atomically as Parquet with its record
-    (tasks, tiers, seeds, episodes, stride, skipped cells); returns the manifest entry."""
+    """:func:`build_dataset` on a grid export file, written atomically as Parquet with its record.
+
+    The record holds the tasks, tiers, seeds, episodes, stride, row cap, dynamics, teacher,
+    skipped cells and row count.
+
+    Parameters
+    ----------
+    grid_path : path
+        The grid export file.
+    out_path : path
+        The Parquet file to write.
+    tasks, tiers, seeds : iterable
+        As :func:`build_dataset`.
+    episodes, dynamics, stride, max_rows, evaluation_seed
+        As :func:`build_dataset`.
+    threads : int, optional
+        Numba threads (default 1; at most numba's thread count).
+
+    Returns
+    -------
+    dict
+        The manifest entry (:func:`oneocean.engine.write_metrics`).
+    """
     import numba
 
     from ...engine import write_metrics

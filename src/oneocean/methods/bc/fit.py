@@ -23,11 +23,12 @@ What makes it machine-independent:
   CPU-dependent variants);
 * no BLAS, no NumPy reduction (``np.sum`` / ``np.mean`` block their pairwise sums by SIMD
   width) and no libm call here. (The features' ``log1p`` is computed before, by
-  :func:`.kernel.features_rows`, the episode loop's own feature map: see :mod:`.train`.)
+  :func:`oneocean.tasks.learned.features_rows`, the episode loop's own feature map: see
+  :mod:`oneocean.methods.bc.train`.)
 
-The forward pass is :func:`.kernel.forward`'s, term for term (bias first, then the inputs in
-order, zero inputs skipped), so the network the loop runs predicts exactly what the training
-measured.
+The forward pass is :func:`oneocean.tasks.learned.forward`'s, term for term (bias first,
+then the inputs in order, zero inputs skipped), so the network the loop runs predicts exactly
+what the training measured.
 
 Semantics: those of scikit-learn's ``MLPRegressor(activation="relu", solver="adam")`` fitted
 by ``partial_fit`` once per epoch (a test checks that both agree to rounding; scikit-learn
@@ -85,8 +86,22 @@ class Scratch(NamedTuple):
 
 @hot_kernel
 def column_stats(X, rows, mu, sd):
-    """Mean and standard deviation (population, ``ddof=0``) of the columns of ``X[rows]``,
-    each a sum over ``rows`` in order; ``sd`` below 1e-9 becomes 1."""
+    """Mean and standard deviation of the columns of ``X[rows]``, in place, in a fixed order.
+
+    Population statistics (``ddof=0``), each a sum over ``rows`` in order; an ``sd`` below
+    1e-9 becomes 1.
+
+    Parameters
+    ----------
+    X : (R, F) float64
+        Features.
+    rows : (n,) int64
+        The rows to use (e.g. the training rows).
+    mu : (F,) float64
+        Output: the columns' means.
+    sd : (F,) float64
+        Output: the columns' standard deviations.
+    """
     n = rows.shape[0]
     f = X.shape[1]
     for q in range(f):
@@ -110,7 +125,18 @@ def column_stats(X, rows, mu, sd):
 
 @hot_kernel
 def ordered_sum(x):
-    """``x[0] + x[1] + ...``, left to right."""
+    """The sum ``x[0] + x[1] + ...``, left to right.
+
+    Parameters
+    ----------
+    x : (n,) float64
+        The terms.
+
+    Returns
+    -------
+    float
+        Their sum (0 for an empty array).
+    """
     s = 0.0
     for r in range(x.shape[0]):
         s += x[r]
@@ -120,8 +146,8 @@ def ordered_sum(x):
 @hot_kernel
 def _forward_batch(w, b, dims, a, m):
     """Rows ``a[0, :m]`` through every layer into ``a[1:]``: per output the bias, then each
-    non-zero input times its weight, inputs in order (:func:`.kernel.forward`); relu on the
-    hidden layers."""
+    non-zero input times its weight, inputs in order (:func:`oneocean.tasks.learned.forward`);
+    relu on the hidden layers."""
     n_layers = dims.shape[0] - 1
     for layer in range(n_layers):
         n_in = dims[layer]
@@ -272,9 +298,20 @@ _CHUNK = 256
 
 
 class MLP:
-    """A relu MLP with an identity output as padded arrays, :class:`oneocean.tasks.learned.LearnedNet`'s layout:
-    ``w[l, :dims[l], :dims[l+1]]`` and ``b[l, :dims[l+1]]`` are layer ``l``'s weights (input,
-    output) and biases."""
+    """A relu MLP with an identity output, as padded arrays.
+
+    The layout of :class:`oneocean.tasks.learned.LearnedNet`: ``w[l, :dims[l], :dims[l+1]]``
+    and ``b[l, :dims[l+1]]`` are layer ``l``'s weights (input, output) and biases.
+
+    Parameters
+    ----------
+    w : (L, width, width) float64
+        Layer weights, padded with zeros.
+    b : (L, width) float64
+        Layer biases, padded with zeros.
+    dims : (L + 1,) int64
+        Layer widths: inputs, hidden layers, outputs.
+    """
 
     def __init__(self, w: np.ndarray, b: np.ndarray, dims: np.ndarray):
         self.w = np.ascontiguousarray(w, dtype=np.float64)
@@ -297,8 +334,21 @@ class MLP:
         return np.zeros((len(self.dims), _CHUNK, self.w.shape[1]))
 
     def predict(self, Z: np.ndarray) -> np.ndarray:
-        """(R, dims[-1]) outputs for standardised features ``Z`` (R, dims[0]): the loop's
-        forward pass (:func:`.kernel.forward`), the same operations in the same order."""
+        """The network's outputs for standardised features.
+
+        The loop's forward pass (:func:`oneocean.tasks.learned.forward`), the same operations in
+        the same order.
+
+        Parameters
+        ----------
+        Z : (R, dims[0]) float64
+            Standardised features.
+
+        Returns
+        -------
+        (R, dims[-1]) float64
+            Outputs (actions / ``v_max`` for the BC network).
+        """
         Z = np.ascontiguousarray(Z, dtype=np.float64)
         n_layers = len(self.dims) - 1
         out = np.empty((Z.shape[0], int(self.dims[-1])))
@@ -311,7 +361,20 @@ class MLP:
         return out
 
     def squared_errors(self, Z: np.ndarray, Y: np.ndarray) -> np.ndarray:
-        """(R,) per row, the squared error of the prediction summed over the outputs."""
+        """Per row, the squared error of the prediction summed over the outputs.
+
+        Parameters
+        ----------
+        Z : (R, dims[0]) float64
+            Standardised features.
+        Y : (R, dims[-1]) float64
+            Targets.
+
+        Returns
+        -------
+        (R,) float64
+            Squared errors, summed over the outputs in order.
+        """
         out = np.empty(Z.shape[0])
         _squared_errors(self.w, self.b, self.dims, self._scratch(),
                         np.ascontiguousarray(Z, dtype=np.float64),
@@ -320,16 +383,44 @@ class MLP:
 
 
 def mse(sq: np.ndarray, n_outputs: int) -> float:
-    """Mean squared error over rows and outputs from :meth:`MLP.squared_errors` (summed in
-    row order)."""
+    """Mean squared error over rows and outputs, summed in row order.
+
+    Parameters
+    ----------
+    sq : (R,) float64
+        Per-row squared errors summed over the outputs (:meth:`MLP.squared_errors`).
+    n_outputs : int
+        Outputs per row.
+
+    Returns
+    -------
+    float
+        The MSE (NaN without rows).
+    """
     sq = np.ascontiguousarray(sq, dtype=np.float64)
     return float(ordered_sum(sq) / (sq.shape[0] * n_outputs)) if sq.shape[0] else float("nan")
 
 
 def init_layers(dims, rng: np.random.RandomState) -> tuple[np.ndarray, np.ndarray]:
-    """Glorot-uniform weights and biases, padded: per layer, ``(fan_in, fan_out)`` weights
-    then ``fan_out`` biases from ``rng.uniform(-bound, bound)``, ``bound = sqrt(6 / (fan_in
-    + fan_out))`` (scikit-learn's draws for a relu network)."""
+    """Glorot-uniform weights and biases, padded (scikit-learn's draws for a relu network).
+
+    Per layer, ``(fan_in, fan_out)`` weights then ``fan_out`` biases from
+    ``rng.uniform(-bound, bound)``, ``bound = sqrt(6 / (fan_in + fan_out))``.
+
+    Parameters
+    ----------
+    dims : sequence of int
+        Layer widths: inputs, hidden layers, outputs.
+    rng : numpy.random.RandomState
+        The draws' generator.
+
+    Returns
+    -------
+    w : (L, width, width) float64
+        Weights, zero-padded (``width = max(dims)``).
+    b : (L, width) float64
+        Biases, zero-padded.
+    """
     dims = [int(d) for d in dims]
     width = max(dims)
     n_layers = len(dims) - 1
@@ -354,6 +445,12 @@ class Fit:
         Targets.
     hidden : sequence of int
         Hidden layer widths.
+    batch_size : int
+        Minibatch rows (clipped to ``[1, R]``).
+    learning_rate : float
+        Adam step size.
+    alpha : float
+        L2 penalty (``0.5 * alpha * |W|^2 / batch`` added to the loss).
     rng : numpy.random.RandomState
         Draws the initial weights (here) and every epoch's order (:meth:`epoch`).
     """
@@ -377,13 +474,23 @@ class Fit:
         self.alpha = float(alpha)
 
     def epoch(self) -> None:
-        """A fresh permutation of the rows (``rng.shuffle(arange(R))``), then one pass in
-        that order."""
+        """One epoch: a fresh permutation of the rows, then one pass in that order.
+
+        The permutation is ``rng.shuffle(arange(R))``; the pass runs minibatches of
+        ``batch_size`` rows (the last one shorter), each a forward pass, a backward pass and an
+        Adam step.
+        """
         order = np.arange(self.Z.shape[0], dtype=np.int64)
         self.rng.shuffle(order)
         _epoch(self.net, self.opt, self.scr, self.Z, self.Y, order, self.batch, self.lr,
                self.alpha)
 
     def model(self) -> MLP:
-        """A copy of the current network."""
+        """A copy of the current network.
+
+        Returns
+        -------
+        MLP
+            The network's weights, biases and widths, copied.
+        """
         return MLP(self.net.w.copy(), self.net.b.copy(), self.net.dims.copy())

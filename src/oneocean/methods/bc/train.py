@@ -11,16 +11,16 @@ Determinism: the weights file and the training report are a function of the data
 width and FMA support the machine's x86-64 CPU has. The initial weights and every epoch's
 shuffle draw from one ``RandomState(seed)``; every reduction (forward pass, gradients,
 losses, the features' mean and standard deviation) is a loop in one fixed order (:mod:`.fit`
-says how). The features are :func:`.kernel.features_rows`, the loop's own; their one
-transcendental function, ``log1p``, is the C library's, so a libm whose ``log1p`` rounds
-differently (glibc's variant for CPUs without FMA does, in the last bit, for some inputs)
-gives different features in those rows and so different weights.
+says how). The features are :func:`oneocean.tasks.learned.features_rows`, the loop's own;
+their one transcendental function, ``log1p``, is the C library's, so a libm whose ``log1p``
+rounds differently (glibc's variant for CPUs without FMA does, in the last bit, for some
+inputs) gives different features in those rows and so different weights.
 
 Protocol: the validation set is whole episodes (the last ``val_fraction`` of each (task,
 tier, seed)'s episodes), never rows of a training episode. Training runs ``epochs`` passes,
 recording the training and validation MSE after each; the weights of the epoch with the
 lowest validation MSE are kept (early stopping without a patience knob). Targets are actions
-divided by the vehicle's ``v_max`` (:mod:`.kernel`).
+divided by the vehicle's ``v_max`` (:mod:`oneocean.tasks.learned`).
 """
 
 from __future__ import annotations
@@ -34,7 +34,18 @@ from ...tasks.learned import N_BASE, feature_names, features_rows
 
 
 def task_order(tasks) -> list[str]:
-    """Dataset tasks in the registry's canonical order (the one-hot's order)."""
+    """Dataset tasks in the registry's canonical order (the one-hot's order).
+
+    Parameters
+    ----------
+    tasks : iterable of str
+        The dataset's task ids.
+
+    Returns
+    -------
+    list of str
+        The distinct tasks, registered ones in registry order, then unknown ones sorted.
+    """
     from ...registry import task_ids
 
     known = list(task_ids())
@@ -43,7 +54,22 @@ def task_order(tasks) -> list[str]:
 
 
 def features(df: pd.DataFrame, tasks: list[str]) -> np.ndarray:
-    """(R, F) features of the dataset rows (:func:`.kernel.features_rows`, the loop's own)."""
+    """The features of the dataset rows, as the loop computes them.
+
+    :func:`oneocean.tasks.learned.features_rows`, the loop's own, per task.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Dataset rows with the observation fields and ``task`` (:mod:`.dataset`).
+    tasks : list of str
+        The one-hot's tasks, in order (:func:`task_order`).
+
+    Returns
+    -------
+    (R, F) float64
+        ``F = N_BASE + len(tasks)`` features per row.
+    """
     obs = np.ascontiguousarray(df[list(OBS_FIELDS)].to_numpy(np.float64))
     out = np.zeros((len(df), N_BASE + len(tasks)))
     task_idx = df["task"].map({t: j for j, t in enumerate(tasks)}).to_numpy(np.int64)
@@ -57,13 +83,39 @@ def features(df: pd.DataFrame, tasks: list[str]) -> np.ndarray:
 
 
 def targets(df: pd.DataFrame) -> np.ndarray:
-    """(R, 3) teacher actions / v_max."""
+    """The teacher's actions in units of the vehicle's speed limit.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Dataset rows with the action fields (m s-1) and ``v_max_ms``.
+
+    Returns
+    -------
+    (R, 3) float64
+        Action / ``v_max`` (world frame, through the water).
+    """
     return df[list(ACT_FIELDS)].to_numpy(np.float64) / df["v_max_ms"].to_numpy(np.float64)[:, None]
 
 
 def validation_mask(df: pd.DataFrame, val_fraction: float) -> np.ndarray:
-    """True for rows of validation episodes: per (task, tier, seed) the last
-    ``ceil(val_fraction * episodes)`` episodes (at least one training episode is kept)."""
+    """The rows of validation episodes.
+
+    Per (task, tier, seed) the last ``ceil(val_fraction * episodes)`` episodes, keeping at
+    least one training episode.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Dataset rows (``task``, ``tier``, ``seed``, ``episode``).
+    val_fraction : float
+        Share of each group's episodes held out, in (0, 1).
+
+    Returns
+    -------
+    (R,) bool
+        True for rows of validation episodes.
+    """
     val = np.zeros(len(df), dtype=bool)
     for _, g in df.groupby(["task", "tier", "seed"], sort=True):
         eps = np.unique(g["episode"].to_numpy())
@@ -78,18 +130,43 @@ def train(df: pd.DataFrame, *, hidden=(64, 64), epochs: int = 40, batch_size: in
           seed: int = 0):
     """Fit the network on a dataset (:mod:`.dataset`).
 
+    Parameters
+    ----------
+    df : DataFrame
+        The dataset rows.
+    hidden : sequence of int, optional
+        Hidden layer widths (default ``(64, 64)``).
+    epochs : int, optional
+        Passes over the training rows (default 40); the best-validation epoch is kept.
+    batch_size : int, optional
+        Minibatch rows (default 256).
+    learning_rate : float, optional
+        Adam step size (default 1e-3).
+    alpha : float, optional
+        L2 penalty (default 1e-5).
+    val_fraction : float, optional
+        Share of each (task, tier, seed)'s episodes held out for validation, in (0, 1)
+        (default 0.2; :func:`validation_mask`).
+    seed : int, optional
+        Seed of the initial weights and the epochs' shuffles (default 0).
+
     Returns
     -------
     model : :class:`.fit.MLP`
         The kept (best-validation) network; ``model.predict`` on standardised features is
-        what the loop computes (:func:`.kernel.forward`, the same operations in the same
-        order).
+        what the loop computes (:func:`oneocean.tasks.learned.forward`, the same operations in
+        the same order).
     weights : dict of arrays
         :func:`oneocean.tasks.learned.load_weights`'s layout (``mu``, ``sd``, padded ``w``,
         ``b``, ``dims``, ``tasks``, ``features``).
     report : dict
         JSON-able: settings, sizes, per-epoch ``train_mse`` / ``val_mse``, ``best_epoch``,
         per-task validation MSE.
+
+    Raises
+    ------
+    ConfigError
+        An empty dataset, ``val_fraction`` outside (0, 1), or no validation episodes.
     """
     from .fit import Fit, column_stats, mse
 
@@ -139,8 +216,25 @@ def train(df: pd.DataFrame, *, hidden=(64, 64), epochs: int = 40, batch_size: in
 
 
 def export_weights(model, mu: np.ndarray, sd: np.ndarray, tasks: list[str]) -> dict:
-    """The network's layers as :class:`oneocean.tasks.learned.LearnedNet`'s padded arrays, with the features'
-    standardisation and names."""
+    """The network as a weights file's arrays, with the features' standardisation and names.
+
+    The layers in :class:`oneocean.tasks.learned.LearnedNet`'s padded layout.
+
+    Parameters
+    ----------
+    model : MLP
+        The network (:class:`.fit.MLP`).
+    mu, sd : (F,) float64
+        The features' mean and standard deviation over the training rows.
+    tasks : list of str
+        The one-hot's tasks, in order.
+
+    Returns
+    -------
+    dict
+        ``mu``, ``sd``, ``w``, ``b``, ``dims``, ``tasks``, ``features``
+        (:data:`oneocean.tasks.learned.WEIGHT_KEYS`).
+    """
     return {"mu": np.asarray(mu, np.float64), "sd": np.asarray(sd, np.float64),
             "w": np.array(model.w, np.float64), "b": np.array(model.b, np.float64),
             "dims": np.asarray(model.dims, np.int64), "tasks": np.asarray(tasks, dtype="U16"),
@@ -148,8 +242,18 @@ def export_weights(model, mu: np.ndarray, sd: np.ndarray, tasks: list[str]) -> d
 
 
 def plot_loss(report: dict, out_png) -> None:
-    """The training report's loss curves (train and validation MSE per epoch, the kept
-    epoch marked), PNG and PDF beside it, byte-stable (no time or software metadata)."""
+    """Plot the training report's loss curves: train and validation MSE per epoch.
+
+    The kept epoch is marked; written as PNG and as PDF beside it, atomically and byte-stable
+    (no time or software metadata).
+
+    Parameters
+    ----------
+    report : dict
+        The training report (:func:`train`).
+    out_png : path
+        The PNG file; the PDF gets the same name with ``.pdf``.
+    """
     from pathlib import Path
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -180,8 +284,29 @@ def plot_loss(report: dict, out_png) -> None:
 
 
 def train_to_files(dataset_path, weights_path, report_path, figure_path, **settings) -> dict:
-    """Read a dataset file, :func:`train`, write the weights (``.npz``, byte-stable), the
-    report (JSON) and the loss figure atomically; returns the report."""
+    """Read a dataset file, :func:`train`, write the weights, report and loss figure.
+
+    The weights (``.npz``, byte-stable), the report (JSON) and the figure
+    (:func:`plot_loss`) are written atomically.
+
+    Parameters
+    ----------
+    dataset_path : path
+        The dataset's Parquet file (:func:`.dataset.dataset_to_file`).
+    weights_path : path
+        The weights file to write.
+    report_path : path
+        The JSON report to write.
+    figure_path : path
+        The loss figure (PNG; a PDF beside it).
+    **settings
+        Keyword arguments of :func:`train`.
+
+    Returns
+    -------
+    dict
+        The training report.
+    """
     from ...io import write_json_atomic, write_npz_atomic
 
     df = pd.read_parquet(dataset_path)

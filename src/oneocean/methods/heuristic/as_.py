@@ -1,32 +1,33 @@
 """AS heuristic and oracle: a lawnmower survey with terrain following and current feed-forward.
 
-Plan (Python, :func:`prepare` before the episode's first step; the plan tokens are the
-waypoint arrays of the task's work ``W``: ``wps``, ``wcount``, ``widx``)
-    Strips at commanded altitude ``a_c = ALT_FRAC * max_altitude_m`` (so the footprint
-    survives terrain-following errors), spacing at most ``2 a_c tan(half_angle) (1 - OVERLAP)``
-    spread evenly over the width (:func:`plan_lawnmower`); the strips are split into
-    contiguous blocks, one per agent (boustrophedon inside a block). Each agent's list starts
-    with a run-in waypoint ``RUNIN_M`` before its first strip, on the strip's line
-    (:func:`with_runin`), so a torpedo AUV enters the region aligned with the strip.
-    The strips are flown on the vehicle's navigation estimate while its footprint falls on
-    the true seafloor, so dead-reckoning drift opens holidays at the region's edges. The
-    planner (:func:`plan_episode`) therefore lays the strips over the region extended on
-    each side by a navigation margin, ``k`` standard deviations of the dead-reckoning error
-    it expects there (:func:`nav_margins`, from the navigation model's own figures: start
-    fix, heading bias, scale factor, velocity noise), taking the widest margin, ``k`` from
-    ``NAV_K`` down to 0, whose predicted scan (:func:`predicted_time`) fits the time limit
-    less ``TIME_RESERVE``; it orients the strips along x or z, whichever gives the shorter
+Plan
+    Made in Python by :func:`prepare` before the episode's first step; the plan tokens are
+    the waypoint arrays of the task's work ``W``: ``wps``, ``wcount``, ``widx``. Strips at
+    commanded altitude ``a_c = ALT_FRAC * max_altitude_m`` (so the footprint survives
+    terrain-following errors), spacing at most ``2 a_c tan(half_angle) (1 - OVERLAP)`` spread
+    evenly over the width (:func:`plan_lawnmower`); the strips are split into contiguous
+    blocks, one per agent (boustrophedon inside a block). Each agent's list starts with a
+    run-in waypoint ``RUNIN_M`` before its first strip, on the strip's line
+    (:func:`with_runin`), so a torpedo AUV enters the region aligned with the strip. The
+    strips are flown on the vehicle's navigation estimate while its footprint falls on the
+    true seafloor, so dead-reckoning drift opens holidays at the region's edges. The planner
+    (:func:`plan_episode`) therefore lays the strips over the region extended on each side by
+    a navigation margin, ``k`` standard deviations of the dead-reckoning error it expects
+    there (:func:`nav_margins`, from the navigation model's own figures: start fix, heading
+    bias, scale factor, velocity noise), taking the widest margin, ``k`` from ``NAV_K`` down
+    to 0, whose predicted scan (:func:`predicted_time`) fits the time limit less
+    ``TIME_RESERVE``; it orients the strips along x or z, whichever gives the shorter
     predicted scan through the currents it knows (:func:`scan_axis`, :func:`known_currents`).
-Act (``act``, every agent and step)
-    The transit to the run-in waypoint ends within ``ARRIVE_M`` (wider than the vehicle's
-    turning diameter: an underactuated torpedo cannot close on a point inside its turning
-    circles and would orbit it). Strips are tracked with line-of-sight guidance (a carrot
-    ``LOOKAHEAD_M`` ahead of the
-    projection on the strip, :func:`~oneocean.tasks.common.waypoint_carrot`), terrain-following
-    in depth (the carrot's depth is the seafloor depth there minus ``a_c``), crabbing against
-    the current (:func:`~oneocean.tasks.common.seek_max`: the cross-track current is cancelled
-    first); teammates closer than ``SEP_M`` repel each other (their positions are observed).
-    The carrot is written to ``W.tgt`` (the observation's goal cue).
+Act
+    ``act``, every agent and step. The transit to the run-in waypoint ends within
+    ``ARRIVE_M`` (wider than the vehicle's turning diameter: an underactuated torpedo cannot
+    close on a point inside its turning circles and would orbit it). Strips are tracked with
+    line-of-sight guidance (a carrot ``LOOKAHEAD_M`` ahead of the projection on the strip,
+    :func:`~oneocean.tasks.common.waypoint_carrot`), terrain-following in depth (the carrot's
+    depth is the seafloor depth there minus ``a_c``), crabbing against the current
+    (:func:`~oneocean.tasks.common.seek_max`: the cross-track current is cancelled first);
+    teammates closer than ``SEP_M`` repel each other (their positions are observed). The
+    carrot is written to ``W.tgt`` (the observation's goal cue).
 
 Heuristic and oracle are one policy with the same parameters (the full speed budget
 ``v_max`` through the water, the same altitude, overlap, planner and rules); they differ in
@@ -88,6 +89,23 @@ N_TIMES = 7
 
 
 class ASPolicy(NamedTuple):
+    """Parameters ``M`` of the AS policy (the same for heuristic and oracle).
+
+    Attributes
+    ----------
+    budget : float
+        Speed budget through the water, m s-1 (the vehicle's ``v_max``).
+    kp : float
+        Approach gain, s-1 (:data:`KP`).
+    look : float
+        Line-of-sight lookahead along the strip, m (:data:`LOOKAHEAD_M`).
+    alt : float
+        Commanded altitude above the seafloor, m (:func:`method_altitude`).
+    spacing : float
+        Nominal strip spacing, m (:func:`strip_spacing`).
+    v_max : float
+        Vehicle speed limit, m s-1 (the scan-time prediction).
+    """
     budget: float   # speed budget through the water, m s-1
     kp: float       # approach gain, s-1
     look: float     # line-of-sight lookahead, m
@@ -97,19 +115,65 @@ class ASPolicy(NamedTuple):
 
 
 def method_altitude(tier: dict, method: str) -> float:
-    """Commanded altitude above the seafloor (m): the same for every method."""
+    """Commanded altitude above the seafloor: the same for every method.
+
+    Parameters
+    ----------
+    tier : dict
+        Tier parameters; reads ``max_altitude_m``, the sensor's maximum altitude, m.
+    method : str
+        The method (unused: every method flies the same altitude).
+
+    Returns
+    -------
+    float
+        ``ALT_FRAC * max_altitude_m``, m.
+    """
     return ALT_FRAC * float(tier["max_altitude_m"])
 
 
 def strip_spacing(tier: dict, method: str) -> float:
-    """Lawnmower strip spacing (m) at the commanded altitude: the same for every method."""
+    """Lawnmower strip spacing at the commanded altitude: the same for every method.
+
+    Parameters
+    ----------
+    tier : dict
+        Tier parameters; reads ``max_altitude_m`` (m) and ``half_angle_deg`` (the sensor's
+        half swath angle, degrees).
+    method : str
+        The method (unused).
+
+    Returns
+    -------
+    float
+        ``2 a_c tan(half_angle) (1 - OVERLAP)``, m, with ``a_c`` the :func:`method_altitude`.
+    """
     return (2.0 * method_altitude(tier, method)
             * math.tan(math.radians(float(tier["half_angle_deg"]))) * (1.0 - OVERLAP))
 
 
 def params(method: str, tier: dict, vehicle) -> ASPolicy:
-    """The policy's parameters: the same for the heuristic and the oracle (they differ in
-    what they know only: ``LoopParams.sens``, read by :func:`prepare`)."""
+    """The policy's params: the same for the heuristic and the oracle.
+
+    They differ in what they know only (``LoopParams.sens``, read by :func:`prepare`).
+
+    Parameters
+    ----------
+    method : str
+        The fused method, ``"heuristic"`` or ``"oracle"``
+        (:data:`oneocean.methods.heuristic.SENSING`).
+    tier : dict
+        The cell's tier parameters plus ``dt_s`` and ``v_max``
+        (:attr:`oneocean.tasks.Cell.params`).
+    vehicle : Vehicle
+        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+
+    Returns
+    -------
+    ASPolicy
+        Budget and ``v_max`` the vehicle's, :data:`KP`, :data:`LOOKAHEAD_M`, the tier's
+        :func:`method_altitude` and :func:`strip_spacing`.
+    """
     v_max = float(vehicle.v_max)
     return ASPolicy(v_max, KP, LOOKAHEAD_M, method_altitude(tier, method),
                     strip_spacing(tier, method), v_max)
@@ -132,11 +196,26 @@ def plan_lawnmower(box, axis: int, spacing: float, n_agents: int, seam: float = 
     agents' swaths overlap by an extra ``seam`` m at the seam between their blocks
     (:func:`team_seam`; 0: evenly spaced strips).
 
+    Parameters
+    ----------
+    box : tuple of float
+        The region ``(x_lo, z_lo, x_hi, z_hi)``, m.
+    axis : int
+        Strip orientation: 0 along x (offsets along z), 1 along z.
+    spacing : float
+        Strip spacing, m.
+    n_agents : int
+        Team size N.
+    seam : float, optional
+        Extra overlap between neighbouring agents' blocks, m (default 0).
+
     Returns
     -------
-    wps : (n_agents, n_max, 2) float64, m
-        Waypoints; agent ``i`` uses ``wps[i, :count[i]]`` (start and end of each strip).
+    wps : (n_agents, n_max, 2) float64
+        Waypoints (x, z), m; agent ``i`` uses ``wps[i, :count[i]]`` (start and end of each
+        strip).
     count : (n_agents,) int64
+        Waypoints of each agent.
     """
     x_lo, z_lo, x_hi, z_hi = box
     if axis == 0:  # strips along x, offsets along z
@@ -163,14 +242,33 @@ def plan_lawnmower(box, axis: int, spacing: float, n_agents: int, seam: float = 
 
 
 def nav_sigma(SP, dx: float, dz: float, nx: float, nz: float, t: float) -> float:
-    """Standard deviation (m) of the dead-reckoning position error, along the unit normal
-    ``(nx, nz)``, at a point ``(dx, dz)`` m from the start fix reached ``t`` s after it, from
-    the navigation model's own figures (``SP``: :class:`~oneocean.sensing.SensingParams`, the
-    sensor table): the start fix, plus the constant scale factor's error along the
+    """Standard deviation of the dead-reckoning position error along a unit normal.
+
+    At a point ``(dx, dz)`` from the start fix reached ``t`` s after it, from the navigation
+    model's own figures: the start fix, plus the constant scale factor's error along the
     displacement and the constant heading bias's across it (the error of dead reckoning on a
     constant scale factor and heading bias is ``(g R - I)`` times the displacement from the
-    fix, whatever the path), plus the DVL velocity noise's random walk. 0 for a method that
-    knows its true position."""
+    fix, whatever the path), plus the DVL velocity noise's random walk, counted in steps of
+    1 s (the task's ``dt_s``).
+
+    Parameters
+    ----------
+    SP : SensingParams
+        The method's navigation model (:class:`oneocean.sensing.SensingParams`, the sensor
+        table's figures).
+    dx, dz : float
+        Displacement from the start fix, east and north, m.
+    nx, nz : float
+        Unit normal along which the error is measured.
+    t : float
+        Time since the fix, s.
+
+    Returns
+    -------
+    float
+        The standard deviation, m; 0 for a method that knows its true position
+        (``SP.true_position``).
+    """
     if SP.true_position != 0:
         return 0.0
     along = dx * nx + dz * nz      # displacement along the normal (scale factor)
@@ -182,13 +280,33 @@ def nav_sigma(SP, dx: float, dz: float, nx: float, nz: float, t: float) -> float
 
 
 def nav_margins(SP, box, starts, duration: float, k: float | None = None):
-    """Margins (m) by which a survey planner extends the region ``box`` (x_lo, z_lo, x_hi,
-    z_hi) on each side, ``(west, south, east, north)``: ``k`` times the navigation error
-    normal to that side (:func:`nav_sigma`) at its corner farthest from the agents' start
-    fixes ``starts`` (n, 2) (x, z), after the whole mission ``duration`` s. The strips are
-    flown on the navigation estimate while the footprint falls on the true seafloor: the
-    margin keeps the region's edges imaged through the expected drift. Zeros for a method
-    that knows its position (the rule is shared; only the information differs)."""
+    """Margins by which a survey planner extends the region ``box`` on each side.
+
+    ``k`` times the navigation error normal to that side (:func:`nav_sigma`) at its corner
+    farthest from the agents' start fixes, after the whole mission. The strips are flown on the
+    navigation estimate while the footprint falls on the true seafloor: the margin keeps the
+    region's edges imaged through the expected drift. Zeros for a method that knows its
+    position (the rule is shared; only the information differs).
+
+    Parameters
+    ----------
+    SP : SensingParams
+        The method's navigation model (:class:`oneocean.sensing.SensingParams`, the sensor
+        table's figures).
+    box : tuple of float
+        The region ``(x_lo, z_lo, x_hi, z_hi)``, m.
+    starts : (n, 2) array_like
+        The agents' start fixes (x, z), m.
+    duration : float
+        Mission duration, s.
+    k : float, optional
+        Standard deviations of margin (default :data:`NAV_K`).
+
+    Returns
+    -------
+    tuple of float
+        The margins ``(west, south, east, north)``, m.
+    """
     x_lo, z_lo, x_hi, z_hi = box
     sides = ((-1.0, 0.0, ((x_lo, z_lo), (x_lo, z_hi))),   # west
              (0.0, -1.0, ((x_lo, z_lo), (x_hi, z_lo))),   # south
@@ -206,11 +324,32 @@ def nav_margins(SP, box, starts, duration: float, k: float | None = None):
 
 
 def team_seam(SP, box, starts, duration: float, axis: int, k: float | None = None) -> float:
-    """Extra overlap (m) between neighbouring agents' blocks of strips along ``axis`` over
-    ``box``: ``k`` (default ``NAV_K``) times the standard deviation of the difference of two
-    vehicles' independent dead-reckoning errors across the strips (``sqrt(2)`` times
-    :func:`nav_sigma`, normal to the strips) at the box's corner farthest from the start
-    fixes ``starts`` (n, 2). 0 for a single agent or a method that knows its position."""
+    """Extra overlap between neighbouring agents' blocks of strips along ``axis`` over ``box``.
+
+    ``k`` times the standard deviation of the difference of two vehicles' independent
+    dead-reckoning errors across the strips (``sqrt(2)`` times :func:`nav_sigma`, normal to the
+    strips) at the box's corner farthest from the start fixes.
+
+    Parameters
+    ----------
+    SP : SensingParams or None
+        The method's navigation model (:class:`oneocean.sensing.SensingParams`); None: no seam.
+    box : tuple of float
+        The region ``(x_lo, z_lo, x_hi, z_hi)``, m.
+    starts : (n, 2) array_like or None
+        The agents' start fixes (x, z), m; None: no seam.
+    duration : float
+        Mission duration, s.
+    axis : int
+        Strip orientation: 0 along x, 1 along z.
+    k : float, optional
+        Standard deviations of overlap (default :data:`NAV_K`).
+
+    Returns
+    -------
+    float
+        The seam, m; 0 for a single agent or a method that knows its position.
+    """
     pts = np.asarray(starts, dtype=np.float64).reshape(-1, 2) if starts is not None else None
     if SP is None or pts is None or pts.shape[0] < 2:
         return 0.0
@@ -225,9 +364,23 @@ def team_seam(SP, box, starts, duration: float, axis: int, k: float | None = Non
 
 
 def margin_bound(tier: dict, region) -> float:
-    """An upper bound (m) of :func:`nav_margins` over the regions ``region`` (E, 4) of a tier
-    (starts within ``SPAWN_REACH_M`` of a region's corner, every error at the sensor
-    table's values): what the plan-token array must leave room for."""
+    """An upper bound of :func:`nav_margins` over a tier's regions.
+
+    Starts within ``SPAWN_REACH_M`` of a region's corner, every error at the sensor table's
+    values: what the plan-token array must leave room for.
+
+    Parameters
+    ----------
+    tier : dict
+        Tier parameters; reads ``time_limit_s``, s.
+    region : (E, 4) array_like
+        The episodes' regions ``(x_lo, z_lo, x_hi, z_hi)``, m.
+
+    Returns
+    -------
+    float
+        The bound, m (0 without regions).
+    """
     from ...sensing import sensing_params
 
     SP = sensing_params("sensors", 1.0)
@@ -242,15 +395,46 @@ def margin_bound(tier: dict, region) -> float:
 
 
 def plan_tokens(grid, tier: dict, init: dict) -> dict:
-    """The size of the plan the task carries for this policy (:func:`oneocean.tasks.as_.make`):
-    ``max_waypoints`` per agent (:func:`max_waypoints`)."""
+    """The size of the plan the task carries for this policy (:func:`oneocean.tasks.as_.make`).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        The cell's tier parameters plus ``dt_s`` and ``v_max``.
+    init : dict
+        The cell's episodes (:func:`oneocean.tasks.as_.reset`).
+        Reads ``region`` (E, 4) and ``pos0`` (E, N, 3).
+
+    Returns
+    -------
+    dict
+        ``max_waypoints``: waypoints per agent (:func:`max_waypoints`).
+    """
     return {"max_waypoints": max_waypoints(tier, init["region"], init["pos0"].shape[1])}
 
 
 def max_waypoints(tier: dict, region, n_agents: int) -> int:
-    """Waypoints per agent that every method's plan fits in (either strip orientation, the
-    navigation margins and a team's seams included), for the regions ``region`` (E, 4): the size of the
-    plan-token array."""
+    """Waypoints per agent that every method's plan fits in: the size of the plan-token array.
+
+    Either strip orientation, the navigation margins (:func:`margin_bound`) and a team's seams
+    included.
+
+    Parameters
+    ----------
+    tier : dict
+        Tier parameters (``max_altitude_m``, ``half_angle_deg``, ``time_limit_s``).
+    region : (E, 4) array_like
+        The episodes' regions ``(x_lo, z_lo, x_hi, z_hi)``, m.
+    n_agents : int
+        Team size N.
+
+    Returns
+    -------
+    int
+        Waypoints per agent, the run-in waypoint included.
+    """
     region = np.asarray(region, dtype=np.float64).reshape(-1, 4)
     sides = np.concatenate([region[:, 2] - region[:, 0], region[:, 3] - region[:, 1]])
     mb = margin_bound(tier, region)
@@ -261,7 +445,7 @@ def max_waypoints(tier: dict, region, n_agents: int) -> int:
 
 
 def _along_speed(ce: float, cn: float, ux: float, uz: float, v: float) -> float:
-    """Largest ground speed along unit (ux, uz) with |a| <= v through current (ce, cn)."""
+    """Largest ground speed along unit (ux, uz) with ``|a| <= v`` through current (ce, cn)."""
     c_par = ce * ux + cn * uz
     q2 = ce * ce + cn * cn - c_par * c_par
     if q2 >= v * v:
@@ -270,13 +454,30 @@ def _along_speed(ce: float, cn: float, ux: float, uz: float, v: float) -> float:
 
 
 def scan_times(cur, box, v: float, spacing: float, n_agents: int = 1):
-    """Predicted scan time (s) of the lawnmower over ``box`` with strips along x and along z,
-    through the currents ``cur`` (n, 2) (east, north m s-1, samples over the episode).
+    """Predicted scan time of the lawnmower over ``box``, strips along x and along z.
 
-    A scan along an axis has ``n = ceil(W / spacing)`` strips of length ``L`` flown
-    alternately each way and ``n - 1`` cross legs of ``W / n``; each leg's time uses the
-    fastest ground speed along it through the current (:func:`_along_speed`), averaged over
-    the samples.
+    A scan along an axis has ``n = max(ceil(W / spacing), n_agents)`` strips of length ``L``
+    flown alternately each way and ``n - 1`` cross legs of ``W / n``; each leg's time uses the
+    fastest ground speed along it through the current (at least 1e-3 m s-1), averaged over the
+    current samples. The time is the team's total (not divided between the agents).
+
+    Parameters
+    ----------
+    cur : (n, 2) array_like
+        Current samples over the episode (east, north), m s-1.
+    box : tuple of float
+        The region ``(x_lo, z_lo, x_hi, z_hi)``, m.
+    v : float
+        Speed through the water, m s-1.
+    spacing : float
+        Strip spacing, m.
+    n_agents : int, optional
+        Team size N (the least number of strips; default 1).
+
+    Returns
+    -------
+    list of float
+        ``[along x, along z]`` scan times, s.
     """
     x_lo, z_lo, x_hi, z_hi = box
     cost = []
@@ -295,10 +496,35 @@ def scan_times(cur, box, v: float, spacing: float, n_agents: int = 1):
 
 def known_currents(grid, box, depth: float, t0: float, duration: float, fc=None, e: int = 0,
                    n_times: int = N_TIMES):
-    """The currents (n_times, 2) at the centre of ``box`` at ``depth`` m over
-    ``[t0, t0 + duration]`` as the method knows them before the episode: the true field, or
-    given ``fc`` (``LoopState.fc``) episode ``e``'s forecast of it
-    (:func:`oneocean.tasks.routing.forecast_field`)."""
+    """The currents at the centre of ``box`` over the episode as the method knows them.
+
+    The true field, or given ``fc`` episode ``e``'s forecast of it
+    (:func:`oneocean.tasks.routing.forecast_field`).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    box : tuple of float
+        The region ``(x_lo, z_lo, x_hi, z_hi)``, m.
+    depth : float
+        Sampling depth, m (positive down).
+    t0 : float
+        Episode start time, s since the grid's ``time0_unix_s``.
+    duration : float
+        Episode duration, s: samples at ``n_times`` even times over ``[t0, t0 + duration]``.
+    fc : (E, 5) float64, optional
+        The episodes' forecast errors (``LoopState.fc``); None: the truth.
+    e : int, optional
+        Episode index into ``fc`` (default 0).
+    n_times : int, optional
+        Number of sample times (default :data:`N_TIMES`).
+
+    Returns
+    -------
+    (n_times, 2) float64
+        Currents (east, north), m s-1.
+    """
     from ...engine.grid import sample_currents
     from ...tasks.routing import forecast_field
 
@@ -312,25 +538,65 @@ def known_currents(grid, box, depth: float, t0: float, duration: float, fc=None,
 
 
 def scan_axis(cur, box, v: float, spacing: float, n_agents: int = 1) -> int:
-    """Strip orientation (0 = along x) with the shorter predicted scan (:func:`scan_times`)
-    through the currents ``cur`` (along x on a tie)."""
+    """Strip orientation with the shorter predicted scan (:func:`scan_times`).
+
+    Parameters
+    ----------
+    cur : (n, 2) array_like
+        Current samples (east, north), m s-1.
+    box : tuple of float
+        The region ``(x_lo, z_lo, x_hi, z_hi)``, m.
+    v : float
+        Speed through the water, m s-1.
+    spacing : float
+        Strip spacing, m.
+    n_agents : int, optional
+        Team size N (default 1).
+
+    Returns
+    -------
+    int
+        0 for strips along x (also on a tie), 1 along z.
+    """
     cost = scan_times(cur, box, v, spacing, n_agents)
     return int(np.argmin(cost))
 
 
 def plan_episode(grid, M: ASPolicy, box, t0: float, duration: float, n_agents: int,
                  starts=None, SP=None, fc=None, e: int = 0):
-    """The method's lawnmower over one episode's region ``box`` (x_lo, z_lo, x_hi, z_hi) and
-    its predicted duration (s).
+    """The method's lawnmower over one episode's region and its predicted duration.
 
-    The strips are oriented by :func:`scan_axis` on the currents the method knows
-    (:func:`known_currents`: ``fc`` its forecast, else the truth) and laid over the region
-    extended by the navigation margins (:func:`nav_margins`, from the agents' known start
-    fixes ``starts`` (n, 2) and the navigation model ``SP``; none when ``SP`` is None or the
-    method knows its position), a team's blocks overlapping by :func:`team_seam`: the widest
-    margin, ``NAV_K`` standard deviations down to 0
-    in steps of ``K_STEP``, whose predicted scan fits the episode's time limit ``duration``
-    s (:func:`predicted_time`), as a survey planner fits its line plan to the time it has.
+    The strips are oriented by the shorter predicted scan (:func:`scan_times`) on the currents
+    the method knows (:func:`known_currents`: ``fc`` its forecast, else the truth) and laid
+    over the region extended by the navigation margins (:func:`nav_margins`, from the agents'
+    known start fixes and the navigation model ``SP``; none when ``SP`` is None or the method
+    knows its position), a team's blocks overlapping by :func:`team_seam`: the widest margin,
+    ``NAV_K`` standard deviations down to 0 in steps of ``K_STEP``, whose predicted scan fits
+    the episode's time limit less ``TIME_RESERVE`` (:func:`predicted_time`), as a survey
+    planner fits its line plan to the time it has.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    M : ASPolicy
+        The policy's params (:func:`params`).
+    box : tuple of float
+        The region ``(x_lo, z_lo, x_hi, z_hi)``, m.
+    t0 : float
+        Episode start time, s since the grid's ``time0_unix_s``.
+    duration : float
+        The episode's time limit, s.
+    n_agents : int
+        Team size N.
+    starts : (N, 2) array_like, optional
+        The agents' known start positions (x, z), m; None: no margins.
+    SP : SensingParams, optional
+        The method's navigation model; None: no margins.
+    fc : (E, 5) float64, optional
+        The episodes' forecast errors (``LoopState.fc``); None: plan on the true currents.
+    e : int, optional
+        Episode index into ``fc`` (default 0).
 
     Returns
     -------
@@ -367,10 +633,32 @@ def plan_episode(grid, M: ASPolicy, box, t0: float, duration: float, n_agents: i
 
 
 def predicted_time(wps, count, scan: float, starts, v: float, n_agents: int) -> float:
-    """Predicted duration (s) of a plan: its scan (:func:`scan_times`, the team's strips
-    shared between ``n_agents``; the turns at the strip ends and the terrain following are
-    left out), plus the transit from the start to the run-in waypoint and the run-in at
-    ``v``."""
+    """Predicted duration of a plan.
+
+    Its scan (:func:`scan_times`, the team's strips shared between ``n_agents``; the turns at
+    the strip ends and the terrain following are left out), plus the longest transit from an
+    agent's start to its run-in waypoint and the run-in, at ``v``.
+
+    Parameters
+    ----------
+    wps : (n_agents, n_max, 2) float64
+        The plan's waypoints (x, z), m, run-in first.
+    count : (n_agents,) int64
+        Waypoints of each agent (unused).
+    scan : float
+        The team's scan time, s (:func:`scan_times`).
+    starts : (N, 2) array_like or None
+        The agents' start positions (x, z), m; None: the run-in only.
+    v : float
+        Speed, m s-1.
+    n_agents : int
+        Team size N.
+
+    Returns
+    -------
+    float
+        Predicted duration, s.
+    """
     t = scan / max(1, int(n_agents))
     lead = 0.0
     for i in range(wps.shape[0]):
@@ -383,8 +671,27 @@ def predicted_time(wps, count, scan: float, starts, v: float, n_agents: int) -> 
 
 
 def with_runin(wps, count, runin: float = RUNIN_M):
-    """``wps`` with a run-in waypoint prepended per agent: ``runin`` m before the first
-    strip's start, on the strip's line (outside the region, inside its water margin)."""
+    """The waypoints with a run-in waypoint prepended per agent.
+
+    The run-in lies ``runin`` m before the first strip's start, on the strip's line (outside
+    the region, inside its water margin).
+
+    Parameters
+    ----------
+    wps : (n_agents, n_max, 2) float64
+        Waypoints (x, z), m (:func:`plan_lawnmower`).
+    count : (n_agents,) int64
+        Waypoints of each agent.
+    runin : float, optional
+        Run-in distance, m (default :data:`RUNIN_M`).
+
+    Returns
+    -------
+    wps : (n_agents, n_max + 1, 2) float64
+        Waypoints with the run-in first, m.
+    count : (n_agents,) int64
+        ``count + 1``.
+    """
     n_ag, n_max, _ = wps.shape
     out = np.zeros((n_ag, n_max + 1, 2))
     out[:, 1:] = wps
@@ -397,12 +704,41 @@ def with_runin(wps, count, runin: float = RUNIN_M):
 
 
 def prepare(grid, P, W, M: ASPolicy, t0, LP=None, LS=None, X=None) -> None:
-    """The Python planner: write the plan tokens of every episode not yet planned (``W.wps``,
-    ``W.wcount``, ``W.widx = 0``, ``W.tgt`` = the first waypoint at the commanded altitude)
-    before the episode's first step, from what the method knows (``LP.sens``): the currents
-    (the truth, else its forecast ``LS.fc``), the agents' start positions (``X``: the known
-    state) and its navigation model (the margins; none given the true position). Without
-    ``LP`` / ``LS`` the truth. Idempotent (``W.planned``)."""
+    """The Python planner: write the plan tokens of every episode not yet planned.
+
+    Before the episode's first step: ``W.wps``, ``W.wcount``, ``W.widx = 0`` and ``W.tgt`` (the
+    first waypoint at the commanded altitude), from what the method knows (``LP.sens``): the
+    currents (the truth, else its forecast ``LS.fc``), the agents' start positions (``X``: the
+    known state) and its navigation model (the margins; none given the true position). Without
+    ``LP`` / ``LS`` the truth. Idempotent (``W.planned``).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : ASParams
+        The task's params (:func:`oneocean.tasks.as_.make`).
+    W : ASWork
+        The task's per-episode work arrays; the plan tokens are written in place.
+    M : ASPolicy
+        This policy's params (:func:`params`).
+    t0 : (E,) float64
+        Episode start times, s since the grid's ``time0_unix_s``.
+    LP : LoopParams, optional
+        The loop's params (:class:`oneocean.tasks.loop.LoopParams`); ``LP.sens`` says what the
+        method knows. None: the truth.
+    LS : LoopState, optional
+        The loop's state (:class:`oneocean.tasks.loop.LoopState`); ``LS.fc`` (E, 5) is each
+        episode's forecast error. None: the truth.
+    X : (E, N, STATE_DIM) float64, optional
+        The agents' state as the method knows it before the first step
+        (:attr:`oneocean.tasks.episodes.Episodes.known_state`).
+
+    Raises
+    ------
+    RuntimeError
+        If a plan has more waypoints per agent than the plan-token array holds.
+    """
     todo = np.flatnonzero(W.planned == 0)
     if todo.size == 0:
         return
@@ -453,6 +789,47 @@ def _repulsion(state, e, i, n_ag):
 
 @hot_kernel(inline="always")
 def act(grid, P, W, M, state, e, k, i, t, pe, pn):
+    """Agent ``i``'s action: line-of-sight strip tracking, terrain following, teammate repulsion.
+
+    The carrot of its waypoint list (:func:`~oneocean.tasks.common.waypoint_carrot`) at
+    ``M.alt`` above the seafloor (never shallower than ``MIN_DEPTH_M``) is written to
+    ``W.tgt[e, i]`` and sought with :func:`~oneocean.tasks.common.seek_max`; teammates closer
+    than ``SEP_M`` add a horizontal repulsion.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : ASParams
+        The task's params (:func:`oneocean.tasks.as_.make`).
+    W : ASWork
+        The task's per-episode work arrays (:func:`oneocean.tasks.as_.make`); reads the plan tokens
+        ``wps`` / ``wcount``, advances ``widx`` and writes ``tgt``.
+    M : ASPolicy
+        This policy's params (:func:`params`).
+    state : (E, N, STATE_DIM) float64
+        Vehicle states as the method knows them (its navigation estimate; the truth for the
+        oracle); layout in :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    t : float
+        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    pe, pn : float
+        The method's current estimate at the agent, east and north, m s-1 (the true current
+        for the oracle).
+
+    Returns
+    -------
+    ax, ay, az : float
+        Desired velocity relative to the water, world frame (x east, y down, z north), m s-1;
+        the loop clips it to ``v_max``.
+    psi : float
+        Commanded heading, rad (NaN: free).
+    """
     n_ag = state.shape[1]
     s = state[e, i]
     px = s[0]

@@ -91,6 +91,46 @@ SCHOOL_ACC_STD = 0.02
 
 
 class FHPolicy(NamedTuple):
+    """Parameters ``M`` of the FH policy (the same for heuristic and oracle).
+
+    Attributes
+    ----------
+    speed : float
+        Speed budget through the water, m s-1 (the vehicle's ``v_max``).
+    kp : float
+        Slot-tracking gain, s-1 (:data:`KP`).
+    arc : float
+        Herding arc, rad (:data:`ARC_RAD`).
+    stand : float
+        Standoff under a full push, m (:data:`STANDOFF_M`).
+    sgain : float
+        Standoff growth with the school's spread, m per m (:data:`SPREAD_GAIN`).
+    back : float
+        Standoff when no push is needed, m (:data:`BACKOFF_M`).
+    push : float
+        Planned school ground speed, m s-1 (:data:`PUSH_SPEED_MS`).
+    oswim : float
+        Largest planned school swim, m s-1 (:data:`ORACLE_SWIM_MS`).
+    kpp : float
+        Push ramp gain, s-1 (:data:`KP_PUSH`).
+    deadband : float
+        The push direction is frozen within this fraction of the zone radius
+        (:data:`DEADBAND_FRAC`).
+    oks : float
+        Standoff adaptation rate, m per m s-1 per s (:data:`STANDOFF_KS`).
+    stand_min : float
+        Smallest adapted standoff, m (:data:`STANDOFF_MIN_M`).
+    slew : float
+        Largest turn rate of the push direction, rad s-1 (:data:`SLEW_RAD_S`).
+    i_zone : float
+        Integral action within this distance of the zone centre, m (:data:`I_ZONE_M`).
+    fa : float
+        School tracker: position gain (alpha, :func:`tracker_gains`).
+    fb : float
+        School tracker: velocity gain (beta), per step.
+    fs : float
+        School tracker: spread smoothing gain (alpha).
+    """
     speed: float        # speed budget through the water, m s-1
     kp: float           # slot-tracking gain, s-1
     arc: float          # herding arc, rad
@@ -139,8 +179,28 @@ def tracker_gains(acc_std: float, fix_std: float, dt: float) -> tuple[float, flo
 
 
 def params(method: str, tier: dict, vehicle) -> FHPolicy:
-    """The same for every method: heuristic and oracle differ in information only (the
-    sensing flags the task copies into ``W.sinfo``)."""
+    """The policy's params: the same for every method.
+
+    Heuristic and oracle differ in information only (the sensing flags the task copies into
+    ``W.sinfo``).
+
+    Parameters
+    ----------
+    method : str
+        The fused method, ``"heuristic"`` or ``"oracle"``
+        (:data:`oneocean.methods.heuristic.SENSING`).
+    tier : dict
+        The cell's tier parameters plus ``dt_s`` and ``v_max``
+        (:attr:`oneocean.tasks.Cell.params`).
+    vehicle : Vehicle
+        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+        Reads ``dt_s`` (the tracker's gains, :func:`tracker_gains`).
+
+    Returns
+    -------
+    FHPolicy
+        Budget ``v_max``, the module's constants and the tracker's gains.
+    """
     v_max = float(vehicle.v_max)
     fa, fb = tracker_gains(SCHOOL_ACC_STD, FIX_STD_M, float(tier["dt_s"]))
     return FHPolicy(v_max, KP, ARC_RAD,
@@ -161,8 +221,34 @@ def _current(grid, x, y, z, t):
 
 @hot_kernel(inline="always")
 def plan(grid, P, W, M, state, e, k, t):
-    """The school estimate (``W.sest``: the truth, or the team's tracked sonar readings);
-    push direction, arc angle and standoff; agents matched to arc slots; waypoints."""
+    """The team's herding plan for episode ``e``: school estimate, arc and slot waypoints.
+
+    The school estimate ``W.sest[e]`` (the truth, or the team's tracked sonar readings); push
+    direction, arc angle and standoff (``W.herd[e]``); agents matched to arc slots
+    (``W.order``, ``W.keys``, ``W.rank``); every agent's waypoint ``W.tgt[e]`` (module doc).
+    Before the first sonar reading every agent's waypoint is its own position.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FHParams
+        The task's params (:func:`oneocean.tasks.fh.make`).
+    W : FHWork
+        The task's per-episode work arrays (:func:`oneocean.tasks.fh.make`); the policy's state
+        (``sest``, ``herd``, ``order``, ``keys``, ``rank``, ``tgt``) is written in place.
+    M : FHPolicy
+        This policy's params (:func:`params`).
+    state : (E, N, STATE_DIM) float64
+        Vehicle states as the method knows them (its navigation estimate; the truth for the
+        oracle); layout in :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    """
     S = state[e]
     n = S.shape[0]
     F = W.fish[e, W.fcur[e]]
@@ -332,7 +418,47 @@ def plan(grid, P, W, M, state, e, k, t):
 
 @hot_kernel(inline="always")
 def act(grid, P, W, M, state, e, k, i, t, pe, pn):
-    """Seek the agent's waypoint with feed-forward of the school's velocity and the current."""
+    """Seek the agent's waypoint with feed-forward of the school's velocity and the current.
+
+    Records the agent's current estimate in ``W.cest[e, i]`` (the team's current at the school
+    in the next :func:`plan`), then :func:`~oneocean.tasks.common.seek_max` toward
+    ``W.tgt[e, i]`` at the school's depth ``P.depth``, the school's estimated velocity fed
+    forward with the current.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FHParams
+        The task's params (:func:`oneocean.tasks.fh.make`).
+    W : FHWork
+        The task's per-episode work arrays (:func:`oneocean.tasks.fh.make`); reads ``tgt`` and
+        ``sest``, writes ``cest``.
+    M : FHPolicy
+        This policy's params (:func:`params`).
+    state : (E, N, STATE_DIM) float64
+        Vehicle states as the method knows them (its navigation estimate; the truth for the
+        oracle); layout in :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    t : float
+        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    pe, pn : float
+        The method's current estimate at the agent, east and north, m s-1 (the true current
+        for the oracle).
+
+    Returns
+    -------
+    ax, ay, az : float
+        Desired velocity relative to the water, world frame (x east, y down, z north), m s-1;
+        the loop clips it to ``v_max``.
+    psi : float
+        Commanded heading, rad (NaN: free).
+    """
     s = state[e, i]
     gx = W.tgt[e, i, 0]
     gz = W.tgt[e, i, 1]

@@ -47,6 +47,27 @@ P_CAP_MS = 0.6
 
 
 class FTPolicy(NamedTuple):
+    """Parameters ``M`` of the FT policy (the same for heuristic and oracle).
+
+    Attributes
+    ----------
+    budget : float
+        Speed budget through the water, m s-1 (the vehicle's ``v_max``).
+    v_nom : float
+        Virtual-centre nominal speed (``V_NOM_FRAC * budget``), m s-1.
+    kp : float
+        Slot-tracking gain, s-1 (:data:`KP`).
+    p_cap : float
+        Cap of the P part of the ground-velocity request, m s-1 (:data:`P_CAP_MS`).
+    e0 : float
+        Pacing: lag where the virtual centre starts slowing, m (:data:`PACE_E0_M`).
+    e1 : float
+        Pacing: extra lag where it stops, m (:data:`PACE_E1_M`).
+    dt : float
+        Step, s.
+    pace_min : float
+        Least pace: 0 (may stop), :data:`PACE_MIN_TORPEDO` for vehicles that cannot hover.
+    """
     budget: float   # speed budget through the water, m s-1
     v_nom: float    # virtual-centre nominal speed (V_NOM_FRAC * budget), m s-1
     kp: float       # slot-tracking gain, s-1
@@ -58,6 +79,25 @@ class FTPolicy(NamedTuple):
 
 
 def params(method: str, tier: dict, vehicle) -> FTPolicy:
+    """The policy's params: the same for every method (they differ in information only).
+
+    Parameters
+    ----------
+    method : str
+        The fused method, ``"heuristic"`` or ``"oracle"``
+        (:data:`oneocean.methods.heuristic.SENSING`).
+    tier : dict
+        The cell's tier parameters plus ``dt_s`` and ``v_max``
+        (:attr:`oneocean.tasks.Cell.params`).
+    vehicle : Vehicle
+        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+        Reads ``dt_s`` and the vehicle's ``guidance`` (``"torpedo"``: cannot hover).
+
+    Returns
+    -------
+    FTPolicy
+        Budget ``v_max``, the module's gains and pacing, the tier's step.
+    """
     v_max = float(vehicle.v_max)
     budget = v_max
     torpedo = vehicle.spec.get("guidance", "holonomic") == "torpedo"
@@ -67,7 +107,32 @@ def params(method: str, tier: dict, vehicle) -> FTPolicy:
 
 @hot_kernel(inline="always")
 def plan(grid, P, W, M, state, e, k, t):
-    """Pace the virtual centre by the worst slot lag around it; advance it over the step."""
+    """Pace the virtual centre by the worst slot lag around it; advance it over the step.
+
+    Writes the plan tokens of episode ``e``: the virtual centre at the start of the step
+    ``W.vc[e]``, its velocity over the step ``W.vff[e]`` and its distance along the route
+    ``W.sigma[e]`` (never past the goal).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FTParams
+        The task's params (:func:`oneocean.tasks.ft.make`).
+    W : FTWork
+        The task's per-episode work arrays (:func:`oneocean.tasks.ft.make`).
+    M : FTPolicy
+        This policy's params (:func:`params`).
+    state : (E, N, STATE_DIM) float64
+        Vehicle states as the method knows them (its navigation estimate; the truth for the
+        oracle); layout in :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    """
     st_e = state[e]
     n = st_e.shape[0]
     offsets = W.offsets
@@ -106,7 +171,46 @@ def plan(grid, P, W, M, state, e, k, t):
 
 @hot_kernel(inline="always")
 def act(grid, P, W, M, state, e, k, i, t, pe, pn):
-    """Track slot i around the virtual centre: feed-forward plus capped P-control."""
+    """Track slot ``i`` around the virtual centre: feed-forward plus capped P-control.
+
+    The desired ground velocity ``W.vff[e] + kp (slot - position)`` (the P part capped at
+    ``M.p_cap``) is realised against the current estimate by
+    :func:`~oneocean.tasks.common.steer` within ``M.budget``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FTParams
+        The task's params (:func:`oneocean.tasks.ft.make`).
+    W : FTWork
+        The task's per-episode work arrays (:func:`oneocean.tasks.ft.make`); reads the slot offsets
+        ``W.offsets`` and the plan tokens ``W.vc`` / ``W.vff``.
+    M : FTPolicy
+        This policy's params (:func:`params`).
+    state : (E, N, STATE_DIM) float64
+        Vehicle states as the method knows them (its navigation estimate; the truth for the
+        oracle); layout in :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    t : float
+        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    pe, pn : float
+        The method's current estimate at the agent, east and north, m s-1 (the true current
+        for the oracle).
+
+    Returns
+    -------
+    ax, ay, az : float
+        Desired velocity relative to the water, world frame (x east, y down, z north), m s-1;
+        the loop clips it to ``v_max``.
+    psi : float
+        Commanded heading, rad (NaN: free).
+    """
     s = state[e, i]
     px = s[0]
     py = s[1]

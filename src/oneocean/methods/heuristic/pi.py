@@ -48,11 +48,12 @@ the position of the event's largest reading, is kept as an alternative estimator
 
 Both spend the full ``v_max``: they differ in information only. The heuristic's current
 estimate and its navigation (so the positions it logs and claims) come from the sensor models
-(:mod:`oneocean.sensing`: dead reckoning drifts along the pipe); the oracle's are the truth. Policy state lives in the task's work arrays
-(:class:`oneocean.tasks.pi.PIWork`): the plan tokens ``wps`` / ``wcount`` (each agent's survey
-waypoints, from :func:`survey`), ``widx`` (the waypoint being followed), ``tgt`` (the step's
-carrot: the observation's goal cue), ``done`` (section finished: the env ends the survey when
-every agent's is), the event memory ``ev_*`` and the report ``claims`` / ``nclaim``.
+(:mod:`oneocean.sensing`: dead reckoning drifts along the pipe); the oracle's are the truth.
+Policy state lives in the task's work arrays (:class:`oneocean.tasks.pi.PIWork`): the plan
+tokens ``wps`` / ``wcount`` (each agent's survey waypoints, from :func:`survey`), ``widx``
+(the waypoint being followed), ``tgt`` (the step's carrot: the observation's goal cue),
+``done`` (section finished: the env ends the survey when every agent's is), the event memory
+``ev_*`` and the report ``claims`` / ``nclaim``.
 """
 
 from __future__ import annotations
@@ -109,6 +110,22 @@ PEAK, ONSET = 0, 1
 
 
 class PIPolicy(NamedTuple):
+    """Parameters ``M`` of the PI policy (the same for heuristic and oracle).
+
+    Attributes
+    ----------
+    budget : float
+        Speed budget through the water, m s-1 (the vehicle's ``v_max``).
+    kp : float
+        Approach gain, s-1 (:data:`KP`).
+    alt : float
+        Commanded altitude above the seafloor, m (:data:`ALT_M`).
+    look : float
+        Line-of-sight lookahead, m (:data:`LOOKAHEAD_M`).
+    estimator : int
+        Leak estimator, :data:`PEAK` or :data:`ONSET` (:func:`peak_estimate`,
+        :func:`onset_estimate`).
+    """
     budget: float       # speed budget through the water, m s-1
     kp: float           # approach gain, s-1
     alt: float          # commanded altitude above the seafloor, m
@@ -117,25 +134,69 @@ class PIPolicy(NamedTuple):
 
 
 def params(method: str, tier: dict, vehicle) -> PIPolicy:
+    """The policy's params: the same for every method (they differ in information only).
+
+    Parameters
+    ----------
+    method : str
+        The fused method, ``"heuristic"`` or ``"oracle"``
+        (:data:`oneocean.methods.heuristic.SENSING`).
+    tier : dict
+        The cell's tier parameters plus ``dt_s`` and ``v_max``
+        (:attr:`oneocean.tasks.Cell.params`).
+    vehicle : Vehicle
+        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+
+    Returns
+    -------
+    PIPolicy
+        Budget ``v_max``, :data:`KP`, :data:`ALT_M`, :data:`LOOKAHEAD_M` and the
+        :data:`ONSET` estimator.
+    """
     return PIPolicy(float(vehicle.v_max), KP, ALT_M, LOOKAHEAD_M, ONSET)
 
 
 def plan_tokens(grid, tier: dict, init: dict) -> dict:
-    """The plan the task carries for this policy (:func:`oneocean.tasks.pi.make`): every
-    agent's survey waypoints ``wps`` / ``wcount`` (:func:`survey`) and room for
-    ``max_events`` (``MAX_EVENT``) events per agent."""
+    """The plan the task carries for this policy (:func:`oneocean.tasks.pi.make`).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        The cell's tier parameters plus ``dt_s`` and ``v_max``.
+    init : dict
+        The cell's episodes (:func:`oneocean.tasks.pi.reset`).
+        Reads ``poly`` and ``sections`` (:func:`survey`).
+
+    Returns
+    -------
+    dict
+        ``wps`` (E, N, V, 2) float64 and ``wcount`` (E, N) int64: every agent's survey
+        waypoints (:func:`survey`); ``max_events``: room for :data:`MAX_EVENT` event readings
+        per agent.
+    """
     wps, wcount = survey(init)
     return {"wps": wps, "wcount": wcount, "max_events": MAX_EVENT}
 
 
 def survey(init: dict):
-    """The survey plan of every agent: its section of the pipeline polyline as waypoints,
-    from ``OVERLAP_M`` before the section's start (but the first agent's) to its end.
+    """The survey plan of every agent: its section of the pipeline polyline as waypoints.
+
+    Each agent's waypoints run from ``OVERLAP_M`` before its section's start (the first agent
+    from the start itself) to the section's end.
+
+    Parameters
+    ----------
+    init : dict
+        The cell's episodes (:func:`oneocean.tasks.pi.reset`): ``poly`` (E, V, 2) pipeline
+        vertices [x, z], m, and ``sections`` (E, N, 2) the arc-length range of each agent's
+        section, m.
 
     Returns
     -------
     wps : (E, N, V, 2) float64
-        Waypoints [x, z] m (V: the most any agent has; rows past ``wcount`` are 0).
+        Waypoints [x, z], m (V: the most any agent has; rows past ``wcount`` are 0).
     wcount : (E, N) int64
         Waypoints of each agent.
     """
@@ -159,11 +220,76 @@ def survey(init: dict):
 
 @hot_kernel(inline="always")
 def plan(grid, P, W, M, state, e, k, t):
+    """No team-level decision: every agent acts on its own readings (a no-op).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : PIParams
+        The task's params (:func:`oneocean.tasks.pi.make`).
+    W : PIWork
+        The task's per-episode work arrays (:func:`oneocean.tasks.pi.make`).
+    M : PIPolicy
+        This policy's params (:func:`params`).
+    state : (E, N, STATE_DIM) float64
+        Vehicle states as the method knows them (its navigation estimate; the truth for the
+        oracle); layout in :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    """
     return
 
 
 @hot_kernel(inline="always")
 def act(grid, P, W, M, state, e, k, i, t, pe, pn):
+    """Agent ``i``'s action: detect plume events and follow its section low over the seabed.
+
+    While surveying at the survey altitude (within ``ALT_BAND_M`` of it) the agent's reading
+    ``W.sense[e, i]`` goes through :func:`detect`; the carrot of its waypoint list
+    (:func:`~oneocean.tasks.common.waypoint_carrot`) at ``M.alt`` above the seafloor (never
+    shallower than ``MIN_DEPTH_M``) is written to ``W.tgt[e, i]`` and sought with
+    :func:`~oneocean.tasks.common.seek_max`. Past its last waypoint the section is finished
+    (``W.done``) and an open event is closed (:func:`close_event` with ``at_end``).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : PIParams
+        The task's params (:func:`oneocean.tasks.pi.make`).
+    W : PIWork
+        The task's per-episode work arrays (:func:`oneocean.tasks.pi.make`); the policy's state
+        (module doc) is read and written in place.
+    M : PIPolicy
+        This policy's params (:func:`params`).
+    state : (E, N, STATE_DIM) float64
+        Vehicle states as the method knows them (its navigation estimate; the truth for the
+        oracle); layout in :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    t : float
+        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    pe, pn : float
+        The method's current estimate at the agent, east and north, m s-1 (the true current
+        for the oracle).
+
+    Returns
+    -------
+    ax, ay, az : float
+        Desired velocity relative to the water, world frame (x east, y down, z north), m s-1;
+        the loop clips it to ``v_max``.
+    psi : float
+        Commanded heading, rad (NaN: free).
+    """
     s = state[e, i]
     px = s[0]
     py = s[1]
@@ -192,9 +318,32 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
 
 @hot_kernel(inline="always")
 def detect(W, e, i, x, z, r, fe, fn, thr, estimator):
-    """Agent ``i``'s event detector: one reading ``r`` at ``(x, z)`` with the current
-    ``(fe, fn)`` it senses there (module doc). Opens, extends and closes events; an open
-    event's estimate is filed as a claim at every reading (:func:`file_claim`)."""
+    """Agent ``i``'s event detector: one reading ``r`` at ``(x, z)`` (module doc).
+
+    Opens, extends and closes events; an open event's estimate is filed as a claim at every
+    reading (:func:`file_claim`).
+
+    Parameters
+    ----------
+    W : PIWork
+        The task's work arrays; the event memory ``ev_*`` and the report ``claims`` /
+        ``nclaim`` are updated in place.
+    e : int
+        Episode index.
+    i : int
+        Agent index.
+    x, z : float
+        Where the reading was taken, as the agent knows it, m (east, north).
+    r : float
+        The reading, kg m-3.
+    fe, fn : float
+        The current the agent senses there, east and north, m s-1 (the reading's downstream
+        coordinate is along it).
+    thr : float
+        The sensor's detection threshold, kg m-3 (``P.thr``).
+    estimator : int
+        :data:`PEAK` or :data:`ONSET`: how the event's claim position is estimated.
+    """
     lvl = W.ev_lvl[e, i]   # trough, background, peak
     pos = W.ev_pos[e, i]   # origin x, z; peak x, z
     if W.ev_on[e, i] == 0:
@@ -241,9 +390,24 @@ def detect(W, e, i, x, z, r, fe, fn, thr, estimator):
 
 @hot_kernel(inline="always")
 def file_claim(W, e, i, x, z, strength):
-    """File (or update) the claim of agent ``i``'s open event in the team's report: the
-    event's own claim (a new one at its first reading, dropped when the report is full) holds
-    its latest estimate (a claim keeps the estimate of its strongest event)."""
+    """File (or update) the claim of agent ``i``'s open event in the team's report.
+
+    The event's own claim (a new one at its first reading, dropped when the report is full)
+    holds its latest estimate; a claim keeps the estimate of its strongest event.
+
+    Parameters
+    ----------
+    W : PIWork
+        The task's work arrays; ``claims``, ``nclaim`` and ``ev_claim`` are updated in place.
+    e : int
+        Episode index.
+    i : int
+        Agent index.
+    x, z : float
+        The event's current estimate of the leak position, m (east, north).
+    strength : float
+        The event's peak reading, kg m-3.
+    """
     j = W.ev_claim[e, i]
     claims = W.claims[e]
     if j < 0:
@@ -261,14 +425,29 @@ def file_claim(W, e, i, x, z, strength):
 
 @hot_kernel(inline="always")
 def close_event(W, e, i, px, pz, at_end):
-    """Close agent ``i``'s open event (the agent is at ``(px, pz)``). Its claim, at the
-    event's final estimate, merges into the nearest other final claim (not an open event's)
-    within ``MERGE_M`` if there is one (the same plume seen twice: a teammate's at a section
-    boundary, or its own event re-opened on one plume), keeping the stronger event's
-    estimate. ``at_end`` (the section is finished with the event open): a claim within
-    ``END_M`` of the agent is withdrawn -- the plume was still rising where the survey
-    stopped, so its source lies beyond the section (a teammate's, whose survey overlaps
-    ``OVERLAP_M``), not where the readings stop. The report is kept compact."""
+    """Close agent ``i``'s open event and settle its claim; the report is kept compact.
+
+    The claim, at the event's final estimate, merges into the nearest other final claim (not
+    an open event's) within ``MERGE_M`` if there is one (the same plume seen twice: a
+    teammate's at a section boundary, or the agent's own event re-opened on one plume),
+    keeping the stronger event's estimate.
+
+    Parameters
+    ----------
+    W : PIWork
+        The task's work arrays; ``ev_on``, ``ev_claim``, ``claims`` and ``nclaim`` are updated
+        in place.
+    e : int
+        Episode index.
+    i : int
+        Agent index.
+    px, pz : float
+        The agent's position as it knows it, m (east, north).
+    at_end : bool
+        The section is finished with the event open: a claim within ``END_M`` of the agent is
+        withdrawn -- the plume was still rising where the survey stopped, so its source lies
+        beyond the section (a teammate's, whose survey overlaps ``OVERLAP_M``).
+    """
     W.ev_on[e, i] = 0
     j = W.ev_claim[e, i]
     W.ev_claim[e, i] = -1
@@ -304,8 +483,20 @@ def close_event(W, e, i, px, pz, at_end):
 
 @hot_kernel(inline="always")
 def drop_claim(W, e, j):
-    """Remove claim ``j`` from the report: the last claim moves into its slot (an open event
-    filing into it follows)."""
+    """Remove claim ``j`` from the report: the last claim moves into its slot.
+
+    An open event filing into the moved claim follows it (``W.ev_claim``); the freed last row
+    is set to NaN.
+
+    Parameters
+    ----------
+    W : PIWork
+        The task's work arrays; ``claims``, ``nclaim`` and ``ev_claim`` are updated in place.
+    e : int
+        Episode index.
+    j : int
+        Index of the claim in ``W.claims[e]``.
+    """
     claims = W.claims[e]
     last = W.nclaim[e] - 1
     if j != last:
@@ -323,8 +514,20 @@ def drop_claim(W, e, j):
 
 @hot_kernel(inline="always")
 def peak_estimate(buf, n):
-    """Where the largest of the ``n`` readings ``buf[:n]`` ([x, z, value, downstream]) was
-    taken (the first of equal ones)."""
+    """Where the largest of an event's readings was taken (the first of equal ones).
+
+    Parameters
+    ----------
+    buf : (n_max, 4) float64
+        The event's readings [x (m), z (m), value (kg m-3), downstream coordinate (m)].
+    n : int
+        Readings in ``buf`` (>= 1).
+
+    Returns
+    -------
+    x, z : float
+        Position of the largest reading, m.
+    """
     m_best = 0
     for m in range(1, n):
         if buf[m, 2] > buf[m_best, 2]:
@@ -334,13 +537,30 @@ def peak_estimate(buf, n):
 
 @hot_kernel(inline="always")
 def onset_estimate(buf, n, b, peak):
-    """A source's position from the ``n`` readings ``buf[:n]`` ([x, z, value, downstream
-    coordinate]) of its plume event, background ``b``, peak ``peak`` (oracle).
+    """A source's position from its plume event's readings: the plume's upstream edge.
 
     A point source sits at the upstream edge of its plume. With ``lim = b + ONSET_FRAC (peak -
     b)``, the estimate is the weighted centroid (weights ``reading - b``) of the readings >=
     ``lim`` lying within ``ONSET_BAND_M`` (along the sensed current) of the most upstream of
-    them: the plume's peak in a cross-current, its onset in an along-pipe current."""
+    them: the plume's peak in a cross-current, its onset in an along-pipe current. The
+    estimator of both methods (:data:`ONSET`).
+
+    Parameters
+    ----------
+    buf : (n_max, 4) float64
+        The event's readings [x (m), z (m), value (kg m-3), downstream coordinate (m)].
+    n : int
+        Readings in ``buf`` (>= 1).
+    b : float
+        The event's background reading, kg m-3.
+    peak : float
+        The event's peak reading, kg m-3.
+
+    Returns
+    -------
+    x, z : float
+        Estimated source position, m (a flat signal: the first reading at or above ``lim``).
+    """
     lim = b + ONSET_FRAC * (peak - b)
     d_min = 1e300
     for m in range(n):

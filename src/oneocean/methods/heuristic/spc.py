@@ -52,6 +52,29 @@ MIN_BLOCK_FRAC = 1e-4
 
 
 class SPCPolicy(NamedTuple):
+    """Parameters ``M`` of the SPC policy (heuristic and oracle differ in their map timing).
+
+    Attributes
+    ----------
+    budget : float
+        Speed budget through the water, m s-1 (the vehicle's ``v_max``).
+    kp : float
+        Target-approach gain, s-1 (:data:`KP`).
+    kp_depth : float
+        Depth-hold gain, s-1 (:data:`KP_DEPTH`).
+    sep : float
+        Teammate repulsion radius, m (:data:`SEP_M`).
+    sep_gain : float
+        Repulsion gain, s-1 (:data:`SEP_GAIN`).
+    ring : float
+        Radius of the ring targets before the first map, m (``spill_radius_m / 2``).
+    map_every : int
+        A map every this many steps (heuristic: ``aerial_period_s / dt_s``; oracle: 1) ...
+    map_from : int
+        ... from this step on (heuristic: 1; oracle: 0).
+    block : int
+        Aerial-map block size, cells (:data:`BLOCK_CELLS`).
+    """
     budget: float       # speed budget through the water, m s-1
     kp: float           # target-approach gain, s-1
     kp_depth: float     # depth-hold gain, s-1
@@ -64,18 +87,69 @@ class SPCPolicy(NamedTuple):
 
 
 def plan_tokens(grid, tier: dict, init: dict) -> dict:
-    """The size of the scratch the task carries for this policy
-    (:func:`oneocean.tasks.spc.make`): ``map_blocks``, the aerial map's blocks of the field."""
+    """The size of the map scratch the task carries for this policy.
+
+    The scratch of :func:`oneocean.tasks.spc.make`: the aerial map's blocks.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        The cell's tier parameters plus ``dt_s`` and ``v_max``.
+    init : dict
+        The cell's episodes (:func:`oneocean.tasks.spc.reset`).
+        Reads the initial field ``C0`` (E, 1, nz, nx).
+
+    Returns
+    -------
+    dict
+        ``map_blocks``: the aerial map's blocks of the field (:func:`n_blocks`).
+    """
     nz, nx = init["C0"].shape[2:]
     return {"map_blocks": n_blocks(int(nz), int(nx))}
 
 
 def n_blocks(nz: int, nx: int) -> int:
-    """Aerial-map blocks of an (nz, nx) field (the size of the map scratch in ``W``)."""
+    """Aerial-map blocks of an (nz, nx) field: the size of the map scratch in ``W``.
+
+    Parameters
+    ----------
+    nz, nx : int
+        Field cells along z (north) and x (east).
+
+    Returns
+    -------
+    int
+        Blocks of ``BLOCK_CELLS x BLOCK_CELLS`` cells covering the field (partial blocks at the
+        edges included).
+    """
     return ((nx + BLOCK_CELLS - 1) // BLOCK_CELLS) * ((nz + BLOCK_CELLS - 1) // BLOCK_CELLS)
 
 
 def params(method: str, tier: dict, vehicle) -> SPCPolicy:
+    """The policy's params: the heuristic maps every aerial period, the oracle every step.
+
+    Both spend the vehicle's full speed budget with the same gains.
+
+    Parameters
+    ----------
+    method : str
+        The fused method, ``"heuristic"`` or ``"oracle"``
+        (:data:`oneocean.methods.heuristic.SENSING`).
+    tier : dict
+        The cell's tier parameters plus ``dt_s`` and ``v_max``
+        (:attr:`oneocean.tasks.Cell.params`).
+    vehicle : Vehicle
+        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+        Reads ``spill_radius_m`` (m), and for the heuristic ``aerial_period_s`` (s) and
+        ``dt_s``.
+
+    Returns
+    -------
+    SPCPolicy
+        Budget ``v_max``, the module's gains, the ring radius and the method's map timing.
+    """
     v_max = float(vehicle.v_max)
     ring = 0.5 * float(tier["spill_radius_m"])
     if method == "heuristic":
@@ -149,8 +223,33 @@ def _assign(S, bm, bx, bz, cnt, tgt, done, tot):
 
 @hot_kernel(inline="always")
 def plan(grid, P, W, M, state, e, k, t):
-    """Ring targets around the report at step 0; the aerial map and the greedy assignment
-    whenever a map is available (the map time ``W.tmap`` is then ``t``)."""
+    """Ring targets around the report at step 0; the aerial map and greedy assignment at map steps.
+
+    At a map step (``k >= M.map_from`` and ``k % M.map_every == 0``) the field is summed into
+    blocks (``W.bm``, ``W.bx``, ``W.bz``) and the agents are assigned to them greedily
+    (``W.tgt[e]``); the map time ``W.tmap[e]`` is then ``t``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : SPCParams
+        The task's params (:func:`oneocean.tasks.spc.make`).
+    W : SPCWork
+        The task's per-episode work arrays (:func:`oneocean.tasks.spc.make`); the plan tokens
+        ``tgt`` / ``tmap`` and the map scratch are written in place.
+    M : SPCPolicy
+        This policy's params (:func:`params`).
+    state : (E, N, STATE_DIM) float64
+        Vehicle states as the method knows them (its navigation estimate; the truth for the
+        oracle); layout in :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    """
     tgt = W.tgt[e]
     if k == 0:
         # before the first map: a ring around the reported centroid (the oracle maps at k = 0)
@@ -169,6 +268,48 @@ def plan(grid, P, W, M, state, e, k, t):
 
 @hot_kernel(inline="always")
 def act(grid, P, W, M, state, e, k, i, t, pe, pn):
+    """Agent ``i``'s action: seek its target drifted with the probed current, apart from teammates.
+
+    The target ``W.tgt[e, i]`` drifted with the current estimate since the map time is
+    written to ``W.aim[e, i]`` (the observation's goal cue); the through-water velocity
+    ``M.kp (aim - position)`` (capped at ``M.budget``) plus a teammate repulsion inside
+    ``M.sep`` is realised against the current by :func:`~oneocean.tasks.common.steer`, with a
+    depth hold toward ``P.y`` (gain ``M.kp_depth``).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : SPCParams
+        The task's params (:func:`oneocean.tasks.spc.make`).
+    W : SPCWork
+        The task's per-episode work arrays (:func:`oneocean.tasks.spc.make`); reads ``tgt`` /
+        ``tmap``, writes ``aim``.
+    M : SPCPolicy
+        This policy's params (:func:`params`).
+    state : (E, N, STATE_DIM) float64
+        Vehicle states as the method knows them (its navigation estimate; the truth for the
+        oracle); layout in :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    t : float
+        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    pe, pn : float
+        The method's current estimate at the agent, east and north, m s-1 (the true current
+        for the oracle).
+
+    Returns
+    -------
+    ax, ay, az : float
+        Desired velocity relative to the water, world frame (x east, y down, z north), m s-1;
+        the loop clips it to ``v_max``.
+    psi : float
+        Commanded heading, rad (NaN: free).
+    """
     S = state[e]
     s = S[i]
     px = s[0]

@@ -76,6 +76,19 @@ N_SPOKES = 5
 
 
 class UPLPolicy(NamedTuple):
+    """Parameters ``M`` of the UPL policy (the same for heuristic and oracle).
+
+    Attributes
+    ----------
+    speed : float
+        Speed budget through the water, m s-1 (the vehicle's ``v_max``).
+    kp : float
+        Slot-tracking gain, s-1 (:data:`KP`).
+    kp_hold : float
+        Hold gain (object over the site), s-1 (:data:`KP_HOLD`).
+    hold_v : float
+        Hold speed cap, m s-1 (:data:`HOLD_SPEED_MS`).
+    """
     speed: float        # speed budget through the water, m s-1
     kp: float           # slot-tracking gain, s-1
     kp_hold: float      # hold gain, s-1
@@ -83,15 +96,55 @@ class UPLPolicy(NamedTuple):
 
 
 def params(method: str, tier: dict, vehicle) -> UPLPolicy:
-    """The policy's parameters (the same for heuristic and oracle)."""
+    """The policy's params (the same for heuristic and oracle).
+
+    Parameters
+    ----------
+    method : str
+        The fused method, ``"heuristic"`` or ``"oracle"``
+        (:data:`oneocean.methods.heuristic.SENSING`).
+    tier : dict
+        The cell's tier parameters plus ``dt_s`` and ``v_max``
+        (:attr:`oneocean.tasks.Cell.params`).
+    vehicle : Vehicle
+        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+
+    Returns
+    -------
+    UPLPolicy
+        Budget ``v_max`` and the module's gains.
+    """
     v_max = float(vehicle.v_max)
     return UPLPolicy(v_max, KP, KP_HOLD, HOLD_SPEED_MS)
 
 
 def prepare(grid, P, W, M: UPLPolicy, t0, LP=None, LS=None, X=None) -> None:
-    """Before the first step: what the method perceives of the object (``W.pcfg``: the run
-    seed of the sonar's error stream and whether the method perceives the object exactly,
-    ``LP.sens.true_target``: the oracle and the ``true_target`` ablation)."""
+    """Before the first step: set up what the method perceives of the object.
+
+    Writes ``W.pcfg`` (:func:`oneocean.tasks.upl.perception_setup`): the run seed of the
+    sonar's error stream and whether the method perceives the object exactly
+    (``LP.sens.true_target``: the oracle and the ``true_target`` ablation).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (unused).
+    P : UPLParams
+        The task's params (unused).
+    W : UPLWork
+        The task's per-episode work arrays; ``W.pcfg`` is written in place.
+    M : UPLPolicy
+        This policy's params (unused).
+    t0 : (E,) float64
+        Episode start times, s since the grid's ``time0_unix_s`` (unused).
+    LP : LoopParams, optional
+        The loop's params (:class:`oneocean.tasks.loop.LoopParams`): its seed, ``LP.sens`` and
+        ``LP.e0``; None: nothing is written.
+    LS : LoopState, optional
+        The loop's state (unused).
+    X : (E, N, STATE_DIM) float64, optional
+        The agents' known state (unused).
+    """
     perception_setup(W, LP)
 
 
@@ -103,6 +156,36 @@ def _spiral_radius(P, phi):
 
 @hot_kernel(inline="always")
 def plan(grid, P, W, M, state, e, k, t):
+    """The team's step: perceive the object, assign slots, search, hold the lift (module doc).
+
+    Updates the object's estimate (:func:`oneocean.tasks.upl.perceive`); at step 0 the greedy
+    nearest (agent, slot) assignment ``W.target[e]``; before the first fix the search flag and
+    spiral turn ``W.srch[e]``; the site estimate ``W.hsite[e]`` when the quorum first holds;
+    and the step's hold velocity ``W.hold[e]`` toward it (gain ``M.kp_hold``, capped at
+    ``M.hold_v``).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : UPLParams
+        The task's params (:func:`oneocean.tasks.upl.make`).
+    W : UPLWork
+        The task's per-episode work arrays (:func:`oneocean.tasks.upl.make`); the policy's state
+        (``oest``, ``ocov``, ``odet``, ``target``, ``srch``, ``hsite``, ``hold``) is written in
+        place.
+    M : UPLPolicy
+        This policy's params (:func:`params`).
+    state : (E, N, STATE_DIM) float64
+        Vehicle states as the method knows them (its navigation estimate; the truth for the
+        oracle); layout in :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    """
     n = state.shape[1]
     S = state[e]
     TG = W.target[e]
@@ -165,6 +248,52 @@ def plan(grid, P, W, M, state, e, k, t):
 
 @hot_kernel(inline="always")
 def act(grid, P, W, M, state, e, k, i, t, pe, pn):
+    """Agent ``i``'s action: seek its slot (or its search point), or hold and lift once attached.
+
+    An unattached agent whose slot a teammate holds retargets the nearest free slot
+    (``W.target``). While the team searches, the slot's horizontal position is replaced by the
+    agent's point of the search spiral, at the slot depth but at least ``SEARCH_ALTITUDE_M``
+    above the seafloor there (and at least 1 m deep).
+    An attached agent, once the quorum is attached, tracks its slot plus the hold velocity
+    ``W.hold[e]`` and lifts at full speed (the horizontal part has priority); otherwise
+    :func:`~oneocean.tasks.common.seek_max` toward the slot with the object's estimated
+    velocity fed forward.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : UPLParams
+        The task's params (:func:`oneocean.tasks.upl.make`).
+    W : UPLWork
+        The task's per-episode work arrays (:func:`oneocean.tasks.upl.make`); reads the attachments
+        ``att`` / ``owner``, the object's estimate ``oest`` and the plan tokens, may update
+        ``target``.
+    M : UPLPolicy
+        This policy's params (:func:`params`).
+    state : (E, N, STATE_DIM) float64
+        Vehicle states as the method knows them (its navigation estimate; the truth for the
+        oracle); layout in :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    t : float
+        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    pe, pn : float
+        The method's current estimate at the agent, east and north, m s-1 (the true current
+        for the oracle).
+
+    Returns
+    -------
+    ax, ay, az : float
+        Desired velocity relative to the water, world frame (x east, y down, z north), m s-1;
+        the loop clips it to ``v_max``.
+    psi : float
+        Commanded heading, rad (NaN: free).
+    """
     n = state.shape[1]
     speed = M.speed
     kp = M.kp

@@ -59,8 +59,20 @@ WAYPOINT_EVERY = 30
 class Decision(NamedTuple):
     """A choice to put to the model for one episode now.
 
-    ``options`` is what :meth:`Adapter.apply` needs to turn an assignment into plan tokens
-    (SPC: the candidates' centroids (n_targets, 2) m; AS/PI: unused, empty)."""
+    Attributes
+    ----------
+    summary : str
+        The state as the heuristic knows it (the user message's text).
+    n_agents : int
+        Agents to assign.
+    n_targets : int
+        Targets to choose among.
+    fallback : tuple of int
+        The heuristic's own plan as an assignment.
+    options : ndarray
+        What :meth:`Adapter.apply` needs to turn an assignment into plan tokens (SPC: the
+        candidates' centroids (n_targets, 2), m; AS/PI: unused, empty).
+    """
 
     summary: str
     n_agents: int
@@ -95,11 +107,46 @@ class Adapter:
     task = ""
 
     def default_every(self, params: dict, vehicle) -> int:
-        """The planning period K (steps) when none is given."""
+        """The planning period K when none is given.
+
+        Parameters
+        ----------
+        params : dict
+            The cell's tier parameters plus ``dt_s`` and ``v_max``
+            (:attr:`oneocean.tasks.Cell.params`).
+        vehicle : Vehicle
+            The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+
+        Returns
+        -------
+        int
+            Steps (:data:`WAYPOINT_EVERY`).
+        """
         return WAYPOINT_EVERY
 
     def every(self, params: dict, vehicle, every: int | None) -> int:
-        """The planning period to use: ``every`` (checked) or :meth:`default_every`."""
+        """The planning period to use: ``every`` (checked) or :meth:`default_every`.
+
+        Parameters
+        ----------
+        params : dict
+            The cell's tier parameters plus ``dt_s`` and ``v_max``
+            (:attr:`oneocean.tasks.Cell.params`).
+        vehicle : Vehicle
+            The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+        every : int or None
+            The requested period, steps (>= 1); None: the default.
+
+        Returns
+        -------
+        int
+            The period, steps.
+
+        Raises
+        ------
+        ConfigError
+            If ``every`` is not an integer >= 1.
+        """
         if every is None:
             return self.default_every(params, vehicle)
         if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
@@ -108,9 +155,45 @@ class Adapter:
         return int(every)
 
     def decide(self, ep, e: int) -> Decision | None:
+        """Write the fallback into ``W`` and return the choice to put to the model, if any.
+
+        The fallback (what the fused heuristic would plan now) is in place whatever the model
+        does.
+
+        Parameters
+        ----------
+        ep : Episodes
+            The batch (:class:`oneocean.tasks.episodes.Episodes`, built with ``fused_plan=False``).
+        e : int
+            Episode index.
+
+        Returns
+        -------
+        Decision or None
+            The summary, counts, fallback and options of the choice; None when there is no choice
+            now (no call).
+        """
         raise NotImplementedError
 
     def apply(self, ep, e: int, d: Decision, assignment: Sequence[int]) -> None:
+        """Write a valid assignment into the plan tokens of ``W``.
+
+        Parameters
+        ----------
+        ep : Episodes
+            The batch (:class:`oneocean.tasks.episodes.Episodes`, built with ``fused_plan=False``).
+        e : int
+            Episode index.
+        d : Decision
+            The decision it answers (:meth:`decide`).
+        assignment : sequence of int
+            ``d.n_agents`` targets in ``[0, d.n_targets)`` (validated by the planner).
+
+        Raises
+        ------
+        ValueError
+            If the assignment does not fit ``d`` (a caller's bug).
+        """
         raise NotImplementedError
 
 
@@ -129,16 +212,55 @@ def _spc_plan(grid, P, W, M, state, e, k, t, bm, bx, bz):
 
 
 def spc_candidates(bm: np.ndarray, total: float, n_agents: int) -> np.ndarray:
-    """Block indices offered as targets: mass > ``MIN_BLOCK_FRAC * total``, heaviest first
-    (ties by block index), the first ``n_agents + EXTRA_CANDIDATES``."""
+    """Block indices offered as SPC targets.
+
+    Blocks with a mass above ``MIN_BLOCK_FRAC * total``, heaviest first (ties by block index),
+    the first ``n_agents + EXTRA_CANDIDATES``.
+
+    Parameters
+    ----------
+    bm : (nb,) float64
+        The aerial map's block masses, kg.
+    total : float
+        The mapped mass, kg.
+    n_agents : int
+        Team size N.
+
+    Returns
+    -------
+    (n,) int64
+        Block indices.
+    """
     valid = np.flatnonzero(bm > SPC_POLICY.MIN_BLOCK_FRAC * total)
     order = valid[np.lexsort((valid, -bm[valid]))]
     return order[:n_agents + EXTRA_CANDIDATES]
 
 
 def spc_summary(t_rel: float, k: int, report, pos, cents, masses) -> str:
-    """The SPC state as the heuristic knows it: time, the spill report, the aerial map's
-    candidate blocks, the agents' positions."""
+    """The SPC state as the heuristic knows it, as text for the model.
+
+    Time, the spill report, the aerial map's candidate blocks and the agents' positions.
+
+    Parameters
+    ----------
+    t_rel : float
+        Time since the episode's start, s.
+    k : int
+        Step index.
+    report : (2,) float64
+        The spill's reported initial centroid (x, z), m.
+    pos : (N, 2) float64
+        The agents' known positions (x, z), m.
+    cents : (n_targets, 2) float64
+        The candidate blocks' mass centroids (x, z), m.
+    masses : (n_targets,) float64
+        The candidate blocks' masses, kg.
+
+    Returns
+    -------
+    str
+        The summary, one fact per line.
+    """
     lines = [f"Task: surface oil-spill cleanup with {len(pos)} surface vehicles. Time "
              f"{t_rel:.0f} s since the start (step {k}). The slick drifts with the current; "
              "each vehicle removes oil around itself.",
@@ -159,9 +281,46 @@ class SPCAdapter(Adapter):
     task = "SPC"
 
     def default_every(self, params: dict, vehicle) -> int:
+        """The planning period K when none is given: the heuristic's aerial-map period.
+
+        Parameters
+        ----------
+        params : dict
+            The cell's tier parameters plus ``dt_s`` and ``v_max``
+            (:attr:`oneocean.tasks.Cell.params`).
+        vehicle : Vehicle
+            The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+
+        Returns
+        -------
+        int
+            Steps (the heuristic's ``map_every``).
+        """
         return int(SPC_POLICY.params("heuristic", params, vehicle).map_every)
 
     def every(self, params: dict, vehicle, every: int | None) -> int:
+        """The planning period to use: ``every`` (checked) or :meth:`default_every`.
+
+        Parameters
+        ----------
+        params : dict
+            The cell's tier parameters plus ``dt_s`` and ``v_max``
+            (:attr:`oneocean.tasks.Cell.params`).
+        vehicle : Vehicle
+            The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+        every : int or None
+            The requested period, steps (>= 1); None: the default.
+
+        Returns
+        -------
+        int
+            The period, steps: a multiple of the aerial-map period.
+
+        Raises
+        ------
+        ConfigError
+            If ``every`` is not an integer >= 1 or not a multiple of the map period.
+        """
         k = super().every(params, vehicle, every)
         period = self.default_every(params, vehicle)
         if k % period:
@@ -170,6 +329,30 @@ class SPCAdapter(Adapter):
         return k
 
     def decide(self, ep, e: int) -> Decision | None:
+        """Write the fallback into ``W`` and return the choice to put to the model, if any.
+
+        The fallback (what the fused heuristic would plan now) is in place whatever the model
+        does.
+
+        Parameters
+        ----------
+        ep : Episodes
+            The batch (:class:`oneocean.tasks.episodes.Episodes`, built with ``fused_plan=False``).
+        e : int
+            Episode index.
+
+        Returns
+        -------
+        Decision or None
+            The summary, counts, fallback and options of the choice; None when there is no choice
+            now (no call).
+
+        Notes
+        -----
+        A decision is made at the heuristic's map steps after step 0 when the greedy gave every
+        agent a target; the fallback is each agent's greedy target among the candidates
+        (:func:`spc_candidates`).
+        """
         k, t = _now(ep, e)
         W, M = ep.W, ep.M
         nb = W.bm.shape[1]
@@ -194,6 +377,28 @@ class SPCAdapter(Adapter):
         return Decision(summary, n_ag, len(cand), tuple(fallback), cents)
 
     def apply(self, ep, e: int, d: Decision, assignment: Sequence[int]) -> None:
+        """Write a valid assignment into the plan tokens of ``W``.
+
+        Parameters
+        ----------
+        ep : Episodes
+            The batch (:class:`oneocean.tasks.episodes.Episodes`, built with ``fused_plan=False``).
+        e : int
+            Episode index.
+        d : Decision
+            The decision it answers (:meth:`decide`).
+        assignment : sequence of int
+            ``d.n_agents`` targets in ``[0, d.n_targets)`` (validated by the planner).
+
+        Raises
+        ------
+        ValueError
+            If the assignment does not fit ``d`` (a caller's bug).
+
+        Notes
+        -----
+        Sets ``W.tgt[e, i]`` to candidate ``assignment[i]``'s centroid and ``W.tmap[e] = t``.
+        """
         a = _check_assignment(assignment, d)
         _, t = _now(ep, e)
         ep.W.tgt[e] = d.options[a]
@@ -203,21 +408,72 @@ class SPCAdapter(Adapter):
 # ------------------------------------------------------------------------------ AS, PI
 
 class WaypointAdapter(Adapter):
-    """Waypoint skipping along each agent's list (module doc); subclasses say what the team
-    knows of its progress and which agents have no choice."""
+    """Waypoint skipping along each agent's list (module doc).
+
+    Subclasses say what the team knows of its progress and which agents have no choice.
+    """
 
     label = ""
 
     def choices(self, W, e: int) -> np.ndarray:
-        """(N,) waypoints each agent may head for next: its remaining ones, at most
-        ``HORIZON`` (0: list finished; 1: no choice)."""
+        """Waypoints each agent may head for next: its remaining ones, at most ``HORIZON``.
+
+        Parameters
+        ----------
+        W : Work
+            The task's work arrays (:class:`oneocean.tasks.as_.ASWork` or
+            :class:`oneocean.tasks.pi.PIWork`).
+        e : int
+            Episode index.
+
+        Returns
+        -------
+        (N,) int64
+            Per agent: 0 (list finished or nothing to choose), 1 (no choice) up to ``HORIZON``.
+        """
         return np.clip(W.wcount[e] - W.widx[e], 0, HORIZON)
 
     def progress(self, ep, e: int) -> list[str]:
-        """Task-level lines of the summary (what the team knows of its progress)."""
+        """Task-level lines of the summary (what the team knows of its progress).
+
+        Parameters
+        ----------
+        ep : Episodes
+            The batch (:class:`oneocean.tasks.episodes.Episodes`, built with ``fused_plan=False``).
+        e : int
+            Episode index.
+
+        Returns
+        -------
+        list of str
+            Summary lines.
+        """
         return []
 
     def decide(self, ep, e: int) -> Decision | None:
+        """Write the fallback into ``W`` and return the choice to put to the model, if any.
+
+        The fallback (what the fused heuristic would plan now) is in place whatever the model
+        does.
+
+        Parameters
+        ----------
+        ep : Episodes
+            The batch (:class:`oneocean.tasks.episodes.Episodes`, built with ``fused_plan=False``).
+        e : int
+            Episode index.
+
+        Returns
+        -------
+        Decision or None
+            The summary, counts, fallback and options of the choice; None when there is no choice
+            now (no call).
+
+        Notes
+        -----
+        No decision when some agent has fewer than two waypoints to choose among; the fallback is
+        0 for every agent (the planned order).
+        """
         W = ep.W
         left = self.choices(W, e)
         n_t = int(left.min())
@@ -242,6 +498,28 @@ class WaypointAdapter(Adapter):
                         np.zeros((0, 2)))
 
     def apply(self, ep, e: int, d: Decision, assignment: Sequence[int]) -> None:
+        """Write a valid assignment into the plan tokens of ``W``.
+
+        Parameters
+        ----------
+        ep : Episodes
+            The batch (:class:`oneocean.tasks.episodes.Episodes`, built with ``fused_plan=False``).
+        e : int
+            Episode index.
+        d : Decision
+            The decision it answers (:meth:`decide`).
+        assignment : sequence of int
+            ``d.n_agents`` targets in ``[0, d.n_targets)`` (validated by the planner).
+
+        Raises
+        ------
+        ValueError
+            If the assignment does not fit ``d`` (a caller's bug).
+
+        Notes
+        -----
+        Agent ``i`` skips ``assignment[i]`` waypoints: ``W.widx[e, i]`` advances by it.
+        """
         a = _check_assignment(assignment, d)
         for i, j in enumerate(a):
             if j > 0:
@@ -255,6 +533,20 @@ class ASAdapter(WaypointAdapter):
     label = "area scan (lawnmower survey imaging the seafloor of a region)"
 
     def progress(self, ep, e: int) -> list[str]:
+        """The survey region and the share of its seafloor imaged so far.
+
+        Parameters
+        ----------
+        ep : Episodes
+            The batch (:class:`oneocean.tasks.episodes.Episodes`, built with ``fused_plan=False``).
+        e : int
+            Episode index.
+
+        Returns
+        -------
+        list of str
+            Summary lines.
+        """
         W = ep.W
         x0, z0, x1, z1 = W.region[e]
         n_cells = int(W.ncell[e, 0] * W.ncell[e, 1])
@@ -264,19 +556,51 @@ class ASAdapter(WaypointAdapter):
 
 
 class PIAdapter(WaypointAdapter):
-    """PI: skip along one's pipeline section; no choice in transit to the section start
-    (``widx == 0``) nor once the section is finished (``W.done``)."""
+    """PI: skip along one's pipeline section.
+
+    No choice in transit to the section start (``widx == 0``) nor once the section is
+    finished (``W.done``).
+    """
 
     task = "PI"
     label = ("pipeline inspection for leaks (each vehicle surveys its section of the "
              "pipeline)")
 
     def choices(self, W, e: int) -> np.ndarray:
+        """Waypoints each agent may head for next (none in transit or once finished).
+
+        Parameters
+        ----------
+        W : Work
+            The task's work arrays (:class:`oneocean.tasks.as_.ASWork` or
+            :class:`oneocean.tasks.pi.PIWork`).
+        e : int
+            Episode index.
+
+        Returns
+        -------
+        (N,) int64
+            Per agent: 0 (list finished or nothing to choose), 1 (no choice) up to ``HORIZON``.
+        """
         left = super().choices(W, e)
         left = np.where(W.widx[e] == 0, np.minimum(left, 1), left)
         return np.where(W.done[e] == 1, 0, left)
 
     def progress(self, ep, e: int) -> list[str]:
+        """The leak claims the team has filed so far.
+
+        Parameters
+        ----------
+        ep : Episodes
+            The batch (:class:`oneocean.tasks.episodes.Episodes`, built with ``fused_plan=False``).
+        e : int
+            Episode index.
+
+        Returns
+        -------
+        list of str
+            Summary lines.
+        """
         W = ep.W
         n = int(W.nclaim[e])
         claims = "; ".join(_xz(W.claims[e, j, 0], W.claims[e, j, 1]) for j in range(n))
@@ -292,7 +616,23 @@ ADAPTERS: dict[str, Adapter] = {
 
 
 def adapter_for(task: str) -> Adapter:
-    """The adapter of ``task``; a one-line :class:`ConfigError` for a task without one."""
+    """The adapter of ``task``.
+
+    Parameters
+    ----------
+    task : str
+        Task id (``SPC``, ``AS`` or ``PI``).
+
+    Returns
+    -------
+    Adapter
+        Its entry of :data:`ADAPTERS`.
+
+    Raises
+    ------
+    ConfigError
+        One line, for a task without an adapter.
+    """
     try:
         return ADAPTERS[task]
     except KeyError:

@@ -30,13 +30,44 @@ RECORD_FIELDS = ("text", "prompt_tokens", "completion_tokens", "latency_s")
 
 
 def canonical_json(obj) -> str:
-    """Compact JSON with sorted keys: equal values give equal strings."""
+    """Compact JSON with sorted keys: equal values give equal strings.
+
+    Parameters
+    ----------
+    obj : object
+        A JSON-able value (no NaN or infinity).
+
+    Returns
+    -------
+    str
+        The JSON text (non-ASCII characters kept).
+    """
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=False,
                       allow_nan=False)
 
 
 def cache_key(model: str, messages: Sequence[dict], temperature: float, max_tokens: int) -> str:
-    """The hex sha256 naming the reply to ``messages`` under these settings."""
+    """The hex sha256 naming the reply to ``messages`` under these settings.
+
+    The hash of the canonical JSON (:func:`canonical_json`) of the settings, the messages and
+    :data:`CACHE_SCHEMA`.
+
+    Parameters
+    ----------
+    model : str
+        Model id (not the base URL: the same model behind another server shares entries).
+    messages : sequence of dict
+        Chat messages.
+    temperature : float
+        Sampling temperature.
+    max_tokens : int
+        Output-token limit.
+
+    Returns
+    -------
+    str
+        64 hex digits.
+    """
     payload = {
         "schema": CACHE_SCHEMA,
         "model": str(model),
@@ -65,7 +96,13 @@ class ResponseCache:
     """Replies stored as ``<directory>/<key>.json``.
 
     :meth:`get` returns the stored record or None (an unreadable or foreign file is a miss and
-    is overwritten by the next :meth:`put`)."""
+    is overwritten by the next :meth:`put`).
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        The cache directory (created by the first :meth:`put`).
+    """
 
     def __init__(self, directory: str | os.PathLike):
         self.directory = Path(directory)
@@ -74,11 +111,34 @@ class ResponseCache:
         return f"ResponseCache({str(self.directory)!r})"
 
     def path(self, key: str) -> Path:
-        """The file holding ``key``."""
+        """The file holding ``key``.
+
+        Parameters
+        ----------
+        key : str
+            A cache key (:func:`cache_key`).
+
+        Returns
+        -------
+        Path
+            ``<directory>/<key>.json``.
+        """
         return self.directory / f"{key}.json"
 
     def get(self, key: str) -> dict | None:
-        """The record stored under ``key``, or None."""
+        """The record stored under ``key``, or None.
+
+        Parameters
+        ----------
+        key : str
+            A cache key.
+
+        Returns
+        -------
+        dict or None
+            The stored record (``text``, ``prompt_tokens``, ``completion_tokens``, ``latency_s``,
+            ...); None if absent, unreadable or not a record of this :data:`CACHE_SCHEMA`.
+        """
         try:
             with open(self.path(key), encoding="utf-8") as fh:
                 obj = json.load(fh)
@@ -87,7 +147,25 @@ class ResponseCache:
         return obj if _is_record(obj) else None
 
     def put(self, key: str, record: dict) -> Path:
-        """Store ``record`` (plus the schema version and key) under ``key`` atomically."""
+        """Store ``record`` (plus the schema version and key) under ``key`` atomically.
+
+        Parameters
+        ----------
+        key : str
+            A cache key.
+        record : dict
+            The reply's record (:data:`RECORD_FIELDS` and the request's settings).
+
+        Returns
+        -------
+        Path
+            The file written.
+
+        Raises
+        ------
+        ConfigError
+            One line, if the directory or the entry cannot be written.
+        """
         obj = {**record, "schema": CACHE_SCHEMA, "key": key}
         try:
             self.directory.mkdir(parents=True, exist_ok=True)

@@ -34,8 +34,19 @@ ERROR_KINDS = ("http", "timeout", "connection", "bad_response")
 
 
 class LLMError(RuntimeError):
-    """The endpoint gave no usable reply. ``str(err)`` is one line; ``kind`` is one of
-    :data:`ERROR_KINDS`; ``latency_s`` is the wall time spent before giving up."""
+    """The endpoint gave no usable reply.
+
+    ``str(err)`` is one line.
+
+    Parameters
+    ----------
+    kind : str
+        What went wrong, one of :data:`ERROR_KINDS`; kept as ``err.kind``.
+    message : str
+        The message, collapsed to one line.
+    latency_s : float, optional
+        Wall time spent before giving up, s (default 0; kept as ``err.latency_s``).
+    """
 
     def __init__(self, kind: str, message: str, latency_s: float = 0.0):
         assert kind in ERROR_KINDS, kind
@@ -46,12 +57,28 @@ class LLMError(RuntimeError):
 
 @dataclass(frozen=True)
 class ClientConfig:
-    """Where and how to ask.
+    """Where and how to ask; checked when built (:func:`check_config`).
 
-    ``base_url`` is the API root including its version prefix (e.g.
-    ``http://127.0.0.1:8000/v1``); ``api_key_env`` names the environment variable holding the
-    key (empty: send no key, as local servers usually need none); ``timeout_s`` bounds each
-    socket operation (connect, each read); ``max_tokens`` bounds the output.
+    Parameters
+    ----------
+    base_url : str
+        The API root including its version prefix (e.g. ``http://127.0.0.1:8000/v1``).
+    model : str
+        Model id sent to the endpoint (part of the cache key).
+    api_key_env : str, optional
+        Name of the environment variable holding the key (default ``""``: send no key, as local
+        servers usually need none).
+    temperature : float, optional
+        Sampling temperature, >= 0 (default 0).
+    timeout_s : float, optional
+        Bound of each socket operation (connect, each read), s (default 30).
+    max_tokens : int, optional
+        Output-token limit, >= 1 (default 256).
+
+    Raises
+    ------
+    ConfigError
+        One line, if the configuration cannot work.
     """
 
     base_url: str
@@ -71,7 +98,19 @@ def _is_number(value) -> bool:
 
 
 def check_config(cfg: ClientConfig) -> None:
-    """Raise a one-line :class:`ConfigError` if ``cfg`` cannot work."""
+    """Check a client configuration.
+
+    Parameters
+    ----------
+    cfg : ClientConfig
+        The configuration.
+
+    Raises
+    ------
+    ConfigError
+        One line, naming the first key that cannot work (URL not http(s), empty model, a
+        non-string ``api_key_env``, a negative temperature, a timeout <= 0, ``max_tokens`` < 1).
+    """
     url, model, env = cfg.base_url, cfg.model, cfg.api_key_env
     if not isinstance(url, str) or not url.startswith(("http://", "https://")):
         raise ConfigError(f"llm.base_url must be an http(s) URL, got {url!r}")
@@ -89,10 +128,25 @@ def check_config(cfg: ClientConfig) -> None:
 
 
 def read_api_key(env_name: str, environ: dict | None = None) -> str | None:
-    """The API key from the environment variable ``env_name`` (None if ``env_name`` is empty).
+    """The API key from the environment variable ``env_name``.
 
-    A non-empty name whose variable is unset or empty is a one-line :class:`ConfigError` naming
-    the variable (never showing any value)."""
+    Parameters
+    ----------
+    env_name : str
+        The variable's name; empty: no key.
+    environ : dict, optional
+        The environment (default ``os.environ``).
+
+    Returns
+    -------
+    str or None
+        The key; None if ``env_name`` is empty.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the variable (never showing any value) if it is unset or empty.
+    """
     if not env_name:
         return None
     environ = os.environ if environ is None else environ
@@ -105,12 +159,23 @@ def read_api_key(env_name: str, environ: dict | None = None) -> str | None:
 
 @dataclass(frozen=True)
 class Reply:
-    """One chat completion: the assistant's ``text``, token counts from the API's ``usage``
-    (None where the endpoint gave none), ``latency_s`` and ``cached``.
+    """One chat completion.
 
     ``latency_s`` is the wall time of the request that fetched the reply: a cache hit carries
     the latency (and the usage) recorded when the reply was first fetched, so a rerun from the
-    cache reports the same numbers (``cached`` tells the two apart)."""
+    cache reports the same numbers (``cached`` tells the two apart).
+
+    Parameters
+    ----------
+    text : str
+        The assistant's text.
+    prompt_tokens, completion_tokens : int or None
+        Token counts from the API's ``usage`` (None where the endpoint gave none).
+    latency_s : float
+        Wall time of the fetching request, s.
+    cached : bool
+        True if served from the response cache.
+    """
 
     text: str
     prompt_tokens: int | None
@@ -120,12 +185,36 @@ class Reply:
 
 
 def endpoint_url(base_url: str) -> str:
-    """``{base_url}/chat/completions`` with exactly one slash between."""
+    """The chat-completions URL of an API root.
+
+    Parameters
+    ----------
+    base_url : str
+        The API root.
+
+    Returns
+    -------
+    str
+        ``{base_url}/chat/completions`` with exactly one slash between.
+    """
     return base_url.rstrip("/") + "/chat/completions"
 
 
 def request_body(cfg: ClientConfig, messages: Sequence[dict]) -> dict:
-    """The JSON body of a chat-completions request for ``messages``."""
+    """The JSON body of a chat-completions request.
+
+    Parameters
+    ----------
+    cfg : ClientConfig
+        Model, temperature and output-token limit.
+    messages : sequence of dict
+        Chat messages (``role``, ``content``).
+
+    Returns
+    -------
+    dict
+        ``model``, ``messages``, ``temperature``, ``max_tokens`` and ``stream: False``.
+    """
     return {
         "model": cfg.model,
         "messages": [dict(m) for m in messages],
@@ -146,9 +235,25 @@ def _usage_count(usage: Any, name: str) -> int | None:
 
 
 def parse_response(raw: bytes) -> tuple[str, int | None, int | None]:
-    """``(text, prompt_tokens, completion_tokens)`` from a chat-completions response body.
+    """The text and token counts of a chat-completions response body.
 
-    Raises :class:`LLMError` (kind ``bad_response``) if the body is not the expected JSON."""
+    Parameters
+    ----------
+    raw : bytes
+        The response body (UTF-8 JSON).
+
+    Returns
+    -------
+    text : str
+        The assistant's text.
+    prompt_tokens, completion_tokens : int or None
+        Token counts (None where the response has none).
+
+    Raises
+    ------
+    LLMError
+        Kind ``bad_response``, if the body is not the expected JSON.
+    """
     try:
         data = json.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as err:
@@ -157,9 +262,27 @@ def parse_response(raw: bytes) -> tuple[str, int | None, int | None]:
 
 
 def parse_completion(data: Any) -> tuple[str, int | None, int | None]:
-    """``(text, prompt_tokens, completion_tokens)`` from a decoded chat completion (the
-    OpenAI layout: ``choices[0].message.content`` and ``usage``); :class:`LLMError` (kind
-    ``bad_response``) if it has no string content."""
+    """The text and token counts of a decoded chat completion.
+
+    The OpenAI layout: ``choices[0].message.content`` and ``usage``.
+
+    Parameters
+    ----------
+    data : dict
+        The decoded completion.
+
+    Returns
+    -------
+    text : str
+        The assistant's text.
+    prompt_tokens, completion_tokens : int or None
+        Token counts from ``usage`` (None where absent or not a non-negative integer).
+
+    Raises
+    ------
+    LLMError
+        Kind ``bad_response``, if it has no string content.
+    """
     try:
         text = data["choices"][0]["message"]["content"]
     except (KeyError, IndexError, TypeError):
@@ -179,8 +302,29 @@ def _snippet(raw: bytes, limit: int = 160) -> str:
 
 
 def post_json(url: str, body: dict, headers: dict, timeout_s: float) -> bytes:
-    """POST ``body`` as JSON and return the response body; every failure is an
-    :class:`LLMError` (kinds ``http``, ``timeout``, ``connection``, ``bad_response``)."""
+    """POST ``body`` as JSON and return the response body.
+
+    Parameters
+    ----------
+    url : str
+        The endpoint.
+    body : dict
+        The request body.
+    headers : dict
+        Extra headers (``Content-Type: application/json`` is always sent).
+    timeout_s : float
+        Bound of each socket operation, s.
+
+    Returns
+    -------
+    bytes
+        The response body.
+
+    Raises
+    ------
+    LLMError
+        Every failure: kinds ``http``, ``timeout``, ``connection``, ``bad_response``.
+    """
     data = json.dumps(body).encode("utf-8")
     req = urllib.request.Request(url, data=data, method="POST",
                                  headers={"Content-Type": "application/json", **headers})
@@ -212,25 +356,71 @@ class CachedClient:
 
     A subclass sets ``config`` (anything with ``model``, ``temperature`` and ``max_tokens``)
     and ``cache`` and implements :meth:`fetch`; :meth:`complete` looks the messages up in the
-    cache, else fetches, times and stores the reply."""
+    cache, else fetches, times and stores the reply.
+    """
 
     config: Any
     cache: ResponseCache | None = None
 
     def key(self, messages: Sequence[dict]) -> str:
-        """The cache key of ``messages`` under this client's model and sampling settings."""
+        """The cache key of ``messages`` under this client's model and sampling settings.
+
+        Parameters
+        ----------
+        messages : sequence of dict
+            Chat messages.
+
+        Returns
+        -------
+        str
+            The hex sha256 (:func:`~oneocean.methods.llm.cache.cache_key`).
+        """
         cfg = self.config
         return cache_key(cfg.model, messages, cfg.temperature, cfg.max_tokens)
 
     def fetch(self, messages: Sequence[dict]) -> tuple[str, int | None, int | None]:
-        """``(text, prompt_tokens, completion_tokens)`` from the model; raises only
-        :class:`LLMError`."""
+        """Ask the model (a subclass's request).
+
+        Parameters
+        ----------
+        messages : sequence of dict
+            Chat messages.
+
+        Returns
+        -------
+        text : str
+            The assistant's text.
+        prompt_tokens, completion_tokens : int or None
+            Token counts.
+
+        Raises
+        ------
+        LLMError
+            Any failure (the only exception it raises).
+        """
         raise NotImplementedError
 
     def complete(self, messages: Sequence[dict]) -> Reply:
-        """The reply to ``messages``: from the cache if present (no request; the latency and
-        usage recorded when it was fetched, ``cached=True``), else from the model (timed and
-        stored in the cache). Raises only :class:`LLMError` (its ``latency_s`` set)."""
+        """The reply to ``messages``, from the cache if present, else from the model.
+
+        A hit makes no request and carries the latency and usage recorded when it was fetched
+        (``cached=True``); a miss is fetched, timed and stored in the cache.
+
+        Parameters
+        ----------
+        messages : sequence of dict
+            Chat messages.
+
+        Returns
+        -------
+        Reply
+            The reply.
+
+        Raises
+        ------
+        LLMError
+            If the model gave no usable reply (its ``latency_s`` set); nothing else.
+        """
         key = self.key(messages) if self.cache is not None else None
         if key is not None:
             hit = self.cache.get(key)
@@ -260,11 +450,21 @@ class CachedClient:
 
 
 class LLMClient(CachedClient):
-    """Chat completions against one configured endpoint, optionally through a
-    :class:`~oneocean.methods.llm.cache.ResponseCache` (:class:`CachedClient`).
+    """Chat completions against one configured endpoint, optionally through a cache.
 
+    The cache is a :class:`~oneocean.methods.llm.cache.ResponseCache` (:class:`CachedClient`).
     The key is read once, when the client is built (a missing variable is a
-    :class:`ConfigError` then, not mid-episode), and never appears in ``repr``."""
+    :class:`ConfigError` then, not mid-episode), and never appears in ``repr``.
+
+    Parameters
+    ----------
+    config : ClientConfig
+        The endpoint.
+    cache : ResponseCache, optional
+        The response cache (None: every call asks).
+    environ : dict, optional
+        The environment to read the key from (default ``os.environ``).
+    """
 
     def __init__(self, config: ClientConfig, cache: ResponseCache | None = None,
                  environ: dict | None = None):
@@ -277,11 +477,35 @@ class LLMClient(CachedClient):
                 f"cache={self.cache!r})")
 
     def headers(self) -> dict:
-        """Request headers beyond Content-Type: ``Authorization: Bearer`` when a key is set."""
+        """Request headers beyond Content-Type.
+
+        Returns
+        -------
+        dict
+            ``Authorization: Bearer <key>`` when a key is set, else empty.
+        """
         return {"Authorization": f"Bearer {self._api_key}"} if self._api_key else {}
 
     def fetch(self, messages: Sequence[dict]) -> tuple[str, int | None, int | None]:
-        """One POST to the endpoint; ``(text, prompt_tokens, completion_tokens)``."""
+        """One POST to the endpoint.
+
+        Parameters
+        ----------
+        messages : sequence of dict
+            Chat messages.
+
+        Returns
+        -------
+        text : str
+            The assistant's text.
+        prompt_tokens, completion_tokens : int or None
+            Token counts.
+
+        Raises
+        ------
+        LLMError
+            Any failure of the endpoint (:func:`post_json`, :func:`parse_response`).
+        """
         cfg = self.config
         raw = post_json(endpoint_url(cfg.base_url), request_body(cfg, messages),
                         self.headers(), cfg.timeout_s)

@@ -27,7 +27,19 @@ from .client import CachedClient, LLMError, parse_completion
 
 @dataclass(frozen=True)
 class LocalConfig:
-    """A local model: its file, the model id naming it in the cache key, the output limit."""
+    """A local model: its file, the model id naming it in the cache key, the output limit.
+
+    Parameters
+    ----------
+    model_path : str
+        The GGUF model file (``~`` expanded).
+    model : str
+        Model id in the cache key.
+    max_tokens : int, optional
+        Output-token limit (default 256).
+    temperature : float, optional
+        Sampling temperature (default 0).
+    """
 
     model_path: str
     model: str
@@ -36,7 +48,18 @@ class LocalConfig:
 
 
 def import_llama():
-    """The ``llama_cpp`` module; a one-line :class:`ConfigError` if it is not installed."""
+    """The ``llama_cpp`` module, imported on demand.
+
+    Returns
+    -------
+    module
+        ``llama_cpp``.
+
+    Raises
+    ------
+    ConfigError
+        One line, if ``llama-cpp-python`` is not installed.
+    """
     try:
         return importlib.import_module("llama_cpp")
     except ImportError:
@@ -45,7 +68,21 @@ def import_llama():
 
 
 class LocalClient(CachedClient):
-    """Chat completions from a local GGUF model (module doc)."""
+    """Chat completions from a local GGUF model (module doc).
+
+    Parameters
+    ----------
+    config : LocalConfig
+        The model.
+    cache : ResponseCache, optional
+        The response cache (None: every call runs the model).
+
+    Raises
+    ------
+    ConfigError
+        One line, if the model file is missing, ``llama_cpp`` is not installed, or the model
+        does not load.
+    """
 
     def __init__(self, config: LocalConfig, cache: ResponseCache | None = None):
         self.config = config
@@ -65,7 +102,25 @@ class LocalClient(CachedClient):
                 f"model_path={self.config.model_path!r}, cache={self.cache!r})")
 
     def fetch(self, messages: Sequence[dict]) -> tuple[str, int | None, int | None]:
-        """One chat completion of the local model (temperature 0)."""
+        """One chat completion of the local model at the configured temperature (0 by default).
+
+        Parameters
+        ----------
+        messages : sequence of dict
+            Chat messages.
+
+        Returns
+        -------
+        text : str
+            The assistant's text.
+        prompt_tokens, completion_tokens : int or None
+            Token counts from the completion's ``usage``.
+
+        Raises
+        ------
+        LLMError
+            Kind ``bad_response``, on any failure of the model.
+        """
         cfg = self.config
         try:
             out = self._llm.create_chat_completion([dict(m) for m in messages],

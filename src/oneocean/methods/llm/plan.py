@@ -37,8 +37,28 @@ _FENCE = re.compile(r"```(?:json|JSON)?[ \t]*\n?(.*?)```", re.DOTALL)
 
 
 def assignment_schema(n_agents: int, n_targets: int) -> dict:
-    """JSON schema of ``{"assignment": [...]}``: exactly ``n_agents`` integers in
-    ``[0, n_targets)``. Other keys (e.g. a model's ``"reason"``) are allowed and ignored."""
+    """JSON schema of an assignment of ``n_agents`` agents to ``n_targets`` targets.
+
+    ``{"assignment": [...]}`` with exactly ``n_agents`` integers in ``[0, n_targets)``. Other
+    keys (e.g. a model's ``"reason"``) are allowed and ignored.
+
+    Parameters
+    ----------
+    n_agents : int
+        Agents, >= 1.
+    n_targets : int
+        Targets, >= 1.
+
+    Returns
+    -------
+    dict
+        A JSON Schema (draft 2020-12).
+
+    Raises
+    ------
+    ValueError
+        If a count is not an integer >= 1.
+    """
     n_agents, n_targets = _count(n_agents, "n_agents"), _count(n_targets, "n_targets")
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
@@ -68,16 +88,41 @@ def _count(value, name: str) -> int:
 
 @dataclass(frozen=True)
 class PlanInvalid:
-    """Why a model's text is not a plan: ``reason`` in :data:`INVALID_REASONS`, ``message``
-    one line."""
+    """Why a model's text is not a plan.
+
+    Parameters
+    ----------
+    reason : str
+        One of :data:`INVALID_REASONS`.
+    message : str
+        One line.
+    """
 
     reason: str
     message: str
 
 
 def extract_json(text: str):
-    """The JSON value in ``text``: the whole text, else the first ```` ```json ```` (or bare
-    ```` ``` ````) fenced block. Raises ``ValueError`` (one line) if neither parses."""
+    """The JSON value in ``text``: the whole text, else the first fenced code block.
+
+    A Markdown fence of three backticks, optionally tagged ``json``; the first block that
+    parses.
+
+    Parameters
+    ----------
+    text : str
+        The model's reply.
+
+    Returns
+    -------
+    object
+        The decoded JSON value.
+
+    Raises
+    ------
+    ValueError
+        One line, if neither the text nor a fenced block parses.
+    """
     stripped = text.strip()
     try:
         return json.loads(stripped)
@@ -99,8 +144,23 @@ def _one_line(message: str, limit: int = 200) -> str:
 
 
 def validate_plan(text: str, schema: dict) -> dict | PlanInvalid:
-    """The plan in ``text`` if it is JSON (bare or in a ```` ```json ```` fence) valid against
-    ``schema``, with integer entries as Python ints; else a :class:`PlanInvalid`."""
+    """The plan in ``text`` if it is valid JSON for ``schema``, else why not.
+
+    The JSON may be bare or in a fenced code block (:func:`extract_json`).
+
+    Parameters
+    ----------
+    text : str
+        The model's reply.
+    schema : dict
+        The JSON Schema (:func:`assignment_schema`).
+
+    Returns
+    -------
+    dict or PlanInvalid
+        The plan, with the ``assignment`` entries as Python ints; else a :class:`PlanInvalid`
+        (``not_json`` or ``schema``).
+    """
     try:
         obj = extract_json(text)
     except ValueError as err:
@@ -116,8 +176,24 @@ def validate_plan(text: str, schema: dict) -> dict | PlanInvalid:
 
 def build_messages(summary_text: str, n_agents: int, n_targets: int,
                    system_prompt: str = DEFAULT_SYSTEM_PROMPT) -> list[dict]:
-    """The chat messages asking for an assignment of ``n_agents`` agents to ``n_targets``
-    targets given ``summary_text``."""
+    """The chat messages asking for an assignment of ``n_agents`` agents to ``n_targets`` targets.
+
+    Parameters
+    ----------
+    summary_text : str
+        The task state (an adapter's :class:`~oneocean.methods.llm.adapters.Decision`).
+    n_agents : int
+        Agents, numbered 0 to ``n_agents - 1``.
+    n_targets : int
+        Targets, numbered 0 to ``n_targets - 1``.
+    system_prompt : str, optional
+        The system message (default :data:`DEFAULT_SYSTEM_PROMPT`).
+
+    Returns
+    -------
+    list of dict
+        The system message, then the user message (the summary and the answer's format).
+    """
     instruction = (
         f"Assign each of the {n_agents} agents (numbered 0 to {n_agents - 1}, in order) one "
         f"target index in [0, {n_targets}). Reply with JSON only, exactly: "
@@ -133,13 +209,27 @@ def build_messages(summary_text: str, n_agents: int, n_targets: int,
 class CallRecord:
     """One planner call.
 
-    ``outcome``: ``"valid"`` (the model's plan was used), ``"invalid"`` (it answered, the
-    answer failed validation) or ``"error"`` (no answer: :class:`LLMError`).
-    ``fallback_reason``: None when valid, else a value of :data:`INVALID_REASONS` or
-    :data:`~oneocean.methods.llm.client.ERROR_KINDS`; ``error`` is its one-line message.
-    ``latency_s`` is the wall time of the request that fetched the reply (for a cache hit:
-    the latency recorded when it was fetched; for an error: the time until giving up); token
-    counts come from the API's ``usage`` (None if absent or no answer).
+    Parameters
+    ----------
+    outcome : str
+        ``"valid"`` (the model's plan was used), ``"invalid"`` (it answered, the answer failed
+        validation) or ``"error"`` (no answer: :class:`LLMError`).
+    assignment : tuple of int
+        The assignment returned (the model's or the fallback).
+    fallback_reason : str or None
+        None when valid, else a value of :data:`INVALID_REASONS` or
+        :data:`~oneocean.methods.llm.client.ERROR_KINDS`.
+    error : str or None
+        The reason's one-line message.
+    cached : bool
+        True if the reply came from the cache.
+    latency_s : float
+        Wall time of the request that fetched the reply, s (for a cache hit: the latency
+        recorded when it was fetched; for an error: the time until giving up).
+    prompt_tokens, completion_tokens : int or None
+        Token counts from the API's ``usage`` (None if absent or no answer).
+    calls : int, optional
+        Requests (or cache lookups) of the record (default 1).
     """
 
     outcome: str
@@ -164,8 +254,27 @@ class CallRecord:
 
 
 def check_fallback(fallback: Sequence[int], n_agents: int, n_targets: int) -> tuple[int, ...]:
-    """``fallback`` as a tuple of ints; ``ValueError`` if it is not itself a valid assignment
-    (a bug of the caller, not of the model)."""
+    """The fallback as a tuple of ints, checked to be a valid assignment itself.
+
+    Parameters
+    ----------
+    fallback : sequence of int
+        The caller's assignment.
+    n_agents : int
+        Agents.
+    n_targets : int
+        Targets.
+
+    Returns
+    -------
+    tuple of int
+        The fallback.
+
+    Raises
+    ------
+    ValueError
+        If it is not a valid assignment (a bug of the caller, not of the model).
+    """
     plan = validate_plan(json.dumps({"assignment": [int(v) for v in fallback]}),
                          assignment_schema(n_agents, n_targets))
     if isinstance(plan, PlanInvalid):
@@ -174,11 +283,20 @@ def check_fallback(fallback: Sequence[int], n_agents: int, n_targets: int) -> tu
 
 
 class Planner:
-    """Asks a client (:class:`LLMClient`, or any :class:`~.client.CachedClient` such as the
-    local model's) for assignments; keeps this episode's :class:`CallRecord` s.
+    """Asks a client for assignments; keeps this episode's :class:`CallRecord` s.
 
-    :meth:`plan` never raises for anything the endpoint or the model does; :meth:`totals`
-    sums the records (:func:`episode_totals`) and :meth:`reset` starts a new episode."""
+    The client is an :class:`LLMClient` or any :class:`~.client.CachedClient` (such as the
+    local model's). :meth:`plan` never raises for anything the endpoint or the model does;
+    :meth:`totals` sums the records (:func:`episode_totals`) and :meth:`reset` starts a new
+    episode.
+
+    Parameters
+    ----------
+    client : CachedClient
+        The model's client.
+    system_prompt : str, optional
+        The system message (default :data:`DEFAULT_SYSTEM_PROMPT`).
+    """
 
     def __init__(self, client: LLMClient, system_prompt: str = DEFAULT_SYSTEM_PROMPT):
         self.client = client
@@ -187,7 +305,32 @@ class Planner:
 
     def plan(self, summary_text: str, n_agents: int, n_targets: int,
              fallback: Sequence[int]) -> tuple[list[int], CallRecord]:
-        """``(assignment, record)``: the model's valid assignment, else ``fallback``."""
+        """Ask for an assignment: the model's if valid, else the fallback.
+
+        Parameters
+        ----------
+        summary_text : str
+            The task state.
+        n_agents : int
+            Agents.
+        n_targets : int
+            Targets.
+        fallback : sequence of int
+            The deterministic fallback assignment (the heuristic's plan).
+
+        Returns
+        -------
+        assignment : list of int
+            The model's valid assignment, else ``fallback``.
+        record : CallRecord
+            The call's record (also appended to ``records``).
+
+        Raises
+        ------
+        ValueError
+            Only for a caller's bug: counts that are not integers >= 1 or an invalid
+            ``fallback``.
+        """
         schema = assignment_schema(n_agents, n_targets)
         n_agents, n_targets = _count(n_agents, "n_agents"), _count(n_targets, "n_targets")
         fallback = check_fallback(fallback, n_agents, n_targets)
@@ -211,7 +354,13 @@ class Planner:
         return list(record.assignment), record
 
     def totals(self) -> dict:
-        """This episode's :func:`episode_totals`."""
+        """This episode's totals (:func:`episode_totals` of its records).
+
+        Returns
+        -------
+        dict
+            The cost-table totals.
+        """
         return episode_totals(self.records)
 
     def reset(self) -> None:
@@ -231,6 +380,19 @@ def episode_totals(records: Iterable[CallRecord]) -> dict:
     of the run that filled it, but for ``cached_calls`` / ``uncached_calls`` (errors are never
     cached: a rerun asks again). ``replies_without_usage`` counts replies whose endpoint gave
     no usage (their tokens are not in the totals).
+
+    Parameters
+    ----------
+    records : iterable of CallRecord
+        The episode's calls.
+
+    Returns
+    -------
+    dict
+        ``calls``, ``valid``, ``invalid``, ``errors``, ``fallbacks``, ``fallback_reasons``
+        (reason -> count), ``cached_calls``, ``uncached_calls``, ``latency_s`` (s),
+        ``mean_latency_s`` (s), ``prompt_tokens``, ``output_tokens``, ``total_tokens``,
+        ``replies_without_usage``.
     """
     records = list(records)
     uncached = [r for r in records if not r.cached]

@@ -76,12 +76,26 @@ def _text(cfg: Mapping, key: str) -> str:
 
 
 def model_config(model_cfg: Mapping) -> dict:
-    """``model_cfg`` checked and completed; a one-line :class:`ConfigError` naming the first
-    missing, unknown or ill-typed key.
+    """Check and complete a model configuration (module doc).
 
     Required: ``name``; an endpoint model needs ``base_url`` and ``model``, a local one
-    ``model_path`` (its ``model`` id defaults to the file's name). A missing or null
-    ``label`` is the name, ``api_key_env`` "" (no key), ``timeout_s`` 60, ``max_tokens`` 256.
+    ``model_path`` (its ``model`` id defaults to the file's name). A missing or null ``label``
+    is the name, ``api_key_env`` "" (no key), ``timeout_s`` 60, ``max_tokens`` 256.
+
+    Parameters
+    ----------
+    model_cfg : Mapping
+        The model's keys (:data:`MODEL_KEYS`; null values count as absent).
+
+    Returns
+    -------
+    dict
+        Every key of :data:`MODEL_KEYS`, defaults applied.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the first missing, unknown or ill-typed key.
     """
     if not isinstance(model_cfg, Mapping):
         raise ConfigError(f"model_cfg must be a mapping (keys: {', '.join(MODEL_KEYS)}), got "
@@ -117,9 +131,32 @@ def model_config(model_cfg: Mapping) -> dict:
 
 
 def make_client(cfg: Mapping, cache_dir=None, environ: dict | None = None):
-    """The client of a checked model configuration (:func:`model_config`): the endpoint's
-    :class:`~.client.LLMClient`, or a :class:`~.local.LocalClient` when ``model_path`` is
-    set; through a :class:`~.cache.ResponseCache` in ``cache_dir`` if given."""
+    """The client of a checked model configuration.
+
+    The endpoint's :class:`~.client.LLMClient` (temperature 0), or a
+    :class:`~.local.LocalClient` when ``model_path`` is set; through a
+    :class:`~.cache.ResponseCache` in ``cache_dir`` if given.
+
+    Parameters
+    ----------
+    cfg : Mapping
+        The model (:func:`model_config`).
+    cache_dir : path, optional
+        Response cache directory (None: no cache).
+    environ : dict, optional
+        The environment the API key is read from (default ``os.environ``).
+
+    Returns
+    -------
+    CachedClient
+        The client.
+
+    Raises
+    ------
+    ConfigError
+        One line, if the client cannot be built (missing API key variable, model file or
+        ``llama_cpp``).
+    """
     cache = ResponseCache(cache_dir) if cache_dir is not None else None
     if cfg["model_path"] is not None:
         from .local import LocalClient, LocalConfig
@@ -134,14 +171,39 @@ def make_client(cfg: Mapping, cache_dir=None, environ: dict | None = None):
 
 
 def method_name(cfg: Mapping) -> str:
-    """The cell's method column: ``llm_<name>``."""
+    """The cell's method column for a model.
+
+    Parameters
+    ----------
+    cfg : Mapping
+        The model (:func:`model_config`).
+
+    Returns
+    -------
+    str
+        ``llm_<name>``.
+    """
     return f"llm_{cfg['name']}"
 
 
 def planning_step(adapter: Adapter, planners: list[Planner]):
-    """The ``planner(batch)`` of :meth:`~oneocean.tasks.episodes.Episodes.run_planned`: for
-    every live episode, the fallback into ``W`` and, when there is a choice, the model's valid
-    assignment (episode ``e`` asks through ``planners[e]``)."""
+    """The ``planner(batch)`` of :meth:`~oneocean.tasks.episodes.Episodes.run_planned`.
+
+    For every live episode: the fallback into ``W`` and, when there is a choice, the model's
+    valid assignment (episode ``e`` asks through ``planners[e]``).
+
+    Parameters
+    ----------
+    adapter : Adapter
+        The task's adapter (:func:`~.adapters.adapter_for`).
+    planners : list of Planner
+        One planner per episode of the batch.
+
+    Returns
+    -------
+    callable
+        ``step(ep) -> None`` for an :class:`~oneocean.tasks.episodes.Episodes` batch.
+    """
 
     def step(ep) -> None:
         for e in np.flatnonzero(~ep.done):
@@ -158,7 +220,18 @@ def planning_step(adapter: Adapter, planners: list[Planner]):
 
 
 def accounting_frame(planners: list[Planner]) -> dict:
-    """The accounting columns (:data:`ACCOUNTING`), one value per episode."""
+    """The accounting columns (:data:`ACCOUNTING`), one value per episode.
+
+    Parameters
+    ----------
+    planners : list of Planner
+        The episodes' planners, in episode order.
+
+    Returns
+    -------
+    dict
+        Column -> (E,) array: float64 for :data:`FLOAT_ACCOUNTING` (s), else int64 counts.
+    """
     totals = [episode_totals(p.records) for p in planners]
     return {col: np.array([t[key] for t in totals],
                           dtype=np.float64 if col in FLOAT_ACCOUNTING else np.int64)
@@ -173,10 +246,37 @@ def _add_accounting(df: pd.DataFrame, cols: dict) -> pd.DataFrame:
 
 def run_planner_cell(cell, cfg: Mapping, client, episodes: int, seed: int,
                      dynamics: str = "6dof", every: int | None = None) -> pd.DataFrame:
-    """Run ``episodes`` episodes of a :class:`~oneocean.tasks.Cell` with the LLM planner
-    (``cfg`` checked by :func:`model_config`, ``client`` from :func:`make_client`); the cell
-    table (:func:`planner_cell`). Raises :class:`~oneocean.errors.NotApplicable` as
-    :meth:`~oneocean.tasks.Cell.reset` does."""
+    """Run a cell's episodes with the LLM planner: the cell table (:func:`planner_cell`).
+
+    Parameters
+    ----------
+    cell : Cell
+        The (task, tier) cell (:class:`~oneocean.tasks.Cell`).
+    cfg : Mapping
+        The model, checked by :func:`model_config`.
+    client : CachedClient
+        The model's client (:func:`make_client`).
+    episodes : int
+        Episodes.
+    seed : int
+        Episode seed.
+    dynamics : str, optional
+        Dynamics model (:data:`oneocean.vocab.DYNAMICS`; default ``"6dof"``).
+    every : int, optional
+        Planning period K, steps (default: the adapter's, :meth:`~.adapters.Adapter.every`).
+
+    Returns
+    -------
+    DataFrame
+        The cell table with the accounting columns; ``attrs["every"]`` holds K.
+
+    Raises
+    ------
+    NotApplicable
+        As :meth:`~oneocean.tasks.Cell.reset` does: the region cannot host the cell.
+    ConfigError
+        A bad ``every``.
+    """
     from ...tasks import cell_frame
 
     adapter = adapter_for(cell.task)
@@ -204,8 +304,18 @@ def planner_cell(grid, task: str, tier: int, model_cfg: dict, episodes: int, see
         The grid export (as :class:`oneocean.tasks.Cell`).
     task : str
         ``SPC``, ``AS`` or ``PI`` (:data:`~.adapters.ADAPTERS`).
+    tier : int
+        Tier.
     model_cfg : dict
         The model (module doc).
+    episodes : int
+        Episodes.
+    seed : int
+        Episode seed.
+    dynamics : str, optional
+        Dynamics model (:data:`oneocean.vocab.DYNAMICS`; default ``"6dof"``).
+    current_gain : float, optional
+        The run's current gain g (default 1).
     every : int, optional
         Planning period K, steps (default: SPC the heuristic's aerial-map period, AS/PI
         :data:`~.adapters.WAYPOINT_EVERY`).
@@ -220,6 +330,13 @@ def planner_cell(grid, task: str, tier: int, model_cfg: dict, episodes: int, see
         The standard cell table (:func:`oneocean.tasks.cell_frame`, with ``candidate``),
         ``method = "llm_<name>"``, plus one accounting column per :data:`ACCOUNTING` entry:
         int64 counts and the summed latency ``llm_latency_s`` (float, s).
+
+    Raises
+    ------
+    ConfigError
+        A bad model configuration, a task without an adapter, or a bad ``every``.
+    NotApplicable
+        If the region cannot host the cell.
     """
     from ...tasks import Cell
 
@@ -231,8 +348,24 @@ def planner_cell(grid, task: str, tier: int, model_cfg: dict, episodes: int, see
 
 
 def na_planner_frame(cell, cfg: Mapping, dynamics: str, seed: int) -> pd.DataFrame:
-    """The zero-episode table of a cell the region cannot host (the columns and dtypes of
-    :func:`planner_cell`)."""
+    """The zero-episode table of a cell the region cannot host.
+
+    Parameters
+    ----------
+    cell : Cell
+        The cell.
+    cfg : Mapping
+        The model (:func:`model_config`).
+    dynamics : str
+        Dynamics model.
+    seed : int
+        Episode seed.
+
+    Returns
+    -------
+    DataFrame
+        No rows; the columns and dtypes of :func:`planner_cell`.
+    """
     from ...tasks import na_frame
 
     df = na_frame(cell.mod, cell.tier, method_name(cfg), cell.n_agents, dynamics,
@@ -245,15 +378,35 @@ def planner_cell_to_file(grid_path, out_path, task: str, tier: int, model_cfg: d
                          episodes: int, seed: int, dynamics: str = "6dof",
                          current_gain: float = 1.0, every: int | None = None, cache_dir=None,
                          threads: int = 1, *, n_agents: int | None = None) -> dict:
-    """Run one LLM-planned cell on a grid export file and write its Parquet table atomically
-    (as :func:`oneocean.tasks.rollout_to_file`).
+    """Run one LLM-planned cell on a grid export file and write its Parquet table atomically.
 
-    The file records its configuration: task, tier, method, dynamics, vehicle, seed,
-    episodes, forcing, tier parameters, the planning period ``every`` and the model (``name``,
-    ``label``, ``model``, ``base_url``, ``model_path``, ``max_tokens``, ``timeout_s``,
-    temperature 0; never an API key), and ``applicable``. A cell the region cannot host is
-    written with zero rows, ``applicable: false`` and the one-line ``reason``. Returns the
-    manifest entry of :func:`oneocean.engine.write_metrics`.
+    As :func:`oneocean.tasks.rollout_to_file`. The file records its configuration: task, tier,
+    method, dynamics, vehicle, seed, episodes, forcing, tier parameters, the planning period
+    ``every`` and the model (``name``, ``label``, ``model``, ``base_url``, ``model_path``,
+    ``max_tokens``, ``timeout_s``, temperature 0; never an API key), and ``applicable``. A cell
+    the region cannot host is written with zero rows, ``applicable: false`` and the one-line
+    ``reason``.
+
+    Parameters
+    ----------
+    grid_path : path
+        The grid export file.
+    out_path : path
+        The Parquet file to write.
+    task, tier, model_cfg, episodes, seed, dynamics, current_gain, every, cache_dir, n_agents
+        As :func:`planner_cell`.
+    threads : int, optional
+        Numba threads (default 1).
+
+    Returns
+    -------
+    dict
+        The manifest entry of :func:`oneocean.engine.write_metrics`.
+
+    Raises
+    ------
+    ConfigError
+        A bad model configuration, a task without an adapter, or a bad ``every``.
     """
     import numba
 

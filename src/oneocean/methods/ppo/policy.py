@@ -1,11 +1,12 @@
 """The trained PPO network as a method of kind ``callable``, and its cell files.
 
-:func:`load` turns a ``policy.zip`` (:mod:`.train`) into the callable
+:func:`load` turns a ``policy.zip`` (:mod:`oneocean.methods.ppo.train`) into the callable
 :func:`oneocean.evaluate.evaluate` scores: it declares the normalised views it was trained
-on, so the evaluation gives it the env's normalised observations (:func:`oneocean.envs.
-normalize`: the vehicle's ``v_max``, the task's reach ``v_max x time limit``, the fraction of
-the time limit left) and reads its deterministic action in units of ``v_max`` (norm clipped
-to 1: the env's ``action_mode="normalized"``), exactly as the training env did.
+on, so the evaluation gives it the env's normalised observations
+(:func:`oneocean.envs.normalize`: the vehicle's ``v_max``, the task's reach ``v_max x time
+limit``, the fraction of the time limit left) and reads its deterministic action in units of
+``v_max`` (norm clipped to 1: the env's ``action_mode="normalized"``), exactly as the
+training env did.
 
 :func:`evaluate_to_file` scores it on exactly a workflow cell's episodes (the evaluation
 seed, ``rollouts.episodes``; :func:`oneocean.evaluate.evaluate`) and writes the cell file in
@@ -34,9 +35,21 @@ METHOD = register_method(MethodSpec(
 
 
 def episode_constants(task: str, tier: int) -> dict:
-    """What the normalised view needs for a (task, tier), as the env computes it:
-    ``v_max`` (m s-1, the task's vehicle), ``reach`` (m, ``v_max x time_limit_s``) and
-    ``n_steps`` (the episode length in steps)."""
+    """What the normalised view needs for a (task, tier), as the env computes it.
+
+    Parameters
+    ----------
+    task : str
+        Task id.
+    tier : int
+        Tier.
+
+    Returns
+    -------
+    dict
+        ``v_max`` (m s-1, the task's vehicle), ``reach`` (m, ``v_max x time_limit_s``) and
+        ``n_steps`` (the episode length, steps).
+    """
     from ...engine import load_vehicle
     from ...tasks.common import episode_steps, load_task_table, tier_params
 
@@ -55,6 +68,15 @@ class PPOPolicy:
     NORM_DIM), computed exactly as in training, and reads its actions in units of ``v_max``
     (norm clipped to 1); it returns the network's deterministic action (E, N, 3).
     :meth:`normalized` maps raw observations to that view for use outside the env.
+
+    Parameters
+    ----------
+    model : stable_baselines3.PPO
+        The trained model.
+    task : str
+        Task id.
+    tier : int
+        Tier (:func:`episode_constants`: ``v_max``, ``reach``, ``n_steps``).
     """
 
     obs_mode = "normalized"
@@ -67,13 +89,32 @@ class PPOPolicy:
         self.v_max, self.reach, self.n_steps = c["v_max"], c["reach"], c["n_steps"]
 
     def reset(self, n_episodes: int | None = None, n_agents: int | None = None) -> None:
+        """Start a batch of episodes: one torch thread (after the env's numba threads started).
+
+        Parameters
+        ----------
+        n_episodes, n_agents : int, optional
+            The batch's size (unused: the policy keeps no per-episode state).
+        """
         import torch
 
         torch.set_num_threads(1)       # after the env's numba threads started (train.py)
 
     def normalized(self, obs, k: int = 0) -> np.ndarray:
-        """The training env's view (E, N, NORM_DIM) of raw ``obs`` (NaN where undefined) at
-        step ``k`` of the episodes."""
+        """The training env's view of raw observations at a step of the episodes.
+
+        Parameters
+        ----------
+        obs : (E, N, OBS_DIM) array_like
+            Raw observations (NaN where undefined).
+        k : int, optional
+            Step index of the episodes (default 0): the view's fraction of the time limit left.
+
+        Returns
+        -------
+        (E, N, NORM_DIM) float64
+            The normalised view (:func:`oneocean.envs.normalize`).
+        """
         from ...envs import normalize
 
         o = np.asarray(obs, dtype=np.float64)
@@ -81,6 +122,18 @@ class PPOPolicy:
         return normalize(o, self.v_max, self.reach, np.full(o.shape[0], left))
 
     def __call__(self, obs) -> np.ndarray:
+        """The network's deterministic actions for a batch of normalised observations.
+
+        Parameters
+        ----------
+        obs : (E, N, NORM_DIM) array_like
+            The env's normalised observations.
+
+        Returns
+        -------
+        (E, N, 3) float64
+            Actions in units of ``v_max`` (the evaluation clips their norm to 1).
+        """
         x = np.asarray(obs, dtype=np.float64)
         e, n, d = x.shape
         a, _ = self.model.predict(x.reshape(e * n, d), deterministic=True)
@@ -88,7 +141,22 @@ class PPOPolicy:
 
 
 def load(path, task: str, tier: int) -> PPOPolicy:
-    """The ``policy.zip`` at ``path`` as a :class:`PPOPolicy` for ``task`` at ``tier``."""
+    """The ``policy.zip`` at ``path`` as a :class:`PPOPolicy` for ``task`` at ``tier``.
+
+    Parameters
+    ----------
+    path : path
+        The SB3 model file (:func:`oneocean.methods.ppo.train.train_to_files`).
+    task : str
+        Task id.
+    tier : int
+        Tier.
+
+    Returns
+    -------
+    PPOPolicy
+        The policy, its model loaded on the CPU.
+    """
     from stable_baselines3 import PPO
 
     return PPOPolicy(PPO.load(str(path), device="cpu"), task, tier)
@@ -98,16 +166,52 @@ def evaluate_to_file(policy_path, grid_path, out_path, task: str, tier: int, *,
                      episodes: int = 50, seed: int = EVALUATION_SEED, dynamics: str = "6dof",
                      current_gain: float = 1.0, tide=None, backend: str = "core",
                      threads: int = 1) -> dict:
-    """Score the policy on the cell's episodes (:func:`oneocean.evaluate.evaluate`, method
-    ``ppo``) and write its Parquet file atomically with the rollout cells' record (task, tier,
-    method, dynamics, vehicle, seed, forcing, tier parameters, ``applicable``) plus the
-    policy's sha256; a cell the region cannot host is written as not applicable. Returns the
-    manifest entry (:func:`oneocean.engine.write_metrics`).
+    """Score the policy on the cell's episodes and write its Parquet file atomically.
 
-    ``current_gain``, ``tide``: the workflow's run forcing (the same episodes under any
-    forcing, :class:`oneocean.tasks.Cell`); ``backend``: the evaluation runs on the core
-    backend, so another is a ConfigError (never a cell under another backend than its record
-    says)."""
+    :func:`oneocean.evaluate.evaluate` (method ``ppo``); the file carries the rollout cells'
+    record (task, tier, method, dynamics, vehicle, seed, forcing, tier parameters,
+    ``applicable``) plus the policy's sha256. A cell the region cannot host is written as not
+    applicable.
+
+    Parameters
+    ----------
+    policy_path : path
+        The ``policy.zip`` (:func:`load`).
+    grid_path : path
+        The grid export file.
+    out_path : path
+        The Parquet file to write.
+    task : str
+        Task id.
+    tier : int
+        Tier.
+    episodes : int, optional
+        Episodes (default 50).
+    seed : int, optional
+        Episode seed (default :data:`oneocean.vocab.EVALUATION_SEED`).
+    dynamics : str, optional
+        Dynamics model (:data:`oneocean.vocab.DYNAMICS`; default ``"6dof"``).
+    current_gain : float, optional
+        The run's current gain g (default 1; the same episodes under any forcing,
+        :class:`oneocean.tasks.Cell`).
+    tide : optional
+        The run's synthetic tide term (as :class:`oneocean.tasks.Cell`; default None).
+    backend : str, optional
+        Must be ``"core"`` (the default): the policy is scored on the core backend.
+    threads : int, optional
+        Numba threads (default 1).
+
+    Returns
+    -------
+    dict
+        The manifest entry (:func:`oneocean.engine.write_metrics`).
+
+    Raises
+    ------
+    ConfigError
+        A ``backend`` other than ``"core"`` (never a cell under another backend than its record
+        says).
+    """
     import numba
 
     from ...engine import load_grid, load_vehicle, write_metrics

@@ -50,8 +50,26 @@ _VOLATILE = ["start_time", "ep_info_buffer", "ep_success_buffer"]
 
 
 def check_training_seeds(seeds, evaluation_seeds=(EVALUATION_SEED,)) -> list[int]:
-    """The training seeds as ints; a ConfigError if one is outside :data:`TRAINING_SEEDS`,
-    repeated, or an evaluation seed."""
+    """The training seeds, checked: in :data:`TRAINING_SEEDS`, distinct, no evaluation seed.
+
+    Parameters
+    ----------
+    seeds : iterable of int
+        Training seeds (``rl.seeds``).
+    evaluation_seeds : iterable of int, optional
+        Seeds a training seed must not be (default: :data:`oneocean.vocab.EVALUATION_SEED`).
+
+    Returns
+    -------
+    list of int
+        ``seeds`` as ints.
+
+    Raises
+    ------
+    ConfigError
+        No seed, a seed that is an evaluation seed or outside :data:`TRAINING_SEEDS`, or a
+        repeated seed.
+    """
     out = [int(s) for s in seeds]
     if not out:
         raise ConfigError("rl.seeds: at least one training seed is needed")
@@ -69,8 +87,22 @@ def check_training_seeds(seeds, evaluation_seeds=(EVALUATION_SEED,)) -> list[int
 
 
 def episode_seeds(seed: int, blocks: int, pools: int) -> list[int]:
-    """Every seed whose episodes a training run with ``blocks`` vector envs that each drew
-    ``pools`` pools used (:func:`oneocean.sb3.block_seed`, :func:`oneocean.envs.pool_seed`)."""
+    """Every seed whose episodes a training run used.
+
+    Parameters
+    ----------
+    seed : int
+        The run's training seed.
+    blocks : int
+        Vector envs of the run (one per tier; :func:`oneocean.sb3.block_seed`).
+    pools : int
+        Episode pools each drew (:func:`oneocean.envs.pool_seed`).
+
+    Returns
+    -------
+    list of int
+        The pools' seeds, block by block.
+    """
     from ...envs import pool_seed
     from ...sb3 import block_seed
 
@@ -88,8 +120,30 @@ def _threads_one() -> None:
 
 
 def make_env(task: str, tiers, grid, n_envs: int, *, dynamics: str = "6dof"):
-    """The training env: one :class:`~oneocean.envs.OceanVectorEnv` of ``n_envs`` sub-envs per
-    tier (:data:`ENV_MODES`) in one :class:`~oneocean.sb3.SB3VecEnv`."""
+    """The training env: one :class:`~oneocean.envs.OceanVectorEnv` per tier in one SB3 env.
+
+    Each tier's env has ``n_envs`` sub-envs in the modes of :data:`ENV_MODES`; together they
+    form one :class:`~oneocean.sb3.SB3VecEnv`.
+
+    Parameters
+    ----------
+    task : str
+        Task id.
+    tiers : iterable of int
+        Training tiers.
+    grid : Grid, path or None
+        The grid export (:class:`oneocean.engine.grid.Grid`) or its file; None: the default
+        region's grid (:class:`~oneocean.envs.OceanVectorEnv`).
+    n_envs : int
+        Sub-envs per tier.
+    dynamics : str, optional
+        Dynamics model (:data:`oneocean.vocab.DYNAMICS`; default ``"6dof"``).
+
+    Returns
+    -------
+    SB3VecEnv
+        The training env.
+    """
     from ...engine import load_grid
     from ...engine.grid import Grid
     from ...envs import OceanVectorEnv
@@ -144,14 +198,48 @@ def _curve_callback(n_agents: int):
 def train(task: str, grid, *, tiers=(1, 2, 3), budget_steps: int = 1_000_000,
           n_envs: int = 8, seed: int = 0, dynamics: str = "6dof",
           evaluation_seeds=(EVALUATION_SEED,), ppo_kwargs=None, log=None):
-    """Train PPO on ``task`` for ``budget_steps`` timesteps with one training ``seed``
-    (``ppo_kwargs``: hyperparameters other than :data:`PPO_CHANGES`, e.g. a small
-    ``n_steps`` for a smoke test; recorded in the report).
+    """Train PPO on ``task`` for ``budget_steps`` timesteps with one training ``seed``.
 
-    Returns ``(model, run)``: the SB3 model and the run's record (seed, timesteps, wall time,
-    ``final_success`` and ``final_episodes``: the success rate over the episodes that ended in
-    the last :data:`FINAL_SHARE` of the rollouts, ``curve``: one row per rollout with
-    ``timesteps, episodes, success_rate, mean_episode_return, mean_reward``).
+    Parameters
+    ----------
+    task : str
+        Task id (a single-vehicle task).
+    grid : Grid, path or None
+        The grid export or its file (:func:`make_env`).
+    tiers : iterable of int, optional
+        Training tiers (default 1, 2, 3).
+    budget_steps : int, optional
+        SB3 timesteps (default 1 000 000; one per agent per control step), run in whole
+        rollouts.
+    n_envs : int, optional
+        Sub-envs per tier (default 8).
+    seed : int, optional
+        Training seed (default 0; :func:`check_training_seeds`).
+    dynamics : str, optional
+        Dynamics model (default ``"6dof"``).
+    evaluation_seeds : iterable of int, optional
+        Seeds the training episodes must never reach (default the evaluation seed).
+    ppo_kwargs : dict, optional
+        Hyperparameters other than :data:`PPO_CHANGES`, e.g. a small ``n_steps`` for a smoke
+        test (recorded in the report).
+    log : logging.Logger, optional
+        Logs a line when the run ends.
+
+    Returns
+    -------
+    model : stable_baselines3.PPO
+        The trained model.
+    run : dict
+        The run's record: seed, timesteps, rollouts, wall time, episodes,
+        ``final_success`` and ``final_episodes`` (the success rate over the episodes that
+        ended in the last :data:`FINAL_SHARE` of the rollouts; None without any), episode
+        pools, and ``curve``: one row per rollout with ``timesteps, episodes, success_rate,
+        mean_episode_return, mean_reward``.
+
+    Raises
+    ------
+    ConfigError
+        A seed that :func:`check_training_seeds` refuses.
     """
     from stable_baselines3 import PPO
     from stable_baselines3.common.utils import set_random_seed
@@ -190,7 +278,19 @@ def train(task: str, grid, *, tiers=(1, 2, 3), budget_steps: int = 1_000_000,
 
 
 def hyperparameters(model) -> dict:
-    """The PPO hyperparameters a model trained with (SB3's defaults plus :data:`PPO_CHANGES`)."""
+    """The PPO hyperparameters a model trained with (SB3's defaults plus :data:`PPO_CHANGES`).
+
+    Parameters
+    ----------
+    model : stable_baselines3.PPO
+        The trained model.
+
+    Returns
+    -------
+    dict
+        Rollout, optimisation and network settings (``n_steps``, ``batch_size``, ``gamma``,
+        ``learning_rate``, ``clip_range``, ``net_arch``, ``n_envs``, ...), JSON-able.
+    """
     out = {k: getattr(model, k) for k in ("n_steps", "batch_size", "n_epochs", "gamma",
                                             "gae_lambda", "ent_coef", "vf_coef",
                                             "max_grad_norm", "normalize_advantage", "target_kl")}
@@ -203,9 +303,18 @@ def hyperparameters(model) -> dict:
 
 
 def save_stable(model, path) -> None:
-    """Save the SB3 ``.zip`` atomically and byte-stably: without the wall-clock entries
-    (:data:`_VOLATILE`) and with every member's time stamp at 1980-01-01 (members in SB3's
-    order, deflated)."""
+    """Save the SB3 ``.zip`` atomically and byte-stably.
+
+    Without the wall-clock entries (``_VOLATILE``) and with every member's time stamp at
+    1980-01-01 (members in SB3's order, deflated).
+
+    Parameters
+    ----------
+    model : stable_baselines3.PPO
+        The model.
+    path : path
+        The ``.zip`` to write.
+    """
     import io
 
     from ...io import atomic_path
@@ -226,9 +335,38 @@ def train_to_files(grid_path, policy_path, report_path, task: str, *, tiers=(1, 
                    budget_steps: int = 1_000_000, n_envs: int = 8, seeds=(0,),
                    dynamics: str = "6dof", evaluation_seeds=(EVALUATION_SEED,),
                    ppo_kwargs=None, log=None) -> dict:
-    """Train one run per seed (:func:`train`), keep the run with the best final training
-    success, write its ``policy.zip`` (:func:`save_stable`) and the training report (JSON)
-    atomically; returns the report."""
+    """Train one run per seed, keep the best, write its ``policy.zip`` and the training report.
+
+    The kept run is the one with the best final training success (the first on a tie;
+    :func:`train`); the model (:func:`save_stable`) and the report (JSON) are written
+    atomically.
+
+    Parameters
+    ----------
+    grid_path : path
+        The grid export file.
+    policy_path : path
+        The ``policy.zip`` to write.
+    report_path : path
+        The JSON report to write.
+    task : str
+        Task id (a single-vehicle task).
+    tiers, budget_steps, n_envs, dynamics, evaluation_seeds, ppo_kwargs, log
+        As :func:`train`.
+    seeds : iterable of int, optional
+        Training seeds, one run each (default ``(0,)``).
+
+    Returns
+    -------
+    dict
+        The training report: settings, the selected seed, hyperparameters, final success,
+        wall time, the policy's sha256, package versions and every run's record.
+
+    Raises
+    ------
+    ConfigError
+        Bad seeds, or a team task (PPO trains single-vehicle tasks).
+    """
     from importlib.metadata import version
 
     from ...io import sha256_file, write_json_atomic
@@ -274,5 +412,16 @@ def train_to_files(grid_path, policy_path, report_path, task: str, *, tiers=(1, 
 
 
 def read_report(path) -> dict:
-    """A training report (:func:`train_to_files`)."""
+    """A training report (:func:`train_to_files`).
+
+    Parameters
+    ----------
+    path : path
+        The JSON report.
+
+    Returns
+    -------
+    dict
+        The report.
+    """
     return json.loads(Path(path).read_text())
