@@ -200,7 +200,7 @@ def test_unknown_variant_is_a_config_error():
 
 # ------------------------------------------------------------------------------ resolve_grid
 
-def test_resolve_grid_inputs(cache):
+def test_resolve_grid_inputs(cache, tmp_path):
     from oneocean.engine.grid import Grid, load_grid
     from oneocean.testing import make_test_grid
 
@@ -212,6 +212,15 @@ def test_resolve_grid_inputs(cache):
     assert defaults.resolve_grid(cache["path"]).nx == 161
     m = make_test_grid(nt=2, nz=2, ny=5, nx=6)
     assert defaults.resolve_grid(m).nx == load_grid(m).nx == 6
+    # a grid export stored as zarr (exports.format: zarr) gives the same grid
+    from oneocean.io import read_npz
+    from oneocean.zarrio import write_arrays_zarr
+
+    store = tmp_path / "grid.zarr"
+    write_arrays_zarr(store, read_npz(cache["path"], "grid export"))
+    z = defaults.resolve_grid(store)
+    assert np.array_equal(z.uv, g.uv) and np.array_equal(z.elevation, g.elevation)
+    assert (z.x0, z.nx, z.ny) == (g.x0, g.nx, g.ny)
     # the default region's override file is the same cache entry as the default
     assert defaults.region_grid_path(REPO / "config" / "regions" / "synthetic_coast.yaml") \
         == cache["path"]
@@ -250,6 +259,12 @@ def test_resolve_grid_errors_are_one_line_and_name_the_path(cache, tmp_path):
     with pytest.raises(DataError) as exc:
         defaults.resolve_grid(tmp_path)
     _one_line(exc, tmp_path, "folder")
+
+    wz = tmp_path / "results" / "exports" / "my_region" / "scene" / "grid.zarr"
+    with pytest.raises(DataError) as exc:
+        defaults.resolve_grid(wz)
+    _one_line(exc, wz, "not found", "results/exports/my_region/scene/grid.zarr",
+              "\"format\": \"zarr\"")
 
     with pytest.raises(DataError) as exc:
         defaults.resolve_grid(tmp_path / "region.yaml")

@@ -48,6 +48,10 @@ def test_toy_task_runs_through_run_cell_and_the_step_api(toy):
     h3 = run_cell(grid, "TOY", 3, "heuristic", episodes=4, seed=0, dynamics="kinematic")
     o3 = run_cell(grid, "TOY", 3, "oracle", episodes=4, seed=0, dynamics="kinematic")
     assert not h3["success"].any() and o3["success"].all()
+    # the task's own metric is its column (not a standard one): above the tolerance where
+    # the climb falls short, within it where it succeeds
+    assert (h3["final_depth_error_m"] > 0.5).all() and (o3["final_depth_error_m"] <= 0.5).all()
+    assert (h["final_depth_error_m"] > 0).all()
     np.testing.assert_array_equal(h3["candidate"], o3["candidate"])
     assert np.all(np.diff(h3["candidate"]) > 0)
     from oneocean.tasks import Cell

@@ -77,8 +77,14 @@ _PKG = Path(__file__).resolve().parent
 # ------------------------------------------------------------------------------ configuration
 
 def cache_dir() -> Path:
-    """The cache folder: ``$ONEOCEAN_CACHE_DIR`` if set (and not empty), else
-    ``~/.cache/oneocean``."""
+    """The cache folder.
+
+    Returns
+    -------
+    pathlib.Path
+        ``$ONEOCEAN_CACHE_DIR`` (``~`` expanded) if set and not empty, else
+        ``~/.cache/oneocean``; not created here.
+    """
     env = os.environ.get(CACHE_ENV, "").strip()
     return Path(env).expanduser() if env else Path.home() / ".cache" / "oneocean"
 
@@ -131,14 +137,30 @@ def _merge(base: dict, new: dict) -> dict:
 
 
 def region_config(path: str | os.PathLike | None = None) -> dict:
-    """The sections of a region's configuration its product depends on (``region``,
-    ``sources``, ``synthetic``, ``cmems``, ``gebco``, ``etopo``, ``files``, ``variants``),
-    with the schema's defaults filled in.
+    """The sections of a region's configuration its product depends on, defaults filled in.
 
-    ``path`` None: the embedded default region. Otherwise a YAML file merged over it, as the
-    workflow merges ``--configfile config/regions/<region>.yaml`` over ``config/config.yaml``
-    (a full config file works too; its other sections are ignored here). Not validated:
-    :func:`oneocean.config.validate_data_config` does that before a build.
+    The sections are ``region``, ``sources``, ``synthetic``, ``cmems``, ``gebco``, ``etopo``,
+    ``files`` and ``variants``. Not validated: :func:`oneocean.config.validate_data_config`
+    does that before a build.
+
+    Parameters
+    ----------
+    path : str or os.PathLike, optional
+        None: the embedded default region (:data:`DEFAULT_CONFIG`). Otherwise a YAML file
+        merged over it, as the workflow merges ``--configfile config/regions/<region>.yaml``
+        over ``config/config.yaml`` (a full config file works too; its other sections are
+        ignored here).
+
+    Returns
+    -------
+    dict
+        The sections, the schema's defaults filled in where a key is missing.
+
+    Raises
+    ------
+    ConfigError
+        The file is unreadable, not valid YAML, not a mapping, or has a top-level key the
+        config schema does not know.
     """
     doc = copy.deepcopy(_load_yaml(DEFAULT_CONFIG, "region config"))
     props = _schema()["properties"]
@@ -217,9 +239,24 @@ def _code_hash() -> str:
 
 
 def grid_key(cfg: dict, variant: str, inputs: list[dict] | None = None) -> str:
-    """The cache key (sha256 hex) of ``variant`` of the region ``cfg``
-    (:func:`region_config`): its product's configuration, the package version, the hash of
-    the code that builds it and the local input files' ``inputs`` records."""
+    """The cache key of a variant of a region's grid.
+
+    Parameters
+    ----------
+    cfg : dict
+        The region's configuration (:func:`region_config`).
+    variant : str
+        The product variant: ``tiny``, ``scene`` or ``public`` (a key of ``cfg["variants"]``).
+    inputs : list of dict, optional
+        Records of the local input files (config key, resolved path, size in bytes,
+        modification time in ns); default none.
+
+    Returns
+    -------
+    str
+        Hex sha256 of the product's configuration, the package version, the hash of the code
+        that builds the grid and ``inputs``.
+    """
     doc = {"format": _FORMAT, "config": _snapshot(cfg, variant), "oneocean_version": __version__,
            "code_sha256": _code_hash(), "inputs": inputs or []}
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
@@ -235,13 +272,26 @@ def _variant(variant: str) -> str:
 # ------------------------------------------------------------------------------ the cache
 
 def default_grid_path(variant: str = DEFAULT_VARIANT) -> Path:
-    """The grid export of the embedded default region (the synthetic coast), ``variant``
-    (``tiny``, ``scene`` or ``public``): built on first use into the cache, then returned
-    from it. Byte-identical to the workflow's ``results/exports/synthetic_coast/<variant>/
-    grid.npz`` built by the same code and libraries.
+    """The grid export of the embedded default region (the synthetic coast).
+
+    Built on first use into the cache, then returned from it. Byte-identical to the
+    workflow's ``results/exports/synthetic_coast/<variant>/grid.npz`` built by the same code
+    and libraries.
+
+    Parameters
+    ----------
+    variant : str, default "scene"
+        The product variant: ``tiny``, ``scene`` or ``public``.
+
+    Returns
+    -------
+    pathlib.Path
+        The cached ``grid.npz``.
 
     Raises
     ------
+    ConfigError
+        ``variant`` is not a variant.
     DataError
         The cache folder cannot be written (set ``ONEOCEAN_CACHE_DIR``).
     """
@@ -250,10 +300,23 @@ def default_grid_path(variant: str = DEFAULT_VARIANT) -> Path:
 
 def region_grid_path(config: str | os.PathLike | None = None,
                      variant: str = DEFAULT_VARIANT) -> Path:
-    """The cached grid export of ``variant`` of the region config ``config`` (a YAML file
-    merged over the default region, see :func:`region_config`; None: the default region),
-    built on first use. Only regions whose sources are synthetic or local files are built
-    (no network).
+    """The cached grid export of a variant of a region, built on first use.
+
+    Only regions whose sources are synthetic or local files are built (no network).
+
+    Parameters
+    ----------
+    config : str or os.PathLike, optional
+        A region config YAML file merged over the default region (see
+        :func:`region_config`); None: the default region.
+    variant : str, default "scene"
+        The product variant: ``tiny``, ``scene`` or ``public``.
+
+    Returns
+    -------
+    pathlib.Path
+        The cached ``grid.npz``, ``<cache>/grids/<region>/<variant>/<key>/grid.npz`` (the
+        key's first 16 hex digits, :func:`grid_key`).
 
     Raises
     ------
@@ -343,7 +406,7 @@ class _BuildPath(os.PathLike):
 
 
 def _workflow_paths(name: str, variant: str) -> dict[str, str]:
-    """The workflow's files for the region and variant (workflow/rules/*.smk)."""
+    """The workflow's files for the region and variant (``workflow/rules/*.smk``)."""
     return {"currents": f"results/raw/{name}/currents.nc",
             "bathymetry": f"results/raw/{name}/bathymetry.nc",
             "download": f"results/raw/{name}/download",
@@ -446,12 +509,15 @@ def _packages() -> dict:
 def _hint(path: Path) -> str:
     """How to build a grid export like ``path`` (a workflow target), or use the default."""
     parts = path.parts
-    if len(parts) >= 5 and parts[-5:-3] == ("results", "exports") and parts[-1] == "grid.npz":
+    if (len(parts) >= 5 and parts[-5:-3] == ("results", "exports")
+            and parts[-1] in ("grid.npz", "grid.zarr")):
         region, variant = parts[-3], parts[-2]
         extra = ("" if region == "synthetic_coast"
                  else f" --configfile config/regions/{region}.yaml")
+        if parts[-1] == "grid.zarr":
+            extra += " --config 'exports={\"format\": \"zarr\"}'"
         build = (f"build it in the workflow's checkout with `snakemake --cores 2 "
-                 f"results/exports/{region}/{variant}/grid.npz{extra}`")
+                 f"results/exports/{region}/{variant}/{parts[-1]}{extra}`")
     else:
         build = ("build one with the workflow (`snakemake --cores 2 exports` writes "
                  "results/exports/<region>/<variant>/grid.npz)")
@@ -466,10 +532,23 @@ def resolve_grid(grid=None, *, variant: str = DEFAULT_VARIANT):
     * None: the default region's grid (:func:`default_grid_path` of ``variant``);
     * a :class:`~oneocean.engine.grid.Grid`: returned as it is;
     * a mapping with the grid export's keys (e.g. :func:`oneocean.testing.make_test_grid`);
-    * a path to a grid export ``.npz`` (contracts §3): loaded;
+    * a path to a grid export ``.npz`` or ``.zarr`` store (contracts §3): loaded;
     * a path to a region config ``.yaml``/``.yml`` (like ``config/regions/<region>.yaml``):
       that region's ``variant`` grid, built into the cache like the default
       (:func:`region_grid_path`; synthetic or local-file sources only).
+
+    Parameters
+    ----------
+    grid : None, Grid, Mapping, str or os.PathLike, optional
+        The grid source, one of the above.
+    variant : str, default "scene"
+        The product variant (``tiny``, ``scene`` or ``public``) of a grid built from a region
+        config (``grid`` None or a ``.yaml`` path).
+
+    Returns
+    -------
+    Grid
+        The loaded grid (:func:`oneocean.engine.grid.load_grid`).
 
     Raises
     ------
@@ -494,7 +573,15 @@ def resolve_grid(grid=None, *, variant: str = DEFAULT_VARIANT):
                           f"config (.yaml), got {type(grid).__name__}")
     path = Path(os.fspath(grid)).expanduser()
     suffix = path.suffix.lower()
-    kinds = "a grid export (.npz), a region config (.yaml), or None for the default region"
+    kinds = ("a grid export (.npz or .zarr), a region config (.yaml), or None for the "
+             "default region")
+    if suffix == ".zarr":
+        if not path.exists():
+            raise DataError(f"{path}: grid export not found; {_hint(path)}")
+        try:
+            return load_grid(path)
+        except DataError as exc:
+            raise DataError(f"{exc}; {_hint(path)}") from None
     if path.is_dir():
         raise DataError(f"{path}: is a folder; pass {kinds}")
     if suffix in (".yaml", ".yml"):

@@ -97,7 +97,21 @@ _NONE = np.zeros(0, dtype=np.int64)
 
 
 def pool_seed(seed: int, index: int) -> int:
-    """The seed of the ``index``-th pool after the first (the first is ``seed`` itself)."""
+    """The seed of the ``index``-th pool after the first (the first is ``seed`` itself).
+
+    Parameters
+    ----------
+    seed : int
+        The seed given to ``reset``.
+    index : int
+        Pool index, 0 for the first.
+
+    Returns
+    -------
+    int
+        ``seed`` for index 0, else a non-negative 63-bit seed from
+        ``SeedSequence([seed, index])``.
+    """
     if index == 0:
         return int(seed)
     return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0] >> 1)
@@ -110,8 +124,25 @@ def _choice(name: str, value: str, valid) -> str:
 
 
 def normalize(obs: np.ndarray, v_max: float, reach: float, time_left) -> np.ndarray:
-    """The normalised view (..., NORM_DIM) of raw observations ``obs`` (..., OBS_DIM) (NaN
-    for undefined values); ``time_left`` broadcasts over the leading axes (per episode)."""
+    """The normalised view of raw observations (the module docstring gives the fields).
+
+    Parameters
+    ----------
+    obs : (..., N, OBS_DIM) array_like
+        Raw observations (:data:`oneocean.tasks.common.OBS_FIELDS`), NaN for undefined values.
+    v_max : float
+        The vehicle's speed limit, m s-1.
+    reach : float
+        The task's range, m (``v_max`` x the time limit).
+    time_left : float or array_like
+        Fraction of the time limit left, shaped as the axes before the agent axis (per
+        episode); broadcast over the agents.
+
+    Returns
+    -------
+    (..., N, NORM_DIM) float64
+        The normalised observations (:data:`NORM_FIELDS`), finite.
+    """
     o = np.asarray(obs, dtype=np.float64)
     out = np.zeros(o.shape[:-1] + (NORM_DIM,))
     g = np.nan_to_num(o[..., 0:3])
@@ -137,12 +168,34 @@ def normalize(obs: np.ndarray, v_max: float, reach: float, time_left) -> np.ndar
 
 
 def dense_reward(d_prev, d_now, new_viol, new_coll, success, v_max: float, dt: float):
-    """The opt-in dense reward of one step per sub-env: ``PROGRESS_WEIGHT`` x the team's mean
-    progress toward its goal cues in units of ``v_max dt`` (each agent's clipped to [-2, 2];
-    an agent whose cue jumped by more than ``2 v_max dt + 1 m`` -- a new waypoint, slot or
-    target -- counts 0 that step), minus ``VIOLATION_PENALTY`` per rejected move, minus
-    ``COLLISION_PENALTY`` if the step had a near-collision, plus 1 on success. ``d_prev``,
-    ``d_now``: (E, N) distances to the goal cue, m."""
+    """The opt-in dense reward of one step per sub-env.
+
+    ``PROGRESS_WEIGHT`` x the team's mean progress toward its goal cues in units of
+    ``v_max dt`` (each agent's clipped to [-2, 2]; an agent whose cue jumped by more than
+    ``2 v_max dt + 1 m`` -- a new waypoint, slot or target -- or is undefined counts 0 that
+    step), minus ``VIOLATION_PENALTY`` per rejected move, minus ``COLLISION_PENALTY`` if the
+    step had a near-collision, plus 1 on success.
+
+    Parameters
+    ----------
+    d_prev, d_now : (E, N) float64
+        Each agent's distance to its goal cue before and after the step, m (NaN: undefined).
+    new_viol : (E,) int
+        Rejected moves of the step.
+    new_coll : (E,) int
+        Steps with a near-collision counted at this step (0 or 1).
+    success : (E,) bool
+        The episode ended in success at this step.
+    v_max : float
+        The vehicle's speed limit, m s-1.
+    dt : float
+        Step, s.
+
+    Returns
+    -------
+    (E,) float64
+        The reward of each sub-env.
+    """
     step = v_max * dt
     delta = d_prev - d_now
     jump = np.abs(delta) > 2.0 * step + 1.0
@@ -218,24 +271,43 @@ class OceanVectorEnv(VectorEnv):
 
     Parameters
     ----------
-    task, tier : the cell
-    grid : a :class:`~oneocean.engine.grid.Grid`, a grid export path, a region config, or
-        None: the default region's grid (:func:`oneocean.defaults.resolve_grid`; ignored
-        with ``scene``)
-    num_envs : sub-envs
-    autoreset_mode : ``next_step`` (default), ``same_step`` or ``disabled`` (or Gymnasium's
-        ``AutoresetMode``)
-    obs_mode : ``raw`` or ``normalized``; action_mode : ``velocity`` or ``normalized``;
-    reward : ``sparse`` or ``dense``
-    pool : episodes sampled per sub-env at a time (autoreset modes)
-    strict_seed : a seed whose episodes the cell cannot host raises ``NotApplicable``
-        (evaluation: :func:`oneocean.evaluate.evaluate`) instead of moving on to the next
-        pool seed
-    render_mode : None or ``rgb_array`` (a top-down view of sub-env 0: :meth:`render`)
-    dynamics, n_agents, currents, vehicle, current_gain, tide : as ``run_cell`` (the run's
-        forcing: gain on the data currents, a synthetic tide term; episodes are the same
-        under any forcing); backend, scene : the execution backend (``core``, or ``mujoco``
-        with a :class:`oneocean.backends.mujoco.scenes.Scene`)
+    task : str
+        Registered task id.
+    tier : int
+        Tier of the task's table.
+    grid : Grid, mapping, path-like or None
+        A :class:`~oneocean.engine.grid.Grid`, a grid export path, a region config, or None:
+        the default region's grid (:func:`oneocean.defaults.resolve_grid`; ignored with
+        ``scene``).
+    num_envs : int
+        Sub-envs (at least 1).
+    autoreset_mode : str or AutoresetMode
+        ``next_step`` (default), ``same_step`` or ``disabled`` (or Gymnasium's
+        ``AutoresetMode``).
+    obs_mode : str
+        ``raw`` (default) or ``normalized``.
+    action_mode : str
+        ``velocity`` (default, m s-1) or ``normalized`` (units of ``v_max``).
+    reward : str
+        ``sparse`` (default) or ``dense``.
+    pool : int
+        Episodes sampled per sub-env at a time (autoreset modes).
+    render_mode : str, optional
+        None or ``rgb_array`` (a top-down view of sub-env 0: :meth:`render`).
+    strict_seed : bool
+        A seed whose episodes the cell cannot host raises ``NotApplicable`` (evaluation:
+        :func:`oneocean.evaluate.evaluate`) instead of moving on to the next pool seed.
+    **kw
+        ``dynamics`` (default ``6dof``), ``n_agents``, ``currents``, ``vehicle``,
+        ``current_gain``, ``tide``: as :func:`~oneocean.tasks.run_cell` (the run's forcing:
+        gain on the data currents, a synthetic tide term; episodes are the same under any
+        forcing); ``backend``, ``scene``: the execution backend (``core``, or ``mujoco``
+        with a :class:`oneocean.backends.mujoco.scenes.Scene`).
+
+    Raises
+    ------
+    ConfigError
+        An unknown mode, ``num_envs`` below 1, or a bad cell (:class:`oneocean.tasks.Cell`).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"]}
@@ -412,10 +484,36 @@ class OceanVectorEnv(VectorEnv):
 
     @property
     def cell_steps(self) -> int:
+        """Steps of an episode (the time limit over ``dt``; 0 before :meth:`reset`)."""
         return self._pools[0].batch.n_steps if self._pools else 0
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start every sub-env on a fresh episode (sub-env ``j`` on the cell's episode ``j``
+        of ``seed``).
+
+        Parameters
+        ----------
+        seed : int, optional
+            The cell's seed; None: drawn from the env's generator.
+        options : dict, optional
+            Unused; a ``reset_mask`` (a partial reset) is refused.
+
+        Returns
+        -------
+        obs : (num_envs, N, D) float64
+            The first observations.
+        info : dict
+            Empty.
+
+        Raises
+        ------
+        ValueError
+            ``options`` with a ``reset_mask``.
+        NotApplicable
+            With ``strict_seed``, a seed whose episodes the cell cannot host (else after
+            :data:`SEED_TRIES` pool seeds).
+        """
         if options and "reset_mask" in options:
             raise ValueError("OceanVectorEnv: partial resets are made by autoreset; call "
                              "reset() for the whole batch")
@@ -442,17 +540,52 @@ class OceanVectorEnv(VectorEnv):
         self._d_prev = _cue_distance(raw)
         return self._obs(raw), {}
 
+    def _checked_actions(self, actions) -> np.ndarray:
+        """``actions`` as a contiguous float64 array of the action shape, else a one-line
+        ConfigError naming both shapes."""
+        a = np.ascontiguousarray(actions, dtype=np.float64)
+        if a.shape != self._act_shape:
+            raise ConfigError(f"actions: expected shape {self._act_shape}, got {a.shape}")
+        return a
+
     def _to_velocity(self, actions) -> np.ndarray:
-        a = np.asarray(actions, dtype=np.float64)
-        want = (self.num_envs, self.n_agents, len(ACT_FIELDS))
-        if a.shape != want:
-            raise ConfigError(f"actions: expected shape {want}, got {a.shape}")
+        a = self._checked_actions(actions)
         if self.action_mode == "normalized":
             norm = np.sqrt((a * a).sum(-1, keepdims=True))
             a = self.v_max * a / np.maximum(norm, 1.0)
         return a
 
     def step(self, actions):
+        """Advance every running sub-env by one step.
+
+        Parameters
+        ----------
+        actions : (num_envs, N, 3) array_like
+            Each agent's action (``action_mode``: velocity relative to the water, world
+            frame, m s-1, or units of ``v_max``).
+
+        Returns
+        -------
+        obs : (num_envs, N, D) float64
+            The next observations (autoreset: see the module docstring).
+        reward : (num_envs,) float64
+            The step's reward (``reward`` mode).
+        terminated : (num_envs,) bool
+            The episode ended by the task (success or a terminal failure).
+        truncated : (num_envs,) bool
+            The episode ended at the time limit without success.
+        info : dict
+            For sub-envs whose episode ended: the cell table's result columns and
+            ``is_success``, with Gymnasium's ``_<key>`` masks (``final_obs`` /
+            ``final_info`` with ``same_step``).
+
+        Raises
+        ------
+        RuntimeError
+            Before :meth:`reset`.
+        ConfigError
+            ``actions`` of another shape.
+        """
         if not self._pools:
             raise RuntimeError("OceanVectorEnv: call reset() before step()")
         n = self.num_envs
@@ -536,9 +669,7 @@ class OceanVectorEnv(VectorEnv):
                 return None
         elif not all(hasattr(g[0].batch, "env_step") for g in groups):
             return None
-        a = np.ascontiguousarray(actions, dtype=np.float64)
-        if a.shape != self._act_shape:
-            raise ConfigError(f"actions: expected shape {self._act_shape}, got {a.shape}")
+        a = self._checked_actions(actions)
         out = np.empty(self._obs_shape)
         for pool, _, _, lo, hi, rows in groups:
             if not pool.batch.env_step(EnvIO(a, out, self._flags, rows, self._normalized,
@@ -548,7 +679,9 @@ class OceanVectorEnv(VectorEnv):
 
     def _step_groups(self, a: np.ndarray, groups):
         """The step of every pool's running episodes (``a`` velocities per sub-env): raw
-        observations and the sub-envs whose episode ended at this step (None: none)."""
+        observations and the sub-envs whose episode ended at this step (None: none). The
+        path of backends without a fused step (the scene backend's pools); the core
+        backend's pools take :meth:`_fused_env_step`."""
         n = self.num_envs
         raw = np.empty((n, self.n_agents, OBS_DIM))
         was_done = np.empty(n, dtype=bool)
@@ -573,9 +706,15 @@ class OceanVectorEnv(VectorEnv):
         self._d_prev[envs] = _cue_distance(fresh)
 
     def render(self):
-        """A top-down RGB view (H, W, 3) uint8 of sub-env 0 (``render_mode="rgb_array"``):
-        the current speed at the surface at the episode's time, land, the agents and their
-        goal cues."""
+        """A top-down RGB view of sub-env 0: the current speed near the surface at the
+        episode's time, land, the agents and their goal cues.
+
+        Returns
+        -------
+        (H, W, 3) uint8 or None
+            The image (:func:`oneocean.render.topdown_rgb`, north up); None unless
+            ``render_mode="rgb_array"`` and the env was reset.
+        """
         if self.render_mode != "rgb_array" or not self._pools:
             return None
         from .render import topdown_rgb
@@ -587,13 +726,34 @@ class OceanVectorEnv(VectorEnv):
                            float(b.t0[e] + b.k[e] * self.dt))
 
     def close(self, **kwargs):
+        """Drop the episode pools.
+
+        Parameters
+        ----------
+        **kwargs
+            Ignored (Gymnasium's signature).
+        """
         self._pools = []
         self._group_cache = None
 
 
 class OceanEnv(gym.Env):
     """Single-episode view of :class:`OceanVectorEnv` (``num_envs = 1``, autoreset
-    disabled): observation (N, D), action (N, 3); parameters as the vector env's."""
+    disabled): observation (N, D), action (N, 3).
+
+    Parameters
+    ----------
+    task : str
+        Registered task id.
+    tier : int
+        Tier of the task's table.
+    grid : Grid, mapping, path-like or None
+        As :class:`OceanVectorEnv`.
+    render_mode : str, optional
+        None or ``rgb_array``.
+    **kw
+        As :class:`OceanVectorEnv` (``autoreset_mode`` is ignored).
+    """
 
     metadata = {"render_modes": ["rgb_array"]}
 
@@ -607,12 +767,48 @@ class OceanEnv(gym.Env):
         self.action_space = self.venv.single_action_space
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start a fresh episode: the cell's episode 0 of ``seed``.
+
+        Parameters
+        ----------
+        seed : int, optional
+            The cell's seed; None: drawn from the env's generator.
+        options : dict, optional
+            Unused.
+
+        Returns
+        -------
+        obs : (N, D) float64
+            The first observation.
+        info : dict
+            Empty.
+        """
         super().reset(seed=seed)
         s = seed if seed is not None else int(self.np_random.integers(2**31))
         obs, _ = self.venv.reset(seed=int(s))
         return obs[0], {}
 
     def step(self, action):
+        """Advance the episode by one step.
+
+        Parameters
+        ----------
+        action : (N, 3) array_like
+            Each agent's action (as :meth:`OceanVectorEnv.step`).
+
+        Returns
+        -------
+        obs : (N, D) float64
+            The next observation.
+        reward : float
+            The step's reward.
+        terminated : bool
+            The episode ended by the task.
+        truncated : bool
+            The episode ended at the time limit.
+        info : dict
+            When the episode ended: the result columns and ``is_success``.
+        """
         obs, r, term, trunc, info = self.venv.step(np.asarray(action)[None])
         one = {k: (v[0] if isinstance(v, np.ndarray) else v) for k, v in info.items()
                if not k.startswith("_")}
@@ -621,13 +817,39 @@ class OceanEnv(gym.Env):
         return obs[0], float(r[0]), bool(term[0]), bool(trunc[0]), one
 
     def render(self):
+        """The vector env's :meth:`~OceanVectorEnv.render`.
+
+        Returns
+        -------
+        (H, W, 3) uint8 or None
+            The top-down view, or None unless ``render_mode="rgb_array"``.
+        """
         return self.venv.render()
 
 
 def parallel_env(task: str, tier: int, grid=None, **kw):
-    """A PettingZoo ``ParallelEnv`` of one episode of a (multi-agent) task; agents are
-    ``vehicle_0 .. vehicle_{N-1}``, each with one agent's observation and a 3-vector action
-    (see the module docstring; ``kw`` as :class:`OceanVectorEnv`: the modes, the backend)."""
+    """A PettingZoo ``ParallelEnv`` of one episode of a (multi-agent) task.
+
+    Agents are ``vehicle_0 .. vehicle_{N-1}``, each with one agent's observation and a
+    3-vector action (see the module docstring); an agent missing from a step's actions acts
+    ``(0, 0, 0)``. Every agent gets the team's reward, end flags and result columns.
+
+    Parameters
+    ----------
+    task : str
+        Registered task id.
+    tier : int
+        Tier of the task's table.
+    grid : Grid, mapping, path-like or None
+        As :class:`OceanVectorEnv`.
+    **kw
+        As :class:`OceanVectorEnv`: the modes, the backend (``autoreset_mode`` is ignored).
+
+    Returns
+    -------
+    ParallelEnv
+        The env (requires ``pettingzoo``).
+    """
     from pettingzoo import ParallelEnv
 
     class OceanParallelEnv(ParallelEnv):

@@ -32,9 +32,21 @@ TABLE7_TASK = "RF"
 
 
 def load_scene_cells(cell_files) -> pd.DataFrame:
-    """One row per scene cell file (read by :func:`oneocean.ladder.read_cell`): ``scene,
-    label, backend, task, tier, method, applicable, reason, n, success, episodes,
-    n_waypoints, file``."""
+    """Read scene cell files into one row per file (:func:`oneocean.ladder.read_cell`).
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like
+        The ``scene_cells`` jobs' Parquet files.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``scene`` (from the record, else the path), ``label`` (:func:`short_label`),
+        ``backend`` (``core`` or ``mujoco``), ``task, tier, method, applicable, reason``,
+        ``n`` (episodes), ``success`` (bool array), ``episodes`` (the per-episode
+        DataFrame), ``n_waypoints`` (the tier's, None if it has none) and ``file``.
+    """
     from .ladder import read_cell
 
     rows = []
@@ -58,8 +70,20 @@ KIND_NAMES = {"dam": "Dam", "open_water": "OpenWater", "pier_harbor": "PierHarbo
 
 
 def short_label(scene_meta: dict, name: str) -> str:
-    """``"Dam*"``-style table label of a scene (``*``: a stand-in, said in the caption);
-    the scene's name is added when it differs from its kind."""
+    """The ``"Dam*"``-style table label of a scene (``*``: a stand-in, said in the caption).
+
+    Parameters
+    ----------
+    scene_meta : dict
+        The scene's metadata (its ``kind`` is looked up in :data:`KIND_NAMES`).
+    name : str
+        The scene's name; added in parentheses when it differs from its kind.
+
+    Returns
+    -------
+    str
+        The label, e.g. ``"Dam*"`` or ``"Dam* (<name>)"``.
+    """
     kind = scene_meta.get("kind", "")
     base = KIND_NAMES.get(kind, name) + "*"
     return base if name in ("", kind) else f"{base} ({name})"
@@ -73,8 +97,26 @@ def _mean(x) -> float:
 
 def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
                  task: str = TABLE7_TASK) -> pd.DataFrame:
-    """Per scene and tier (MuJoCo backend): ``sr, sr_lo, sr_hi, wp_pct, all_wp_pct, cte_m,
-    n``; then one ``scene = "mean"`` row per tier (each scene weighted equally)."""
+    """Table VII as data: one row per scene and tier (MuJoCo backend), then the means.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        :func:`load_scene_cells`' rows.
+    method : str, default "heuristic"
+        The method.
+    task : str, default ``TABLE7_TASK``
+        The task (route following, ``"RF"``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``scene, label, tier, n, sr, sr_lo, sr_hi`` (%, Wilson 95 %), ``wp_pct`` (waypoints
+        reached, % of the route, mean over episodes), ``all_wp_pct`` (% of episodes reaching
+        every waypoint), ``cte_m`` (mean of the primary metric: for RF the mean cross-track
+        error, m), ``reason``; then one ``scene = "mean"`` row per tier (each hosted scene
+        weighted equally, no interval). Empty without such cells.
+    """
     sel = cells[(cells["backend"] == "mujoco") & (cells["task"] == task)
                 & (cells["method"] == method)]
     rows = []
@@ -113,6 +155,26 @@ def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
 
 def table7_latex(df: pd.DataFrame, region: str, method: str, episodes: str,
                  task: str = TABLE7_TASK) -> str:
+    """Table VII as LaTeX.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        :func:`table7_frame`'s rows.
+    region : str
+        The region, named in the caption and the label.
+    method : str
+        The method, named in the caption.
+    episodes : str
+        Episode counts for the caption, e.g. ``"50 episodes per cell"``.
+    task : str, default ``TABLE7_TASK``
+        The task; another than RF has no waypoint columns and its primary metric last.
+
+    Returns
+    -------
+    str
+        The ``table*`` (label ``tab:scene_backend:<region>``).
+    """
     from .registry import task_spec
 
     tiers = sorted(df["tier"].unique())
@@ -151,8 +213,22 @@ def table7_latex(df: pd.DataFrame, region: str, method: str, episodes: str,
 
 
 def compare_frame(cells: pd.DataFrame, scene: str) -> pd.DataFrame:
-    """Core vs MuJoCo on ``scene``: per task, tier, method, backend: ``sr, sr_lo, sr_hi,
-    primary, T_s, E, violations, n``."""
+    """Core vs MuJoCo on one scene as data: one row per task, tier, method and backend.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        :func:`load_scene_cells`' rows.
+    scene : str
+        The compare scene's name.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``task, tier, method, backend, n, sr, sr_lo, sr_hi`` (%, Wilson 95 %) and means over
+        episodes of ``primary`` (the task's primary metric), ``T_s`` (s), ``E`` (team energy
+        proxy, m2 s-1) and ``violations`` (per episode); NaN for a cell without episodes.
+    """
     sel = cells[cells["scene"] == scene]
     rows = []
     for (task, tier, method, backend), g in sel.groupby(["task", "tier", "method", "backend"],
@@ -174,12 +250,34 @@ def compare_frame(cells: pd.DataFrame, scene: str) -> pd.DataFrame:
 
 
 def compare_latex(df: pd.DataFrame, region: str, scene: str, label: str, episodes: str) -> str:
+    """The core-vs-scene table as LaTeX.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        :func:`compare_frame`'s rows.
+    region : str
+        The region, named in the caption and the label.
+    scene : str
+        The compare scene's name (not shown: the caption names ``label``).
+    label : str
+        The scene's table label (:func:`short_label`).
+    episodes : str
+        Episode counts for the caption.
+
+    Returns
+    -------
+    str
+        The ``table*`` (label ``tab:scene_vs_core:<region>``).
+    """
     from .registry import task_spec
 
     header = ["Task (primary metric)", "Tier", "Method", "Core SR (\\%)", "Scene SR (\\%)", "Core primary",
               "Scene primary", "Core contacts / rejections", "Scene contacts"]
     rows = []
-    keys = list(dict.fromkeys(zip(df["task"], df["tier"], df["method"])))
+    # no compare cells (a frame without columns): a table without rows
+    keys = (list(dict.fromkeys(zip(df["task"], df["tier"], df["method"])))
+            if "task" in df.columns else [])
     for task, tier, method in keys:
         g = df[(df["task"] == task) & (df["tier"] == tier) & (df["method"] == method)]
         by = {b: g[g["backend"] == b].iloc[0] for b in ("core", "mujoco")
@@ -213,7 +311,27 @@ def _episodes_text(cells: pd.DataFrame) -> str:
 
 def write_scene_tables(cell_files, out_tex, out_compare, out_md, region: str,
                        compare: str, method: str = "heuristic") -> None:
-    """Write Table VII, the core-vs-scene table and the markdown summary (atomically)."""
+    """Write Table VII, the core-vs-scene table and the Markdown summary (atomically).
+
+    Table VII is of RF if the cells have it, else of their first task.
+
+    Parameters
+    ----------
+    cell_files : iterable of path-like
+        The ``scene_cells`` jobs' Parquet files.
+    out_tex : path-like
+        Table VII (``scene_backend.tex``).
+    out_compare : path-like
+        The core-vs-scene table (``scene_vs_core.tex``).
+    out_md : path-like
+        The Markdown summary (``scene_backend.md``, :func:`scene_markdown`).
+    region : str
+        The region.
+    compare : str
+        The scene run on both backends.
+    method : str, default "heuristic"
+        Table VII's method.
+    """
     cells = load_scene_cells(cell_files)
     eps = _episodes_text(cells)
     tasks = list(dict.fromkeys(cells["task"])) if len(cells) else []
@@ -230,6 +348,35 @@ def write_scene_tables(cell_files, out_tex, out_compare, out_md, region: str,
 
 def scene_markdown(cells, t7, cmp_df, region, compare, method, eps,
                    task: str = TABLE7_TASK) -> str:
+    """The scene backend's Markdown summary.
+
+    Table VII, every MuJoCo cell's success rate per scene, task, tier and method, and the
+    core-vs-scene comparison.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        :func:`load_scene_cells`' rows.
+    t7 : pandas.DataFrame
+        :func:`table7_frame`'s rows.
+    cmp_df : pandas.DataFrame
+        :func:`compare_frame`'s rows.
+    region : str
+        The region, in the heading.
+    compare : str
+        The compare scene's name.
+    method : str
+        Table VII's method.
+    eps : str
+        Episode counts for the text.
+    task : str, default ``TABLE7_TASK``
+        Table VII's task.
+
+    Returns
+    -------
+    str
+        The Markdown, ending with a newline.
+    """
     lines = [f"# Scene backend: {region}", "",
              f"MuJoCo scenes (*: stand-ins for the paper's packaged scenes), {eps}. Success is "
              "each task's own rule, the same as on the core; violations are contacts with the "

@@ -19,8 +19,8 @@ from oneocean import registry
 from oneocean.engine._jit import hot_kernel
 from oneocean.engine.constraints import spawn_positions
 from oneocean.tasks.common import episode_generators, fresh_cache, start_times
-from oneocean.tasks.loop import (noop_after_agent, noop_plan, noop_pre_step, observe_next,
-                                 run_episode)
+from oneocean.tasks.loop import (N_STANDARD, noop_after_agent, noop_plan, noop_pre_step,
+                                 observe_next, run_episode)
 
 registry.register_task(registry.load_task_spec(Path(__file__).with_name("oneocean_toy.yaml")))
 
@@ -99,7 +99,7 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
-    row[5] = W.err[e]
+    row[N_STANDARD] = W.err[e]           # the first task metric, after the standard columns
     return W.err[e] <= P.tol
 
 

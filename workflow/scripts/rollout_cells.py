@@ -19,7 +19,7 @@ def run_cell(s, cell, path):
         tide=run["tide"], currents=run["currents"], weights=smk.optional_input(s, "weights"),
         n_agents=run.get("n_agents"), info=run.get("info"),
         tier_overrides=run.get("tier_overrides"), backend=backend, scene=scene,
-        physics_step_s=run.get("physics_step_s"),
+        physics_step_s=run.get("physics_step_s"), shard=run.get("shard"),
     )
 
 

@@ -1,4 +1,4 @@
-"""Shared reader machinery: provider files → the canonical vocabulary of ``docs/contracts.md`` §1.
+"""Shared reader machinery: provider files → the canonical vocabulary of contracts.md §1.
 
 One pipeline serves every source kind::
 
@@ -116,11 +116,13 @@ def open_raw(path: str | os.PathLike) -> xr.Dataset:
 
     Parameters
     ----------
-    path : path of a NetCDF-3/4 file or a GeoTIFF (``.tif``/``.tiff``).
+    path : str or os.PathLike
+        A NetCDF-3/4 file or a GeoTIFF (``.tif``/``.tiff``).
 
     Returns
     -------
-    xarray.Dataset whose variables are lazily indexed (no data values read).
+    xarray.Dataset
+        Lazily indexed variables (no data values read).
 
     Raises
     ------
@@ -297,16 +299,27 @@ def structure(ds: xr.Dataset, name: str, variables: Sequence[str],
 
     Parameters
     ----------
-    ds : provider dataset (lazy).
-    name : file name or URL used in error messages.
-    variables : canonical variables that must be present (e.g. ``("u", "v")``).
-    optional : canonical variables kept when present (e.g. ``("u_tide", "v_tide")``).
+    ds : xarray.Dataset
+        A provider dataset (lazy).
+    name : str
+        File name or URL used in error messages.
+    variables : sequence of str
+        Canonical variables that must be present (e.g. ``("u", "v")``).
+    optional : sequence of str, default ()
+        Canonical variables kept when present (e.g. ``("u_tide", "v_tide")``).
 
     Returns
     -------
-    xarray.Dataset with only the canonical variables, canonical dims in canonical order,
-    longitudes in −180..180 and every coordinate strictly ascending. No values are read
-    except the 1-D coordinates.
+    xarray.Dataset
+        Only the canonical variables, canonical dims in canonical order, depth positive down,
+        longitudes in −180..180 and every coordinate strictly ascending (duplicates dropped).
+        No values are read except the 1-D coordinates.
+
+    Raises
+    ------
+    DataError
+        A missing coordinate or variable, a curvilinear grid, non-degree or swapped axes, or an
+        unexpected dimension.
     """
     ds = _rename_coords(ds, name)
     ds = _select_variables(ds, name, variables, optional)
@@ -478,12 +491,23 @@ def subset(ds: xr.Dataset, name: str, bbox: Mapping[str, float],
 
     Parameters
     ----------
-    ds : output of :func:`structure` (ascending coordinates).
-    name : file name used in error messages.
-    bbox : ``{"west", "east", "south", "north"}`` in degrees.
-    time : ``{"start", "end"}`` ISO 8601 (UTC) or None; the times bracketing the window
-        (last one <= start, first one >= end) are kept.
-    max_depth : m, positive down, or None; levels <= max_depth plus the first deeper one.
+    ds : xarray.Dataset
+        The output of :func:`structure` (ascending coordinates).
+    name : str
+        File name used in error messages.
+    bbox : Mapping[str, float]
+        ``west``, ``east``, ``south``, ``north``, degrees.
+    time : Mapping[str, str], optional
+        ``start``, ``end``: ISO 8601 (UTC); the times bracketing the window (last one <=
+        start, first one >= end) are kept. None: every time.
+    max_depth : float, optional
+        m, positive down: the levels <= ``max_depth`` plus the first deeper one are kept.
+        None: every level.
+
+    Returns
+    -------
+    xarray.Dataset
+        The subset (index operations only, nothing read).
 
     Raises
     ------
@@ -531,7 +555,18 @@ def _margin_slice(vals: np.ndarray, lo: float, hi: float) -> slice:
 
 
 def parse_time(value: str | np.datetime64 | pd.Timestamp) -> np.datetime64:
-    """ISO 8601 string → naive UTC ``datetime64[ns]``."""
+    """ISO 8601 string → naive UTC ``datetime64[ns]``.
+
+    Parameters
+    ----------
+    value : str, numpy.datetime64 or pandas.Timestamp
+        A time; with a time zone it is converted to UTC, without one it is taken as UTC.
+
+    Returns
+    -------
+    numpy.datetime64
+        The time, ns precision, without a time zone.
+    """
     ts = pd.Timestamp(value)
     if ts.tzinfo is not None:
         ts = ts.tz_convert("UTC").tz_localize(None)
@@ -559,8 +594,26 @@ def _time_slice(times: np.ndarray, window: Mapping[str, str], name: str) -> slic
 def finalise(ds: xr.Dataset, name: str) -> xr.Dataset:
     """Chunk with dask, convert units and dtypes, and set canonical CF attributes.
 
-    Velocities become float32 m s-1, elevation float32 m positive up (int16 and
-    positive-down depths are converted), ``time`` datetime64[ns], lon/lat/depth float64.
+    Velocities become float32 m s-1 (cm s-1 converted), elevation float32 m positive up (int16
+    and positive-down depths are converted), ``time`` datetime64[ns], lon/lat/depth float64.
+    Chunks: one time step and level, ``"auto"`` horizontally.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A structured (and possibly subset) dataset.
+    name : str
+        File name used in error messages.
+
+    Returns
+    -------
+    xarray.Dataset
+        The canonical dataset, dask-backed, with ``ds``'s global attributes.
+
+    Raises
+    ------
+    DataError
+        A variable has unsupported units, or the time coordinate is not decodable.
     """
     chunks = {d: ("auto" if d in ("latitude", "longitude") else 1) for d in ds.dims}
     ds = ds.chunk(chunks)
@@ -588,7 +641,26 @@ def finalise(ds: xr.Dataset, name: str) -> xr.Dataset:
 
 
 def set_coord_attrs(ds: xr.Dataset, name: str) -> xr.Dataset:
-    """Canonical dtypes and CF attributes on the coordinates (values unchanged)."""
+    """Canonical dtypes and CF attributes on the coordinates (values unchanged).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A dataset with canonical coordinate names.
+    name : str
+        File name used in error messages.
+
+    Returns
+    -------
+    xarray.Dataset
+        A copy with float64 ``longitude``, ``latitude``, ``depth``, datetime64[ns] ``time``,
+        their :data:`COORD_ATTRS` and no encoding.
+
+    Raises
+    ------
+    DataError
+        The time coordinate is not a decoded date.
+    """
     coords = {}
     for dim in ("longitude", "latitude", "depth"):
         if dim in ds.coords:
@@ -606,7 +678,24 @@ def set_coord_attrs(ds: xr.Dataset, name: str) -> xr.Dataset:
 
 
 def require_data(ds: xr.Dataset, name: str, variables: Sequence[str], where: str) -> None:
-    """Raise DataError if every value of ``variables`` is NaN (computes over the subset)."""
+    """Raise DataError if every value of ``variables`` is NaN (computes over the subset).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A (subset) canonical dataset.
+    name : str
+        File name used in error messages.
+    variables : sequence of str
+        The variables to check; those missing from ``ds`` are skipped.
+    where : str
+        Ends the error message, e.g. ``"in the requested bbox"``.
+
+    Raises
+    ------
+    DataError
+        Every value of every present variable is NaN.
+    """
     present = [v for v in variables if v in ds]
     if not present:
         return
@@ -622,12 +711,35 @@ def require_data(ds: xr.Dataset, name: str, variables: Sequence[str], where: str
 # --------------------------------------------------------------------------------------------
 
 def to_json(obj) -> str:
-    """Compact, key-sorted JSON for NetCDF attributes."""
+    """Compact, key-sorted JSON for NetCDF attributes.
+
+    Parameters
+    ----------
+    obj : object
+        JSON-serialisable data (numpy scalars, arrays and paths allowed, see
+        :func:`oneocean.io.canonical_json`).
+
+    Returns
+    -------
+    str
+        One line of JSON.
+    """
     return json.dumps(json.loads(canonical_json(obj)), sort_keys=True, separators=(", ", ": "))
 
 
 def file_records(paths: Iterable[str | os.PathLike]) -> list[dict[str, str]]:
-    """``[{path, sha256}]`` for the given files, in order (hashes memoised per mtime/size)."""
+    """Path and sha256 of each file, in order (hashes memoised per path, mtime and size).
+
+    Parameters
+    ----------
+    paths : iterable of str or os.PathLike
+        Existing files.
+
+    Returns
+    -------
+    list of dict
+        ``{"path": str, "sha256": hex str}`` per file.
+    """
     records = []
     for p in paths:
         st = os.stat(p)
@@ -641,7 +753,18 @@ def _sha256(path: str, mtime_ns: int, size: int) -> str:
 
 
 def is_canonical(attrs: Mapping) -> bool:
-    """True if ``attrs`` are those of a file written by :func:`write_canonical`."""
+    """Whether ``attrs`` are those of a file written by :func:`write_canonical`.
+
+    Parameters
+    ----------
+    attrs : Mapping
+        A dataset's global attributes.
+
+    Returns
+    -------
+    bool
+        True when ``source`` is a known source kind and ``source_files`` is present.
+    """
     return attrs.get("source") in SOURCE_KINDS and "source_files" in attrs
 
 
@@ -650,6 +773,18 @@ def provenance_attrs(attrs: Mapping, path: str | os.PathLike | None) -> dict:
 
     A canonical file keeps its own provenance; a provider file gets ``source="files"``,
     its path and sha256, and keeps only its attribution attributes (credit, licence, ...).
+
+    Parameters
+    ----------
+    attrs : Mapping
+        The raw dataset's global attributes.
+    path : str or os.PathLike or None
+        The file read; None for an opened (remote) dataset (no file record).
+
+    Returns
+    -------
+    dict
+        The attributes.
     """
     if is_canonical(attrs):
         return dict(attrs)
@@ -671,16 +806,31 @@ def read(source: str | os.PathLike | xr.Dataset, kind: str,
 
     Parameters
     ----------
-    source : file path, or an already opened (remote) dataset.
-    kind : ``"currents"`` or ``"bathymetry"``.
-    variables : canonical variables required; default ``("u", "v")`` plus ``u_tide``/``v_tide``
-        when present for currents, ``("elevation",)`` for bathymetry.
-    name : label for error messages (default: the path).
-    bbox, time, max_depth : optional subset, see :func:`subset`.
+    source : str, os.PathLike or xarray.Dataset
+        A file path, or an already opened (remote) dataset.
+    kind : str
+        ``"currents"`` or ``"bathymetry"``.
+    variables : sequence of str, optional
+        Canonical variables required (only these are kept, and the kind's other variables
+        need not be present); default ``("u", "v")`` plus ``u_tide``/``v_tide`` when present
+        for currents, ``("elevation",)`` for bathymetry.
+    name : str, optional
+        Label for error messages; default the path (``"dataset"`` for a dataset).
+    bbox, time, max_depth : optional
+        The subset, see :func:`subset`; ``time`` and ``max_depth`` apply only with a ``bbox``,
+        which also requires some non-NaN data in it.
 
     Returns
     -------
-    xarray.Dataset, canonical and dask-backed; ``attrs`` carry ``source`` and ``source_files``.
+    xarray.Dataset
+        Canonical and dask-backed; ``attrs`` carry ``source`` and ``source_files``.
+
+    Raises
+    ------
+    DataError
+        The file is missing, unreadable or not convertible, or the subset has no data.
+    ValueError
+        ``kind`` is neither ``"currents"`` nor ``"bathymetry"``.
     """
     if isinstance(source, xr.Dataset):
         raw, path = source, None
@@ -724,10 +874,19 @@ def validate(ds: xr.Dataset, name: str, kind: str, partial: bool = False) -> xr.
 
     Parameters
     ----------
-    ds : dataset to check (not computed; only coordinates are inspected).
-    name : label for error messages.
-    kind : ``"currents"`` or ``"bathymetry"``.
-    partial : if True, do not require the kind's full variable set (e.g. tides only).
+    ds : xarray.Dataset
+        The dataset to check (not computed; only coordinates and attributes are inspected).
+    name : str
+        Label for error messages.
+    kind : str
+        ``"currents"`` or ``"bathymetry"``.
+    partial : bool, default False
+        If True, do not require the kind's full variable set (e.g. tides only).
+
+    Returns
+    -------
+    xarray.Dataset
+        ``ds`` itself.
 
     Raises
     ------
@@ -780,8 +939,23 @@ def validate(ds: xr.Dataset, name: str, kind: str, partial: bool = False) -> xr.
 def write_canonical(ds: xr.Dataset, out_path: str | os.PathLike, kind: str) -> None:
     """Validate ``ds`` and write it as one CF NetCDF4 file, atomically.
 
-    Data are streamed chunk by chunk from the (lazy) sources. On any failure no file is
-    left at ``out_path``; read errors become a DataError naming the source files.
+    Data are streamed chunk by chunk from the (lazy) sources, zlib level 4. On any failure no
+    file is left at ``out_path``; read errors become a DataError naming the source files.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A canonical dataset (:func:`read`); its attributes are kept, ``Conventions`` and
+        ``oneocean_version`` added unless present.
+    out_path : str or os.PathLike
+        The NetCDF file to create or replace.
+    kind : str
+        ``"currents"`` or ``"bathymetry"``.
+
+    Raises
+    ------
+    DataError
+        ``ds`` is not canonical (:func:`validate`), or reading or writing failed.
     """
     validate(ds, str(out_path), kind)
     ds = ds.copy()
@@ -804,7 +978,18 @@ def _disk_chunks(shape: tuple[int, ...], tile: int = 512) -> tuple[int, ...]:
 
 
 def request_key(request: Mapping) -> str:
-    """First 16 hex digits of the sha256 of the request's canonical JSON."""
+    """First 16 hex digits of the sha256 of the request's canonical JSON.
+
+    Parameters
+    ----------
+    request : Mapping
+        A JSON-serialisable request.
+
+    Returns
+    -------
+    str
+        16 hex digits.
+    """
     return hashlib.sha256(canonical_json(dict(request)).encode()).hexdigest()[:16]
 
 
@@ -816,16 +1001,30 @@ def cached_download(cache_dir: str | os.PathLike, prefix: str, request: Mapping,
 
     Parameters
     ----------
-    cache_dir : folder of completed downloads.
-    prefix : file name prefix (e.g. the dataset id).
-    request : JSON-serialisable request; its hash keys the cache file.
-    download : writes the data to the given temporary path (``.{name}.part.nc`` in
-        ``cache_dir``), which is renamed onto the cache file only once complete.
-    retries : attempts before giving up (>= 1).
-    retry_wait_s : s, wait between attempts.
-    label : what is downloaded, for messages.
-    before_download : called once before the first attempt (e.g. a credentials check);
+    cache_dir : str or os.PathLike
+        Folder of completed downloads (created if missing).
+    prefix : str
+        File name prefix (e.g. the dataset id).
+    request : Mapping
+        JSON-serialisable request; its hash (:func:`request_key`) keys the cache file.
+    download : callable
+        ``download(part)`` writes the data to the temporary path ``part``
+        (``.{name}.part.nc`` in ``cache_dir``), which is renamed onto the cache file only once
+        complete.
+    retries : int, default 3
+        Attempts before giving up (at least one is made).
+    retry_wait_s : float, default 5.0
+        Wait between attempts, s.
+    label : str, default "download"
+        What is downloaded, for messages.
+    before_download : callable, optional
+        Called (without arguments) once before the first attempt (e.g. a credentials check);
         not called when the cache already holds the file.
+
+    Returns
+    -------
+    pathlib.Path
+        The cache file, ``cache_dir/{prefix}-{key}.nc``.
 
     Raises
     ------
@@ -841,7 +1040,8 @@ def cached_download(cache_dir: str | os.PathLike, prefix: str, request: Mapping,
     final.parent.mkdir(parents=True, exist_ok=True)
     part = final.with_name(f".{final.stem}.part.nc")
     last: BaseException | None = None
-    for attempt in range(1, max(int(retries), 1) + 1):
+    retries = max(int(retries), 1)
+    for attempt in range(1, retries + 1):
         try:
             part.unlink(missing_ok=True)
             download(part)

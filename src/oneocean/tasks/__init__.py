@@ -11,6 +11,7 @@ episodes on a grid export and returns one row per episode.
 from __future__ import annotations
 
 import importlib
+import math
 
 import numpy as np
 import pandas as pd
@@ -20,14 +21,48 @@ from .common import ACT_FIELDS, OBS_FIELDS, STANDARD, load_task_table, tier_para
 
 
 def task_module(task_id: str):
-    """The module implementing ``task_id`` (``oneocean.registry.task_spec(id).module``)."""
+    """The module implementing a task.
+
+    Parameters
+    ----------
+    task_id : str
+        Registered task id.
+
+    Returns
+    -------
+    module
+        The module named by the task's spec (``oneocean.registry.task_spec(id).module``).
+
+    Raises
+    ------
+    ConfigError
+        If ``task_id`` is not registered.
+    """
     from ..registry import task_spec
 
     return importlib.import_module(task_spec(task_id).module)
 
 
 def n_agents_for(task_id: str, n_agents: int | None) -> int:
-    """The team size: the table's default, or ``n_agents`` checked against its allowed range."""
+    """The team size: the table's default, or ``n_agents`` checked against its allowed range.
+
+    Parameters
+    ----------
+    task_id : str
+        Registered task id.
+    n_agents : int or None
+        Requested team size; None: the task table's ``agents.default``.
+
+    Returns
+    -------
+    int
+        The team size N.
+
+    Raises
+    ------
+    ConfigError
+        ``n_agents`` outside the table's ``agents.range``.
+    """
     agents = load_task_table(task_id)["agents"]
     if n_agents is None:
         return int(agents["default"])
@@ -41,26 +76,57 @@ def n_agents_for(task_id: str, n_agents: int | None) -> int:
 class Cell:
     """One (task, tier) on one grid, ready to sample episodes and run them.
 
-    ``grid`` is what the rollout sees: the run's forcing (``current_gain`` g on the data u, v,
-    default 1: the data as they are; an optional synthetic tide term ``tide``: the c_tide
-    ablation; a tier's own ``current_gain``, if its table has one, multiplies g), or the
-    current switched off (``currents=False``: g = 0, no tide layers, no synthetic tide).
-    Episodes are always sampled on ``grid_reset``, the data as the tier defines them (no
-    run forcing), so every forcing ablation replays the same episodes (geometry, start
-    times, current regime).
-    The vehicle is the task table's ``vehicle`` unless one is given; its speed limit reaches
-    ``reset``/``make`` as ``params["v_max"]``.
-    ``tier_overrides`` (``{key: value}``) replaces tier parameters of the task's tier table
-    (keys of its ``harder`` block; an unknown key is a one-line ConfigError naming it): the
-    stressor ablations, e.g. Tier 1 with one key at its Tier-3 value. ``tier_params`` is the
-    tier's parameters with the overrides applied, ``tier_overrides`` the overrides alone.
-    ``backend`` (:data:`oneocean.backends.protocol.BACKENDS`) says what moves the agents:
-    ``core`` (the numba engine) or ``mujoco`` (MuJoCo rigid bodies in ``scene``, which it
-    requires). With a ``scene`` (a :class:`oneocean.backends.mujoco.scenes.Scene`), on
-    either backend, ``grid`` is the scene's local grid when None and the tier is the table's
-    ``scene_tiers`` row over its core row (a task without one is not applicable in a scene).
+    The attribute ``grid`` is what the rollout sees: the run's forcing, or the current
+    switched off. Episodes are always sampled on ``grid_reset``, the data as the tier defines
+    them (no run forcing), so every forcing ablation replays the same episodes (geometry,
+    start times, current regime). ``tier_params`` is the tier's parameters with the
+    overrides applied, ``tier_overrides`` the overrides alone; ``params`` adds ``dt_s`` and
+    the vehicle's speed limit ``v_max`` (m s-1), which reach the task's ``reset`` / ``make``.
     The scenario, judge and accounting are the same code on both backends
     (:mod:`oneocean.tasks.loop`).
+
+    Parameters
+    ----------
+    grid : Grid, path-like or None
+        The grid export (loaded with :func:`oneocean.engine.load_grid` unless a
+        :class:`~oneocean.engine.grid.Grid`); None with a ``scene``: the scene's local grid.
+    task : str
+        Registered task id.
+    tier : int
+        Tier of the task's table.
+    n_agents : int, optional
+        Team size; default the table's (:func:`n_agents_for`).
+    currents : bool
+        False: the current switched off (g = 0, no tide layers, no synthetic tide).
+    vehicle : Vehicle, optional
+        The vehicle (:class:`oneocean.engine.dynamics.Vehicle`); default the task table's
+        ``vehicle``.
+    current_gain : float
+        Gain g on the data currents u, v, dimensionless (default 1: the data as they are); a
+        tier's own ``current_gain``, if its table has one, multiplies it.
+    tide : None, mapping or (A, w, phi)
+        Optional synthetic tide term (the c_tide ablation; :func:`oneocean.engine.load_grid`).
+    tier_overrides : dict, optional
+        ``{key: value}`` replacing tier parameters of the task's tier table (keys of its
+        ``harder`` block): the stressor ablations, e.g. Tier 1 with one key at its Tier-3
+        value.
+    backend : str
+        What moves the agents (:data:`oneocean.backends.protocol.BACKENDS`): ``core`` (the
+        numba engine) or ``mujoco`` (MuJoCo rigid bodies in ``scene``, which it requires).
+    scene : Scene, optional
+        A :class:`oneocean.backends.mujoco.scenes.Scene`, on either backend: the tier is then
+        the table's ``scene_tiers`` row over its core row (a task without one is not
+        applicable in a scene).
+    physics_step_s : float, optional
+        The scene backend's MuJoCo step, s (default its own).
+
+    Raises
+    ------
+    ConfigError
+        Unknown task, tier, backend or tier override key, a team size outside the table's
+        range, or a backend other than ``core`` without a scene.
+    NotApplicable
+        A scene for a task without ``scene_tiers``.
     """
 
     def __init__(self, grid, task: str, tier: int, *, n_agents: int | None = None,
@@ -97,9 +163,10 @@ class Cell:
         self.grid = forced if currents else forced._replace(gain=0.0, tide_layers=0,
                                                             tide_amp=0.0)
         self.currents = bool(currents)
+        self._regimes = {}     # (band, depth) -> (grid, regime): see _regime
 
-    def reset(self, episodes: int, seed: int) -> dict:
-        """The task's episodes of ``seed`` (its ``reset`` output, ``episodes`` rows).
+    def reset(self, episodes: int, seed: int, shard: tuple[int, int] | None = None) -> dict:
+        """The task's episodes of ``seed``: its ``reset`` output.
 
         Without a ``current_band`` in the tier these are the task's candidates
         ``0 .. episodes-1``. With one, candidates are drawn in order and the first
@@ -117,14 +184,38 @@ class Cell:
         indexed by the kept candidates, ``cand["candidate"]`` their indices). Then the check
         runs first and only the kept candidates are built; the episodes are ``reset``'s bit
         for bit. Without the split every candidate is built by ``reset``, then checked.
-        Raises :class:`~oneocean.errors.NotApplicable` (naming the cell) when the region
-        cannot host it."""
+
+        Parameters
+        ----------
+        episodes : int
+            Episodes of the cell.
+        seed : int
+            Run seed.
+        shard : (int, int), optional
+            ``(a, b)``: only the cell's episodes ``a .. b-1``, bit for bit those rows of the
+            whole cell's (the check runs for all ``episodes``, the build for the shard).
+
+        Returns
+        -------
+        dict
+            The task's ``reset`` dict of the kept episodes (``episodes`` rows, or ``b - a``
+            with a shard), without ``regime_points``, with ``candidate`` (int64) the
+            candidate index of each.
+
+        Raises
+        ------
+        NotApplicable
+            The region cannot host the cell (naming it).
+        ConfigError
+            A bad ``shard`` (:func:`check_shard`).
+        """
+        rows = slice(None) if shard is None else slice(*check_shard(shard, episodes))
         try:
-            return self._reset(int(episodes), int(seed))
+            return self._reset(int(episodes), int(seed), rows)
         except NotApplicable as exc:
             raise NotApplicable(f"{self.task} tier {self.tier}: {exc}") from None
 
-    def _reset(self, episodes: int, seed: int) -> dict:
+    def _reset(self, episodes: int, seed: int, rows: slice = slice(None)) -> dict:
         from ..engine.grid import current_coverage
         from .common import site_speeds
 
@@ -159,11 +250,21 @@ class Cell:
             raise NotApplicable(f"only {keep.size} of {n_cand} candidate episodes lie {what}; "
                                 f"{episodes} needed")
         self.regime = regime
-        out = {k: (v[keep] if isinstance(v, np.ndarray) and v.ndim and v.shape[0] == n_cand
+        # a task whose batch shares values across its episodes (cell_constants: PI's field
+        # shape) computes them on the whole cell, so that a shard's rows equal the cell's
+        constants = getattr(self.mod, "cell_constants", None)
+        part = keep if constants is not None else keep[rows]
+        out = {k: (v[part] if isinstance(v, np.ndarray) and v.ndim and v.shape[0] == n_cand
                    else v) for k, v in init.items()}
         if split:
-            out["candidate"] = keep.astype(np.int64)
+            out["candidate"] = part.astype(np.int64)
             out = self.mod.reset_build(self.grid_reset, self.params, self.n_agents, out, seed)
+        if constants is not None:
+            shared = constants(self.params, out)
+            out = {k: (v[rows] if isinstance(v, np.ndarray) and v.ndim
+                       and v.shape[0] == part.size else v) for k, v in out.items()}
+            out.update(shared)
+        keep = keep[rows]
         out.pop("regime_points", None)
         out["candidate"] = keep.astype(np.int64)
         return out
@@ -174,19 +275,36 @@ class Cell:
         from .common import current_regime
 
         key = (repr(self.params.get("current_band")), float(depth_m))
-        cache = self.__dict__.setdefault("_regimes", {})
-        hit = cache.get(key)
+        hit = self._regimes.get(key)
         if hit is None or hit[0] is not self.grid_reset:
-            hit = cache[key] = (self.grid_reset,
+            hit = self._regimes[key] = (self.grid_reset,
                                 current_regime(self.grid_reset, self.params, depth_m))
         return hit[1]
 
     def episodes(self, init: dict, method: str | None, dynamics: str, seed: int, **kw):
-        """The rollout (:class:`oneocean.backends.protocol.Rollout`) of the episodes ``init``
-        (:meth:`reset`) on this cell's backend: ``method`` a fused method, ``bc`` (with
-        ``net=``) or None for external actions; ``kw`` as
-        :class:`~oneocean.tasks.episodes.Episodes` (``record``, ``net``, ``info``,
-        ``fused_plan``)."""
+        """The rollout of the episodes ``init`` on this cell's backend.
+
+        Parameters
+        ----------
+        init : dict
+            The episodes (:meth:`reset`).
+        method : str or None
+            A fused method, ``bc`` (with ``net=``) or None for external actions.
+        dynamics : str
+            Dynamics model name.
+        seed : int
+            Run seed.
+        **kw
+            As :class:`~oneocean.tasks.episodes.Episodes` (``record``, ``net``, ``info``,
+            ``fused_plan``, ``e0``).
+
+        Returns
+        -------
+        Rollout
+            A :class:`oneocean.backends.protocol.Rollout`:
+            :class:`~oneocean.tasks.episodes.Episodes` on the core backend, the scene
+            backend's ``SceneEpisodes`` otherwise.
+        """
         if self.backend == "core":
             from .episodes import Episodes
 
@@ -200,18 +318,55 @@ class Cell:
                              dynamics, self.vehicle, int(seed), **kw)
 
     def run(self, method: str, episodes: int, seed: int, dynamics: str,
-            observations: bool = False, net: dict | None = None, info: str | None = None):
+            observations: bool = False, net: dict | None = None, info: str | None = None,
+            shard: tuple[int, int] | None = None):
         """Sample ``episodes`` episodes of ``seed`` and run them with a fused ``method`` (or
-        ``bc`` with its network ``net``; ``info``: what it knows instead of its sensors,
-        :class:`~oneocean.tasks.episodes.Episodes`); the cell table (see :func:`run_cell`)."""
+        ``bc`` with its network ``net``).
+
+        Parameters
+        ----------
+        method : str
+            A fused method (``heuristic``, ``oracle``) or a learned one (``bc``).
+        episodes : int
+            Episodes of the cell.
+        seed : int
+            Run seed.
+        dynamics : str
+            Dynamics model name.
+        observations : bool
+            Also return every agent's per-step observation and action.
+        net : dict, optional
+            A learned method's network (:func:`oneocean.tasks.learned.load_weights`).
+        info : str, optional
+            What the method knows instead of its sensors
+            (:class:`~oneocean.tasks.episodes.Episodes`).
+        shard : (int, int), optional
+            ``(a, b)``: only the cell's episodes ``a .. b-1`` (rows ``episode`` a .. b-1),
+            each bit for bit its row of the whole cell's table (:meth:`reset`; the episodes'
+            random streams are keyed by the cell's episode, ``Episodes(e0=a)``).
+
+        Returns
+        -------
+        DataFrame or tuple
+            The cell table (:func:`run_cell`); with ``observations`` ``(df, obs, act)``.
+
+        Raises
+        ------
+        ConfigError
+            Unknown method or bad ``shard``.
+        NotApplicable
+            The region cannot host the cell.
+        """
         from ..registry import method_spec
 
         method_spec(method)   # an unknown method is a one-line ConfigError
-        init = self.reset(episodes, seed)
+        init = self.reset(episodes, seed, shard)
+        e0 = 0 if shard is None else int(shard[0])
+        n = int(init["candidate"].shape[0])
         res = self.episodes(init, method, dynamics, seed, record=observations, net=net,
-                            info=info).run().results()
+                            info=info, e0=e0).run().results()
         df = cell_frame(self.mod, res, self.tier, method, self.n_agents, dynamics,
-                        self.currents, episodes, seed)
+                        self.currents, n, seed, e0=e0)
         df.insert(df.columns.get_loc("seed") + 1, "candidate", init["candidate"])
         if observations:
             return df, res["obs"], res["act"]
@@ -235,12 +390,30 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
     ----------
     grid : Grid
         A loaded grid export (:func:`oneocean.engine.load_grid`).
+    task : str
+        Registered task id.
+    tier : int
+        Tier of the task's table.
+    method : str
+        A fused method (``heuristic``, ``oracle``) or ``bc`` with ``net``.
+    episodes : int
+        Episodes of the cell.
+    seed : int
+        Run seed.
+    dynamics : str
+        Dynamics model name (``kinematic``, ``3dof``, ``4dof``, ``6dof``).
     currents : bool
         False: the currents-off ablation (g = 0, no tides; the same episodes, :class:`Cell`).
+    n_agents : int, optional
+        Team size; default the task table's.
+    vehicle : Vehicle, optional
+        The vehicle; default the task table's.
     observations : bool
         Also return every agent's per-step observation and action (for learning methods).
-    current_gain, tide
-        The run's forcing (:class:`Cell`): g on the data u, v and the synthetic tide term.
+    current_gain : float
+        The run's gain g on the data u, v (:class:`Cell`), dimensionless.
+    tide : None, mapping or (A, w, phi)
+        The run's synthetic tide term (:class:`Cell`).
     net : dict
         Method ``bc`` only: the trained network (:func:`oneocean.tasks.learned.load_weights`).
     info : str
@@ -253,11 +426,23 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
 
     Returns
     -------
-    DataFrame, one row per episode: ``episode, seed, candidate, success, T_s, E, coll_ratio,
-    violations, primary`` and the task's metric columns. With ``observations=True`` a tuple
-    ``(df, obs, act)``: ``obs`` (E, n_steps, N, len(OBS_FIELDS)) and ``act``
-    (E, n_steps, N, 3) float64 (:data:`oneocean.tasks.common.OBS_FIELDS`, ``ACT_FIELDS``),
-    NaN after an episode ended.
+    df : DataFrame
+        One row per episode (:func:`cell_frame`): ``task, tier, method, n_agents, dynamics,
+        currents, episode, seed, candidate``, the standard metrics ``success, T_s, E,
+        coll_ratio, violations, current_speed_ms``, ``primary`` and the task's metric columns.
+    obs : (E, n_steps, N, OBS_DIM) float64
+        With ``observations=True`` only (then a tuple ``(df, obs, act)``): every agent's
+        observations (:data:`oneocean.tasks.common.OBS_FIELDS`), NaN after an episode ended.
+    act : (E, n_steps, N, 3) float64
+        With ``observations=True`` only: the actions (``ACT_FIELDS``), m s-1, NaN after an
+        episode ended.
+
+    Raises
+    ------
+    ConfigError
+        Unknown task, method, tier override key or information level, a bad team size.
+    NotApplicable
+        The region cannot host the cell.
     """
     return Cell(grid, task, tier, n_agents=n_agents, currents=currents, vehicle=vehicle,
                 current_gain=current_gain, tide=tide,
@@ -267,8 +452,28 @@ def run_cell(grid, task: str, tier: int, method: str = "heuristic", episodes: in
 
 def checked_tier_overrides(task: str, table: dict, overrides) -> dict:
     """``overrides`` as a plain dict after checking every key is a tier parameter of
-    ``task``'s tier table (declared in its ``harder`` block); else a one-line ConfigError
-    naming the key and the valid ones."""
+    ``task``'s tier table (declared in its ``harder`` block).
+
+    Parameters
+    ----------
+    task : str
+        Task id (for the message).
+    table : dict
+        The task's tier table (:func:`~oneocean.tasks.common.load_task_table`).
+    overrides : dict or None
+        ``{key: value}`` tier parameters to replace.
+
+    Returns
+    -------
+    dict
+        The overrides (empty for None).
+
+    Raises
+    ------
+    ConfigError
+        ``overrides`` not a mapping, or a key not in the ``harder`` block (one line naming
+        it and the valid ones).
+    """
     if overrides is None:
         return {}
     if not isinstance(overrides, dict):
@@ -283,9 +488,47 @@ def checked_tier_overrides(task: str, table: dict, overrides) -> dict:
 
 
 def cell_frame(mod, res: dict, tier: int, method: str, n_agents: int, dynamics: str,
-               currents: bool, episodes: int, seed: int) -> pd.DataFrame:
+               currents: bool, episodes: int, seed: int, e0: int = 0) -> pd.DataFrame:
     """The cell table (one row per episode) from a rollout's result columns ``res``: the
-    same columns whether a fused method, a planner or a user's policy produced them."""
+    same columns whether a fused method, a planner or a user's policy produced them.
+
+    Parameters
+    ----------
+    mod : module
+        The task module (``TASK_ID``, ``METRICS``).
+    res : dict
+        One (E,) array per column of ``STANDARD`` and the task's ``METRICS``
+        (:meth:`~oneocean.tasks.episodes.Episodes.results`).
+    tier : int
+        Tier.
+    method : str
+        Method name.
+    n_agents : int
+        Team size N.
+    dynamics : str
+        Dynamics model name.
+    currents : bool
+        Whether the current was on.
+    episodes : int
+        Rows E.
+    seed : int
+        Run seed.
+    e0 : int
+        The cell's episode of the first row: rows are numbered ``e0 .. e0 + episodes - 1``
+        (a shard of a cell).
+
+    Returns
+    -------
+    DataFrame
+        Columns ``task, tier, method, n_agents, dynamics, currents, episode, seed``, the
+        standard metrics, ``primary`` (the task's ``METRICS[0]``) and the task's metrics;
+        ``attrs`` records the cell.
+
+    Raises
+    ------
+    RuntimeError
+        ``res`` lacks a column.
+    """
     task = mod.TASK_ID
     missing = [k for k in STANDARD + tuple(mod.METRICS) if k not in res]
     if missing:
@@ -293,7 +536,7 @@ def cell_frame(mod, res: dict, tier: int, method: str, n_agents: int, dynamics: 
     df = pd.DataFrame({"task": task, "tier": np.full(episodes, int(tier), dtype=np.int64),
                        "method": method, "n_agents": np.full(episodes, n_agents, dtype=np.int64),
                        "dynamics": dynamics, "currents": bool(currents),
-                       "episode": np.arange(episodes, dtype=np.int64),
+                       "episode": np.arange(e0, e0 + episodes, dtype=np.int64),
                        "seed": np.full(episodes, seed, dtype=np.int64)})
     for k in STANDARD:
         df[k] = res[k]
@@ -308,7 +551,31 @@ def cell_frame(mod, res: dict, tier: int, method: str, n_agents: int, dynamics: 
 def na_frame(mod, tier: int, method: str, n_agents: int, dynamics: str,
              currents: bool, seed: int) -> pd.DataFrame:
     """The zero-episode cell table of a cell the region cannot host (same columns and
-    dtypes as :func:`cell_frame`; the reason travels in the file's record)."""
+    dtypes as :func:`cell_frame`, with ``candidate``; the reason travels in the file's
+    record).
+
+    Parameters
+    ----------
+    mod : module
+        The task module.
+    tier : int
+        Tier.
+    method : str
+        Method name.
+    n_agents : int
+        Team size N.
+    dynamics : str
+        Dynamics model name.
+    currents : bool
+        Whether the current was on.
+    seed : int
+        Run seed.
+
+    Returns
+    -------
+    DataFrame
+        The empty cell table.
+    """
     res = {k: np.zeros(0, dtype=bool if k == "success" else np.float64)
            for k in STANDARD + tuple(mod.METRICS)}
     res["violations"] = np.zeros(0, dtype=np.int64)
@@ -322,7 +589,8 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
                     current_gain: float = 1.0, tide=None, weights=None,
                     n_agents: int | None = None, info: str | None = None,
                     tier_overrides: dict | None = None, backend: str = "core",
-                    scene=None, physics_step_s: float | None = None) -> dict:
+                    scene=None, physics_step_s: float | None = None,
+                    shard: tuple[int, int] | None = None) -> dict:
     """Run one cell on a grid export file and write its per-episode Parquet table atomically.
 
     The file records its configuration (``oneocean.engine.recording.read_metrics_meta``):
@@ -340,7 +608,65 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
     ``grid_path`` may be None: the scene's own grid); the file records the backend, the scene
     and its metadata (frames, dataset clock, current source). A task that does not run in a
     scene is written as a not-applicable cell.
-    Returns the manifest entry of :func:`oneocean.engine.write_metrics`.
+    ``shard = (a, b)``: only the cell's episodes ``a .. b-1`` (:meth:`Cell.run`); the file
+    records ``shard: [a, b]`` beside the whole cell's record, and :func:`merge_shards`
+    writes the shards of a cell as the whole cell's file, byte for byte.
+
+    Parameters
+    ----------
+    grid_path : path-like or None
+        The grid export file; None with a ``scene``: the scene's own grid.
+    out_path : path-like
+        The Parquet file written.
+    task : str
+        Registered task id.
+    tier : int
+        Tier.
+    method : str
+        Method name (a fused method, or ``bc`` with ``weights``).
+    episodes : int
+        Episodes of the cell.
+    seed : int
+        Run seed.
+    dynamics : str
+        Dynamics model name.
+    threads : int
+        numba threads (clipped to ``[1, NUMBA_NUM_THREADS]``).
+    currents : bool
+        False: the currents-off ablation.
+    current_gain : float
+        The run's gain g on the data currents, dimensionless.
+    tide : None, mapping or (A, w, phi)
+        The run's synthetic tide term.
+    weights : path-like, optional
+        Method ``bc``'s weights file (:mod:`oneocean.methods.bc`), recorded by hash.
+    n_agents : int, optional
+        Team size; default the task table's.
+    info : str, optional
+        An information level given instead of the method's own sensing
+        (:data:`oneocean.sensing.INFO_LEVELS`).
+    tier_overrides : dict, optional
+        Tier parameters to replace (:class:`Cell`).
+    backend : str
+        The execution backend (:class:`Cell`).
+    scene : Scene, optional
+        The scene (:class:`Cell`).
+    physics_step_s : float, optional
+        The scene backend's MuJoCo step, s (recorded; default its own).
+    shard : (int, int), optional
+        ``(a, b)``: only the cell's episodes ``a .. b-1``.
+
+    Returns
+    -------
+    dict
+        The manifest entry of :func:`oneocean.engine.write_metrics`.
+
+    Raises
+    ------
+    ConfigError
+        A bad cell (:class:`Cell`), an unknown method or information level, ``bc`` without
+        ``weights``, a bad ``shard``, or a configuration error of the run without
+        ``tier_overrides``.
     """
     import numba
 
@@ -349,6 +675,8 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
     numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
     grid = load_grid(grid_path) if grid_path is not None else None
     where = {"backend": backend}
+    if shard is not None:
+        where["shard"] = list(check_shard(shard, episodes))
     if scene is not None:
         where.update(scene=scene.name, scene_meta=scene_record(scene))
     if backend == "mujoco":
@@ -395,7 +723,7 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
     if learned_method(method) and net is None:
         raise ConfigError(f"task {task}: method {method!r} needs its trained weights")
     try:
-        df = cell.run(method, episodes, seed, dynamics, net=net, info=info)
+        df = cell.run(method, episodes, seed, dynamics, net=net, info=info, shard=shard)
     except NotApplicable as exc:
         df = na_frame(cell.mod, tier, method, cell.n_agents, dynamics, currents, seed)
         meta.update(applicable=False, reason=str(exc))
@@ -409,11 +737,159 @@ def rollout_to_file(grid_path, out_path, task: str, tier: int, method: str, epis
     return write_metrics(df, out_path, meta=meta)
 
 
+def check_shard(shard, episodes: int) -> tuple[int, int]:
+    """``shard`` as ``(a, b)``, the cell's episodes ``a .. b-1``, after checking
+    ``0 <= a < b <= episodes``.
+
+    Parameters
+    ----------
+    shard : pair of int
+        ``(first, end)`` episodes.
+    episodes : int
+        Episodes of the cell.
+
+    Returns
+    -------
+    (int, int)
+        ``(a, b)``.
+
+    Raises
+    ------
+    ConfigError
+        Not a pair of integers, or not a range within ``[0, episodes)`` (one line naming it).
+    """
+    try:
+        a, b = (int(x) for x in shard)
+    except (TypeError, ValueError):
+        raise ConfigError(f"shard must be a pair (first, end) of episodes, got {shard!r}") from None
+    if not 0 <= a < b <= int(episodes):
+        raise ConfigError(f"shard {[a, b]} is not a range of episodes within [0, {int(episodes)})")
+    return a, b
+
+
+def shard_ranges(episodes: int, per_shard: int | None) -> list[tuple[int, int]]:
+    """The episode ranges of a cell run in shards.
+
+    Parameters
+    ----------
+    episodes : int
+        Episodes of the cell.
+    per_shard : int or None
+        Episodes per shard (``rollouts.shard_episodes``); None: no sharding.
+
+    Returns
+    -------
+    list of (int, int)
+        ``[(a, b), ...]`` tiling ``0 .. episodes-1`` (the last may be shorter); one range,
+        the whole cell, when ``per_shard`` is None or not smaller than ``episodes``.
+
+    Raises
+    ------
+    ConfigError
+        ``per_shard`` below 1.
+    """
+    n = int(episodes)
+    if per_shard is None:
+        return [(0, n)]
+    k = int(per_shard)
+    if k < 1:
+        raise ConfigError(f"rollouts.shard_episodes must be at least 1, got {per_shard!r}")
+    return [(a, min(a + k, n)) for a in range(0, max(n, 1), k)]
+
+
+def shard_episodes_for(minutes: float, seconds_per_episode: float, n_cells: int) -> int:
+    """Episodes per shard so that a shard job of ``n_cells`` cells stays within ``minutes``.
+
+    Parameters
+    ----------
+    minutes : float
+        The runtime budget of one shard job (``rollouts.shard_minutes``), min.
+    seconds_per_episode : float
+        Measured cost of one episode of one cell of the task, s (the workflow's
+        ``workflow/resources/rollout_seconds.yaml``).
+    n_cells : int
+        Cells a shard job runs (every non-learned cell of the task).
+
+    Returns
+    -------
+    int
+        ``floor(60 * minutes / (n_cells * seconds_per_episode))``, at least 1.
+    """
+    if not minutes > 0:
+        raise ConfigError(f"rollouts.shard_minutes must be positive, got {minutes!r}")
+    cost = max(float(seconds_per_episode), 1e-9) * max(int(n_cells), 1)
+    return max(1, int(math.floor(60.0 * float(minutes) / cost)))
+
+
+def merge_shards(shard_paths, out_path) -> dict:
+    """Write the cell file ``out_path`` from the files of its shards (:func:`rollout_to_file`
+    with ``shard``), the same bytes as the whole cell's file: their rows in episode order and
+    their common record without ``shard``.
+
+    Parameters
+    ----------
+    shard_paths : iterable of path-like
+        The shard files, in any order.
+    out_path : path-like
+        The cell file written.
+
+    Returns
+    -------
+    dict
+        The manifest entry of :func:`oneocean.engine.write_metrics`.
+
+    Raises
+    ------
+    ConfigError
+        No shards, a file that is not a shard, shards of different cells (records differ
+        but for ``shard``) or shards that do not tile the cell's episodes
+        ``0 .. episodes-1`` (one line naming the file).
+    """
+    import pyarrow.parquet as pq
+
+    from ..engine import read_metrics_meta, write_metrics
+
+    parts = []
+    for path in shard_paths:
+        meta = read_metrics_meta(path)
+        if "shard" not in meta:
+            raise ConfigError(f"{path}: not a shard of a cell (its record has no shard)")
+        parts.append((tuple(meta.pop("shard")), meta, path))
+    if not parts:
+        raise ConfigError(f"{out_path}: no shards to merge")
+    parts.sort(key=lambda p: p[0])
+    meta, end = parts[0][1], 0
+    for (a, b), m, path in parts:
+        if m != meta:
+            raise ConfigError(f"{path}: a shard of another cell than {parts[0][2]} (records differ)")
+        if a != end:
+            raise ConfigError(f"{path}: shard [{a}, {b}) does not start at episode {end}")
+        end = b
+    if end != int(meta["episodes"]):
+        raise ConfigError(f"{parts[-1][2]}: shards end at episode {end}, the cell has "
+                          f"{meta['episodes']}")
+    frames = [pq.read_table(path).to_pandas() for _, _, path in parts]
+    df = pd.concat(frames, ignore_index=True) if len(frames) > 1 else frames[0]
+    df.attrs = dict(frames[0].attrs)
+    return write_metrics(df, out_path, meta=meta)
+
+
 def scene_record(scene) -> dict:
-    """What a cell file records about the scene it ran in: name, kind and stand-in label,
-    the frame mapping, the current source and the dataset clock (``start_s``: dataset time
-    of scene time 0, s since the product's time0; ``rate``: dataset seconds per simulated
-    second)."""
+    """What a cell file records about the scene it ran in.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene (:class:`oneocean.backends.mujoco.scenes.Scene`).
+
+    Returns
+    -------
+    dict
+        ``name``, ``kind`` and stand-in ``label``; ``frames``, the frame mapping; the current
+        source ``currents``; the dataset ``clock`` (``start_s``: dataset time of scene time
+        0, s since the product's time0; ``rate``: dataset seconds per simulated second); the
+        ``anchor`` (lat, lon), degrees.
+    """
     return {"name": scene.name, "kind": scene.kind, "label": scene.label,
             "frames": "core: x east, y down, z north; MuJoCo: x east, y north, z up",
             "currents": scene.currents,
@@ -432,6 +908,24 @@ def compile_kernel(grid_path, out_path, task: str, tiers, dynamics: str) -> dict
     once per concurrently starting job. Writes (atomically) and returns the kernel record
     ``{task, dynamics, numba, tiers, not_applicable}``; no timings, so the record's bytes
     depend only on the configuration.
+
+    Parameters
+    ----------
+    grid_path : path-like
+        The grid export file.
+    out_path : path-like
+        The JSON kernel record written.
+    task : str
+        Registered task id.
+    tiers : iterable of int
+        Tiers to run one episode of.
+    dynamics : str
+        Dynamics model name.
+
+    Returns
+    -------
+    dict
+        The kernel record: ``tiers`` the tiers run, ``not_applicable`` ``{tier: reason}``.
     """
     import numba
 

@@ -26,7 +26,19 @@ from .loop import (EXTERNAL, FUSED, FINISHED, LEARNED, LoopParams, env_io, new_l
 
 def learned_method(method: str) -> bool:
     """Whether ``method`` is registered with kind ``learned`` (a network the loop evaluates,
-    :mod:`oneocean.tasks.learned`); an unregistered name is not."""
+    :mod:`oneocean.tasks.learned`).
+
+    Parameters
+    ----------
+    method : str
+        Method name.
+
+    Returns
+    -------
+    bool
+        True for a registered learned method (e.g. ``bc``); False otherwise, an
+        unregistered name included.
+    """
     from ..registry import method_spec
 
     try:
@@ -52,10 +64,20 @@ def over_range(kernel, lo: int, hi: int, *args) -> None:
     ``numba.get_num_threads()`` threads, each a contiguous block of episodes.
 
     Task kernels are serial ``njit(cache=True, nogil=True)`` loops over a block of episodes,
-    so threads run them without the GIL. This replaces ``prange``: numba's parfor pass more
-    than doubled every task kernel's compile time (G2G cold: 91 s with ``prange``, 37 s
-    without, same machine and load). Every episode is still computed by one thread with
-    counter-based random streams, so results do not depend on the thread count (tested).
+    so threads run them without the GIL; ``prange`` is not used, since numba's parfor pass
+    more than doubles every task kernel's compile time. Every episode is computed by one
+    thread with counter-based random streams, so results do not depend on the thread count
+    (tested).
+
+    Parameters
+    ----------
+    kernel : callable
+        A compiled kernel taking ``(*args, e_lo, e_hi)``.
+    lo, hi : int
+        The episodes ``lo .. hi-1`` to run (one block, in the calling thread, when
+        ``hi - lo <= 1``).
+    *args
+        The kernel's leading arguments, passed to every block.
     """
     lo, hi = int(lo), int(hi)
     if hi - lo <= 1:               # one episode: no split (and no thread-count query)
@@ -75,11 +97,25 @@ def over_range(kernel, lo: int, hi: int, *args) -> None:
 
 
 def fast_entry(dispatcher, args):
-    """The compiled entry point of the numba ``dispatcher`` for the types of ``args`` (all
-    its arguments), which skips numba's per-call type resolution (about 20 us with the
-    loop's NamedTuple arguments, several times a small batch's step); the dispatcher itself
-    where no compiled version matches or numba's internals differ. Valid while the arguments
-    keep their types."""
+    """The compiled entry point of the numba ``dispatcher`` for the types of ``args``.
+
+    The entry point skips numba's per-call type resolution (about 20 us with the loop's
+    NamedTuple arguments, several times a small batch's step). Valid while the arguments keep
+    their types.
+
+    Parameters
+    ----------
+    dispatcher : numba dispatcher
+        A compiled (``njit``) function.
+    args : tuple
+        All its arguments, as a call would pass them.
+
+    Returns
+    -------
+    callable
+        The compiled entry point; the dispatcher itself where no compiled version matches or
+        numba's internals differ.
+    """
     try:
         sig = tuple(dispatcher.typeof_pyval(a) for a in args)
         cres = dispatcher.overloads.get(sig)
@@ -89,7 +125,17 @@ def fast_entry(dispatcher, args):
 
 
 def over_episodes(kernel, n_episodes: int, *args) -> None:
-    """:func:`over_range` over episodes ``0 .. n_episodes-1``."""
+    """:func:`over_range` over episodes ``0 .. n_episodes-1``.
+
+    Parameters
+    ----------
+    kernel : callable
+        A compiled kernel taking ``(*args, e_lo, e_hi)``.
+    n_episodes : int
+        Episodes E.
+    *args
+        The kernel's leading arguments.
+    """
     over_range(kernel, 0, n_episodes, *args)
 
 
@@ -115,8 +161,11 @@ class Episodes:
         from the network ``net``; the heuristic's sensors), or ``None`` for external actions
         (the step API; the sensor models).
     dyn : str
-        Dynamics model name.
+        Dynamics model name (:data:`oneocean.vocab.DYNAMICS`: ``kinematic``, ``3dof``,
+        ``4dof``, ``6dof``).
     vehicle : Vehicle
+        The vehicle (:class:`oneocean.engine.dynamics.Vehicle`): its ``params`` and speed
+        limit ``v_max``, m s-1.
     seed : int
         Run seed (sensor-error streams).
     record : bool
@@ -133,6 +182,10 @@ class Episodes:
         default the method's own (``SENSING`` of its policy module: ``sensors``, or
         ``truth`` for the oracle); ``true_current`` / ``true_position`` are the information
         ablations of a non-oracle method.
+    e0 : int
+        The cell's episode of the first row: row ``e`` draws the random streams of the cell's
+        episode ``e0 + e`` (0: a whole cell; a shard of episodes ``[a, b)`` runs with
+        ``e0 = a``, :meth:`oneocean.tasks.Cell.run`).
     """
 
     #: The execution backend (:data:`oneocean.backends.protocol.BACKENDS`).
@@ -140,7 +193,7 @@ class Episodes:
 
     def __init__(self, mod, grid, tier: dict, init: dict, method: str | None, dyn: str,
                  vehicle, seed: int, *, record: bool = False, fused_plan: bool = True,
-                 net: dict | None = None, info: str | None = None):
+                 net: dict | None = None, info: str | None = None, e0: int = 0):
         from ..kernels import kernel_module
         from .learned import make_net, no_net
         from ..sensing import nav_aid, sensing_params
@@ -189,7 +242,8 @@ class Episodes:
                              DEFAULT_LAND_THRESHOLD,
                              float(getattr(mod, "CLEARANCE_M", CLEARANCE_M)),
                              float(getattr(mod, "R_COLL_M", DEFAULT_R_COLL_M)),
-                             make_net(net, mod.TASK_ID, n_ep, n_ag) if learned else no_net())
+                             make_net(net, mod.TASK_ID, n_ep, n_ag) if learned else no_net(),
+                             e0=int(e0))
         self.LS = new_loop_state(n_ep, n_ag)
         self._entries: dict = {}   # compiled entry points of the kernels (fast_entry)
         self.t0 = np.ascontiguousarray(init["t0"], dtype=np.float64)
@@ -197,7 +251,8 @@ class Episodes:
         self.candidate = np.asarray(init.get("candidate", np.arange(n_ep)), dtype=np.int64)
         self.state = new_state(n_ep, n_ag, pos0, init["psi0"])
         LS = self.LS
-        init_sensing(self.LP.sens, self.LP.seed, self.state, LS.fc, LS.cb, LS.navc, LS.nerr)
+        init_sensing(self.LP.sens, self.LP.seed, self.state, LS.fc, LS.cb, LS.navc, LS.nerr,
+                     self.LP.e0)
         self.cmd = np.zeros((n_ep, n_ag, CMD_DIM))
         self.ext = np.zeros((n_ep, n_ag, len(ACT_FIELDS)))
         steps = self.n_steps if record else 0
@@ -241,9 +296,20 @@ class Episodes:
         return self.LS.status == FINISHED
 
     def run(self, k_stop: int | None = None) -> "Episodes":
-        """Advance every running episode up to step ``k_stop`` (default: to its end); a
-        negative ``k_stop`` advances each by ``-k_stop`` steps from where it is (the step
-        API, whose episodes may be at different steps)."""
+        """Advance every running episode up to step ``k_stop`` (default: to its end).
+
+        Parameters
+        ----------
+        k_stop : int, optional
+            Stop every episode before this step; a negative ``k_stop`` advances each by
+            ``-k_stop`` steps from where it is (the step API, whose episodes may be at
+            different steps). None: run to the end.
+
+        Returns
+        -------
+        Episodes
+            ``self``.
+        """
         k_stop = self.n_steps if k_stop is None else int(k_stop)
         args = (self.grid, self.vehicle.params, self.LP, self.P, self.W, self.M, self.LS,
                 self.t0, self.state, self.cmd, self.ext, self.obs, self.act, self.res, k_stop)
@@ -255,9 +321,29 @@ class Episodes:
 
     def run_planned(self, planner, every: int) -> "Episodes":
         """Run to the end in segments of ``every`` steps, calling ``planner(self)`` before
-        each segment (the planner kind of method: it reads the batch, e.g. ``W`` and
-        ``state``, and writes plan tokens into ``W``; build the batch with
-        ``fused_plan=False``). Planner and segments see the same step counter ``k``."""
+        each segment.
+
+        The planner kind of method: it reads the batch, e.g. ``W`` and ``known_state``, and
+        writes plan tokens into ``W``; build the batch with ``fused_plan=False``. Planner
+        and segments see the same step counter ``k``.
+
+        Parameters
+        ----------
+        planner : callable
+            ``planner(episodes)``, called before every segment.
+        every : int
+            Segment length, steps (at least 1).
+
+        Returns
+        -------
+        Episodes
+            ``self``, every episode ended.
+
+        Raises
+        ------
+        ConfigError
+            ``every`` below 1.
+        """
         every = int(every)
         if every < 1:
             raise ConfigError(f"run_planned: every must be >= 1, got {every}")
@@ -269,17 +355,41 @@ class Episodes:
         return self
 
     def set_actions(self, actions) -> None:
-        """External actions (E, N, 3) for the next step(s): desired velocity relative to the
-        water, world frame (x east, y down, z north), m s-1; clipped to ``v_max`` by the loop."""
+        """Set the external actions for the next step(s).
+
+        Parameters
+        ----------
+        actions : (E, N, 3) array_like
+            Desired velocity relative to the water, world frame (x east, y down, z north),
+            m s-1; clipped to ``v_max`` by the loop.
+
+        Raises
+        ------
+        ConfigError
+            ``actions`` of another shape.
+        """
         a = np.asarray(actions, dtype=np.float64)
         if a.shape != self.ext.shape:
             raise ConfigError(f"actions: expected shape {self.ext.shape}, got {a.shape}")
         self.ext[...] = a
 
     def observe(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
-        """(E, N, OBS_DIM) observation of every agent before its next step (a finished
-        episode's is that of its last state: check :attr:`done`); with ``lo``/``hi`` only
-        episodes ``lo .. hi-1`` are observed (the other rows are NaN)."""
+        """The observation of every agent before its next step.
+
+        Parameters
+        ----------
+        lo : int
+            First episode observed.
+        hi : int, optional
+            End of the episodes observed (``lo .. hi-1``); None: every episode.
+
+        Returns
+        -------
+        (E, N, OBS_DIM) float64
+            The observations (:data:`oneocean.tasks.common.OBS_FIELDS`); rows outside
+            ``lo .. hi-1`` are NaN. A finished episode's is that of its last state: check
+            :attr:`done`.
+        """
         hi = self.n_episodes if hi is None else int(hi)
         nobs = np.full((self.n_episodes, 1, self.n_agents, OBS_DIM), np.nan)
         nact = np.zeros((self.n_episodes, 1, self.n_agents, len(ACT_FIELDS)))
@@ -295,10 +405,24 @@ class Episodes:
 
     def step_observe(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
         """Advance every running episode of ``lo .. hi-1`` by one step and return the next
-        observation of every agent (E, N, OBS_DIM), rows ``lo .. hi-1`` valid: ``run(-1)``
-        then ``observe(lo, hi)`` in one compiled call (the step API's step). Every running
-        episode must lie in ``lo .. hi-1``. The array is the batch's own buffer, overwritten
-        by the next call: copy what you keep."""
+        observation of every agent.
+
+        ``run(-1)`` then ``observe(lo, hi)`` in one compiled call (the step API's step).
+        Every running episode must lie in ``lo .. hi-1``.
+
+        Parameters
+        ----------
+        lo : int
+            First episode stepped.
+        hi : int, optional
+            End of the episodes stepped (``lo .. hi-1``); None: every episode.
+
+        Returns
+        -------
+        (E, N, OBS_DIM) float64
+            The next observations, rows ``lo .. hi-1`` valid. The batch's own buffer,
+            overwritten by the next call: copy what you keep.
+        """
         hi = self.n_episodes if hi is None else int(hi)
         if not self._fused_step(lo, hi, None):       # a plugin's kernel without the fused step
             self.run(-1)
@@ -306,10 +430,23 @@ class Episodes:
         return self._nobs[:, 0]
 
     def env_step(self, io, lo: int, hi: int) -> bool:
-        """:meth:`step_observe` with the step API's side (:class:`~oneocean.tasks.loop.EnvIO`:
-        episode ``e`` is sub-env ``io.rows[e]``) in the same compiled call: the sub-envs'
-        actions written, their observations and end flags read. False (nothing done) for a
-        kernel module without the fused step."""
+        """:meth:`step_observe` with the step API's side in the same compiled call: the
+        sub-envs' actions written, their observations and end flags read.
+
+        Parameters
+        ----------
+        io : EnvIO
+            The step API's side (:class:`~oneocean.tasks.loop.EnvIO`: episode ``e`` is
+            sub-env ``io.rows[e]``).
+        lo, hi : int
+            The episodes ``lo .. hi-1`` stepped.
+
+        Returns
+        -------
+        bool
+            True when stepped; False (nothing done) for a kernel module without the fused
+            step.
+        """
         call = self._entries.get("step")
         if call is not None and hi - lo == 1:          # the common case, kept lean
             call[0](*call[1], io, lo, hi)
@@ -346,7 +483,20 @@ class Episodes:
         return True
 
     def results(self) -> dict:
-        """The per-episode result columns (finished episodes; see ``STANDARD`` + METRICS)."""
+        """The per-episode result columns.
+
+        Returns
+        -------
+        dict
+            One (E,) array per column of ``STANDARD`` and the task's ``METRICS``
+            (:func:`~oneocean.tasks.common.rollout_results`; the task's ``INT_METRICS`` as
+            int64), plus ``obs`` / ``act`` when recording.
+
+        Raises
+        ------
+        RuntimeError
+            An episode has not ended.
+        """
         if not self.done.all():
             raise RuntimeError(f"task {self.mod.TASK_ID}: results requested before every "
                                "episode ended")
@@ -358,8 +508,39 @@ class Episodes:
 
 def rollout(mod, grid, tier: dict, init: dict, method: str, dyn: str, vehicle, seed: int, *,
             record: bool = False, net: dict | None = None, info: str | None = None) -> dict:
-    """Run every episode of ``init`` (the task's ``reset`` output) to its end with one fused
-    method (or ``bc`` with its ``net``; ``info``: :class:`Episodes`); returns the per-episode
-    columns (``STANDARD`` + the task's ``METRICS``, plus ``obs``/``act`` when ``record``)."""
+    """Run every episode of ``init`` to its end with one fused method (or ``bc`` with its
+    ``net``).
+
+    Parameters
+    ----------
+    mod : module
+        The task module.
+    grid : Grid
+        The grid export, forcing applied.
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        The task's ``reset`` output.
+    method : str
+        A fused method (``heuristic``, ``oracle``) or a learned one (``bc``).
+    dyn : str
+        Dynamics model name.
+    vehicle : Vehicle
+        The vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+    seed : int
+        Run seed.
+    record : bool
+        Also return every agent's per-step observation and action.
+    net : dict, optional
+        A learned method's network (:func:`oneocean.tasks.learned.load_weights`).
+    info : str, optional
+        What the method knows instead of its sensors (:class:`Episodes`).
+
+    Returns
+    -------
+    dict
+        The per-episode columns (``STANDARD`` + the task's ``METRICS``, plus ``obs`` /
+        ``act`` when ``record``; :meth:`Episodes.results`).
+    """
     return Episodes(mod, grid, tier, init, method, dyn, vehicle, seed, record=record,
                     net=net, info=info).run().results()

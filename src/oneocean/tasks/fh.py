@@ -5,20 +5,20 @@ Objective
     vehicles within 15 m at up to 0.8 m/s, cohere, drift with the current) loiters at
     ``FISH_DEPTH_M``; a circular safe zone of radius ``zone_radius_m`` lies
     ``zone_distance_m`` away. The eight vehicles start on a ring ``START_RING_M`` around the
-    school at the same depth and must herd the school into the zone. The straight corridor from
-    the school to the zone (``CORRIDOR_HALF_WIDTH_M`` either side), the zone and every fish are in
-    valid water ``ROUTE_CLEARANCE_M`` above the seafloor.
+    school at the same depth and must herd the school into the zone. The straight corridor
+    from the school to the zone (``CORRIDOR_HALF_WIDTH_M`` either side), the zone and every
+    fish are in valid water ``ROUTE_CLEARANCE_M`` above the seafloor.
 Fish physics (the environment)
     Every step, before the agents move (``pre_step``), the current is sampled at each fish
     (:func:`~oneocean.tasks.common.current_at` at ``FISH_DEPTH_M``) and
     :func:`oneocean.models.fish.step_school` advances the school (the vehicles' horizontal
     positions at the start of the step scare it). A fish whose new position is infeasible
-    (land, outside the grid, or less than ``FISH_CLEARANCE_M`` above the seafloor at its depth)
-    stays at its previous position with zero swim velocity (fish do not beach). The jitter
-    stream of episode ``e`` is keyed by ``hash64(seed, e, PURPOSE_TASK_NOISE, 0)`` (``seed``:
-    the run seed). After the moves (``post_step``) the school's true centroid and its velocity
-    over the step (``W.school``: judging, snapshots, and what a method given the target
-    perceives) are updated.
+    (land, outside the grid, or less than ``FISH_CLEARANCE_M`` above the seafloor at its
+    depth) stays at its previous position with zero swim velocity (fish do not beach). The
+    jitter stream of the cell's episode ``e`` is keyed by
+    ``hash64(seed, e, PURPOSE_TASK_NOISE, 0)`` (``seed``: the run seed). After the moves
+    (``post_step``) the school's true centroid and its velocity over the step (``W.school``:
+    judging, snapshots, and what a method given the target perceives) are updated.
 Perception (every non-oracle method; :func:`sonar`)
     Each ROV's imaging sonar (``sensors.yaml`` ``perception.fh_school``, read by
     :func:`school_sensor`) reports, at the start and after every step, the offset of the
@@ -52,10 +52,11 @@ Methods (task logic; the environment above does not depend on it)
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset``; ``FHParams`` / ``FHWork`` and ``make``; the env hooks
-    ``begin``, ``pre_step`` (the fish step), ``cue``, ``post_step``, ``finish``; ``seed_episode``
-    (called by the compiled loop, :mod:`oneocean.kernels.fh`, before the episode: derives
-    the episode's fish-jitter key ``W.fseed`` from the run seed and copies the seed and the
-    sensing flags into ``W.sinfo``; the env and policy hooks do not see the loop's params).
+    ``begin``, ``pre_step`` (the fish step), ``cue``, ``post_step``, ``finish``;
+    ``seed_episode`` (called by the compiled loop, :mod:`oneocean.kernels.fh`, before the
+    episode: derives the episode's fish-jitter key ``W.fseed`` from the run seed and copies
+    the seed and the sensing flags into ``W.sinfo``; the env and policy hooks do not see the
+    loop's params).
 """
 
 from __future__ import annotations
@@ -162,23 +163,30 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     Parameters
     ----------
     grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
     tier : dict
         Tier parameters (see ``data/tasks/FH.yaml``) plus ``dt_s``.
     n_agents : int
         Must be ``N_AGENTS`` (8).
-    n_episodes, seed : int
+    n_episodes : int
+        Number of episodes E.
+    seed : int
+        Run seed (each episode draws from its own reset stream).
 
     Returns
     -------
     dict
         ``fish0`` (E, 2, F) fish positions (row 0 x, row 1 z), m; ``zone`` (E, 2) zone
         centre (x, z), m; ``pos0`` (E, 8, 3) agent starts, m; ``psi0`` (E, 8) headings toward
-        the school, rad; ``t0`` (E,) start times, s.
+        the school, rad; ``t0`` (E,) start times, s; ``regime_points`` (E, 2, 3) the school's
+        centroid and the zone centre at the agents' depth, m (``Cell.reset``).
 
     Raises
     ------
     ConfigError
-        Wrong team size, missing tier keys, fewer than 50 fish, or no valid geometry.
+        Wrong team size, missing tier keys or fewer than 50 fish.
+    NotApplicable
+        No valid school/zone geometry for some episode in 200 draws.
     """
     if int(n_agents) != N_AGENTS:
         raise ConfigError(f"task {TASK_ID}: needs exactly {N_AGENTS} agents, got {n_agents}")
@@ -218,6 +226,34 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
 
 class FHParams(NamedTuple):
+    """FH's params (one rollout).
+
+    Attributes
+    ----------
+    zone_r : float
+        Safe-zone radius, m.
+    hold : float
+        Hold time inside the zone for success, s.
+    dt : float
+        Step, s.
+    depth : float
+        Depth of the school and of the vehicles, m.
+    land_thr : float
+        Land-mask threshold of the fish feasibility check.
+    fp : (n_params,) float64
+        Fish-model parameters (:func:`oneocean.models.fish.fish_params`).
+    sonar_r : float
+        The school's perception (``sensors.yaml`` ``perception.fh_school``; every non-oracle
+        method, each agent's imaging sonar every step): detection range, m.
+    range_std : float
+        Range noise of the echo centroid, m.
+    bearing_std : float
+        Bearing noise, rad.
+    echo_cv : float
+        Coefficient of variation of a fish's echo intensity per ping.
+    ext_len : float
+        Shadowing: extinction length behind the nearest fish, m.
+    """
     zone_r: float           # safe-zone radius, m
     hold: float             # hold time inside the zone for success, s
     dt: float               # step, s
@@ -234,6 +270,53 @@ class FHParams(NamedTuple):
 
 
 class FHWork(NamedTuple):
+    """FH's per-episode work arrays (F fish, 8 agents).
+
+    Attributes
+    ----------
+    zone : (E, 2) float64
+        Zone centre (x, z), m.
+    fish : (E, 2, 4, F) float64
+        Fish state double buffer (x, z (m), vx, vz (m s-1)).
+    fcur : (E,) int64
+        Index of the current buffer of ``fish``.
+    fc : (E, 2, F) float64
+        Currents at the fish (east, north), m s-1.
+    apos : (E, 2, 8) float64
+        Agent x / z seen by the fish, m.
+    fseed : (E,) uint64
+        Fish-jitter key (set by :func:`seed_episode` from the run seed).
+    school : (E, 5) float64
+        The truth (judging, snapshots; the oracle's perception): centroid x, z (m), its
+        velocity over the last step (m s-1), time inside the zone (s).
+    done : (E,) int64
+        1 once the hold is complete.
+    sinfo : (E, 3) int64
+        The method's information, copied by :func:`seed_episode` from the loop's params:
+        run seed, ``true_target``, ``true_current``.
+    sfix : (E, 8, 4) float64
+        Each agent's latest sonar reading of the school: seen (1/0), offset of the echo
+        centroid from the agent x, z (m), extent (weighted RMS radius, m); unused with
+        ``true_target``.
+    sest : (E, 6) float64
+        The method's school estimate (:mod:`oneocean.methods.heuristic.fh`, as the rest):
+        centroid x, z (m), velocity (m s-1), spread (m), 1 once initialised.
+    herd : (E, 3) float64
+        Angle behind the school (rad), integral standoff (m), slot radius (m).
+    order : (E, 8) int64
+        Agents in angular order around the school.
+    keys : (E, 8) float64
+        Angle of each agent relative to the arc centre, rad.
+    rank : (E, 8) int64
+        Arc slot of each agent.
+    tgt : (E, 8, 2) float64
+        Waypoint (x, z) of each agent, m (plan token, goal cue).
+    cest : (E, 8, 2) float64
+        Each agent's current estimate at its last step, m s-1.
+    skey : (E,) int64
+        The cell's episode whose sonar streams row ``e`` draws (:func:`seed_episode`:
+        ``LP.e0 + e``; :func:`make`: ``e``).
+    """
     zone: np.ndarray        # (E, 2) zone centre (x, z), m
     fish: np.ndarray        # (E, 2, 4, F) fish state double buffer (x, z, vx, vz)
     fcur: np.ndarray        # (E,) int64 index of the current buffer of ``fish``
@@ -259,6 +342,8 @@ class FHWork(NamedTuple):
     rank: np.ndarray        # (E, 8) int64 arc slot of each agent
     tgt: np.ndarray         # (E, 8, 2) waypoint (x, z) of each agent, m (plan token, goal cue)
     cest: np.ndarray        # (E, 8, 2) each agent's current estimate at its last step, m s-1
+    skey: np.ndarray        # (E,) int64 the cell's episode whose sonar streams row e draws
+                            #   (set by _episode: LP.e0 + e; make: e)
 
 
 def school_sensor(path=None) -> tuple[float, float, float, float, float]:
@@ -292,7 +377,29 @@ def school_sensor(path=None) -> tuple[float, float, float, float, float]:
 
 
 def make(grid, tier: dict, init: dict):
-    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
+
+    Parameters
+    ----------
+    grid : Grid
+        The rollout's grid export (the ablations' forcing included).
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        The reset's dict (:func:`reset`).
+
+    Returns
+    -------
+    P : FHParams
+        The env's typed scalars.
+    W : FHWork
+        The env's per-episode work arrays (the herding waypoints start at the zone centre).
+
+    Raises
+    ------
+    ConfigError
+        Missing tier parameters, or a bad school perception model (:func:`school_sensor`).
+    """
     need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
     n_ep, n = init["pos0"].shape[:2]
     fish0 = np.asarray(init["fish0"], dtype=np.float64)
@@ -309,7 +416,7 @@ def make(grid, tier: dict, init: dict):
                np.zeros((n_ep, n), dtype=np.int64), np.zeros((n_ep, n)),
                np.zeros((n_ep, n), dtype=np.int64),
                np.ascontiguousarray(np.repeat(zone[:, None, :], n, axis=1)),
-               np.zeros((n_ep, n, 2)))
+               np.zeros((n_ep, n, 2)), np.arange(n_ep, dtype=np.int64))
     return P, W
 
 
@@ -338,8 +445,7 @@ def _fish_step(grid, fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, t, dt, land
 @hot_kernel(inline="always")
 def sonar(P, W, state, e, ping):
     """Every agent's sonar reading of the school (``sensors.yaml`` ``perception.fh_school``)
-    into ``W.sfix[e]``, from the true agents and fish; ``ping`` numbers the readings (0 at
-    the start, ``k + 1`` after step ``k``) so that no two draws share a counter.
+    into ``W.sfix[e]``, from the true agents and fish.
 
     The echo centroid of agent ``i`` is the mean of the fish within ``P.sonar_r`` of it,
     weighted by each fish's echo intensity ``max(0, 1 + echo_cv (X - 1))`` (``X`` an
@@ -349,7 +455,22 @@ def sonar(P, W, state, e, ping):
     :func:`~oneocean.sensing.kernels.polar_fix` (counters ``2 (ping N + i)`` and ``+1``). The
     extent is the weighted RMS radius about the echo centroid, m. No fish in range: no
     reading (``sfix[e, i, 0] = 0``). With ``true_target`` the method reads the truth instead
-    and nothing is drawn."""
+    and nothing is drawn.
+
+    Parameters
+    ----------
+    P : FHParams
+        The task's params (:func:`make`).
+    W : FHWork
+        The task's per-episode work arrays (:func:`make`); ``sfix[e]`` written.
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    ping : int
+        Number of the reading (0 at the start, ``k + 1`` after step ``k``), so that no two
+        draws share a counter.
+    """
     if W.sinfo[e, 1] != 0:
         return
     S = state[e]
@@ -359,6 +480,7 @@ def sonar(P, W, state, e, ping):
     fz = F[1]
     nf = fx.shape[0]
     seed = W.sinfo[e, 0]
+    ep = W.skey[e]
     r2 = P.sonar_r * P.sonar_r
     for i in range(n):
         ax = S[i, 0]
@@ -382,7 +504,7 @@ def sonar(P, W, state, e, ping):
             dz = fz[f] - az
             d2 = dx * dx + dz * dz
             if d2 < r2:
-                u = uniform01(seed, e, PURPOSE_SCHOOL_ECHO, base + f)
+                u = uniform01(seed, ep, PURPOSE_SCHOOL_ECHO, base + f)
                 amp = 1.0 + P.echo_cv * (-math.log(1.0 - u) - 1.0)
                 if amp > 0.0:
                     w = amp * math.exp(-(math.sqrt(d2) - near) / P.ext_len)
@@ -395,7 +517,7 @@ def sonar(P, W, state, e, ping):
         cx = sx / sw
         cz = sz / sw
         v = ss / sw - cx * cx - cz * cz
-        mx, mz = polar_fix(seed, e, 2 * (ping * n + i), cx, cz, P.range_std, P.bearing_std)
+        mx, mz = polar_fix(seed, ep, 2 * (ping * n + i), cx, cz, P.range_std, P.bearing_std)
         W.sfix[e, i, 0] = 1.0
         W.sfix[e, i, 1] = mx
         W.sfix[e, i, 2] = mz
@@ -404,6 +526,29 @@ def sonar(P, W, state, e, ping):
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
+    """Start the school's truth (centroid, no velocity, no time inside), clear the
+    method's school estimate and take the first sonar readings.
+
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FHParams
+        The task's params (:func:`make`).
+    W : FHWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+
+    Returns
+    -------
+    bool
+        False: the episode starts.
+    """
     F = W.fish[e, 0]
     cx, cz = school_centroid(F[0], F[1])
     W.fcur[e] = 0
@@ -420,7 +565,28 @@ def begin(grid, P, W, state, e):
 
 @hot_kernel(inline="always")
 def pre_step(grid, P, W, state, e, k, t):
-    """The school reacts to the vehicles' positions at time t (into the other buffer)."""
+    """The fish step: the school reacts to the vehicles' positions at time ``t`` (into the
+    other buffer of ``W.fish``).
+
+    Env hook (:mod:`oneocean.tasks.loop`), before the agents act.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FHParams
+        The task's params (:func:`make`).
+    W : FHWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+    """
     S = state[e]
     AX = W.apos[e, 0]
     AZ = W.apos[e, 1]
@@ -436,11 +602,71 @@ def pre_step(grid, P, W, state, e, k, t):
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
+    """The goal cue: the agent's herding waypoint (``W.tgt``) at the school's depth.
+
+    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FHParams
+        The task's params (:func:`make`).
+    W : FHWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (its navigation estimate; the truth for
+        the oracle); layout: :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+
+    Returns
+    -------
+    gx, gy, gz : float
+        The goal cue, world m.
+    probe : float
+        NaN (the task has no field).
+    """
     return W.tgt[e, i, 0], P.depth, W.tgt[e, i, 1], math.nan
 
 
 @hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
+    """Swap the fish buffers, update the school's truth and the sonar readings, and time
+    the hold inside the zone.
+
+    Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``: the
+    time inside the zone grows by ``dt`` while the centroid is within ``P.zone_r`` of the
+    zone centre and restarts from 0 when it leaves.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FHParams
+        The task's params (:func:`make`).
+    W : FHWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    prev : (E, N, 3) float64
+        Positions before the step, world m.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+
+    Returns
+    -------
+    bool
+        True (STOP) once the hold reaches ``P.hold``.
+    """
     c = 1 - W.fcur[e]
     W.fcur[e] = c
     G = W.fish[e, c]
@@ -468,6 +694,32 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
+    """Write the FH metrics.
+
+    Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FHParams
+        The task's params (:func:`make`).
+    W : FHWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Steps the episode ran.
+    row : (C,) float64
+        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
+
+    Returns
+    -------
+    bool
+        Success: the hold was completed.
+    """
     F = W.fish[e, W.fcur[e]]
     zx = W.zone[e, 0]
     zz = W.zone[e, 1]
@@ -485,8 +737,21 @@ def finish(grid, P, W, state, e, k, row):
 def seed_episode(W, LP, e):
     """Before the episode, from the loop's params (which only they carry): the fish-jitter
     key of the episode and the run seed and sensing flags the sonar's draws and the method's
-    information need. The kernel calls it before the loop."""
-    W.fseed[e] = hash64(LP.seed, e, PURPOSE_TASK_NOISE, 0)
+    information need. The kernel calls it before the loop.
+
+    Parameters
+    ----------
+    W : FHWork
+        The task's per-episode work arrays; ``fseed[e]``, ``skey[e]`` and ``sinfo[e]``
+        written.
+    LP : LoopParams
+        The loop's params (:class:`oneocean.tasks.loop.LoopParams`: ``seed``, ``e0``,
+        ``sens``).
+    e : int
+        Episode index (row ``e`` is the cell's episode ``LP.e0 + e``).
+    """
+    W.fseed[e] = hash64(LP.seed, LP.e0 + e, PURPOSE_TASK_NOISE, 0)
+    W.skey[e] = LP.e0 + e
     W.sinfo[e, 0] = LP.seed
     W.sinfo[e, 1] = LP.sens.true_target
     W.sinfo[e, 2] = LP.sens.true_current

@@ -46,7 +46,7 @@ module (the policy); neither imports the other. The task's kernel module
 serial ``_episode`` (``hot_kernel``), which its kernel ``_kernel``
 (``njit(cache=True, nogil=True)``) runs for a block of episodes ``[e_lo, e_hi)``;
 :func:`oneocean.tasks.episodes.over_episodes` runs the blocks on numba's thread count (no
-``prange``: the parfor pass more than doubled every task kernel's compile time). ``_observe``
+``prange``: the parfor pass more than doubles every task kernel's compile time). ``_observe``
 / ``_observe_kernel`` do the same for :func:`observe_next`. Two numba facts shape this
 (numba 0.6x; ``tests/test_loop.py`` checks that the kernels cache and that the loop state is
 written back):
@@ -126,6 +126,8 @@ class LoopParams(NamedTuple):
     r_coll: float       # near-collision radius, m
     net: LearnedNet     # the learned controller (LEARNED; learned.no_net otherwise)
     phase: int = 0      # FULL (the core backend), DECIDE or JUDGE (another backend's physics)
+    e0: int = 0         # the cell's episode of row 0: row e draws episode e0 + e's random
+                        # streams (0 unless the cell runs in shards of episodes)
 
 
 class LoopState(NamedTuple):
@@ -166,6 +168,21 @@ GO, STOP, REACHED = 0, 1, 2
 
 
 def new_loop_state(n_episodes: int, n_agents: int) -> LoopState:
+    """A fresh :class:`LoopState`: every episode ``NEW`` at step 0, no success step
+    (``k_succ = -1``), no pair distance yet (``dmin = inf``), everything else zero.
+
+    Parameters
+    ----------
+    n_episodes : int
+        Episodes E.
+    n_agents : int
+        Team size N.
+
+    Returns
+    -------
+    LoopState
+        Its arrays, shaped as the class documents.
+    """
     E, N = n_episodes, n_agents
     return LoopState(np.zeros(E, np.int64), np.zeros(E, np.int64),
                      np.zeros(E), np.zeros(E, np.int64),
@@ -193,7 +210,23 @@ class EnvIO(NamedTuple):
 
 
 def env_io(n: int, n_agents: int, obs_dim: int) -> EnvIO:
-    """An :class:`EnvIO` with no rows (a plain fused step)."""
+    """An :class:`EnvIO` with no rows (a plain fused step).
+
+    Parameters
+    ----------
+    n : int
+        Sub-envs (rows of ``a``, ``out`` and ``flags``).
+    n_agents : int
+        Team size N.
+    obs_dim : int
+        Observation width (``OBS_DIM``).
+
+    Returns
+    -------
+    EnvIO
+        Zero actions and observations, zero flags, an empty ``rows``, ``normalized`` and
+        ``clean`` 0.
+    """
     return EnvIO(np.zeros((n, n_agents, 3)), np.zeros((n, n_agents, obs_dim)),
                  np.zeros(n, np.int64), np.zeros(0, np.int64), 0, 0)
 
@@ -206,7 +239,22 @@ STEP_FIELDS = ("grid", "vp", "LP", "P", "W", "M", "LS", "t0", "state", "cmd", "e
 
 @structref.register
 class StepArgsType(types.StructRef):
+    """The numba type of :class:`StepArgs`."""
+
     def preprocess_fields(self, fields):
+        """The struct's fields with literal types widened (one type per field whatever the
+        values).
+
+        Parameters
+        ----------
+        fields : sequence of (str, numba type)
+            The fields' names and types.
+
+        Returns
+        -------
+        tuple of (str, numba type)
+            The same fields, each type ``types.unliteral``.
+        """
         return tuple((name, types.unliteral(t)) for name, t in fields)
 
 
@@ -223,15 +271,75 @@ structref.define_proxy(StepArgs, StepArgsType, STEP_FIELDS)
 
 @njit(cache=True)
 def step_args(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, nobs, nact):
-    """The :class:`StepArgs` of these arrays (compiled per argument types, cached)."""
+    """The :class:`StepArgs` of these arrays (compiled per argument types, cached).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    vp : (PARAM_DIM,) float64
+        Vehicle parameters (:func:`oneocean.engine.dynamics.vehicle_params`).
+    LP : LoopParams
+        The loop's params.
+    P, W
+        The task's params and per-episode work arrays (its ``make``).
+    M : NamedTuple
+        The method's params (its policy module's ``params``).
+    LS : LoopState
+        The loop's per-episode state.
+    t0 : (E,) float64
+        Start time of each episode, s since the grid's ``time0``.
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    cmd : (E, N, CMD_DIM) float64
+        Command rows.
+    ext : (E, N, 3) float64
+        External actions, m s-1.
+    obs : (E, n_steps, N, OBS_DIM) float64
+        Observation record (zero-length step axis unless recording).
+    act : (E, n_steps, N, 3) float64
+        Action record.
+    res : (E, C) float64
+        Result rows.
+    nobs : (E, 1, N, OBS_DIM) float64
+        The next observation of every agent.
+    nact : (E, 1, N, 3) float64
+        Scratch of :func:`observe_next`.
+
+    Returns
+    -------
+    StepArgs
+        The arrays, shared (not copied).
+    """
     return StepArgs(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, nobs, nact)
 
 
 @hot_kernel(inline="always")
 def env_step_in(LP, LS, ext, io, e):
     """Before episode ``e``'s fused step: its sub-env's action (if it has one) into
-    ``ext[e]`` (the normalised view scaled as ``v_max * a / max(|a|, 1)``, numpy's
-    arithmetic); returns whether the episode had already ended."""
+    ``ext[e]``.
+
+    With ``io.normalized`` the action is scaled as ``v_max * a / max(|a|, 1)`` (numpy's
+    arithmetic; a non-finite norm propagates).
+
+    Parameters
+    ----------
+    LP : LoopParams
+        The loop's params (``v_max``, m s-1).
+    LS : LoopState
+        The loop's per-episode state.
+    ext : (E, N, 3) float64
+        External actions, m s-1; row ``e`` written.
+    io : EnvIO
+        The step API's side of the step (``io.rows[e]``: episode ``e``'s sub-env, -1: none).
+    e : int
+        Episode index.
+
+    Returns
+    -------
+    bool
+        Whether the episode had already ended before the step.
+    """
     was = LS.status[e] == FINISHED
     if io.a.shape[0] > 0 and io.rows[e] >= 0:
         j = io.rows[e]
@@ -256,7 +364,28 @@ def env_step_in(LP, LS, ext, io, e):
 def env_step_out(LP, LS, res, nobs, io, e, was):
     """After episode ``e``'s fused step and observation (``nobs[e, 0]``): its sub-env's
     observation into ``io.out`` and its :data:`ENV_ENDED` / ``ENV_SUCCESS`` /
-    ``ENV_TRUNCATED` bits into ``io.flags``."""
+    ``ENV_TRUNCATED`` bits into ``io.flags``.
+
+    Nothing for an episode without a sub-env. The bits are set only at the step the episode
+    ended; with ``io.clean`` non-finite observation values are written as 0.
+
+    Parameters
+    ----------
+    LP : LoopParams
+        The loop's params (``n_steps``).
+    LS : LoopState
+        The loop's per-episode state.
+    res : (E, C) float64
+        Result rows (``res[e, C_SUCCESS]``).
+    nobs : (E, 1, N, OBS_DIM) float64
+        The next observation of every agent (:func:`observe_next`).
+    io : EnvIO
+        The step API's side of the step, written.
+    e : int
+        Episode index.
+    was : bool
+        Whether the episode had ended before the step (:func:`env_step_in`).
+    """
     if io.out.shape[0] == 0 or io.rows[e] < 0:
         return
     j = io.rows[e]
@@ -280,7 +409,24 @@ def env_step_out(LP, LS, res, nobs, io, e, was):
 @hot_kernel(inline="always")
 def known_state(LP, LS, state, e):
     """The agents' state as the method knows it: the truth for a method given the true
-    position (the oracle), else the navigation estimate, refreshed for every agent."""
+    position (the oracle), else the navigation estimate, refreshed for every agent.
+
+    Parameters
+    ----------
+    LP : LoopParams
+        The loop's params (``sens.true_position``).
+    LS : LoopState
+        The loop's per-episode state (``nerr``; ``nav`` is written).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index (the only row refreshed).
+
+    Returns
+    -------
+    (E, N, STATE_DIM) float64
+        ``state`` itself, or ``LS.nav``.
+    """
     if LP.sens.true_position != 0:
         return state
     for i in range(state.shape[1]):
@@ -291,8 +437,32 @@ def known_state(LP, LS, state, e):
 @hot_kernel(inline="always")
 def observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact):
     """The observation every agent gets before its episode's next step ``k`` (the step
-    API's ``obs``), into ``nobs[e, 0]`` (``nact`` (E, 1, N, 3) is scratch): exactly what the
-    loop's step ``k`` will sense (the filter update is computed, not stored)."""
+    API's ``obs``), into ``nobs[e, 0]``: exactly what the loop's step ``k`` will sense (the
+    filter update is computed, not stored).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    cue : function
+        The task's ``cue`` hook.
+    P, W
+        The task's params and per-episode work arrays (its ``make``).
+    LP : LoopParams
+        The loop's params.
+    LS : LoopState
+        The loop's per-episode state (``k[e]`` is the next step).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    t0 : (E,) float64
+        Start time of each episode, s since the grid's ``time0``.
+    e : int
+        Episode index.
+    nobs : (E, 1, N, OBS_DIM) float64
+        The next observations, row ``e`` written.
+    nact : (E, 1, N, 3) float64
+        Scratch (the observation's action slot).
+    """
     n_ag = state.shape[1]
     k = LS.k[e]
     t = t0[e] + k * LP.dt
@@ -300,7 +470,8 @@ def observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact):
     for i in range(n_ag):
         s = state[e, i]
         ce, cn = current_at(grid, s[0], s[1], s[2], t)
-        pe, pn = current_estimate(LP.sens, LP.seed, LS.cb, LS.fc, e, k, i, n_ag, ce, cn, 0)
+        pe, pn = current_estimate(LP.sens, LP.seed, LS.cb, LS.fc, e, k, i, n_ag, ce, cn, 0,
+                                  LP.e0)
         gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
         observe(nobs, nact, e, 0, i, grid, X, state, gx, gy, gz, pe, pn, pr,
                 math.nan, math.nan, math.nan)
@@ -309,11 +480,59 @@ def observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact):
 @hot_kernel(inline="always")
 def decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext, obs, act_rec, e, k, i,
                  t, counting, cur):
-    """The decision half of agent ``i``'s step ``k`` (every backend): remember where it is,
-    sample the true current at it, give the method its current estimate, choose the action
-    (the fused policy, the learned controller or the external action), record the
-    observation and write the command row ``cmd[e, i]`` (unclipped). Returns the updated
-    current-speed sum and the true current ``(ce, cn)`` at the agent."""
+    """The decision half of agent ``i``'s step ``k`` (every backend).
+
+    Remember where the agent is (``LS.prev``), sample the true current at it, give the method
+    its current estimate, choose the action (the fused policy, the learned controller or the
+    external action), record the observation and write the command row ``cmd[e, i]``
+    (unclipped, heading free unless the fused policy sets it, thrust on).
+
+    Parameters
+    ----------
+    cue, act : function
+        The task's ``cue`` hook and the policy's ``act`` hook.
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P, W
+        The task's params and per-episode work arrays (its ``make``).
+    M : NamedTuple
+        The method's params.
+    LP : LoopParams
+        The loop's params.
+    LS : LoopState
+        The loop's per-episode state.
+    X : (E, N, STATE_DIM) float64
+        The states the method knows (:func:`known_state`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    cmd : (E, N, CMD_DIM) float64
+        Command rows; ``cmd[e, i]`` written.
+    ext : (E, N, 3) float64
+        External actions, m s-1 (``LP.policy == EXTERNAL``).
+    obs : (E, n_steps, N, OBS_DIM) float64
+        Observation record (zero-length step axis unless recording).
+    act_rec : (E, n_steps, N, 3) float64
+        Action record.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    t : float
+        Time, s since the grid's ``time0`` (``t0[e] + k dt``).
+    counting : bool
+        The standard metrics still accumulate (no ``REACHED`` yet).
+    cur : float
+        The episode's sum of true current speeds so far, m s-1.
+
+    Returns
+    -------
+    cur : float
+        The updated current-speed sum, m s-1.
+    ce, cn : float
+        The true current at the agent, east and north, m s-1.
+    """
     s = state[e, i]
     px = s[0]
     py = s[1]
@@ -325,7 +544,7 @@ def decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext, obs, act_r
     if counting:
         cur += math.sqrt(ce * ce + cn * cn)
     pe, pn = current_estimate(LP.sens, LP.seed, LS.cb, LS.fc, e, k, i, state.shape[1], ce, cn,
-                              1)
+                              1, LP.e0)
     if LP.policy != EXTERNAL:
         ax, ay, az, psi = act(grid, P, W, M, X, e, k, i, t, pe, pn)
         if LP.policy == LEARNED:
@@ -356,10 +575,50 @@ def decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext, obs, act_r
 @hot_kernel(inline="always")
 def account_agent(after_agent, grid, P, W, LP, LS, state, e, k, i, en, code, counting, energy,
                   viol):
-    """The accounting half of agent ``i``'s step after it moved (every backend): the energy
-    proxy ``en`` of its executed action and the move's status ``code`` (a rejected move or a
-    contact) counted up to success, the task's ``after_agent`` hook, and the navigation
-    estimate teammates acting later see. Returns the updated energy and violation count."""
+    """The accounting half of agent ``i``'s step after it moved (every backend).
+
+    The energy proxy ``en`` of its executed action and the move's status ``code`` (a rejected
+    move or a contact) counted up to success, the task's ``after_agent`` hook, and the
+    navigation estimate teammates acting later see.
+
+    Parameters
+    ----------
+    after_agent : function
+        The task's ``after_agent`` hook.
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P, W
+        The task's params and per-episode work arrays (its ``make``).
+    LP : LoopParams
+        The loop's params.
+    LS : LoopState
+        The loop's per-episode state.
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    en : float
+        Energy proxy of the executed action, m2 s-1.
+    code : int
+        Status of the move (:mod:`oneocean.engine.status`; ``OK`` or a violation).
+    counting : bool
+        The standard metrics still accumulate (no ``REACHED`` yet).
+    energy : float
+        The team's energy proxy so far, m2 s-1.
+    viol : int
+        The team's rejected moves so far.
+
+    Returns
+    -------
+    energy : float
+        The updated energy proxy, m2 s-1.
+    viol : int
+        The updated violation count.
+    """
     if counting:
         energy += en
         if code != OK:
@@ -372,9 +631,51 @@ def account_agent(after_agent, grid, P, W, LP, LS, state, e, k, i, en, code, cou
 
 @hot_kernel(inline="always")
 def end_step(post_step, grid, P, W, LP, LS, state, e, k, t, counting, coll, dmin):
-    """The end of step ``k`` once every agent moved (every backend): near-collisions (eq. 4)
-    and the closest pair, the task's ``post_step`` judge, dead reckoning over the step, the
-    ``REACHED`` latch. Returns ``(k + 1, stop, counting, coll, dmin)``."""
+    """The end of step ``k`` once every agent moved (every backend).
+
+    Near-collisions (eq. 4) and the closest pair (while counting), the task's ``post_step``
+    judge, dead reckoning over the step, the ``REACHED`` latch (``LS.k_succ[e]``).
+
+    Parameters
+    ----------
+    post_step : function
+        The task's ``post_step`` hook.
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P, W
+        The task's params and per-episode work arrays (its ``make``).
+    LP : LoopParams
+        The loop's params.
+    LS : LoopState
+        The loop's per-episode state.
+    state : (E, N, STATE_DIM) float64
+        True vehicle states after the step (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the step's start, s since the grid's ``time0``.
+    counting : bool
+        The standard metrics still accumulate (no ``REACHED`` yet).
+    coll : int
+        Steps with a near-collision so far.
+    dmin : float
+        Smallest pair distance so far, m.
+
+    Returns
+    -------
+    k : int
+        ``k + 1``.
+    stop : bool
+        The judge ended the episode (``STOP``).
+    counting : bool
+        False from the ``REACHED`` step on.
+    coll : int
+        The updated near-collision count.
+    dmin : float
+        The updated smallest pair distance, m.
+    """
     S = state[e]
     if S.shape[0] > 1 and counting:
         d = min_pairwise_distance(S)
@@ -385,7 +686,7 @@ def end_step(post_step, grid, P, W, LP, LS, state, e, k, t, counting, coll, dmin
     rc = int(post_step(grid, P, W, state, LS.prev, e, k, t))
     for i in range(S.shape[0]):   # dead reckoning over the step's ground displacement
         nav_update(LP.sens, LP.seed, LS.navc, LS.nerr, state, LS.prev, e, k, i, S.shape[0],
-                   LP.dt)
+                   LP.dt, LP.e0)
     k += 1
     stop = False
     if rc == REACHED:
@@ -400,7 +701,32 @@ def end_step(post_step, grid, P, W, LP, LS, state, e, k, t, counting, coll, dmin
 @hot_kernel(inline="always")
 def finish_episode(finish, grid, P, W, LP, LS, state, res, e, k):
     """Close episode ``e`` after ``k`` steps (every backend): the task's ``finish`` judge
-    writes its metrics, the loop the standard columns over the steps up to success."""
+    writes its metrics, the loop the standard columns over the steps up to success.
+
+    ``T`` is the steps to success times ``dt`` on success, else the time limit; the
+    near-collision ratio and the mean current speed are per step (and agent) up to success.
+
+    Parameters
+    ----------
+    finish : function
+        The task's ``finish`` hook.
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P, W
+        The task's params and per-episode work arrays (its ``make``).
+    LP : LoopParams
+        The loop's params.
+    LS : LoopState
+        The loop's per-episode state (``status[e]`` set to ``FINISHED``).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    res : (E, C) float64
+        Result rows; row ``e`` written (the ``C_*`` columns, then the task's).
+    e : int
+        Episode index.
+    k : int
+        Steps taken.
+    """
     LS.status[e] = FINISHED
     row = res[e]
     success = finish(grid, P, W, state, e, k, row)
@@ -428,7 +754,45 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
     ``DECIDE`` (another backend's physics: one step's decisions of every agent -- the
     command rows ``cmd`` and the true currents ``LS.cw`` -- with the executed action clipped
     and its energy in ``LS.en``) or ``JUDGE`` (after that backend moved the agents and wrote
-    each move's status into ``LS.code``: the accounting and the judge of the step)."""
+    each move's status into ``LS.code``: the accounting and the judge of the step).
+
+    Parameters
+    ----------
+    begin, pre_step, cue, after_agent, post_step, finish : function
+        The task's env hooks (module docstring).
+    plan, act : function
+        The policy's hooks.
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    vp : (PARAM_DIM,) float64
+        Vehicle parameters (:func:`oneocean.engine.dynamics.vehicle_params`).
+    LP : LoopParams
+        The loop's params.
+    P, W
+        The task's params and per-episode work arrays (its ``make``).
+    M : NamedTuple
+        The method's params.
+    LS : LoopState
+        The loop's per-episode state, updated.
+    t0 : (E,) float64
+        Start time of each episode, s since the grid's ``time0``.
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`), advanced in place.
+    cmd : (E, N, CMD_DIM) float64
+        Command rows.
+    ext : (E, N, 3) float64
+        External actions, m s-1 (``LP.policy == EXTERNAL``).
+    obs : (E, n_steps, N, OBS_DIM) float64
+        Observation record (zero-length step axis unless recording).
+    act_rec : (E, n_steps, N, 3) float64
+        Action record.
+    res : (E, C) float64
+        Result rows; row ``e`` written when the episode ends.
+    e : int
+        Episode index.
+    k_stop : int
+        Stop before this step; negative: advance ``-k_stop`` steps.
+    """
     if LS.status[e] == FINISHED:
         return
     n_ag = state.shape[1]
@@ -501,14 +865,69 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
 
 @hot_kernel(inline="always")
 def noop_pre_step(grid, P, W, state, e, k, t):
+    """A ``pre_step`` hook that does nothing (for a task without physics before the moves).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    P, W
+        The task's params and per-episode work arrays.
+    state : (E, N, STATE_DIM) float64
+        True vehicle states.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time, s since the grid's ``time0``.
+    """
     return
 
 
 @hot_kernel(inline="always")
 def noop_after_agent(grid, P, W, state, e, k, i, code):
+    """An ``after_agent`` hook that does nothing.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    P, W
+        The task's params and per-episode work arrays.
+    state : (E, N, STATE_DIM) float64
+        True vehicle states.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    code : int
+        Status of the agent's move (:mod:`oneocean.engine.status`).
+    """
     return
 
 
 @hot_kernel(inline="always")
 def noop_plan(grid, P, W, M, state, e, k, t):
+    """A policy ``plan`` hook that does nothing (a policy without a team-level decision).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    P, W
+        The task's params and per-episode work arrays.
+    M : NamedTuple
+        The method's params.
+    state : (E, N, STATE_DIM) float64
+        The vehicle states the method knows.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time, s since the grid's ``time0``.
+    """
     return

@@ -38,9 +38,10 @@ Scoring (:func:`match_claims`, ground truth enters only here)
     pairs closer than the detection gate ``DETECT_GATE_M``: repeatedly the closest unmatched
     (claim, leak) pair within the gate is matched. (Every tier's leaks are >= 200 m of a
     pipeline turning <= ``MAX_TURN_DEG`` per leg apart, more than two gates, so a claim is
-    within the gate of at most one leak and the greedy matching is the optimal one.) A leak is *detected* if a claim is matched to it and
-    *localised* if that claim lies within ``loc_tolerance_m``; an unmatched claim is a *false
-    claim* (a second claim near an already matched leak is one too). The report is final when
+    within the gate of at most one leak and the greedy matching is the optimal one.) A leak
+    is *detected* if a claim is matched to it and *localised* if that claim lies within
+    ``loc_tolerance_m``; an unmatched claim is a *false claim* (a second claim near an
+    already matched leak is one too). The report is final when
     every agent has finished its section, or at the time limit.
 Success
     Every leak localised and no false claim when the report is final; ``T_s`` is then the time
@@ -56,8 +57,8 @@ Methods
     seafloor at the full ``v_max``, detect plume events in their own readings and claim one
     position per event, its upstream edge along the current; heuristic: the sensor models of
     :mod:`oneocean.sensing`, so it logs and claims positions from its dead reckoning;
-    oracle: true current and position). The survey waypoints are the method's plan (``survey``, stored in the work
-    arrays); the claims are its report, scored here.
+    oracle: true current and position). The survey waypoints are the method's plan
+    (``survey``, stored in the work arrays); the claims are its report, scored here.
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset``; ``PIParams`` / ``PIWork`` and ``make``; the env hooks
@@ -171,11 +172,33 @@ def _corridor_ok(grid, poly: np.ndarray, tier) -> bool:
 
 
 def sample_pipeline(grid, rng, tier, tries: int = 3000, what: str = "pipeline") -> np.ndarray:
-    """A random pipeline polyline (n_vertices, 2) [x, z] m on the shelf (see module doc).
+    """A random pipeline polyline on the shelf (see the module docstring).
+
+    From a random water node with seafloor depth in range, ``round(pipeline_length_m /
+    LEG_M)`` equal legs (at least one) with a random initial heading and turns of at most
+    ``MAX_TURN_DEG``; valid when :func:`_corridor_ok` accepts it.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    rng : numpy.random.Generator
+        The episode's reset stream.
+    tier : dict
+        Tier parameters (``pipeline_length_m``, ``seafloor_min_m``, ``seafloor_max_m``).
+    tries : int
+        Attempts before giving up.
+    what : str
+        What is being drawn, for the error message.
+
+    Returns
+    -------
+    (V, 2) float64
+        The vertices [x, z], world m (V = legs + 1).
 
     Raises
     ------
-    ConfigError
+    NotApplicable
         No valid pipeline in ``tries`` attempts (never a silent fallback).
     """
     L = float(tier["pipeline_length_m"])
@@ -210,7 +233,21 @@ def _arc(poly: np.ndarray) -> np.ndarray:
 
 
 def point_at(poly: np.ndarray, s: float) -> np.ndarray:
-    """Point (2,) at arc length ``s`` m along the polyline."""
+    """The point at an arc length along a polyline.
+
+    Parameters
+    ----------
+    poly : (V, 2) float64
+        Polyline vertices [x, z], m.
+    s : float
+        Arc length from the first vertex, m (outside ``[0, length]``: extrapolated along
+        the first or last leg).
+
+    Returns
+    -------
+    (2,) float64
+        The point [x, z], m.
+    """
     arc = _arc(poly)
     k = int(np.clip(np.searchsorted(arc, s, side="right") - 1, 0, len(poly) - 2))
     w = (s - arc[k]) / max(arc[k + 1] - arc[k], 1e-12)
@@ -218,14 +255,52 @@ def point_at(poly: np.ndarray, s: float) -> np.ndarray:
 
 
 def sub_polyline(poly: np.ndarray, s0: float, s1: float) -> np.ndarray:
-    """The part of the polyline between arc lengths ``s0 < s1`` (vertices included)."""
+    """The part of a polyline between two arc lengths.
+
+    Parameters
+    ----------
+    poly : (V, 2) float64
+        Polyline vertices [x, z], m.
+    s0, s1 : float
+        Arc lengths of its ends, ``s0 < s1``, m.
+
+    Returns
+    -------
+    (K, 2) float64
+        The points at ``s0`` and ``s1`` with the vertices strictly between them, m.
+    """
     arc = _arc(poly)
     inner = [poly[k] for k in range(len(poly)) if s0 < arc[k] < s1]
     return np.array([point_at(poly, s0), *inner, point_at(poly, s1)])
 
 
 def sample_leaks(rng, poly: np.ndarray, tier, tries: int = 1000, what: str = "leaks"):
-    """Leak arc lengths (n,) sorted, at least ``leak_spacing_m`` apart (rejection sampling)."""
+    """Leak positions along a pipeline, by rejection sampling.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The episode's reset stream.
+    poly : (V, 2) float64
+        Pipeline vertices [x, z], m.
+    tier : dict
+        Tier parameters (``n_leaks``, ``leak_spacing_m``).
+    tries : int
+        Attempts before giving up.
+    what : str
+        What is being drawn, for the error message.
+
+    Returns
+    -------
+    (n_leaks,) float64
+        Sorted arc lengths, m, uniform in ``[LEAK_ARC_FRAC, 1 - LEAK_ARC_FRAC]`` of the
+        length and at least ``leak_spacing_m`` apart.
+
+    Raises
+    ------
+    ConfigError
+        No such placement in ``tries`` attempts.
+    """
     n = int(tier["n_leaks"])
     L = _arc(poly)[-1]
     lo, hi = LEAK_ARC_FRAC * L, (1.0 - LEAK_ARC_FRAC) * L
@@ -240,12 +315,25 @@ def sample_leaks(rng, poly: np.ndarray, tier, tries: int = 1000, what: str = "le
 def field_frame(poly: np.ndarray, h: float, margin: float):
     """Local plume-field frame along the pipeline's chord.
 
+    Parameters
+    ----------
+    poly : (V, 2) float64
+        Pipeline vertices [x, z], m.
+    h : float
+        Field cell size, m.
+    margin : float
+        Margin of the field around the pipeline, m.
+
     Returns
     -------
-    origin : (2,) world [x, z] of the local origin (the first vertex), m
-    axes : (2,) [cos theta, sin theta] of the local x axis (the chord), world frame
-    s0, n0 : local coordinates of the centre of cell (0, 0), m
-    nx, nz : int, cells needed along / across the chord
+    origin : (2,) float64
+        World [x, z] of the local origin (the first vertex), m.
+    axes : (2,) float64
+        ``[cos theta, sin theta]`` of the local x axis (the chord), world frame.
+    s0, n0 : float
+        Local coordinates of the centre of cell (0, 0), m.
+    nx, nz : int
+        Cells needed along / across the chord.
     """
     o = poly[0]
     d = poly[-1] - o
@@ -263,6 +351,19 @@ def field_frame(poly: np.ndarray, h: float, margin: float):
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the pipeline, leaks, start positions and start time of every episode.
 
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        Tier parameters (``data/tasks/PI.yaml``).
+    n_agents : int
+        Team size N, 1..10.
+    n_episodes : int
+        Number of episodes E.
+    seed : int
+        Run seed (each episode draws from its own reset stream).
+
     Returns
     -------
     dict
@@ -274,7 +375,10 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     Raises
     ------
     ConfigError
-        Team size outside [1, 10], missing tier keys, or no valid geometry for some episode.
+        Team size outside [1, 10], missing tier keys, ``n_leaks`` below 1, no leak placement
+        or no valid start positions for some episode.
+    NotApplicable
+        No valid pipeline for some episode (:func:`sample_pipeline`).
     """
     n_agents = int(n_agents)
     if not 1 <= n_agents <= 10:
@@ -390,6 +494,31 @@ def _field_land(grid, frame_e, nx, nz, h) -> np.ndarray:
 
 
 class PIParams(NamedTuple):
+    """PI's params (one rollout).
+
+    Attributes
+    ----------
+    n_leak : int
+        Leaks per episode.
+    n_spin : int
+        Spin-up field steps before the start.
+    refresh : int
+        Face currents refreshed every this many field steps.
+    dt : float
+        Agent step, s (the field steps ``FIELD_EVERY dt``).
+    thr : float
+        The sensor's detection threshold, kg m-3.
+    tol : float
+        Localisation tolerance, m.
+    gate : float
+        Detection gate of the claim matching, m.
+    h : float
+        Field cell size, m.
+    kappa : float
+        Diffusivity, m2 s-1.
+    tracer : (n_params,) float64
+        The field's ``step_field`` params (tracer, no decay).
+    """
     n_leak: int             # leaks per episode
     n_spin: int             # spin-up field steps before the start
     refresh: int            # face currents refreshed every this many field steps
@@ -403,6 +532,64 @@ class PIParams(NamedTuple):
 
 
 class PIWork(NamedTuple):
+    """PI's per-episode work arrays.
+
+    The env's episode and plume field are the truth (the method never reads them); the
+    sensor (``sense``) goes from the env to the method, the report (``claims``, ``nclaim``)
+    from the method to the env; the rest is the policy's
+    (:mod:`oneocean.methods.heuristic.pi`).
+
+    Attributes
+    ----------
+    t0 : (E,) float64
+        Start times, s (the spin-up ends there).
+    leaks : (E, n_leaks, 2) float64
+        Leak positions [x, z], m (scoring only).
+    leak_loc : (E, n_leaks, 2) float64
+        The same in the field's local frame, m.
+    rate : (E, n_leaks) float64
+        Emission rates, kg s-1.
+    frame : (E, 6) float64
+        Field frame: origin x, z (m), cos, sin of the chord, cell (0, 0) centre s, n (m).
+    C : (E, 1, nz, nx) float64
+        Column mass, kg m-2.
+    uf : (E, nz, nx + 1) float64
+        Face currents along the chord, m s-1.
+    vf : (E, nz + 1, nx) float64
+        Face currents across the chord, m s-1.
+    land : (E, nz, nx) uint8
+        Land / outside flags of the field's cells.
+    work : (E, work_size) float64
+        ``step_field`` scratch.
+    sense : (E, N, 3) float64
+        Each agent's latest reading [x, z (m), value (kg m-3)].
+    claims : (E, MAX_CLAIMS, 3) float64
+        The team's leak claims [x, z (m), strength]; NaN where unfiled.
+    nclaim : (E,) int64
+        Claims filed.
+    wps : (E, N, V, 2) float64
+        Survey waypoints [x, z], m (plan tokens).
+    wcount : (E, N) int64
+        Waypoints of each agent.
+    widx : (E, N) int64
+        Waypoint being followed.
+    tgt : (E, N, 3) float64
+        The step's carrot (the observation's goal cue), m.
+    done : (E, N) int64
+        1: the agent has finished its section.
+    ev_on : (E, N) int64
+        1: a plume event is open.
+    ev_lvl : (E, N, 3) float64
+        Trough since the last event, event background, peak, kg m-3.
+    ev_pos : (E, N, 4) float64
+        Event origin [x, z] and peak position [x, z], m.
+    ev_n : (E, N) int64
+        Readings in the event buffer.
+    ev_buf : (E, N, max_events, 4) float64
+        [x, z, value, downstream coordinate] of the event's readings.
+    ev_claim : (E, N) int64
+        The claim the open event files into (-1: none yet).
+    """
     # ---- env: the episode and the plume field (truth: the method never reads these)
     t0: np.ndarray          # (E,) start times, s (the spin-up ends there)
     leaks: np.ndarray       # (E, n_leaks, 2) leak positions [x, z], m (scoring only)
@@ -433,11 +620,67 @@ class PIWork(NamedTuple):
     ev_claim: np.ndarray    # (E, N) int64 the claim the open event files into (-1: none yet)
 
 
+def _field_shape(frames) -> tuple[int, int]:
+    """The largest ``(nx, nz)`` of :func:`field_frame` results ``frames``."""
+    return max(f[4] for f in frames), max(f[5] for f in frames)
+
+
+def cell_constants(tier: dict, init: dict) -> dict:
+    """What every episode of a cell shares, computed on the whole cell's episodes ``init``
+    (:meth:`oneocean.tasks.Cell.reset`): ``field_shape``, the plume field's ``(nx, nz)``
+    cells, the largest episode's (each episode's field is centred in it). A shard of the cell
+    then runs its episodes on the same field as the whole cell does.
+
+    Parameters
+    ----------
+    tier : dict
+        The cell's tier parameters (unused: the shape depends on the pipelines only).
+    init : dict
+        :func:`reset` output of the cell's episodes (``poly`` (E, V, 2), m).
+
+    Returns
+    -------
+    dict
+        ``{"field_shape": (nx, nz)}``, ints.
+    """
+    poly = np.asarray(init["poly"], dtype=np.float64)
+    frames = [field_frame(poly[e], FIELD_H_M, FIELD_MARGIN_M) for e in range(poly.shape[0])]
+    return {"field_shape": _field_shape(frames)}
+
+
 def make(grid, tier: dict, init: dict, tokens: dict | None = None):
-    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`); the
-    plan tokens are the policy's (its ``plan_tokens``): every agent's survey waypoints
-    ``tokens["wps"]`` (E, N, V, 2) / ``tokens["wcount"]`` (E, N) and room for
-    ``tokens["max_events"]`` events per agent."""
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
+
+    Every episode's field has the same shape, the cell's largest (``init["field_shape"]``
+    from :func:`cell_constants`, else the batch's largest), with the episode's extent
+    centred in it.
+
+    Parameters
+    ----------
+    grid : Grid
+        The rollout's grid export (the ablations' forcing included).
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        The reset's dict (:func:`reset`; ``field_shape`` optional).
+    tokens : dict
+        The policy's plan tokens (its ``plan_tokens``): every agent's survey waypoints
+        ``wps`` (E, N, V, 2) m and ``wcount`` (E, N), and ``max_events``, room for events
+        per agent.
+
+    Returns
+    -------
+    P : PIParams
+        The env's typed scalars.
+    W : PIWork
+        The env's per-episode work arrays.
+
+    Raises
+    ------
+    ConfigError
+        Missing tier parameters or plan tokens, more than 62 leaks, or a ``field_shape``
+        smaller than an episode's field.
+    """
     need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
     tokens = need_tokens(TASK_ID, tokens, "wps", "wcount", "max_events")
     dt = float(tier["dt_s"])
@@ -449,10 +692,13 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
     if n_leak > 62:
         raise ConfigError(f"task {TASK_ID}: at most 62 leaks per episode, got {n_leak}")
     h = FIELD_H_M
-    # per-episode field frames (same shape for every episode: the largest one)
+    # per-episode field frames (same shape for every episode: the cell's largest one, from
+    # cell_constants, else the batch's)
     frames = [field_frame(poly[e], h, FIELD_MARGIN_M) for e in range(n_ep)]
-    nx = max(f[4] for f in frames)
-    nz = max(f[5] for f in frames)
+    nx, nz = init.get("field_shape") or _field_shape(frames)
+    if nx < max(f[4] for f in frames) or nz < max(f[5] for f in frames):
+        raise ConfigError(f"task {TASK_ID}: field_shape {(nx, nz)} smaller than an episode's "
+                          f"field {_field_shape(frames)}")
     frame = np.empty((n_ep, 6))
     leak_loc = np.empty((n_ep, n_leak, 2))
     land = np.empty((n_ep, nz, nx), dtype=np.uint8)
@@ -492,8 +738,29 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
-    """Spin-up (the leaks have been emitting for ``n_spin`` field steps); every agent's first
-    reading, at its start position."""
+    """Spin up the plumes and take every agent's first reading, at its start position.
+
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0: the field is cleared, then the
+    leaks emit for ``P.n_spin`` field steps ending at ``t0``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : PIParams
+        The task's params (:func:`make`).
+    W : PIWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+
+    Returns
+    -------
+    bool
+        False: the episode starts.
+    """
     C = W.C
     nz = C.shape[2]
     nx = C.shape[3]
@@ -518,7 +785,28 @@ def begin(grid, P, W, state, e):
 
 @hot_kernel(inline="always")
 def pre_step(grid, P, W, state, e, k, t):
-    """The field: emit and transport every FIELD_EVERY steps (faces refreshed on schedule)."""
+    """Advance the plume field: emit and transport every ``FIELD_EVERY`` steps (face
+    currents refreshed every ``P.refresh`` field steps).
+
+    Env hook (:mod:`oneocean.tasks.loop`), before the agents act.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : PIParams
+        The task's params (:func:`make`).
+    W : PIWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+    """
     if k % FIELD_EVERY == 0:
         C = W.C
         nz = C.shape[2]
@@ -541,7 +829,37 @@ def _reading(grid, P, W, e, x, z, alt):
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
-    """Goal cue: the agent's carrot (plan token ``tgt``); probe: the reading before the move."""
+    """The goal cue: the agent's carrot (plan token ``tgt``); the probe: the reading before
+    the move.
+
+    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe. The reading
+    is taken at the position in ``state``, at its altitude above the seafloor (at least 0).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : PIParams
+        The task's params (:func:`make`).
+    W : PIWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (its navigation estimate; the truth for
+        the oracle); layout: :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+
+    Returns
+    -------
+    gx, gy, gz : float
+        The goal cue, world m.
+    probe : float
+        The sensor's concentration, kg m-3.
+    """
     s = state[e, i]
     px = s[0]
     py = s[1]
@@ -565,13 +883,63 @@ def _take_reading(grid, P, W, state, e, i):
 
 @hot_kernel(inline="always")
 def after_agent(grid, P, W, state, e, k, i, code):
-    """The reading after the move (the method processes it at its next decision)."""
+    """Take agent ``i``'s reading after its move into ``W.sense`` (the method processes it
+    at its next decision).
+
+    Env hook (:mod:`oneocean.tasks.loop`), right after the agent moved.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : PIParams
+        The task's params (:func:`make`).
+    W : PIWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    code : int
+        Status of the agent's move (:mod:`oneocean.engine.status`).
+    """
     _take_reading(grid, P, W, state, e, i)
 
 
 @hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
-    """The report is final once every agent has finished its section (``done``)."""
+    """The report is final once every agent has finished its section (``W.done``).
+
+    Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : PIParams
+        The task's params (:func:`make`).
+    W : PIWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    prev : (E, N, 3) float64
+        Positions before the step, world m.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+
+    Returns
+    -------
+    bool
+        True (STOP) once every agent is done; :func:`finish` then scores the report.
+    """
     for i in range(state.shape[1]):
         if W.done[e, i] == 0:
             return False
@@ -580,14 +948,38 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 @hot_kernel
 def match_claims(claims, n_claims, leaks, n_leak, gate, tol):
-    """Score a report: claims ``claims[:n_claims]`` ([x, z, ...] m; non-finite positions are
-    ignored) against the true leaks ``leaks[:n_leak]`` ([x, z] m).
+    """Score a report: the claims against the true leaks.
 
     One-to-one greedy matching by increasing distance among pairs within ``gate``: the
-    closest unmatched (claim, leak) pair is matched, repeatedly. Returns ``(n_detected,
-    n_localised, n_false, err_sum)``: matched leaks, matched claims within ``tol``, unmatched
-    (finite) claims, and the summed distance of the matched pairs, m. At most 62 claims and
-    62 leaks (bit masks)."""
+    closest unmatched (claim, leak) pair is matched, repeatedly. At most 62 claims and 62
+    leaks (bit masks).
+
+    Parameters
+    ----------
+    claims : (n, >=2) float64
+        Claims [x, z, ...], m; claims with a non-finite position are ignored.
+    n_claims : int
+        Claims used (``claims[:n_claims]``).
+    leaks : (m, 2) float64
+        True leak positions [x, z], m.
+    n_leak : int
+        Leaks used (``leaks[:n_leak]``).
+    gate : float
+        Detection gate, m.
+    tol : float
+        Localisation tolerance, m.
+
+    Returns
+    -------
+    n_detected : int
+        Matched leaks.
+    n_localised : int
+        Matched claims within ``tol``.
+    n_false : int
+        Unmatched (finite) claims.
+    err_sum : float
+        Summed distance of the matched pairs, m.
+    """
     used_c = 0
     used_l = 0
     n_valid = 0
@@ -627,9 +1019,31 @@ def match_claims(claims, n_claims, leaks, n_leak, gate, tol):
 
 
 def score_claims(claims, leaks, tol: float, gate: float = DETECT_GATE_M) -> dict:
-    """:func:`match_claims` on plain arrays (claims (n, >=2), leaks (m, 2), m) as the
-    metric columns of one episode: ``inspection_score``, ``localisation_error_m``,
-    ``detection_rate``, ``false_claims``, plus ``detected``, ``localised`` and ``success``."""
+    """:func:`match_claims` on plain arrays, as the metric columns of one episode.
+
+    Parameters
+    ----------
+    claims : (n, >=2) array_like
+        Claims [x, z, ...], m (empty: none).
+    leaks : (m, 2) array_like
+        True leak positions [x, z], m.
+    tol : float
+        Localisation tolerance, m.
+    gate : float
+        Detection gate, m.
+
+    Returns
+    -------
+    dict
+        ``inspection_score``, ``localisation_error_m`` (m, NaN when nothing matched),
+        ``detection_rate``, ``false_claims``, plus ``detected``, ``localised`` and
+        ``success``.
+
+    Raises
+    ------
+    ConfigError
+        More than 62 claims, or leaks outside 1..62.
+    """
     c = np.ascontiguousarray(np.atleast_2d(np.asarray(claims, dtype=np.float64)))
     lk = np.ascontiguousarray(np.atleast_2d(np.asarray(leaks, dtype=np.float64)))
     if c.size == 0:
@@ -649,7 +1063,33 @@ def score_claims(claims, leaks, tol: float, gate: float = DETECT_GATE_M) -> dict
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
-    """The method's claims (``W.claims``), matched to the true leaks (:func:`match_claims`)."""
+    """Score the method's claims (``W.claims``) against the true leaks (:func:`match_claims`)
+    and write the PI metrics.
+
+    Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : PIParams
+        The task's params (:func:`make`).
+    W : PIWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Steps the episode ran.
+    row : (C,) float64
+        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
+
+    Returns
+    -------
+    bool
+        Success: every leak localised and no false claim.
+    """
     n_leak = P.n_leak
     n_claims = min(W.nclaim[e], W.claims.shape[1])
     n_det, n_loc, n_false, err = match_claims(W.claims[e], n_claims, W.leaks[e], n_leak,

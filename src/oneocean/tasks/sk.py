@@ -25,8 +25,8 @@ Success
     violations also stop there, :mod:`oneocean.tasks.loop`'s ``REACHED``), but the episode
     runs on to its time limit, the task's metric horizon, so that every episode -- success or
     failure -- is measured over the same station-keeping window.
-Metrics (distances are 3-D, sampled after every step; ``H = ceil(hold_time_s / dt)``;
-    ``S = ceil(SETTLE_S / dt)``)
+Metrics (distances are 3-D, sampled after every step)
+    With ``H = ceil(hold_time_s / dt)`` and ``S = ceil(SETTLE_S / dt)``:
     ``rms_error_m`` (primary: the station-keeping RMS position error over the station-keeping
     window, ``(SETTLE_S, time_limit_s]``: the RMS distance to the station after steps
     ``S .. n_steps - 1``, for EVERY episode, failures included, so a cell's mean is the mean
@@ -41,7 +41,7 @@ Metrics (distances are 3-D, sampled after every step; ``H = ceil(hold_time_s / d
     beyond the allowance counts as error.
     ``hold_rms_m`` (secondary: the RMS distance over the hold window, the ``H`` steps of the
     first complete hold, so at most ``hold_radius_m``; NaN for an episode that never completed
-    a hold: the old ``rms_error_m``, precision while holding),
+    a hold: precision while holding),
     ``heading_rms_deg`` (RMS heading error over the same hold window, deg; NaN likewise),
     ``max_error_m`` (largest distance over the station-keeping window, m), ``hold_s`` (longest
     contiguous in-radius time over the episode, s), ``final_rms_m`` (RMS distance over the
@@ -106,8 +106,22 @@ def _check_times(tier: dict) -> None:
 
 
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
-    """Sample the station, its heading, the start time and the release point of every
-    episode (see the module docstring; ``start_offset_m`` defaults to 0: on the station).
+    """Sample the station, its heading, the start time and the release point of every episode.
+
+    See the module docstring; ``start_offset_m`` defaults to 0 (released on the station).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        Tier parameters (``data/tasks/SK.yaml``) plus ``dt_s``.
+    n_agents : int
+        Must be 1 (single-agent task).
+    n_episodes : int
+        Number of episodes E.
+    seed : int
+        Run seed (each episode draws from its own reset stream).
 
     Returns
     -------
@@ -115,6 +129,14 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
         ``pos0`` (E, 1, 3) release point, m; ``station`` (E, 3) m; ``psi0`` (E, 1) and
         ``heading`` (E,) station heading, rad (compass); ``t0`` (E,) start times, s;
         ``regime_points`` (E, 2, 3) the station and the release point (``Cell.reset``).
+
+    Raises
+    ------
+    ConfigError
+        Wrong team size, missing tier keys, ``hold_time_s > time_limit_s``,
+        ``time_limit_s <= SETTLE_S`` or a negative ``start_offset_m``.
+    NotApplicable
+        No valid station, or no release point ``start_offset_m`` from it in valid water.
     """
     if int(n_agents) != 1:
         raise ConfigError(f"task {TASK_ID}: single-agent task, got n_agents={n_agents}")
@@ -170,6 +192,19 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
 
 class SKParams(NamedTuple):
+    """SK's params (one rollout).
+
+    Attributes
+    ----------
+    radius : float
+        Hold radius around the station, m.
+    hold_steps : int
+        Contiguous in-radius steps needed, ``H = ceil(hold_time_s / dt)``.
+    settle_steps : int
+        Steps of the settling allowance, ``ceil(SETTLE_S / dt)``.
+    dt : float
+        Step, s.
+    """
     radius: float           # hold radius around the station, m
     hold_steps: int         # contiguous in-radius steps needed (ceil(hold_time_s / dt))
     settle_steps: int       # steps of the settling allowance (ceil(SETTLE_S / dt))
@@ -177,6 +212,23 @@ class SKParams(NamedTuple):
 
 
 class SKWork(NamedTuple):
+    """SK's per-episode work arrays.
+
+    Attributes
+    ----------
+    station : (E, 3) float64
+        Station positions, m.
+    heading : (E,) float64
+        Station heading, rad (compass).
+    acc : (E, 6) float64
+        Sums of squared distance (m2) and squared heading error (rad2) over the current
+        in-radius run; max distance (m) and sum of squared distance over the station-keeping
+        window; the same two sums as the first over the first complete hold window.
+    cnt : (E, 3) int64
+        Current in-radius run, longest run (steps), success flag.
+    ring : (E, H) float64
+        Squared distance of the last H steps, m2 (step k at ``k % H``).
+    """
     station: np.ndarray     # (E, 3) station positions, m
     heading: np.ndarray     # (E,) station heading, rad (compass)
     acc: np.ndarray         # (E, 6) sums of squared distance and squared heading error over
@@ -188,8 +240,31 @@ class SKWork(NamedTuple):
 
 
 def make(grid, tier: dict, init: dict):
-    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
-    need_tier(TASK_ID, tier, "time_limit_s", "hold_time_s", "hold_radius_m")
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
+
+    Parameters
+    ----------
+    grid : Grid
+        The rollout's grid export (the ablations' forcing included).
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        The reset's dict (:func:`reset`).
+
+    Returns
+    -------
+    P : SKParams
+        The env's typed scalars.
+    W : SKWork
+        The env's per-episode work arrays.
+
+    Raises
+    ------
+    ConfigError
+        Missing tier parameters, ``hold_time_s > time_limit_s`` or
+        ``time_limit_s <= SETTLE_S``.
+    """
+    need_tier(TASK_ID, tier, "time_limit_s", "hold_time_s", "hold_radius_m", "dt_s")
     _check_times(tier)
     dt = float(tier["dt_s"])
     n_ep = init["station"].shape[0]
@@ -203,6 +278,28 @@ def make(grid, tier: dict, init: dict):
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
+    """Reset the accumulators and counters.
+
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : SKParams
+        The task's params (:func:`make`).
+    W : SKWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+
+    Returns
+    -------
+    bool
+        False: the episode starts.
+    """
     for j in range(W.acc.shape[1]):
         W.acc[e, j] = 0.0
     W.cnt[e, 0] = 0
@@ -213,15 +310,73 @@ def begin(grid, P, W, state, e):
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
+    """The goal cue: the station.
+
+    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : SKParams
+        The task's params (:func:`make`).
+    W : SKWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (its navigation estimate; the truth for
+        the oracle); layout: :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+
+    Returns
+    -------
+    gx, gy, gz : float
+        The goal cue, world m.
+    probe : float
+        NaN (the task has no field).
+    """
     return W.station[e, 0], W.station[e, 1], W.station[e, 2], math.nan
 
 
 @hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
-    """Distance and heading error after step ``k``: the station-keeping window's sums (from
-    step ``settle_steps`` on), the in-radius run and its sums (frozen as the hold window when
-    the first hold completes: ``REACHED``; the episode runs on to its time limit), the last
-    H steps' ring."""
+    """Distance and heading error after step ``k``, and the hold check.
+
+    Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
+
+    Updates the station-keeping window's sums (from step ``settle_steps`` on), the in-radius
+    run and its sums (frozen as the hold window when the first hold completes) and the ring
+    of the last H steps' squared distances.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : SKParams
+        The task's params (:func:`make`).
+    W : SKWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    prev : (E, N, 3) float64
+        Positions before the step, world m.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+
+    Returns
+    -------
+    int
+        ``REACHED`` once the first hold window is complete (the episode runs on to its time
+        limit), else ``GO``.
+    """
     s = state[e, 0]
     g = W.station[e]
     a = W.acc[e]
@@ -252,8 +407,36 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
-    """The station-keeping RMS over steps ``settle_steps .. k - 1`` (every episode); the hold
-    window's RMS distance and heading error (NaN if no hold was completed)."""
+    """Write the SK metrics.
+
+    Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
+
+    The station-keeping RMS over steps ``settle_steps .. k - 1`` (every episode; NaN when the
+    episode ended before the window); the hold window's RMS distance and heading error (NaN if
+    no hold was completed); the RMS over the last H steps.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : SKParams
+        The task's params (:func:`make`).
+    W : SKWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Steps the episode ran.
+    row : (C,) float64
+        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
+
+    Returns
+    -------
+    bool
+        Success: a hold window was completed.
+    """
     a = W.acc[e]
     held = W.cnt[e, 2] != 0
     n_win = k - P.settle_steps

@@ -28,13 +28,15 @@ Physics (the environment; identical for every method)
       slot (slots are >= 3.5 m apart, so at most one is in reach). An attached agent detaches
       (and must attach again) when it is more than ``detach_radius_m`` from its slot.
     * Lift: while at least ``quorum`` agents are attached, the object and the attached agents
-      form one assembly. After every agent's own step (:func:`~oneocean.engine.step.advance_agent`:
-      dynamics, current, feasibility, energy), the assembly moves by the attached agents' mean
-      displacement plus the sink of the object's net weight, ``w_load dt`` downward with
+      form one assembly. After every agent's own step
+      (:func:`~oneocean.engine.step.advance_agent`: dynamics, current, feasibility, energy),
+      the assembly moves by the attached agents' mean displacement plus the sink of the
+      object's net weight, ``w_load dt`` downward with
       ``w_load = sink_speed_ms * N_SLOTS / n_attached`` (the weight is shared by the attached
       agents: with all five the team must out-pull ``sink_speed_ms``). Each attached agent is
-      displaced by (assembly displacement - mean agent displacement), i.e. it carries its share
-      of the load; a correction that would make the agent's position infeasible is skipped.
+      displaced by (assembly displacement - mean agent displacement), i.e. it carries its
+      share of the load; a correction that would make the agent's position infeasible is
+      skipped.
       The seafloor stops the assembly: while the object rests on the floor and the team does
       not pull it up, it stays put (static friction) and so does the assembly's mean.
       (The default vehicle's heave is thrust-limited to ~0.7 m/s through the water in the
@@ -46,8 +48,8 @@ Success
     The object's centre is at depth <= ``success_depth_m`` while within ``hold_radius_m``
     (horizontally) of the site, i.e. over the waiting recovery vessel; checked after every
     step, the episode stops there. ``reset`` raises ConfigError unless the success depth is
-    reachable: the slots must stay in the water there (``success_depth_m >= SLOT_RISE_M``) and
-    the site deeper than the success depth (the reference's Tier 2/3 were not).
+    reachable: the slots must stay in the water there (``success_depth_m >= SLOT_RISE_M``)
+    and the site deeper than the success depth.
 Metrics
     ``lift_success`` (primary, 0/1), ``final_object_depth_m`` (object centre depth at the end,
     m), ``attach_time_s`` (first time the quorum was attached, s; the time limit if never),
@@ -65,11 +67,10 @@ Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.task
     object, attachments, sonar fixes, the method's object estimate and slot targets);
     ``object_perception`` (the sonar model's scalars); the env hooks ``begin``, ``pre_step``
     (positions, attached count and sonar fixes at the step start), ``cue`` (the agent's slot
-    on the method's estimate),
-    ``after_agent`` (after the last agent's move: the object and the assembly move, so the
-    near-collision count sees the carried agents), ``post_step`` (attach / detach, quorum time,
-    success), ``finish``; the team's object estimate every method shares
-    (:func:`perceive`); the compiled loop is :mod:`oneocean.kernels.upl`.
+    on the method's estimate), ``after_agent`` (after the last agent's move: the object and
+    the assembly move, so the near-collision count sees the carried agents), ``post_step``
+    (attach / detach, quorum time, success), ``finish``; the team's object estimate every
+    method shares (:func:`perceive`); the compiled loop is :mod:`oneocean.kernels.upl`.
 """
 
 from __future__ import annotations
@@ -127,10 +128,20 @@ _TIER_KEYS = ("time_limit_s", "site_depth_m",
 
 
 def slot_offsets(phase: float = 0.0) -> np.ndarray:
-    """Attachment-slot offsets from the object's centre, (N_SLOTS, 3) m (x, y, z).
+    """Attachment-slot offsets from the object's centre.
 
-    Slot k sits at compass angle ``phase + 2 pi k / N_SLOTS`` on the ring, ``SLOT_RISE_M``
-    above the centre (smaller depth).
+    Slot k sits at compass angle ``phase + 2 pi k / N_SLOTS`` on the ring of radius
+    ``SLOT_RING_M``, ``SLOT_RISE_M`` above the centre (smaller depth).
+
+    Parameters
+    ----------
+    phase : float
+        Compass angle of slot 0 (clockwise from north), rad.
+
+    Returns
+    -------
+    (N_SLOTS, 3) float64
+        Offsets (x, y, z), world m.
     """
     a = phase + 2.0 * np.pi * np.arange(N_SLOTS) / N_SLOTS
     return np.stack([SLOT_RING_M * np.sin(a), np.full(N_SLOTS, -SLOT_RISE_M),
@@ -138,7 +149,24 @@ def slot_offsets(phase: float = 0.0) -> np.ndarray:
 
 
 def check_reachable(tier: dict, grid=None) -> None:
-    """Raise ConfigError unless the tier's success depth can be reached (see module doc)."""
+    """Check that the tier's success depth can be reached and its parameters are coherent
+    (see the module docstring).
+
+    Parameters
+    ----------
+    tier : dict
+        Tier parameters (``success_depth_m``, ``site_depth_m``, ``quorum``,
+        ``attach_radius_m``, ``detach_radius_m``, ``survey_std_m``).
+    grid : Grid, optional
+        Unused.
+
+    Raises
+    ------
+    ConfigError
+        ``success_depth_m`` below ``SLOT_RISE_M`` or sites not deeper than it, ``quorum``
+        outside 1..5, ``detach_radius_m < attach_radius_m``, or a ``survey_std_m`` that is not
+        a number >= 0.
+    """
     sd = float(tier["success_depth_m"])
     if sd < SLOT_RISE_M:
         raise ConfigError(f"task {TASK_ID}: success_depth_m={sd:g} m is unreachable: the slots "
@@ -205,23 +233,31 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     Parameters
     ----------
     grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
     tier : dict
         Tier parameters (see ``data/tasks/UPL.yaml``) plus ``dt_s``.
     n_agents : int
         Must be ``N_SLOTS`` (5).
-    n_episodes, seed : int
+    n_episodes : int
+        Number of episodes E.
+    seed : int
+        Run seed (each episode draws from its own reset stream).
 
     Returns
     -------
     dict
         ``obj0`` (E, 3) object centre, m; ``slot_off`` (E, 5, 3) slot offsets from the centre,
         m; ``pos0`` (E, 5, 3) agent starts, m; ``psi0`` (E, 5) headings toward the site, rad;
-        ``t0`` (E,) start times, s; ``chart`` (E, 3) the survey's charted object centre, m.
+        ``t0`` (E,) start times, s; ``chart`` (E, 3) the survey's charted object centre, m;
+        ``regime_points`` (E, 3, 3) the object's site, half its depth and the success depth
+        above it, m (``Cell.reset``).
 
     Raises
     ------
     ConfigError
-        Wrong team size, missing or unreachable tier parameters, or no valid site.
+        Wrong team size, missing or unreachable tier parameters.
+    NotApplicable
+        No valid site for some episode.
     """
     if int(n_agents) != N_SLOTS:
         raise ConfigError(f"task {TASK_ID}: needs exactly {N_SLOTS} agents, got {n_agents}")
@@ -310,6 +346,46 @@ def _feasible(grid, x, y, z, land_thr, clearance):
 
 
 class UPLParams(NamedTuple):
+    """UPL's params (one rollout).
+
+    Attributes
+    ----------
+    quorum : int
+        Attached agents needed to lift.
+    dt : float
+        Step, s.
+    t_limit : float
+        Time limit (``n_steps dt``), s.
+    land_thr : float
+        Land-mask threshold of the object / carry checks.
+    clearance : float
+        Seafloor clearance of the carry check, m.
+    att_r : float
+        Attach radius, m.
+    dwell_s : float
+        Attach dwell, s.
+    det_r : float
+        Detach radius, m.
+    sink : float
+        Sink speed of the object alone, m s-1.
+    succ_d : float
+        Success depth of the object's centre, m.
+    hold_r : float
+        Success radius around the site (horizontal), m.
+    survey_std : float
+        The chart's stated error per horizontal axis (mission data), m.
+    p_range : float
+        The object's perception (``data/sensors.yaml`` ``perception.upl_object``; every
+        non-oracle method's, docs/sensing.md): detection range (slant), m.
+    p_range_std : float
+        Range noise, m.
+    p_bearing_std : float
+        Bearing and elevation noise, rad.
+    p_centre_std : float
+        Echo centre's offset from the object's centre (line of sight), m.
+    p_every : int
+        One fix per ROV every this many steps.
+    """
     quorum: int             # attached agents needed to lift
     dt: float               # step, s
     t_limit: float          # time limit (n_steps dt), s
@@ -332,6 +408,66 @@ class UPLParams(NamedTuple):
 
 
 class UPLWork(NamedTuple):
+    """UPL's per-episode work arrays (5 agents, 5 slots).
+
+    Attributes
+    ----------
+    site : (E, 3) float64
+        Object's start (the site; the vessel waits above), m.
+    slot_off : (E, 5, 3) float64
+        Slot offsets from the object's centre, m.
+    obj : (E, 3) float64
+        Object centre, m.
+    vobj : (E, 3) float64
+        Object velocity over the last step, m s-1.
+    on_floor : (E,) bool
+        The object rests on the seafloor.
+    att : (E, 5) int64
+        Slot of each attached agent (-1: none).
+    owner : (E, 5) int64
+        Agent attached to each slot (-1: none).
+    dwell : (E, 5) float64
+        Time each agent has been in reach of ``dslot``, s.
+    dslot : (E, 5) int64
+        Slot in reach (-1: none).
+    prev : (E, 5, 3) float64
+        Agent positions at the start of the step, m.
+    t : (E,) float64
+        Time of the current step, s since the grid's ``time0``.
+    n_att : (E,) int64
+        Attached agents at the start of the step.
+    t_att : (E,) float64
+        First time the quorum was attached, s since the episode's start (-1: not yet).
+    chart : (E, 3) float64
+        The survey's charted object centre (mission data), m.
+    pcfg : (3,) int64
+        The object's perception (:func:`perception_setup`): run seed, 1 = the method
+        perceives the object exactly, the cell's episode of row 0 (row ``e`` draws episode
+        ``pcfg[2] + e``).
+    fix : (E, 5, 4) float64
+        This step's sonar fix per agent: measured offset of the object's centre from the
+        agent (x, y, z) m, 1 = valid.
+    target : (E, 5) int64
+        Slot assigned to each agent (the method's, :mod:`oneocean.methods.heuristic.upl`,
+        as the rest).
+    hold : (E, 2) float64
+        The step's hold velocity of the assembly (x, z), m s-1.
+    oest : (E, 6) float64
+        The object's estimate: centre (x, y, z) m, velocity m s-1.
+    ocov : (E, 3, 3) float64
+        Its covariance per axis: P_pp m2, P_pv m2 s-1, P_vv m2 s-2.
+    odet : (E,) int64
+        1 once the team has a fix of the object.
+    srch : (E, 2) float64
+        1 while the team searches (arrived, no fix); the search spiral's turn, rad.
+    hsite : (E, 3) float64
+        Where the team holds the lift: its site estimate (x, z) m, set (third entry 1) when
+        the quorum first holds.
+    fixk : (E,) int64
+        Step of the latest fixes in ``fix`` (-1: none yet).
+    kf : (E,) int64
+        Step of the fixes the estimate last fused (-1: none).
+    """
     site: np.ndarray        # (E, 3) object's start (the site; the vessel waits above), m
     slot_off: np.ndarray    # (E, 5, 3) slot offsets from the object's centre, m
     obj: np.ndarray         # (E, 3) object centre, m
@@ -347,7 +483,8 @@ class UPLWork(NamedTuple):
     t_att: np.ndarray       # (E,) first time the quorum was attached, s (-1: not yet)
     chart: np.ndarray       # (E, 3) the survey's charted object centre (mission data), m
     # the object's perception (pre_step; perception_setup, from the policy's prepare, sets pcfg)
-    pcfg: np.ndarray        # (2,) int: run seed, 1 = the method perceives the object exactly
+    pcfg: np.ndarray        # (3,) int: run seed, 1 = the method perceives the object exactly,
+                            #   the cell's episode of row 0 (row e draws episode pcfg[2] + e)
     fix: np.ndarray         # (E, 5, 4) this step's sonar fix per agent: measured offset of
                             # the object's centre from the agent (x, y, z) m, 1 = valid
     # the method's (oneocean.methods.heuristic.upl)
@@ -365,7 +502,30 @@ class UPLWork(NamedTuple):
 
 
 def make(grid, tier: dict, init: dict):
-    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`)."""
+    """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
+
+    Parameters
+    ----------
+    grid : Grid
+        The rollout's grid export (the ablations' forcing included).
+    tier : dict
+        Tier parameters plus ``dt_s``.
+    init : dict
+        The reset's dict (:func:`reset`; without ``chart`` the site is the chart).
+
+    Returns
+    -------
+    P : UPLParams
+        The env's typed scalars.
+    W : UPLWork
+        The env's per-episode work arrays.
+
+    Raises
+    ------
+    ConfigError
+        Missing or unreachable tier parameters (:func:`check_reachable`), or a bad object
+        perception model (:func:`object_perception`).
+    """
     need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
     check_reachable(tier)
     dt = float(tier["dt_s"])
@@ -382,7 +542,7 @@ def make(grid, tier: dict, init: dict):
                 np.full((n_ep, n), -1, dtype=np.int64), np.full((n_ep, n), -1, dtype=np.int64),
                 np.zeros((n_ep, n)), np.full((n_ep, n), -1, dtype=np.int64),
                 np.zeros((n_ep, n, 3)), np.zeros(n_ep), np.zeros(n_ep, dtype=np.int64),
-                np.full(n_ep, -1.0), chart.copy(), np.zeros(2, dtype=np.int64),
+                np.full(n_ep, -1.0), chart.copy(), np.zeros(3, dtype=np.int64),
                 np.zeros((n_ep, n, 4)), np.full((n_ep, n), -1, dtype=np.int64),
                 np.zeros((n_ep, 2)), np.zeros((n_ep, 6)), np.zeros((n_ep, 3, 3)),
                 np.zeros(n_ep, dtype=np.int64), np.zeros((n_ep, 2)), np.zeros((n_ep, 3)),
@@ -392,8 +552,18 @@ def make(grid, tier: dict, init: dict):
 
 def object_perception(dt: float) -> tuple[float, float, float, float, int]:
     """The object's perception model (``sensors.yaml`` ``perception.upl_object``) as the
-    kernel's scalars: detection range m, range noise m, bearing noise rad, echo-centre offset
-    m, fix every n steps.
+    kernel's scalars.
+
+    Parameters
+    ----------
+    dt : float
+        Step, s (the fix period ``period_s`` in steps, at least 1).
+
+    Returns
+    -------
+    tuple
+        Detection range (m), range noise (m), bearing noise (rad), echo-centre offset (m),
+        one fix every this many steps (int): the tail of ``UPLParams``.
 
     Raises
     ------
@@ -409,6 +579,31 @@ def object_perception(dt: float) -> tuple[float, float, float, float, int]:
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
+    """Put the object at its site, at rest on the floor, clear the attachments, and start
+    the method's object estimate from the chart.
+
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start. The
+    estimate's prior: the charted centre at rest, with the survey's stated error
+    horizontally and ``SITE_PRIOR_STD_Y_M`` vertically.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : UPLParams
+        The task's params (:func:`make`).
+    W : UPLWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+
+    Returns
+    -------
+    bool
+        False: the episode starts.
+    """
     n = state.shape[1]
     for c in range(3):
         W.obj[e, c] = W.site[e, c]
@@ -440,6 +635,28 @@ def begin(grid, P, W, state, e):
 
 @hot_kernel(inline="always")
 def pre_step(grid, P, W, state, e, k, t):
+    """Record the agents' positions, the time and the attached count at the step's start,
+    and take this step's sonar fixes of the object (``W.fix``, ``W.fixk``).
+
+    Env hook (:mod:`oneocean.tasks.loop`), before the agents act.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : UPLParams
+        The task's params (:func:`make`).
+    W : UPLWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+    """
     n = state.shape[1]
     S = state[e]
     for i in range(n):
@@ -468,6 +685,7 @@ def _sonar_fixes(P, W, state, e, k):
     draw per agent and episode, ``P.p_centre_std``, counter ``4 i + 3``)."""
     n = state.shape[1]
     seed = W.pcfg[0]
+    ep = W.pcfg[2] + e
     exact = W.pcfg[1] != 0
     due = k % P.p_every == 0
     for i in range(n):
@@ -486,14 +704,14 @@ def _sonar_fixes(P, W, state, e, k):
             F[3] = 0.0
             continue
         c = 4 * (k * n + i)
-        mx, mz = polar_fix(seed, e, c, dx, dz, P.p_range_std, P.p_bearing_std)
+        mx, mz = polar_fix(seed, ep, c, dx, dz, P.p_range_std, P.p_bearing_std)
         # the echo's centre lies off the object's centre along the line of sight (the
         # facing surface; per agent and episode: counter 4 i + 3, unused by the steps)
-        b = draw(seed, e, PURPOSE_PERCEPTION, 4 * i + 3, P.p_centre_std)
+        b = draw(seed, ep, PURPOSE_PERCEPTION, 4 * i + 3, P.p_centre_std)
         if r > 0.0:
             b /= r
         F[0] = mx + b * dx
-        F[1] = dy + b * dy + draw(seed, e, PURPOSE_PERCEPTION, c + 2, r * P.p_bearing_std)
+        F[1] = dy + b * dy + draw(seed, ep, PURPOSE_PERCEPTION, c + 2, r * P.p_bearing_std)
         F[2] = mz + b * dz
         F[3] = 1.0
 
@@ -509,12 +727,21 @@ QA_LIFT = 0.2
 
 def perception_setup(W, LP) -> None:
     """What the method perceives of the object (``W.pcfg``): the run seed of the sonar's
-    error stream and whether it perceives the object exactly (``LP.sens.true_target``: the
-    oracle and the ``true_target`` ablation). Called before the first step (a policy's
-    ``prepare``)."""
+    error stream, whether it perceives the object exactly (``LP.sens.true_target``: the
+    oracle and the ``true_target`` ablation) and the cell's episode of row 0. Called before
+    the first step (a policy's ``prepare``).
+
+    Parameters
+    ----------
+    W : UPLWork
+        The task's per-episode work arrays; ``pcfg`` written.
+    LP : LoopParams or None
+        The loop's params (:class:`oneocean.tasks.loop.LoopParams`); None: nothing is set.
+    """
     if LP is not None:
         W.pcfg[0] = int(LP.seed)
         W.pcfg[1] = int(LP.sens.true_target != 0)
+        W.pcfg[2] = int(LP.e0)
 
 
 @hot_kernel(inline="always")
@@ -562,11 +789,26 @@ def _filter(P, W, state, e):
 @hot_kernel(inline="always")
 def perceive(P, W, state, e):
     """Fuse the latest sonar fixes into the object's estimate, once per set of fixes
-    (``W.fixk`` / ``W.kf``): exact for a method that perceives the object exactly
-    (``W.pcfg[1]``, :func:`perception_setup`), else :func:`_filter` with the fixes placed
-    at the agents' known positions ``state``. Called by the observation cue and by the fused
-    policy's ``plan``, so a method acting through the step API gets the same estimate (one
-    step later)."""
+    (``W.fixk`` / ``W.kf``).
+
+    Exact for a method that perceives the object exactly (``W.pcfg[1]``,
+    :func:`perception_setup`), else a constant-velocity Kalman filter per axis with the
+    fixes placed at the agents' known positions ``state``. Called by the observation cue and
+    by the fused policy's ``plan``, so a method acting through the step API gets the same
+    estimate (one step later).
+
+    Parameters
+    ----------
+    P : UPLParams
+        The task's params (:func:`make`).
+    W : UPLWork
+        The task's per-episode work arrays (:func:`make`); ``oest``, ``ocov``, ``odet`` and
+        ``kf`` updated.
+    state : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    """
     if W.kf[e] == W.fixk[e]:
         return
     W.kf[e] = W.fixk[e]
@@ -581,12 +823,42 @@ def perceive(P, W, state, e):
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
-    """The agent's slot as the method knows it (its object estimate ``W.oest``, which has
-    fused every sonar fix up to the last step: :func:`perceive`, so a policy acting through
-    the step API perceives the object as the fused heuristic does): its own when attached,
-    else the method's target (the nearest slot when no fused method assigns one). During the lift (the agent attached, the quorum held) the
-    cue is where the lift takes its slot, at the object's success depth: the vertical goal the
-    heuristic flies at full speed (what a learner must see to start the lift)."""
+    """The goal cue: the agent's slot as the method knows it.
+
+    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe. The slot is
+    placed on the method's object estimate ``W.oest``, which has fused every sonar fix up to
+    the last step (:func:`perceive`, so a policy acting through the step API perceives the
+    object as the fused heuristic does): the agent's own slot when attached, else the
+    method's target (the nearest slot when no fused method assigns one). During the lift
+    (the agent attached, the quorum held) the cue is where the lift takes its slot, at the
+    object's success depth: the vertical goal the heuristic flies at full speed (what a
+    learner must see to start the lift).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : UPLParams
+        The task's params (:func:`make`).
+    W : UPLWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (its navigation estimate; the truth for
+        the oracle); layout: :mod:`oneocean.engine.dynamics`.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+
+    Returns
+    -------
+    gx, gy, gz : float
+        The goal cue, world m.
+    probe : float
+        NaN (the task has no field).
+    """
     perceive(P, W, state, e)
     off = W.slot_off[e]
     ox = W.oest[e, 0]
@@ -612,7 +884,31 @@ def cue(grid, P, W, state, e, k, i):
 @hot_kernel(inline="always")
 def after_agent(grid, P, W, state, e, k, i, code):
     """After the last agent's own step: the object (and the assembly) moves, before the
-    near-collision count."""
+    near-collision count.
+
+    Env hook (:mod:`oneocean.tasks.loop`), right after agent ``i`` moved; nothing for the
+    other agents. With the quorum attached the assembly moves (module docstring, Lift);
+    without it a suspended object sinks at ``P.sink`` and drifts with the current.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : UPLParams
+        The task's params (:func:`make`).
+    W : UPLWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    i : int
+        Agent index.
+    code : int
+        Status of the agent's move (:mod:`oneocean.engine.status`).
+    """
     n = state.shape[1]
     if i != n - 1:
         return
@@ -674,7 +970,35 @@ def after_agent(grid, P, W, state, e, k, i, code):
 
 @hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
-    """Attach / detach, the quorum's first time, success."""
+    """Attach / detach, the quorum's first time, success.
+
+    Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : UPLParams
+        The task's params (:func:`make`).
+    W : UPLWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    prev : (E, N, 3) float64
+        Positions before the step, world m.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    t : float
+        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
+
+    Returns
+    -------
+    bool
+        True (STOP) once the object's centre is at most ``P.succ_d`` deep within
+        ``P.hold_r`` (horizontally) of the site.
+    """
     n = state.shape[1]
     dt = P.dt
     S = state[e]
@@ -737,6 +1061,33 @@ def _success(P, W, e):
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
+    """Write the UPL metrics.
+
+    Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : UPLParams
+        The task's params (:func:`make`).
+    W : UPLWork
+        The task's per-episode work arrays (:func:`make`).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
+    e : int
+        Episode index.
+    k : int
+        Steps the episode ran.
+    row : (C,) float64
+        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
+
+    Returns
+    -------
+    bool
+        Success: the object's centre at most ``P.succ_d`` deep within ``P.hold_r`` of the
+        site.
+    """
     success = _success(P, W, e)
     row[_C_LIFT] = 1.0 if success else 0.0
     row[_C_DEPTH] = W.obj[e, 1]
