@@ -210,31 +210,37 @@ def test_forcing_from_config_gain_scales_data_only_and_c_tide_is_reachable(tmp_p
 
 
 def test_readme_ladder_blocks_are_the_workflows_output(tmp_path):
-    """The README's ladder tables are spliced in from results/tables/<region>/ladder.md by
-    `oneocean ladder-readme` (never hand-typed): each block has the generator's header for
-    the evaluation seed, a row per task and every check."""
+    """The ladder tables of the README (the default region) and of docs/results.md (both
+    regions) are spliced in from results/tables/<region>/ladder.md by `oneocean ladder-readme`
+    (never hand-typed): each block has the generator's header for the evaluation seed, a row
+    per task and every check."""
     from pathlib import Path
 
     from oneocean.ladder import readme_markers, splice_readme
     from oneocean.vocab import EVALUATION_SEED
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    names = [c.name for c in run_checks(_cells({("G2G", "heuristic", 2): 30}))]
     root = Path(__file__).resolve().parents[1]
-    for region in ("synthetic_coast", "southern_north_sea_files"):
+    docs = {name: (root / name).read_text() for name in ("README.md", "docs/results.md")}
+    names = [c.name for c in run_checks(_cells({("G2G", "heuristic", 2): 30}))]
+    for name, region in (("README.md", "synthetic_coast"),
+                         ("docs/results.md", "synthetic_coast"),
+                         ("docs/results.md", "southern_north_sea_files")):
         begin, end = readme_markers(region)
-        block = readme.split(begin)[1].split(end)[0].strip()
-        assert block.startswith(f"Region `{region}`, evaluation seed {EVALUATION_SEED}"), region
+        assert docs[name].count(begin) == 1 and docs[name].count(end) == 1, (name, region)
+        block = docs[name].split(begin)[1].split(end)[0].strip()
+        assert block.startswith(f"Region `{region}`, evaluation seed {EVALUATION_SEED}"), (
+            name, region)
         for task in task_ids():
-            assert f"\n| {task} | " in block, (region, task)
-        for name in names:
-            assert f"| {name} |" in block, (region, name)
+            assert f"\n| {task} | " in block, (name, region, task)
+        for check in names:
+            assert f"| {check} |" in block, (name, region, check)
         # where the workflow has run (README command 1, the regions' runs), the numbers are
         # its table's, to the character
         made = root / "results" / "tables" / region / "ladder.md"
         if made.is_file():
             assert block == made.read_text().strip(), (
-                f"README's {region} ladder differs from {made}: run oneocean ladder-readme")
+                f"{name}'s {region} ladder differs from {made}: run oneocean ladder-readme "
+                f"{region} --readme {name}")
     # the splice itself: replaces exactly the block, idempotent
     md = tmp_path / "ladder.md"
     md.write_text("Region `r`: table\n")

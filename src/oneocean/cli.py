@@ -132,7 +132,14 @@ def _ladder_readme(args) -> int:
     return 0
 
 
-def main(argv=None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """The ``oneocean`` command's parser (the docs' CLI reference is rendered from it).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser; each subcommand's ``func`` default is its handler.
+    """
     parser = argparse.ArgumentParser(prog="oneocean", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("verify", help="recompute hashes of every artifact in a results folder")
@@ -142,8 +149,8 @@ def main(argv=None) -> int:
     p.set_defaults(func=_verify)
     p = sub.add_parser("evaluate", help="score your own policy (module:callable) on a cell "
                        "and write the same Parquet table as the workflow")
-    p.add_argument("--task", required=True)
-    p.add_argument("--tier", type=int, required=True)
+    p.add_argument("--task", required=True, help="task id, e.g. G2G (any registered task)")
+    p.add_argument("--tier", type=int, required=True, help="tier: 1, 2 or 3")
     p.add_argument("--policy", required=True, help="module:callable, obs (E,N,D) -> (E,N,3)")
     p.add_argument("--grid", default=None,
                    help="grid export (.npz) or region config (.yaml; synthetic or local-file "
@@ -151,11 +158,13 @@ def main(argv=None) -> int:
                         "($ONEOCEAN_CACHE_DIR or ~/.cache/oneocean) on first use")
     p.add_argument("--out", required=True, help="output Parquet path")
     p.add_argument("--name", default=None, help="method name in the table (default: callable)")
-    p.add_argument("--episodes", type=int, default=50)
+    p.add_argument("--episodes", type=int, default=50, help="number of episodes (default 50)")
     p.add_argument("--seed", type=int, default=EVALUATION_SEED,
                    help=f"evaluation seed (default {EVALUATION_SEED}, held out from calibration)")
-    p.add_argument("--dynamics", default="6dof")
-    p.add_argument("--n-agents", type=int, default=None)
+    p.add_argument("--dynamics", default="6dof",
+                   help="vehicle model: kinematic, 3dof, 4dof or 6dof (default 6dof)")
+    p.add_argument("--n-agents", type=int, default=None,
+                   help="team size (default: the task's own, within its range)")
     p.add_argument("--currents-off", action="store_true", help="the currents-off ablation")
     p.add_argument("--current-gain", type=float, default=1.0,
                    help="gain on the data currents u, v (default 1: the data as they are)")
@@ -175,11 +184,29 @@ def main(argv=None) -> int:
                         "run in that scene (its grid and scene tiers; --grid is ignored)")
     p.set_defaults(func=_evaluate)
     p = sub.add_parser("ladder-readme", help="copy the workflow's ladder tables "
-                       "(results/tables/<region>/ladder.md) into the README's ladder blocks")
+                       "(results/tables/<region>/ladder.md) into the ladder blocks of the README "
+                       "(or of docs/results.md, with --readme)")
     p.add_argument("regions", nargs="+", help="region names, e.g. synthetic_coast")
-    p.add_argument("--readme", default="README.md")
+    p.add_argument("--readme", default="README.md",
+                   help="the Markdown file holding the ladder blocks (default README.md)")
     p.set_defaults(func=_ladder_readme)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv=None) -> int:
+    """Run the ``oneocean`` command.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default: the process's command line).
+
+    Returns
+    -------
+    int
+        The exit status (0 on success).
+    """
+    args = build_parser().parse_args(argv)
     return args.func(args)
 
 
