@@ -328,6 +328,7 @@ def test_team_sweep_in_a_region_that_cannot_host_it_is_a_note_not_a_crash(tmp_pa
                         "applicable": False, "reason": "no water", "currents": True})
     out = plot_team_sweep([f], tmp_path / "fig7.png")
     assert out["sweep"].empty
+    assert out["png"] == str(tmp_path / "fig7.png") and out["pdf"] == str(tmp_path / "fig7.pdf")
     assert (tmp_path / "fig7.png").stat().st_size > 1000 and (tmp_path / "fig7.pdf").is_file()
 
 

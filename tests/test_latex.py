@@ -29,6 +29,9 @@ def test_missing_tex_is_a_one_line_error(tmp_path, monkeypatch):
     with pytest.raises(ConfigError, match=r"^latexmk not found: .*apt-get install latexmk"):
         latex.compile_pdf(tex, tmp_path / "t.pdf")
     assert not (tmp_path / "t.pdf").exists()
+    with pytest.raises(ConfigError, match=r"^LaTeX engine 'xelatex' unknown: latexmk or pdflatex"):
+        latex.compile_pdf(tex, tmp_path / "t.pdf", engine="xelatex")
+    assert not (tmp_path / "t.pdf").exists()
 
 
 def _wide_and_narrow(tmp_path):

@@ -993,7 +993,7 @@ def plot_team_sweep(cell_files, out_png) -> dict:
             ax.text(0.5, 0.5, "Fig. 7: the team-size sweep's cells are not applicable in this "
                     "region (each cell file records why)", ha="center", va="center")
             png, pdf = save_figure(fig, out_png)
-        return {"sweep": pd.DataFrame(), "png": png, "pdf": pdf}
+        return {"sweep": pd.DataFrame(), "png": str(png), "pdf": str(pdf)}
     N = sw["n_agents"].to_numpy()
     col = palette(10)
     with paper_style():

@@ -49,8 +49,8 @@ def compile_pdf(tex_path, out_pdf, *, pretex: str = "", log_path=None,
         TeX code run first (e.g. ``\\def\\region{...}``).
     log_path : path-like, optional
         Where to write the full TeX log.
-    engine : str, default "latexmk"
-        ``latexmk`` (``latexmk -pdf``); any other value runs a single ``pdflatex`` pass.
+    engine : {"latexmk", "pdflatex"}, default "latexmk"
+        ``latexmk`` (``latexmk -pdf``) or ``pdflatex`` (a single pass).
 
     Returns
     -------
@@ -60,9 +60,11 @@ def compile_pdf(tex_path, out_pdf, *, pretex: str = "", log_path=None,
     Raises
     ------
     ConfigError
-        One line, if ``tex_path`` does not exist, the TeX program is not installed, or LaTeX
+        One line, if ``engine`` is unknown, ``tex_path`` does not exist, the TeX program is not installed, or LaTeX
         fails (naming the file and the first error line).
     """
+    if engine not in ("latexmk", "pdflatex"):
+        raise ConfigError(f"LaTeX engine {engine!r} unknown: latexmk or pdflatex")
     tex_path = Path(tex_path).resolve()
     if not tex_path.is_file():
         raise ConfigError(f"{tex_path}: no such LaTeX file")

@@ -185,13 +185,10 @@ class TaskView(NamedTuple):
 def _cut(init: dict, n_keep: int, n_all: int) -> dict:
     """The first ``n_keep`` episodes of a reset dict (arrays with a leading episode axis are
     cut; everything is copied, so runs never share arrays)."""
-    out = {}
-    for key, v in init.items():
-        if isinstance(v, np.ndarray) and v.ndim and v.shape[0] == n_all:
-            out[key] = v[:n_keep].copy()
-        else:
-            out[key] = v.copy() if isinstance(v, np.ndarray) else v
-    return out
+    from .tasks.common import episode_rows
+
+    return {key: (v.copy() if isinstance(v, np.ndarray) else v)
+            for key, v in episode_rows(init, slice(0, n_keep), n_all).items()}
 
 
 def episode_frames(grid, task: str, tier: int = 2, method: str = "heuristic",

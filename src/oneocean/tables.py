@@ -1117,9 +1117,9 @@ def headline_latex(df: pd.DataFrame, cells: pd.DataFrame, tiers=(2, 3), metric_t
         "steps with two agents closer than 2 m, in \\%, over the episodes of the multi-agent "
         f"tasks only ({', '.join(multi) if multi else 'none'}); both with stratified seeded "
         f"bootstrap 95\\% intervals. Tier-{metric_tier} key metrics: G2G and RF success rates "
-        "(Wilson 95\\%); SK station RMS (m, over the episodes that held station), AS scan "
-        "coverage, PI inspection score and SPC cleanup rate: means with seeded-bootstrap 95\\% "
-        "intervals. Best non-oracle value per column in bold (oracle: privileged, not a "
+        "(Wilson 95\\%); SK station RMS (m, over every episode, failures included), AS "
+        "scan coverage, PI inspection score and SPC cleanup rate: means with seeded-bootstrap "
+        "95\\% intervals. Best non-oracle value per column in bold (oracle: privileged, not a "
         "baseline); currents-off and other forcing ablations excluded." + _na_note(cells))
     return _latex(header, rows, caption, _label("tab:headline", region), wide=True)
 

@@ -147,6 +147,8 @@ if _BASE_CELLS and _WHOLE:
 
 if _BASE_CELLS and _SHARDED:
 
+    _merge_cells = _merge_params(_BASE_CELLS)
+
     localrules:
         merge_rollout_shards,
 
@@ -189,7 +191,7 @@ if _BASE_CELLS and _SHARDED:
         conda:
             PY_ENV
         input:
-            shards=lambda wc: [f for c in _merge_params(_BASE_CELLS)(wc) for f in c["shards"]],
+            shards=lambda wc: [f for c in _merge_cells(wc) for f in c["shards"]],
         output:
             parquet=_cell_files(_BASE_CELLS, "parquet"),
             prov=_cell_files(_BASE_CELLS, "prov"),
@@ -198,7 +200,7 @@ if _BASE_CELLS and _SHARDED:
         wildcard_constraints:
             task="|".join(map(re.escape, _SHARDED)),
         params:
-            cells=_merge_params(_BASE_CELLS),
+            cells=_merge_cells,
         threads: 1
         resources:
             mem_mb=1000,

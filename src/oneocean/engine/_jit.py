@@ -63,7 +63,7 @@ def hot_kernel(*args, **kwargs):
 # G2G). ``_share_block_memo`` makes the blocks of one copy share one memo, as a single
 # ``deepcopy`` of the whole IR would: one copy of the scope per IR copy instead of one per
 # block. Same IR, same machine code: every rollout cell, the BC dataset and weights, the
-# planning cells and the tables were byte-identical with and without it (README); compiles
+# planning cells and the tables were byte-identical with and without it; compiles
 # were ~2x faster. It touches only the copy the inliner makes (its ``copy`` module attribute
 # and ``FunctionIR.copy``, which starts each copy); if numba's internals differ, or
 # ``ONEOCEAN_NUMBA_INLINE_MEMO=0``, nothing is changed and compiles are just slower.

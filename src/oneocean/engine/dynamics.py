@@ -573,9 +573,6 @@ def _nsub(vp, dt):
     return n if n > 1 else 1
 
 
-# Explicit signatures: the DOF index is passed as a literal constant, which would otherwise make
-
-
 @hot_kernel(inline="always")
 def _dof(thrust_on, m, dk, k, cap, h, x, c, g, fc, sat, ts):
     """Diagonal ``d`` and rhs ``b`` of one DOF for a substep ``h``.

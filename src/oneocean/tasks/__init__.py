@@ -217,7 +217,7 @@ class Cell:
 
     def _reset(self, episodes: int, seed: int, rows: slice = slice(None)) -> dict:
         from ..engine.grid import current_coverage
-        from .common import site_speeds
+        from .common import episode_rows, site_speeds
 
         band = self.params.get("current_band")
         duration = float(self.params["time_limit_s"])
@@ -254,15 +254,13 @@ class Cell:
         # shape) computes them on the whole cell, so that a shard's rows equal the cell's
         constants = getattr(self.mod, "cell_constants", None)
         part = keep if constants is not None else keep[rows]
-        out = {k: (v[part] if isinstance(v, np.ndarray) and v.ndim and v.shape[0] == n_cand
-                   else v) for k, v in init.items()}
+        out = episode_rows(init, part, n_cand)
         if split:
             out["candidate"] = part.astype(np.int64)
             out = self.mod.reset_build(self.grid_reset, self.params, self.n_agents, out, seed)
         if constants is not None:
             shared = constants(self.params, out)
-            out = {k: (v[rows] if isinstance(v, np.ndarray) and v.ndim
-                       and v.shape[0] == part.size else v) for k, v in out.items()}
+            out = episode_rows(out, rows, part.size)
             out.update(shared)
         keep = keep[rows]
         out.pop("regime_points", None)

@@ -280,6 +280,28 @@ def scene_tasks() -> tuple[str, ...]:
 
 # ------------------------------------------------------------------------------ resets
 
+def episode_rows(init: dict, index, n_all: int) -> dict:
+    """A reset dict's episodes ``index``: every array whose leading axis has the ``n_all``
+    episodes is indexed along it; other entries (scalars, shared arrays) are kept as they are.
+
+    Parameters
+    ----------
+    init : dict
+        A reset dict (the tasks' ``reset``, :meth:`oneocean.tasks.Cell.reset`).
+    index : slice or numpy.ndarray
+        Which episodes (a slice, or integer indices).
+    n_all : int
+        The number of episodes ``init`` holds.
+
+    Returns
+    -------
+    dict
+        The same keys; a slice gives views, integer indices copies.
+    """
+    return {k: (v[index] if isinstance(v, np.ndarray) and v.ndim and v.shape[0] == n_all
+                else v) for k, v in init.items()}
+
+
 def episode_seed_sequence(seed: int, episode: int, purpose: int) -> np.random.SeedSequence:
     """The ``SeedSequence`` of one episode's random stream.
 
