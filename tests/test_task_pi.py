@@ -247,6 +247,35 @@ def test_event_detector_on_a_hand_made_series(calm):
     assert W.nclaim[0] == 0
 
 
+def test_readings_are_placed_where_the_method_believes_it_is(calm):
+    """The sensor reads at the vehicle's true position, but the method is handed the value
+    only (``W.sense[e, i]``, kg m-3): the event it opens, and the claim it files, sit at its
+    navigation estimate (the state it is given, never the truth); the observation's probe
+    (``cue``) is that same reading, whatever state the cue is given."""
+    P, W = _make(calm)
+    M = pi_policy.params("heuristic", TIER, E.load_vehicle())
+    assert W.sense.shape == (1, 1)
+    W.widx[0, 0] = 1
+
+    def believed(x, z):
+        s = np.zeros((1, 1, E.STATE_DIM))
+        s[0, 0, 0], s[0, 0, 2] = x, z
+        s[0, 0, 1] = -E.sample_elevation(calm, x, z) - M.alt
+        return s
+
+    W.sense[0, 0] = 0.0                       # background: the trough
+    pi_policy.act(calm, P, W, M, believed(-120.0, 3.0), 0, 4, 0, 4.0, 0.0, 0.0)
+    assert W.ev_on[0, 0] == 0 and W.nclaim[0] == 0
+    W.sense[0, 0] = 10.0 * P.thr              # a plume
+    pi_policy.act(calm, P, W, M, believed(-118.0, 7.0), 0, 5, 0, 5.0, 0.0, 0.0)
+    assert W.ev_on[0, 0] == 1 and W.nclaim[0] == 1
+    assert tuple(W.ev_pos[0, 0, :2]) == (-118.0, 7.0)
+    assert tuple(W.claims[0, 0, :2]) == (-118.0, 7.0)
+    for x in (-118.0, 300.0):
+        probe = pi.cue(calm, P, W, believed(x, 0.0), 0, 5, 0)[3]
+        assert probe == 10.0 * P.thr
+
+
 def test_calm_water_both_methods_localise_every_leak(calm):
     init = _straight_init(calm)
     for method in ("oracle", "heuristic"):

@@ -23,8 +23,9 @@ Plume physics (the environment; identical for every method)
     column mass ``C``), so flying high weakens the signal.
 Sensing (the environment)
     After every agent's move the env takes the agent's reading and hands it to the method
-    (``W.sense[e, i]``: position and value; the reading at the start position after the
-    spin-up before step 0). Nothing else about the leaks reaches the method: it is never told
+    (``W.sense[e, i]``: the value, kg m-3; the reading at the start position after the
+    spin-up before step 0). The method knows where it took the reading only as well as it
+    knows its own position (its navigation estimate at its next decision). Nothing else about the leaks reaches the method: it is never told
     which reading is near which leak.
 Claims (the method's report)
     The method files *leak claims*: positions it asserts are leaks, in ``W.claims[e, :n]``
@@ -561,8 +562,8 @@ class PIWork(NamedTuple):
         Land / outside flags of the field's cells.
     work : (E, work_size) float64
         ``step_field`` scratch.
-    sense : (E, N, 3) float64
-        Each agent's latest reading [x, z (m), value (kg m-3)].
+    sense : (E, N) float64
+        Each agent's latest reading, kg m-3.
     claims : (E, MAX_CLAIMS, 3) float64
         The team's leak claims [x, z (m), strength]; NaN where unfiled.
     nclaim : (E,) int64
@@ -602,7 +603,7 @@ class PIWork(NamedTuple):
     land: np.ndarray        # (E, nz, nx) uint8 land / outside flags of the field's cells
     work: np.ndarray        # (E, work_size) step_field scratch
     # ---- env -> method: the sensor
-    sense: np.ndarray       # (E, N, 3) the agent's latest reading [x, z, value (kg m-3)]
+    sense: np.ndarray       # (E, N) the agent's latest reading, kg m-3
     # ---- method -> env: the report (scored by finish)
     claims: np.ndarray      # (E, MAX_CLAIMS, 3) the team's leak claims [x, z, strength], m
     nclaim: np.ndarray      # (E,) int64 claims filed
@@ -695,10 +696,11 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
     # per-episode field frames (same shape for every episode: the cell's largest one, from
     # cell_constants, else the batch's)
     frames = [field_frame(poly[e], h, FIELD_MARGIN_M) for e in range(n_ep)]
-    nx, nz = init.get("field_shape") or _field_shape(frames)
-    if nx < max(f[4] for f in frames) or nz < max(f[5] for f in frames):
+    own = _field_shape(frames)
+    nx, nz = init.get("field_shape") or own
+    if nx < own[0] or nz < own[1]:
         raise ConfigError(f"task {TASK_ID}: field_shape {(nx, nz)} smaller than an episode's "
-                          f"field {_field_shape(frames)}")
+                          f"field {own}")
     frame = np.empty((n_ep, 6))
     leak_loc = np.empty((n_ep, n_leak, 2))
     land = np.empty((n_ep, nz, nx), dtype=np.uint8)
@@ -725,7 +727,7 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
                np.ascontiguousarray(init["leak_rate"], dtype=np.float64), frame,
                np.zeros((n_ep, 1, nz, nx)), np.zeros((n_ep, nz, nx + 1)),
                np.zeros((n_ep, nz + 1, nx)), land, np.zeros((n_ep, pol.work_size(1, nz, nx))),
-               np.zeros((n_ep, n_ag, 3)),
+               np.zeros((n_ep, n_ag)),
                np.full((n_ep, MAX_CLAIMS, 3), np.nan), np.zeros(n_ep, dtype=np.int64),
                wps, wcount, np.zeros((n_ep, n_ag), dtype=np.int64), np.zeros((n_ep, n_ag, 3)),
                np.zeros((n_ep, n_ag), dtype=np.int64),
@@ -829,11 +831,12 @@ def _reading(grid, P, W, e, x, z, alt):
 
 @hot_kernel(inline="always")
 def cue(grid, P, W, state, e, k, i):
-    """The goal cue: the agent's carrot (plan token ``tgt``); the probe: the reading before
-    the move.
+    """The goal cue: the agent's carrot (plan token ``tgt``); the probe: the agent's latest
+    reading (``W.sense``), the one the fused method processes at this decision.
 
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe. The reading
-    is taken at the position in ``state``, at its altitude above the seafloor (at least 0).
+    was taken by the sensor at the vehicle's true position (after its last move, or at the
+    start), at its altitude above the seafloor (at least 0).
 
     Parameters
     ----------
@@ -860,13 +863,7 @@ def cue(grid, P, W, state, e, k, i):
     probe : float
         The sensor's concentration, kg m-3.
     """
-    s = state[e, i]
-    px = s[0]
-    py = s[1]
-    pz = s[2]
-    a0 = max(-sample_elevation(grid, px, pz) - py, 0.0)
-    r0 = _reading(grid, P, W, e, px, pz, a0)
-    return W.tgt[e, i, 0], W.tgt[e, i, 1], W.tgt[e, i, 2], r0
+    return W.tgt[e, i, 0], W.tgt[e, i, 1], W.tgt[e, i, 2], W.sense[e, i]
 
 
 @hot_kernel(inline="always")
@@ -876,9 +873,7 @@ def _take_reading(grid, P, W, state, e, i):
     alt = -sample_elevation(grid, s[0], s[2]) - s[1]
     if alt < 0.0:
         alt = 0.0
-    W.sense[e, i, 0] = s[0]
-    W.sense[e, i, 1] = s[2]
-    W.sense[e, i, 2] = _reading(grid, P, W, e, s[0], s[2], alt)
+    W.sense[e, i] = _reading(grid, P, W, e, s[0], s[2], alt)
 
 
 @hot_kernel(inline="always")

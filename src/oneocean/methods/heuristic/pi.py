@@ -299,8 +299,7 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     # the plume's vertical profile is steep)
     if (W.widx[e, i] >= 1 and W.done[e, i] == 0
             and abs(-sample_elevation(grid, px, pz) - py - M.alt) <= ALT_BAND_M):
-        detect(W, e, i, W.sense[e, i, 0], W.sense[e, i, 1], W.sense[e, i, 2], pe, pn, P.thr,
-               M.estimator)
+        detect(W, e, i, px, pz, W.sense[e, i], pe, pn, P.thr, M.estimator)
     gx, gz, w = waypoint_carrot(W.wps, W.widx, W.wcount, e, i, px, pz, M.look, WP_TOL_M,
                                 ARRIVE_M)
     W.done[e, i] = 0 if w < W.wcount[e, i] else 1
