@@ -284,6 +284,11 @@ def test_dense_reward_pays_progress_and_success_only_as_a_signal(coast):
                      np.array([0, 1, 0]), np.array([0, 0, 0]), np.array([False, False, True]),
                      1.0, 1.0)
     np.testing.assert_allclose(r, [0.1, -0.1, 1.0])   # progress; a violation; a cue jump
+    # the energy term: the team's mean ||a||^2 dt in units of v_max^2 dt, weight 0.05
+    r = dense_reward(np.array([[10.0, 10.0], [10.0, 10.0]]), np.array([[8.0, 8.0], [10.0, 10.0]]),
+                     np.array([0, 0]), np.array([0, 0]), np.array([False, False]), 2.0, 1.0,
+                     new_energy=np.array([8.0, 2.0]), n_agents=2)
+    np.testing.assert_allclose(r, [0.1 - 0.05, -0.05 * 0.25])
     env = OceanVectorEnv("SK", 1, coast, num_envs=2, reward="dense",
                          autoreset_mode="disabled")
     obs, _ = env.reset(seed=2)
@@ -292,6 +297,27 @@ def test_dense_reward_pays_progress_and_success_only_as_a_signal(coast):
     sparse.reset(seed=2)
     _, r_sp, *_ = sparse.step(_toward_goal(obs, env.v_max))
     assert (r_sp == 0).all() and np.isfinite(r_go).all() and (np.abs(r_go) <= 0.2 + 1e-9).all()
+
+
+def test_dense_reward_energy_term_sums_to_the_episodes_control_effort(coast, monkeypatch):
+    """With the other terms weighted 0, the dense rewards of an episode's steps add up to
+    -ENERGY_WEIGHT x its control effort E (the metric's m2 s-1) / (N v_max^2 dt): at full
+    speed 0.05 a step, at half speed a quarter of that."""
+    from oneocean import envs as envs_mod
+    from oneocean.envs import ENERGY_WEIGHT, OceanVectorEnv
+
+    monkeypatch.setattr(envs_mod, "PROGRESS_WEIGHT", 0.0)
+    for scale, per_step in ((1.0, 0.05), (0.5, 0.0125)):
+        env = OceanVectorEnv("SK", 1, coast, num_envs=2, reward="dense",
+                             autoreset_mode="disabled")
+        obs, _ = env.reset(seed=3)
+        total = np.zeros(2)
+        for _ in range(6):
+            _, r, *_ = env.step(scale * _toward_goal(obs, env.v_max))
+            total += r
+        energy = env._gather("energy")
+        np.testing.assert_allclose(total, -ENERGY_WEIGHT * energy / (env.v_max ** 2 * env.dt))
+        np.testing.assert_allclose(total, -6 * per_step, rtol=1e-6)
 
 
 def test_rgb_render_shows_land_water_and_agents(coast):

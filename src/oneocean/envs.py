@@ -30,8 +30,9 @@ Spaces (per agent; ``N`` = team size)
     reward, ``reward="sparse"`` (default)
         1 on the step an episode ends in success, else 0.
     reward, ``reward="dense"``
-        :func:`dense_reward`: progress toward the goal cue, penalties for rejected moves and
-        near-collisions, and the success reward.
+        :func:`dense_reward`: progress toward the goal cue, penalties for energy (the
+        control effort E's increment), rejected moves and near-collisions, and the success
+        reward.
 
 Episodes and resets
     ``reset(seed=s)`` starts the same episodes as ``run_cell(..., seed=s)``: sub-env ``j``
@@ -91,6 +92,11 @@ GOAL_SCALE_M, MATE_SCALE_M, DEPTH_SCALE_M, ALTITUDE_CLIP_M = 10.0, 10.0, 100.0, 
 #: Dense reward: weight of the progress term (per step, progress in units of v_max dt) and
 #: the penalties per rejected move and per step with a near-collision.
 PROGRESS_WEIGHT, VIOLATION_PENALTY, COLLISION_PENALTY = 0.1, 0.1, 0.1
+#: Dense reward: weight of the energy term (per step, the team's mean energy proxy
+#: ``||a||^2 dt`` in units of ``v_max^2 dt``: 1 at full speed). Half the progress weight, so a
+#: step straight at the goal at any speed ``u`` earns ``0.1 u / v_max - 0.05 (u / v_max)^2
+#: > 0``: the term prefers the cheaper of two ways to the goal, never standing still.
+ENERGY_WEIGHT = 0.05
 #: Pool seeds tried before a reset gives up on a cell that cannot host episodes.
 SEED_TRIES = 16
 _NONE = np.zeros(0, dtype=np.int64)
@@ -167,14 +173,16 @@ def normalize(obs: np.ndarray, v_max: float, reach: float, time_left) -> np.ndar
     return out
 
 
-def dense_reward(d_prev, d_now, new_viol, new_coll, success, v_max: float, dt: float):
+def dense_reward(d_prev, d_now, new_viol, new_coll, success, v_max: float, dt: float,
+                 new_energy=0.0, n_agents: int = 1):
     """The opt-in dense reward of one step per sub-env.
 
     ``PROGRESS_WEIGHT`` x the team's mean progress toward its goal cues in units of
     ``v_max dt`` (each agent's clipped to [-2, 2]; an agent whose cue jumped by more than
     ``2 v_max dt + 1 m`` -- a new waypoint, slot or target -- or is undefined counts 0 that
-    step), minus ``VIOLATION_PENALTY`` per rejected move, minus ``COLLISION_PENALTY`` if the
-    step had a near-collision, plus 1 on success.
+    step), minus ``ENERGY_WEIGHT`` x the team's mean energy proxy of the step in units of
+    ``v_max^2 dt`` (1 for an agent at full speed), minus ``VIOLATION_PENALTY`` per rejected
+    move, minus ``COLLISION_PENALTY`` if the step had a near-collision, plus 1 on success.
 
     Parameters
     ----------
@@ -190,6 +198,11 @@ def dense_reward(d_prev, d_now, new_viol, new_coll, success, v_max: float, dt: f
         The vehicle's speed limit, m s-1.
     dt : float
         Step, s.
+    new_energy : (E,) float64 or float, default 0.0
+        The team's energy proxy of the step (the increment of the episode's control effort
+        E, ``sum ||a||^2 dt`` over agents), m2 s-1.
+    n_agents : int, default 1
+        Team size N.
 
     Returns
     -------
@@ -200,8 +213,10 @@ def dense_reward(d_prev, d_now, new_viol, new_coll, success, v_max: float, dt: f
     delta = d_prev - d_now
     jump = np.abs(delta) > 2.0 * step + 1.0
     prog = np.where(jump | ~np.isfinite(delta), 0.0, np.clip(delta / step, -2.0, 2.0))
-    return (PROGRESS_WEIGHT * prog.mean(-1) - VIOLATION_PENALTY * new_viol
-            - COLLISION_PENALTY * (new_coll > 0) + success.astype(np.float64))
+    effort = np.asarray(new_energy, dtype=np.float64) / (n_agents * v_max * v_max * dt)
+    return (PROGRESS_WEIGHT * prog.mean(-1) - ENERGY_WEIGHT * effort
+            - VIOLATION_PENALTY * new_viol - COLLISION_PENALTY * (new_coll > 0)
+            + success.astype(np.float64))
 
 
 def _step_observe(batch: Rollout, lo: int, hi: int) -> np.ndarray:
@@ -404,6 +419,7 @@ class OceanVectorEnv(VectorEnv):
         self._d_prev[envs] = np.nan
         self._viol_prev[envs] = 0
         self._coll_prev[envs] = 0
+        self._energy_prev[envs] = 0.0
 
     def _release(self, envs) -> None:
         for j in envs:
@@ -432,7 +448,7 @@ class OceanVectorEnv(VectorEnv):
 
     def _gather(self, what: str) -> np.ndarray:
         """Per sub-env rows of a batch attribute (``k``, ``done``, ``res``, ``viol``,
-        ``coll``)."""
+        ``coll``, ``energy``)."""
         groups = self._groups()
         out = None
         for pool, js, eps, _, _, _ in groups:
@@ -528,6 +544,7 @@ class OceanVectorEnv(VectorEnv):
         self._d_prev = np.full((self.num_envs, self.n_agents), np.nan)
         self._viol_prev = np.zeros(self.num_envs, dtype=np.int64)
         self._coll_prev = np.zeros(self.num_envs, dtype=np.int64)
+        self._energy_prev = np.zeros(self.num_envs)
         if self.autoreset == "disabled":
             pool = self._new_pool(self.num_envs)
             pool.drawn = pool.live = self.num_envs
@@ -629,11 +646,14 @@ class OceanVectorEnv(VectorEnv):
         else:
             d_now = _cue_distance(raw)
             viol, coll = self._gather("viol"), self._gather("coll")
+            energy = self._gather("energy")
             reward = dense_reward(self._d_prev, d_now, viol - self._viol_prev,
                                   coll - self._coll_prev,
                                   np.zeros(n, dtype=bool) if success is None else success,
-                                  self.v_max, self.dt)
+                                  self.v_max, self.dt, energy - self._energy_prev,
+                                  self.n_agents)
             self._viol_prev, self._coll_prev = viol, coll
+            self._energy_prev = energy
             self._d_prev = d_now
         if reset_now.size:
             reward[reset_now] = 0.0
