@@ -60,8 +60,8 @@ def compile_pdf(tex_path, out_pdf, *, pretex: str = "", log_path=None,
     Raises
     ------
     ConfigError
-        One line, if ``engine`` is unknown, ``tex_path`` does not exist, the TeX program is not installed, or LaTeX
-        fails (naming the file and the first error line).
+        One line, if ``engine`` is unknown, ``tex_path`` does not exist, the TeX program is
+        not installed, or LaTeX fails (naming the file and the first error line).
     """
     if engine not in ("latexmk", "pdflatex"):
         raise ConfigError(f"LaTeX engine {engine!r} unknown: latexmk or pdflatex")

@@ -25,8 +25,8 @@ Sensing (the environment)
     After every agent's move the env takes the agent's reading and hands it to the method
     (``W.sense[e, i]``: the value, kg m-3; the reading at the start position after the
     spin-up before step 0). The method knows where it took the reading only as well as it
-    knows its own position (its navigation estimate at its next decision). Nothing else about the leaks reaches the method: it is never told
-    which reading is near which leak.
+    knows its own position (its navigation estimate at its next decision). Nothing else
+    about the leaks reaches the method: it is never told which reading is near which leak.
 Claims (the method's report)
     The method files *leak claims*: positions it asserts are leaks, in ``W.claims[e, :n]``
     (``n = W.nclaim[e]``; columns x, z and the method's own strength, unused by the score).
