@@ -296,6 +296,29 @@ def test_forecast_planner_spends_more_and_fails_where_the_oracle_succeeds():
         np.testing.assert_array_equal(rt[k], ro[k], err_msg=k)
 
 
+def test_a_small_reset_draws_few_candidates_and_keeps_the_same_ones(coast, monkeypatch):
+    """The band's candidates are drawn in batches sized to what is still needed: a reset of a
+    few episodes draws a few candidates (it drew 32 at a time), and which are kept does not
+    depend on it (the first candidates in the band, in the seed's order)."""
+    tier = {**TIER, "goal_distance_m": 1500.0, "time_limit_s": 3000.0, "current_ms": [0.0, 5.0]}
+    calls = []
+    real = g2g.sample_route
+    monkeypatch.setattr(g2g, "sample_route", lambda *a, **k: calls.append(1) or real(*a, **k))
+    one = g2g.reset(coast, tier, 1, 1, 4)
+    assert len(calls) == 2        # every candidate is in this band: 1.25 x 1, rounded up
+    calls.clear()
+    many = g2g.reset(coast, tier, 1, 24, 4)
+    assert len(calls) == 30
+    for k in one:
+        np.testing.assert_array_equal(one[k], many[k][:1])
+    # a narrow band keeps the same episodes whatever the batch sizes
+    narrow = {**tier, "current_ms": [0.5, 0.6]}
+    a = g2g.reset(coast, narrow, 1, 2, 4)
+    b = g2g.reset(coast, narrow, 1, 6, 4)
+    np.testing.assert_array_equal(a["goal"], b["goal"][:2])
+    np.testing.assert_array_equal(a["t0"], b["t0"][:2])
+
+
 def test_absolute_current_band(coast):
     tier = {**TIER, "goal_distance_m": 1500.0, "time_limit_s": 3000.0}
     init = g2g.reset(coast, {**tier, "current_ms": [0.5, 0.6]}, 1, 6, 4)

@@ -15,6 +15,7 @@ import re
 
 import numpy as np
 import pytest
+import yaml
 
 from oneocean.engine import dynamics as D
 from oneocean.errors import ConfigError
@@ -167,6 +168,22 @@ def test_rov_top_speeds_follow_thrust_vs_drag(rov):
     assert heading_error(st[-1, D.PSI], 0.0)[0] < 1e-9
     st, _ = run(rov, "6dof", lambda k: (0.0, 0.85, 0.0), 40)  # heave holds 0.85 m/s down
     assert st[-1, D.VY] == pytest.approx(0.85, abs=1e-6)
+
+
+def test_load_vehicle_reads_each_file_version_once_and_hands_out_copies(tmp_path):
+    a = D.load_vehicle("remus100")
+    a.spec["mass_kg"] = -1.0                 # a caller's change stays with the caller
+    a.spec["thrust_max"][0] = -1.0
+    b = D.load_vehicle("remus100")
+    assert b.spec["mass_kg"] > 0 and b.spec["thrust_max"][0] > 0
+    f = tmp_path / "vehicles.yaml"
+    text = D.vehicles_file().read_text()
+    f.write_text(text)
+    v1 = D.load_vehicle("remus100", path=f).v_max
+    doc = yaml.safe_load(f.read_text())
+    doc["vehicles"]["remus100"]["speed_limit_ms"] = 0.5 * v1
+    f.write_text(yaml.safe_dump(doc))        # a new version of the file is read again
+    assert D.load_vehicle("remus100", path=f).v_max == pytest.approx(0.5 * v1)
 
 
 def test_vehicle_validation():

@@ -125,8 +125,10 @@ tide, it moves the vehicle by at most 2e-4 m (8 stations, 900 s; measured by dri
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 from typing import Mapping
@@ -442,14 +444,15 @@ def load_vehicle(name: str | None = None, overrides: Mapping | None = None,
     """
     f = Path(path) if path is not None else vehicles_file()
     try:
-        doc = yaml.safe_load(f.read_text())
+        st = f.stat()
+        doc = _vehicle_doc(str(f), st.st_mtime_ns, st.st_size)
     except OSError as exc:
         raise ConfigError(f"{f}: cannot read vehicle file ({exc})") from exc
     if not isinstance(doc, dict) or "vehicles" not in doc:
         raise ConfigError(f"{f}: expected a mapping with key 'vehicles'")
     name = name if name is not None else doc.get("default")
     name = validate_choice(name, tuple(doc["vehicles"]), "vehicle")
-    spec = dict(doc["vehicles"][name])
+    spec = copy.deepcopy(doc["vehicles"][name])
     if overrides:
         unknown = [k for k in overrides if k not in _VEHICLE_KEYS]
         if unknown:
@@ -457,6 +460,13 @@ def load_vehicle(name: str | None = None, overrides: Mapping | None = None,
         spec.update({k: (list(v) if isinstance(v, (list, tuple, np.ndarray)) else v)
                      for k, v in overrides.items()})
     return Vehicle(name=name, spec=spec, params=vehicle_params(spec, name))
+
+
+@lru_cache(maxsize=16)
+def _vehicle_doc(path: str, mtime_ns: int, size: int):
+    """The parsed vehicle file, once per file version (``load_vehicle`` copies what it hands
+    out, so the cached document is never changed)."""
+    return yaml.safe_load(Path(path).read_text())
 
 
 def vehicle_names(path: str | Path | None = None) -> tuple[str, ...]:

@@ -182,7 +182,7 @@ def draw_in_band(grid, tier: dict, n_episodes: int, seed: int, draw, points, len
     c = 0
     while len(geos) < n_episodes and c < n_max:
         batch = []
-        for _ in range(min(32, n_max - c)):
+        for _ in range(min(32, n_max - c, _batch_size(n_episodes - len(geos), len(geos), c))):
             rng = np.random.default_rng(episode_seed_sequence(seed, c, PURPOSE_RESET))
             batch.append(draw(rng, c))
             c += 1
@@ -200,6 +200,15 @@ def draw_in_band(grid, tier: dict, n_episodes: int, seed: int, draw, points, len
         raise NotApplicable(f"{what}: only {len(geos)} of {c} candidate episodes meet a mean "
                             f"current of {band[0]:g}-{band[1]:g} m/s; {n_episodes} needed")
     return t0s, geos
+
+
+def _batch_size(need: int, kept: int, drawn: int) -> int:
+    """Candidates to draw next when ``need`` more are wanted and ``kept`` of the ``drawn``
+    so far were: ``need`` over the acceptance so far (all of them at first, at least 1 in 32
+    after), with a quarter to spare. Which candidates are kept does not depend on it: they are
+    judged in order and the first ones that pass are kept."""
+    rate = 1.0 if drawn == 0 else max(kept / drawn, 1.0 / 32.0)
+    return max(1, int(math.ceil(1.25 * need / rate)))
 
 
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
