@@ -176,10 +176,11 @@ def test_scene_media_falls_back_to_what_the_scene_hosts(scenes, tmp_path):
     small = build_scene({"name": "small", "kind": "open_water", "size_m": 160.0}, g,
                         _temporal(g, *CURRENT))
     try:
-        out = scene_media(small, ["RF", "SK"], [2, 3], 0, "6dof", frames, media)
+        out = scene_media(small, ["G2G", "RF", "SK"], [2, 3], 0, "6dof", frames, media)
     except DataError as exc:   # no EGL on this machine
         pytest.skip(str(exc))
-    assert (out["task"], out["tier"]) == ("SK", 3)   # RF's route does not fit in 80 m of water
+    # no G2G leg (150 m and up) fits in 160 m, nor RF's five 60 m legs; its four 55 m legs do
+    assert (out["task"], out["tier"]) == ("RF", 2)
     assert all(f.stat().st_size > 500 for f in frames)
     frames2 = [tmp_path / "b" / f"keyframe_{k}.png" for k in range(2)] + [tmp_path / "b" / "e.gif"]
     frames2[0].parent.mkdir()

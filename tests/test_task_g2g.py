@@ -319,6 +319,29 @@ def test_a_small_reset_draws_few_candidates_and_keeps_the_same_ones(coast, monke
     np.testing.assert_array_equal(a["t0"], b["t0"][:2])
 
 
+def test_a_candidate_that_cannot_be_drawn_fails_the_reset_only_when_the_scan_reaches_it(
+        coast, monkeypatch):
+    """Candidate c's route that cannot be drawn (NotApplicable) fails every reset that needs
+    a candidate at or after c, and no reset that is done before c, whatever the batch sizes."""
+    tier = {**TIER, "goal_distance_m": 1500.0, "time_limit_s": 3000.0, "current_ms": [0.0, 5.0]}
+    real = g2g.sample_route
+    ref = g2g.reset(coast, tier, 1, 3, 4)
+
+    def flaky(*a, **k):
+        if k["what"].endswith("(candidate 3)"):
+            raise NotApplicable(f"{k['what']}: no valid route")
+        return real(*a, **k)
+
+    monkeypatch.setattr(g2g, "sample_route", flaky)
+    for n in (1, 2, 3):   # every candidate is in this band: candidates 0..n-1 are kept
+        got = g2g.reset(coast, tier, 1, n, 4)   # n = 3 draws candidate 3 too (4 = 1.25 x 3)
+        for k in ref:
+            np.testing.assert_array_equal(got[k], ref[k][:n], err_msg=k)
+    for n in (4, 5, 24):
+        with pytest.raises(NotApplicable, match=r"\(candidate 3\): no valid route"):
+            g2g.reset(coast, tier, 1, n, 4)
+
+
 def test_absolute_current_band(coast):
     tier = {**TIER, "goal_distance_m": 1500.0, "time_limit_s": 3000.0}
     init = g2g.reset(coast, {**tier, "current_ms": [0.5, 0.6]}, 1, 6, 4)

@@ -139,7 +139,10 @@ def draw_in_band(grid, tier: dict, n_episodes: int, seed: int, draw, points, len
     (``SeedSequence([seed, c, PURPOSE_RESET])``), are drawn in batches; the first
     ``n_episodes`` whose mean current speed at their points over the still-water transit of
     ``length`` m at the cruise speed lies in the tier's ``current_ms`` are kept (all of them
-    without a band; at most ``BAND_DRAWS`` candidates per episode with one).
+    without a band; at most ``BAND_DRAWS`` candidates per episode with one). A candidate that
+    cannot be drawn ends the scan with its ``NotApplicable`` when it is reached before enough
+    are kept; candidates after the last one kept never matter, so neither the episodes nor
+    whether the reset succeeds depends on the batch sizes.
 
     Parameters
     ----------
@@ -172,7 +175,8 @@ def draw_in_band(grid, tier: dict, n_episodes: int, seed: int, draw, points, len
     Raises
     ------
     NotApplicable
-        If fewer than ``n_episodes`` candidates meet the band.
+        If fewer than ``n_episodes`` candidates meet the band, or a candidate the scan
+        reaches cannot be drawn (``draw`` raised it).
     """
     band = current_band(tier, task_id)
     pw, v_max = task_power(tier, task_id)
@@ -181,21 +185,27 @@ def draw_in_band(grid, tier: dict, n_episodes: int, seed: int, draw, points, len
     n_max = int(n_episodes) * (BAND_DRAWS if band is not None else 1)
     c = 0
     while len(geos) < n_episodes and c < n_max:
-        batch = []
+        batch, failed = [], None
         for _ in range(min(32, n_max - c, _batch_size(n_episodes - len(geos), len(geos), c))):
             rng = np.random.default_rng(episode_seed_sequence(seed, c, PURPOSE_RESET))
-            batch.append(draw(rng, c))
+            try:
+                batch.append(draw(rng, c))
+            except NotApplicable as exc:   # raised only if the scan reaches this candidate
+                failed = exc
+                break
             c += 1
-        if band is None:
-            keep = [True] * len(batch)
-        else:
+        if batch and band is not None:
             pts = np.stack([points(b[1]) for b in batch])
             sp = site_speeds(grid, pts, [b[0] for b in batch], window)
             keep = (sp >= band[0]) & (sp <= band[1])
+        else:
+            keep = [True] * len(batch)
         for b, ok in zip(batch, keep):
             if ok and len(geos) < n_episodes:
                 t0s.append(b[0])
                 geos.append(b[1])
+        if failed is not None and len(geos) < n_episodes:
+            raise failed
     if len(geos) < n_episodes:
         raise NotApplicable(f"{what}: only {len(geos)} of {c} candidate episodes meet a mean "
                             f"current of {band[0]:g}-{band[1]:g} m/s; {n_episodes} needed")
