@@ -139,7 +139,7 @@ def _power_model(vehicle: str, path: str, mtime: int) -> PowerModel:
 
 # ------------------------------------------------------------------------------ kernels
 
-@njit(cache=True)
+@hot_kernel
 def _time_weights(times, t):
     n = times.shape[0]
     if n == 1 or t <= times[0]:
@@ -152,7 +152,7 @@ def _time_weights(times, t):
     return i, i + 1, (t - times[i]) / (times[i + 1] - times[i])
 
 
-@njit(cache=True)
+@hot_kernel
 def _cell(nx, ny, x0, z0, h, x, z):
     fx = (x - x0) / h
     fz = (z - z0) / h
@@ -169,7 +169,7 @@ def _cell(nx, ny, x0, z0, h, x, z):
     return i, j, fx - i, fz - j
 
 
-@njit(cache=True)
+@hot_kernel
 def _bil(a, i, j, wx, wz):
     ny, nx = a.shape[0], a.shape[1]
     i1 = min(i + 1, nx - 1)
@@ -178,7 +178,7 @@ def _bil(a, i, j, wx, wz):
             + wz * ((1.0 - wx) * a[j1, i] + wx * a[j1, i1]))
 
 
-@njit(cache=True)
+@hot_kernel
 def _bil4(cur, t, c, i, j, wx, wz):
     ny, nx = cur.shape[1], cur.shape[2]
     i1 = min(i + 1, nx - 1)
@@ -187,7 +187,7 @@ def _bil4(cur, t, c, i, j, wx, wz):
             + wz * ((1.0 - wx) * cur[t, j1, i, c] + wx * cur[t, j1, i1, c]))
 
 
-@njit(cache=True)
+@hot_kernel
 def _current(cur, times, x0, z0, h, x, z, t):
     """Current (east, north) at (x, z) and time t: bilinear between nodes, linear in time."""
     ny, nx = cur.shape[1], cur.shape[2]
@@ -198,7 +198,7 @@ def _current(cur, times, x0, z0, h, x, z, t):
     return ce, cn
 
 
-@njit(cache=True)
+@hot_kernel
 def _free(free, x0, z0, h, x, z):
     """Passability margin at (x, z) (> 0: passable); -1 outside the lattice."""
     ny, nx = free.shape
@@ -236,7 +236,7 @@ def ground_speed(ce, cn, ux, uz, u):
     return c_par + math.sqrt(u * u - q2)
 
 
-@njit(cache=True)
+@hot_kernel
 def _piece(ce, cn, ux, uz, L, speeds, ph, pk, hold):
     """The best speed over a piece of length ``L`` along (ux, uz) in the current (ce, cn):
     (time s, cost, speed index); cost = time when ``ph == pk == 0``, else the energy
@@ -268,13 +268,13 @@ def _piece(ce, cn, ux, uz, L, speeds, ph, pk, hold):
     return best_t, best_c, best_i
 
 
-@njit(cache=True)
+@hot_kernel
 def _n_pieces(L, step):
     n = int(math.ceil(L / step))
     return 1 if n < 1 else n
 
 
-@njit(cache=True)
+@hot_kernel
 def _segment(cur, times, free, x0, z0, h, ax, az, bx, bz, speeds, ph, pk, hold, t, step,
              check_start, out_speed):
     """Arrival time and cost of the straight segment a -> b leaving at time t (inf, inf when
@@ -312,7 +312,7 @@ def _segment(cur, times, free, x0, z0, h, ax, az, bx, bz, speeds, ph, pk, hold, 
     return t, cost
 
 
-@njit(cache=True)
+@hot_kernel
 def _heap_push(hc, hn, size, c, n):
     """Push (c, n) on the binary min-heap ``hc``/``hn`` of ``size`` entries (ordered on
     (cost, node), as heapq orders the tuples); returns the new size (capacity: the caller's)."""
@@ -330,7 +330,7 @@ def _heap_push(hc, hn, size, c, n):
     return size + 1
 
 
-@njit(cache=True)
+@hot_kernel
 def _heap_pop(hc, hn, size):
     """Remove the root of the heap of ``size`` entries; returns the new size."""
     size -= 1
@@ -402,7 +402,7 @@ def _local_cmax(cur, reach):
     return out
 
 
-@njit(cache=True)
+@hot_kernel
 def _cost_rate(cmax, speeds, ph, pk):
     """A lower bound of the cost per metre of a piece where no current is faster than
     ``cmax``: the ground speed is at most ``cmax + u``, so ``min_u P(u) / (cmax + u)``
