@@ -4,9 +4,12 @@ For each task (default G2G, FT, SPC at tier 2) and each batch size (1, 16, 256, 
 sub-envs; ``--envs``), in one run:
 
 * ``reset``: the wall time of ``OceanVectorEnv.reset`` (episode sampling and the batch's
-  set-up), per sub-env: it samples the first pool, ``--pool`` episodes per sub-env (4, the
-  env's default); and ``ms/episode``: the time per episode of building a pool (what every
-  autoreset costs, amortised: sampling, the task's set-up and the first observation);
+  set-up), per sub-env: it draws the candidates of the first pool seed (``--pool`` episodes
+  per sub-env: 4, the env's default) and builds the episodes the sub-envs start on (the
+  whole pool for a task whose pool is not built in parts); and ``ms/episode``: the time per
+  episode of building episodes (what every autoreset costs, amortised: sampling, the task's
+  set-up and the first observation); ``whole pool``: the baseline, the same reset building
+  all the first pool seed's episodes at once;
 * ``step``: env-steps per second of ``step()`` with a fixed action (raw view, velocity
   actions), and the microseconds per ``step()`` call, wall and CPU (the process's CPU
   time: what a loaded machine does not inflate as much);
@@ -25,6 +28,7 @@ Usage::
 
     python benchmarks/step_api.py
     python benchmarks/step_api.py --tasks G2G --envs 1 16 --steps 200     # quick look
+    python benchmarks/step_api.py --baseline-src /tmp/before/src           # before / after
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ import os
 import platform
 import sys
 import time
+from pathlib import Path
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
@@ -48,6 +53,34 @@ def _grid(path):
     return resolve_grid(None)
 
 
+def _builder(env) -> str:
+    """The env's method that builds the episodes sub-envs draw next: ``_next_pool`` (a pool
+    seed's episodes a part at a time), or ``_new_pool`` on checkouts that build whole pools."""
+    return "_next_pool" if hasattr(env, "_next_pool") else "_new_pool"
+
+
+def _build(env):
+    """Build the episodes sub-envs would draw next (what an autoreset pays for)."""
+    if _builder(env) == "_next_pool":
+        return env._next_pool()
+    return env._new_pool(env.pool_size)
+
+
+def _count_built(env) -> list:
+    """A counter of the episodes ``env`` builds (pools and parts of pools) from now on."""
+    count = [0]
+    name = _builder(env)
+    build = getattr(env, name)
+
+    def counted(*args):
+        pool = build(*args)
+        count[0] += pool.n
+        return pool
+
+    setattr(env, name, counted)
+    return count
+
+
 def measure(task: str, tier: int, grid, n_envs: int, steps: int, pool: int = 4) -> dict:
     import numpy as np
 
@@ -57,31 +90,40 @@ def measure(task: str, tier: int, grid, n_envs: int, steps: int, pool: int = 4) 
                          pool=pool)
     env.reset(seed=0)                                   # warm-up (compile)
     env.step(np.zeros(env.action_space.shape))
+    # the baseline: the same reset building the pool seed's episodes at once
+    whole = OceanVectorEnv(task, tier, grid, num_envs=n_envs, autoreset_mode="next_step",
+                           pool=pool)
+    whole._part = whole.pool_size
+    t = time.perf_counter()
+    whole.reset(seed=1)
+    t_whole = time.perf_counter() - t
+    whole.close()
     t = time.perf_counter()
     env.reset(seed=1)
     t_reset = time.perf_counter() - t
     a = np.zeros(env.action_space.shape)
     a[..., 0] = 0.5 * env.v_max
     n_resets = 0
-    pools_before = env._n_pools
+    built = _count_built(env)
     t, c = time.perf_counter(), time.process_time()
     for _ in range(steps):
         _, _, term, trunc, _ = env.step(a)
         n_resets += int((term | trunc).sum())
     t_steps = time.perf_counter() - t
     c_steps = time.process_time() - c
-    pools_before_end = env._n_pools
-    # time spent on autoresets: the same run's pool builds, timed separately
+    n_built = built[0]
+    # time spent on autoresets: the same run's episode builds (a pool seed's episodes, built
+    # as the sub-envs reach them), timed separately
     t = time.perf_counter()
-    k = 0
-    while time.perf_counter() - t < 0.5 or k < 1:
-        env._new_pool(env.pool_size)
-        k += 1
-    t_pool = (time.perf_counter() - t) / k / env.pool_size
-    # the autoresets' pool builds inside the timed steps (at the same run's cost per episode)
-    sampling = (pools_before_end - pools_before) * env.pool_size * t_pool
+    before = built[0]
+    while time.perf_counter() - t < 0.5 or built[0] == before:
+        _build(env)
+    t_pool = (time.perf_counter() - t) / (built[0] - before)
+    # the autoresets' builds inside the timed steps (at the same run's cost per episode)
+    sampling = n_built * t_pool
     return {"cpu_us_per_step_no_sampling": 1e6 * max(c_steps - sampling, 0.0) / steps,
-            "reset_ms_per_env": 1e3 * t_reset / n_envs, "pool_ms_per_env": 1e3 * t_pool,
+            "reset_ms_per_env": 1e3 * t_reset / n_envs,
+            "whole_reset_ms_per_env": 1e3 * t_whole / n_envs, "pool_ms_per_env": 1e3 * t_pool,
             "env_steps_s": steps * n_envs / t_steps, "us_per_step": 1e6 * t_steps / steps,
             "cpu_us_per_step": 1e6 * c_steps / steps,
             "agents": env.n_agents, "episodes_ended": n_resets}
@@ -101,6 +143,26 @@ def fused(task: str, tier: int, grid, n_episodes: int) -> float:
     return steps / dt, steps / dc
 
 
+def _baseline(args, argv) -> None:
+    """Run this script's measurements on the checkout ``args.baseline_src`` (rows 'before')."""
+    import subprocess
+    import tempfile
+
+    rest, skip = [], False
+    for a in argv:
+        if skip:
+            skip = False
+        elif a == "--baseline-src":
+            skip = True
+        elif not a.startswith("--baseline-src="):
+            rest.append(a)
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "PYTHONPATH": str(args.baseline_src.resolve()),
+               "NUMBA_CACHE_DIR": cache}
+        subprocess.run([sys.executable, __file__, *rest, "--side", "before"], env=env,
+                       check=True)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--tasks", nargs="+", default=["G2G", "FT", "SPC"])
@@ -111,12 +173,21 @@ def main(argv=None) -> int:
     p.add_argument("--grid", default=None, help="grid export (default: the default region)")
     p.add_argument("--pool", type=int, default=4,
                    help="episodes sampled per sub-env per pool (the env's pool; default 4)")
+    p.add_argument("--baseline-src", type=Path,
+                   help="src/ dir of a 'before' checkout: the same figures on it first (in a "
+                        "subprocess, its own numba cache), rows marked 'before'")
+    p.add_argument("--side", default="after", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
+    if args.baseline_src:
+        _baseline(args, argv if argv is not None else sys.argv[1:])
+    import oneocean
+
     grid = _grid(args.grid)
     print(f"# step API vs fused kernel: tier {args.tier}, {os.environ['NUMBA_NUM_THREADS']} "
           f"numba thread(s), {platform.processor() or platform.machine()}, "
-          f"python {sys.version.split()[0]}; load average {os.getloadavg()[0]:.2f}")
-    print(f"{'task':5} {'envs':>5} {'reset ms/env':>13} {'ms/episode':>11} "
+          f"python {sys.version.split()[0]}; load average {os.getloadavg()[0]:.2f}; "
+          f"{args.side}: {Path(oneocean.__file__).parents[1]}")
+    print(f"{'side':6} {'task':5} {'envs':>5} {'reset ms/env':>13} {'whole pool':>11} {'ms/episode':>11} "
           f"{'env-steps/s':>12} {'us/step()':>10} {'cpu us/step()':>13} {'agent-steps/s':>14} {'fused agent-steps/s':>20}"
           f" {'step API / fused':>17} {'CPU, no sampling':>17}")
     for task in args.tasks:
@@ -129,7 +200,8 @@ def main(argv=None) -> int:
             # kernel's CPU agent-steps/s (which samples nothing while it runs)
             cpu_ratio = (n * m["agents"] / max(m["cpu_us_per_step_no_sampling"], 1e-9) * 1e6
                          / f_cpu)
-            print(f"{task:5} {n:>5} {m['reset_ms_per_env']:>13.3f} {m['pool_ms_per_env']:>11.3f} "
+            print(f"{args.side:6} {task:5} {n:>5} {m['reset_ms_per_env']:>13.3f} "
+                  f"{m['whole_reset_ms_per_env']:>11.3f} {m['pool_ms_per_env']:>11.3f} "
                   f"{m['env_steps_s']:>12,.0f} {m['us_per_step']:>10.1f} {m['cpu_us_per_step']:>13.1f} "
                   f"{agent_steps:>14,.0f} "
                   f"{f:>20,.0f} {agent_steps / f:>17.2f} "

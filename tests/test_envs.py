@@ -536,3 +536,43 @@ def test_evaluate_gives_a_normalized_policy_the_envs_view(coast):
                          obs_mode="normalized")
     np.testing.assert_array_equal(pol.seen[0], env.reset(seed=1)[0])
     assert pol.seen[0].shape == (3, 1, NORM_DIM)
+
+
+@pytest.mark.parametrize("mode", ["next_step", "same_step"])
+def test_pools_built_in_parts_give_the_same_episodes(coast, mode):
+    """A reset builds only the episodes the sub-envs start on; the rest of the pool seed's
+    episodes are built, ``num_envs`` at a time, when the sub-envs reach them. Every output
+    over autoresets through several parts and pool seeds equals that of the same env building
+    each pool seed's episodes at once, and the parts are the cell's episodes."""
+    from oneocean.envs import OceanVectorEnv
+
+    def make(whole):
+        env = OceanVectorEnv("G2G", 1, coast, num_envs=2, autoreset_mode=mode, pool=3)
+        if whole:
+            env._part = env.pool_size
+        return env
+
+    env = make(False)
+    assert env.cell.chunked
+    env.reset(seed=5)
+    assert [p.rows for p in env._pools] == [(0, 2)]           # not the pool's 6 episodes
+    init = env.cell.reset(6, 5)
+    np.testing.assert_array_equal(env._pools[0].batch.t0, init["t0"][:2])
+    steps = env.cell_steps // 2
+    parts, whole = _trace(make(False), steps, 5), _trace(make(True), steps, 5)
+    assert parts[1] == whole[1] >= 5                   # episodes ended: into the 2nd pool seed
+    assert len(parts[0]) == len(whole[0])
+    for x, y in zip(parts[0], whole[0]):
+        np.testing.assert_array_equal(x, y)
+    env = make(False)
+    _trace(env, steps, 5)
+    assert env._n_pools == 2 and env._tail.rows == (0, 2)
+
+
+def test_a_task_with_cell_wide_values_builds_its_pools_whole(default_grid):
+    """PI's episodes share values computed on the whole pool (``cell_constants``): its
+    pools are built at once."""
+    from oneocean.envs import _Cell
+
+    assert not _Cell("PI", 1, default_grid).chunked
+    assert _Cell("SPC", 1, default_grid).chunked

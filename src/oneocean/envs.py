@@ -47,10 +47,11 @@ Episodes and resets
     * ``disabled``: finished sub-envs ignore further actions until ``reset`` -- what
       evaluation uses (:mod:`oneocean.evaluate`), so episode ``e`` is the cell's episode ``e``.
 
-    New episodes come from a pool sampled in one go per seed (``pool`` episodes per
-    sub-env): the pool of seed ``s`` holds the cell's episodes ``0, 1, ...`` of ``s`` and
-    sub-envs draw them in the order they finish; a spent pool is followed by one of seed
-    :func:`pool_seed` ``(s, 1)``, ``(s, 2)``, ... A seed whose episodes the cell cannot host
+    New episodes come from a pool per seed (``pool`` episodes per sub-env): the pool of seed
+    ``s`` holds the cell's episodes ``0, 1, ...`` of ``s`` and sub-envs draw them in the
+    order they finish; a spent pool is followed by one of seed :func:`pool_seed` ``(s, 1)``,
+    ``(s, 2)``, ... A pool's candidates are drawn at once, its episodes built ``num_envs`` at
+    a time as the sub-envs reach them (the same episodes, bit for bit). A seed whose episodes the cell cannot host
     (a task whose scenario finds no candidate in the tier's current regime for it) is
     skipped for the next pool seed, except with ``strict_seed=True`` (evaluation).
 
@@ -251,19 +252,42 @@ class _Cell(Cell):
                          backend=backend, scene=scene)
         self.dynamics = dynamics
         self.v_max = float(self.vehicle.v_max)
+        self._checked = None       # (episodes, seed, check): the last seed's candidates
 
-    def batch(self, n_episodes: int, seed: int) -> Rollout:
-        """Externally driven episodes ``0 .. n_episodes-1`` of ``seed`` on the backend."""
-        return self.episodes(self.reset(n_episodes, seed), None, self.dynamics, seed)
+    @property
+    def chunked(self) -> bool:
+        """Whether a pool may be built a part at a time (:meth:`batch` with ``rows``): on the
+        core backend, for a task whose episodes share no cell-wide values
+        (``cell_constants``: its rows of a part are then those of the whole pool)."""
+        return self.backend == "core" and not hasattr(self.mod, "cell_constants")
+
+    def _check(self, episodes: int, seed: int) -> tuple:
+        # one seed's pool is built a part at a time: its candidates are drawn and judged once
+        if self._checked is None or self._checked[:2] != (episodes, seed):
+            self._checked = (episodes, seed, super()._check(episodes, seed))
+        return self._checked[2]
+
+    def batch(self, n_episodes: int, seed: int, rows: tuple[int, int] | None = None) -> Rollout:
+        """Externally driven episodes ``0 .. n_episodes-1`` of ``seed`` on the backend, or
+        with ``rows = (a, b)`` its episodes ``a .. b-1`` only, bit for bit (the cell's
+        shards: :meth:`~oneocean.tasks.Cell.reset`, ``Episodes(e0=a)``)."""
+        init = self.reset(n_episodes, seed, rows)
+        return self.episodes(init, None, self.dynamics, seed,
+                             **({} if rows is None else {"e0": int(rows[0])}))
 
 
 class _Pool:
-    """A batch of pre-sampled episodes that sub-envs draw in order: every episode waits
-    parked (the loop skips it) until drawn, then begins."""
+    """Pre-sampled episodes that sub-envs draw in order: the pool seed's episodes ``a ..
+    b-1`` (``rows``; all ``n_seed`` of them without), every one parked (the loop skips it)
+    until drawn, then begun."""
 
-    def __init__(self, cell: _Cell, n: int, seed: int, park: bool):
-        self.batch = cell.batch(n, seed)
-        self.n = n
+    def __init__(self, cell: _Cell, n_seed: int, seed: int, park: bool,
+                 rows: tuple[int, int] | None = None):
+        self.batch = cell.batch(n_seed, seed, rows)
+        self.seed = seed
+        self.rows = (0, n_seed) if rows is None else (int(rows[0]), int(rows[1]))
+        self.n_seed = n_seed
+        self.n = self.rows[1] - self.rows[0]
         self.drawn = 0
         self.live = 0                      # drawn episodes still owned by a sub-env
         if park:
@@ -306,7 +330,8 @@ class OceanVectorEnv(VectorEnv):
     reward : str
         ``sparse`` (default) or ``dense``.
     pool : int
-        Episodes sampled per sub-env at a time (autoreset modes).
+        Episodes per sub-env in each pool seed's pool (autoreset modes), built ``num_envs``
+        at a time.
     render_mode : str, optional
         None or ``rgb_array`` (a top-down view of sub-env 0: :meth:`render`).
     strict_seed : bool
@@ -350,6 +375,8 @@ class OceanVectorEnv(VectorEnv):
         if self.num_envs < 1:
             raise ConfigError(f"num_envs: must be >= 1, got {num_envs}")
         self.pool_size = self.num_envs * max(1, int(pool))
+        # episodes built at a time: a reset builds what the sub-envs start on
+        self._part = self.num_envs if self.cell.chunked else self.pool_size
         p = self.cell.params
         self.v_max = self.cell.v_max
         self.dt = float(p["dt_s"])
@@ -367,6 +394,7 @@ class OceanVectorEnv(VectorEnv):
         self._clean = int(self.obs_mode == "raw" and self.reward_mode == "sparse")
         self._normalized = int(self.action_mode == "normalized")
         self._pools: list[_Pool] = []
+        self._tail: _Pool | None = None      # the pool built last
         self._seed = None
 
     # ------------------------------------------------------------------ spaces
@@ -383,14 +411,16 @@ class OceanVectorEnv(VectorEnv):
         return spaces.Box(-b, b, shape=tuple(lead) + (len(ACT_FIELDS),), dtype=np.float64)
 
     # ------------------------------------------------------------------ pools
-    def _new_pool(self, n: int) -> _Pool:
-        """The next pool of ``n`` episodes. A seed whose episodes the cell cannot host (the
-        task's scenario finds no valid candidate: ``NotApplicable``) is followed by the next
-        pool seed, up to :data:`SEED_TRIES` of them, unless ``strict_seed`` (evaluation)."""
+    def _new_pool(self, n: int, part: int | None = None) -> _Pool:
+        """The next pool seed's ``n`` episodes (its first ``part`` of them only, built on their
+        own, with ``part``). A seed whose episodes the cell cannot host (the task's scenario
+        finds no valid candidate: ``NotApplicable``) is followed by the next pool seed, up to
+        :data:`SEED_TRIES` of them, unless ``strict_seed`` (evaluation)."""
+        rows = None if part is None or part >= n else (0, int(part))
         for attempt in range(1 if self.strict_seed else SEED_TRIES):
             try:
                 pool = _Pool(self.cell, n, pool_seed(self._seed, self._n_pools),
-                             park=self.autoreset != "disabled")
+                             park=self.autoreset != "disabled", rows=rows)
             except NotApplicable:
                 self._n_pools += 1
                 if self.strict_seed or attempt == SEED_TRIES - 1:
@@ -398,8 +428,24 @@ class OceanVectorEnv(VectorEnv):
                 continue
             self._n_pools += 1
             self._pools.append(pool)
+            self._tail = pool
             return pool
         raise AssertionError("unreachable")  # pragma: no cover
+
+    def _next_pool(self) -> _Pool:
+        """The episodes sub-envs draw next: the current pool seed's next ``num_envs``
+        (:attr:`_Cell.chunked`; else all of its episodes at once), or the next pool seed's
+        first. The order of the episodes is the same either way; a part is built when the
+        sub-envs reach it."""
+        tail = self._tail
+        if tail is None or tail.rows[1] >= tail.n_seed:
+            return self._new_pool(self.pool_size, self._part)
+        a = tail.rows[1]
+        pool = _Pool(self.cell, tail.n_seed, tail.seed, park=True,
+                     rows=(a, min(a + self._part, tail.n_seed)))
+        self._pools.append(pool)
+        self._tail = pool
+        return pool
 
     def _draw(self, envs: np.ndarray) -> None:
         """Give every sub-env in ``envs`` its next episode (in sub-env order) and begin it."""
@@ -408,7 +454,7 @@ class OceanVectorEnv(VectorEnv):
         while done < envs.size:
             pool = self._pools[-1] if self._pools else None
             if pool is None or pool.drawn >= pool.n:
-                pool = self._new_pool(self.pool_size)
+                pool = self._next_pool()
             e = pool.draw(envs.size - done)
             for j, ej in zip(envs[done:done + e.size], e):
                 self._owner[j] = pool
@@ -535,7 +581,7 @@ class OceanVectorEnv(VectorEnv):
                              "reset() for the whole batch")
         super().reset(seed=seed)
         self._seed = int(seed) if seed is not None else int(self.np_random.integers(2**31))
-        self._pools, self._n_pools = [], 0
+        self._pools, self._n_pools, self._tail = [], 0, None
         self._group_cache = None
         self._owner: list[_Pool | None] = [None] * self.num_envs
         self._ep = np.zeros(self.num_envs, dtype=np.int64)
@@ -753,7 +799,7 @@ class OceanVectorEnv(VectorEnv):
         **kwargs
             Ignored (Gymnasium's signature).
         """
-        self._pools = []
+        self._pools, self._tail = [], None
         self._group_cache = None
 
 

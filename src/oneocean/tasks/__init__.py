@@ -216,8 +216,34 @@ class Cell:
             raise NotApplicable(f"{self.task} tier {self.tier}: {exc}") from None
 
     def _reset(self, episodes: int, seed: int, rows: slice = slice(None)) -> dict:
+        from .common import episode_rows
+
+        init, keep, n_cand, regime = self._check(episodes, seed)
+        self.regime = regime
+        # a task whose batch shares values across its episodes (cell_constants: PI's field
+        # shape) computes them on the whole cell, so that a shard's rows equal the cell's
+        constants = getattr(self.mod, "cell_constants", None)
+        part = keep if constants is not None else keep[rows]
+        out = episode_rows(init, part, n_cand)
+        if hasattr(self.mod, "reset_candidates") and hasattr(self.mod, "reset_build"):
+            out["candidate"] = part.astype(np.int64)
+            out = self.mod.reset_build(self.grid_reset, self.params, self.n_agents, out, seed)
+        if constants is not None:
+            shared = constants(self.params, out)
+            out = episode_rows(out, rows, part.size)
+            out.update(shared)
+        keep = keep[rows]
+        out.pop("regime_points", None)
+        out["candidate"] = keep.astype(np.int64)
+        return out
+
+    def _check(self, episodes: int, seed: int) -> tuple:
+        """The candidates of ``seed`` and which of them are the cell's ``episodes``: the
+        task's candidate dict (``reset_candidates``, else ``reset``), the kept candidates'
+        indices, the number of candidates drawn and the tier's regime (None without a
+        ``current_band``)."""
         from ..engine.grid import current_coverage
-        from .common import episode_rows, site_speeds
+        from .common import site_speeds
 
         band = self.params.get("current_band")
         duration = float(self.params["time_limit_s"])
@@ -249,23 +275,7 @@ class Cell:
                     f"the region: {regime.lo:.2f}-{regime.hi:.2f} m/s)")
             raise NotApplicable(f"only {keep.size} of {n_cand} candidate episodes lie {what}; "
                                 f"{episodes} needed")
-        self.regime = regime
-        # a task whose batch shares values across its episodes (cell_constants: PI's field
-        # shape) computes them on the whole cell, so that a shard's rows equal the cell's
-        constants = getattr(self.mod, "cell_constants", None)
-        part = keep if constants is not None else keep[rows]
-        out = episode_rows(init, part, n_cand)
-        if split:
-            out["candidate"] = part.astype(np.int64)
-            out = self.mod.reset_build(self.grid_reset, self.params, self.n_agents, out, seed)
-        if constants is not None:
-            shared = constants(self.params, out)
-            out = episode_rows(out, rows, part.size)
-            out.update(shared)
-        keep = keep[rows]
-        out.pop("regime_points", None)
-        out["candidate"] = keep.astype(np.int64)
-        return out
+        return init, keep, n_cand, regime
 
     def _regime(self, depth_m: float):
         """:func:`~.common.current_regime` of this cell's tier at ``depth_m`` on
