@@ -94,6 +94,7 @@ def measure(task: str, tier: int, grid, n_envs: int, steps: int, pool: int = 4) 
     whole = OceanVectorEnv(task, tier, grid, num_envs=n_envs, autoreset_mode="next_step",
                            pool=pool)
     whole._part = whole.pool_size
+    whole.reset(seed=0)                                 # warm-up, as for env
     t = time.perf_counter()
     whole.reset(seed=1)
     t_whole = time.perf_counter() - t
