@@ -51,9 +51,10 @@ Episodes and resets
     ``s`` holds the cell's episodes ``0, 1, ...`` of ``s`` and sub-envs draw them in the
     order they finish; a spent pool is followed by one of seed :func:`pool_seed` ``(s, 1)``,
     ``(s, 2)``, ... A pool's candidates are drawn at once, its episodes built ``num_envs`` at
-    a time as the sub-envs reach them (the same episodes, bit for bit). A seed whose episodes the cell cannot host
-    (a task whose scenario finds no candidate in the tier's current regime for it) is
-    skipped for the next pool seed, except with ``strict_seed=True`` (evaluation).
+    a time as the sub-envs reach them (the same episodes, bit for bit). A seed whose
+    episodes the cell cannot host (a task whose scenario finds no candidate in the tier's
+    current regime for it) is skipped for the next pool seed, except with
+    ``strict_seed=True`` (evaluation).
 
     ``info`` carries, for sub-envs whose episode ended at this step, every result column of the
     cell table (``success``, ``T_s``, ``E``, ``coll_ratio``, ``violations`` and the task's
@@ -271,9 +272,8 @@ class _Cell(Cell):
         """Externally driven episodes ``0 .. n_episodes-1`` of ``seed`` on the backend, or
         with ``rows = (a, b)`` its episodes ``a .. b-1`` only, bit for bit (the cell's
         shards: :meth:`~oneocean.tasks.Cell.reset`, ``Episodes(e0=a)``)."""
-        init = self.reset(n_episodes, seed, rows)
-        return self.episodes(init, None, self.dynamics, seed,
-                             **({} if rows is None else {"e0": int(rows[0])}))
+        return self.episodes(self.reset(n_episodes, seed, rows), None, self.dynamics, seed,
+                             e0=0 if rows is None else int(rows[0]))
 
 
 class _Pool:
@@ -427,10 +427,14 @@ class OceanVectorEnv(VectorEnv):
                     raise
                 continue
             self._n_pools += 1
-            self._pools.append(pool)
-            self._tail = pool
-            return pool
+            return self._keep(pool)
         raise AssertionError("unreachable")  # pragma: no cover
+
+    def _keep(self, pool: _Pool) -> _Pool:
+        """Record ``pool`` as the pool built last, the one sub-envs draw from next."""
+        self._pools.append(pool)
+        self._tail = pool
+        return pool
 
     def _next_pool(self) -> _Pool:
         """The episodes sub-envs draw next: the current pool seed's next ``num_envs``
@@ -441,11 +445,8 @@ class OceanVectorEnv(VectorEnv):
         if tail is None or tail.rows[1] >= tail.n_seed:
             return self._new_pool(self.pool_size, self._part)
         a = tail.rows[1]
-        pool = _Pool(self.cell, tail.n_seed, tail.seed, park=True,
-                     rows=(a, min(a + self._part, tail.n_seed)))
-        self._pools.append(pool)
-        self._tail = pool
-        return pool
+        return self._keep(_Pool(self.cell, tail.n_seed, tail.seed, park=True,
+                                rows=(a, min(a + self._part, tail.n_seed))))
 
     def _draw(self, envs: np.ndarray) -> None:
         """Give every sub-env in ``envs`` its next episode (in sub-env order) and begin it."""
