@@ -39,6 +39,12 @@ Velocities live on cell faces:
 
 :func:`face_coordinates` gives those positions (for sampling currents there) and
 :func:`faces_from_centers` averages cell-centre velocities onto faces.
+
+The kernels run without reference counting (:func:`oneocean.engine._jit.hot_kernel`). In a
+transport sub-step, faces whose two cells and their outer neighbours are water (away from
+the domain's edge) take a branch-light loop the compiler vectorises; every other face takes
+the general form. Both do the same arithmetic, so no result depends on which loop a face
+took (tested against the scheme written out face by face).
 """
 
 from __future__ import annotations
@@ -48,6 +54,7 @@ import math
 import numba
 import numpy as np
 
+from ..engine._jit import hot_kernel
 from ..errors import ConfigError, DataError
 
 __all__ = [
@@ -72,6 +79,8 @@ OPEN_SOUTH = 4
 OPEN_NORTH = 8
 OPEN_ALL = OPEN_WEST | OPEN_EAST | OPEN_SOUTH | OPEN_NORTH
 
+_U = np.uint64  # an unsigned index skips numba's negative-index wrap-around
+
 #: Fraction of the positivity-limit time step actually used by a sub-step.
 _CFL_SAFETY = 0.9
 
@@ -80,7 +89,7 @@ _CFL_SAFETY = 0.9
 # transport
 # ------------------------------------------------------------------------------------------
 
-@numba.njit(cache=True)
+@hot_kernel(error_model="python")
 def work_size(n_species, nz, nx):
     """Length of the float64 work vector :func:`step_field` needs.
 
@@ -117,9 +126,98 @@ def _clean(u):
     return 0.0
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, inline="always")
+def _water_row(land, j):
+    """True when row ``j`` of ``land`` has no land cell (an OR over the row: no early exit,
+    so the scan vectorises)."""
+    acc = 0
+    for i in range(land.shape[1]):
+        acc |= land[j, i]
+    return acc == 0
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _open_face_flux(u, cu2, cu, cd, cd2, dt, inv_h, kappa):
+    """Flux through an interior face between two water cells whose second neighbours on both
+    sides are water too: ``cu2, cu`` upstream of the face for ``u > 0`` (west/south), ``cd,
+    cd2`` downstream. The same arithmetic as the general face in :func:`_transport_substep`
+    (both limited slopes are formed and the one the velocity's sign picks is kept)."""
+    nu = abs(u) * dt * inv_h
+    up = u > 0.0
+    # the upwind reconstruction: from the west/south cell for u > 0, the east/north otherwise;
+    # (cd - a) is (cd + (-a)) and a sign flip of a product is exact, so one form serves both
+    slope = _vanleer(cu - cu2 if up else cd - cu, cd - cu if up else cd2 - cd)
+    flux = u * ((cu if up else cd) + 0.5 * (1.0 - nu) * (slope if up else -slope))
+    flux = flux if u != 0.0 else 0.0
+    flux -= kappa * (cd - cu) * inv_h
+    return flux
+
+
+@numba.njit(cache=True, inline="always")
+def _at(A, s, line, k, along_z):
+    """``A[s, line, k]`` along x (``line`` the row), ``A[s, k, line]`` along z."""
+    return A[s, k, line] if along_z else A[s, line, k]
+
+
+@numba.njit(cache=True, inline="always")
+def _wet(land, line, k, along_z):
+    """Cell ``k`` along ``line`` is water (:func:`_at`'s indexing)."""
+    return (land[k, line] if along_z else land[line, k]) == 0
+
+
+@numba.njit(cache=True, inline="always", error_model="numpy")
+def _face(C, s, vel, land, line, f, n, dt, inv_h, kappa, open_lo, open_hi, along_z):
+    """Flux through face ``f`` of ``line``, any face (domain edge, land, missing neighbours):
+    x-face ``(line, f)`` (``vel = u_face_x``) or, ``along_z``, z-face ``(f, line)``
+    (``vel = v_face_z``); ``n`` cells along the line, ``open_lo``/``open_hi`` its west/south
+    and east/north sides."""
+    lo = f - 1  # cell west/south of the face
+    hi = f  # cell east/north of the face
+    flux = 0.0
+    u = _clean(vel[f, line] if along_z else vel[line, f])
+    nu = abs(u) * dt * inv_h
+    if lo < 0 or hi >= n:
+        # domain boundary
+        inner = hi if lo < 0 else lo
+        is_open = open_lo if lo < 0 else open_hi
+        if is_open and _wet(land, line, inner, along_z):
+            c = _at(C, s, line, inner, along_z)
+            # upwind value when flowing out; zero-concentration inflow
+            if lo < 0:
+                if u < 0.0:
+                    flux += u * c
+                flux -= kappa * c * inv_h  # ghost 0 to the west/south: flux points out
+            else:
+                if u > 0.0:
+                    flux += u * c
+                flux += kappa * c * inv_h  # ghost concentration 0 to the east/north
+    elif _wet(land, line, lo, along_z) and _wet(land, line, hi, along_z):
+        cw = _at(C, s, line, lo, along_z)
+        ce = _at(C, s, line, hi, along_z)
+        if u > 0.0:
+            # reconstruct from the west/south cell
+            slope = 0.0
+            if lo - 1 >= 0 and _wet(land, line, lo - 1, along_z):
+                slope = _vanleer(cw - _at(C, s, line, lo - 1, along_z), ce - cw)
+            flux = u * (cw + 0.5 * (1.0 - nu) * slope)
+        elif u < 0.0:
+            slope = 0.0
+            if hi + 1 < n and _wet(land, line, hi + 1, along_z):
+                slope = _vanleer(ce - cw, _at(C, s, line, hi + 1, along_z) - ce)
+            flux = u * (ce - 0.5 * (1.0 - nu) * slope)
+        flux -= kappa * (ce - cw) * inv_h
+    return flux
+
+
+@hot_kernel
 def _transport_substep(C, s, u_face_x, v_face_z, land, h, dt, kappa, open_bc, work):
-    """One forward-Euler flux-form sub-step of species ``s``; returns the mass that left."""
+    """One forward-Euler flux-form sub-step of species ``s``; returns the mass that left.
+
+    Faces whose stencil (two cells each side) is all water away from the domain's edge take
+    a branch-light loop (:func:`_open_face_flux`) that the compiler vectorises; every other
+    face takes the general form (:func:`_face`). Both do the same
+    arithmetic, so the result does not depend on which loop a face took.
+    """
     nz = C.shape[1]
     nx = C.shape[2]
     ox = 0  # x-face fluxes, (nz, nx + 1) row-major, kg m-1 s-1
@@ -132,80 +230,46 @@ def _transport_substep(C, s, u_face_x, v_face_z, land, h, dt, kappa, open_bc, wo
 
     # ---- x-faces
     for j in range(nz):
-        for f in range(nx + 1):
-            iw = f - 1  # cell west of the face
-            ie = f  # cell east of the face
-            flux = 0.0
-            u = _clean(u_face_x[j, f])
-            nu = abs(u) * dt * inv_h
-            if iw < 0 or ie >= nx:
-                # domain boundary
-                inner = ie if iw < 0 else iw
-                is_open = open_w if iw < 0 else open_e
-                if is_open and land[j, inner] == 0:
-                    c = C[s, j, inner]
-                    # upwind value when flowing out; zero-concentration inflow
-                    if iw < 0:
-                        if u < 0.0:
-                            flux += u * c
-                        flux -= kappa * c * inv_h  # ghost 0 to the west: flux points west
-                    else:
-                        if u > 0.0:
-                            flux += u * c
-                        flux += kappa * c * inv_h  # ghost concentration 0 to the east
-            elif land[j, iw] == 0 and land[j, ie] == 0:
-                cw = C[s, j, iw]
-                ce = C[s, j, ie]
-                if u > 0.0:
-                    # reconstruct from the west cell
-                    slope = 0.0
-                    if iw - 1 >= 0 and land[j, iw - 1] == 0:
-                        slope = _vanleer(cw - C[s, j, iw - 1], ce - cw)
-                    flux = u * (cw + 0.5 * (1.0 - nu) * slope)
-                elif u < 0.0:
-                    slope = 0.0
-                    if ie + 1 < nx and land[j, ie + 1] == 0:
-                        slope = _vanleer(ce - cw, C[s, j, ie + 1] - ce)
-                    flux = u * (ce - 0.5 * (1.0 - nu) * slope)
-                flux -= kappa * (ce - cw) * inv_h
-            work[ox + j * (nx + 1) + f] = flux
+        o = ox + j * (nx + 1)
+        if nx >= 4 and _water_row(land, j):
+            for f in range(2, nx - 1):
+                # unsigned indices: no negative-index wrap-around test, so no gathers
+                a = _U(f)
+                work[_U(o + f)] = _open_face_flux(_clean(u_face_x[_U(j), a]),
+                                                  C[_U(s), _U(j), a - _U(2)],
+                                                  C[_U(s), _U(j), a - _U(1)],
+                                                  C[_U(s), _U(j), a], C[_U(s), _U(j), a + _U(1)],
+                                                  dt, inv_h, kappa)
+            for f in (0, 1, nx - 1, nx):
+                work[o + f] = _face(C, s, u_face_x, land, j, f, nx, dt, inv_h, kappa,
+                                    open_w, open_e, False)
+        else:
+            for f in range(nx + 1):
+                work[o + f] = _face(C, s, u_face_x, land, j, f, nx, dt, inv_h, kappa,
+                                    open_w, open_e, False)
 
-    # ---- z-faces
+    # ---- z-faces (water flags of rows f - 2 .. f + 1 rolled along)
+    w2 = False
+    w1 = False
+    w0 = _water_row(land, 0)
+    wn = nz > 1 and _water_row(land, 1)
     for f in range(nz + 1):
-        js = f - 1  # cell south of the face
-        jn = f  # cell north of the face
-        for i in range(nx):
-            flux = 0.0
-            v = _clean(v_face_z[f, i])
-            nu = abs(v) * dt * inv_h
-            if js < 0 or jn >= nz:
-                inner = jn if js < 0 else js
-                is_open = open_s if js < 0 else open_n
-                if is_open and land[inner, i] == 0:
-                    c = C[s, inner, i]
-                    if js < 0:
-                        if v < 0.0:
-                            flux += v * c
-                        flux -= kappa * c * inv_h  # ghost 0 to the south: flux points south
-                    else:
-                        if v > 0.0:
-                            flux += v * c
-                        flux += kappa * c * inv_h
-            elif land[js, i] == 0 and land[jn, i] == 0:
-                cs = C[s, js, i]
-                cn = C[s, jn, i]
-                if v > 0.0:
-                    slope = 0.0
-                    if js - 1 >= 0 and land[js - 1, i] == 0:
-                        slope = _vanleer(cs - C[s, js - 1, i], cn - cs)
-                    flux = v * (cs + 0.5 * (1.0 - nu) * slope)
-                elif v < 0.0:
-                    slope = 0.0
-                    if jn + 1 < nz and land[jn + 1, i] == 0:
-                        slope = _vanleer(cn - cs, C[s, jn + 1, i] - cn)
-                    flux = v * (cn - 0.5 * (1.0 - nu) * slope)
-                flux -= kappa * (cn - cs) * inv_h
-            work[oz + f * nx + i] = flux
+        o = oz + f * nx
+        if 2 <= f <= nz - 2 and w2 and w1 and w0 and wn:
+            for i in range(nx):
+                a = _U(i)
+                work[_U(o + i)] = _open_face_flux(_clean(v_face_z[_U(f), a]),
+                                                  C[_U(s), _U(f - 2), a],
+                                                  C[_U(s), _U(f - 1), a], C[_U(s), _U(f), a],
+                                                  C[_U(s), _U(f + 1), a], dt, inv_h, kappa)
+        else:
+            for i in range(nx):
+                work[o + i] = _face(C, s, v_face_z, land, i, f, nz, dt, inv_h, kappa,
+                                    open_s, open_n, True)
+        w2 = w1
+        w1 = w0
+        w0 = wn
+        wn = f + 2 < nz and _water_row(land, f + 2)
 
     # ---- outflow through open boundaries (kg): outward flux * face length * dt
     out = 0.0
@@ -219,18 +283,58 @@ def _transport_substep(C, s, u_face_x, v_face_z, land, h, dt, kappa, open_bc, wo
     # ---- conservative update
     lam = dt * inv_h
     for j in range(nz):
-        for i in range(nx):
-            if land[j, i] != 0:
-                continue
-            div = (work[ox + j * (nx + 1) + i + 1] - work[ox + j * (nx + 1) + i]
-                   + work[oz + (j + 1) * nx + i] - work[oz + j * nx + i])
-            c = C[s, j, i] - lam * div
-            # the sub-step is positivity-preserving; this only removes round-off (~1e-17 C)
-            C[s, j, i] = c if c > 0.0 else 0.0
+        ow = ox + j * (nx + 1)
+        os_ = oz + j * nx
+        on = oz + (j + 1) * nx
+        if _water_row(land, j):
+            for i in range(nx):
+                a = _U(i)
+                div = (work[_U(ow + 1) + a] - work[_U(ow) + a] + work[_U(on) + a]
+                       - work[_U(os_) + a])
+                c = C[_U(s), _U(j), a] - lam * div
+                # positivity-preserving sub-step; this only removes round-off (~1e-17 C)
+                C[_U(s), _U(j), a] = c if c > 0.0 else 0.0
+        else:
+            for i in range(nx):
+                if land[j, i] != 0:
+                    continue
+                div = work[ow + i + 1] - work[ow + i] + work[on + i] - work[os_ + i]
+                c = C[s, j, i] - lam * div
+                C[s, j, i] = c if c > 0.0 else 0.0
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
+def _max_abs(a, j, lo, hi):
+    """Largest ``|_clean(a[j, k])|`` for ``lo <= k < hi`` (0 if empty), in four running maxima
+    (four independent chains instead of one; the maximum of values >= 0, none NaN, does not
+    depend on the order they are taken in)."""
+    m0 = 0.0
+    m1 = 0.0
+    m2 = 0.0
+    m3 = 0.0
+    r = _U(j)
+    k = _U(lo)
+    while k + _U(3) < _U(hi):
+        a0 = abs(_clean(a[r, k]))
+        a1 = abs(_clean(a[r, k + _U(1)]))
+        a2 = abs(_clean(a[r, k + _U(2)]))
+        a3 = abs(_clean(a[r, k + _U(3)]))
+        m0 = a0 if a0 > m0 else m0
+        m1 = a1 if a1 > m1 else m1
+        m2 = a2 if a2 > m2 else m2
+        m3 = a3 if a3 > m3 else m3
+        k += _U(4)
+    while k < _U(hi):
+        a0 = abs(_clean(a[r, k]))
+        m0 = a0 if a0 > m0 else m0
+        k += _U(1)
+    m0 = m1 if m1 > m0 else m0
+    m2 = m3 if m3 > m2 else m2
+    return m2 if m2 > m0 else m0
+
+
+@hot_kernel(error_model="python")
 def _max_face_speeds(u_face_x, v_face_z, land, open_bc):
     """Largest |u| over x-faces and |v| over z-faces that can carry flux (the boundary faces
     outside the inner loops, the maximum as a select: the same value, fewer branches)."""
@@ -243,10 +347,14 @@ def _max_face_speeds(u_face_x, v_face_z, land, open_bc):
         if open_w and land[j, 0] == 0:
             a = abs(_clean(u_face_x[j, 0]))
             umax = a if a > umax else umax
-        for f in range(1, nx):
-            if land[j, f - 1] == 0 and land[j, f] == 0:
-                a = abs(_clean(u_face_x[j, f]))
-                umax = a if a > umax else umax
+        if _water_row(land, j):
+            a = _max_abs(u_face_x, j, 1, nx)
+            umax = a if a > umax else umax
+        else:
+            for f in range(1, nx):
+                if land[j, f - 1] == 0 and land[j, f] == 0:
+                    a = abs(_clean(u_face_x[j, f]))
+                    umax = a if a > umax else umax
         if open_e and land[j, nx - 1] == 0:
             a = abs(_clean(u_face_x[j, nx]))
             umax = a if a > umax else umax
@@ -256,11 +364,18 @@ def _max_face_speeds(u_face_x, v_face_z, land, open_bc):
             if land[0, i] == 0:
                 a = abs(_clean(v_face_z[0, i]))
                 vmax = a if a > vmax else vmax
+    wn = _water_row(land, 0)
     for f in range(1, nz):
-        for i in range(nx):
-            if land[f - 1, i] == 0 and land[f, i] == 0:
-                a = abs(_clean(v_face_z[f, i]))
-                vmax = a if a > vmax else vmax
+        ws = wn
+        wn = _water_row(land, f)
+        if ws and wn:
+            a = _max_abs(v_face_z, f, 0, nx)
+            vmax = a if a > vmax else vmax
+        else:
+            for i in range(nx):
+                if land[f - 1, i] == 0 and land[f, i] == 0:
+                    a = abs(_clean(v_face_z[f, i]))
+                    vmax = a if a > vmax else vmax
     if (open_bc & OPEN_NORTH) != 0:
         for i in range(nx):
             if land[nz - 1, i] == 0:
@@ -269,7 +384,7 @@ def _max_face_speeds(u_face_x, v_face_z, land, open_bc):
     return umax, vmax
 
 
-@numba.njit(cache=True)
+@hot_kernel(error_model="python")
 def _expm_metzler(K, ns, t, work, o_e, o_a, o_b):
     """``exp(K t)`` for a Metzler ``K`` into ``work[o_e:o_e+ns*ns]`` (row-major), entries >= 0.
 
@@ -335,7 +450,7 @@ def _expm_metzler(K, ns, t, work, o_e, o_a, o_b):
         work[o_e + a] *= damp
 
 
-@numba.njit(cache=True)
+@hot_kernel(error_model="python")
 def _react(C, kind, params, dt, land, work):
     """Apply the kind's source/sink term over ``dt`` (exactly, cell by cell)."""
     ns = C.shape[0]
@@ -382,7 +497,7 @@ def _react(C, kind, params, dt, land, work):
         raise ValueError("step_field: unknown field kind (valid: 0 tracer, 1 reaction)")
 
 
-@numba.njit(cache=True)
+@hot_kernel(error_model="python")
 def step_field(C, kind, params, u_face_x, v_face_z, land, h, dt, kappa, open_bc, work):
     """Advance the field by ``dt``: advection + diffusion (sub-stepped), then reaction/decay.
 
@@ -460,7 +575,7 @@ def step_field(C, kind, params, u_face_x, v_face_z, land, h, dt, kappa, open_bc,
 # sources, sinks, probes
 # ------------------------------------------------------------------------------------------
 
-@numba.njit(cache=True)
+@hot_kernel(error_model="python")
 def _axis_weights(x, x0, h, n):
     """Bilinear stencil along one axis: (i0, i1, w1) with weight 1-w1 on i0; i0 = -1 if outside.
 
@@ -480,7 +595,7 @@ def _axis_weights(x, x0, h, n):
     return i0, i0 + 1, f - i0
 
 
-@numba.njit(cache=True)
+@hot_kernel(error_model="python")
 def emit(C, species, x, z, rate, dt, x0, z0, h):
     """Point source: add ``rate * dt`` kg of ``species`` at world ``(x, z)``, split bilinearly.
 
@@ -528,7 +643,7 @@ def emit(C, species, x, z, rate, dt, x0, z0, h):
     return dm
 
 
-@numba.njit(cache=True)
+@hot_kernel(error_model="python")
 def probe(C, species, x, z, x0, z0, h):
     """Bilinear concentration of ``species`` at world ``(x, z)``; 0 outside the extent.
 
@@ -570,7 +685,7 @@ def probe(C, species, x, z, x0, z0, h):
             + wz * ((1.0 - wx) * C[species, j1, i0] + wx * C[species, j1, i1]))
 
 
-@numba.njit(cache=True)
+@hot_kernel(error_model="python")
 def remove_in_radius(C, x, z, radius, efficiency, dt, x0, z0, h):
     """A vehicle at ``(x, z)`` removes a fraction of the mass (all species) near it.
 
@@ -629,7 +744,7 @@ def remove_in_radius(C, x, z, radius, efficiency, dt, x0, z0, h):
     return removed * h * h
 
 
-@numba.njit(cache=True)
+@hot_kernel(error_model="python")
 def total_mass(C, h):
     """Total mass over all species and cells: ``sum(C) * h**2``.
 
@@ -653,7 +768,7 @@ def total_mass(C, h):
     return acc * h * h
 
 
-@numba.njit(cache=True)
+@hot_kernel(error_model="python")
 def species_mass(C, species, h):
     """Mass of one species: ``sum(C[species]) * h**2``.
 
@@ -685,7 +800,7 @@ def species_mass(C, species, h):
     return acc * h * h
 
 
-@numba.njit(cache=True)
+@hot_kernel(error_model="python")
 def centroid(C, species, x0, z0, h):
     """Mass centroid of ``species``.
 
