@@ -911,6 +911,39 @@ def sample_current_points(grid, xyz, t, out):
 
 
 @hot_kernel
+def sample_current_times(grid, xyz, times, out):
+    """:func:`sample_current` at every point at every time, time-major: the time located and
+    the synthetic tide taken once per time (the same arithmetic as per sample).
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    xyz : (P, 3) float64
+        Points ``[x, y, z]``, m.
+    times : (T,) float64
+        Times, s since ``time0_unix_s``.
+    out : (T * P, 2) float64
+        Output array, written in place: row ``n * P + p`` is point ``p`` at time ``n``.
+
+    Returns
+    -------
+    (T * P, 2) float64
+        ``out``: ``[ce, cn]``, m s-1.
+    """
+    n_p = xyz.shape[0]
+    for n in range(times.shape[0]):
+        t = times[n]
+        ti0, ti1, wt = locate_time(grid, t)
+        te, tn = synthetic_tide(grid, t)
+        for p in range(n_p):
+            ce, cn = sample_current_at(grid, xyz[p, 0], xyz[p, 1], xyz[p, 2], ti0, ti1, wt)
+            out[n * n_p + p, 0] = ce + te
+            out[n * n_p + p, 1] = cn + tn
+    return out
+
+
+@hot_kernel
 def sample_elevation_points(grid, xz, out):
     """Vectorised :func:`sample_elevation`.
 
