@@ -304,84 +304,85 @@ def _transport_substep(C, s, u_face_x, v_face_z, land, h, dt, kappa, open_bc, wo
     return out
 
 
+_ABS_BITS = np.int64(0x7FFFFFFFFFFFFFFF)   # all but the sign bit
+_INF_BITS = np.int64(0x7FF0000000000000)   # the first non-finite magnitude
+
+
 @numba.njit(cache=True, inline="always")
-def _max_abs(a, j, lo, hi):
-    """Largest ``|_clean(a[j, k])|`` for ``lo <= k < hi`` (0 if empty), in four running maxima
-    (four independent chains instead of one; the maximum of values >= 0, none NaN, does not
-    depend on the order they are taken in)."""
-    m0 = 0.0
-    m1 = 0.0
-    m2 = 0.0
-    m3 = 0.0
-    r = _U(j)
-    k = _U(lo)
-    while k + _U(3) < _U(hi):
-        a0 = abs(_clean(a[r, k]))
-        a1 = abs(_clean(a[r, k + _U(1)]))
-        a2 = abs(_clean(a[r, k + _U(2)]))
-        a3 = abs(_clean(a[r, k + _U(3)]))
-        m0 = a0 if a0 > m0 else m0
-        m1 = a1 if a1 > m1 else m1
-        m2 = a2 if a2 > m2 else m2
-        m3 = a3 if a3 > m3 else m3
-        k += _U(4)
-    while k < _U(hi):
-        a0 = abs(_clean(a[r, k]))
-        m0 = a0 if a0 > m0 else m0
-        k += _U(1)
-    m0 = m1 if m1 > m0 else m0
-    m2 = m3 if m3 > m2 else m2
-    return m2 if m2 > m0 else m0
+def _speed_bits(b):
+    """The bits of ``abs(_clean(x))`` from the bits ``b`` of ``x``: the sign cleared, inf and
+    NaN (exponent all ones) read as 0. For values >= 0 the bits order as the values do, so
+    maxima can be taken on integers (a reduction the compiler vectorises; float maxima it
+    may not reorder)."""
+    a = b & _ABS_BITS
+    return a if a < _INF_BITS else np.int64(0)
+
+
+@numba.njit(cache=True, inline="always")
+def _max_speed_bits(bits, j, lo, hi):
+    """Bits of the largest ``|_clean(x)|`` over ``x = row j, columns lo..hi-1`` (0 if none)."""
+    m = np.int64(0)
+    for k in range(_U(lo), _U(hi)):
+        a = _speed_bits(bits[_U(j), k])
+        m = a if a > m else m
+    return m
 
 
 @hot_kernel(error_model="python")
-def _max_face_speeds(u_face_x, v_face_z, land, open_bc):
-    """Largest |u| over x-faces and |v| over z-faces that can carry flux (the boundary faces
-    outside the inner loops, the maximum as a select: the same value, fewer branches)."""
+def _max_face_speeds(u_face_x, v_face_z, land, open_bc, work):
+    """Largest |u| over x-faces and |v| over z-faces that can carry flux (NaN and inf read
+    as 0), taken on the values' bits (:func:`_speed_bits`: the same maxima); ``work[0]`` is
+    used to turn the bits back into floats."""
     nz = land.shape[0]
     nx = land.shape[1]
+    ub = u_face_x.view(np.int64)
+    vb = v_face_z.view(np.int64)
     open_w = (open_bc & OPEN_WEST) != 0
     open_e = (open_bc & OPEN_EAST) != 0
-    umax = 0.0
+    umax = np.int64(0)
     for j in range(nz):
         if open_w and land[j, 0] == 0:
-            a = abs(_clean(u_face_x[j, 0]))
+            a = _speed_bits(ub[j, 0])
             umax = a if a > umax else umax
         if _water_row(land, j):
-            a = _max_abs(u_face_x, j, 1, nx)
+            a = _max_speed_bits(ub, j, 1, nx)
             umax = a if a > umax else umax
         else:
             for f in range(1, nx):
                 if land[j, f - 1] == 0 and land[j, f] == 0:
-                    a = abs(_clean(u_face_x[j, f]))
+                    a = _speed_bits(ub[j, f])
                     umax = a if a > umax else umax
         if open_e and land[j, nx - 1] == 0:
-            a = abs(_clean(u_face_x[j, nx]))
+            a = _speed_bits(ub[j, nx])
             umax = a if a > umax else umax
-    vmax = 0.0
+    vmax = np.int64(0)
     if (open_bc & OPEN_SOUTH) != 0:
         for i in range(nx):
             if land[0, i] == 0:
-                a = abs(_clean(v_face_z[0, i]))
+                a = _speed_bits(vb[0, i])
                 vmax = a if a > vmax else vmax
     wn = _water_row(land, 0)
     for f in range(1, nz):
         ws = wn
         wn = _water_row(land, f)
         if ws and wn:
-            a = _max_abs(v_face_z, f, 0, nx)
+            a = _max_speed_bits(vb, f, 0, nx)
             vmax = a if a > vmax else vmax
         else:
             for i in range(nx):
                 if land[f - 1, i] == 0 and land[f, i] == 0:
-                    a = abs(_clean(v_face_z[f, i]))
+                    a = _speed_bits(vb[f, i])
                     vmax = a if a > vmax else vmax
     if (open_bc & OPEN_NORTH) != 0:
         for i in range(nx):
             if land[nz - 1, i] == 0:
-                a = abs(_clean(v_face_z[nz, i]))
+                a = _speed_bits(vb[nz, i])
                 vmax = a if a > vmax else vmax
-    return umax, vmax
+    wb = work.view(np.int64)
+    wb[0] = umax
+    u = work[0]
+    wb[0] = vmax
+    return u, work[0]
 
 
 @hot_kernel(error_model="python")
@@ -555,7 +556,7 @@ def step_field(C, kind, params, u_face_x, v_face_z, land, h, dt, kappa, open_bc,
         raise ValueError("step_field: need h > 0, dt >= 0 and kappa >= 0")
     if dt == 0.0:
         return 0.0
-    umax, vmax = _max_face_speeds(u_face_x, v_face_z, land, open_bc)
+    umax, vmax = _max_face_speeds(u_face_x, v_face_z, land, open_bc, work)
     rate = 2.0 * (umax + vmax) / h + 4.0 * kappa / (h * h)
     n_sub = 1
     if rate * dt > _CFL_SAFETY:
