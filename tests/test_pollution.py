@@ -390,44 +390,35 @@ def _ref_substep(C, U, V, land, h, dt, kappa, open_bc):
     with zero-concentration ghosts); returns the new field and the mass that left."""
     nz, nx = C.shape
     inv_h = 1.0 / h
-    clean = [[float(x) if np.isfinite(x) else 0.0 for x in row] for row in U], \
-        [[float(x) if np.isfinite(x) else 0.0 for x in row] for row in V]
     c = [[float(x) for x in row] for row in C]
 
-    def at(j, i):
-        return c[j][i] if 0 <= j < nz and 0 <= i < nx and land[j, i] == 0 else None
+    def fluxes(c, vel, land, lo_side, hi_side):
+        """Fluxes through the faces along each row of ``c`` (x-faces; z-faces transposed)."""
+        rows, n = len(c), len(c[0])
 
-    def boundary(u, cin, outward_positive):
-        # outflow carries the inner cell's value, inflow zero; the ghost outside holds 0
-        flux = 0.0
-        if (u > 0.0) if outward_positive else (u < 0.0):
-            flux += u * cin
-        return flux + kappa * cin * inv_h if outward_positive else flux - kappa * cin * inv_h
+        def at(j, i):
+            return c[j][i] if 0 <= i < n and land[j, i] == 0 else None
 
-    FX = [[0.0] * (nx + 1) for _ in range(nz)]
-    FZ = [[0.0] * nx for _ in range(nz + 1)]
-    for j in range(nz):
-        for f in range(nx + 1):
-            u = clean[0][j][f]
-            if f == 0 or f == nx:
-                inner = 0 if f == 0 else nx - 1
-                side = P.OPEN_WEST if f == 0 else P.OPEN_EAST
-                if open_bc & side and land[j, inner] == 0:
-                    FX[j][f] = boundary(u, c[j][inner], f == nx)
-            elif at(j, f - 1) is not None and at(j, f) is not None:
-                FX[j][f] = _ref_face(u, at(j, f - 2), c[j][f - 1], c[j][f], at(j, f + 1),
-                                     dt, h, kappa)
-    for f in range(nz + 1):
-        for i in range(nx):
-            v = clean[1][f][i]
-            if f == 0 or f == nz:
-                inner = 0 if f == 0 else nz - 1
-                side = P.OPEN_SOUTH if f == 0 else P.OPEN_NORTH
-                if open_bc & side and land[inner, i] == 0:
-                    FZ[f][i] = boundary(v, c[inner][i], f == nz)
-            elif at(f - 1, i) is not None and at(f, i) is not None:
-                FZ[f][i] = _ref_face(v, at(f - 2, i), c[f - 1][i], c[f][i], at(f + 1, i),
-                                     dt, h, kappa)
+        F = [[0.0] * (n + 1) for _ in range(rows)]
+        for j in range(rows):
+            for f in range(n + 1):
+                u = float(vel[j, f]) if np.isfinite(vel[j, f]) else 0.0
+                if f == 0 or f == n:
+                    inner, side = (0, lo_side) if f == 0 else (n - 1, hi_side)
+                    if open_bc & side and land[j, inner] == 0:
+                        # outflow carries the inner cell's value, inflow zero; ghost 0 outside
+                        cin, out_pos = c[j][inner], f == n
+                        flux = u * cin if (u > 0.0 if out_pos else u < 0.0) else 0.0
+                        F[j][f] = (flux + kappa * cin * inv_h if out_pos
+                                   else flux - kappa * cin * inv_h)
+                elif at(j, f - 1) is not None and at(j, f) is not None:
+                    F[j][f] = _ref_face(u, at(j, f - 2), c[j][f - 1], c[j][f], at(j, f + 1),
+                                        dt, h, kappa)
+        return F
+
+    FX = fluxes(c, U, land, P.OPEN_WEST, P.OPEN_EAST)
+    FZ = [list(r) for r in zip(*fluxes([list(r) for r in zip(*c)], V.T, land.T,
+                                       P.OPEN_SOUTH, P.OPEN_NORTH))]
     out = 0.0
     for j in range(nz):
         out -= FX[j][0] * h * dt
