@@ -140,8 +140,8 @@ def _water_row(land, j):
 def _open_face_flux(u, cu2, cu, cd, cd2, dt, inv_h, kappa):
     """Flux through an interior face between two water cells whose second neighbours on both
     sides are water too: ``cu2, cu`` upstream of the face for ``u > 0`` (west/south), ``cd,
-    cd2`` downstream. The same arithmetic as the general face in :func:`_transport_substep`
-    (both limited slopes are formed and the one the velocity's sign picks is kept)."""
+    cd2`` downstream. The same arithmetic as the general face (:func:`_face`): the limited
+    slope is formed from the differences the velocity's sign selects."""
     nu = abs(u) * dt * inv_h
     up = u > 0.0
     # the upwind reconstruction: from the west/south cell for u > 0, the east/north otherwise;
