@@ -203,6 +203,87 @@ def test_deterministic_bit_for_bit():
         assert a.cost <= s
 
 
+def _plain_dijkstra(cur, times, free, sx, sz, gx, gz, speeds, ph, pk, hold, t0, step):
+    """The planner's search written plainly: heapq on (cost, node), every edge of every
+    settled node integrated (no lower-bound pruning), the compiled segment integrator."""
+    import heapq
+
+    nos = np.empty(0, np.int64)
+    ny, nx = free.shape
+
+    def seg(ax, az, bx, bz, t, first):
+        return R._segment(cur, times, free, X0, Z0, H, ax, az, bx, bz, speeds, ph, pk, hold,
+                          t, step, first, nos)
+
+    cost = np.full(ny * nx, np.inf)
+    tarr = np.full(ny * nx, np.inf)
+    parent = np.full(ny * nx, -3)
+    done = np.zeros(ny * nx, bool)
+    r2 = (2.3 * H) ** 2
+    bt, bc = seg(sx, sz, gx, gz, t0, True)
+    gp = -1 if math.isfinite(bc) else -2
+    heap = []
+    for j in range(ny):
+        for i in range(nx):
+            px, pz = X0 + i * H, Z0 + j * H
+            if (px - sx) ** 2 + (pz - sz) ** 2 > r2 or not free[j, i] > 0.0:
+                continue
+            ta, ca = seg(sx, sz, px, pz, t0, True)
+            n = j * nx + i
+            if ca < cost[n]:
+                cost[n], tarr[n], parent[n] = ca, ta, -1
+                heapq.heappush(heap, (ca, n))
+    while heap:
+        c, n = heapq.heappop(heap)
+        if done[n] or c > cost[n]:
+            continue
+        if c >= bc:
+            break
+        done[n] = True
+        i, j = n % nx, n // nx
+        px, pz, t = X0 + i * H, Z0 + j * H, tarr[n]
+        if (px - gx) ** 2 + (pz - gz) ** 2 <= r2:
+            tg, cg = seg(px, pz, gx, gz, t, False)
+            if c + cg < bc:
+                bc, bt, gp = c + cg, tg, n
+        for di, dj in R.EDGES:
+            ii, jj = i + di, j + dj
+            if not (0 <= ii < nx and 0 <= jj < ny):
+                continue
+            m = jj * nx + ii
+            if done[m] or not free[jj, ii] > 0.0:
+                continue
+            tm, cm = seg(px, pz, X0 + ii * H, Z0 + jj * H, t, False)
+            if c + cm < cost[m]:
+                cost[m], tarr[m], parent[m] = c + cm, tm, n
+                heapq.heappush(heap, (c + cm, m))
+    return cost, tarr, parent, gp, bc, bt
+
+
+@pytest.mark.parametrize("power", [None, (23.5, 5.96)])
+def test_search_is_the_plain_dijkstra_bit_for_bit(power):
+    # the compiled search (its heap, the edges' lower bounds that skip integrations, the
+    # start's and goal's attachments) settles the same nodes with the same costs, times
+    # and parents as the plain search, on a time-varying field with land and a jet
+    cur, times, free = _random_field(seed=5, nt=3)
+    n = 41
+    cur, free = cur[:, :n, :n].copy(), free[:n, :n].copy()
+    free[12:20, 25:28] = -1.0
+    cur[:, 20:24, :, 0] += 1.2          # a jet the vehicle cannot cross at its slow speeds
+    sp = R.mission_speeds(2.5)
+    ph, pk = (0.0, 0.0) if power is None else power
+    for (sx, sz), (gx, gz), t0 in [((-1710.3, -1622.9), (-402.5, -310.2), 300.0),
+                                   ((-160.0, -1800.0), (-1900.0, -130.0), 4000.0)]:
+        args = (cur, times, free, sx, sz, gx, gz, sp, ph, pk, 0.1, t0, 60.0)
+        got = R._dijkstra(cur, times, free, X0, Z0, H, sx, sz, gx, gz, sp, ph, pk, 0.1, t0,
+                          60.0, R.EDGES)
+        want = _plain_dijkstra(*args)
+        assert got[3] >= 0 and np.isfinite(got[4])
+        assert got[3] == want[3] and got[4] == want[4] and got[5] == want[5]
+        for a, b in zip(got[:3], want[:3]):
+            assert np.array_equal(a, b)
+
+
 def test_schedule_speeds_follow_the_current():
     # along a fixed east-going line: head current on the first half, following on the second
     cur, t, free = _field()

@@ -357,15 +357,6 @@ def _heap_pop(hc, hn, size):
 
 
 @njit(cache=True)
-def _heap_grow(hc, hn):
-    c2 = np.empty(2 * hc.shape[0])
-    n2 = np.empty(2 * hc.shape[0], np.int64)
-    c2[:hc.shape[0]] = hc
-    n2[:hn.shape[0]] = hn
-    return c2, n2
-
-
-@njit(cache=True)
 def _local_cmax(cur, reach):
     """(ny, nx): the fastest current speed (over every time) at the nodes within ``reach``
     cells of each node (the window ``i - reach .. i + reach + 1``, clamped): every current
@@ -435,8 +426,6 @@ def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold,
     tarr = np.full(nn, np.inf)
     parent = np.full(nn, -3, np.int64)
     done = np.zeros(nn, np.uint8)
-    nos = np.empty(0, np.int64)
-    r_att = 2.3 * h
     # lower bounds of the edges' costs: an edge whose bound cannot improve its end node's
     # cost is not integrated (the relaxation would not take it: the same search, bit for bit)
     reach = 0
@@ -447,14 +436,34 @@ def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold,
         elen[k] = h * math.sqrt(di * di + dj * dj)
         reach = max(reach, abs(edges[k, 0]), abs(edges[k, 1]))
     cloc = _local_cmax(cur, reach)
+    # the heap never outgrows this: a node is pushed at most once from the start (the
+    # attached nodes lie in a 7 x 7 box) and once per edge from each settled node
+    cap = nn * edges.shape[0] + 64
+    hc = np.empty(cap)
+    hn = np.empty(cap, np.int64)
+    res = np.empty(2)
+    gp = _search(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0,
+                 step, edges, elen, cloc, cost, tarr, parent, done, hc, hn, np.empty(0, np.int64),
+                 res)
+    return cost, tarr, parent, gp, res[0], res[1]
+
+
+@hot_kernel   # no reference counting: its helpers get 4-5 arrays on every relaxation
+def _search(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0, step,
+            edges, elen, cloc, cost, tarr, parent, done, hc, hn, nos, res):
+    """:func:`_dijkstra`'s search on its allocated arrays (``cost``, ``tarr``, ``parent``
+    at their initial values, ``done`` zero, the heap ``hc``/``hn`` large enough for every
+    push): returns the goal's parent node and writes the goal's cost and time into
+    ``res``."""
+    nx = free.shape[1]
+    r_att = 2.3 * h
     bt, bc = _segment(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0,
                       step, True, nos)
     goal_parent = -1 if math.isfinite(bc) else -2
     # binary min-heap on (cost, node), lazy deletion: the keys are distinct (a node is pushed
     # again only with a strictly smaller cost), so it pops in the order heapq did
-    hc = np.empty(max(64, 4 * nn))
-    hn = np.empty(hc.shape[0], np.int64)
     size = 0
+    ny = free.shape[0]
     # the start attaches to the nodes around it
     i_lo = max(int(math.floor((sx - x0) / h - 2.3)), 0)
     i_hi = min(int(math.ceil((sx - x0) / h + 2.3)), nx - 1)
@@ -474,8 +483,6 @@ def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold,
                 tarr[n] = ta
                 parent[n] = -1
                 size = _heap_push(hc, hn, size, ca, n)
-                if size == hc.shape[0]:
-                    hc, hn = _heap_grow(hc, hn)
     while size > 0:
         c = hc[0]
         n = hn[0]
@@ -513,9 +520,9 @@ def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold,
                 tarr[m] = tm
                 parent[m] = n
                 size = _heap_push(hc, hn, size, c + cm, m)
-                if size == hc.shape[0]:
-                    hc, hn = _heap_grow(hc, hn)
-    return cost, tarr, parent, goal_parent, bc, bt
+    res[0] = bc
+    res[1] = bt
+    return goal_parent
 
 
 @njit(cache=True)
