@@ -25,9 +25,11 @@ model are printed.
 
 Breakdown (``--breakdown``: after the timed runs; ``--breakdown-only``: instead of them;
 each side given, so it works without ``--baseline-src``). Where an agent-step's CPU time
-(``time.process_time``, one thread) goes, per task, in the worker of each side:
+(``time.process_time``, one thread) goes, per task, in the worker of each side, in
+``--repeat`` rounds that alternate between the sides as the timed runs do (a drift of the
+machine's speed then reaches both sides alike); each figure is its best over the rounds:
 
-1. *The cell*, as ``run_cell`` runs it, best of ``--repeat``: episode sampling (``Cell`` +
+1. *The cell*, as ``run_cell`` runs it, once per round: episode sampling (``Cell`` +
    ``reset`` + ``make`` + the policy's ``prepare``, i.e. building the ``Episodes``) timed
    apart from the loop (``Episodes.run()``); both divided by the *executed* agent-steps
    (loop iterations x agents, ``sum(LS.k) N``; the table above counts ``T_s / dt N``, which
@@ -38,7 +40,7 @@ each side given, so it works without ``--baseline-src``). Where an agent-step's 
    and after the step, its executed command, the step's time and the sensor state.
 3. *Each component alone*, in a small jitted loop (``breakdown_replay``, generated into the
    cache folder) replaying exactly the calls the loop makes on the recorded arguments, in
-   the loop's order (episode by episode), best of ``max(--repeat, 3)``: **dynamics**
+   the loop's order (episode by episode), best of 3 per round: **dynamics**
    (``engine.step.advance_agent``), **current** (``tasks.common.current_at`` at every agent:
    the grid sampling plus the tide), **sensing** (``sensing.kernels``: ``nav_fill`` twice,
    ``current_estimate`` and ``nav_update`` per agent, as the loop calls them; the random
@@ -87,8 +89,7 @@ print("@@" + json.dumps({"file": oneocean.__file__, "warmup_s": warm}), flush=Tr
 for line in sys.stdin:
     if line.strip() == "breakdown":
         import breakdown_replay as BR
-        print("@@" + json.dumps(BR.breakdown(grid, task, tier, episodes, int(sys.argv[5]))),
-              flush=True)
+        print("@@" + json.dumps(BR.breakdown(grid, task, tier, episodes, 1)), flush=True)
         continue
     if line.strip() != "run":
         break
@@ -268,13 +269,13 @@ def replay_dir(src, cache) -> Path:
 class Worker:
     """One side's long-lived subprocess for one task."""
 
-    def __init__(self, side, src, cache, grid, task, tier, episodes, repeat=1):
+    def __init__(self, side, src, cache, grid, task, tier, episodes):
         path = os.pathsep.join([str(src), str(replay_dir(src, cache))])
         env = dict(os.environ, PYTHONPATH=path, NUMBA_NUM_THREADS="1",
                    NUMBA_CACHE_DIR=str(cache))
         self.side, self.task, self.err = side, task, tempfile.TemporaryFile(mode="w+")
         self.proc = subprocess.Popen([sys.executable, "-c", _WORKER, str(grid), task, str(tier),
-                                      str(episodes), str(repeat)], env=env, stdin=subprocess.PIPE,
+                                      str(episodes)], env=env, stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, stderr=self.err, text=True)
 
     def read(self) -> dict:
@@ -295,10 +296,18 @@ class Worker:
         self.err.close()
 
 
+def _best_parts(best: dict | None, new: dict) -> dict:
+    """The breakdown of two rounds of the same cell: every time (``*_us``) the smaller, the
+    counts (which a round does not change) as they are."""
+    if best is None:
+        return new
+    return {k: (min(v, new[k]) if k.endswith("_us") else v) for k, v in best.items()}
+
+
 def measure(task, sides, args, cache_root) -> dict:
     """Best-of-repeat timing per side for one task, calls interleaved across sides."""
-    workers = {s: Worker(s, src, Path(cache_root) / s, args.grid, task, args.tier, args.episodes,
-                         args.repeat) for s, src in sides.items()}
+    workers = {s: Worker(s, src, Path(cache_root) / s, args.grid, task, args.tier, args.episodes)
+               for s, src in sides.items()}
     ok = False  # on an error, kill the other side rather than wait for its compile
     try:
         info = {s: w.read() for s, w in workers.items()}  # warm-ups run concurrently
@@ -306,7 +315,12 @@ def measure(task, sides, args, cache_root) -> dict:
         for _ in range(args.repeat if args.runs else 0):
             for s, w in workers.items():
                 runs[s].append(w.run())
-        parts = {s: w.run("breakdown") for s, w in workers.items()} if args.breakdown else {}
+        # the breakdown in rounds alternating across sides, as the timed runs are: a drift
+        # of the machine's speed then reaches both sides alike
+        parts = {}
+        for _ in range(max(args.repeat, 1) if args.breakdown else 0):
+            for s, w in workers.items():
+                parts[s] = _best_parts(parts.get(s), w.run("breakdown"))
         ok = True
     finally:
         for w in workers.values():
