@@ -1,6 +1,7 @@
 """The route planner (oneocean.tasks.routing) on hand-made fields: the straight line in a
 uniform current, a jet across and along the straight line, land, time-varying fields, the
-power model, the forecast mapping, path following, and bit-for-bit determinism."""
+power model, the forecast mapping, path following, bit-for-bit determinism, and the compiled
+search against the same search written plainly (heapq, no pruning)."""
 
 from __future__ import annotations
 
