@@ -441,21 +441,19 @@ def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold,
     cap = nn * edges.shape[0] + 64
     hc = np.empty(cap)
     hn = np.empty(cap, np.int64)
-    res = np.empty(2)
-    gp = _search(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0,
-                 step, edges, elen, cloc, cost, tarr, parent, done, hc, hn, np.empty(0, np.int64),
-                 res)
-    return cost, tarr, parent, gp, res[0], res[1]
+    gp, bc, bt = _search(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold,
+                         t0, step, edges, elen, cloc, cost, tarr, parent, done, hc, hn,
+                         np.empty(0, np.int64))
+    return cost, tarr, parent, gp, bc, bt
 
 
 @hot_kernel   # no reference counting: its helpers get 4-5 arrays on every relaxation
 def _search(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0, step,
-            edges, elen, cloc, cost, tarr, parent, done, hc, hn, nos, res):
+            edges, elen, cloc, cost, tarr, parent, done, hc, hn, nos):
     """:func:`_dijkstra`'s search on its allocated arrays (``cost``, ``tarr``, ``parent``
     at their initial values, ``done`` zero, the heap ``hc``/``hn`` large enough for every
-    push): returns the goal's parent node and writes the goal's cost and time into
-    ``res``."""
-    nx = free.shape[1]
+    push): returns the goal's parent node, cost and time."""
+    ny, nx = free.shape
     r_att = 2.3 * h
     bt, bc = _segment(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0,
                       step, True, nos)
@@ -463,7 +461,6 @@ def _search(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t
     # binary min-heap on (cost, node), lazy deletion: the keys are distinct (a node is pushed
     # again only with a strictly smaller cost), so it pops in the order heapq did
     size = 0
-    ny = free.shape[0]
     # the start attaches to the nodes around it
     i_lo = max(int(math.floor((sx - x0) / h - 2.3)), 0)
     i_hi = min(int(math.ceil((sx - x0) / h + 2.3)), nx - 1)
@@ -520,9 +517,7 @@ def _search(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t
                 tarr[m] = tm
                 parent[m] = n
                 size = _heap_push(hc, hn, size, c + cm, m)
-    res[0] = bc
-    res[1] = bt
-    return goal_parent
+    return goal_parent, bc, bt
 
 
 @njit(cache=True)
