@@ -186,27 +186,14 @@ def _best(fn, args, fresh, repeat):
     return best
 
 
-def breakdown(grid, task, tier, episodes, repeat, max_records=200_000):
-    import oneocean.tasks as T
+_RECORDED = {}
 
-    # 1. the cell as run_cell runs it: sampling (Cell + reset + make + prepare), then the loop
-    samp, loop = np.inf, np.inf
-    for _ in range(max(repeat, 1)):
-        c0 = time.process_time()
-        cell = T.Cell(grid, task, tier)
-        init = cell.reset(episodes, 0)
-        ep = cell.episodes(init, "heuristic", "6dof", 0)
-        c1 = time.process_time()
-        ep.run()
-        c2 = time.process_time()
-        samp, loop = min(samp, c1 - c0), min(loop, c2 - c1)
-    n_ag = ep.n_agents
-    steps = int(ep.LS.k.sum()) * n_ag      # executed agent-steps (loop iterations x agents)
-    # 2. record the same episodes step by step (every stride-th step): states before and
-    #    after, executed commands, sensor state
+
+def _record(cell, init, stride):
+    """The cell's episodes advanced step by step (every stride-th step): states before and
+    after, executed commands, sensor state, in the loop's order; and the Episodes."""
     ep = cell.episodes(init, "heuristic", "6dof", 0)
     LP, LS = ep.LP, ep.LS
-    stride = max(1, -(-steps // max_records))
     rec = {key: [] for key in ("S0", "S1", "C", "T", "K", "E", "CB", "FC", "NAVC", "NERR")}
     k = 0
     while k < ep.n_steps and not ep.done.all():
@@ -228,6 +215,32 @@ def breakdown(grid, task, tier, episodes, repeat, max_records=200_000):
     # episode touches stays in cache as it does in the loop
     order = np.lexsort((np.concatenate(rec["K"]), np.concatenate(rec["E"])))
     R = {key: np.ascontiguousarray(np.concatenate(v)[order]) for key, v in rec.items()}
+    return R, ep
+
+
+def breakdown(grid, task, tier, episodes, repeat, max_records=200_000):
+    import oneocean.tasks as T
+
+    # 1. the cell as run_cell runs it: sampling (Cell + reset + make + prepare), then the loop
+    samp, loop = np.inf, np.inf
+    for _ in range(max(repeat, 1)):
+        c0 = time.process_time()
+        cell = T.Cell(grid, task, tier)
+        init = cell.reset(episodes, 0)
+        ep = cell.episodes(init, "heuristic", "6dof", 0)
+        c1 = time.process_time()
+        ep.run()
+        c2 = time.process_time()
+        samp, loop = min(samp, c1 - c0), min(loop, c2 - c1)
+    n_ag = ep.n_agents
+    steps = int(ep.LS.k.sum()) * n_ag      # executed agent-steps (loop iterations x agents)
+    # 2. the recording of the same episodes (made once per worker: every round replays it)
+    stride = max(1, -(-steps // max_records))
+    key = (task, tier, episodes, stride)
+    if key not in _RECORDED:
+        _RECORDED[key] = _record(cell, init, stride)
+    R, ep = _RECORDED[key]
+    LP = ep.LP
     n_rec = R["S0"].shape[0] * n_ag
     CE, CN = np.zeros(R["S0"].shape[:2]), np.zeros(R["S0"].shape[:2])
     # 3. each component alone on the recorded calls
