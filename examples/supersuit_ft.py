@@ -84,6 +84,7 @@ def main(argv=None) -> dict:
 
     from oneocean.defaults import resolve_grid
     from oneocean.envs import normalize
+    from oneocean.methods.ppo.train import quiet_logger
     from oneocean.vocab import EVALUATION_SEED
 
     assert a.seed != EVALUATION_SEED, "train on other seeds than the evaluation seed"
@@ -93,6 +94,7 @@ def main(argv=None) -> dict:
     model = PPO("MlpPolicy", env, n_steps=a.n_steps,
                 batch_size=min(64, a.n_steps * env.num_envs), seed=a.seed, device="cpu",
                 verbose=0)
+    quiet_logger(model)            # SB3's logger without its empty <tempdir>/SB3-* folder
     t0 = time.perf_counter()
     model.learn(total_timesteps=a.steps)
     out = {"timesteps": int(model.num_timesteps), "wall_s": time.perf_counter() - t0,

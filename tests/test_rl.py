@@ -8,6 +8,7 @@ import importlib.util
 import subprocess
 import sys
 import warnings
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +42,13 @@ def grid_path():
     from oneocean.defaults import default_grid_path
 
     return default_grid_path()
+
+
+@pytest.fixture(autouse=True)
+def _sb3_logs_in_tmp(tmp_path, monkeypatch):
+    """SB3's default logger makes a ``<tempdir>/SB3-<date>`` folder per ``learn``: the tests
+    that train through SB3 directly keep it in their own temporary folder."""
+    monkeypatch.setenv("SB3_LOGDIR", str(tmp_path / "sb3_logs"))
 
 
 def _torch_one_thread():
@@ -190,7 +198,7 @@ def test_policy_constants_match_the_env(grid):
                                                           env.cell_steps)
 
 
-def test_train_save_load_evaluate_round_trip(grid_path, tmp_path):
+def test_train_save_load_evaluate_round_trip(grid_path, tmp_path, monkeypatch):
     from oneocean.ladder import read_cell
     from oneocean.methods.ppo.policy import METHOD, evaluate_to_file, load
     from oneocean.methods.ppo.train import read_report, train_to_files
@@ -200,6 +208,12 @@ def test_train_save_load_evaluate_round_trip(grid_path, tmp_path):
 
     assert method_spec("ppo") is METHOD and METHOD.kind == "callable" in METHOD_KINDS
     small = {"n_steps": 32, "batch_size": 32, "n_epochs": 1}
+    # training leaves no empty SB3-<date> folder in the temporary directory
+    import tempfile
+
+    monkeypatch.delenv("SB3_LOGDIR")
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
     paths = []
     for run in ("a", "b"):
         d = tmp_path / run
@@ -209,6 +223,13 @@ def test_train_save_load_evaluate_round_trip(grid_path, tmp_path):
         evaluate_to_file(d / "policy.zip", grid_path, d / "ppo.parquet", "SK", 3, episodes=3)
         paths.append(d)
     a, b = paths
+    assert not list((tmp_path / "tmp").glob("SB3-*"))
+    # nothing in the zip that differs between processes or machines: SB3's class
+    # descriptions without memory addresses, its system info without the OS line
+    with zipfile.ZipFile(a / "policy.zip") as z:
+        assert b"ActorCriticPolicy" in z.read("data") and b" at 0x" not in z.read("data")
+        info = z.read("system_info.txt").decode()
+        assert "Stable-Baselines3:" in info and "- OS:" not in info
     assert (a / "policy.zip").read_bytes() == (b / "policy.zip").read_bytes()
     assert (a / "ppo.parquet").read_bytes() == (b / "ppo.parquet").read_bytes()
     rep = read_report(a / "report.json")
@@ -243,6 +264,38 @@ def test_train_save_load_evaluate_round_trip(grid_path, tmp_path):
     assert "PPO T3" in (tmp_path / "t5.tex").read_text()
     without = task_success_ci_frame([heur])
     assert "ppo" not in set(without["method"])
+
+
+_TRAIN_IN_A_PROCESS = """
+import sys
+from oneocean.methods.ppo.train import train_to_files
+train_to_files(sys.argv[1], sys.argv[2], sys.argv[3], "SK", tiers=[1], budget_steps=128,
+               n_envs=2, seeds=[0], ppo_kwargs={"n_steps": 32, "batch_size": 32, "n_epochs": 2})
+"""
+
+
+def test_training_gives_the_same_bytes_on_another_cpu(grid_path, tmp_path):
+    """Training in a fresh process gives the same policy.zip bytes with MKL restricted to
+    SSE4.2 (a CPU without AVX, as another machine would run it) as with its own choice
+    for this CPU: torch's machine-independent settings are in force (``pin_torch_cpu``),
+    and the zip holds no memory address. Fails without the pin (MKL's products differ)."""
+    import json
+    import os
+
+    out = []
+    for name, extra in (("native", {}), ("sse42", {"MKL_ENABLE_INSTRUCTIONS": "SSE4_2"})):
+        d = tmp_path / name
+        env = {k: v for k, v in os.environ.items() if k not in ("ATEN_CPU_CAPABILITY",
+                                                                 "MKL_CBWR")}
+        run = subprocess.run([sys.executable, "-c", _TRAIN_IN_A_PROCESS, str(grid_path),
+                              str(d / "policy.zip"), str(d / "report.json")],
+                             env={**env, **extra}, capture_output=True, text=True, timeout=900)
+        assert run.returncode == 0, run.stderr[-2000:]
+        out.append(d)
+    a, b = out
+    assert (a / "policy.zip").read_bytes() == (b / "policy.zip").read_bytes()
+    cpu = json.loads((a / "report.json").read_text())["runs"][0]["torch_cpu"]
+    assert cpu == {"cpu_capability": "DEFAULT", "mkl_cbwr": "COMPATIBLE"}
 
 
 def test_no_macro_for_a_method_run_on_some_tasks(grid_path, tmp_path):

@@ -157,6 +157,9 @@ def load(path, task: str, tier: int) -> PPOPolicy:
     PPOPolicy
         The policy, its model loaded on the CPU.
     """
+    from .train import pin_torch_cpu
+
+    pin_torch_cpu()                  # the same bits on any CPU (before torch is imported)
     from stable_baselines3 import PPO
 
     return PPOPolicy(PPO.load(str(path), device="cpu"), task, tier)

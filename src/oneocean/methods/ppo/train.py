@@ -13,9 +13,11 @@ default hyperparameters (:data:`PPO_CHANGES` lists what differs from them: nothi
 single-vehicle task), in whole rollouts of ``n_steps x n_envs x tiers``.
 
 Determinism: the same seed, budget and settings give the same weights (and so the same
-``policy.zip`` bytes): ``set_random_seed(seed)``, one torch thread (also after the env's numba
-kernels have started their threads), the CPU, and a byte-stable zip (:func:`save_stable`).
-The training report's wall times are the only values that change between runs.
+``policy.zip`` bytes) in any process and on any x86-64 CPU: ``set_random_seed(seed)``, one
+torch thread (also after the env's numba kernels have started their threads), the CPU,
+torch's machine-independent kernels (:func:`pin_torch_cpu`, set before torch is imported) and
+a byte-stable zip (:func:`save_stable`). The training report's wall times are the only
+values that change between runs.
 
 Several training seeds (``seeds``) train one run each with the same budget; the run kept for
 evaluation is the one with the highest final success rate on its *training* episodes (the
@@ -26,6 +28,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import time
 import zipfile
 from pathlib import Path
@@ -45,6 +48,8 @@ ENV_MODES = {"obs_mode": "normalized", "action_mode": "normalized", "reward": "d
              "autoreset_mode": "same_step"}
 #: Share of the rollouts (the last ones) whose finished episodes give the final success rate.
 FINAL_SHARE = 0.1
+#: A memory address at the end of a ``repr`` (``<function f at 0x7f...>``).
+_ADDRESS = re.compile(r" at 0x[0-9a-fA-F]+>")
 #: Entries of the SB3 ``data`` record that depend on the wall clock (not saved).
 _VOLATILE = ["start_time", "ep_info_buffer", "ep_success_buffer"]
 
@@ -109,6 +114,38 @@ def episode_seeds(seed: int, blocks: int, pools: int) -> list[int]:
     return [pool_seed(block_seed(seed, b), i) for b in range(blocks) for i in range(pools)]
 
 
+#: torch's CPU settings under which training and inference give the same bits on any
+#: x86-64 CPU: ATen's generic kernels instead of the ones chosen for the CPU's SIMD width
+#: (AVX2, AVX-512: their vectorised loops and transcendental functions round differently)
+#: and MKL's conditional numerical reproducibility (its matrix products otherwise pick
+#: per-CPU code paths whose sums differ in the last bits). No training time difference
+#: measured (8,192 G2G steps: 5.8-7.4 s pinned, 5.3-6.7 s native, alternating runs).
+TORCH_CPU_ENV = {"ATEN_CPU_CAPABILITY": "default", "MKL_CBWR": "COMPATIBLE"}
+
+
+def pin_torch_cpu() -> dict:
+    """Set :data:`TORCH_CPU_ENV` in the process environment, where torch reads it.
+
+    torch reads these variables once, when it first needs them; call this before torch is
+    imported (:func:`train` and :func:`oneocean.methods.ppo.policy.load` do, before importing
+    Stable-Baselines3). In a process that already used torch with other settings they may
+    not take effect: the returned record says what is in force.
+
+    Returns
+    -------
+    dict
+        ``cpu_capability`` (torch's, ``DEFAULT`` when pinned) and ``mkl_cbwr`` (the
+        environment's value).
+    """
+    import os
+
+    os.environ.update(TORCH_CPU_ENV)
+    import torch
+
+    return {"cpu_capability": str(torch.backends.cpu.get_cpu_capability()),
+            "mkl_cbwr": os.environ.get("MKL_CBWR")}
+
+
 def _threads_one() -> None:
     """One torch thread and one numba thread (the env's numba threads and torch's share an
     OpenMP runtime: more threads than cores makes every small torch op wait)."""
@@ -117,6 +154,30 @@ def _threads_one() -> None:
 
     numba.set_num_threads(1)
     torch.set_num_threads(1)
+
+
+def quiet_logger(model) -> None:
+    """Give ``model`` the logger Stable-Baselines3 would configure, without its folder.
+
+    Without a ``tensorboard_log``, SB3's ``learn`` configures a logger that writes nothing
+    to disk (or only to stdout with ``verbose >= 1``) yet creates an empty
+    ``<tempdir>/SB3-<date>`` folder on every call. This logger records the same values and
+    prints the same lines, and leaves nothing behind. A model with a ``tensorboard_log``
+    keeps SB3's own logger (its folder is where the user asked for it).
+
+    Parameters
+    ----------
+    model : stable_baselines3.common.base_class.BaseAlgorithm
+        The model, before ``learn``.
+    """
+    import sys
+
+    from stable_baselines3.common.logger import HumanOutputFormat, Logger
+
+    if getattr(model, "tensorboard_log", None) is not None:
+        return
+    out = [HumanOutputFormat(sys.stdout)] if int(getattr(model, "verbose", 0)) >= 1 else []
+    model.set_logger(Logger(folder=None, output_formats=out))
 
 
 def make_env(task: str, tiers, grid, n_envs: int, *, dynamics: str = "6dof"):
@@ -230,7 +291,8 @@ def train(task: str, grid, *, tiers=(1, 2, 3), budget_steps: int = 1_000_000,
     model : stable_baselines3.PPO
         The trained model.
     run : dict
-        The run's record: seed, timesteps, rollouts, wall time, episodes,
+        The run's record: seed, timesteps, rollouts, torch's CPU settings in force
+        (``torch_cpu``: :func:`pin_torch_cpu`), wall time, episodes,
         ``final_success`` and ``final_episodes`` (the success rate over the episodes that
         ended in the last :data:`FINAL_SHARE` of the rollouts; None without any), episode
         pools, and ``curve``: one row per rollout with ``timesteps, episodes, success_rate,
@@ -241,6 +303,7 @@ def train(task: str, grid, *, tiers=(1, 2, 3), budget_steps: int = 1_000_000,
     ConfigError
         A seed that :func:`check_training_seeds` refuses.
     """
+    torch_cpu = pin_torch_cpu()
     from stable_baselines3 import PPO
     from stable_baselines3.common.utils import set_random_seed
 
@@ -253,6 +316,7 @@ def train(task: str, grid, *, tiers=(1, 2, 3), budget_steps: int = 1_000_000,
     set_random_seed(seed)
     model = PPO("MlpPolicy", env, seed=seed, device="cpu", verbose=0,
                 **{**PPO_CHANGES, **(ppo_kwargs or {})})
+    quiet_logger(model)
     curve = _curve_callback(env.venvs[0].n_agents)
     t0 = time.perf_counter()
     model.learn(total_timesteps=int(budget_steps), callback=curve)
@@ -265,6 +329,7 @@ def train(task: str, grid, *, tiers=(1, 2, 3), budget_steps: int = 1_000_000,
     last = max(1, int(math.ceil(FINAL_SHARE * n_roll)))
     fin = [s for k, s, _ in curve.episodes if k >= n_roll - last]
     run = {"seed": seed, "timesteps": int(model.num_timesteps), "rollouts": n_roll,
+           "torch_cpu": torch_cpu,
            "wall_time_s": round(wall, 1), "episodes": len(curve.episodes),
            "final_success": float(np.mean(fin)) if fin else None,
            "final_episodes": len(fin), "final_rollouts": last,
@@ -302,11 +367,31 @@ def hyperparameters(model) -> dict:
     return out
 
 
+def _stable_member(name: str, raw: bytes) -> bytes:
+    """A member of SB3's ``.zip`` without what differs between processes and machines.
+
+    ``data``: SB3 describes each class it stores (the policy's, the rollout buffer's) by the
+    ``repr`` of its attributes beside the pickled class it loads, and a function's or
+    object's ``repr`` holds its memory address (``<function f at 0x7f...>``), which changes
+    from one process to the next; the addresses are dropped (``<function f>``; SB3 loads
+    only the pickle). ``system_info.txt``: the ``- OS:`` line (the kernel build of the
+    machine that trained) is dropped; the package versions stay. Other members unchanged.
+    """
+    if name == "data":
+        return _ADDRESS.sub(">", raw.decode()).encode()
+    if name == "system_info.txt":
+        return "".join(ln for ln in raw.decode().splitlines(keepends=True)
+                       if not ln.startswith("- OS:")).encode()
+    return raw
+
+
 def save_stable(model, path) -> None:
     """Save the SB3 ``.zip`` atomically and byte-stably.
 
-    Without the wall-clock entries (``_VOLATILE``) and with every member's time stamp at
-    1980-01-01 (members in SB3's order, deflated).
+    Without the wall-clock entries (``_VOLATILE``), the memory addresses in SB3's
+    description of the classes it stores and the training machine's OS line
+    (:func:`_stable_member`), and with every member's time stamp at 1980-01-01 (members in
+    SB3's order, deflated): the same weights give the same bytes in any process.
 
     Parameters
     ----------
@@ -328,7 +413,7 @@ def save_stable(model, path) -> None:
             out = zipfile.ZipInfo(info.filename, date_time=(1980, 1, 1, 0, 0, 0))
             out.compress_type = zipfile.ZIP_DEFLATED
             out.external_attr = 0o644 << 16
-            dst.writestr(out, src.read(info))
+            dst.writestr(out, _stable_member(info.filename, src.read(info)))
 
 
 def train_to_files(grid_path, policy_path, report_path, task: str, *, tiers=(1, 2, 3),
