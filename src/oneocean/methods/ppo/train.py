@@ -28,7 +28,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
+import sys
 import time
 import zipfile
 from pathlib import Path
@@ -137,8 +139,6 @@ def pin_torch_cpu() -> dict:
         ``cpu_capability`` (torch's, ``DEFAULT`` when pinned) and ``mkl_cbwr`` (the
         environment's value).
     """
-    import os
-
     os.environ.update(TORCH_CPU_ENV)
     import torch
 
@@ -170,13 +170,11 @@ def quiet_logger(model) -> None:
     model : stable_baselines3.common.base_class.BaseAlgorithm
         The model, before ``learn``.
     """
-    import sys
-
     from stable_baselines3.common.logger import HumanOutputFormat, Logger
 
-    if getattr(model, "tensorboard_log", None) is not None:
+    if model.tensorboard_log is not None:
         return
-    out = [HumanOutputFormat(sys.stdout)] if int(getattr(model, "verbose", 0)) >= 1 else []
+    out = [HumanOutputFormat(sys.stdout)] if model.verbose >= 1 else []
     model.set_logger(Logger(folder=None, output_formats=out))
 
 
