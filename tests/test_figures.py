@@ -16,7 +16,8 @@ import xarray as xr
 from oneocean.engine import write_metrics
 from oneocean.errors import DataError
 from oneocean.figures import (DPI, ladder_numbers, plot_current_field, plot_ladder,
-                              plot_pollution_species, plot_team_sweep, team_sweep_numbers)
+                              plot_pollution_species, plot_rl_curves, plot_team_sweep,
+                              rl_curve_numbers, team_sweep_numbers)
 from oneocean.ladder import wilson
 
 
@@ -330,6 +331,68 @@ def test_team_sweep_in_a_region_that_cannot_host_it_is_a_note_not_a_crash(tmp_pa
     assert out["sweep"].empty
     assert out["png"] == str(tmp_path / "fig7.png") and out["pdf"] == str(tmp_path / "fig7.pdf")
     assert (tmp_path / "fig7.png").stat().st_size > 1000 and (tmp_path / "fig7.pdf").is_file()
+
+
+def _report(path, task, selected, curves):
+    """A training report as ``train_to_files`` writes it: one run per seed of ``curves``
+    (``{seed: [(timesteps, episodes, success_rate, mean_reward), ...]}``)."""
+    import json
+
+    runs = [{"seed": s, "curve": [
+        {"rollout": j, "timesteps": ts, "episodes": n, "success_rate": (sr if n else None),
+         "mean_episode_return": (-5.0 + j if n else None), "mean_reward": mr}
+        for j, (ts, n, sr, mr) in enumerate(c)]} for s, c in curves.items()]
+    path.write_text(json.dumps({"method": "ppo", "task": task, "selected_seed": selected,
+                                "runs": runs}))
+    return path
+
+
+def test_rl_curves_plot_the_kept_run_with_wilson_bands(tmp_path):
+    g2g = _report(tmp_path / "g2g.json", "G2G", 3,
+                  {0: [(100, 4, 0.0, -1.0)],
+                   3: [(100, 0, None, -0.08), (200, 8, 0.25, -0.05), (300, 5, 0.6, -0.02)]})
+    sk = _report(tmp_path / "sk.json", "SK", 0, {0: [(50, 2, 1.0, -0.1), (100, 3, 0.0, -0.3)]})
+    out, img = _render(plot_rl_curves, [g2g, sk], tmp_path, "rl_curves")
+    assert img.shape[:2] == (round(2.4 * DPI), round(7.2 * DPI))
+    cv = out["r"]["curves"]
+    # the kept run (seed 3) of G2G, then SK, in the reports' order
+    assert list(cv["task"]) == ["G2G"] * 3 + ["SK"] * 2 and set(cv["seed"]) == {3, 0}
+    assert list(cv["timesteps"]) == [100, 200, 300, 50, 100]
+    assert list(cv["mean_reward"]) == [-0.08, -0.05, -0.02, -0.1, -0.3]
+    assert list(cv["successes"]) == [0, 2, 3, 2, 0] and list(cv["episodes"]) == [0, 8, 5, 2, 3]
+    # no episode ended: no rate, no interval
+    assert cv[["success_pct", "success_lo", "success_hi"]].iloc[0].isna().all()
+    for row in cv.iloc[1:].itertuples():
+        lo, hi = wilson(row.successes, row.episodes)
+        assert row.success_pct == pytest.approx(100.0 * row.successes / row.episodes)
+        assert (row.success_lo, row.success_hi) == pytest.approx((100.0 * lo, 100.0 * hi))
+    assert cv["mean_episode_return"].iloc[1] == -4.0
+
+
+def test_rl_curves_name_the_bad_report(tmp_path):
+    good = _report(tmp_path / "g.json", "SK", 0, {0: [(50, 2, 1.0, -0.1)]})
+    (tmp_path / "broken.json").write_text("{")
+    with pytest.raises(DataError, match=r"broken\.json: not a training report"):
+        rl_curve_numbers([good, tmp_path / "broken.json"])
+    (tmp_path / "nosel.json").write_text('{"task": "G2G", "runs": []}')
+    with pytest.raises(DataError, match=r"nosel\.json: training report without 'selected_seed'"):
+        rl_curve_numbers([tmp_path / "nosel.json"])
+    lost = _report(tmp_path / "lost.json", "G2G", 7, {0: [(50, 2, 1.0, -0.1)]})
+    with pytest.raises(DataError, match="without the run of its selected seed 7"):
+        rl_curve_numbers([lost])
+    with pytest.raises(DataError, match="a second training report of task SK"):
+        rl_curve_numbers([good, good])
+    import json
+
+    rep = json.loads(good.read_text())
+    del rep["runs"][0]["curve"][0]["mean_reward"]
+    (tmp_path / "row.json").write_text(json.dumps(rep))
+    with pytest.raises(DataError,
+                       match=r"row\.json: a learning-curve row without \['mean_reward'\]"):
+        rl_curve_numbers([tmp_path / "row.json"])
+    with pytest.raises(DataError, match="no training report"):
+        plot_rl_curves([], tmp_path / "none.png")
+    assert not (tmp_path / "none.png").exists()
 
 
 def test_saved_figures_have_a_frozen_rounded_layout(tmp_path):

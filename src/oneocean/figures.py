@@ -6,6 +6,8 @@
 - Fig. 6 :func:`plot_ladder`: the task ladder, success rate per tier and the drops between
   tiers.
 - Fig. 7 :func:`plot_team_sweep`: the SPC team-size sweep.
+- :func:`plot_rl_curves`: the PPO baseline's learning curves (the optional ``rl_baselines``
+  target).
 
 Every figure is drawn on matplotlib's Agg canvas (no pyplot state) inside :func:`paper_style`
 (fonts, sizes and palette shared by all figures) and written by :func:`save_figure`: PNG and
@@ -28,7 +30,7 @@ from .io import atomic_path
 
 __all__ = ["paper_style", "style_rc", "new_figure", "save_figure", "palette",
            "plot_current_field", "plot_pollution_species", "plot_ladder", "ladder_numbers",
-           "plot_team_sweep", "team_sweep_numbers"]
+           "plot_team_sweep", "team_sweep_numbers", "plot_rl_curves", "rl_curve_numbers"]
 
 # ------------------------------------------------------------------------------------------
 # the shared style
@@ -1053,3 +1055,136 @@ def plot_team_sweep(cell_files, out_png) -> dict:
                  transform=axt.transAxes, fontsize=6, color="0.25", va="bottom")
         png, pdf = save_figure(fig, out_png)
     return {"sweep": sw, "png": str(png), "pdf": str(pdf)}
+
+
+# ------------------------------------------------------------------------------------------
+# The PPO baseline's learning curves (the optional rl_baselines target)
+# ------------------------------------------------------------------------------------------
+
+#: What :func:`rl_curve_numbers` reads from each row of a training report's curve.
+_CURVE_KEYS = frozenset({"rollout", "timesteps", "episodes", "success_rate",
+                         "mean_episode_return", "mean_reward"})
+
+
+def rl_curve_numbers(report_files) -> pd.DataFrame:
+    """The numbers the learning-curve figure plots: one row per task and training rollout.
+
+    From each training report (``oneocean.methods.ppo.train.train_to_files``), the curve of
+    its kept run (``selected_seed``).
+
+    Parameters
+    ----------
+    report_files : iterable of path-like
+        ``training_report.json`` files, one per task.
+
+    Returns
+    -------
+    pandas.DataFrame
+        In the reports' order, rollouts ascending: ``task, seed, rollout, timesteps,
+        mean_reward`` (mean reward per step over the rollout), ``episodes`` (training
+        episodes that ended in it), ``successes``, ``success_pct`` and its Wilson 95 %
+        interval ``success_lo, success_hi`` (NaN for a rollout in which no episode ended),
+        ``mean_episode_return``.
+
+    Raises
+    ------
+    DataError
+        A report that is not valid JSON, lacks a key the figure reads (named), or a task
+        given twice.
+    """
+    import json
+
+    from .ladder import wilson
+
+    rows, seen = [], set()
+    for f in report_files:
+        try:
+            rep = json.loads(Path(f).read_text())
+            task, seed = str(rep["task"]), int(rep["selected_seed"])
+            run = next(r for r in rep["runs"] if int(r["seed"]) == seed)
+            curve = run["curve"]
+        except json.JSONDecodeError as exc:
+            raise DataError(f"{f}: not a training report (invalid JSON: {exc})") from None
+        except KeyError as exc:
+            raise DataError(f"{f}: training report without {exc.args[0]!r}") from None
+        except StopIteration:
+            raise DataError(f"{f}: training report without the run of its selected seed "
+                            f"{rep['selected_seed']}") from None
+        if task in seen:
+            raise DataError(f"{f}: a second training report of task {task}")
+        seen.add(task)
+        for c in curve:
+            missing = _CURVE_KEYS - set(c)
+            if missing:
+                raise DataError(f"{f}: a learning-curve row without {sorted(missing)}")
+        for c in sorted(curve, key=lambda c: int(c["rollout"])):
+            n = int(c["episodes"])
+            k = int(round(float(c["success_rate"]) * n)) if n else 0
+            lo, hi = wilson(k, n) if n else (math.nan, math.nan)
+            rows.append({"task": task, "seed": seed, "rollout": int(c["rollout"]),
+                         "timesteps": int(c["timesteps"]),
+                         "mean_reward": float(c["mean_reward"]), "episodes": n,
+                         "successes": k, "success_pct": 100.0 * k / n if n else math.nan,
+                         "success_lo": 100.0 * lo, "success_hi": 100.0 * hi,
+                         "mean_episode_return": (float(c["mean_episode_return"]) if n
+                                                 else math.nan)})
+    cols = ["task", "seed", "rollout", "timesteps", "mean_reward", "episodes", "successes",
+            "success_pct", "success_lo", "success_hi", "mean_episode_return"]
+    return pd.DataFrame(rows, columns=cols)
+
+
+def plot_rl_curves(report_files, out_png) -> dict:
+    """Draw the PPO baseline's learning curves, one line per task (its kept training run).
+
+    Left: the mean reward per step of each training rollout (the dense training reward)
+    against SB3 timesteps. Right: the success rate of the training episodes that ended in
+    each rollout (the training policy's stochastic actions), %, with its Wilson 95 % band;
+    a rollout in which no episode ended has no point. Training episodes only: the
+    evaluation seed's scores are in Table V.
+
+    Parameters
+    ----------
+    report_files : iterable of path-like
+        ``training_report.json`` files, one per task.
+    out_png : path-like
+        The PNG (the PDF goes beside it: :func:`save_figure`).
+
+    Returns
+    -------
+    dict
+        ``curves`` (:func:`rl_curve_numbers`, exactly what is plotted), ``png``, ``pdf``.
+
+    Raises
+    ------
+    DataError
+        As :func:`rl_curve_numbers`, or no report.
+    """
+    cv = rl_curve_numbers(list(report_files))
+    if not len(cv):
+        raise DataError("plot_rl_curves: no training report (rl.tasks is empty)")
+    tasks = list(dict.fromkeys(cv["task"]))
+    col = palette(max(len(tasks), 1))
+    with paper_style():
+        fig = new_figure(PAGE_IN, 2.4)
+        ax, axs = fig.subplots(1, 2)
+        for j, t in enumerate(tasks):
+            d = cv[cv["task"] == t]
+            x = d["timesteps"].to_numpy() / 1e3
+            ax.plot(x, d["mean_reward"], color=col[j], marker="o", markersize=2.5,
+                    label=f"{t} (seed {int(d['seed'].iloc[0])})")
+            m = d["episodes"].to_numpy() > 0
+            axs.fill_between(x[m], d["success_lo"].to_numpy()[m],
+                             d["success_hi"].to_numpy()[m], color=col[j], alpha=0.18, lw=0)
+            axs.plot(x[m], d["success_pct"].to_numpy()[m], color=col[j], marker="o",
+                     markersize=2.5, label=t)
+        ax.set_xlabel("SB3 timesteps (10$^3$)")
+        ax.set_ylabel("mean reward per step")
+        ax.set_title("(a) dense training reward", loc="left", fontsize=7.5)
+        ax.legend(loc="best")
+        axs.set_xlabel("SB3 timesteps (10$^3$)")
+        axs.set_ylabel("training-episode success (%)")
+        axs.set_ylim(-3.0, 103.0)
+        axs.set_title("(b) success of the training episodes (Wilson 95 %)", loc="left",
+                      fontsize=7.5)
+        png, pdf = save_figure(fig, out_png)
+    return {"curves": cv, "png": str(png), "pdf": str(pdf)}

@@ -550,6 +550,7 @@ def rl_targets():
                    task=config["rl"]["tasks"], name=["policy.zip", "training_report.json"])
             + rl_cell_targets()
             + [f"results/tables/{REGION}/task_success_by_tier_rl.tex",
+               f"results/figures/{REGION}/rl_learning_curves.png",
                f"results/manifest/{REGION}.rl.json"])
 
 
@@ -559,7 +560,8 @@ def rl_provenance():
     return (expand("results/provenance/rl/{region}/{variant}/{task}/policy.json",
                    region=REGION, variant=v, task=config["rl"]["tasks"])
             + rl_cell_targets("prov")
-            + [f"results/provenance/tables/{REGION}/task_success_by_tier_rl.json"])
+            + [f"results/provenance/tables/{REGION}/task_success_by_tier_rl.json",
+               f"results/provenance/figures/{REGION}/rl_learning_curves.json"])
 
 
 def rl_run(wc):

@@ -2,7 +2,8 @@
 # paper_tables or all): one PPO training job per task on training seeds (rl_train), its
 # evaluation cells on the evaluation seed's episodes in the rollout cells' layout (rl_cell),
 # Table V over the RL tasks with the PPO rows (table_task_success_rl) and the manifest of
-# this stage (manifest_rl: results/manifest/<region>.rl.json). Needs the rl extra
+# this stage (manifest_rl: results/manifest/<region>.rl.json), and the learning curves
+# (figure_rl_curves: results/figures/<region>/rl_learning_curves.png). Needs the rl extra
 # (pip install -e ".[rl]": PyTorch, stable-baselines3).
 
 RL_ENV = "../envs/rl.yaml"
@@ -15,6 +16,7 @@ if config["rl"]["enabled"]:
 
     localrules:
         table_task_success_rl,
+        figure_rl_curves,
         manifest_rl,
 
     # One PPO policy per task: training seeds only (checked against rl_evaluation_seeds()).
@@ -86,6 +88,23 @@ if config["rl"]["enabled"]:
         threads: 1
         script:
             "../scripts/rl_table.py"
+
+    # The learning curves of the four trainings (their reports' curves).
+    rule figure_rl_curves:
+        conda:
+            PY_ENV
+        input:
+            reports=expand(rules.rl_train.output.report, region="{region}",
+                           variant=config["rollouts"]["variant"], task=config["rl"]["tasks"]),
+        output:
+            **_figure_io("rl_learning_curves", "rl_learning_curves"),
+        log:
+            "logs/figures/{region}/rl_learning_curves.log",
+        params:
+            code=FIGURES_CODE,
+        threads: 1
+        script:
+            "../scripts/figure_paper.py"
 
     # The stage's manifest: every rl artifact (weights included) by hash.
     rule manifest_rl:

@@ -9,6 +9,8 @@ def make(s):
         figures.plot_ladder(list(s.input.cells), s.output.png, method="heuristic")
     elif s.rule == "figure_team_sweep":
         figures.plot_team_sweep(list(s.input.cells), s.output.png)
+    elif s.rule == "figure_rl_curves":
+        figures.plot_rl_curves(list(s.input.reports), s.output.png)
     else:
         raise ValueError(f"figure_paper.py: unknown rule {s.rule}")
 

@@ -16,8 +16,8 @@ Determinism: the same seed, budget and settings give the same weights (and so th
 ``policy.zip`` bytes) in any process and on any x86-64 CPU: ``set_random_seed(seed)``, one
 torch thread (also after the env's numba kernels have started their threads), the CPU,
 torch's machine-independent kernels (:func:`pin_torch_cpu`, set before torch is imported) and
-a byte-stable zip (:func:`save_stable`). The training report's wall times are the only
-values that change between runs.
+a byte-stable zip (:func:`save_stable`). The training report holds no wall time, so it is
+byte-identical too (the workflow's ``benchmark:`` file times a training).
 
 Several training seeds (``seeds``) train one run each with the same budget; the run kept for
 evaluation is the one with the highest final success rate on its *training* episodes (the
@@ -290,7 +290,7 @@ def train(task: str, grid, *, tiers=(1, 2, 3), budget_steps: int = 1_000_000,
         The trained model.
     run : dict
         The run's record: seed, timesteps, rollouts, torch's CPU settings in force
-        (``torch_cpu``: :func:`pin_torch_cpu`), wall time, episodes,
+        (``torch_cpu``: :func:`pin_torch_cpu`), episodes,
         ``final_success`` and ``final_episodes`` (the success rate over the episodes that
         ended in the last :data:`FINAL_SHARE` of the rollouts; None without any), episode
         pools, and ``curve``: one row per rollout with ``timesteps, episodes, success_rate,
@@ -327,8 +327,7 @@ def train(task: str, grid, *, tiers=(1, 2, 3), budget_steps: int = 1_000_000,
     last = max(1, int(math.ceil(FINAL_SHARE * n_roll)))
     fin = [s for k, s, _ in curve.episodes if k >= n_roll - last]
     run = {"seed": seed, "timesteps": int(model.num_timesteps), "rollouts": n_roll,
-           "torch_cpu": torch_cpu,
-           "wall_time_s": round(wall, 1), "episodes": len(curve.episodes),
+           "torch_cpu": torch_cpu, "episodes": len(curve.episodes),
            "final_success": float(np.mean(fin)) if fin else None,
            "final_episodes": len(fin), "final_rollouts": last,
            "episode_pools": int(pools), "curve": curve.rows}
@@ -443,7 +442,9 @@ def train_to_files(grid_path, policy_path, report_path, task: str, *, tiers=(1, 
     -------
     dict
         The training report: settings, the selected seed, hyperparameters, final success,
-        wall time, the policy's sha256, package versions and every run's record.
+        the policy's sha256, package versions and every run's record. No wall time (the
+        report is hash-tracked and byte-identical for the same settings; the workflow's
+        ``benchmark:`` file and the log line of :func:`train` time the training).
 
     Raises
     ------
@@ -485,7 +486,6 @@ def train_to_files(grid_path, policy_path, report_path, task: str, *, tiers=(1, 
         "hyperparameters": hyperparameters(best_model),
         "final_success": sel["final_success"], "final_episodes": sel["final_episodes"],
         "final_share": FINAL_SHARE,
-        "wall_time_s": round(sum(r["wall_time_s"] for r in runs), 1),
         "policy_sha256": sha256_file(policy_path),
         "versions": {p: version(p) for p in ("stable_baselines3", "torch", "gymnasium")},
         "runs": runs,
