@@ -1138,8 +1138,9 @@ def plot_rl_curves(report_files, out_png) -> dict:
 
     Left: the mean reward per step of each training rollout (the dense training reward)
     against SB3 timesteps. Right: the success rate of the training episodes that ended in
-    each rollout (the training policy's stochastic actions), %, with its Wilson 95 % band;
-    a rollout in which no episode ended has no point. Training episodes only: the
+    each rollout (the training policy's stochastic actions), %, with its Wilson 95 % interval
+    (the tasks' points side by side around the rollout); a rollout in which no episode ended
+    has no point. Training episodes only: the
     evaluation seed's scores are in Table V.
 
     Parameters
@@ -1173,18 +1174,23 @@ def plot_rl_curves(report_files, out_png) -> dict:
             ax.plot(x, d["mean_reward"], color=col[j], marker="o", markersize=2.5,
                     label=f"{t} (seed {int(d['seed'].iloc[0])})")
             m = d["episodes"].to_numpy() > 0
-            axs.fill_between(x[m], d["success_lo"].to_numpy()[m],
-                             d["success_hi"].to_numpy()[m], color=col[j], alpha=0.18, lw=0)
-            axs.plot(x[m], d["success_pct"].to_numpy()[m], color=col[j], marker="o",
-                     markersize=2.5, label=t)
+            # tasks side by side around each rollout's x (a fifth of the rollout spacing)
+            dx = 0.2 * float(np.median(np.diff(x))) if len(x) > 1 else 0.0
+            sp = d[m]
+            axs.errorbar(x[m] + dx * (j - 0.5 * (len(tasks) - 1)) / max(len(tasks) - 1, 1),
+                         sp["success_pct"], yerr=_err(sp["success_pct"], sp["success_lo"],
+                                                      sp["success_hi"]),
+                         color=col[j], fmt="o", markersize=2.5, elinewidth=0.7,
+                         capsize=1.2, label=t)
         ax.set_xlabel("SB3 timesteps (10$^3$)")
         ax.set_ylabel("mean reward per step")
         ax.set_title("(a) dense training reward", loc="left", fontsize=7.5)
         ax.legend(loc="best")
         axs.set_xlabel("SB3 timesteps (10$^3$)")
-        axs.set_ylabel("training-episode success (%)")
+        axs.set_ylabel("success (%)")
         axs.set_ylim(-3.0, 103.0)
-        axs.set_title("(b) success of the training episodes (Wilson 95 %)", loc="left",
+        axs.set_title("(b) training episodes' success per rollout (Wilson 95 %)", loc="left",
                       fontsize=7.5)
+        axs.legend(loc="upper left", ncols=len(tasks))
         png, pdf = save_figure(fig, out_png)
     return {"curves": cv, "png": str(png), "pdf": str(pdf)}
