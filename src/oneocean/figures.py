@@ -1140,8 +1140,7 @@ def plot_rl_curves(report_files, out_png) -> dict:
     against SB3 timesteps. Right: the success rate of the training episodes that ended in
     each rollout (the training policy's stochastic actions), %, with its Wilson 95 % interval
     (the tasks' points side by side around the rollout); a rollout in which no episode ended
-    has no point. Training episodes only: the
-    evaluation seed's scores are in Table V.
+    has no point. Training episodes only: the evaluation seed's scores are in Table V.
 
     Parameters
     ----------

@@ -89,7 +89,7 @@ if config["rl"]["enabled"]:
         script:
             "../scripts/rl_table.py"
 
-    # The learning curves of the four trainings (their reports' curves).
+    # The learning curves of the trainings of rl.tasks (from their reports).
     rule figure_rl_curves:
         conda:
             PY_ENV
