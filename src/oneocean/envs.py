@@ -76,6 +76,7 @@ from .tasks import Cell
 from .tasks.common import ACT_FIELDS, OBS_DIM, OBS_FIELDS, N_MATES
 from .tasks.loop import ENV_ENDED, ENV_SUCCESS, ENV_TRUNCATED, FINISHED, NEW, EnvIO
 from .backends.protocol import Rollout
+from .engine import libm
 
 AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP,
                    "disabled": AutoresetMode.DISABLED}
@@ -156,14 +157,14 @@ def normalize(obs: np.ndarray, v_max: float, reach: float, time_left) -> np.ndar
     g = np.nan_to_num(o[..., 0:3])
     d = np.sqrt((g * g).sum(-1))
     out[..., 0:3] = g / (d + GOAL_SCALE_M)[..., None]
-    out[..., 3] = np.log1p(d) / math.log1p(max(reach, 1.0))
+    out[..., 3] = libm.log1p(d) / math.log1p(max(reach, 1.0))
     out[..., 4:6] = np.nan_to_num(o[..., 3:5]) / v_max
     out[..., 6] = np.clip(np.nan_to_num(o[..., 5]) / DEPTH_SCALE_M, 0.0, 5.0)
     alt = o[..., 6]
     out[..., 7] = np.where(np.isfinite(alt), np.clip(alt, 0.0, ALTITUDE_CLIP_M), ALTITUDE_CLIP_M)
     out[..., 7] /= ALTITUDE_CLIP_M
     p = o[..., 7]
-    out[..., 8] = np.where(np.isfinite(p), np.log1p(np.maximum(p, 0.0)), 0.0)
+    out[..., 8] = np.where(np.isfinite(p), libm.log1p(np.maximum(p, 0.0)), 0.0)
     for m in range(N_MATES):
         dx, dz = o[..., 8 + 2 * m], o[..., 9 + 2 * m]
         ok = np.isfinite(dx) & np.isfinite(dz)

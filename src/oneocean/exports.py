@@ -32,6 +32,7 @@ import xarray as xr
 from .errors import DataError
 from .io import write_npz_atomic
 from .zarrio import is_zarr, open_product, sha256_path, write_arrays_zarr
+from .engine import libm
 
 __all__ = ["export_grid", "export_temporal", "metres_per_degree", "default_point",
            "point_weights", "EARTH_RADIUS_M"]
@@ -55,7 +56,7 @@ def metres_per_degree(lat0_deg: float) -> tuple[float, float]:
         Metres per degree of latitude, and of longitude (scaled by ``cos(lat0_deg)``), m.
     """
     m_lat = np.pi * EARTH_RADIUS_M / 180.0
-    return float(m_lat), float(m_lat * np.cos(np.deg2rad(lat0_deg)))
+    return float(m_lat), float(m_lat * libm.cos(np.deg2rad(lat0_deg)))
 
 
 def _spacing(axis: np.ndarray, fallback: float) -> float:

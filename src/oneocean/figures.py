@@ -27,6 +27,7 @@ import pandas as pd
 
 from .errors import DataError
 from .io import atomic_path
+from .engine import libm
 
 __all__ = ["paper_style", "style_rc", "new_figure", "save_figure", "palette",
            "plot_current_field", "plot_pollution_species", "plot_ladder", "ladder_numbers",
@@ -347,7 +348,7 @@ def plot_current_field(product_path, out_png, pitch_deg: float = 25.0,
     if zhi - zlo < 1e-6:
         zlo, zhi = zlo - 1.0, zhi + 1.0
 
-    kx = float(np.cos(np.deg2rad(0.5 * (lat[0] + lat[-1]))))
+    kx = float(libm.cos(np.deg2rad(0.5 * (lat[0] + lat[-1]))))
     wx_m = float(np.ptp(lon)) * kx * _M_PER_DEG       # extent, metres
     wy_m = float(np.ptp(lat)) * _M_PER_DEG
     dx_m, dy_m = wx_m / (lon.size - 1), wy_m / (lat.size - 1)
@@ -399,7 +400,7 @@ def plot_current_field(product_path, out_png, pitch_deg: float = 25.0,
     # occlusion: ray-march every vertex (and the shaft's middle) toward the eye, in box
     # coordinates (x, y in proportion to metres, z to the exaggerated elevation)
     el, az = np.deg2rad(float(pitch_deg)), np.deg2rad(float(azimuth_deg))
-    eye = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    eye = np.array([libm.cos(el) * libm.cos(az), libm.cos(el) * libm.sin(az), libm.sin(el)])
     to_bx = lambda a: (a - lon[0]) / (lon[-1] - lon[0]) * box[0]  # noqa: E731
     to_by = lambda a: (a - lat[0]) / (lat[-1] - lat[0]) * box[1]  # noqa: E731
     to_bz = lambda a: (a - zlo) / (ztop - zlo) * box[2]  # noqa: E731
@@ -534,12 +535,12 @@ def _fig4_scene(rng, nx, nz, h, current_ms, eddy_ms):
     X, Z = np.meshgrid(x, z)
     Lx, Lz = h * (nx - 1), h * (nz - 1)
     phase = rng.uniform(0.0, 2.0 * np.pi)
-    coast = 0.84 * Lz + 0.06 * Lz * np.sin(2.0 * np.pi * X / Lx * 1.5 + phase)
+    coast = 0.84 * Lz + 0.06 * Lz * libm.sin(2.0 * np.pi * X / Lx * 1.5 + phase)
     land = (Z > coast) | ((X - 0.70 * Lx) ** 2 + (Z - 0.55 * Lz) ** 2 < (0.07 * Lz) ** 2)
     xe, ze, re = 0.48 * Lx, 0.45 * Lz, 0.27 * Lz
     dx, dz = X - xe, Z - ze
     r = np.hypot(dx, dz)
-    w = eddy_ms * (r / re) * np.exp(0.5 * (1.0 - (r / re) ** 2))   # peak eddy_ms at r = re
+    w = eddy_ms * (r / re) * libm.exp(0.5 * (1.0 - (r / re) ** 2))   # peak eddy_ms at r = re
     with np.errstate(invalid="ignore", divide="ignore"):
         uc = current_ms - np.where(r > 0, w * dz / r, 0.0)
         vc = np.where(r > 0, w * dx / r, 0.0)

@@ -139,6 +139,7 @@ import yaml
 from ..errors import ConfigError
 from ..vocab import DYNAMICS, validate_choice
 from ._jit import hot_kernel
+from . import libm
 
 # ----------------------------------------------------------------------------- layouts
 
@@ -1277,7 +1278,7 @@ def potential_energy(vp: np.ndarray, s: np.ndarray) -> float:
     float
         Potential energy, J.
     """
-    return float(-vp[P_WB] * s[Y] + vp[P_BGB] * (1.0 - np.cos(s[PHI]) * np.cos(s[THETA])))
+    return float(-vp[P_WB] * s[Y] + vp[P_BGB] * (1.0 - libm.cos(s[PHI]) * libm.cos(s[THETA])))
 
 
 def new_state(n_episodes: int, n_agents: int, positions=None, heading=0.0) -> np.ndarray:

@@ -54,6 +54,7 @@ import numba
 import numpy as np
 
 from ..errors import ConfigError
+from ..engine import libm
 
 __all__ = [
     "FISH_PARAM_NAMES", "FISH_PARAM_DEFAULTS", "N_FISH_PARAMS",
@@ -443,6 +444,6 @@ def init_school(n: int, centre, radius: float, seed):
         seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed))
     r = radius * np.sqrt(rng.uniform(0.0, 1.0, n))
     th = rng.uniform(0.0, 2.0 * np.pi, n)
-    fx = float(centre[0]) + r * np.cos(th)
-    fz = float(centre[1]) + r * np.sin(th)
+    fx = float(centre[0]) + r * libm.cos(th)
+    fz = float(centre[1]) + r * libm.sin(th)
     return fx, fz, np.zeros(n), np.zeros(n)

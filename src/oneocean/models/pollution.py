@@ -56,6 +56,7 @@ import numpy as np
 
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError, DataError
+from ..engine import libm
 
 __all__ = [
     "KIND_TRACER", "KIND_REACTION", "KINDS",
@@ -1049,10 +1050,10 @@ def make_spill(nx: int, nz: int, h: float, centre, radius: float, mass: float, r
         stretch = rng.uniform(1.0, 2.0)
         th = rng.uniform(0.0, np.pi)
         a, b = sigma * np.sqrt(stretch), sigma / np.sqrt(stretch)
-    ct, st = np.cos(th), np.sin(th)
+    ct, st = libm.cos(th), libm.sin(th)
     p = ct * X + st * Z
     q = -st * X + ct * Z
-    w = np.exp(-0.5 * ((p / a) ** 2 + (q / b) ** 2))
+    w = libm.exp(-0.5 * ((p / a) ** 2 + (q / b) ** 2))
     w[X ** 2 + Z ** 2 > (2.0 * radius) ** 2] = 0.0
     if land is not None:
         w[np.asarray(land) != 0] = 0.0

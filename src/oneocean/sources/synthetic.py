@@ -35,6 +35,7 @@ from ..errors import ConfigError
 from ..exports import metres_per_degree
 from ..io import canonical_json, config_hash
 from ..vocab import CF
+from ..engine import libm
 
 __all__ = ["make_currents", "make_bathymetry", "synthetic_axes", "write_synthetic",
            "scene_summary", "M2_PERIOD_H", "S2_PERIOD_H"]
@@ -134,7 +135,7 @@ def _scene(cfg: dict) -> _Scene:
     eddy_r = r.uniform(0.04, 0.12, n) * scale
     vmax = float(syn["eddy_speed_ms"]) * r.uniform(0.5, 1.0, n)
     sign = np.where(r.random(n) < 0.5, -1.0, 1.0)
-    eddy_psi = sign * vmax * eddy_r * np.exp(0.5) / np.sqrt(2.0)
+    eddy_psi = sign * vmax * eddy_r * libm.exp(0.5) / np.sqrt(2.0)
     eddy_x0 = r.uniform(0.0, 1.0, n) * lx
     eddy_y0 = r.uniform(0.05, 0.55, n) * ly
     eddy_cx = -0.3 * float(syn["mean_speed_ms"]) + r.normal(0.0, 0.03, n)
@@ -164,8 +165,8 @@ def _coastline(X, amp, phase, n_modes=None):
     dyc = np.zeros_like(X, dtype=float)
     for i in range(amp.size if n_modes is None else n_modes):
         k = 2.0 * np.pi * (i + 1)
-        yc = yc + amp[i] * np.sin(k * X + phase[i])
-        dyc = dyc + amp[i] * k * np.cos(k * X + phase[i])
+        yc = yc + amp[i] * libm.sin(k * X + phase[i])
+        dyc = dyc + amp[i] * k * libm.cos(k * X + phase[i])
     return yc, dyc
 
 
@@ -176,9 +177,9 @@ def _smoothstep(s):
 
 def _shelf_depth(d):
     """Water depth (m) of the undisturbed shelf/slope profile at offshore distance ``d`` >= 0."""
-    deep = 0.5 * (1.0 + np.tanh((d - _SLOPE_D) / _SLOPE_W))
-    deep0 = 0.5 * (1.0 + np.tanh(-_SLOPE_D / _SLOPE_W))
-    return _SHELF_H * (1.0 - np.exp(-d / _SHELF_E)) + _DEEP_H * (deep - deep0)
+    deep = 0.5 * (1.0 + libm.tanh((d - _SLOPE_D) / _SLOPE_W))
+    deep0 = 0.5 * (1.0 + libm.tanh(-_SLOPE_D / _SLOPE_W))
+    return _SHELF_H * (1.0 - libm.exp(-d / _SHELF_E)) + _DEEP_H * (deep - deep0)
 
 
 def _elevation(s: _Scene, X, Y):
@@ -188,23 +189,23 @@ def _elevation(s: _Scene, X, Y):
     sea = d >= 0.0
     ds = np.where(sea, d, 0.0)
     dl = np.where(sea, 0.0, d)
-    elev = np.where(sea, -_shelf_depth(ds), _LAND_H * (1.0 - np.exp(dl / _LAND_E)))
+    elev = np.where(sea, -_shelf_depth(ds), _LAND_H * (1.0 - libm.exp(dl / _LAND_E)))
     rough = np.zeros(np.broadcast(X, Y).shape)
     for i in range(s.rough_amp.size):        # sin(a + b) expanded: transcendental only in 1-D
         ax_, ay_ = 2.0 * np.pi * s.rough_kx[i] * X, 2.0 * np.pi * s.rough_ky[i] * Y
-        rough = rough + s.rough_amp[i] * (np.sin(ax_) * np.cos(ay_ + s.rough_phase[i])
-                                          + np.cos(ax_) * np.sin(ay_ + s.rough_phase[i]))
+        rough = rough + s.rough_amp[i] * (libm.sin(ax_) * libm.cos(ay_ + s.rough_phase[i])
+                                          + libm.cos(ax_) * libm.sin(ay_ + s.rough_phase[i]))
     taper = np.clip(np.abs(d) / 0.04, 0.0, 1.0) * np.where(sea, 1.0, 3.0)
     elev = elev + rough * taper
     aspect = s.lx_m / s.ly_m
     # Canyon: a meandering Gaussian trough across the shelf, fading into the deep plain.
-    xc = s.canyon_x + 0.03 * np.sin(2.0 * np.pi * 1.5 * Y + s.canyon_phase)
-    across = np.exp(-(((X - xc) * aspect) / _CANYON_W) ** 2)
+    xc = s.canyon_x + 0.03 * libm.sin(2.0 * np.pi * 1.5 * Y + s.canyon_phase)
+    across = libm.exp(-(((X - xc) * aspect) / _CANYON_W) ** 2)
     along = _smoothstep((ds - 0.04) / 0.20) * (1.0 - 0.6 * _smoothstep((ds - 0.35) / 0.30))
     elev = elev - _CANYON_DEPTH * along * across
     # Island: a Gaussian seamount on the shelf whose top is _ISLAND_TOP above the sea surface.
     r2 = ((X - s.island_x) * aspect) ** 2 + (Y - s.island_y) ** 2
-    return elev + s.island_h * np.exp(-r2 / _ISLAND_R ** 2)
+    return elev + s.island_h * libm.exp(-r2 / _ISLAND_R ** 2)
 
 
 def _box(s: _Scene, lat, lon):
@@ -223,8 +224,8 @@ def _surface_flow(s: _Scene, X, Y, t):
     # Mean flow: psi = -U ly G(Yc_low(X) - Y), coast on the right (westward along the shore).
     yc, dyc = _coastline(X, s.coast_amp, s.coast_phase, _COAST_LOW)
     d = yc - Y
-    gprime = 0.5 + 0.7 * np.exp(-((d - 0.3) / 0.12) ** 2)
-    speed = -s.mean_speed * (1.0 + 0.25 * np.sin(2.0 * np.pi * t / (2.7 * 86400.0)
+    gprime = 0.5 + 0.7 * libm.exp(-((d - 0.3) / 0.12) ** 2)
+    speed = -s.mean_speed * (1.0 + 0.25 * libm.sin(2.0 * np.pi * t / (2.7 * 86400.0)
                                                   + s.mean_mod_phase))
     um = speed * gprime
     vm = speed * gprime * dyc * (s.ly_m / s.lx_m)
@@ -239,9 +240,9 @@ def _surface_flow(s: _Scene, X, Y, t):
         dx = np.mod(x - xi + 0.5 * s.lx_m, s.lx_m) - 0.5 * s.lx_m
         dy = y - yi
         r2 = 1.0 / s.eddy_r[i] ** 2
-        amp = s.eddy_psi[i] * (1.0 + 0.3 * np.sin(2.0 * np.pi * t / s.eddy_mod_period[i]
+        amp = s.eddy_psi[i] * (1.0 + 0.3 * libm.sin(2.0 * np.pi * t / s.eddy_mod_period[i]
                                                   + s.eddy_mod_phase[i]))
-        g = 2.0 * amp * r2 * np.exp(-(dx * dx + dy * dy) * r2)
+        g = 2.0 * amp * r2 * libm.exp(-(dx * dx + dy * dy) * r2)
         ue = ue + g * dy
         ve = ve - g * dx
     return um, vm, ue, ve
@@ -252,7 +253,7 @@ def _tide(s: _Scene, X, Y, elev, t):
     h = np.maximum(-elev, 1.0)
     factor = np.clip(np.sqrt(_TIDE_H_REF / h), _TIDE_FMIN, _TIDE_FMAX)
     yc, dyc = _coastline(X, s.coast_amp, s.coast_phase, _COAST_LOW)
-    theta = np.arctan(dyc * s.ly_m / s.lx_m)                # major axis along the coast
+    theta = libm.arctan(dyc * s.ly_m / s.lx_m)                # major axis along the coast
     eps = 0.15 + 0.2 * _smoothstep((yc - Y) / 0.6)          # minor/major, anticlockwise
     phase = s.tide_phase + 2.0 * np.pi * 0.1 * X            # alongshore-propagating tide
     u = np.zeros(np.broadcast(X, Y).shape)
@@ -260,10 +261,10 @@ def _tide(s: _Scene, X, Y, elev, t):
     for amp, period_h, offset in ((s.m2_amp, M2_PERIOD_H, 0.0),
                                   (s.s2_amp, S2_PERIOD_H, s.s2_offset)):
         arg = 2.0 * np.pi * t / (period_h * 3600.0) - phase - offset
-        major = amp * factor * np.cos(arg)
-        minor = amp * factor * eps * np.sin(arg)
-        u = u + major * np.cos(theta) - minor * np.sin(theta)
-        v = v + major * np.sin(theta) + minor * np.cos(theta)
+        major = amp * factor * libm.cos(arg)
+        minor = amp * factor * eps * libm.sin(arg)
+        u = u + major * libm.cos(theta) - minor * libm.sin(theta)
+        v = v + major * libm.sin(theta) + minor * libm.cos(theta)
     return u, v
 
 
@@ -274,8 +275,8 @@ def _currents_block(t, lat, lon, *, scene: _Scene, depth: np.ndarray):
     Y, X = _box(scene, lat, lon)
     elev = _elevation(scene, X, Y)
     ok = (depth[:, None, None] <= -elev[None])              # (nz, ny, nx)
-    fm = np.exp(-depth / _MEAN_DECAY_M)[:, None, None]
-    fe = np.exp(-depth / _EDDY_DECAY_M)[:, None, None]
+    fm = libm.exp(-depth / _MEAN_DECAY_M)[:, None, None]
+    fe = libm.exp(-depth / _EDDY_DECAY_M)[:, None, None]
     out = np.empty((2, t.size, depth.size, lat.size, lon.size), np.float32)
     for k, tk in enumerate(t):
         um, vm, ue, ve = _surface_flow(scene, X, Y, float(tk))

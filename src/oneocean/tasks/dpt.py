@@ -50,6 +50,7 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from .common import (MIN_ALTITUDE_M, STANDARD, episode_generators, nav_waypoint, need_tier,
                      profile_at, sample_route, start_times)
+from ..engine import libm
 
 TASK_ID = "DPT"
 METRICS = ("depth_error_m", "waypoints_reached", "max_depth_error_m", "cross_track_error_m")
@@ -115,7 +116,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
                                 land_threshold=DEFAULT_LAND_THRESHOLD, vary_depth=True,
                                 what=f"task {TASK_ID} reset (episode {e})")
     d = route[:, 1] - route[:, 0]
-    psi0 = np.arctan2(d[:, 0], d[:, 2])[:, None]
+    psi0 = libm.arctan2(d[:, 0], d[:, 2])[:, None]
     return {"route": route, "pos0": route[:, :1].copy(), "psi0": psi0, "t0": t0}
 
 

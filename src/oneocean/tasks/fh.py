@@ -80,6 +80,7 @@ from ..sensing.kernels import polar_fix
 from .common import feasible_codes
 from .common import (PURPOSE_TASK_NOISE, STANDARD, episode_generators, need_tier,
                      path_clear, sample_route, start_times)
+from ..engine import libm
 
 TASK_ID = "FH"
 METRICS = ("containment_success", "final_centroid_distance_m", "fraction_inside",
@@ -134,7 +135,7 @@ def _try_episode(grid, rng, n_fish: int, distance: float, radius: float):
         if not path_clear(grid, s0 + off, z0 + off, ROUTE_CLEARANCE_M, DEFAULT_LAND_THRESHOLD):
             return None
     a = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
-    rim = np.stack([z0[0] + radius * np.sin(a), z0[2] + radius * np.cos(a)], axis=1)
+    rim = np.stack([z0[0] + radius * libm.sin(a), z0[2] + radius * libm.cos(a)], axis=1)
     if not np.all(_ok(grid, rim, ROUTE_CLEARANCE_M)):
         return None
     fx, fz, _, _ = init_school(n_fish, (s0[0], s0[2]), SCHOOL_RADIUS_M, rng)
@@ -214,7 +215,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
         fish0[e, 0], fish0[e, 1], zone[e], pos0[e] = found
     cx = fish0[:, 0].mean(axis=1)
     cz = fish0[:, 1].mean(axis=1)
-    psi0 = np.arctan2(cx[:, None] - pos0[..., 0], cz[:, None] - pos0[..., 2])
+    psi0 = libm.arctan2(cx[:, None] - pos0[..., 0], cz[:, None] - pos0[..., 2])
     # the current regime is judged where the school drifts: its centroid and the zone
     y = float(pos0[0, 0, 1]) if n_episodes else 0.0
     pts = np.stack([np.column_stack([cx, np.full_like(cx, y), cz]),

@@ -58,6 +58,7 @@ from ..errors import ConfigError, NotApplicable
 from . import routing
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, current_at,
                      episode_seed_sequence, need_tier, sample_route, site_speeds, start_times)
+from ..engine import libm
 
 TASK_ID = "G2G"
 METRICS = ("final_error_m", "min_error_m", "path_length_m", "energy_wh", "energy_ratio")
@@ -268,7 +269,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     pos0 = np.array([r[:1] for r in routes], dtype=np.float64).reshape(n_episodes, 1, 3)
     goal = np.array([r[1] for r in routes], dtype=np.float64).reshape(n_episodes, 3)
     d = goal - pos0[:, 0]
-    psi0 = np.arctan2(d[:, 0], d[:, 2])[:, None]
+    psi0 = libm.arctan2(d[:, 0], d[:, 2])[:, None]
     return {"pos0": pos0, "goal": goal, "psi0": psi0, "t0": t0}
 
 

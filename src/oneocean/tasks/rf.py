@@ -53,6 +53,7 @@ from . import routing
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, nav_waypoint, need_tier,
                      sample_route, start_times)
 from .g2g import MAX_VERTICES, draw_in_band, energy_budgets, step_energy, task_power
+from ..engine import libm
 
 TASK_ID = "RF"
 METRICS = ("cross_track_error_m", "waypoints_reached", "max_cross_track_m", "energy_wh",
@@ -117,7 +118,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     t0 = np.array(t0, dtype=np.float64)
     route = np.array(routes, dtype=np.float64).reshape(n_episodes, n_wp + 1, 3)
     d = route[:, 1] - route[:, 0]
-    psi0 = np.arctan2(d[:, 0], d[:, 2])[:, None]
+    psi0 = libm.arctan2(d[:, 0], d[:, 2])[:, None]
     return {"route": route, "pos0": route[:, :1].copy(), "psi0": psi0, "t0": t0}
 
 

@@ -46,6 +46,7 @@ from numba import njit
 
 from ..engine._jit import hot_kernel
 from ..engine.dynamics import vehicles_file
+from ..engine import libm
 from ..engine.grid import sample_current, sample_elevation, sample_land
 from ..errors import ConfigError
 from ..sensing.kernels import forecast
@@ -83,7 +84,7 @@ class PowerModel(NamedTuple):
         float64 or ndarray
             Power, W (the shape of ``u``).
         """
-        return self.hotel_w + self.k * np.asarray(u, dtype=np.float64) ** 3
+        return self.hotel_w + self.k * libm.power(u, 3.0)
 
     @property
     def range_speed(self) -> float:

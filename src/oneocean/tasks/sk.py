@@ -74,6 +74,7 @@ from .common import feasible_codes
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, need_tier,
                      sample_route, start_times)
 from .loop import GO, REACHED
+from ..engine import libm
 
 TASK_ID = "SK"
 METRICS = ("rms_error_m", "hold_rms_m", "heading_rms_deg", "max_error_m", "hold_s",
@@ -171,7 +172,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     t0 = cand[np.arange(n_episodes), best]
     c = sample_currents(grid, station, t0)
     calm = np.hypot(c[:, 0], c[:, 1]) < CALM_MS
-    heading = np.where(calm, psi_rand, np.arctan2(-c[:, 0], -c[:, 1]))
+    heading = np.where(calm, psi_rand, libm.arctan2(-c[:, 0], -c[:, 1]))
     # the release point: start_offset_m from the station on a random bearing, in valid water
     pos0 = station.copy()
     if offset > 0.0:

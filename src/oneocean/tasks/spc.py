@@ -75,6 +75,7 @@ from ..models import pollution as pol
 from .common import (STANDARD, episode_generators, episode_steps, need_tier,
                      need_tokens, path_clear, start_times)
 from .loop import GO, REACHED
+from ..engine import libm
 
 TASK_ID = "SPC"
 METRICS = ("cleanup_rate", "escaped_fraction", "remaining_fraction", "time_to_target_s")
@@ -263,7 +264,7 @@ def reset_candidates(grid, tier: dict, n_agents: int, n_episodes: int, seed: int
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
     off = staging_offsets(n_agents)
     ang = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
-    rings = np.concatenate([[[0.0, 0.0]]] + [r * np.stack([np.sin(ang), np.cos(ang)], 1)
+    rings = np.concatenate([[[0.0, 0.0]]] + [r * np.stack([libm.sin(ang), libm.cos(ang)], 1)
                                              for r in np.linspace(0.5, CLEAR_RADII, 3) * R])
     box = _spill_box(n, half, R)
     b = box.stop - box.start
@@ -380,7 +381,7 @@ def reset_build(grid, tier: dict, n_agents: int, cand: dict, seed: int) -> dict:
         pos0[e, :, 1] = SURFACE_Y_M
         pos0[e, :, 2] = starts[e, :, 1]
     d = report[:, None, :] - pos0[:, :, [0, 2]]
-    psi0 = np.arctan2(d[..., 0], d[..., 1])
+    psi0 = libm.arctan2(d[..., 0], d[..., 1])
     return {"pos0": pos0, "psi0": psi0, "t0": t0, "C0": C0, "land": land, "origin": origin,
             "report": report, "regime_points": cand["regime_points"]}
 

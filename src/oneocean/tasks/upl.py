@@ -90,6 +90,7 @@ from ..sensing.kernels import PURPOSE_PERCEPTION, draw, polar_fix
 from .common import feasible_codes
 from .common import (OK, STANDARD, current_at, episode_generators, episode_steps, need_tier,
                      path_clear, start_times)
+from ..engine import libm
 
 TASK_ID = "UPL"
 METRICS = ("lift_success", "final_object_depth_m", "attach_time_s", "object_drift_m")
@@ -144,8 +145,8 @@ def slot_offsets(phase: float = 0.0) -> np.ndarray:
         Offsets (x, y, z), world m.
     """
     a = phase + 2.0 * np.pi * np.arange(N_SLOTS) / N_SLOTS
-    return np.stack([SLOT_RING_M * np.sin(a), np.full(N_SLOTS, -SLOT_RISE_M),
-                     SLOT_RING_M * np.cos(a)], axis=1)
+    return np.stack([SLOT_RING_M * libm.sin(a), np.full(N_SLOTS, -SLOT_RISE_M),
+                     SLOT_RING_M * libm.cos(a)], axis=1)
 
 
 def check_reachable(tier: dict, grid=None) -> None:
@@ -294,7 +295,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
         err = np.clip(rng.normal(0.0, 1.0, 2), -3.0, 3.0) * survey
         chart[e] = _chart_point(grid, obj0[e], err)
     d = obj0[:, None, :] - pos0
-    psi0 = np.arctan2(d[..., 0], d[..., 2])
+    psi0 = libm.arctan2(d[..., 0], d[..., 2])
     # the current regime is judged at the object: its site, and the water column it rises in
     col = np.repeat(obj0[:, None, :], 3, axis=1)
     col[:, 1, 1] *= 0.5

@@ -79,6 +79,7 @@ import numpy as np
 
 from ...engine import dynamics as dyn
 from ...errors import ConfigError
+from ...engine import libm
 
 __all__ = ["core_to_mj", "mj_to_core", "euler_to_matrix", "euler_to_quat", "quat_to_euler",
            "quat_to_matrix", "core_to_mj_velocity", "import_mujoco", "VehicleModel",
@@ -182,9 +183,9 @@ def euler_to_matrix(phi, theta, psi) -> np.ndarray:
     """
     phi, theta, psi = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64)
                                             for a in (phi, theta, psi)))
-    sf, cf = np.sin(phi), np.cos(phi)
-    st, ct = np.sin(theta), np.cos(theta)
-    sp, cp = np.sin(psi), np.cos(psi)
+    sf, cf = libm.sin(phi), libm.cos(phi)
+    st, ct = libm.sin(theta), libm.cos(theta)
+    sp, cp = libm.sin(psi), libm.cos(psi)
     r = np.empty(phi.shape + (3, 3))
     # Fossen zyx, rows (north, east, down)
     r00, r01, r02 = cp * ct, -sp * cf + cp * st * sf, sp * sf + cp * cf * st
@@ -288,9 +289,9 @@ def quat_to_euler(q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     m = quat_to_matrix(q)
     # back to Fossen's R (rows north, east, down): r00 = M10, r10 = M00, r20 = -M20,
     # r21 = M21, r22 = M22
-    phi = np.arctan2(m[..., 2, 1], m[..., 2, 2])
-    theta = np.arcsin(np.clip(m[..., 2, 0], -1.0, 1.0))
-    psi = np.arctan2(m[..., 0, 0], m[..., 1, 0])
+    phi = libm.arctan2(m[..., 2, 1], m[..., 2, 2])
+    theta = libm.arcsin(np.clip(m[..., 2, 0], -1.0, 1.0))
+    psi = libm.arctan2(m[..., 0, 0], m[..., 1, 0])
     return phi, theta, psi
 
 

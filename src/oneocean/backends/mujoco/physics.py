@@ -60,6 +60,7 @@ from ...engine import dynamics as dyn
 from ...engine import status as st
 from ...errors import ConfigError
 from . import mjcf
+from ...engine import libm
 
 __all__ = ["ScenePhysics", "CONTACT"]
 
@@ -266,12 +267,12 @@ class ScenePhysics:
         psi_ref = s[:, dyn.PSI_REF].copy()
         psi_ref = np.where(np.isfinite(psi_ref), psi_ref, s[:, dyn.PSI])  # unset: hold heading
         upd = psi_free & thrust & (ah * ah >= self._vyaw * self._vyaw)
-        psi_ref = np.where(~psi_free, c[:, dyn.C_PSI], np.where(upd, np.arctan2(ae, an), psi_ref))
+        psi_ref = np.where(~psi_free, c[:, dyn.C_PSI], np.where(upd, libm.arctan2(ae, an), psi_ref))
         s[:, dyn.PSI_REF] = psi_ref
         spd = np.sqrt(ah * ah + ad * ad)
         th_ref = np.zeros_like(spd)
         if self._pmax > 0:
-            th_ref = np.clip(np.arctan2(-ad, ah), -self._pmax, self._pmax)
+            th_ref = np.clip(libm.arctan2(-ad, ah), -self._pmax, self._pmax)
         a_mj = np.stack([ae, an, -ad], axis=1)
         cur_mj = np.stack([cur[:, 0], cur[:, 1], np.zeros(len(flat))], axis=1)
         ms = self._to_mj(s)
@@ -346,8 +347,8 @@ class ScenePhysics:
         # the core's feed-forward: D(|nu_r|) c + g(eta) (restoring moment held by the roll and
         # pitch loops), so the servo force is tau = D c + g + kv (c - nu_r) as in the core
         ff = np.concatenate([dcoef[:, :3] * cmd_rel, dcoef[:, 3:] * rate_flu], axis=1)
-        ff[:, 3] += self._wbg * np.cos(th) * np.sin(phi)
-        ff[:, 4] -= self._wbg * np.sin(th)
+        ff[:, 3] += self._wbg * libm.cos(th) * libm.sin(phi)
+        ff[:, 4] -= self._wbg * libm.sin(th)
         ctrl = np.zeros((ms.shape[0], self.nu))
         for k, dof in enumerate(self._dofs):
             kv = self._kv[k]
