@@ -29,72 +29,50 @@ from numba import njit
 __all__ = ["sin", "cos", "exp", "log", "tanh", "arctan", "arcsin", "arctan2", "power", "log1p"]
 
 
-@njit(cache=True)
-def _sin(x, out):
-    for i in range(x.size):
-        out[i] = math.sin(x[i])
+# operation codes of the two kernels (one compiled loop each; the branch costs nothing next to
+# the libm call)
+_SIN, _COS, _EXP, _LOG, _LOG1P, _TANH, _ATAN, _ASIN = range(8)
+_ATAN2, _POW = range(2)
 
 
 @njit(cache=True)
-def _cos(x, out):
+def _unary_kernel(op, x, out):
+    # numba's math.log / math.asin follow C outside their domain (-inf / NaN), as NumPy does,
+    # where Python's raise
     for i in range(x.size):
-        out[i] = math.cos(x[i])
+        v = x[i]
+        if op == _SIN:
+            out[i] = math.sin(v)
+        elif op == _COS:
+            out[i] = math.cos(v)
+        elif op == _EXP:
+            out[i] = math.exp(v)
+        elif op == _LOG:
+            out[i] = math.log(v)
+        elif op == _LOG1P:
+            out[i] = math.log1p(v)
+        elif op == _TANH:
+            out[i] = math.tanh(v)
+        elif op == _ATAN:
+            out[i] = math.atan(v)
+        else:
+            out[i] = math.asin(v)
 
 
 @njit(cache=True)
-def _exp(x, out):
-    for i in range(x.size):
-        out[i] = math.exp(x[i])
+def _binary_kernel(op, a, b, out):
+    for i in range(a.size):
+        if op == _ATAN2:
+            out[i] = math.atan2(a[i], b[i])
+        else:
+            out[i] = math.pow(a[i], b[i])
 
 
-@njit(cache=True)
-def _log(x, out):
-    for i in range(x.size):
-        # math.log raises on x <= 0 in Python; numba's follows C (NaN / -inf), as NumPy does
-        out[i] = math.log(x[i])
-
-
-@njit(cache=True)
-def _log1p(x, out):
-    for i in range(x.size):
-        out[i] = math.log1p(x[i])
-
-
-@njit(cache=True)
-def _tanh(x, out):
-    for i in range(x.size):
-        out[i] = math.tanh(x[i])
-
-
-@njit(cache=True)
-def _arctan(x, out):
-    for i in range(x.size):
-        out[i] = math.atan(x[i])
-
-
-@njit(cache=True)
-def _arcsin(x, out):
-    for i in range(x.size):
-        out[i] = math.asin(x[i])
-
-
-@njit(cache=True)
-def _arctan2(y, x, out):
-    for i in range(x.size):
-        out[i] = math.atan2(y[i], x[i])
-
-
-@njit(cache=True)
-def _power(x, p, out):
-    for i in range(x.size):
-        out[i] = math.pow(x[i], p[i])
-
-
-def _unary(kernel, x):
+def _unary(op, x):
     a = np.asarray(x, dtype=np.float64, order="C")         # keeps a scalar 0-d
     out = np.empty(a.shape, dtype=np.float64)
     if a.size:
-        kernel(a.reshape(-1), out.reshape(-1))
+        _unary_kernel(op, a.reshape(-1), out.reshape(-1))
     return float(out) if out.ndim == 0 else out
 
 
@@ -111,7 +89,7 @@ def sin(x):
     float or ndarray
         Sine, dimensionless. A float for a scalar ``x``, else a float64 array of ``x``'s shape.
     """
-    return _unary(_sin, x)
+    return _unary(_SIN, x)
 
 
 def cos(x):
@@ -127,7 +105,7 @@ def cos(x):
     float or ndarray
         Cosine, dimensionless. A float for a scalar ``x``, else a float64 array of ``x``'s shape.
     """
-    return _unary(_cos, x)
+    return _unary(_COS, x)
 
 
 def exp(x):
@@ -143,7 +121,7 @@ def exp(x):
     float or ndarray
         ``e ** x`` (``inf`` on overflow). A float for a scalar ``x``, else a float64 array of ``x``'s shape.
     """
-    return _unary(_exp, x)
+    return _unary(_EXP, x)
 
 
 def log(x):
@@ -159,7 +137,7 @@ def log(x):
     float or ndarray
         ``log(x)``: ``-inf`` at 0, NaN below 0. A float for a scalar ``x``, else a float64 array of ``x``'s shape.
     """
-    return _unary(_log, x)
+    return _unary(_LOG, x)
 
 
 def log1p(x):
@@ -175,7 +153,7 @@ def log1p(x):
     float or ndarray
         ``log(1 + x)``: ``-inf`` at -1, NaN below. A float for a scalar ``x``, else a float64 array of ``x``'s shape.
     """
-    return _unary(_log1p, x)
+    return _unary(_LOG1P, x)
 
 
 def tanh(x):
@@ -191,7 +169,7 @@ def tanh(x):
     float or ndarray
         Hyperbolic tangent, in [-1, 1]. A float for a scalar ``x``, else a float64 array of ``x``'s shape.
     """
-    return _unary(_tanh, x)
+    return _unary(_TANH, x)
 
 
 def arctan(x):
@@ -207,7 +185,7 @@ def arctan(x):
     float or ndarray
         Angle in (-pi/2, pi/2), rad. A float for a scalar ``x``, else a float64 array of ``x``'s shape.
     """
-    return _unary(_arctan, x)
+    return _unary(_ATAN, x)
 
 
 def arcsin(x):
@@ -223,15 +201,15 @@ def arcsin(x):
     float or ndarray
         Angle in [-pi/2, pi/2], rad (NaN outside [-1, 1]). A float for a scalar ``x``, else a float64 array of ``x``'s shape.
     """
-    return _unary(_arcsin, x)
+    return _unary(_ASIN, x)
 
 
-def _binary(kernel, a, b):
+def _binary(op, a, b):
     ab, bb = np.broadcast_arrays(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
     a1, b1 = np.asarray(ab, order="C"), np.asarray(bb, order="C")
     out = np.empty(a1.shape, dtype=np.float64)
     if out.size:
-        kernel(a1.reshape(-1), b1.reshape(-1), out.reshape(-1))
+        _binary_kernel(op, a1.reshape(-1), b1.reshape(-1), out.reshape(-1))
     return float(out) if out.ndim == 0 else out
 
 
@@ -249,7 +227,7 @@ def arctan2(y, x):
         Angle of the point ``(x, y)`` in [-pi, pi], rad: a float for scalars, else a float64
         array of the broadcast shape.
     """
-    return _binary(_arctan2, y, x)
+    return _binary(_ATAN2, y, x)
 
 
 def power(x, p):
@@ -268,4 +246,4 @@ def power(x, p):
     float or ndarray
         ``x ** p``: a float for scalars, else a float64 array of the broadcast shape.
     """
-    return _binary(_power, x, p)
+    return _binary(_POW, x, p)
