@@ -595,7 +595,8 @@ def path_clear(grid: Grid, p0, p1, clearance: float, land_threshold: float = 0.5
         spacing_m = min(20.0, 0.5 * min(float(grid.dx), float(grid.dz)))
     p0 = np.asarray(p0, dtype=np.float64)
     p1 = np.asarray(p1, dtype=np.float64)
-    n = max(2, int(math.ceil(float(np.linalg.norm(p1 - p0)) / spacing_m)) + 1)
+    d = p1 - p0                      # not np.linalg.norm: a 1-D norm is BLAS's dot, CPU-dependent
+    n = max(2, int(math.ceil(math.sqrt(float(np.sum(d * d))) / spacing_m)) + 1)
     if p0.shape != (3,) or p1.shape != (3,):
         w = np.linspace(0.0, 1.0, n)[:, None]
         return bool(np.all(feasibility(grid, p0 + w * (p1 - p0), land_threshold, clearance)

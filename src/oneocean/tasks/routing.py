@@ -730,7 +730,7 @@ def _merge(r: Route) -> Route:
         d1, d2 = b - a, c - b
         cross = d1[0] * d2[1] - d1[1] * d2[0]
         same_dir = abs(cross) <= 1e-9 * (np.hypot(*d1) * np.hypot(*d2) + 1e-300) \
-            and d1 @ d2 > 0
+            and d1[0] * d2[0] + d1[1] * d2[1] > 0
         if not (same_dir and r.speed[k - 1] == r.speed[k]):
             keep.append(k)
     keep.append(n - 1)
