@@ -24,7 +24,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from ._jit import hot_kernel
 
 __all__ = ["sin", "cos", "exp", "log", "tanh", "arctan", "arcsin", "arctan2", "power", "log1p"]
 
@@ -35,7 +36,7 @@ _SIN, _COS, _EXP, _LOG, _LOG1P, _TANH, _ATAN, _ASIN = range(8)
 _ATAN2, _POW = range(2)
 
 
-@njit(cache=True)
+@hot_kernel
 def _unary_kernel(op, x, out):
     # numba's math.log / math.asin follow C outside their domain (-inf / NaN), as NumPy does,
     # where Python's raise
@@ -59,7 +60,7 @@ def _unary_kernel(op, x, out):
             out[i] = math.asin(v)
 
 
-@njit(cache=True)
+@hot_kernel
 def _binary_kernel(op, a, b, out):
     for i in range(a.size):
         if op == _ATAN2:
