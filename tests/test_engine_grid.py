@@ -306,3 +306,30 @@ def test_spawn_can_keep_away_from_water_without_currents():
     with pytest.raises(ConfigError, match="no current: "):
         C.spawn_positions(g, 0, 1, block, min_current_defined=0.5, max_candidates=500)
     assert C.spawn_positions(g, 0, 1, block).shape == (1, 3)     # water: feasible without it
+
+
+@pytest.mark.parametrize("which", ["analytic", "boundary"])
+def test_speeds_at_every_time_are_hypot_of_the_currents_bit_for_bit(which):
+    # the current regime's sampler (points located once, a time of the axis without the
+    # other time's terms) gives the bits of hypot(sample_current_times): on and off the
+    # nodes, off the grid, next to land and water without currents, at the axis's times
+    # and between them, with tide layers, a gain and the synthetic tide
+    d = make_test_grid() if which == "analytic" else _boundary_grid()
+    rng = np.random.default_rng(7)
+    for g in (G.load_grid(d), G.load_grid(d, current_gain=1.7, tide=(0.3, 1e-4, 0.4)),
+              G.load_grid(d, use_tide_layers=False)):
+        ii, jj = np.meshgrid(np.arange(g.nx), np.arange(g.ny))
+        nodes = np.column_stack([g.x0 + ii.ravel() * g.dx, np.zeros(ii.size),
+                                 g.z0 + jj.ravel() * g.dz])
+        loose = np.column_stack([rng.uniform(g.x0 - 300, g.x_max + 300, 500),
+                                 np.zeros(500), rng.uniform(g.z0 - 300, g.z_max + 300, 500)])
+        times = np.concatenate([np.asarray(g.time_s, np.float64),
+                                rng.uniform(g.time_s[0] - 50, g.time_s[-1] + 50, 5)])
+        for depth in (0.0, 0.5, 7.3, float(g.depth[-1]), 95.0):
+            xyz = np.vstack([nodes, loose])
+            xyz[:, 1] = depth
+            c = G.sample_current_times(g, xyz, times, np.empty((times.size * len(xyz), 2)))
+            want = np.hypot(c[:, 0], c[:, 1])
+            got = G.sample_speeds_times(g, xyz, times)
+            assert got.shape == want.shape and (want > 0.0).mean() > 0.5
+            np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))

@@ -414,7 +414,7 @@ def current_regime(grid: Grid, tier: dict, depth_m: float) -> Regime | None:
     NotApplicable
         No water with currents at ``depth_m``.
     """
-    from ..engine.grid import sample_current_times
+    from ..engine.grid import sample_speeds_times
 
     band = tier.get("current_band")
     if band is None:
@@ -435,8 +435,7 @@ def current_regime(grid: Grid, tier: dict, depth_m: float) -> Regime | None:
     times = np.asarray(grid.time_s, dtype=np.float64)
     xyz = np.column_stack([grid.x0 + ii * grid.dx, np.full(ii.size, float(depth_m)),
                            grid.z0 + jj * grid.dz])
-    c = sample_current_times(grid, xyz, times, np.empty((times.size * xyz.shape[0], 2)))
-    speed = np.hypot(c[:, 0], c[:, 1])
+    speed = sample_speeds_times(grid, xyz, times)
     lo, hi = np.quantile(speed, [q_lo, q_hi])
     return Regime((q_lo, q_hi), float(lo), float(hi) if q_hi < 1.0 else math.inf,
                   float(depth_m))
