@@ -665,6 +665,15 @@ def sample_current_at(grid, x, y, z, t0, t1, wt):
     tuple of float
         ``(ce, cn)``: current east and north, m s-1, without the synthetic tide term.
     """
+    i, j, k0, k1, wk, a00, a10, a01, a11 = _point_cell(grid, x, y, z)
+    return _blend(grid, t0, t1, wt, i, j, k0, k1, wk, a00, a10, a01, a11)
+
+
+@hot_kernel(inline="always")
+def _point_cell(grid, x, y, z):
+    """A point's horizontal cell ``(i, j)``, depth levels ``(k0, k1)`` and weight ``wk``,
+    and its bilinear weights ``(a00, a10, a01, a11)`` renormalised next to nodes without
+    currents: the time-independent part of :func:`sample_current_at`."""
     i, j, wx, wz = _hcell(grid, x, z)
     k0, k1, wk = _locate(grid.depth, grid.depth_inv, grid.depth_lut, grid.depth_lut_inv_h, y)
     a00 = (1.0 - wx) * (1.0 - wz)
@@ -681,6 +690,13 @@ def sample_current_at(grid, x, y, z, t0, t1, wt):
         a10 *= r
         a01 *= r
         a11 *= r
+    return i, j, k0, k1, wk, a00, a10, a01, a11
+
+
+@hot_kernel(inline="always")
+def _blend(grid, t0, t1, wt, i, j, k0, k1, wk, a00, a10, a01, a11):
+    """The data current ``(ce, cn)`` of a point located by :func:`_point_cell` at the time
+    located by :func:`locate_time`."""
     uv = grid.uv
     # four (time, depth) slabs, each bilinear in (x, z); summed as a tree (no long chains)
     u00, v00 = _slab(uv, t0, k0, j, i, a00, a10, a01, a11)
@@ -945,25 +961,11 @@ def sample_current_times(grid, xyz, times, out):
 
 @hot_kernel
 def _point_weights(grid, xyz, cells, weights):
-    """Each point's horizontal cell and depth levels (``cells`` (P, 4) int64: i, j, k0, k1)
-    and weights (``weights`` (P, 5): a00, a10, a01, a11 after the coverage
-    renormalisation, wk), exactly as :func:`sample_current_at` computes them."""
+    """:func:`_point_cell` of every point: ``cells`` (P, 4) int64 ``i, j, k0, k1`` and
+    ``weights`` (P, 5) ``a00, a10, a01, a11, wk``, written in place."""
     for p in range(xyz.shape[0]):
-        i, j, wx, wz = _hcell(grid, xyz[p, 0], xyz[p, 2])
-        k0, k1, wk = _locate(grid.depth, grid.depth_inv, grid.depth_lut,
-                             grid.depth_lut_inv_h, xyz[p, 1])
-        a00 = (1.0 - wx) * (1.0 - wz)
-        a10 = wx * (1.0 - wz)
-        a01 = (1.0 - wx) * wz
-        a11 = wx * wz
-        if grid.cell_full[j, i] == 0:
-            m = grid.current_mask
-            r = 1.0 / max((a00 * m[j, i] + a10 * m[j, i + 1])
-                          + (a01 * m[j + 1, i] + a11 * m[j + 1, i + 1]), MIN_CURRENT_WEIGHT)
-            a00 *= r
-            a10 *= r
-            a01 *= r
-            a11 *= r
+        i, j, k0, k1, wk, a00, a10, a01, a11 = _point_cell(grid, xyz[p, 0], xyz[p, 1],
+                                                            xyz[p, 2])
         cells[p, 0] = i
         cells[p, 1] = j
         cells[p, 2] = k0
@@ -977,18 +979,16 @@ def _point_weights(grid, xyz, cells, weights):
 
 @hot_kernel
 def _speeds_times(grid, cells, weights, times, out):
-    """:func:`sample_speeds_times`'s loop: the arithmetic of :func:`sample_current_at`,
-    then ``hypot`` of the current with the synthetic tide, each point's weights taken from
-    :func:`_point_weights`; at a time of the axis (weight 0 or 1) only that time's slabs."""
+    """:func:`sample_speeds_times`'s loop: :func:`_blend` of each point located by
+    :func:`_point_weights`, then ``hypot`` of the current with the synthetic tide; at a time
+    of the axis (weight 0 or 1) only that time's slabs."""
     n_p = cells.shape[0]
     uv = grid.uv
-    tt = grid.uv_tide
     g = grid.gain
     for n in range(times.shape[0]):
         t = times[n]
         t0, t1, wt = locate_time(grid, t)
         te, tn = synthetic_tide(grid, t)
-        wt0 = 1.0 - wt
         single = t0 if wt == 0.0 else (t1 if wt == 1.0 else -1)
         for p in range(n_p):
             i = cells[p, 0]
@@ -1000,30 +1000,20 @@ def _speeds_times(grid, cells, weights, times, out):
             a01 = weights[p, 2]
             a11 = weights[p, 3]
             wk = weights[p, 4]
-            wk0 = 1.0 - wk
             if single >= 0:
                 # a time on the axis: the other time's terms are (+-)0 (finite data), which
                 # changes no speed's bits (at most a zero's sign, which hypot drops)
+                wk0 = 1.0 - wk
                 u0, v0 = _slab(uv, single, k0, j, i, a00, a10, a01, a11)
                 u1, v1 = _slab(uv, single, k1, j, i, a00, a10, a01, a11)
                 ue = g * (wk0 * u0 + wk * u1)
                 vn = g * (wk0 * v0 + wk * v1)
                 if grid.tide_layers == 1:
-                    ut, vt = _slab2(tt, single, j, i, a00, a10, a01, a11)
+                    ut, vt = _slab2(grid.uv_tide, single, j, i, a00, a10, a01, a11)
                     ue += ut
                     vn += vt
             else:
-                u00, v00 = _slab(uv, t0, k0, j, i, a00, a10, a01, a11)
-                u01, v01 = _slab(uv, t0, k1, j, i, a00, a10, a01, a11)
-                u10, v10 = _slab(uv, t1, k0, j, i, a00, a10, a01, a11)
-                u11, v11 = _slab(uv, t1, k1, j, i, a00, a10, a01, a11)
-                ue = g * (wt0 * (wk0 * u00 + wk * u01) + wt * (wk0 * u10 + wk * u11))
-                vn = g * (wt0 * (wk0 * v00 + wk * v01) + wt * (wk0 * v10 + wk * v11))
-                if grid.tide_layers == 1:
-                    ut0, vt0 = _slab2(tt, t0, j, i, a00, a10, a01, a11)
-                    ut1, vt1 = _slab2(tt, t1, j, i, a00, a10, a01, a11)
-                    ue += wt0 * ut0 + wt * ut1
-                    vn += wt0 * vt0 + wt * vt1
+                ue, vn = _blend(grid, t0, t1, wt, i, j, k0, k1, wk, a00, a10, a01, a11)
             out[n * n_p + p] = math.hypot(ue + te, vn + tn)
     return out
 
