@@ -311,9 +311,9 @@ def test_spawn_can_keep_away_from_water_without_currents():
 @pytest.mark.parametrize("which", ["analytic", "boundary"])
 def test_speeds_at_every_time_are_hypot_of_the_currents_bit_for_bit(which):
     # the current regime's sampler (points located once, a time of the axis without the
-    # other time's terms) gives the bits of hypot(sample_current_times): on and off the
-    # nodes, off the grid, next to land and water without currents, at the axis's times
-    # and between them, with tide layers, a gain and the synthetic tide
+    # other time's terms) gives the bits of hypot(sample_currents), sample by sample: on
+    # and off the nodes, off the grid, next to land and water without currents, at the
+    # axis's times and between them, with tide layers, a gain and the synthetic tide
     d = make_test_grid() if which == "analytic" else _boundary_grid()
     rng = np.random.default_rng(7)
     for g in (G.load_grid(d), G.load_grid(d, current_gain=1.7, tide=(0.3, 1e-4, 0.4)),
@@ -328,7 +328,7 @@ def test_speeds_at_every_time_are_hypot_of_the_currents_bit_for_bit(which):
         for depth in (0.0, 0.5, 7.3, float(g.depth[-1]), 95.0):
             xyz = np.vstack([nodes, loose])
             xyz[:, 1] = depth
-            c = G.sample_current_times(g, xyz, times, np.empty((times.size * len(xyz), 2)))
+            c = G.sample_currents(g, np.tile(xyz, (times.size, 1)), np.repeat(times, len(xyz)))
             want = np.hypot(c[:, 0], c[:, 1])
             got = G.sample_speeds_times(g, xyz, times)
             assert got.shape == want.shape and (want > 0.0).mean() > 0.5

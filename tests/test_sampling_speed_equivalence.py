@@ -13,7 +13,7 @@ import pytest
 from oneocean import engine as E
 from oneocean.engine import status as st
 from oneocean.engine.constraints import spawn_positions
-from oneocean.engine.grid import sample_current_times, sample_currents, sample_elevation_points
+from oneocean.engine.grid import sample_currents, sample_elevation_points, sample_speeds_times
 from oneocean.tasks import g2g, rf, routing
 from oneocean.tasks.common import _spawn_one, path_clear
 from oneocean.testing import make_test_grid
@@ -88,9 +88,10 @@ def test_field_from_grid_equals_the_vectorised_samplers(coast):
 
 
 def test_current_times_equal_the_per_sample_sampler():
-    """``sample_current_times`` (the time located and the tide taken once per time, used for
-    a tier's current regime) equals ``sample_currents`` on every (time, point) pair, bit for
-    bit: between and outside the grid's times, with a synthetic tide, next to land."""
+    """``sample_speeds_times`` (each point located once, the time and the tide once per time,
+    used for a tier's current regime) equals ``hypot`` of ``sample_currents`` on every
+    (time, point) pair, bit for bit: between and outside the grid's times, with a synthetic
+    tide, next to land."""
     from oneocean.engine.grid import with_forcing
 
     g = with_forcing(E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0)),
@@ -102,8 +103,9 @@ def test_current_times_equal_the_per_sample_sampler():
                            rng.uniform(g.z0 - 50.0, g.z_max + 50.0, 300)])
     times = np.concatenate([np.asarray(g.time_s[:3], dtype=np.float64),
                             [-600.0, 1234.5, 7777.0, 1e6]])
-    got = sample_current_times(g, xyz, times, np.empty((times.size * 300, 2)))
-    want = sample_currents(g, np.tile(xyz, (times.size, 1)), np.repeat(times, 300))
+    got = sample_speeds_times(g, xyz, times)
+    c = sample_currents(g, np.tile(xyz, (times.size, 1)), np.repeat(times, 300))
+    want = np.hypot(c[:, 0], c[:, 1])
     assert np.array_equal(got.view(np.int64), want.view(np.int64))
     assert np.abs(got).max() > 0.1
 

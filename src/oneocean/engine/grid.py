@@ -927,39 +927,6 @@ def sample_current_points(grid, xyz, t, out):
 
 
 @hot_kernel
-def sample_current_times(grid, xyz, times, out):
-    """:func:`sample_current` at every point at every time, time-major: the time located and
-    the synthetic tide taken once per time (the same arithmetic as per sample).
-
-    Parameters
-    ----------
-    grid : Grid
-        The loaded grid export.
-    xyz : (P, 3) float64
-        Points ``[x, y, z]``, m.
-    times : (T,) float64
-        Times, s since ``time0_unix_s``.
-    out : (T * P, 2) float64
-        Output array, written in place: row ``n * P + p`` is point ``p`` at time ``n``.
-
-    Returns
-    -------
-    (T * P, 2) float64
-        ``out``: ``[ce, cn]``, m s-1.
-    """
-    n_p = xyz.shape[0]
-    for n in range(times.shape[0]):
-        t = times[n]
-        ti0, ti1, wt = locate_time(grid, t)
-        te, tn = synthetic_tide(grid, t)
-        for p in range(n_p):
-            ce, cn = sample_current_at(grid, xyz[p, 0], xyz[p, 1], xyz[p, 2], ti0, ti1, wt)
-            out[n * n_p + p, 0] = ce + te
-            out[n * n_p + p, 1] = cn + tn
-    return out
-
-
-@hot_kernel
 def _point_weights(grid, xyz, cells, weights):
     """:func:`_point_cell` of every point: ``cells`` (P, 4) int64 ``i, j, k0, k1`` and
     ``weights`` (P, 5) ``a00, a10, a01, a11, wk``, written in place."""
@@ -1021,10 +988,10 @@ def _speeds_times(grid, cells, weights, times, out):
 def sample_speeds_times(grid: Grid, xyz, times) -> np.ndarray:
     """Current speed at every point at every time, time-major.
 
-    ``hypot`` of :func:`sample_current_times`'s rows, the same bits (the C library's
-    ``hypot``, as NumPy's), with each point's cell, levels and weights located once
-    instead of once per time: for the current regime's quantiles (hundreds of thousands
-    of samples).
+    ``hypot`` of :func:`sample_currents` at every (time, point) pair, the same bits (the C
+    library's ``hypot``, as NumPy's), with each point's cell, levels and weights located
+    once instead of once per time: for the current regime's quantiles (hundreds of
+    thousands of samples).
 
     Parameters
     ----------
