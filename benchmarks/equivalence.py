@@ -26,6 +26,7 @@ KEYS = ["task", "tier", "method", "currents", "episode"]
 def run_all(grid_path, tasks_ids, episodes: int, seed: int, methods, dynamics: str):
     import oneocean.tasks as tasks
     from oneocean.engine import load_grid, load_vehicle
+    from oneocean.errors import NotApplicable
 
     grid = load_grid(grid_path)
     veh = load_vehicle()
@@ -35,8 +36,13 @@ def run_all(grid_path, tasks_ids, episodes: int, seed: int, methods, dynamics: s
         for tier in (1, 2, 3):
             for method in methods:
                 for currents in (True, False):
-                    df = tasks.run_cell(grid, task, tier, method, episodes, seed, dynamics,
-                                        currents=currents, vehicle=veh)
+                    try:
+                        df = tasks.run_cell(grid, task, tier, method, episodes, seed, dynamics,
+                                            currents=currents, vehicle=veh)
+                    except NotApplicable as exc:   # the region cannot serve this cell
+                        print(f"{task} T{tier} {method} currents={currents}: not applicable "
+                              f"({exc})", file=sys.stderr, flush=True)
+                        continue
                     frames.append(df)
         print(f"{task}: {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
     return pd.concat(frames, ignore_index=True)

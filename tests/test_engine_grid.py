@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from numba import njit
 
 from oneocean.engine import constraints as C
 from oneocean.engine import grid as G
@@ -333,3 +334,53 @@ def test_speeds_at_every_time_are_hypot_of_the_currents_bit_for_bit(which):
             got = G.sample_speeds_times(g, xyz, times)
             assert got.shape == want.shape and (want > 0.0).mean() > 0.5
             np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+
+
+@njit(cache=False)
+def _currents_from_parts(g, xyz, tq, times):
+    """Each point's parts taken once at time ``tq``'s interval, then the current at every
+    time of ``times`` (all in that interval) from them, with the synthetic tide."""
+    t0, t1, _ = G.locate_time(g, tq)
+    out = np.empty((times.shape[0], xyz.shape[0], 2))
+    for n in range(times.shape[0]):
+        a0, a1, _ = G.locate_time(g, times[n])
+        if a0 != t0 or a1 != t1:
+            out[:] = np.nan       # a time outside tq's interval
+            return out
+    for p in range(xyz.shape[0]):
+        q = G.sample_current_parts(g, xyz[p, 0], xyz[p, 1], xyz[p, 2], t0, t1)
+        for n in range(times.shape[0]):
+            _, _, wt = G.locate_time(g, times[n])
+            te, tn = G.synthetic_tide(g, times[n])
+            out[n, p, 0] = G.current_from_parts(g, wt, q[0], q[1], q[4], q[5]) + te
+            out[n, p, 1] = G.current_from_parts(g, wt, q[2], q[3], q[6], q[7]) + tn
+    return out
+
+
+@pytest.mark.parametrize("which", ["analytic", "boundary"])
+def test_currents_from_an_intervals_parts_are_the_samplers_bit_for_bit(which):
+    # a field's face centres take their parts once per interval of the time axis and the
+    # current at every refresh from them: the sampler's bits at every time of the interval
+    # (its ends included), on and off the nodes, off the grid, next to land and water
+    # without currents, with and without tide layers, a gain and the synthetic tide
+    d = make_test_grid() if which == "analytic" else _boundary_grid()
+    rng = np.random.default_rng(11)
+    for g in (G.load_grid(d), G.load_grid(d, current_gain=1.7, tide=(0.3, 1e-4, 0.4)),
+              G.load_grid(d, use_tide_layers=False)):
+        ts = np.asarray(g.time_s, np.float64)
+        xyz = np.column_stack([rng.uniform(g.x0 - 300, g.x_max + 300, 400),
+                               rng.uniform(0.0, float(g.depth[-1]) + 10.0, 400),
+                               rng.uniform(g.z0 - 300, g.z_max + 300, 400)])
+        xyz[:50, 0] = g.x0 + rng.integers(0, g.nx, 50) * g.dx       # on the nodes
+        xyz[:50, 2] = g.z0 + rng.integers(0, g.ny, 50) * g.dz
+        for a, b in zip(ts[:-1], ts[1:]):
+            inside = np.concatenate([[a], rng.uniform(a, b, 6)])
+            got = _currents_from_parts(g, xyz, float(inside[3]), inside)
+            want = G.sample_currents(g, np.tile(xyz, (inside.size, 1)),
+                                     np.repeat(inside, len(xyz))).reshape(got.shape)
+            assert (np.abs(want) > 0.0).mean() > 0.5
+            np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+        # the last time of the axis belongs to the last interval (weight 1)
+        got = _currents_from_parts(g, xyz, float(ts[-1]), ts[-1:])
+        want = G.sample_currents(g, xyz, np.full(len(xyz), ts[-1])).reshape(got.shape)
+        np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))

@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 
 from oneocean import engine as E
+from oneocean.engine import grid as G
 from oneocean.engine import status as st
 from oneocean.engine.dynamics import P_RTURN, P_VMAX
 from oneocean.errors import ConfigError
@@ -460,3 +461,40 @@ def test_tier_table_monotone_and_declared():
         assert tiers[t]["loc_tolerance_m"] >= 0.75 * pi.FIELD_H_M
     assert table["agents"] == {"default": 1, "range": [1, 10]}
     assert math.isclose(table["dt_s"], 1.0)
+
+
+def test_face_refresh_equals_the_current_at_the_faces_across_intervals():
+    # the faces keep their near-bottom current over one interval of the time axis in
+    # parts: every refresh, forward, backward and across the axis's times, gives the
+    # sampler's bits in the field's axes
+    g = E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0),
+                    tide=(0.2, 1e-4, 0.3))
+    nz, nx, h = 6, 11, 20.0
+    ang = 0.6
+    frame = np.array([[0.5 * (g.x0 + g.x_max), 0.5 * (g.z0 + g.z_max), math.cos(ang),
+                       math.sin(ang), -40.0, -50.0]])
+    uf, vf = np.zeros((1, nz, nx + 1)), np.zeros((1, nz + 1, nx))
+    key = np.full((1, 2), -1, np.int64)
+    part = np.zeros((1, nz * (nx + 1) + (nz + 1) * nx, 8))
+    ox, oz, ca, sa, s0, n0 = frame[0]
+
+    def faces(s, n):
+        x = ox + s * ca - n * sa
+        z = oz + s * sa + n * ca
+        y = np.maximum(-G.sample_elevation_points(g, np.column_stack([x, z]),
+                                                  np.empty(x.size)) - pi.NEAR_BOTTOM_M, 0.5)
+        return np.column_stack([x, y, z])
+
+    jx, fx = np.meshgrid(np.arange(nz), np.arange(nx + 1), indexing="ij")
+    fz, iz = np.meshgrid(np.arange(nz + 1), np.arange(nx), indexing="ij")
+    xf = faces(s0 + (fx.ravel() - 0.5) * h, n0 + jx.ravel() * h)
+    zf = faces(s0 + iz.ravel() * h, n0 + (fz.ravel() - 0.5) * h)
+    for t in (100.0, 3000.0, 3600.0, 3601.0, 9000.0, 500.0, 14400.0, 20000.0, 7200.0):
+        pi._refresh_faces(g, frame, uf, vf, 0, nx, nz, h, key, part, t)
+        assert (part[0, :, :4] != 0.0).all()     # the data's currents, not only the tide
+        cu = E.sample_currents(g, xf, np.full(len(xf), t))
+        cv = E.sample_currents(g, zf, np.full(len(zf), t))
+        want_u = (cu[:, 0] * ca + cu[:, 1] * sa).reshape(nz, nx + 1)
+        want_v = (-cv[:, 0] * sa + cv[:, 1] * ca).reshape(nz + 1, nx)
+        np.testing.assert_array_equal(uf[0].view(np.int64), want_u.view(np.int64))
+        np.testing.assert_array_equal(vf[0].view(np.int64), want_v.view(np.int64))

@@ -330,3 +330,26 @@ def test_tier_table_monotone_and_declared():
     assert table["vehicle"] == "bluerov2_heavy"
     assert table["agents"] == {"default": 10, "range": [2, 10]}
     assert math.isclose(table["dt_s"], 1.0)
+
+
+def test_face_refresh_equals_the_current_at_the_faces_across_intervals():
+    # the faces keep their current over one interval of the time axis in parts: every
+    # refresh, forward, backward and across the axis's times, gives the sampler's bits
+    g = E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0),
+                    tide=(0.2, 1e-4, 0.3))
+    nz, nx, h, y = 7, 9, 20.0, 0.5
+    x0, z0 = 0.5 * (g.x0 + g.x_max), 0.5 * (g.z0 + g.z_max)      # open water
+    uf, vf = np.zeros((nz, nx + 1)), np.zeros((nz + 1, nx))
+    key = np.full(2, -1, np.int64)
+    part = np.zeros((nz * (nx + 1) + (nz + 1) * nx, 4))
+    jx, ix = np.meshgrid(np.arange(nz), np.arange(nx + 1), indexing="ij")
+    jz, iz = np.meshgrid(np.arange(nz + 1), np.arange(nx), indexing="ij")
+    xf = np.column_stack([x0 + (ix.ravel() - 0.5) * h, np.full(ix.size, y), z0 + jx.ravel() * h])
+    zf = np.column_stack([x0 + iz.ravel() * h, np.full(iz.size, y), z0 + (jz.ravel() - 0.5) * h])
+    for t in (100.0, 3000.0, 3600.0, 3601.0, 9000.0, 500.0, 14400.0, 20000.0, 7200.0):
+        spc._refresh_faces(g, uf, vf, x0, z0, h, y, key, part, t)
+        want_u = E.sample_currents(g, xf, np.full(len(xf), t))[:, 0].reshape(uf.shape)
+        want_v = E.sample_currents(g, zf, np.full(len(zf), t))[:, 1].reshape(vf.shape)
+        assert (part[:, :2] != 0.0).all()           # the data's currents, not only the tide
+        np.testing.assert_array_equal(uf.view(np.int64), want_u.view(np.int64))
+        np.testing.assert_array_equal(vf.view(np.int64), want_v.view(np.int64))

@@ -694,27 +694,88 @@ def _point_cell(grid, x, y, z):
 
 
 @hot_kernel(inline="always")
-def _blend(grid, t0, t1, wt, i, j, k0, k1, wk, a00, a10, a01, a11):
-    """The data current ``(ce, cn)`` of a point located by :func:`_point_cell` at the time
-    located by :func:`locate_time`."""
+def _parts(grid, t0, t1, i, j, k0, k1, wk, a00, a10, a01, a11):
+    """The time-interval part of :func:`_blend`: a point's data current at the interval's
+    two times, each linear in depth, and its tide layers there: ``(u0, u1, v0, v1, ut0, ut1,
+    vt0, vt1)`` (the tide's 0 without tide layers)."""
     uv = grid.uv
     # four (time, depth) slabs, each bilinear in (x, z); summed as a tree (no long chains)
     u00, v00 = _slab(uv, t0, k0, j, i, a00, a10, a01, a11)
     u01, v01 = _slab(uv, t0, k1, j, i, a00, a10, a01, a11)
     u10, v10 = _slab(uv, t1, k0, j, i, a00, a10, a01, a11)
     u11, v11 = _slab(uv, t1, k1, j, i, a00, a10, a01, a11)
-    wt0 = 1.0 - wt
     wk0 = 1.0 - wk
-    g = grid.gain
-    ue = g * (wt0 * (wk0 * u00 + wk * u01) + wt * (wk0 * u10 + wk * u11))
-    vn = g * (wt0 * (wk0 * v00 + wk * v01) + wt * (wk0 * v10 + wk * v11))
+    ut0 = vt0 = ut1 = vt1 = 0.0
     if grid.tide_layers == 1:
         tt = grid.uv_tide
         ut0, vt0 = _slab2(tt, t0, j, i, a00, a10, a01, a11)
         ut1, vt1 = _slab2(tt, t1, j, i, a00, a10, a01, a11)
-        ue += wt0 * ut0 + wt * ut1
-        vn += wt0 * vt0 + wt * vt1
-    return ue, vn
+    return (wk0 * u00 + wk * u01, wk0 * u10 + wk * u11, wk0 * v00 + wk * v01,
+            wk0 * v10 + wk * v11, ut0, ut1, vt0, vt1)
+
+
+@hot_kernel(inline="always")
+def current_from_parts(grid, wt, u0, u1, ut0, ut1):
+    """One component of the data current at a time of an interval, from the point's parts
+    there (:func:`sample_current_parts`).
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export (the one the parts were sampled on).
+    wt : float
+        Weight of the interval's later time (:func:`locate_time`).
+    u0, u1, ut0, ut1 : float
+        The component's parts (``u0, u1, ut0, ut1`` or ``v0, v1, vt0, vt1``).
+
+    Returns
+    -------
+    float
+        The component, m s-1, without the synthetic tide term: the bits of
+        :func:`sample_current_at` at the same time.
+    """
+    ue = grid.gain * ((1.0 - wt) * u0 + wt * u1)
+    if grid.tide_layers == 1:
+        ue += (1.0 - wt) * ut0 + wt * ut1
+    return ue
+
+
+@hot_kernel(inline="always")
+def _blend(grid, t0, t1, wt, i, j, k0, k1, wk, a00, a10, a01, a11):
+    """The data current ``(ce, cn)`` of a point located by :func:`_point_cell` at the time
+    located by :func:`locate_time`."""
+    u0, u1, v0, v1, ut0, ut1, vt0, vt1 = _parts(grid, t0, t1, i, j, k0, k1, wk, a00, a10,
+                                                a01, a11)
+    return (current_from_parts(grid, wt, u0, u1, ut0, ut1),
+            current_from_parts(grid, wt, v0, v1, vt0, vt1))
+
+
+@hot_kernel(inline="always")
+def sample_current_parts(grid, x, y, z, t0, t1):
+    """A point's data current over one interval of the time axis, in parts.
+
+    For fixed points sampled at many times of one interval (a field's face centres): the
+    current at any time of the interval is then :func:`current_from_parts` of these parts,
+    per component, the bits of :func:`sample_current_at`, without locating the point or
+    reading the grid again.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    x, y, z : float
+        World position (east, depth positive down, north), m.
+    t0, t1 : int
+        The interval's time indices (:func:`locate_time`).
+
+    Returns
+    -------
+    tuple of float
+        ``(u0, u1, v0, v1, ut0, ut1, vt0, vt1)``: east and north at ``t0`` and ``t1``
+        (linear in depth, before the gain), and the tide layers' (0 without them), m s-1.
+    """
+    i, j, k0, k1, wk, a00, a10, a01, a11 = _point_cell(grid, x, y, z)
+    return _parts(grid, t0, t1, i, j, k0, k1, wk, a00, a10, a01, a11)
 
 
 @hot_kernel(inline="always")

@@ -80,8 +80,8 @@ import numpy as np
 
 from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, spawn_positions
-from ..engine.grid import (locate_time, sample_current_at, sample_elevation,
-                           sample_elevation_points, synthetic_tide)
+from ..engine.grid import (current_from_parts, locate_time, sample_current_parts,
+                           sample_elevation, sample_elevation_points, synthetic_tide)
 from ..errors import ConfigError, NotApplicable
 from ..models import pollution as pol
 from .common import (STANDARD, episode_generators, need_tier, need_tokens,
@@ -423,45 +423,62 @@ def _to_local(x, z, ox, oz, ca, sa):
     return dx * ca + dz * sa, -dx * sa + dz * ca
 
 
-@hot_kernel
-def _refresh_faces(grid, frame, uf, vf, e, nx, nz, h, t):
-    """Sample the near-bottom current at every face of episode ``e``'s field, in local axes
-    (:func:`~.common.current_at` at one time ``t``: the time located and the synthetic tide
-    taken once per refresh, not per face; the same arithmetic)."""
-    ti0, ti1, wt = locate_time(grid, t)
-    te, tn = synthetic_tide(grid, t)
-    ox = frame[e, 0]
-    oz = frame[e, 1]
+@hot_kernel(inline="always")
+def _face_parts(grid, frame, e, h, s, n, ti0, ti1, out):
+    """The current parts over ``(ti0, ti1)`` (:func:`oneocean.engine.grid.
+    sample_current_parts`) at the field point of local ``(s, n)``, ``NEAR_BOTTOM_M`` above
+    the seafloor (at least 0.5 m deep), into ``out`` (8,)."""
     ca = frame[e, 2]
     sa = frame[e, 3]
-    s0 = frame[e, 4]
-    n0 = frame[e, 5]
+    x = frame[e, 0] + s * ca - n * sa
+    z = frame[e, 1] + s * sa + n * ca
+    y = -sample_elevation(grid, x, z) - NEAR_BOTTOM_M
+    if y < 0.5:
+        y = 0.5
+    (out[0], out[1], out[2], out[3], out[4], out[5], out[6],
+     out[7]) = sample_current_parts(grid, x, y, z, ti0, ti1)
+
+
+@hot_kernel
+def _refresh_faces(grid, frame, uf, vf, e, nx, nz, h, key, part, t):
+    """Sample the near-bottom current at every face of episode ``e``'s field, in local axes
+    (:func:`~.common.current_at` at one time ``t``: the time located and the synthetic tide
+    taken once per refresh, not per face; each face's current over the time interval in
+    parts, ``part[e]``, sampled when ``t`` enters a new interval; the same arithmetic)."""
+    ti0, ti1, wt = locate_time(grid, t)
+    te, tn = synthetic_tide(grid, t)
+    ca = frame[e, 2]
+    sa = frame[e, 3]
+    pe = part[e]
+    if key[e, 0] != ti0 or key[e, 1] != ti1:
+        s0 = frame[e, 4]
+        n0 = frame[e, 5]
+        p = 0
+        for j in range(nz):
+            for f in range(nx + 1):
+                _face_parts(grid, frame, e, h, s0 + (f - 0.5) * h, n0 + j * h, ti0, ti1, pe[p])
+                p += 1
+        for f in range(nz + 1):
+            for i in range(nx):
+                _face_parts(grid, frame, e, h, s0 + i * h, n0 + (f - 0.5) * h, ti0, ti1, pe[p])
+                p += 1
+        key[e, 0] = ti0
+        key[e, 1] = ti1
+    p = 0
     for j in range(nz):
         for f in range(nx + 1):
-            s = s0 + (f - 0.5) * h
-            n = n0 + j * h
-            x = ox + s * ca - n * sa
-            z = oz + s * sa + n * ca
-            y = -sample_elevation(grid, x, z) - NEAR_BOTTOM_M
-            if y < 0.5:
-                y = 0.5
-            ce, cn = sample_current_at(grid, x, y, z, ti0, ti1, wt)
-            ce = ce + te
-            cn = cn + tn
+            q = pe[p]
+            ce = current_from_parts(grid, wt, q[0], q[1], q[4], q[5]) + te
+            cn = current_from_parts(grid, wt, q[2], q[3], q[6], q[7]) + tn
             uf[e, j, f] = ce * ca + cn * sa
+            p += 1
     for f in range(nz + 1):
         for i in range(nx):
-            s = s0 + i * h
-            n = n0 + (f - 0.5) * h
-            x = ox + s * ca - n * sa
-            z = oz + s * sa + n * ca
-            y = -sample_elevation(grid, x, z) - NEAR_BOTTOM_M
-            if y < 0.5:
-                y = 0.5
-            ce, cn = sample_current_at(grid, x, y, z, ti0, ti1, wt)
-            ce = ce + te
-            cn = cn + tn
+            q = pe[p]
+            ce = current_from_parts(grid, wt, q[0], q[1], q[4], q[5]) + te
+            cn = current_from_parts(grid, wt, q[2], q[3], q[6], q[7]) + tn
             vf[e, f, i] = -ce * sa + cn * ca
+            p += 1
 
 
 @hot_kernel
@@ -562,6 +579,12 @@ class PIWork(NamedTuple):
         Land / outside flags of the field's cells.
     work : (E, work_size) float64
         ``step_field`` scratch.
+    fkey : (E, 2) int64
+        The interval of the grid's time axis ``fpart`` holds (-1: none yet).
+    fpart : (E, F, 8) float64
+        Every face centre's current over that interval, in parts
+        (:func:`oneocean.engine.grid.sample_current_parts`); ``F = nz (nx + 1) + (nz + 1)
+        nx``, the along-chord faces row by row, then the cross-chord ones.
     sense : (E, N) float64
         Each agent's latest reading, kg m-3.
     claims : (E, MAX_CLAIMS, 3) float64
@@ -602,6 +625,8 @@ class PIWork(NamedTuple):
     vf: np.ndarray          # (E, nz + 1, nx) face currents across the chord, m s-1
     land: np.ndarray        # (E, nz, nx) uint8 land / outside flags of the field's cells
     work: np.ndarray        # (E, work_size) step_field scratch
+    fkey: np.ndarray        # (E, 2) int64 the time interval fpart holds (-1: none)
+    fpart: np.ndarray       # (E, F, 8) the face centres' currents over it, in parts
     # ---- env -> method: the sensor
     sense: np.ndarray       # (E, N) the agent's latest reading, kg m-3
     # ---- method -> env: the report (scored by finish)
@@ -727,6 +752,8 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
                np.ascontiguousarray(init["leak_rate"], dtype=np.float64), frame,
                np.zeros((n_ep, 1, nz, nx)), np.zeros((n_ep, nz, nx + 1)),
                np.zeros((n_ep, nz + 1, nx)), land, np.zeros((n_ep, pol.work_size(1, nz, nx))),
+               np.full((n_ep, 2), -1, dtype=np.int64),
+               np.zeros((n_ep, nz * (nx + 1) + (nz + 1) * nx, 8)),
                np.zeros((n_ep, n_ag)),
                np.full((n_ep, MAX_CLAIMS, 3), np.nan), np.zeros(n_ep, dtype=np.int64),
                wps, wcount, np.zeros((n_ep, n_ag), dtype=np.int64), np.zeros((n_ep, n_ag, 3)),
@@ -777,7 +804,7 @@ def begin(grid, P, W, state, e):
     for k in range(n_spin):
         t = W.t0[e] - (n_spin - k) * dtf
         if k % P.refresh == 0:
-            _refresh_faces(grid, W.frame, W.uf, W.vf, e, nx, nz, h, t)
+            _refresh_faces(grid, W.frame, W.uf, W.vf, e, nx, nz, h, W.fkey, W.fpart, t)
         _field_step(C, P.tracer, W.uf, W.vf, W.land, W.work, W.leak_loc, W.rate, e, P.n_leak,
                     h, s0, n0, dtf, P.kappa)
     for i in range(state.shape[1]):
@@ -815,7 +842,7 @@ def pre_step(grid, P, W, state, e, k, t):
         nx = C.shape[3]
         h = P.h
         if (k // FIELD_EVERY) % P.refresh == 0:
-            _refresh_faces(grid, W.frame, W.uf, W.vf, e, nx, nz, h, t)
+            _refresh_faces(grid, W.frame, W.uf, W.vf, e, nx, nz, h, W.fkey, W.fpart, t)
         _field_step(C, P.tracer, W.uf, W.vf, W.land, W.work, W.leak_loc, W.rate, e, P.n_leak,
                     h, W.frame[e, 4], W.frame[e, 5], FIELD_EVERY * P.dt, P.kappa)
 

@@ -67,8 +67,8 @@ import numpy as np
 
 from ..engine import status as st
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
-from ..engine.grid import (locate_time, sample_current_at, sample_current_data,
-                           synthetic_tide)
+from ..engine.grid import (current_from_parts, locate_time, sample_current_data,
+                           sample_current_parts, synthetic_tide)
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError, NotApplicable
 from ..models import pollution as pol
@@ -387,24 +387,45 @@ def reset_build(grid, tier: dict, n_agents: int, cand: dict, seed: int) -> dict:
 
 
 @hot_kernel
-def _refresh_faces(grid, uf, vf, x0, z0, h, y, t):
+def _refresh_faces(grid, uf, vf, x0, z0, h, y, key, part, t):
     """Sample the surface current at the field's face centres (see pollution module doc):
     :func:`~.common.current_at` at one time ``t``, the time located and the synthetic tide
-    taken once per refresh instead of per face (the same arithmetic)."""
+    taken once per refresh instead of per face; each face's component over the time
+    interval in parts (``key`` (2,) the interval ``part`` (F, 4) holds), sampled when ``t``
+    enters a new interval (the same arithmetic)."""
     nz = uf.shape[0]
     nx = vf.shape[1]
     ti0, ti1, wt = locate_time(grid, t)
     te, tn = synthetic_tide(grid, t)
+    if key[0] != ti0 or key[1] != ti1:
+        p = 0
+        for j in range(nz):
+            z = z0 + j * h
+            for i in range(nx + 1):
+                u0, u1, _, _, ut0, ut1, _, _ = sample_current_parts(
+                    grid, x0 + (i - 0.5) * h, y, z, ti0, ti1)
+                part[p, 0], part[p, 1], part[p, 2], part[p, 3] = u0, u1, ut0, ut1
+                p += 1
+        for j in range(nz + 1):
+            z = z0 + (j - 0.5) * h
+            for i in range(nx):
+                _, _, v0, v1, _, _, vt0, vt1 = sample_current_parts(grid, x0 + i * h, y, z,
+                                                                    ti0, ti1)
+                part[p, 0], part[p, 1], part[p, 2], part[p, 3] = v0, v1, vt0, vt1
+                p += 1
+        key[0] = ti0
+        key[1] = ti1
+    p = 0
     for j in range(nz):
-        z = z0 + j * h
         for i in range(nx + 1):
-            ce, cn = sample_current_at(grid, x0 + (i - 0.5) * h, y, z, ti0, ti1, wt)
-            uf[j, i] = ce + te
+            uf[j, i] = current_from_parts(grid, wt, part[p, 0], part[p, 1], part[p, 2],
+                                          part[p, 3]) + te
+            p += 1
     for j in range(nz + 1):
-        z = z0 + (j - 0.5) * h
         for i in range(nx):
-            ce, cn = sample_current_at(grid, x0 + i * h, y, z, ti0, ti1, wt)
-            vf[j, i] = cn + tn
+            vf[j, i] = current_from_parts(grid, wt, part[p, 0], part[p, 1], part[p, 2],
+                                          part[p, 3]) + tn
+            p += 1
 
 
 
@@ -463,6 +484,13 @@ class SPCWork(NamedTuple):
         z-face velocities, m s-1.
     work : (E, work_size) float64
         Field-step scratch.
+    fkey : (E, 2) int64
+        The interval of the grid's time axis ``fpart`` holds (-1: none yet).
+    fpart : (E, F, 4) float64
+        Every face centre's velocity component over that interval, in parts
+        (:func:`oneocean.engine.grid.sample_current_parts`: east at the x-faces, north at the
+        z-faces); ``F = nz (nx + 1) + (nz + 1) nx``, the x-faces row by row, then the
+        z-faces.
     fpar : (E, 1) float64
         Field-kind parameters (tracer: unused).
     acc : (E, 3) float64
@@ -492,6 +520,8 @@ class SPCWork(NamedTuple):
     uf: np.ndarray      # (E, nz, nx + 1) x-face velocities, m s-1
     vf: np.ndarray      # (E, nz + 1, nx) z-face velocities, m s-1
     work: np.ndarray    # (E, work_size) field-step scratch
+    fkey: np.ndarray    # (E, 2) int64 the time interval fpart holds (-1: none)
+    fpart: np.ndarray   # (E, F, 4) the face centres' components over it, in parts
     fpar: np.ndarray    # (E, 1) field-kind parameters (tracer: unused)
     acc: np.ndarray     # (E, 3) initial mass, removed, escaped, kg
     k_hit: np.ndarray   # (E,) int64 steps to the target fraction (-1: not reached)
@@ -549,7 +579,9 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
     W = SPCWork(np.ascontiguousarray(init["origin"], dtype=np.float64), report, C,
                 np.ascontiguousarray(init["land"], dtype=np.uint8),
                 np.zeros((n_ep, nz, nx + 1)), np.zeros((n_ep, nz + 1, nx)),
-                np.zeros((n_ep, pol.work_size(1, nz, nx))), np.zeros((n_ep, 1)),
+                np.zeros((n_ep, pol.work_size(1, nz, nx))),
+                np.full((n_ep, 2), -1, dtype=np.int64),
+                np.zeros((n_ep, nz * (nx + 1) + (nz + 1) * nx, 4)), np.zeros((n_ep, 1)),
                 np.zeros((n_ep, 3)), np.full(n_ep, -1, np.int64),
                 np.repeat(report[:, None, :], n_ag, axis=1),
                 np.zeros((n_ep, n_ag, 2)), np.zeros(n_ep), np.zeros((n_ep, nb)),
@@ -617,7 +649,8 @@ def pre_step(grid, P, W, state, e, k, t):
         Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
     """
     if k % P.refresh == 0:
-        _refresh_faces(grid, W.uf[e], W.vf[e], W.origin[e, 0], W.origin[e, 1], P.h, P.y, t)
+        _refresh_faces(grid, W.uf[e], W.vf[e], W.origin[e, 0], W.origin[e, 1], P.h, P.y,
+                       W.fkey[e], W.fpart[e], t)
 
 
 @hot_kernel(inline="always")
