@@ -493,6 +493,33 @@ def test_fused_step_equals_run_then_observe(coast, monkeypatch, mode, view):
     assert fused[0][1] >= 3
 
 
+def test_the_step_reuses_its_observations_current_only_at_that_step_and_position(coast):
+    """The step takes the true current at each agent from the sample its observation took
+    (the same step, the same position: the same value, so the episodes stay the cell's);
+    a sample taken anywhere else is never used."""
+    from oneocean.envs import OceanVectorEnv
+
+    def trace(poison):
+        env = OceanVectorEnv("G2G", 1, coast, num_envs=2, autoreset_mode="disabled")
+        out = [env.reset(seed=3)[0]]
+        for _ in range(6):
+            if poison is not None:
+                poison(env.batch.LS.ocur)        # [x, y, z, step, east, north] per agent
+            out.append(env.step(np.full(env.action_space.shape, 0.4))[0])
+        return np.array(out)
+
+    def elsewhere(q):
+        q[..., 0] += 1e-6
+        q[..., 4:6] = 5.0
+
+    def here(q):
+        q[..., 4:6] = 5.0
+
+    clean = trace(None)
+    np.testing.assert_array_equal(trace(elsewhere), clean)
+    assert not np.array_equal(trace(here), clean)        # the sample is what the step uses
+
+
 def test_evaluate_runs_the_forcing_it_is_given(coast):
     """``current_gain`` and ``tide`` reach the rollout: replaying the heuristic's actions of
     a forced cell through ``evaluate`` with the same forcing gives that cell's metrics (and

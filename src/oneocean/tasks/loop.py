@@ -153,6 +153,9 @@ class LoopState(NamedTuple):
     en: np.ndarray          # (E, N) float64 energy proxy of each agent's executed action, m2 s-1
     cw: np.ndarray          # (E, N, 2) float64 true current at each agent (east, north), m s-1
     code: np.ndarray        # (E, N) int64 status of each agent's move (engine.status)
+    # the step API's next observation sampled the true current at each agent for step k:
+    # [x, y, z, k, east, north] (k = -1: none), which the step reuses at the same position
+    ocur: np.ndarray        # (E, N, 6) float64
 
 
 NEW, RUNNING, FINISHED = 0, 1, 2
@@ -190,7 +193,8 @@ def new_loop_state(n_episodes: int, n_agents: int) -> LoopState:
                      np.full(E, -1, np.int64), np.full(E, np.inf),
                      np.zeros((E, N, STATE_DIM)), np.zeros((E, N, 2)), np.zeros((E, N, 3)),
                      np.zeros((E, N, 2)), np.zeros((E, 5)), np.zeros(E),
-                     np.zeros((E, N)), np.zeros((E, N, 2)), np.zeros((E, N), np.int64))
+                     np.zeros((E, N)), np.zeros((E, N, 2)), np.zeros((E, N), np.int64),
+                     np.full((E, N, 6), -1.0))
 
 
 #: ``flags`` bits of the step API's fused step (:func:`env_step_out`): the episode ended at
@@ -470,6 +474,13 @@ def observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact):
     for i in range(n_ag):
         s = state[e, i]
         ce, cn = current_at(grid, s[0], s[1], s[2], t)
+        q = LS.ocur[e, i]
+        q[0] = s[0]
+        q[1] = s[1]
+        q[2] = s[2]
+        q[3] = k
+        q[4] = ce
+        q[5] = cn
         pe, pn = current_estimate(LP.sens, LP.seed, LS.cb, LS.fc, e, k, i, n_ag, ce, cn, 0,
                                   LP.e0)
         gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
@@ -482,10 +493,12 @@ def decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext, obs, act_r
                  t, counting, cur):
     """The decision half of agent ``i``'s step ``k`` (every backend).
 
-    Remember where the agent is (``LS.prev``), sample the true current at it, give the method
-    its current estimate, choose the action (the fused policy, the learned controller or the
-    external action), record the observation and write the command row ``cmd[e, i]``
-    (unclipped, heading free unless the fused policy sets it, thrust on).
+    Remember where the agent is (``LS.prev``), sample the true current at it (or take the
+    step API's observation's sample of it, ``LS.ocur``, at the same step and position: the
+    same value), give the method its current estimate, choose the action (the fused policy,
+    the learned controller or the external action), record the observation and write the
+    command row ``cmd[e, i]`` (unclipped, heading free unless the fused policy sets it,
+    thrust on).
 
     Parameters
     ----------
@@ -540,7 +553,14 @@ def decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext, obs, act_r
     LS.prev[e, i, 0] = px
     LS.prev[e, i, 1] = py
     LS.prev[e, i, 2] = pz
-    ce, cn = current_at(grid, px, py, pz, t)
+    q = LS.ocur[e, i]
+    if q[3] == k and q[0] == px and q[1] == py and q[2] == pz:
+        # the step API's observation sampled it at this step and position
+        ce = q[4]
+        cn = q[5]
+        q[3] = -1.0
+    else:
+        ce, cn = current_at(grid, px, py, pz, t)
     if counting:
         cur += math.sqrt(ce * ce + cn * cn)
     pe, pn = current_estimate(LP.sens, LP.seed, LS.cb, LS.fc, e, k, i, state.shape[1], ce, cn,
