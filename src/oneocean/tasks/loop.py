@@ -558,7 +558,6 @@ def decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext, obs, act_r
         # the step API's observation sampled it at this step and position
         ce = q[4]
         cn = q[5]
-        q[3] = -1.0
     else:
         ce, cn = current_at(grid, px, py, pz, t)
     if counting:

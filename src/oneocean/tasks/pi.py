@@ -424,7 +424,7 @@ def _to_local(x, z, ox, oz, ca, sa):
 
 
 @hot_kernel(inline="always")
-def _face_parts(grid, frame, e, h, s, n, ti0, ti1, out):
+def _face_parts(grid, frame, e, s, n, ti0, ti1, out):
     """The current parts over ``(ti0, ti1)`` (:func:`oneocean.engine.grid.
     sample_current_parts`) at the field point of local ``(s, n)``, ``NEAR_BOTTOM_M`` above
     the seafloor (at least 0.5 m deep), into ``out`` (8,)."""
@@ -456,11 +456,11 @@ def _refresh_faces(grid, frame, uf, vf, e, nx, nz, h, key, part, t):
         p = 0
         for j in range(nz):
             for f in range(nx + 1):
-                _face_parts(grid, frame, e, h, s0 + (f - 0.5) * h, n0 + j * h, ti0, ti1, pe[p])
+                _face_parts(grid, frame, e, s0 + (f - 0.5) * h, n0 + j * h, ti0, ti1, pe[p])
                 p += 1
         for f in range(nz + 1):
             for i in range(nx):
-                _face_parts(grid, frame, e, h, s0 + i * h, n0 + (f - 0.5) * h, ti0, ti1, pe[p])
+                _face_parts(grid, frame, e, s0 + i * h, n0 + (f - 0.5) * h, ti0, ti1, pe[p])
                 p += 1
         key[e, 0] = ti0
         key[e, 1] = ti1
