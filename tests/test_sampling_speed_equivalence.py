@@ -87,6 +87,28 @@ def test_field_from_grid_equals_the_vectorised_samplers(coast):
     np.testing.assert_array_equal(free, free0)
 
 
+def test_field_from_grid_is_the_point_sampler_bit_for_bit_at_any_times():
+    """The field (each node located once, each time slab read once and shared by the two
+    intervals it bounds) holds ``sample_currents``' bits, signed zeros included: with the
+    tide layers and a synthetic tide, at the axis' times, between and outside them, in any
+    order, next to land."""
+    from oneocean.engine.grid import with_forcing
+
+    g = with_forcing(E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0)),
+                     tide=(0.3, 1.4e-4, 0.7))
+    assert g.tide_layers == 1 and g.tide_amp == 0.3
+    pts = np.array([[g.x0 + 50.0, g.z0 + 400.0], [g.x0 + 2100.0, g.z0 + 2500.0]])
+    lat = routing.lattice(g, pts, 600.0, 75.0)
+    times = np.concatenate([np.asarray(g.time_s, dtype=np.float64),
+                            [-600.0, 1234.5, 7200.0, 7777.0, 3600.0, 1e6, 14400.0]])
+    cur, free = routing.field_from_grid(g, lat, 4.0, times, 5.0)
+    cur0, free0 = _field_numpy(g, lat, 4.0, times, 5.0)
+    assert np.array_equal(cur.view(np.int64), cur0.view(np.int64))
+    assert np.array_equal(free, free0)
+    assert (free <= 0.0).any() and (free > 0.0).any()     # land and water in the lattice
+    assert np.abs(cur).max() > 0.1
+
+
 def test_current_times_equal_the_per_sample_sampler():
     """``sample_speeds_times`` (each point located once, the time and the tide once per time,
     used for a tier's current regime) equals ``hypot`` of ``sample_currents`` on every

@@ -694,24 +694,64 @@ def _point_cell(grid, x, y, z):
 
 
 @hot_kernel(inline="always")
+def point_cell(grid, x, y, z):
+    """A point's place in the grid: the time-independent part of :func:`sample_current_at`.
+
+    For fixed points sampled at many times (:func:`time_slab` at each time of the axis).
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    x, y, z : float
+        World position (east, depth positive down, north), m.
+
+    Returns
+    -------
+    tuple
+        ``(i, j, k0, k1, wk, a00, a10, a01, a11)``: horizontal cell (int), depth levels
+        (int) and the weight of ``k1``, and the bilinear weights (renormalised next to
+        nodes without currents).
+    """
+    return _point_cell(grid, x, y, z)
+
+
+@hot_kernel(inline="always")
+def time_slab(grid, ti, i, j, k0, k1, wk, a00, a10, a01, a11):
+    """A located point's data current at one time of the axis, before the gain.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    ti : int
+        Index into the time axis.
+    i, j, k0, k1, wk, a00, a10, a01, a11
+        The point's place (:func:`point_cell`).
+
+    Returns
+    -------
+    tuple of float
+        ``(u, v, ut, vt)``: east and north (linear in depth) and the tide layers' (0 without
+        them), m s-1: what :func:`current_from_parts` blends between two times.
+    """
+    u0, v0 = _slab(grid.uv, ti, k0, j, i, a00, a10, a01, a11)
+    u1, v1 = _slab(grid.uv, ti, k1, j, i, a00, a10, a01, a11)
+    wk0 = 1.0 - wk
+    ut = vt = 0.0
+    if grid.tide_layers == 1:
+        ut, vt = _slab2(grid.uv_tide, ti, j, i, a00, a10, a01, a11)
+    return wk0 * u0 + wk * u1, wk0 * v0 + wk * v1, ut, vt
+
+
+@hot_kernel(inline="always")
 def _parts(grid, t0, t1, i, j, k0, k1, wk, a00, a10, a01, a11):
     """The time-interval part of :func:`_blend`: a point's data current at the interval's
     two times, each linear in depth, and its tide layers there: ``(u0, u1, v0, v1, ut0, ut1,
     vt0, vt1)`` (the tide's 0 without tide layers)."""
-    uv = grid.uv
-    # four (time, depth) slabs, each bilinear in (x, z); summed as a tree (no long chains)
-    u00, v00 = _slab(uv, t0, k0, j, i, a00, a10, a01, a11)
-    u01, v01 = _slab(uv, t0, k1, j, i, a00, a10, a01, a11)
-    u10, v10 = _slab(uv, t1, k0, j, i, a00, a10, a01, a11)
-    u11, v11 = _slab(uv, t1, k1, j, i, a00, a10, a01, a11)
-    wk0 = 1.0 - wk
-    ut0 = vt0 = ut1 = vt1 = 0.0
-    if grid.tide_layers == 1:
-        tt = grid.uv_tide
-        ut0, vt0 = _slab2(tt, t0, j, i, a00, a10, a01, a11)
-        ut1, vt1 = _slab2(tt, t1, j, i, a00, a10, a01, a11)
-    return (wk0 * u00 + wk * u01, wk0 * u10 + wk * u11, wk0 * v00 + wk * v01,
-            wk0 * v10 + wk * v11, ut0, ut1, vt0, vt1)
+    u0, v0, ut0, vt0 = time_slab(grid, t0, i, j, k0, k1, wk, a00, a10, a01, a11)
+    u1, v1, ut1, vt1 = time_slab(grid, t1, i, j, k0, k1, wk, a00, a10, a01, a11)
+    return u0, u1, v0, v1, ut0, ut1, vt0, vt1
 
 
 @hot_kernel(inline="always")
@@ -1031,13 +1071,10 @@ def _speeds_times(grid, cells, weights, times, out):
             if single >= 0:
                 # a time on the axis: the other time's terms are (+-)0 (finite data), which
                 # changes no speed's bits (at most a zero's sign, which hypot drops)
-                wk0 = 1.0 - wk
-                u0, v0 = _slab(uv, single, k0, j, i, a00, a10, a01, a11)
-                u1, v1 = _slab(uv, single, k1, j, i, a00, a10, a01, a11)
-                ue = g * (wk0 * u0 + wk * u1)
-                vn = g * (wk0 * v0 + wk * v1)
+                u, v, ut, vt = time_slab(grid, single, i, j, k0, k1, wk, a00, a10, a01, a11)
+                ue = g * u
+                vn = g * v
                 if grid.tide_layers == 1:
-                    ut, vt = _slab2(grid.uv_tide, single, j, i, a00, a10, a01, a11)
                     ue += ut
                     vn += vt
             else:

@@ -47,7 +47,8 @@ from numba import njit
 from ..engine._jit import hot_kernel
 from ..engine.dynamics import vehicles_file
 from ..engine import libm
-from ..engine.grid import sample_current, sample_elevation, sample_land
+from ..engine.grid import (current_from_parts, locate_time, point_cell, sample_elevation,
+                           sample_land, synthetic_tide, time_slab)
 from ..errors import ConfigError
 from ..sensing.kernels import forecast
 
@@ -954,26 +955,70 @@ def field_from_grid(grid, lat: Lattice, depth: float, times, clearance: float,
     times = np.ascontiguousarray(times, dtype=np.float64).reshape(-1)
     cur = np.empty((times.size, lat.ny, lat.nx, 2))
     free = np.empty((lat.ny, lat.nx))
-    _fill_field(grid, float(lat.x0), float(lat.z0), float(lat.h), float(depth), times,
-                float(clearance), float(land_threshold), float(land_margin), cur, free)
+    _fill_field(grid, float(lat.x0), float(lat.z0), float(lat.h), float(depth),
+                _time_places(grid, times), float(clearance), float(land_threshold),
+                float(land_margin), cur, free)
     return cur, free
 
 
+def _time_places(grid, times) -> np.ndarray:
+    """:func:`_fill_field`'s ``tloc`` for ``times``."""
+    tloc = np.empty((times.shape[0], 5))
+    _locate_times(grid, times, tloc)
+    return tloc
+
+
+@hot_kernel
+def _locate_times(grid, times, tloc):
+    """``tloc[n]``: ``(t0, t1, wt)`` of ``times[n]`` on the grid's axis
+    (:func:`~oneocean.engine.grid.locate_time`) and its synthetic tide ``(te, tn)``."""
+    for n in range(times.shape[0]):
+        t0, t1, wt = locate_time(grid, times[n])
+        te, tn = synthetic_tide(grid, times[n])
+        tloc[n, 0] = t0
+        tloc[n, 1] = t1
+        tloc[n, 2] = wt
+        tloc[n, 3] = te
+        tloc[n, 4] = tn
+
+
 @hot_kernel   # no reference counting: the grid's arrays are read at every node
-def _fill_field(grid, x0, z0, h, depth, times, clearance, land_threshold, land_margin, cur,
+def _fill_field(grid, x0, z0, h, depth, tloc, clearance, land_threshold, land_margin, cur,
                 free):
     """:func:`field_from_grid` into ``cur`` (nt, ny, nx, 2) and ``free`` (ny, nx): node
-    ``(j, i)`` at ``(x0 + i h, z0 + j h)``, every value as the engine's vectorised samplers
-    give it (``sample_currents``, ``sample_elevation_points``, ``np.minimum``)."""
+    ``(j, i)`` at ``(x0 + i h, z0 + j h)`` at the times located in ``tloc``
+    (:func:`_locate_times`), every value as the engine's vectorised samplers give it
+    (``sample_currents``, ``sample_elevation_points``, ``np.minimum``). Each node is located
+    once and each of its time slabs read once (the next time's interval starts where this
+    one's ends): the same blends as ``sample_current``, bit for bit."""
     ny, nx = free.shape
-    for t in range(times.shape[0]):
-        tt = times[t]
-        for j in range(ny):
-            z = z0 + j * h
-            for i in range(nx):
-                ce, cn = sample_current(grid, x0 + i * h, depth, z, tt)
-                cur[t, j, i, 0] = ce
-                cur[t, j, i, 1] = cn
+    nt = tloc.shape[0]
+    for j in range(ny):
+        z = z0 + j * h
+        for i in range(nx):
+            ci, cj, k0, k1, wk, a00, a10, a01, a11 = point_cell(grid, x0 + i * h, depth, z)
+            pi = -1                     # the time index of the slab (pu, pv, put, pvt)
+            pu = pv = put = pvt = 0.0
+            for n in range(nt):
+                t0 = int(tloc[n, 0])
+                t1 = int(tloc[n, 1])
+                wt = tloc[n, 2]
+                if t0 == pi:
+                    u0, v0, ut0, vt0 = pu, pv, put, pvt
+                else:
+                    u0, v0, ut0, vt0 = time_slab(grid, t0, ci, cj, k0, k1, wk, a00, a10,
+                                                 a01, a11)
+                if t1 == t0:
+                    u1, v1, ut1, vt1 = u0, v0, ut0, vt0
+                elif t1 == pi:
+                    u1, v1, ut1, vt1 = pu, pv, put, pvt
+                else:
+                    u1, v1, ut1, vt1 = time_slab(grid, t1, ci, cj, k0, k1, wk, a00, a10,
+                                                 a01, a11)
+                pi = t1
+                pu, pv, put, pvt = u1, v1, ut1, vt1
+                cur[n, j, i, 0] = current_from_parts(grid, wt, u0, u1, ut0, ut1) + tloc[n, 3]
+                cur[n, j, i, 1] = current_from_parts(grid, wt, v0, v1, vt0, vt1) + tloc[n, 4]
     dc = depth + clearance
     lm = land_threshold - land_margin
     for j in range(ny):
@@ -1233,7 +1278,9 @@ def _mission_costs(grid, ts, pts, npts, depth, t0, lat_f, lat_n, t_lo, t_hi, spe
         h = lat_f[e, 2]
         cur = np.empty((times.shape[0], ny, nx, 2))
         free = np.empty((ny, nx))
-        _fill_field(grid, x0, z0, h, depth[e], times, clearance, land_threshold, land_margin,
+        tloc = np.empty((times.shape[0], 5))
+        _locate_times(grid, times, tloc)
+        _fill_field(grid, x0, z0, h, depth[e], tloc, clearance, land_threshold, land_margin,
                     cur, free)
         m = npts[e]
         if fixed:
