@@ -9,8 +9,9 @@ along its track, the steering of :func:`oneocean.tasks.common.seek_max`), has th
 
 :func:`plan_route` finds the best route between two points by a time-dependent Dijkstra search
 over a regular node lattice with 16 edge directions (the 8 neighbours and the 8 knight moves),
-every edge integrated piecewise along it through the field at the time the vehicle gets there,
-then shortens the lattice path by string pulling (a vertex is skipped when the straight segment
+every edge integrated piecewise along it through the field at the time the vehicle gets there
+(directed by A*'s estimate of the cost to the goal, the straight distance at the least cost per
+metre any current on the lattice allows: the same route, fewer nodes searched), then shortens the lattice path by string pulling (a vertex is skipped when the straight segment
 past it is passable and no dearer) and schedules the result piece by piece
 (:func:`schedule`, also the planner of a fixed route). The cost is the time (the time-optimal
 route; each piece at the fastest of the given speeds, one speed: the fixed-speed problem) or,
@@ -418,10 +419,12 @@ def _cost_rate(cmax, speeds, ph, pk):
 def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0, step,
               edges):
     """Time-dependent Dijkstra (cost: time or energy, time carried along) from the point s to
-    the point g over the node lattice.
+    the point g over the node lattice, directed by A*'s consistent estimate of the cost to g
+    (Dijkstra's route and cost; fewer nodes settled).
 
     Returns (cost (ny*nx,), arrival time (ny*nx,), parent (ny*nx,) node or -1 (= from s),
-    goal_parent node (-1: s itself, -2: unreachable), goal cost, goal time)."""
+    goal_parent node (-1: s itself, -2: unreachable), goal cost, goal time); the labels of
+    the nodes the search reached (inf, inf, -3 elsewhere)."""
     ny, nx = free.shape
     nn = ny * nx
     cost = np.full(nn, np.inf)
@@ -438,20 +441,40 @@ def _dijkstra(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold,
         elen[k] = h * math.sqrt(di * di + dj * dj)
         reach = max(reach, abs(edges[k, 0]), abs(edges[k, 1]))
     cloc = _local_cmax(cur, reach)
+    rnode = np.empty(nn)
+    cglob = 0.0
+    for j in range(ny):
+        for i in range(nx):
+            rnode[j * nx + i] = _cost_rate(cloc[j, i], speeds, ph, pk)
+            if not cloc[j, i] <= cglob:
+                cglob = cloc[j, i]
     # the heap never outgrows this: a node is pushed at most once from the start (the
     # attached nodes lie in a 7 x 7 box) and once per edge from each settled node
     cap = nn * edges.shape[0] + 64
     hc = np.empty(cap)
     hn = np.empty(cap, np.int64)
+    # A*'s estimate of each node's cost to g: its straight distance at the least cost per
+    # metre anywhere on the lattice (no current there is faster than cloc's largest). No
+    # edge costs less than its length at that rate, so the estimate is consistent: every
+    # node a cheaper route to g can use is settled with Dijkstra's label (its least cost
+    # and that route's time; an exact tie of two costs may go to the other parent), and the
+    # nodes that cannot lead to g cheaper than the best so far are never expanded
+    hb = np.empty(nn)
+    grate = _cost_rate(cglob, speeds, ph, pk)
+    for j in range(ny):
+        for i in range(nx):
+            dx = x0 + i * h - gx
+            dz = z0 + j * h - gz
+            hb[j * nx + i] = grate * math.sqrt(dx * dx + dz * dz)
     gp, bc, bt = _search(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold,
-                         t0, step, edges, elen, cloc, cost, tarr, parent, done, hc, hn,
-                         np.empty(0, np.int64))
+                         t0, step, edges, elen, rnode, hb, cost, tarr, parent, done, hc,
+                         hn, np.empty(0, np.int64))
     return cost, tarr, parent, gp, bc, bt
 
 
 @hot_kernel   # no reference counting: its helpers get 4-5 arrays on every relaxation
 def _search(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t0, step,
-            edges, elen, cloc, cost, tarr, parent, done, hc, hn, nos):
+            edges, elen, rnode, hb, cost, tarr, parent, done, hc, hn, nos):
     """:func:`_dijkstra`'s search on its allocated arrays (``cost``, ``tarr``, ``parent``
     at their initial values, ``done`` zero, the heap ``hc``/``hn`` large enough for every
     push): returns the goal's parent node, cost and time."""
@@ -481,15 +504,16 @@ def _search(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t
                 cost[n] = ca
                 tarr[n] = ta
                 parent[n] = -1
-                size = _heap_push(hc, hn, size, ca, n)
+                size = _heap_push(hc, hn, size, ca + hb[n], n)
     while size > 0:
-        c = hc[0]
+        f = hc[0]
         n = hn[0]
         size = _heap_pop(hc, hn, size)
-        if done[n] == 1 or c > cost[n]:
+        if done[n] == 1:
             continue
-        if c >= bc:
+        if f >= bc:
             break
+        c = cost[n]
         done[n] = 1
         i = n % nx
         j = n // nx
@@ -503,14 +527,19 @@ def _search(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t
                 bc = c + cg
                 bt = tg
                 goal_parent = n
-        rate = _cost_rate(cloc[j, i], speeds, ph, pk)
+        rate = rnode[n]
         for k in range(edges.shape[0]):
             ii = i + edges[k, 0]
             jj = j + edges[k, 1]
             if ii < 0 or jj < 0 or ii >= nx or jj >= ny:
                 continue
             m = jj * nx + ii
-            if done[m] == 1 or not free[jj, ii] > 0.0 or c + rate * elen[k] >= cost[m]:
+            if done[m] == 1 or not free[jj, ii] > 0.0:
+                continue
+            # the edge's lower bound: it cannot improve m, or no route through m can beat
+            # the best to g so far (m would never be expanded): not integrated
+            lb = c + rate * elen[k]
+            if lb >= cost[m] or lb + hb[m] >= bc:
                 continue
             tm, cm = _segment(cur, times, free, x0, z0, h, px, pz, x0 + ii * h, z0 + jj * h,
                               speeds, ph, pk, hold, t, step, False, nos)
@@ -518,7 +547,7 @@ def _search(cur, times, free, x0, z0, h, sx, sz, gx, gz, speeds, ph, pk, hold, t
                 cost[m] = c + cm
                 tarr[m] = tm
                 parent[m] = n
-                size = _heap_push(hc, hn, size, c + cm, m)
+                size = _heap_push(hc, hn, size, c + cm + hb[m], m)
     return goal_parent, bc, bt
 
 
