@@ -665,32 +665,8 @@ def sample_current_at(grid, x, y, z, t0, t1, wt):
     tuple of float
         ``(ce, cn)``: current east and north, m s-1, without the synthetic tide term.
     """
-    i, j, k0, k1, wk, a00, a10, a01, a11 = _point_cell(grid, x, y, z)
+    i, j, k0, k1, wk, a00, a10, a01, a11 = point_cell(grid, x, y, z)
     return _blend(grid, t0, t1, wt, i, j, k0, k1, wk, a00, a10, a01, a11)
-
-
-@hot_kernel(inline="always")
-def _point_cell(grid, x, y, z):
-    """A point's horizontal cell ``(i, j)``, depth levels ``(k0, k1)`` and weight ``wk``,
-    and its bilinear weights ``(a00, a10, a01, a11)`` renormalised next to nodes without
-    currents: the time-independent part of :func:`sample_current_at`."""
-    i, j, wx, wz = _hcell(grid, x, z)
-    k0, k1, wk = _locate(grid.depth, grid.depth_inv, grid.depth_lut, grid.depth_lut_inv_h, y)
-    a00 = (1.0 - wx) * (1.0 - wz)
-    a10 = wx * (1.0 - wz)
-    a01 = (1.0 - wx) * wz
-    a11 = wx * wz
-    # next to nodes without currents (their arrays are 0): renormalise by the defined share
-    # of the weight (>= 1/2), fade to 0 below it; inside the coverage nothing changes
-    if grid.cell_full[j, i] == 0:
-        m = grid.current_mask
-        r = 1.0 / max((a00 * m[j, i] + a10 * m[j, i + 1])
-                      + (a01 * m[j + 1, i] + a11 * m[j + 1, i + 1]), MIN_CURRENT_WEIGHT)
-        a00 *= r
-        a10 *= r
-        a01 *= r
-        a11 *= r
-    return i, j, k0, k1, wk, a00, a10, a01, a11
 
 
 @hot_kernel(inline="always")
@@ -713,7 +689,23 @@ def point_cell(grid, x, y, z):
         (int) and the weight of ``k1``, and the bilinear weights (renormalised next to
         nodes without currents).
     """
-    return _point_cell(grid, x, y, z)
+    i, j, wx, wz = _hcell(grid, x, z)
+    k0, k1, wk = _locate(grid.depth, grid.depth_inv, grid.depth_lut, grid.depth_lut_inv_h, y)
+    a00 = (1.0 - wx) * (1.0 - wz)
+    a10 = wx * (1.0 - wz)
+    a01 = (1.0 - wx) * wz
+    a11 = wx * wz
+    # next to nodes without currents (their arrays are 0): renormalise by the defined share
+    # of the weight (>= 1/2), fade to 0 below it; inside the coverage nothing changes
+    if grid.cell_full[j, i] == 0:
+        m = grid.current_mask
+        r = 1.0 / max((a00 * m[j, i] + a10 * m[j, i + 1])
+                      + (a01 * m[j + 1, i] + a11 * m[j + 1, i + 1]), MIN_CURRENT_WEIGHT)
+        a00 *= r
+        a10 *= r
+        a01 *= r
+        a11 *= r
+    return i, j, k0, k1, wk, a00, a10, a01, a11
 
 
 @hot_kernel(inline="always")
@@ -782,7 +774,7 @@ def current_from_parts(grid, wt, u0, u1, ut0, ut1):
 
 @hot_kernel(inline="always")
 def _blend(grid, t0, t1, wt, i, j, k0, k1, wk, a00, a10, a01, a11):
-    """The data current ``(ce, cn)`` of a point located by :func:`_point_cell` at the time
+    """The data current ``(ce, cn)`` of a point located by :func:`point_cell` at the time
     located by :func:`locate_time`."""
     u0, u1, v0, v1, ut0, ut1, vt0, vt1 = _parts(grid, t0, t1, i, j, k0, k1, wk, a00, a10,
                                                 a01, a11)
@@ -814,7 +806,7 @@ def sample_current_parts(grid, x, y, z, t0, t1):
         ``(u0, u1, v0, v1, ut0, ut1, vt0, vt1)``: east and north at ``t0`` and ``t1``
         (linear in depth, before the gain), and the tide layers' (0 without them), m s-1.
     """
-    i, j, k0, k1, wk, a00, a10, a01, a11 = _point_cell(grid, x, y, z)
+    i, j, k0, k1, wk, a00, a10, a01, a11 = point_cell(grid, x, y, z)
     return _parts(grid, t0, t1, i, j, k0, k1, wk, a00, a10, a01, a11)
 
 
@@ -1029,10 +1021,10 @@ def sample_current_points(grid, xyz, t, out):
 
 @hot_kernel
 def _point_weights(grid, xyz, cells, weights):
-    """:func:`_point_cell` of every point: ``cells`` (P, 4) int64 ``i, j, k0, k1`` and
+    """:func:`point_cell` of every point: ``cells`` (P, 4) int64 ``i, j, k0, k1`` and
     ``weights`` (P, 5) ``a00, a10, a01, a11, wk``, written in place."""
     for p in range(xyz.shape[0]):
-        i, j, k0, k1, wk, a00, a10, a01, a11 = _point_cell(grid, xyz[p, 0], xyz[p, 1],
+        i, j, k0, k1, wk, a00, a10, a01, a11 = point_cell(grid, xyz[p, 0], xyz[p, 1],
                                                             xyz[p, 2])
         cells[p, 0] = i
         cells[p, 1] = j
