@@ -1043,7 +1043,6 @@ def _speeds_times(grid, cells, weights, times, out):
     :func:`_point_weights`, then ``hypot`` of the current with the synthetic tide; at a time
     of the axis (weight 0 or 1) only that time's slabs."""
     n_p = cells.shape[0]
-    uv = grid.uv
     g = grid.gain
     for n in range(times.shape[0]):
         t = times[n]

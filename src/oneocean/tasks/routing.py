@@ -11,8 +11,9 @@ along its track, the steering of :func:`oneocean.tasks.common.seek_max`), has th
 over a regular node lattice with 16 edge directions (the 8 neighbours and the 8 knight moves),
 every edge integrated piecewise along it through the field at the time the vehicle gets there
 (directed by A*'s estimate of the cost to the goal, the straight distance at the least cost per
-metre any current on the lattice allows: the same route, fewer nodes searched), then shortens the lattice path by string pulling (a vertex is skipped when the straight segment
-past it is passable and no dearer) and schedules the result piece by piece
+metre any current on the lattice allows: the same route, fewer nodes searched), then shortens
+the lattice path by string pulling (a vertex is skipped when the straight segment past it is
+passable and no dearer) and schedules the result piece by piece
 (:func:`schedule`, also the planner of a fixed route). The cost is the time (the time-optimal
 route; each piece at the fastest of the given speeds, one speed: the fixed-speed problem) or,
 given a power model ``P(u) = hotel + k u^3``, the energy (the least-energy route and speed
@@ -990,17 +991,12 @@ def field_from_grid(grid, lat: Lattice, depth: float, times, clearance: float,
     return cur, free
 
 
-def _time_places(grid, times) -> np.ndarray:
-    """:func:`_fill_field`'s ``tloc`` for ``times``."""
+@njit(cache=True)
+def _time_places(grid, times):
+    """:func:`_fill_field`'s ``tloc`` (nt, 5): ``(t0, t1, wt)`` of each of ``times`` on the
+    grid's axis (:func:`~oneocean.engine.grid.locate_time`) and its synthetic tide
+    ``(te, tn)``."""
     tloc = np.empty((times.shape[0], 5))
-    _locate_times(grid, times, tloc)
-    return tloc
-
-
-@hot_kernel
-def _locate_times(grid, times, tloc):
-    """``tloc[n]``: ``(t0, t1, wt)`` of ``times[n]`` on the grid's axis
-    (:func:`~oneocean.engine.grid.locate_time`) and its synthetic tide ``(te, tn)``."""
     for n in range(times.shape[0]):
         t0, t1, wt = locate_time(grid, times[n])
         te, tn = synthetic_tide(grid, times[n])
@@ -1009,6 +1005,7 @@ def _locate_times(grid, times, tloc):
         tloc[n, 2] = wt
         tloc[n, 3] = te
         tloc[n, 4] = tn
+    return tloc
 
 
 @hot_kernel   # no reference counting: the grid's arrays are read at every node
@@ -1016,7 +1013,7 @@ def _fill_field(grid, x0, z0, h, depth, tloc, clearance, land_threshold, land_ma
                 free):
     """:func:`field_from_grid` into ``cur`` (nt, ny, nx, 2) and ``free`` (ny, nx): node
     ``(j, i)`` at ``(x0 + i h, z0 + j h)`` at the times located in ``tloc``
-    (:func:`_locate_times`), every value as the engine's vectorised samplers give it
+    (:func:`_time_places`), every value as the engine's vectorised samplers give it
     (``sample_currents``, ``sample_elevation_points``, ``np.minimum``). Each node is located
     once and each of its time slabs read once (the next time's interval starts where this
     one's ends): the same blends as ``sample_current``, bit for bit."""
@@ -1307,10 +1304,8 @@ def _mission_costs(grid, ts, pts, npts, depth, t0, lat_f, lat_n, t_lo, t_hi, spe
         h = lat_f[e, 2]
         cur = np.empty((times.shape[0], ny, nx, 2))
         free = np.empty((ny, nx))
-        tloc = np.empty((times.shape[0], 5))
-        _locate_times(grid, times, tloc)
-        _fill_field(grid, x0, z0, h, depth[e], tloc, clearance, land_threshold, land_margin,
-                    cur, free)
+        _fill_field(grid, x0, z0, h, depth[e], _time_places(grid, times), clearance,
+                    land_threshold, land_margin, cur, free)
         m = npts[e]
         if fixed:
             out[e] = _path_cost(cur, times, free, x0, z0, h, pts[e, :m], speeds, ph, pk, hold,
