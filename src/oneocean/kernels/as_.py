@@ -26,18 +26,18 @@ def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_sto
         _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
 
 
-@hot_kernel
+@hot_kernel(inline="always")
 def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
     observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
 
 
-@njit(cache=True, nogil=True)
+@hot_kernel(nogil=True)
 def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
     for e in range(e_lo, e_hi):
         _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
 
 
-@njit(cache=True, nogil=True)
+@hot_kernel(nogil=True)
 def _step_kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, nobs, nact,
                  io, e_lo, e_hi):
     for e in range(e_lo, e_hi):
