@@ -18,11 +18,11 @@ two: it passes the task's hooks and the policy's ``plan`` / ``act`` to the one l
   (:func:`~oneocean.tasks.loop.observe_next`), for the step API;
 * ``_step_kernel``: one step of every running episode of a block, then its agents' next
   observation, in one call (the observation, ``_observe``, inlined in its loop over
-  episodes, as in ``_observe_kernel``: an out-of-line call per episode copied the grid's
-  and the loop's arrays, passed by value, at every step), with the step API's side of it
-  (``io``,
-  :class:`~oneocean.tasks.loop.EnvIO`: the sub-envs' actions in, their observations and end
-  flags out; :meth:`oneocean.tasks.episodes.Episodes.env_step` and ``step_observe``), and
+  episodes, as in ``_observe_kernel``: an out-of-line call per episode would copy the
+  grid's and the loop's arrays, passed by value, at every step), with the step API's side
+  of it (``io``, :class:`~oneocean.tasks.loop.EnvIO`: the sub-envs' actions in, their
+  observations and end flags out; :meth:`oneocean.tasks.episodes.Episodes.env_step` and
+  ``step_observe``), and
   ``_step_boxed``, the same call with its arguments in one
   :class:`~oneocean.tasks.loop.StepArgs` (one object to unbox per call, not every array);
   optional: a kernel module without them is stepped by ``_kernel`` and observed by
