@@ -302,8 +302,13 @@ def test_a_small_reset_draws_few_candidates_and_keeps_the_same_ones(coast, monke
     depend on it (the first candidates in the band, in the seed's order)."""
     tier = {**TIER, "goal_distance_m": 1500.0, "time_limit_s": 3000.0, "current_ms": [0.0, 5.0]}
     calls = []
-    real = g2g.sample_route
-    monkeypatch.setattr(g2g, "sample_route", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = g2g.sample_routes
+
+    def counted(grid, rngs, *a, **k):       # candidates drawn: the streams' rows
+        calls.extend([1] * rngs.shape[0])
+        return real(grid, rngs, *a, **k)
+
+    monkeypatch.setattr(g2g, "sample_routes", counted)
     one = g2g.reset(coast, tier, 1, 1, 4)
     assert len(calls) == 2        # every candidate is in this band: 1.25 x 1, rounded up
     calls.clear()
@@ -324,15 +329,17 @@ def test_a_candidate_that_cannot_be_drawn_fails_the_reset_only_when_the_scan_rea
     """Candidate c's route that cannot be drawn (NotApplicable) fails every reset that needs
     a candidate at or after c, and no reset that is done before c, whatever the batch sizes."""
     tier = {**TIER, "goal_distance_m": 1500.0, "time_limit_s": 3000.0, "current_ms": [0.0, 5.0]}
-    real = g2g.sample_route
+    real = g2g.sample_routes
     ref = g2g.reset(coast, tier, 1, 3, 4)
 
     def flaky(*a, **k):
-        if k["what"].endswith("(candidate 3)"):
-            raise NotApplicable(f"{k['what']}: no valid route")
-        return real(*a, **k)
+        routes, failed = real(*a, **k)
+        for j in range(routes.shape[0]):
+            if k["what"](j).endswith("(candidate 3)"):
+                failed[j] = NotApplicable(f"{k['what'](j)}: no valid route")
+        return routes, failed
 
-    monkeypatch.setattr(g2g, "sample_route", flaky)
+    monkeypatch.setattr(g2g, "sample_routes", flaky)
     for n in (1, 2, 3):   # every candidate is in this band: candidates 0..n-1 are kept
         got = g2g.reset(coast, tier, 1, n, 4)   # n = 3 draws candidate 3 too (4 = 1.25 x 3)
         for k in ref:

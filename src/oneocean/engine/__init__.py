@@ -36,4 +36,4 @@ from . import _jit as _jit_mod  # noqa: E402
 from .constraints import check_points as _any_kernel  # noqa: E402
 
 _jit_mod.ensure_fresh_cache(_any_kernel, ("grid.", "constraints.", "dynamics.", "step.", "rng.",
-                                          "reference."))
+                                          "reference.", "streams."))

@@ -19,6 +19,7 @@ import numpy as np
 import yaml
 
 from ..engine import status as st
+from ..engine import streams
 from ..engine.constraints import check_move
 from ..engine._jit import hot_kernel
 from ..engine.grid import Grid, sample_current_data, sample_elevation, synthetic_tide
@@ -351,8 +352,10 @@ def start_times(grid: Grid, rngs, duration_s: float) -> np.ndarray:
     ----------
     grid : Grid
         The grid export.
-    rngs : sequence of numpy.random.Generator
-        One generator per episode; each gives one uniform draw.
+    rngs : sequence of numpy.random.Generator, or (n, 4) uint64
+        One generator per episode, or one stream per episode
+        (:func:`oneocean.engine.streams.episode_states`, advanced in place); each gives one
+        uniform draw.
     duration_s : float
         Episode duration, s.
 
@@ -366,6 +369,8 @@ def start_times(grid: Grid, rngs, duration_s: float) -> np.ndarray:
     t_hi = float(grid.time_s[-1]) - float(duration_s)
     if t_hi <= t_lo:
         return np.full(len(rngs), t_lo)
+    if isinstance(rngs, np.ndarray):
+        return streams.uniform_rows(rngs, t_lo, t_hi)[:, 0]
     return np.array([r.uniform(t_lo, t_hi) for r in rngs])
 
 
@@ -605,6 +610,46 @@ def path_clear(grid: Grid, p0, p1, clearance: float, land_threshold: float = 0.5
                       float(land_threshold), float(clearance)))
 
 
+def paths_clear(grid: Grid, p0, p1, clearance: float, land_threshold: float = 0.5) -> np.ndarray:
+    """:func:`path_clear` of many segments in one compiled call (the same checks, at its
+    default spacing).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    p0, p1 : (m, 3) array_like
+        Segment ends, world m.
+    clearance : float
+        Seafloor clearance, m.
+    land_threshold : float
+        Land-mask threshold.
+
+    Returns
+    -------
+    (m,) bool
+        Whether each segment is feasible.
+    """
+    p0 = np.ascontiguousarray(p0, dtype=np.float64).reshape(-1, 3)
+    p1 = np.ascontiguousarray(p1, dtype=np.float64).reshape(-1, 3)
+    spacing = min(20.0, 0.5 * min(float(grid.dx), float(grid.dz)))
+    out = np.empty(p0.shape[0], dtype=np.bool_)
+    return _call(_paths_kernel, grid, p0, p1, float(spacing), float(land_threshold),
+                 float(clearance), out)
+
+
+@hot_kernel
+def _paths_kernel(grid, p0, p1, spacing, land_threshold, clearance, out):
+    for j in range(p0.shape[0]):
+        dx = p1[j, 0] - p0[j, 0]
+        dy = p1[j, 1] - p0[j, 1]
+        dz = p1[j, 2] - p0[j, 2]
+        n = max(2, int(math.ceil(math.sqrt(dx * dx + dy * dy + dz * dz) / spacing)) + 1)
+        out[j] = _segment_clear(grid, p0[j, 0], p0[j, 1], p0[j, 2], p1[j, 0], p1[j, 1],
+                                p1[j, 2], n, land_threshold, clearance)
+    return out
+
+
 @hot_kernel
 def _segment_clear(grid, ax, ay, az, bx, by, bz, n, land_threshold, clearance):
     """:func:`path_clear`'s test, compiled: the points ``p0 + w (p1 - p0)`` at ``w =
@@ -782,9 +827,138 @@ def sample_route(grid: Grid, rng: np.random.Generator, n_legs: int, leg_m: float
             out[leg + 1] = p
         if ok:
             return out
-    raise NotApplicable(f"{what}: no {n_legs}-leg route of {leg_m:g} m legs at depths "
-                        f"[{lo:g}, {hi:g}] m with {clearance:g} m clearance found in {tries} "
-                        "tries; the region cannot host this tier")
+    raise _no_route(what, n_legs, leg_m, lo, hi, clearance, tries)
+
+
+def _no_route(what, n_legs, leg_m, lo, hi, clearance, tries) -> NotApplicable:
+    return NotApplicable(f"{what}: no {n_legs}-leg route of {leg_m:g} m legs at depths "
+                         f"[{lo:g}, {hi:g}] m with {clearance:g} m clearance found in {tries} "
+                         "tries; the region cannot host this tier")
+
+
+@hot_kernel
+def _routes_kernel(grid, stv, rows, n_legs, leg_m, lo, hi, clearance, max_turn, land_threshold,
+                   vary_depth, tries, spacing, cand, out, status):
+    """:func:`sample_route` for every stream ``rows[j]`` of ``stv``, compiled: the same draws
+    in the same order (``_spawn_one``'s batches of ``_SPAWN_BATCH`` x, then z, then y; a
+    failed start point spends its ``_SPAWN_MAX`` candidates, as ``spawn_positions`` does) and
+    the same checks. ``status[j]``: 0 a route, 1 five failed start points, 2 none in
+    ``tries``."""
+    xl, xh = grid.x0, grid.x_max
+    zl, zh = grid.z0, grid.z_max
+    m = cand.shape[0]
+    for j in range(rows.shape[0]):
+        r = rows[j]
+        status[j] = 2
+        spawn_fails = 0
+        for _ in range(tries):
+            y = streams.uniform(stv, r, lo, hi)
+            q = -1
+            for _b in range(_SPAWN_MAX // m):
+                for c in range(m):
+                    cand[c, 0] = streams.uniform(stv, r, xl, xh)
+                for c in range(m):
+                    cand[c, 2] = streams.uniform(stv, r, zl, zh)
+                for c in range(m):
+                    cand[c, 1] = streams.uniform(stv, r, y, y)
+                for c in range(m):
+                    if check_move(grid, cand[c, 0], cand[c, 1], cand[c, 2], land_threshold,
+                                  clearance) == OK:
+                        q = c
+                        break
+                if q >= 0:
+                    break
+            if q < 0:
+                spawn_fails += 1
+                if spawn_fails >= 5:
+                    status[j] = 1
+                    break
+                continue
+            out[j, 0, 0] = cand[q, 0]
+            out[j, 0, 1] = cand[q, 1]
+            out[j, 0, 2] = cand[q, 2]
+            heading = streams.uniform(stv, r, -math.pi, math.pi)
+            ok = True
+            for leg in range(n_legs):
+                if leg > 0:
+                    heading += streams.uniform(stv, r, -max_turn, max_turn)
+                ax, ay, az = out[j, leg, 0], out[j, leg, 1], out[j, leg, 2]
+                px = ax + leg_m * math.sin(heading)
+                py = ay + leg_m * 0.0
+                pz = az + leg_m * math.cos(heading)
+                if vary_depth:
+                    py = streams.uniform(stv, r, lo, hi)
+                dx, dy, dz = px - ax, py - ay, pz - az
+                n = max(2, int(math.ceil(math.sqrt(dx * dx + dy * dy + dz * dz) / spacing)) + 1)
+                if not _segment_clear(grid, ax, ay, az, px, py, pz, n, land_threshold,
+                                      clearance):
+                    ok = False
+                    break
+                out[j, leg + 1, 0] = px
+                out[j, leg + 1, 1] = py
+                out[j, leg + 1, 2] = pz
+            if ok:
+                status[j] = 0
+                break
+    return status
+
+
+def sample_routes(grid: Grid, stv: np.ndarray, n_legs: int, leg_m: float,
+                  depth_m: tuple[float, float], clearance: float, *, rows=None,
+                  max_turn_rad: float = math.pi, land_threshold: float = 0.5,
+                  vary_depth: bool = False, tries: int = 2000, what=None):
+    """:func:`sample_route` from each of several streams (:mod:`oneocean.engine.streams`) in
+    one compiled call: the routes ``sample_route`` draws from the same streams' generators,
+    bit for bit, and the streams advanced as far.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export.
+    stv : (n, 4) uint64
+        Stream states (:func:`oneocean.engine.streams.episode_states`), advanced in place.
+    n_legs, leg_m, depth_m, clearance, max_turn_rad, land_threshold, vary_depth, tries
+        As :func:`sample_route`.
+    rows : array_like of int, optional
+        Which streams (default all).
+    what : callable, optional
+        ``what(j)``: what row ``j`` draws, for its error message (default ``"route"``).
+
+    Returns
+    -------
+    routes : (len(rows), n_legs + 1, 3) float64
+        Vertices, world m (undefined in a failed row).
+    failed : dict
+        ``{j: NotApplicable}`` for every row with no route: the error ``sample_route``
+        raises there.
+    """
+    rows = (np.arange(stv.shape[0]) if rows is None
+            else np.asarray(rows, dtype=np.int64).reshape(-1))
+    n_legs = int(n_legs)
+    lo, hi = float(depth_m[0]), float(depth_m[1])
+    spacing = min(20.0, 0.5 * min(float(grid.dx), float(grid.dz)))    # path_clear's
+    start = stv[rows].copy()
+    out = np.zeros((rows.size, n_legs + 1, 3))
+    status = _call(_routes_kernel, grid, stv, rows.astype(np.int64), n_legs, float(leg_m), lo,
+                   hi, float(clearance), float(max_turn_rad), float(land_threshold),
+                   bool(vary_depth), int(tries), float(spacing),
+                   np.empty((_SPAWN_BATCH, 3)), out, np.empty(rows.size, dtype=np.int64))
+    failed = {}
+    for j in np.flatnonzero(status):
+        label = "route" if what is None else what(int(j))
+        if status[j] == 2:
+            failed[int(j)] = _no_route(label, n_legs, leg_m, lo, hi, clearance, int(tries))
+            continue
+        try:         # the generator's own path raises its error (a start point's reasons)
+            sample_route(grid, streams.generator(start[j]), n_legs, leg_m, depth_m,
+                         clearance, max_turn_rad=max_turn_rad, land_threshold=land_threshold,
+                         vary_depth=vary_depth, tries=tries, what=label)
+        except NotApplicable as exc:
+            failed[int(j)] = exc
+        else:       # pragma: no cover - the two paths are tested to agree
+            raise AssertionError(f"{label}: the compiled route sampler found no route where "
+                                 "sample_route finds one")
+    return out, failed
 
 
 @hot_kernel(inline="always")
@@ -1276,3 +1450,15 @@ def observe(obs, act, e, k, i, grid, nav, state, gx, gy, gz, pe, pn, pollution, 
     a[0] = ax
     a[1] = ay
     a[2] = az
+
+
+# this module's own kernels (the resets' samplers) inline the engine's (check_move, the
+# streams): drop their cache entries when the engine or this file changes
+def _fresh_own_cache() -> None:
+    from ..engine._jit import ensure_fresh_cache
+
+    ensure_fresh_cache(_routes_kernel, ("common.",), Path(__file__).resolve())
+
+
+_fresh_own_cache()
+

@@ -48,8 +48,9 @@ import numpy as np
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
-from .common import (MIN_ALTITUDE_M, STANDARD, episode_generators, nav_waypoint, need_tier,
-                     profile_at, sample_route, start_times)
+from .common import (MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, nav_waypoint, need_tier,
+                     profile_at, sample_routes, start_times)
+from ..engine import streams
 from ..engine import libm
 
 TASK_ID = "DPT"
@@ -106,15 +107,15 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     span = float(tier["depth_span_m"])
     if not span >= 0:
         raise ConfigError(f"task {TASK_ID}: depth_span_m must be >= 0, got {span}")
-    rngs = episode_generators(seed, n_episodes)
+    rngs = streams.episode_states(seed, n_episodes, PURPOSE_RESET)    # one stream per episode
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
-    route = np.empty((n_episodes, n_wp + 1, 3))
-    for e, rng in enumerate(rngs):
-        route[e] = sample_route(grid, rng, n_wp, float(tier["leg_m"]),
-                                (PROFILE_MIN_DEPTH_M, PROFILE_MIN_DEPTH_M + span),
-                                MIN_ALTITUDE_M, max_turn_rad=math.radians(MAX_TURN_DEG),
-                                land_threshold=DEFAULT_LAND_THRESHOLD, vary_depth=True,
-                                what=f"task {TASK_ID} reset (episode {e})")
+    route, failed = sample_routes(grid, rngs, n_wp, float(tier["leg_m"]),
+                                  (PROFILE_MIN_DEPTH_M, PROFILE_MIN_DEPTH_M + span),
+                                  MIN_ALTITUDE_M, max_turn_rad=math.radians(MAX_TURN_DEG),
+                                  land_threshold=DEFAULT_LAND_THRESHOLD, vary_depth=True,
+                                  what=lambda e: f"task {TASK_ID} reset (episode {e})")
+    if failed:
+        raise failed[min(failed)]
     d = route[:, 1] - route[:, 0]
     psi0 = libm.arctan2(d[:, 0], d[:, 2])[:, None]
     return {"route": route, "pos0": route[:, :1].copy(), "psi0": psi0, "t0": t0}

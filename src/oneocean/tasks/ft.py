@@ -57,8 +57,9 @@ import numpy as np
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, DEFAULT_R_COLL_M
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError, NotApplicable
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, need_tier,
-                     path_clear, sample_route, start_times)
+from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, need_tier,
+                     paths_clear, sample_routes, start_times)
+from ..engine import libm, streams
 
 TASK_ID = "FT"
 METRICS = ("formation_error_m", "max_slot_error_m", "final_centroid_error_m")
@@ -155,7 +156,7 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
         raise ConfigError(f"task {TASK_ID}: team task needs n_agents >= 2, got {n}")
     need_tier(TASK_ID, tier, "route_m", "time_limit_s")
     route_m = float(tier["route_m"])
-    rngs = episode_generators(seed, n_episodes)
+    rngs = streams.episode_states(seed, n_episodes, PURPOSE_RESET)    # one stream per episode
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
     off2 = wedge_offsets(n)
     pos0 = np.empty((n_episodes, n, 3))
@@ -164,28 +165,39 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     goal = np.empty((n_episodes, 3))
     psi = np.empty(n_episodes)
     tries = 2000
-    for e, rng in enumerate(rngs):
-        for _ in range(tries):
-            c0 = sample_route(grid, rng, 0, 0.0, DEPTH_RANGE_M, MIN_ALTITUDE_M,
-                              land_threshold=DEFAULT_LAND_THRESHOLD,
-                              what=f"task {TASK_ID} reset (episode {e})")[0]
-            h = rng.uniform(-math.pi, math.pi)
-            fwd = np.array([math.sin(h), 0.0, math.cos(h)])
-            right = np.array([math.cos(h), 0.0, -math.sin(h)])
-            o = off2[:, :1] * fwd + off2[:, 1:] * right
-            g = c0 + route_m * fwd
-            if all(path_clear(grid, c0 + o[i], g + o[i], MIN_ALTITUDE_M,
-                              DEFAULT_LAND_THRESHOLD) for i in range(n)):
-                break
-        else:
-            raise NotApplicable(f"task {TASK_ID} reset (episode {e}): no {route_m:g} m route "
-                              f"clear for all {n} slots found in {tries} tries; the grid is too "
-                              "small or too shallow for this tier")
-        start[e] = c0
-        goal[e] = g
-        offsets[e] = o
-        pos0[e] = c0 + o
-        psi[e] = h
+    # every episode's tries from its own stream, all pending episodes a try at a time: a
+    # start point, a heading, the slots' paths; the first episode that fails raises
+    todo = np.arange(n_episodes)
+    errors = {}
+    for _ in range(tries):
+        if not todo.size:
+            break
+        c0, failed = sample_routes(grid, rngs, 0, 0.0, DEPTH_RANGE_M, MIN_ALTITUDE_M,
+                                   rows=todo, land_threshold=DEFAULT_LAND_THRESHOLD,
+                                   what=lambda j: f"task {TASK_ID} reset (episode {todo[j]})")
+        errors.update({int(todo[j]): exc for j, exc in failed.items()})
+        alive = np.ones(todo.size, dtype=bool)
+        alive[list(failed)] = False
+        todo, c0 = todo[alive], c0[alive, 0]
+        h = streams.uniform_rows(rngs, -math.pi, math.pi, 1, todo)[:, 0]
+        sin_h, cos_h = libm.sin(h), libm.cos(h)
+        fwd = np.stack([sin_h, np.zeros_like(h), cos_h], axis=1)
+        right = np.stack([cos_h, np.zeros_like(h), -sin_h], axis=1)
+        o = off2[None, :, :1] * fwd[:, None] + off2[None, :, 1:] * right[:, None]
+        g = c0 + route_m * fwd
+        done = paths_clear(grid, c0[:, None] + o, g[:, None] + o, MIN_ALTITUDE_M,
+                           DEFAULT_LAND_THRESHOLD).reshape(todo.size, n).all(axis=1)
+        e = todo[done]
+        start[e], goal[e], offsets[e] = c0[done], g[done], o[done]
+        pos0[e] = c0[done][:, None] + o[done]
+        psi[e] = h[done]
+        todo = todo[~done]
+    for e in todo:
+        errors[int(e)] = NotApplicable(
+            f"task {TASK_ID} reset (episode {e}): no {route_m:g} m route clear for all {n} "
+            f"slots found in {tries} tries; the grid is too small or too shallow for this tier")
+    if errors:
+        raise errors[min(errors)]
     return {"pos0": pos0, "offsets": offsets, "start": start, "goal": goal,
             "psi0": np.repeat(psi[:, None], n, axis=1), "t0": t0,
             "regime_points": np.stack([start, 0.5 * (start + goal), goal], axis=1)}

@@ -35,7 +35,8 @@ Methods
 
 Module layout (the template of every task module; the contract: :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset`` (Python: geometry and start times per episode from
-    :func:`~oneocean.tasks.common.episode_generators`); ``Params`` / ``Work`` and ``make``
+    its own stream, :func:`~oneocean.tasks.common.episode_generators` or their compiled
+    twins, :mod:`oneocean.engine.streams`); ``Params`` / ``Work`` and ``make``
     (the env's typed scalars and per-episode arrays); the env hooks ``begin``, ``cue``,
     ``post_step``, ``finish`` (``hot_kernel``, no allocation). A task module imports no
     method: its compiled loop with the fused heuristic/oracle
@@ -57,8 +58,8 @@ from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..errors import ConfigError, NotApplicable
 from . import routing
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, current_at,
-                     episode_seed_sequence, need_tier, sample_route, site_speeds, start_times)
-from ..engine import libm
+                     need_tier, sample_routes, site_speeds, start_times)
+from ..engine import libm, streams
 
 TASK_ID = "G2G"
 METRICS = ("final_error_m", "min_error_m", "path_length_m", "energy_wh", "energy_ratio")
@@ -156,7 +157,10 @@ def draw_in_band(grid, tier: dict, n_episodes: int, seed: int, draw, points, len
     seed : int
         Run seed.
     draw : callable
-        ``draw(rng, c) -> (t0, geometry)``: one candidate from its generator.
+        ``draw(rngs, cands) -> (t0, geometry, failed)``: the candidates ``cands`` from their
+        streams ``rngs`` (:func:`oneocean.engine.streams.episode_states`): start times
+        ``(k,)``, geometries (indexable by row) and ``{row: NotApplicable}`` for those that
+        cannot be drawn (:func:`~oneocean.tasks.common.sample_routes`).
     points : callable
         ``points(geometry) -> (n, 3)`` world m: where the candidate's current is judged.
     length : float
@@ -186,15 +190,14 @@ def draw_in_band(grid, tier: dict, n_episodes: int, seed: int, draw, points, len
     n_max = int(n_episodes) * (BAND_DRAWS if band is not None else 1)
     c = 0
     while len(geos) < n_episodes and c < n_max:
-        batch, failed = [], None
-        for _ in range(min(32, n_max - c, _batch_size(n_episodes - len(geos), len(geos), c))):
-            rng = np.random.default_rng(episode_seed_sequence(seed, c, PURPOSE_RESET))
-            try:
-                batch.append(draw(rng, c))
-            except NotApplicable as exc:   # raised only if the scan reaches this candidate
-                failed = exc
-                break
-            c += 1
+        k = min(32, n_max - c, _batch_size(n_episodes - len(geos), len(geos), c))
+        cands = np.arange(c, c + k)
+        t0, geo, failures = draw(streams.episode_states(seed, cands, PURPOSE_RESET), cands)
+        # the scan reaches the candidates before the first that cannot be drawn, and that one
+        ok_n = min(failures) if failures else k
+        failed = failures[ok_n] if failures else None
+        batch = [(float(t0[j]), geo[j]) for j in range(ok_n)]
+        c += ok_n
         if batch and band is not None:
             pts = np.stack([points(b[1]) for b in batch])
             sp = site_speeds(grid, pts, [b[0] for b in batch], window)
@@ -256,11 +259,12 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     need_tier(TASK_ID, tier, "goal_distance_m", "time_limit_s")
     dist = float(tier["goal_distance_m"])
 
-    def draw(rng, c):
-        t0 = start_times(grid, [rng], float(tier["time_limit_s"]))[0]
-        return t0, sample_route(grid, rng, 1, dist, DEPTH_RANGE_M, MIN_ALTITUDE_M,
-                                land_threshold=DEFAULT_LAND_THRESHOLD,
-                                what=f"task {TASK_ID} reset (candidate {c})")
+    def draw(rngs, cands):
+        t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
+        return (t0,) + sample_routes(grid, rngs, 1, dist, DEPTH_RANGE_M, MIN_ALTITUDE_M,
+                                     land_threshold=DEFAULT_LAND_THRESHOLD,
+                                     what=lambda j: f"task {TASK_ID} reset (candidate "
+                                                    f"{cands[j]})")
 
     t0, routes = draw_in_band(grid, tier, n_episodes, seed, draw,
                               lambda r: np.linspace(r[0], r[1], 5), dist,

@@ -51,7 +51,7 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from . import routing
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, nav_waypoint, need_tier,
-                     sample_route, start_times)
+                     sample_routes, start_times)
 from .g2g import MAX_VERTICES, draw_in_band, energy_budgets, step_energy, task_power
 from ..engine import libm
 
@@ -106,12 +106,13 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
         raise ConfigError(f"task {TASK_ID}: n_waypoints must be >= 1, got {n_wp}")
     leg = float(tier["leg_m"])
 
-    def draw(rng, c):
-        t0 = start_times(grid, [rng], float(tier["time_limit_s"]))[0]
-        return t0, sample_route(grid, rng, n_wp, leg, DEPTH_RANGE_M, MIN_ALTITUDE_M,
-                                max_turn_rad=math.radians(MAX_TURN_DEG),
-                                land_threshold=DEFAULT_LAND_THRESHOLD,
-                                what=f"task {TASK_ID} reset (candidate {c})")
+    def draw(rngs, cands):
+        t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
+        return (t0,) + sample_routes(grid, rngs, n_wp, leg, DEPTH_RANGE_M, MIN_ALTITUDE_M,
+                                     max_turn_rad=math.radians(MAX_TURN_DEG),
+                                     land_threshold=DEFAULT_LAND_THRESHOLD,
+                                     what=lambda j: f"task {TASK_ID} reset (candidate "
+                                                    f"{cands[j]})")
 
     t0, routes = draw_in_band(grid, tier, n_episodes, seed, draw, regime_points, n_wp * leg,
                               f"task {TASK_ID} reset", TASK_ID)

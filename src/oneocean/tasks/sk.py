@@ -69,10 +69,10 @@ from ..engine.dynamics import PSI, wrap_angle
 from ..engine._jit import hot_kernel
 from ..engine.grid import sample_currents
 from ..engine import status as st
+from ..engine import streams
 from ..errors import ConfigError, NotApplicable
-from .common import feasible_codes
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, episode_generators, need_tier,
-                     sample_route, start_times)
+from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, feasible_codes,
+                     need_tier, sample_routes, start_times)
 from .loop import GO, REACHED
 from ..engine import libm
 
@@ -148,21 +148,20 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
         raise ConfigError(f"task {TASK_ID}: start_offset_m must be >= 0, got "
                           f"{tier.get('start_offset_m')!r}")
     T = float(tier["time_limit_s"])
-    rngs = episode_generators(seed, n_episodes)
+    rngs = streams.episode_states(seed, n_episodes, PURPOSE_RESET)    # one stream per episode
     t_first = start_times(grid, rngs, T)
-    station = np.empty((n_episodes, 3))
-    psi_rand = np.empty(n_episodes)
-    for e, rng in enumerate(rngs):
-        station[e] = sample_route(grid, rng, 0, 0.0, DEPTH_RANGE_M, MIN_ALTITUDE_M,
-                                  land_threshold=DEFAULT_LAND_THRESHOLD,
-                                  what=f"task {TASK_ID} reset (episode {e})")[0]
-        psi_rand[e] = rng.uniform(-math.pi, math.pi)
+    routes, failed = sample_routes(grid, rngs, 0, 0.0, DEPTH_RANGE_M, MIN_ALTITUDE_M,
+                                   land_threshold=DEFAULT_LAND_THRESHOLD,
+                                   what=lambda e: f"task {TASK_ID} reset (episode {e})")
+    if failed:
+        raise failed[min(failed)]
+    station = routes[:, 0].copy()
+    psi_rand = streams.uniform_rows(rngs, -math.pi, math.pi)[:, 0]
     # the start time: of START_DRAWS draws, the one where the station's current changes most
     t_lo, t_hi = float(grid.time_s[0]), float(grid.time_s[-1]) - T
     cand = np.repeat(t_first[:, None], START_DRAWS, axis=1)
     if t_hi > t_lo:
-        for e, rng in enumerate(rngs):
-            cand[e, 1:] = rng.uniform(t_lo, t_hi, START_DRAWS - 1)
+        cand[:, 1:] = streams.uniform_rows(rngs, t_lo, t_hi, START_DRAWS - 1)
     pts = np.repeat(station, START_DRAWS, axis=0)
     c_a = sample_currents(grid, pts, cand.reshape(-1)).astype(np.float64)
     c_b = sample_currents(grid, pts, cand.reshape(-1) + T).astype(np.float64)
@@ -174,19 +173,24 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     calm = np.hypot(c[:, 0], c[:, 1]) < CALM_MS
     heading = np.where(calm, psi_rand, libm.arctan2(-c[:, 0], -c[:, 1]))
     # the release point: start_offset_m from the station on a random bearing, in valid water
+    # (a bearing per try from each episode's stream until one is: all episodes at a time)
     pos0 = station.copy()
     if offset > 0.0:
-        for e, rng in enumerate(rngs):
-            for _ in range(_RELEASE_TRIES):
-                b = rng.uniform(-math.pi, math.pi)
-                p = station[e] + offset * np.array([math.sin(b), 0.0, math.cos(b)])
-                if feasible_codes(grid, p[None], DEFAULT_LAND_THRESHOLD,
-                                  MIN_ALTITUDE_M)[0] == st.OK:
-                    pos0[e] = p
-                    break
-            else:
-                raise NotApplicable(f"task {TASK_ID} reset (episode {e}): no release point "
-                                    f"{offset:g} m from the station in valid water")
+        todo = np.arange(n_episodes)
+        for _ in range(_RELEASE_TRIES):
+            if not todo.size:
+                break
+            b = streams.uniform_rows(rngs, -math.pi, math.pi, 1, todo)[:, 0]
+            p = station[todo].copy()
+            p[:, 0] += offset * libm.sin(b)
+            p[:, 1] += offset * 0.0
+            p[:, 2] += offset * libm.cos(b)
+            ok = feasible_codes(grid, p, DEFAULT_LAND_THRESHOLD, MIN_ALTITUDE_M) == st.OK
+            pos0[todo[ok]] = p[ok]
+            todo = todo[~ok]
+        if todo.size:
+            raise NotApplicable(f"task {TASK_ID} reset (episode {todo[0]}): no release point "
+                                f"{offset:g} m from the station in valid water")
     return {"pos0": pos0[:, None, :].copy(), "station": station, "psi0": heading[:, None],
             "heading": heading, "t0": t0,
             "regime_points": np.stack([station, pos0], axis=1)}

@@ -1,0 +1,126 @@
+"""The compiled episode streams are NumPy's own (states and draws, bit for bit), the compiled
+route sampler draws what ``sample_route`` draws from the same streams (and fails with its
+errors), and the resets built on them give the episodes the NumPy-generator resets gave."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+import pytest
+
+from oneocean import engine as E
+from oneocean.engine import streams
+from oneocean.errors import NotApplicable
+from oneocean.tasks import Cell
+from oneocean.tasks.common import PURPOSE_RESET, sample_route, sample_routes
+from oneocean.testing import make_test_grid
+
+SEEDS = (0, 1, 5, 2**31 - 1, 2**32, 2**32 + 7, 123456789012345, 2**63 - 1, 2**64 - 1)
+
+
+@pytest.fixture(scope="module")
+def coast():
+    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
+
+
+def _numpy(seed, e, purpose):
+    return np.random.default_rng(np.random.SeedSequence([seed, int(e), purpose]))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_states_and_draws_are_numpys(seed):
+    eps = np.array([0, 1, 2, 17, 2**32 - 1, 2**32, 2**40 + 3])
+    for purpose in (0, PURPOSE_RESET, 2**33 + 5):
+        st = streams.episode_states(seed, eps, purpose)
+        for r, e in enumerate(eps):
+            bg = np.random.PCG64(np.random.SeedSequence([seed, int(e), purpose]))
+            want = bg.state["state"]
+            assert (int(st[r, 0]) << 64) | int(st[r, 1]) == want["state"]
+            assert (int(st[r, 2]) << 64) | int(st[r, 3]) == want["inc"]
+        u = streams.uniform_rows(st, -3.5, 7.25, 40)
+        v = streams.uniform_rows(st, 2.0, 2.0, 3)      # a zero-width draw still spends one
+        w = streams.uniform_rows(st, 0.0, 1.0, 1, rows=[2, 0])
+        for r, e in enumerate(eps):
+            g = _numpy(seed, e, purpose)
+            np.testing.assert_array_equal(u[r], g.uniform(-3.5, 7.25, 40))
+            np.testing.assert_array_equal(v[r], g.uniform(2.0, 2.0, 3))
+            if r in (0, 2):
+                assert w[[2, 0].index(r), 0] == g.random()
+            # the stream as a NumPy generator continues where it is
+            assert streams.generator(st[r]).random() == g.random()
+
+
+def test_episode_range_and_bad_seeds():
+    np.testing.assert_array_equal(streams.episode_states(3, 4, 7),
+                                  streams.episode_states(3, np.arange(4), 7))
+    with pytest.raises(ValueError, match="seed"):
+        streams.episode_states(-1, 2, 7)
+    with pytest.raises(ValueError, match="seed"):
+        streams.episode_states(2**64, 2, 7)
+    with pytest.raises(ValueError, match="episodes"):
+        streams.episode_states(1, [-1], 7)
+
+
+@pytest.mark.parametrize("n_legs, leg_m, turn, vary", [(0, 0.0, math.pi, False),
+                                                       (1, 900.0, math.pi, False),
+                                                       (3, 400.0, math.radians(120), False),
+                                                       (3, 300.0, math.radians(120), True)])
+def test_sample_routes_is_sample_route_from_the_same_streams(coast, n_legs, leg_m, turn, vary):
+    n = 24
+    st = streams.episode_states(11, n, PURPOSE_RESET)
+    routes, failed = sample_routes(coast, st, n_legs, leg_m, (2.0, 10.0), 5.0,
+                                   max_turn_rad=turn, vary_depth=vary)
+    assert not failed
+    for e in range(n):
+        g = _numpy(11, e, PURPOSE_RESET)
+        want = sample_route(coast, g, n_legs, leg_m, (2.0, 10.0), 5.0, max_turn_rad=turn,
+                            vary_depth=vary)
+        np.testing.assert_array_equal(routes[e], want)
+        assert streams.uniform_rows(st, 0.0, 1.0, 1, [e])[0, 0] == g.random()
+    # a subset of rows draws the same routes for those rows
+    st2 = streams.episode_states(11, n, PURPOSE_RESET)
+    some, _ = sample_routes(coast, st2, n_legs, leg_m, (2.0, 10.0), 5.0, rows=[5, 2],
+                            max_turn_rad=turn, vary_depth=vary)
+    np.testing.assert_array_equal(some, routes[[5, 2]])
+
+
+def test_sample_routes_fails_as_sample_route(coast):
+    def errors(**kw):
+        st = streams.episode_states(3, 2, PURPOSE_RESET)
+        _, failed = sample_routes(coast, st, what=lambda j: f"cand {j}", **kw)
+        want = []
+        for e in range(2):
+            with pytest.raises(NotApplicable) as exc:
+                sample_route(coast, _numpy(3, e, PURPOSE_RESET), what=f"cand {e}", **kw)
+            want.append(str(exc.value))
+        return [str(failed[j]) for j in sorted(failed)], want
+
+    # no start point: water 10 km deep does not exist (the start point's reasons counted)
+    got, want = errors(n_legs=0, leg_m=0.0, depth_m=(2.0, 10.0), clearance=1e4)
+    assert got == want and "spawn: found only 0 of 1" in got[0]
+    # a leg off the grid from every start
+    got, want = errors(n_legs=1, leg_m=1e6, depth_m=(2.0, 10.0), clearance=5.0, tries=3)
+    assert got == want and "found in 3 tries" in got[0]
+
+
+def _reset_hash(grid, task, tier, seed):
+    d = Cell(grid, task, tier).reset(48, seed)
+    h = hashlib.sha256()
+    for k in sorted(d):
+        h.update(k.encode())
+        v = d[k]
+        h.update(v.tobytes() if isinstance(v, np.ndarray) else repr(v).encode())
+    return h.hexdigest()[:16]
+
+
+# the episodes as the NumPy-generator resets drew them (48 episodes of the test coast)
+@pytest.mark.parametrize("task, tier, seed, want", [
+    ("SK", 2, 7, "9bd97ec00934b2f5"), ("SK", 1, 2**40 + 3, "ca6b53d4022f8bbd"),
+    ("G2G", 2, 7, "0b75ead3f922276a"), ("G2G", 1, 2**40 + 3, "8c73ca918deb50df"),
+    ("RF", 2, 7, "d3b1b38b7d1c76be"), ("RF", 1, 2**40 + 3, "6d0bbaf728432712"),
+    ("DPT", 2, 7, "a0a928ecd79162a7"), ("DPT", 1, 2**40 + 3, "d087159438d11e07"),
+    ("FT", 2, 7, "ee35d73f7bec7586"), ("FT", 1, 2**40 + 3, "4976eb0f3ab88f1b")])
+def test_resets_draw_the_numpy_generator_episodes(coast, task, tier, seed, want):
+    assert _reset_hash(coast, task, tier, seed) == want
