@@ -63,3 +63,22 @@ def test_current_bands_are_the_regions_own_quantiles(north_sea_grid):
     tidal.reset(4, 1000)
     assert real.regime.band == tidal.regime.band == (0.67, 1.0)
     assert real.regime.lo < 0.3 < tidal.regime.lo
+
+
+def test_regime_samples_and_quantiles_on_the_real_region_equal_the_grid_sampler(north_sea_grid):
+    """On the real region's grid the current regime's kept levels give the speeds
+    ``sample_speeds_times`` gives at each depth, bit for bit, and its quantiles those of
+    ``np.quantile``."""
+    from oneocean.engine.grid import sample_speeds_times
+    from oneocean.tasks.common import RegimeSampler
+
+    g = load_grid(north_sea_grid)
+    sampler = RegimeSampler(g)
+    for d in (0.2, 2.0, 4.7, 6.0, 30.0):
+        k, x, z = sampler.nodes(d)
+        want = sample_speeds_times(g, np.column_stack([x, np.full(x.size, d), z]),
+                                   np.asarray(g.time_s, dtype=np.float64))
+        assert np.array_equal(sampler.speeds(d).view(np.int64), want.view(np.int64)), d
+        qs = [0.0, 0.33, 0.67, 0.83, 1.0]
+        assert sampler.quantiles(d, qs) == tuple(np.quantile(want, qs).tolist()), d
+        assert want.max() > 0.05

@@ -169,3 +169,63 @@ def test_spawn_one_failure_is_spawn_positions_error(coast):
                         max_candidates=4096)
     assert str(ea.value) == str(eb.value)
     assert a.random() == b.random()
+
+
+@pytest.mark.parametrize("has_tide", [True, False])
+def test_regime_sampler_equals_sampling_the_grid_at_each_depth(has_tide, monkeypatch):
+    """The current regime's samples from the levels a ``RegimeSampler`` keeps equal
+    ``sample_speeds_times`` of the same nodes at each depth, bit for bit: on a level, between
+    levels, above the shallowest and below the deepest, with a gain and a synthetic tide,
+    with and without tide layers, one sampler reused over the depths (and its levels
+    bounded); its quantiles (from certified order statistics, without sorting the speeds)
+    equal ``np.quantile`` of them, and so do ``current_regime``'s and the path without kept
+    levels."""
+    from oneocean.engine.grid import order_stats_from_levels, with_forcing
+    from oneocean.tasks import common
+
+    g = with_forcing(E.load_grid(make_test_grid(nt=7, nz=4, ny=30, nx=40, dt_s=1800.0,
+                                                has_tide=has_tide)),
+                     current_gain=1.3, tide=(0.25, 1.4e-4, 0.4))
+    assert g.tide_layers == (1 if has_tide else 0)
+    sampler = common.RegimeSampler(g)
+    depths = [float(g.depth[1]), 0.1, 3.3, 3.3, 11.7, float(g.depth[-1]), 500.0, 0.5 * (
+        float(g.depth[1]) + float(g.depth[2]))]
+    tier = {"current_band": [0.33, 0.83]}
+    wants = []
+    for d in depths:
+        k, x, z = sampler.nodes(d)
+        assert k == int(np.argmin(np.abs(np.asarray(g.depth) - d)))
+        xyz = np.column_stack([x, np.full(x.size, d), z])
+        want = sample_speeds_times(g, xyz, np.asarray(g.time_s, dtype=np.float64))
+        got = sampler.speeds(d)
+        assert got.shape == (len(g.time_s) * x.size,) and np.abs(got).max() > 0.1
+        assert np.array_equal(got.view(np.int64), want.view(np.int64)), d
+        wants.append(want)
+        qs = [0.0, 0.15, 0.25, 1.0 / 3.0, 0.5, 0.55, 0.83, 1.0]
+        assert sampler.quantiles(d, qs) == tuple(np.quantile(want, qs).tolist()), d
+        _, c0, c1, ct, wk = sampler._parts(d)          # certified, not the sorting fallback
+        ranks = np.array([0, want.size // 3, want.size - 1])
+        vals = np.empty(3)
+        assert order_stats_from_levels(g, c0, c1, ct, wk, ranks, np.empty(want.size), vals)
+        np.testing.assert_array_equal(vals, np.sort(want)[ranks])
+        assert len(sampler._levels) <= common.REGIME_LEVELS_KEPT
+        assert (common.current_regime(g, tier, d, sampler)
+                == common.current_regime(g, tier, d))
+    monkeypatch.setattr(common, "REGIME_LEVEL_BYTES", 0)      # nothing kept: the grid's path
+    fresh = common.RegimeSampler(g)
+    for d, want in zip(depths[:3], wants):
+        assert np.array_equal(fresh.speeds(d).view(np.int64), want.view(np.int64))
+    assert not fresh._levels
+
+
+def test_regime_quantiles_of_a_calm_grid_fall_back_to_sorting_the_speeds():
+    """Where every sample has the same squared speed (no current, no tide) the order
+    statistics cannot be binned: the quantiles are ``np.quantile`` of the speeds, 0."""
+    from oneocean.engine.grid import with_forcing
+    from oneocean.tasks.common import RegimeSampler, current_regime
+
+    g = with_forcing(E.load_grid(make_test_grid(nt=3, nz=3, ny=20, nx=30, has_tide=False)),
+                     current_gain=0.0)
+    assert RegimeSampler(g).quantiles(4.0, [0.2, 0.9]) == (0.0, 0.0)
+    r = current_regime(g, {"current_band": [0.5, 1.0]}, 4.0)
+    assert (r.lo, r.hi) == (0.0, math.inf)

@@ -121,6 +121,55 @@ def _reset_hash(grid, task, tier, seed):
     ("G2G", 2, 7, "0b75ead3f922276a"), ("G2G", 1, 2**40 + 3, "8c73ca918deb50df"),
     ("RF", 2, 7, "d3b1b38b7d1c76be"), ("RF", 1, 2**40 + 3, "6d0bbaf728432712"),
     ("DPT", 2, 7, "a0a928ecd79162a7"), ("DPT", 1, 2**40 + 3, "d087159438d11e07"),
-    ("FT", 2, 7, "ee35d73f7bec7586"), ("FT", 1, 2**40 + 3, "4976eb0f3ab88f1b")])
+    ("FT", 2, 7, "ee35d73f7bec7586"), ("FT", 1, 2**40 + 3, "4976eb0f3ab88f1b"),
+    ("FH", 2, 7, "614e2720ea50d772"), ("FH", 1, 2**40 + 3, "6a5965ddfb94855a")])
 def test_resets_draw_the_numpy_generator_episodes(coast, task, tier, seed, want):
     assert _reset_hash(coast, task, tier, seed) == want
+
+
+def _fh_reset_numpy(grid, tier, n, seed):
+    """FH's reset as NumPy generators and ``_try_episode`` draw it, one episode at a time."""
+    from oneocean.tasks import fh
+    from oneocean.tasks.common import episode_generators, start_times
+
+    rngs = episode_generators(seed, n)
+    t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
+    rows = []
+    for e, rng in enumerate(rngs):
+        for _ in range(200):
+            found = fh._try_episode(grid, rng, int(tier["fish_count"]),
+                                    float(tier["zone_distance_m"]), float(tier["zone_radius_m"]))
+            if found is not None:
+                break
+        if found is None:
+            raise NotApplicable(f"episode {e}: none")
+        rows.append(found)
+    return t0, rows
+
+
+@pytest.mark.parametrize("tier, seed", [(1, 0), (2, 2**40 + 3), (3, 2**64 - 1)])
+def test_fh_reset_draws_what_the_python_sampler_draws(coast, tier, seed):
+    """FH's compiled geometry sampler gives ``_try_episode``'s schools, zones and starts from
+    the same streams, and fails with the route sampler's error where it does."""
+    from oneocean.tasks import fh
+
+    params = dict(Cell(coast, "FH", tier).params)
+    d = fh.reset(coast, params, 8, 12, seed)
+    t0, rows = _fh_reset_numpy(coast, params, 12, seed)
+    np.testing.assert_array_equal(d["t0"], t0)
+    for e, (fx, fz, zone, starts) in enumerate(rows):
+        np.testing.assert_array_equal(d["fish0"][e, 0], fx)
+        np.testing.assert_array_equal(d["fish0"][e, 1], fz)
+        np.testing.assert_array_equal(d["zone"][e], zone)
+        np.testing.assert_array_equal(d["pos0"][e], starts)
+    # a region too shallow for the school's route: the route sampler's own message
+    shallow = E.load_grid(make_test_grid(nt=3, nz=3, ny=20, nx=30, max_depth_m=3.0,
+                                         depths=[0.5, 1.0, 2.0]))
+    with pytest.raises(NotApplicable) as got:
+        fh.reset(shallow, params, 8, 3, seed)
+    with pytest.raises(NotApplicable) as want:
+        _fh_reset_numpy(shallow, params, 3, seed)
+    assert str(got.value) == str(want.value) and "spawn: found only 0 of 1" in str(got.value)
+    # no zone fits: every episode's 200 draws fail
+    with pytest.raises(NotApplicable, match="3000 m zone found in 200 draws"):
+        fh.reset(coast, {**params, "zone_radius_m": 3000.0}, 8, 2, seed)

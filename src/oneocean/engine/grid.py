@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Mapping, NamedTuple
 
 import numpy as np
+from numba import njit
 
 from ..errors import ConfigError, DataError
 from ..io import read_npz
@@ -1102,6 +1103,230 @@ def sample_speeds_times(grid: Grid, xyz, times) -> np.ndarray:
     weights = np.empty((xyz.shape[0], 5))
     _point_weights(grid, xyz, cells, weights)
     return _speeds_times(grid, cells, weights, times, np.empty(times.size * xyz.shape[0]))
+
+
+@hot_kernel
+def level_currents(grid, cells, weights, k, out):
+    """The data current of depth level ``k`` at located points, at every time of the axis.
+
+    The bilinear part of :func:`time_slab` on one level (before the gain, without the tide
+    layers): with the points' levels cached, :func:`speeds_from_levels` gives
+    :func:`sample_speeds_times` at any depth between two levels without reading the grid.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    cells, weights : (P, 4) int64, (P, 5) float64
+        The points' places (:func:`point_cell`; the depth columns are not read).
+    k : int
+        Depth level.
+    out : (T, P, 2) float64
+        Output, ``T`` the grid's times, written in place.
+
+    Returns
+    -------
+    bool
+        True when every time of the axis locates on itself (:func:`locate_time`'s weight 0
+        or 1 at that index): the condition under which :func:`speeds_from_levels` equals
+        :func:`sample_speeds_times` over ``grid.time_s``.
+    """
+    n_p = cells.shape[0]
+    exact = True
+    for n in range(grid.time_s.shape[0]):
+        t0, t1, wt = locate_time(grid, grid.time_s[n])
+        if not ((wt == 0.0 and t0 == n) or (wt == 1.0 and t1 == n)):
+            exact = False
+        for p in range(n_p):
+            u, v = _slab(grid.uv, n, k, cells[p, 1], cells[p, 0], weights[p, 0],
+                         weights[p, 1], weights[p, 2], weights[p, 3])
+            out[n, p, 0] = u
+            out[n, p, 1] = v
+    return exact
+
+
+@hot_kernel
+def tide_layer_currents(grid, cells, weights, out):
+    """:func:`level_currents` of the grid's tide layers (``uv_tide``; only with
+    ``tide_layers == 1``).
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export.
+    cells, weights : (P, 4) int64, (P, 5) float64
+        The points' places (:func:`point_cell`).
+    out : (T, P, 2) float64
+        Output, written in place.
+    """
+    for n in range(grid.time_s.shape[0]):
+        for p in range(cells.shape[0]):
+            u, v = _slab2(grid.uv_tide, n, cells[p, 1], cells[p, 0], weights[p, 0],
+                          weights[p, 1], weights[p, 2], weights[p, 3])
+            out[n, p, 0] = u
+            out[n, p, 1] = v
+
+
+@hot_kernel(inline="always")
+def _level_sample(grid, c0, c1, ct, wk, n, p, te, tn):
+    """The current of :func:`speeds_from_levels` at time ``n`` and point ``p``, before the
+    ``hypot``: ``(east, north)``, m s-1."""
+    wk0 = 1.0 - wk
+    ue = grid.gain * (wk0 * c0[n, p, 0] + wk * c1[n, p, 0])
+    vn = grid.gain * (wk0 * c0[n, p, 1] + wk * c1[n, p, 1])
+    if grid.tide_layers == 1:
+        ue += ct[n, p, 0]
+        vn += ct[n, p, 1]
+    return ue + te, vn + tn
+
+
+@hot_kernel
+def speeds_from_levels(grid, c0, c1, ct, wk, out):
+    """:func:`sample_speeds_times` over the grid's times from the points' currents on the
+    two levels around their depth, the same bits.
+
+    Parameters
+    ----------
+    grid : Grid
+        The loaded grid export (its gain, tide layers and synthetic tide are applied here).
+    c0, c1 : (T, P, 2) float64
+        :func:`level_currents` of the levels ``k0`` and ``k1`` of the depth.
+    ct : (T, P, 2) float64
+        :func:`tide_layer_currents` (not read without tide layers).
+    wk : float
+        The weight of ``k1`` at the depth (:func:`point_cell`).
+    out : (T * P,) float64
+        Speeds, m s-1, time-major, written in place.
+
+    Returns
+    -------
+    (T * P,) float64
+        ``out``.
+    """
+    n_p = c0.shape[1]
+    for n in range(c0.shape[0]):
+        te, tn = synthetic_tide(grid, grid.time_s[n])
+        for p in range(n_p):
+            ce, cn = _level_sample(grid, c0, c1, ct, wk, n, p, te, tn)
+            out[n * n_p + p] = math.hypot(ce, cn)
+    return out
+
+
+#: Bins of :func:`order_stats_from_levels`'s histogram of squared speeds.
+ORDER_BINS = 4096
+#: Relative and absolute margins around a bin in squared speed, beyond which a sample's order
+#: against the bin's is certain: far above the rounding of ``u*u + v*v`` (3 roundings) and of
+#: ``hypot`` (under one ulp).
+ORDER_REL = 1e-12
+ORDER_ABS = 1e-290
+#: Most samples :func:`order_stats_from_levels` takes the ``hypot`` of per rank.
+ORDER_MAX_CANDIDATES = 1 << 16
+
+
+@njit(cache=True)
+def order_stats_from_levels(grid, c0, c1, ct, wk, ranks, s2, out):
+    """Order statistics of :func:`speeds_from_levels`'s speeds without the ``hypot`` of
+    every sample, the same values.
+
+    The squared speed ``s = u*u + v*v`` of every sample is binned; for each rank, the bin
+    that holds it in the order of ``s``, widened by ``ORDER_REL`` and ``ORDER_ABS`` each
+    side, is the only place where the order of ``s`` and that of ``hypot`` can differ: its
+    samples' ``hypot`` are sorted and the rank's value read there, checked to be a sample
+    of the bin itself (then every sample below the widened bin has a smaller speed and
+    every sample above it a larger one, whatever the rounding).
+
+    Parameters
+    ----------
+    grid, c0, c1, ct, wk
+        As for :func:`speeds_from_levels`.
+    ranks : (R,) int64
+        0-based ranks in ascending order of speed, each in ``[0, T * P)``.
+    s2 : (T * P,) float64
+        Work array (the squared speeds).
+    out : (R,) float64
+        The speeds at the ranks, m s-1, written in place.
+
+    Returns
+    -------
+    bool
+        False when the values could not be certified (non-finite samples, all squared
+        speeds equal, too many samples around a rank, a rank read outside its bin): then
+        ``out`` is not set and the caller sorts the speeds themselves.
+    """
+    n_t = c0.shape[0]
+    n_p = c0.shape[1]
+    size = n_t * n_p
+    lo = math.inf
+    hi = -math.inf
+    for n in range(n_t):
+        te, tn = synthetic_tide(grid, grid.time_s[n])
+        for p in range(n_p):
+            ce, cn = _level_sample(grid, c0, c1, ct, wk, n, p, te, tn)
+            v = ce * ce + cn * cn
+            if not math.isfinite(v):
+                return False
+            s2[n * n_p + p] = v
+            lo = min(lo, v)
+            hi = max(hi, v)
+    if not hi > lo:
+        return False
+    nb = ORDER_BINS
+    scale = nb / (hi - lo)
+    count = np.zeros(nb, np.int64)
+    bmin = np.full(nb, math.inf)
+    bmax = np.full(nb, -math.inf)
+    for q in range(size):
+        v = s2[q]
+        b = min(int((v - lo) * scale), nb - 1)
+        count[b] += 1
+        bmin[b] = min(bmin[b], v)
+        bmax[b] = max(bmax[b], v)
+    n_r = ranks.shape[0]
+    rbin = np.empty(n_r, np.int64)
+    w_lo = np.empty(n_r)
+    w_hi = np.empty(n_r)
+    for r in range(n_r):
+        b = 0
+        below = 0
+        while below + count[b] <= ranks[r]:
+            below += count[b]
+            b += 1
+        rbin[r] = b
+        w_lo[r] = bmin[b] * (1.0 - ORDER_REL) - ORDER_ABS
+        w_hi[r] = bmax[b] * (1.0 + ORDER_REL) + ORDER_ABS
+    # one pass: the samples below each rank's widened bin counted, those in it gathered
+    n_below = np.zeros(n_r, np.int64)
+    n_cand = np.zeros(n_r, np.int64)
+    idx = np.empty((n_r, ORDER_MAX_CANDIDATES), np.int64)
+    for q in range(size):
+        v = s2[q]
+        for r in range(n_r):
+            if v < w_lo[r]:
+                n_below[r] += 1
+            elif v <= w_hi[r]:
+                c = n_cand[r]
+                if c == ORDER_MAX_CANDIDATES:
+                    return False
+                idx[r, c] = q
+                n_cand[r] = c + 1
+    for r in range(n_r):
+        nc = n_cand[r]
+        speed = np.empty(nc)
+        for c in range(nc):
+            n = idx[r, c] // n_p
+            p = idx[r, c] - n * n_p
+            te, tn = synthetic_tide(grid, grid.time_s[n])
+            ce, cn = _level_sample(grid, c0, c1, ct, wk, n, p, te, tn)
+            speed[c] = math.hypot(ce, cn)
+        order = np.argsort(speed, kind="mergesort")
+        m = ranks[r] - n_below[r]
+        if m < 0 or m >= nc:
+            return False
+        v = s2[idx[r, order[m]]]
+        if min(int((v - lo) * scale), nb - 1) != rbin[r]:
+            return False
+        out[r] = speed[order[m]]
+    return True
 
 
 @hot_kernel

@@ -164,6 +164,7 @@ class Cell:
                                                             tide_amp=0.0)
         self.currents = bool(currents)
         self._regimes = {}     # (band, depth) -> (grid, regime): see _regime
+        self._regime_sampler = None
 
     def reset(self, episodes: int, seed: int, shard: tuple[int, int] | None = None) -> dict:
         """The task's episodes of ``seed``: its ``reset`` output.
@@ -279,14 +280,18 @@ class Cell:
 
     def _regime(self, depth_m: float):
         """:func:`~.common.current_regime` of this cell's tier at ``depth_m`` on
-        ``grid_reset``, computed once per (band, depth) and cell."""
-        from .common import current_regime
+        ``grid_reset``, computed once per (band, depth) and cell (the cell's
+        :class:`~.common.RegimeSampler` keeps the grid levels' currents between depths)."""
+        from .common import RegimeSampler, current_regime
 
         key = (repr(self.params.get("current_band")), float(depth_m))
         hit = self._regimes.get(key)
         if hit is None or hit[0] is not self.grid_reset:
+            if self._regime_sampler is None or self._regime_sampler.grid is not self.grid_reset:
+                self._regime_sampler = RegimeSampler(self.grid_reset)
             hit = self._regimes[key] = (self.grid_reset,
-                                current_regime(self.grid_reset, self.params, depth_m))
+                                        current_regime(self.grid_reset, self.params, depth_m,
+                                                       self._regime_sampler))
         return hit[1]
 
     def episodes(self, init: dict, method: str | None, dynamics: str, seed: int, **kw):

@@ -62,6 +62,7 @@ Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.task
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -70,6 +71,7 @@ from numba import njit
 from ..engine import status as st
 from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move
+from ..engine.status import OK
 from ..engine.grid import locate_time, sample_current_at, synthetic_tide
 from ..engine.rng import PURPOSE_TASK, hash64, uniform01
 from ..errors import ConfigError, NotApplicable
@@ -78,9 +80,11 @@ from ..models.fish import (fish_params, fraction_inside_circle, init_school, sch
 from ..sensing import perception, perception_values
 from ..sensing.kernels import polar_fix
 from .common import feasible_codes
-from .common import (PURPOSE_TASK_NOISE, STANDARD, episode_generators, need_tier,
-                     path_clear, sample_route, start_times)
+from .common import (_SPAWN_BATCH, PURPOSE_RESET, PURPOSE_TASK_NOISE, STANDARD, _call,
+                     _route_row, _segment_clear, fresh_cache, need_tier, path_clear,
+                     sample_route, start_times)
 from ..engine import libm
+from ..engine import streams
 
 TASK_ID = "FH"
 METRICS = ("containment_success", "final_centroid_distance_m", "fraction_inside",
@@ -158,6 +162,121 @@ def _try_episode(grid, rng, n_fish: int, distance: float, radius: float):
     return None
 
 
+#: Draws of an episode's geometry before the region is declared unable to host it.
+_DRAWS = 200
+#: :func:`_episodes` statuses: a geometry, none in ``_DRAWS`` draws, a route sampler failure.
+_FOUND, _NONE, _NO_ROUTE = 0, 1, 2
+
+
+@hot_kernel
+def _episodes_kernel(grid, stv, n_fish, distance, radius, rim_s, rim_c, spacing, cand, route,
+                     starts, fish0, zone, pos0, status):
+    """:func:`_try_episode` up to ``_DRAWS`` times from each episode's stream ``stv[e]``,
+    compiled: the same draws in the same order and the same checks (:func:`_route_row` for
+    the route, :func:`_segment_clear` for the corridor, ``check_move`` for the rim, the
+    fish and the starts; the rim's angles' sines and cosines given). ``status[e]``:
+    ``_FOUND`` (the episode in ``fish0[e]``, ``zone[e]``, ``pos0[e]``), ``_NONE`` or
+    ``_NO_ROUTE``."""
+    lt = DEFAULT_LAND_THRESHOLD
+    y = FISH_DEPTH_M
+    for e in range(stv.shape[0]):
+        status[e] = _NONE
+        for _ in range(_DRAWS):
+            if _route_row(grid, stv, e, 1, distance, y, y, ROUTE_CLEARANCE_M, math.pi, lt,
+                          False, 2000, spacing, cand, route, 0) != 0:
+                status[e] = _NO_ROUTE
+                break
+            sx, sy, sz = route[0, 0, 0], route[0, 0, 1], route[0, 0, 2]
+            gx, gy, gz = route[0, 1, 0], route[0, 1, 1], route[0, 1, 2]
+            dx = (gx - sx) / distance
+            dz = (gz - sz) / distance
+            ok = True
+            for side in (-1.0, 1.0):
+                w = side * CORRIDOR_HALF_WIDTH_M
+                ox, oy, oz = w * dz, w * 0.0, w * -dx
+                ax, ay, az = sx + ox, sy + oy, sz + oz
+                bx, by, bz = gx + ox, gy + oy, gz + oz
+                ex, ey, ez = bx - ax, by - ay, bz - az
+                n = max(2, int(math.ceil(math.sqrt(ex * ex + ey * ey + ez * ez) / spacing)) + 1)
+                if not _segment_clear(grid, ax, ay, az, bx, by, bz, n, lt, ROUTE_CLEARANCE_M):
+                    ok = False
+                    break
+            if not ok:
+                continue
+            for k in range(rim_s.shape[0]):
+                if check_move(grid, gx + radius * rim_s[k], y, gz + radius * rim_c[k], lt,
+                              ROUTE_CLEARANCE_M) != OK:
+                    ok = False
+                    break
+            if not ok:
+                continue
+            # init_school: radius * sqrt(u) with u ~ U(0, 1) for every fish, then the angles
+            for f in range(n_fish):
+                fish0[e, 0, f] = SCHOOL_RADIUS_M * math.sqrt(streams.uniform(stv, e, 0.0, 1.0))
+            for f in range(n_fish):
+                th = streams.uniform(stv, e, 0.0, 2.0 * math.pi)
+                r = fish0[e, 0, f]
+                fish0[e, 0, f] = sx + r * math.cos(th)
+                fish0[e, 1, f] = sz + r * math.sin(th)
+            for f in range(n_fish):
+                if check_move(grid, fish0[e, 0, f], y, fish0[e, 1, f], lt,
+                              FISH_CLEARANCE_M) != OK:
+                    ok = False
+                    break
+            if not ok:
+                continue
+            got = 0
+            for _t in range(100 * N_AGENTS):
+                r = streams.uniform(stv, e, START_RING_M[0], START_RING_M[1])
+                th = streams.uniform(stv, e, 0.0, 2.0 * math.pi)
+                px = sx + r * math.sin(th)
+                pz = sz + r * math.cos(th)
+                near = False
+                for a in range(got):
+                    # starts share the depth: |p - s| is sqrt(dx^2 + dz^2) in either order
+                    # of NumPy's sum over (x, y, z) (the y term is 0)
+                    qx = starts[a, 0] - px
+                    qy = starts[a, 1] - y
+                    qz = starts[a, 2] - pz
+                    if math.sqrt(qx * qx + (qy * qy + qz * qz)) < START_SEPARATION_M:
+                        near = True
+                        break
+                if near:
+                    continue
+                if check_move(grid, px, y, pz, lt, CLEARANCE_M) != OK:
+                    continue
+                starts[got, 0] = px
+                starts[got, 1] = y
+                starts[got, 2] = pz
+                got += 1
+                if got == N_AGENTS:
+                    break
+            if got < N_AGENTS:
+                continue
+            zone[e, 0] = gx
+            zone[e, 1] = gz
+            for a in range(N_AGENTS):
+                pos0[e, a, 0] = starts[a, 0]
+                pos0[e, a, 1] = starts[a, 1]
+                pos0[e, a, 2] = starts[a, 2]
+            status[e] = _FOUND
+            break
+    return status
+
+
+def _episodes(grid, stv, n_fish: int, distance: float, radius: float, fish0, zone,
+              pos0) -> np.ndarray:
+    """Every episode's geometry from its stream (``stv``, advanced in place) in one compiled
+    call: :func:`_episodes_kernel`'s statuses, the geometries written into ``fish0``,
+    ``zone``, ``pos0``."""
+    a = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+    spacing = min(20.0, 0.5 * min(float(grid.dx), float(grid.dz)))       # path_clear's
+    return _call(_episodes_kernel, grid, stv, int(n_fish), float(distance), float(radius),
+                 libm.sin(a), libm.cos(a), spacing, np.empty((_SPAWN_BATCH, 3)),
+                 np.zeros((1, 2, 3)), np.empty((N_AGENTS, 3)), fish0, zone, pos0,
+                 np.empty(stv.shape[0], dtype=np.int64))
+
+
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the school, the safe zone, the agents' starts and the start time per episode.
 
@@ -197,22 +316,24 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
         raise ConfigError(f"task {TASK_ID}: fish_count={n_fish} < 50")
     dist = float(tier["zone_distance_m"])
     radius = float(tier["zone_radius_m"])
-    rngs = episode_generators(seed, n_episodes)
+    rngs = streams.episode_states(seed, n_episodes, PURPOSE_RESET)   # one stream per episode
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
     fish0 = np.empty((n_episodes, 2, n_fish))
     zone = np.empty((n_episodes, 2))
     pos0 = np.empty((n_episodes, N_AGENTS, 3))
-    for e, rng in enumerate(rngs):
-        found = None
-        for _ in range(200):
-            found = _try_episode(grid, rng, n_fish, dist, radius)
-            if found is not None:
-                break
-        if found is None:
-            raise NotApplicable(f"task {TASK_ID} reset (episode {e}): no school/zone geometry with "
-                              f"a {2 * CORRIDOR_HALF_WIDTH_M:g} m wide water corridor of "
-                              f"{dist:g} m and a {radius:g} m zone found in 200 draws")
-        fish0[e, 0], fish0[e, 1], zone[e], pos0[e] = found
+    first = rngs.copy()                     # each episode's stream where its draws begin
+    status = _episodes(grid, rngs, n_fish, dist, radius, fish0, zone, pos0)
+    for e in np.flatnonzero(status):
+        if status[e] == _NO_ROUTE:
+            # the route sampler's own error, with its message: the episode's draws replayed
+            # in Python up to it (for the first such episode, as the draws in order would)
+            rng = streams.generator(first[e])
+            for _ in range(_DRAWS):
+                if _try_episode(grid, rng, n_fish, dist, radius) is not None:
+                    break
+        raise NotApplicable(f"task {TASK_ID} reset (episode {e}): no school/zone geometry with "
+                            f"a {2 * CORRIDOR_HALF_WIDTH_M:g} m wide water corridor of "
+                            f"{dist:g} m and a {radius:g} m zone found in {_DRAWS} draws")
     cx = fish0[:, 0].mean(axis=1)
     cz = fish0[:, 1].mean(axis=1)
     psi0 = libm.arctan2(cx[:, None] - pos0[..., 0], cz[:, None] - pos0[..., 2])
@@ -756,3 +877,7 @@ def seed_episode(W, LP, e):
     W.sinfo[e, 0] = LP.seed
     W.sinfo[e, 1] = LP.sens.true_target
     W.sinfo[e, 2] = LP.sens.true_current
+
+
+fresh_cache(_episodes_kernel, __file__, Path(__file__).resolve().parents[1] / "models" /
+            "fish.py")
