@@ -122,7 +122,11 @@ def _reset_hash(grid, task, tier, seed):
     ("RF", 2, 7, "d3b1b38b7d1c76be"), ("RF", 1, 2**40 + 3, "6d0bbaf728432712"),
     ("DPT", 2, 7, "a0a928ecd79162a7"), ("DPT", 1, 2**40 + 3, "d087159438d11e07"),
     ("FT", 2, 7, "ee35d73f7bec7586"), ("FT", 1, 2**40 + 3, "4976eb0f3ab88f1b"),
-    ("FH", 2, 7, "614e2720ea50d772"), ("FH", 1, 2**40 + 3, "6a5965ddfb94855a")])
+    ("FH", 2, 7, "614e2720ea50d772"), ("FH", 1, 2**40 + 3, "6a5965ddfb94855a"),
+    ("UPL", 2, 7, "f8213a49fad08c26"), ("UPL", 1, 2**40 + 3, "7e729705e0fa08f5"),
+    ("AS", 2, 7, "c370646ea7ca1e01"), ("AS", 1, 2**40 + 3, "a8e7686e71d01419"),
+    ("PI", 2, 7, "4aa3622c39467c7a"), ("PI", 1, 2**40 + 3, "f220dbbd17e2a01b"),
+    ("SPC", 2, 7, "b1d50503625782fc"), ("SPC", 1, 2**40 + 3, "ee63a3268dfe1c5a")])
 def test_resets_draw_the_numpy_generator_episodes(coast, task, tier, seed, want):
     assert _reset_hash(coast, task, tier, seed) == want
 
@@ -173,3 +177,36 @@ def test_fh_reset_draws_what_the_python_sampler_draws(coast, tier, seed):
     # no zone fits: every episode's 200 draws fail
     with pytest.raises(NotApplicable, match="3000 m zone found in 200 draws"):
         fh.reset(coast, {**params, "zone_radius_m": 3000.0}, 8, 2, seed)
+
+
+@pytest.mark.parametrize("tier, seed", [(1, 0), (2, 2**40 + 3), (3, 2**64 - 1)])
+def test_upl_reset_draws_what_the_python_sampler_draws(coast, tier, seed):
+    """UPL's compiled site sampler gives the sites, slot phases, starts and charts that
+    ``_site_candidates`` and ``_try_site`` draw from the same streams (then the chart's
+    normal draws), and fails where they find no site."""
+    from oneocean.tasks import upl
+    from oneocean.tasks.common import episode_generators, start_times
+
+    params = dict(Cell(coast, "UPL", tier).params)
+    d = upl.reset(coast, params, 5, 10, seed)
+    rngs = episode_generators(seed, 10)
+    np.testing.assert_array_equal(d["t0"], start_times(coast, rngs, params["time_limit_s"]))
+    hi = float(params["site_depth_m"])
+    for e, rng in enumerate(rngs):
+        found = None
+        for _ in range(8):
+            for x, z in upl._site_candidates(coast, rng, hi - upl.SITE_DEPTH_SPAN_M, hi)[:50]:
+                found = upl._try_site(coast, rng, float(x), float(z),
+                                      float(params["start_distance_m"]))
+                if found is not None:
+                    break
+            if found is not None:
+                break
+        obj, phase, starts = found
+        np.testing.assert_array_equal(d["obj0"][e], obj)
+        np.testing.assert_array_equal(d["slot_off"][e], upl.slot_offsets(phase))
+        np.testing.assert_array_equal(d["pos0"][e], starts)
+        err = np.clip(rng.normal(0.0, 1.0, 2), -3.0, 3.0) * float(params["survey_std_m"])
+        np.testing.assert_array_equal(d["chart"][e], upl._chart_point(coast, obj, err))
+    with pytest.raises(NotApplicable, match=r"no site with seafloor depth in \[485, 500\] m"):
+        upl.reset(coast, {**params, "site_depth_m": 500.0}, 5, 2, seed)

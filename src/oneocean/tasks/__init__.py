@@ -177,7 +177,7 @@ class Cell:
         Either way a candidate is kept only where the product defines currents at those
         points. Candidate ``c`` is drawn from its own stream (``SeedSequence([seed, c,
         purpose])``), so it does not depend on how many are drawn.
-        A task module may split its ``reset`` in two (SPC does): ``reset_candidates(grid,
+        A task module may split its ``reset`` in two (SPC and UPL do): ``reset_candidates(grid,
         tier, n_agents, n, seed)`` (per candidate, what this check needs: ``t0`` and
         ``regime_points`` or ``pos0``, plus any arrays its build needs) and
         ``reset_build(grid, tier, n_agents, cand, seed)`` (the ``reset`` dict of the

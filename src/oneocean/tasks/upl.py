@@ -88,9 +88,10 @@ from ..errors import ConfigError, NotApplicable
 from ..sensing import perception, perception_values
 from ..sensing.kernels import PURPOSE_PERCEPTION, draw, polar_fix
 from .common import feasible_codes
-from .common import (OK, STANDARD, current_at, episode_generators, episode_steps, need_tier,
-                     path_clear, start_times)
+from .common import (OK, PURPOSE_RESET, STANDARD, _call, _segment_clear, current_at,
+                     episode_steps, fresh_cache, need_tier, path_clear, start_times)
 from ..engine import libm
+from ..engine import streams
 
 TASK_ID = "UPL"
 METRICS = ("lift_success", "final_object_depth_m", "attach_time_s", "object_drift_m")
@@ -228,8 +229,105 @@ def _try_site(grid, rng, x: float, z: float, start_distance: float):
     return None
 
 
+#: Rounds of site candidates (``_SITE_DRAWS`` points each, the first ``_SITE_TRIES`` in the
+#: depth band tried) before the region is declared unable to host an episode.
+_SITE_ROUNDS = 8
+_SITE_DRAWS = 4096
+_SITE_TRIES = 50
+
+
+@hot_kernel
+def _sites_kernel(grid, stv, lo, hi, start_distance, xz, starts, obj0, phase0, pos0, found):
+    """:func:`_site_candidates` and :func:`_try_site` for each episode's stream ``stv[e]``,
+    compiled: the same draws in the same order and the same checks (``check_move`` for the
+    candidates, slots and starts, :func:`~.common._segment_clear` for the descents).
+    ``found[e]`` is 1 where a site was found (its centre, slot phase and starts written),
+    else 0."""
+    lt = DEFAULT_LAND_THRESHOLD
+    slot_c = CLEARANCE_M + SLOT_MARGIN_M
+    two_pi = 2.0 * math.pi
+    for e in range(stv.shape[0]):
+        found[e] = 0
+        for _r in range(_SITE_ROUNDS):
+            n = xz.shape[0]
+            for c in range(n):
+                xz[c, 0] = streams.uniform(stv, e, grid.x0, grid.x_max)
+            for c in range(n):
+                xz[c, 1] = streams.uniform(stv, e, grid.z0, grid.z_max)
+            tried = 0
+            for c in range(n):
+                if tried == _SITE_TRIES:
+                    break
+                x = xz[c, 0]
+                z = xz[c, 1]
+                fl = -sample_elevation(grid, x, z)
+                if not (check_move(grid, x, 0.0, z, lt, 0.0) == OK and fl >= lo and fl <= hi):
+                    continue
+                tried += 1
+                # _try_site at (x, z)
+                oy = fl - OBJ_HALF_HEIGHT_M
+                ph = streams.uniform(stv, e, 0.0, two_pi)
+                good = True
+                for k in range(N_SLOTS):
+                    a = ph + two_pi * float(k) / N_SLOTS
+                    if check_move(grid, x + SLOT_RING_M * math.sin(a), oy + -SLOT_RISE_M,
+                                  z + SLOT_RING_M * math.cos(a), lt, slot_c) != OK:
+                        good = False
+                        break
+                if not good:
+                    continue
+                ay = oy - SLOT_RISE_M
+                got = 0
+                for _t in range(60 * N_SLOTS):
+                    r = start_distance * streams.uniform(stv, e, START_RING_FRAC, 1.0)
+                    a = streams.uniform(stv, e, 0.0, two_pi)
+                    px = x + r * math.sin(a)
+                    pz = z + r * math.cos(a)
+                    near = False
+                    for b in range(got):
+                        # starts share the depth: the y term of NumPy's norm is 0
+                        qx = starts[b, 0] - px
+                        qy = starts[b, 1] - START_DEPTH_M
+                        qz = starts[b, 2] - pz
+                        if math.sqrt(qx * qx + qy * qy + qz * qz) < START_SEPARATION_M:
+                            near = True
+                            break
+                    if near:
+                        continue
+                    if check_move(grid, px, START_DEPTH_M, pz, lt, CLEARANCE_M) != OK:
+                        continue
+                    dx, dy, dz = x - px, ay - START_DEPTH_M, z - pz
+                    m = max(2, int(math.ceil(math.sqrt(dx * dx + dy * dy + dz * dz) / 5.0)) + 1)
+                    if not _segment_clear(grid, px, START_DEPTH_M, pz, x, ay, z, m, lt,
+                                          CLEARANCE_M):
+                        continue
+                    starts[got, 0] = px
+                    starts[got, 1] = START_DEPTH_M
+                    starts[got, 2] = pz
+                    got += 1
+                    if got == N_SLOTS:
+                        break
+                if got < N_SLOTS:
+                    continue
+                obj0[e, 0] = x
+                obj0[e, 1] = oy
+                obj0[e, 2] = z
+                phase0[e] = ph
+                for b in range(N_SLOTS):
+                    for i in range(3):
+                        pos0[e, b, i] = starts[b, i]
+                found[e] = 1
+                break
+            if found[e]:
+                break
+    return found
+
+
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the object's site, its slots, the agents' starts and the start time per episode.
+
+    The same as :func:`reset_build` of :func:`reset_candidates` (the split ``Cell.reset``
+    uses to finish only the candidates the tier's current band keeps).
 
     Parameters
     ----------
@@ -260,6 +358,45 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     NotApplicable
         No valid site for some episode.
     """
+    return reset_build(grid, tier, n_agents,
+                       reset_candidates(grid, tier, n_agents, n_episodes, seed), seed)
+
+
+def reset_candidates(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
+    """The first half of :func:`reset`: each candidate's geometry, what ``Cell.reset``'s band
+    check needs and what :func:`reset_build` needs to finish it.
+
+    Per candidate (its own stream): the start time, then, in one compiled call over the
+    candidates (:func:`_sites_kernel`), the site, the slots' phase and the starts.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        Tier parameters (see ``data/tasks/UPL.yaml``) plus ``dt_s``.
+    n_agents : int
+        Must be ``N_SLOTS`` (5).
+    n_episodes : int
+        Number of candidates.
+    seed : int
+        Run seed.
+
+    Returns
+    -------
+    dict
+        ``obj0`` (E, 3), ``pos0`` (E, 5, 3), ``t0`` (E,) and ``regime_points`` (E, 3, 3) as
+        :func:`reset`'s; ``phase`` (E,) the slot ring's phase, rad; ``stream`` (E, 4) uint64
+        each candidate's stream where its geometry's draws left it
+        (:mod:`oneocean.engine.streams`: the survey error is drawn from it).
+
+    Raises
+    ------
+    ConfigError
+        Wrong team size, missing or unreachable tier parameters.
+    NotApplicable
+        No valid site for some candidate.
+    """
     if int(n_agents) != N_SLOTS:
         raise ConfigError(f"task {TASK_ID}: needs exactly {N_SLOTS} agents, got {n_agents}")
     need_tier(TASK_ID, tier, *_TIER_KEYS)
@@ -267,41 +404,69 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     hi = float(tier["site_depth_m"])
     lo = hi - SITE_DEPTH_SPAN_M
     dist = float(tier["start_distance_m"])
-    survey = float(tier["survey_std_m"])
-    rngs = episode_generators(seed, n_episodes)
+    rngs = streams.episode_states(seed, n_episodes, PURPOSE_RESET)   # one stream per episode
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
     obj0 = np.empty((n_episodes, 3))
-    slot_off = np.empty((n_episodes, N_SLOTS, 3))
+    phase = np.empty(n_episodes)
     pos0 = np.empty((n_episodes, N_SLOTS, 3))
-    chart = np.empty((n_episodes, 3))
-    for e, rng in enumerate(rngs):
-        found = None
-        for _ in range(8):
-            for x, z in _site_candidates(grid, rng, lo, hi)[:50]:
-                found = _try_site(grid, rng, float(x), float(z), dist)
-                if found is not None:
-                    break
-            if found is not None:
-                break
-        if found is None:
-            raise NotApplicable(f"task {TASK_ID} reset (episode {e}): no site with seafloor depth "
-                              f"in [{lo:g}, {hi:g}] m, feasible slots and clear descents from "
-                              f"{dist:g} m found; the grid has no such water for this tier")
-        obj0[e], phase, pos0[e] = found
-        slot_off[e] = slot_offsets(phase)
-        # the site survey's chart of the object (mission data, every method's): the true
-        # position with the survey's horizontal error (truncated at 3 sigma), at the charted
-        # seafloor depth there (drawn last: the geometry above does not depend on it)
-        err = np.clip(rng.normal(0.0, 1.0, 2), -3.0, 3.0) * survey
-        chart[e] = _chart_point(grid, obj0[e], err)
-    d = obj0[:, None, :] - pos0
-    psi0 = libm.arctan2(d[..., 0], d[..., 2])
+    found = _call(_sites_kernel, grid, rngs, lo, hi, dist, np.empty((_SITE_DRAWS, 2)),
+                  np.empty((N_SLOTS, 3)), obj0, phase, pos0,
+                  np.empty(n_episodes, dtype=np.int64))
+    for e in np.flatnonzero(found == 0)[:1]:
+        raise NotApplicable(f"task {TASK_ID} reset (episode {e}): no site with seafloor depth "
+                            f"in [{lo:g}, {hi:g}] m, feasible slots and clear descents from "
+                            f"{dist:g} m found; the grid has no such water for this tier")
     # the current regime is judged at the object: its site, and the water column it rises in
     col = np.repeat(obj0[:, None, :], 3, axis=1)
     col[:, 1, 1] *= 0.5
     col[:, 2, 1] = float(tier["success_depth_m"])
-    return {"obj0": obj0, "slot_off": slot_off, "pos0": pos0, "psi0": psi0, "t0": t0,
-            "chart": chart, "regime_points": col}
+    return {"obj0": obj0, "phase": phase, "pos0": pos0, "t0": t0, "stream": rngs,
+            "regime_points": col}
+
+
+def reset_build(grid, tier: dict, n_agents: int, cand: dict, seed: int) -> dict:
+    """The second half of :func:`reset`: the episodes of the chosen candidates.
+
+    The slot offsets, the headings and the survey's chart of the object (the true centre
+    with the survey's horizontal error, truncated at 3 sigma, at the charted seafloor depth
+    there), the error drawn last from each candidate's own stream.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    tier : dict
+        Tier parameters (``survey_std_m``).
+    n_agents : int
+        Team size (5).
+    cand : dict
+        A :func:`reset_candidates` dict with every per-candidate array indexed by the chosen
+        candidates (``cand["candidate"]``: their indices, unused here).
+    seed : int
+        Run seed (unused: each candidate's stream is in ``cand["stream"]``).
+
+    Returns
+    -------
+    dict
+        :func:`reset`'s dict.
+    """
+    survey = float(tier["survey_std_m"])
+    obj0, pos0 = cand["obj0"], cand["pos0"]
+    n_episodes = obj0.shape[0]
+    slot_off = np.empty((n_episodes, N_SLOTS, 3))
+    chart = np.empty((n_episodes, 3))
+    for e in range(n_episodes):
+        slot_off[e] = slot_offsets(float(cand["phase"][e]))
+        # the site survey's chart of the object (mission data, every method's), by the
+        # candidate's generator where the geometry's draws left its stream (drawn last: the
+        # geometry does not depend on it)
+        err = np.clip(streams.generator(cand["stream"][e]).normal(0.0, 1.0, 2), -3.0,
+                      3.0) * survey
+        chart[e] = _chart_point(grid, obj0[e], err)
+    d = obj0[:, None, :] - pos0
+    psi0 = libm.arctan2(d[..., 0], d[..., 2])
+    return {"obj0": obj0, "slot_off": slot_off, "pos0": pos0, "psi0": psi0, "t0": cand["t0"],
+            "chart": chart, "regime_points": cand["regime_points"]}
 
 
 def _chart_point(grid, obj: np.ndarray, err) -> np.ndarray:
@@ -1096,3 +1261,6 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_DRIFT] = math.sqrt((W.obj[e, 0] - W.site[e, 0]) ** 2
                               + (W.obj[e, 2] - W.site[e, 2]) ** 2)
     return success
+
+
+fresh_cache(_sites_kernel, __file__)
