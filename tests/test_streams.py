@@ -12,7 +12,7 @@ import pytest
 
 from oneocean import engine as E
 from oneocean.engine import streams
-from oneocean.errors import NotApplicable
+from oneocean.errors import ConfigError, NotApplicable
 from oneocean.tasks import Cell
 from oneocean.tasks.common import PURPOSE_RESET, sample_route, sample_routes
 from oneocean.testing import make_test_grid
@@ -210,3 +210,66 @@ def test_upl_reset_draws_what_the_python_sampler_draws(coast, tier, seed):
         np.testing.assert_array_equal(d["chart"][e], upl._chart_point(coast, obj, err))
     with pytest.raises(NotApplicable, match=r"no site with seafloor depth in \[485, 500\] m"):
         upl.reset(coast, {**params, "site_depth_m": 500.0}, 5, 2, seed)
+
+
+def test_bounded_integers_are_numpys():
+    """``streams.integers`` (with the 32-bit half each row keeps) draws what NumPy's
+    ``Generator.integers(high)`` draws, interleaved with doubles, for bounds from 1 to
+    2**32; a generator made from a row and its kept half continues the same stream."""
+    from numba import njit
+
+    @njit
+    def draw(st, buf, highs, out):
+        for i in range(st.shape[0]):
+            for k in range(highs.shape[0]):
+                out[i, 2 * k] = streams.integers(st, buf, i, highs[k])
+                out[i, 2 * k + 1] = streams.next_double(st, i) if k % 3 == 0 else -1.0
+
+    highs = np.array([1, 2, 3, 7, 1000, 2**31 - 1, 2**31, 2**31 + 1, 3 * 2**30, 2**32 - 1,
+                      2**32, 5, 2, 1, 2**20 + 3] * 3, dtype=np.int64)
+    eps = np.array([0, 1, 9, 2**33 + 1])
+    st = streams.episode_states(11, eps, PURPOSE_RESET)
+    buf = np.zeros((eps.size, 2), dtype=np.uint64)
+    out = np.empty((eps.size, 2 * highs.size))
+    draw(st, buf, highs, out)
+    for r, e in enumerate(eps):
+        rng = _numpy(11, e, PURPOSE_RESET)
+        want = []
+        for k, h in enumerate(highs):
+            want.append(float(rng.integers(int(h))))
+            want.append(rng.random() if k % 3 == 0 else -1.0)
+        np.testing.assert_array_equal(out[r], want)
+        cont = streams.generator(st[r], buf[r])
+        assert cont.integers(1000, size=5).tolist() == rng.integers(1000, size=5).tolist()
+        assert cont.random() == rng.random()
+
+
+@pytest.mark.parametrize("tier, seed", [(1, 0), (2, 2**40 + 3), (3, 2**64 - 1)])
+def test_as_reset_draws_what_the_python_samplers_draw(coast, tier, seed):
+    """AS's compiled region and spawn sampler gives ``sample_region``'s regions and
+    ``spawn_positions``' starts from the same streams (bounded integers included), and
+    fails with their errors."""
+    from oneocean.tasks import as_
+    from oneocean.tasks.common import episode_generators, start_times
+
+    params = dict(Cell(coast, "AS", tier).params)
+    d = as_.reset(coast, params, 4, 10, seed)
+    rngs = episode_generators(seed, 10)
+    np.testing.assert_array_equal(d["t0"], start_times(coast, rngs, params["time_limit_s"]))
+    for e, rng in enumerate(rngs):
+        box, ax, starts = as_._episode_python(coast, rng, params, 4, e)
+        np.testing.assert_array_equal(d["region"][e], box)
+        assert d["long_axis"][e] == ax
+        np.testing.assert_array_equal(d["pos0"][e], starts)
+    with pytest.raises(NotApplicable, match=r"depth in \[500, 600\] m .* in 3000 tries"):
+        as_.reset(coast, {**params, "seafloor_min_m": 500.0, "seafloor_max_m": 600.0}, 4, 2,
+                  seed)
+    small = {**params, "seafloor_min_m": 0.0, "seafloor_max_m": 7.0, "min_relief_m": 0.0,
+             "region_long_m": 60.0, "region_short_m": 30.0}
+    with pytest.raises(ConfigError) as got:
+        as_.reset(coast, small, 1, 3, 5)
+    rng = episode_generators(5, 1)[0]
+    start_times(coast, [rng], params["time_limit_s"])
+    with pytest.raises(ConfigError) as want:
+        as_._episode_python(coast, rng, small, 1, 0)
+    assert str(got.value) == str(want.value) and "spawn: found only 0 of 1" in str(got.value)

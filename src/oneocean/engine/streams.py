@@ -34,6 +34,7 @@ __all__ = ["episode_states", "next_double", "uniform", "uniform_rows", "seed_wor
 
 _M32 = np.uint64(0xFFFFFFFF)
 _S32 = np.uint64(32)
+_M32 = np.uint64(0xFFFFFFFF)
 _S16 = np.uint64(16)
 _S11 = np.uint64(11)
 _S58 = np.uint64(58)
@@ -190,6 +191,71 @@ def uniform(st, i, lo, hi):
     return lo + r * next_double(st, i)
 
 
+@hot_kernel(inline="always")
+def next_uint32(st, buf, i):
+    """PCG64's next 32-bit output of row ``i``: the low half of a new 64-bit output, its high
+    half kept for the next call (the bit generator's ``has_uint32`` / ``uinteger``).
+
+    Parameters
+    ----------
+    st : (n, 4) uint64
+        Stream states, advanced in place.
+    buf : (n, 2) uint64
+        Each row's kept half: ``[has, value]`` (zeros for a fresh stream), updated in place.
+    i : int
+        Row.
+
+    Returns
+    -------
+    numpy.uint64
+        The 32-bit value.
+    """
+    if buf[i, 0] != _ZERO:
+        buf[i, 0] = _ZERO
+        return buf[i, 1]
+    v = next_uint64(st, i)
+    buf[i, 0] = _ONE
+    buf[i, 1] = v >> _S32
+    return v & _M32
+
+
+@hot_kernel(inline="always")
+def integers(st, buf, i, high):
+    """``Generator.integers(high)`` (int64) of row ``i`` for ``1 <= high <= 2**32``: NumPy's
+    bounded draw (Lemire's rejection on 32-bit outputs; no draw when ``high == 1``).
+
+    Parameters
+    ----------
+    st : (n, 4) uint64
+        Stream states, advanced in place.
+    buf : (n, 2) uint64
+        The rows' kept 32-bit halves (:func:`next_uint32`), updated in place.
+    i : int
+        Row.
+    high : int
+        Exclusive upper bound.
+
+    Returns
+    -------
+    int
+        A value in ``[0, high)``.
+    """
+    rng = np.uint64(high - 1)
+    if rng == _ZERO:
+        return np.int64(0)
+    if rng == _M32:
+        return np.int64(next_uint32(st, buf, i))
+    excl = rng + _ONE
+    m = next_uint32(st, buf, i) * excl
+    left = m & _M32
+    if left < excl:
+        threshold = (_M32 - rng) % excl
+        while left < threshold:
+            m = next_uint32(st, buf, i) * excl
+            left = m & _M32
+    return np.int64(m >> _S32)
+
+
 @hot_kernel
 def _seed_rows(words0, n0, episodes, purpose, ent, pool, s32, out):
     # ent, pool, s32: scratch (MAX_WORDS, 4 and 8 uint64: the kernel allocates nothing)
@@ -314,13 +380,15 @@ def uniform_rows(st: np.ndarray, lo: float, hi: float, k: int = 1, rows=None) ->
     return _uniform_rows(st, rows.astype(np.int64), float(lo), float(hi), out)
 
 
-def generator(row) -> np.random.Generator:
+def generator(row, kept=None) -> np.random.Generator:
     """A NumPy generator in the state of one stream (its next draws are the stream's).
 
     Parameters
     ----------
     row : (4,) uint64
         One row of :func:`episode_states` (as advanced so far).
+    kept : (2,) uint64, optional
+        The row's kept 32-bit half (:func:`next_uint32`'s ``buf`` row); default none.
 
     Returns
     -------
@@ -331,5 +399,6 @@ def generator(row) -> np.random.Generator:
     bg = np.random.PCG64()
     bg.state = {"bit_generator": "PCG64", "state": {"state": (hi << 64) | lo,
                                                     "inc": (ihi << 64) | ilo},
-                "has_uint32": 0, "uinteger": 0}
+                "has_uint32": 0 if kept is None else int(kept[0]),
+                "uinteger": 0 if kept is None else int(kept[1])}
     return np.random.Generator(bg)

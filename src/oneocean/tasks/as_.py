@@ -59,11 +59,14 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..engine import streams
 from ..engine._jit import hot_kernel
-from ..engine.constraints import spawn_positions
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, spawn_positions
 from ..engine.grid import sample_elevation, sample_elevation_points
+from ..engine.status import OK
 from ..errors import ConfigError, NotApplicable
-from .common import STANDARD, episode_generators, need_tier, need_tokens, start_times
+from .common import (PURPOSE_RESET, STANDARD, _call, fresh_cache, need_tier, need_tokens,
+                     start_times)
 
 TASK_ID = "AS"
 METRICS = ("coverage_fraction", "footprint_loss_frac", "mean_altitude_m")
@@ -175,6 +178,163 @@ def sample_region(grid, rng, tier, tries: int = 3000, what: str = "region"):
         f"{tier['min_relief_m']:g} m found in {tries} tries; the grid has no such shelf")
 
 
+#: Attempts of :func:`sample_region` per episode; candidates of one spawn
+#: (:func:`~oneocean.engine.constraints.spawn_positions`' default), drawn 64 at a time.
+_REGION_TRIES = 3000
+_SPAWN_MAX = 200_000
+_SPAWN_BATCH = 64
+#: :func:`_episodes_kernel` statuses: the episode drawn; no region; too few start positions;
+#: a case the kernel leaves to the Python sampler (a region without inner check points).
+_FOUND, _NO_REGION, _NO_SPAWN, _PYTHON = 0, 1, 2, 3
+
+
+@hot_kernel(inline="always")
+def _arange_at(start, step, i):
+    """Entry ``i`` of ``np.arange(start, stop, step)`` (float64): ``start``, ``start + step``,
+    then ``start + i * delta`` with ``delta`` the difference of those two (NumPy's fill)."""
+    if i == 0:
+        return start
+    second = start + step
+    if i == 1:
+        return second
+    return start + i * (second - start)
+
+
+@hot_kernel(inline="always")
+def _region_ok_c(grid, x_lo, z_lo, x_hi, z_hi, smin, smax, relief):
+    """:func:`_region_ok`, compiled: 1 (valid), 0 (not), -1 (no check point inside the
+    region, which NumPy's ``ptp`` rejects: left to Python)."""
+    m = REGION_MARGIN_M
+    if x_lo - m < grid.x0 or x_hi + m > grid.x_max or z_lo - m < grid.z0 or z_hi + m > grid.z_max:
+        return 0
+    xa = x_lo - m
+    za = z_lo - m
+    nx = int(math.ceil(((x_hi + m + 1e-9) - xa) / CHECK_SPACING_M))
+    nz = int(math.ceil(((z_hi + m + 1e-9) - za) / CHECK_SPACING_M))
+    dmin = math.inf
+    dmax = -math.inf
+    imin = math.inf
+    imax = -math.inf
+    for jz in range(max(nz, 0)):
+        z = _arange_at(za, CHECK_SPACING_M, jz)
+        for ix in range(max(nx, 0)):
+            x = _arange_at(xa, CHECK_SPACING_M, ix)
+            d = -sample_elevation(grid, x, z)
+            dmin = min(dmin, d)
+            dmax = max(dmax, d)
+            if x >= x_lo and x <= x_hi and z >= z_lo and z <= z_hi:
+                imin = min(imin, d)
+                imax = max(imax, d)
+    if dmin < smin or dmax > smax:
+        return 0
+    for jz in range(max(nz, 0)):
+        z = _arange_at(za, CHECK_SPACING_M, jz)
+        j = min(max(int((z - grid.z0) * grid.inv_dz), 0), grid.ny - 2)
+        for ix in range(max(nx, 0)):
+            x = _arange_at(xa, CHECK_SPACING_M, ix)
+            i = min(max(int((x - grid.x0) * grid.inv_dx), 0), grid.nx - 2)
+            if (grid.land[j, i] > 0.0 or grid.land[j + 1, i] > 0.0 or grid.land[j, i + 1] > 0.0
+                    or grid.land[j + 1, i + 1] > 0.0):
+                return 0
+    if imax < imin:
+        return -1
+    return 1 if imax - imin >= relief else 0
+
+
+@hot_kernel
+def _episodes_kernel(grid, stv, buf, nodes, L, W, smin, smax, relief, n_agents, cand, out,
+                     region, axis, pos0, status):
+    """:func:`sample_region` then the agents' :func:`~oneocean.engine.constraints.
+    spawn_positions` from each episode's stream ``stv[e]`` (``buf[e]`` its kept 32-bit
+    half), compiled: the same draws in the same order and the same checks. ``status[e]``:
+    ``_FOUND`` (``region[e]``, ``axis[e]``, ``pos0[e]`` written), ``_NO_REGION``,
+    ``_NO_SPAWN`` or ``_PYTHON``."""
+    lt = DEFAULT_LAND_THRESHOLD
+    sep2 = SPAWN_SEPARATION_M ** 2
+    k_nodes = nodes.shape[0]
+    m = cand.shape[0]
+    for e in range(stv.shape[0]):
+        status[e] = _NO_REGION
+        if k_nodes == 0:
+            continue
+        for _ in range(_REGION_TRIES):
+            k = streams.integers(stv, buf, e, k_nodes)
+            cx = nodes[k, 0] + streams.uniform(stv, e, -0.5, 0.5) * grid.dx
+            cz = nodes[k, 1] + streams.uniform(stv, e, -0.5, 0.5) * grid.dz
+            ax = streams.integers(stv, buf, e, 2)
+            if ax == 0:
+                hx, hz = 0.5 * L, 0.5 * W
+            else:
+                hx, hz = 0.5 * W, 0.5 * L
+            x_lo, z_lo, x_hi, z_hi = cx - hx, cz - hz, cx + hx, cz + hz
+            ok = _region_ok_c(grid, x_lo, z_lo, x_hi, z_hi, smin, smax, relief)
+            if ok < 0:
+                status[e] = _PYTHON
+                break
+            if ok == 0:
+                continue
+            region[e, 0] = x_lo
+            region[e, 1] = z_lo
+            region[e, 2] = x_hi
+            region[e, 3] = z_hi
+            axis[e] = ax
+            # spawn_positions(n_agents, x, z in the box's south-west corner, altitude)
+            xl, xh = x_lo, x_lo + SPAWN_BOX_M
+            zl, zh = z_lo, z_lo + SPAWN_BOX_M
+            got = 0
+            tried = 0
+            while got < n_agents and tried < _SPAWN_MAX:
+                mb = min(m, _SPAWN_MAX - tried)
+                for c in range(mb):
+                    cand[c, 0] = streams.uniform(stv, e, xl, xh)
+                for c in range(mb):
+                    cand[c, 2] = streams.uniform(stv, e, zl, zh)
+                for c in range(mb):
+                    floor = -sample_elevation(grid, cand[c, 0], cand[c, 2])
+                    cand[c, 1] = floor - streams.uniform(stv, e, SPAWN_ALTITUDE_M[0],
+                                                         SPAWN_ALTITUDE_M[1])
+                tried += mb
+                for c in range(mb):
+                    if check_move(grid, cand[c, 0], cand[c, 1], cand[c, 2], lt,
+                                  CLEARANCE_M) != OK:
+                        continue
+                    near = False
+                    for q in range(got):
+                        d0 = out[q, 0] - cand[c, 0]
+                        d1 = out[q, 1] - cand[c, 1]
+                        d2 = out[q, 2] - cand[c, 2]
+                        if d0 * d0 + d1 * d1 + d2 * d2 < sep2:
+                            near = True
+                            break
+                    if near:
+                        continue
+                    out[got, 0] = cand[c, 0]
+                    out[got, 1] = cand[c, 1]
+                    out[got, 2] = cand[c, 2]
+                    got += 1
+                    if got == n_agents:
+                        break
+            if got < n_agents:
+                status[e] = _NO_SPAWN
+                break
+            for q in range(n_agents):
+                pos0[e, q, 0] = out[q, 0]
+                pos0[e, q, 1] = out[q, 1]
+                pos0[e, q, 2] = out[q, 2]
+            status[e] = _FOUND
+            break
+    return status
+
+
+def _episode_python(grid, rng, tier, n_agents: int, e: int):
+    """One episode's region, long axis and starts by the Python samplers."""
+    *box, ax = sample_region(grid, rng, tier, what=f"task {TASK_ID} reset (episode {e})")
+    spawn = {"x": (box[0], box[0] + SPAWN_BOX_M), "z": (box[1], box[1] + SPAWN_BOX_M),
+             "altitude": SPAWN_ALTITUDE_M}
+    return box, ax, spawn_positions(grid, rng, n_agents, spawn, clearance=CLEARANCE_M,
+                                    min_separation=SPAWN_SEPARATION_M)
+
+
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the scan region, start positions and start time of every episode.
 
@@ -211,20 +371,25 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     if not 1 <= n_agents <= 10:
         raise ConfigError(f"task {TASK_ID}: n_agents must be in [1, 10], got {n_agents}")
     need_tier(TASK_ID, tier, *_TIER_KEYS)
-    rngs = episode_generators(seed, n_episodes)
+    rngs = streams.episode_states(seed, n_episodes, PURPOSE_RESET)   # one stream per episode
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
+    first = rngs.copy()                     # each episode's stream where its draws begin
     region = np.empty((n_episodes, 4))
-    axis = np.empty(n_episodes, dtype=np.int64)
+    axis = np.zeros(n_episodes, dtype=np.int64)
     pos0 = np.empty((n_episodes, n_agents, 3))
-    for e, rng in enumerate(rngs):
-        what = f"task {TASK_ID} reset (episode {e})"
-        *box, ax = sample_region(grid, rng, tier, what=what)
+    status = _call(_episodes_kernel, grid, rngs, np.zeros((n_episodes, 2), dtype=np.uint64),
+                   np.ascontiguousarray(_candidate_nodes(grid, tier)),
+                   float(tier["region_long_m"]), float(tier["region_short_m"]),
+                   float(tier["seafloor_min_m"]), float(tier["seafloor_max_m"]),
+                   float(tier["min_relief_m"]), n_agents, np.empty((_SPAWN_BATCH, 3)),
+                   np.empty((n_agents, 3)), region, axis, pos0,
+                   np.empty(n_episodes, dtype=np.int64))
+    for e in np.flatnonzero(status):
+        # the Python samplers from the episode's first draw: their own errors and messages
+        # (raised for the first such episode, as the draws in order would), or the episode
+        box, axis[e], pos0[e] = _episode_python(grid, streams.generator(first[e]), tier,
+                                                n_agents, int(e))
         region[e] = box
-        axis[e] = ax
-        spawn = {"x": (box[0], box[0] + SPAWN_BOX_M), "z": (box[1], box[1] + SPAWN_BOX_M),
-                 "altitude": SPAWN_ALTITUDE_M}
-        pos0[e] = spawn_positions(grid, rng, n_agents, spawn, clearance=CLEARANCE_M,
-                                  min_separation=SPAWN_SEPARATION_M)
     # the current regime is judged over the scan region (its centre and corners, at the
     # agents' start depth)
     y = pos0[:, :1, 1]
@@ -559,3 +724,6 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_LOSS] = W.cnt[e, 1] / (k * n_ag) if k > 0 else 0.0
     row[_C_ALT] = W.alt_sum[e] / (k * n_ag) if k > 0 else 0.0
     return covered >= P.thr * n_cells
+
+
+fresh_cache(_episodes_kernel, __file__)
