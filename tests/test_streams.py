@@ -273,3 +273,26 @@ def test_as_reset_draws_what_the_python_samplers_draw(coast, tier, seed):
     with pytest.raises(ConfigError) as want:
         as_._episode_python(coast, rng, small, 1, 0)
     assert str(got.value) == str(want.value) and "spawn: found only 0 of 1" in str(got.value)
+
+
+@pytest.mark.parametrize("tier, seed", [(1, 0), (2, 2**40 + 3), (3, 2**64 - 1)])
+def test_pi_reset_draws_what_the_python_samplers_draw(coast, tier, seed):
+    """PI's compiled pipeline, leak and spawn sampler gives ``sample_pipeline``'s lines,
+    ``sample_leaks``' leaks, ``spawn_positions``' starts and the leak rates from the same
+    streams, and fails with their errors."""
+    from oneocean.tasks import pi
+    from oneocean.tasks.common import episode_generators, start_times
+
+    params = dict(Cell(coast, "PI", tier).params)
+    d = pi.reset(coast, params, 3, 8, seed)
+    rngs = episode_generators(seed, 8)
+    np.testing.assert_array_equal(d["t0"], start_times(coast, rngs, params["time_limit_s"]))
+    for e, rng in enumerate(rngs):
+        want = pi._episode_python(coast, rng, params, 3, e)
+        for key, w in zip(("poly", "leaks", "leak_rate", "sections", "pos0"), want):
+            np.testing.assert_array_equal(d[key][e], w)
+    with pytest.raises(NotApplicable, match=r"depth in \[500, 600\] m found in 3000 tries"):
+        pi.reset(coast, {**params, "seafloor_min_m": 500.0, "seafloor_max_m": 600.0}, 3, 2,
+                 seed)
+    with pytest.raises(ConfigError, match="cannot place 9 leaks 400 m apart"):
+        pi.reset(coast, {**params, "n_leaks": 9, "leak_spacing_m": 400.0}, 3, 2, seed)

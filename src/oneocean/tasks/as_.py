@@ -61,12 +61,11 @@ import numpy as np
 
 from ..engine import streams
 from ..engine._jit import hot_kernel
-from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move, spawn_positions
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD, spawn_positions
 from ..engine.grid import sample_elevation, sample_elevation_points
-from ..engine.status import OK
 from ..errors import ConfigError, NotApplicable
 from .common import (PURPOSE_RESET, STANDARD, _call, fresh_cache, need_tier, need_tokens,
-                     start_times)
+                     _spawn_altitude, start_times)
 
 TASK_ID = "AS"
 METRICS = ("coverage_fraction", "footprint_loss_frac", "mean_altitude_m")
@@ -252,7 +251,6 @@ def _episodes_kernel(grid, stv, buf, nodes, L, W, smin, smax, relief, n_agents, 
     lt = DEFAULT_LAND_THRESHOLD
     sep2 = SPAWN_SEPARATION_M ** 2
     k_nodes = nodes.shape[0]
-    m = cand.shape[0]
     for e in range(stv.shape[0]):
         status[e] = _NO_REGION
         if k_nodes == 0:
@@ -281,39 +279,9 @@ def _episodes_kernel(grid, stv, buf, nodes, L, W, smin, smax, relief, n_agents, 
             # spawn_positions(n_agents, x, z in the box's south-west corner, altitude)
             xl, xh = x_lo, x_lo + SPAWN_BOX_M
             zl, zh = z_lo, z_lo + SPAWN_BOX_M
-            got = 0
-            tried = 0
-            while got < n_agents and tried < _SPAWN_MAX:
-                mb = min(m, _SPAWN_MAX - tried)
-                for c in range(mb):
-                    cand[c, 0] = streams.uniform(stv, e, xl, xh)
-                for c in range(mb):
-                    cand[c, 2] = streams.uniform(stv, e, zl, zh)
-                for c in range(mb):
-                    floor = -sample_elevation(grid, cand[c, 0], cand[c, 2])
-                    cand[c, 1] = floor - streams.uniform(stv, e, SPAWN_ALTITUDE_M[0],
-                                                         SPAWN_ALTITUDE_M[1])
-                tried += mb
-                for c in range(mb):
-                    if check_move(grid, cand[c, 0], cand[c, 1], cand[c, 2], lt,
-                                  CLEARANCE_M) != OK:
-                        continue
-                    near = False
-                    for q in range(got):
-                        d0 = out[q, 0] - cand[c, 0]
-                        d1 = out[q, 1] - cand[c, 1]
-                        d2 = out[q, 2] - cand[c, 2]
-                        if d0 * d0 + d1 * d1 + d2 * d2 < sep2:
-                            near = True
-                            break
-                    if near:
-                        continue
-                    out[got, 0] = cand[c, 0]
-                    out[got, 1] = cand[c, 1]
-                    out[got, 2] = cand[c, 2]
-                    got += 1
-                    if got == n_agents:
-                        break
+            got = _spawn_altitude(grid, stv, e, cand, n_agents, xl, xh, zl, zh,
+                                  SPAWN_ALTITUDE_M[0], SPAWN_ALTITUDE_M[1], lt, CLEARANCE_M,
+                                  sep2, _SPAWN_MAX, out)
             if got < n_agents:
                 status[e] = _NO_SPAWN
                 break

@@ -1095,6 +1095,50 @@ def _route_row(grid, stv, r, n_legs, leg_m, lo, hi, clearance, max_turn, land_th
     return 2
 
 
+@hot_kernel(inline="always")
+def _spawn_altitude(grid, stv, r, cand, n, xl, xh, zl, zh, alt_lo, alt_hi, land_threshold,
+                    clearance, sep2, max_candidates, out):
+    """:func:`~oneocean.engine.constraints.spawn_positions` of ``n`` points with an
+    ``altitude`` range from stream ``r`` of ``stv``, compiled: batches of ``cand.shape[0]``
+    (``max(64, 4 (n - got))`` for ``n <= 16``) x, then z, then altitudes in NumPy's order,
+    the candidates accepted greedily at squared separation ``sep2`` into ``out[:n]``.
+    Returns how many were found (``n`` unless ``max_candidates`` ran out)."""
+    m = cand.shape[0]
+    got = 0
+    tried = 0
+    while got < n and tried < max_candidates:
+        mb = min(m, max_candidates - tried)
+        for c in range(mb):
+            cand[c, 0] = streams.uniform(stv, r, xl, xh)
+        for c in range(mb):
+            cand[c, 2] = streams.uniform(stv, r, zl, zh)
+        for c in range(mb):
+            floor = -sample_elevation(grid, cand[c, 0], cand[c, 2])
+            cand[c, 1] = floor - streams.uniform(stv, r, alt_lo, alt_hi)
+        tried += mb
+        for c in range(mb):
+            if check_move(grid, cand[c, 0], cand[c, 1], cand[c, 2], land_threshold,
+                          clearance) != OK:
+                continue
+            near = False
+            for q in range(got):
+                d0 = out[q, 0] - cand[c, 0]
+                d1 = out[q, 1] - cand[c, 1]
+                d2 = out[q, 2] - cand[c, 2]
+                if d0 * d0 + d1 * d1 + d2 * d2 < sep2:
+                    near = True
+                    break
+            if near:
+                continue
+            out[got, 0] = cand[c, 0]
+            out[got, 1] = cand[c, 1]
+            out[got, 2] = cand[c, 2]
+            got += 1
+            if got == n:
+                break
+    return got
+
+
 @hot_kernel
 def _routes_kernel(grid, stv, rows, n_legs, leg_m, lo, hi, clearance, max_turn, land_threshold,
                    vary_depth, tries, spacing, cand, out, status):

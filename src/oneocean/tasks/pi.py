@@ -78,14 +78,15 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..engine import streams
 from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, spawn_positions
 from ..engine.grid import (current_from_parts, locate_time, sample_current_parts,
                            sample_elevation, sample_elevation_points, synthetic_tide)
 from ..errors import ConfigError, NotApplicable
 from ..models import pollution as pol
-from .common import (STANDARD, episode_generators, need_tier, need_tokens,
-                     start_times)
+from .common import (PURPOSE_RESET, STANDARD, _call, fresh_cache, need_tier, need_tokens,
+                     _spawn_altitude, start_times)
 
 TASK_ID = "PI"
 METRICS = ("inspection_score", "localisation_error_m", "detection_rate", "false_claims")
@@ -172,6 +173,23 @@ def _corridor_ok(grid, poly: np.ndarray, tier) -> bool:
     return not np.any(land > 0.0)
 
 
+def _legs(tier) -> tuple:
+    """The pipeline's number of legs (``round(pipeline_length_m / LEG_M)``, at least one) and
+    their length, m."""
+    L = float(tier["pipeline_length_m"])
+    n_legs = max(1, int(round(L / LEG_M)))
+    return n_legs, L / n_legs
+
+
+def _shelf_nodes(grid, tier) -> tuple:
+    """The grid nodes a pipeline may start from (seafloor depth in the tier's range, off
+    land): their ``(j, i)`` indices, ``np.nonzero``'s order."""
+    depth = -grid.elevation.astype(np.float64)
+    ok = ((depth >= float(tier["seafloor_min_m"])) & (depth <= float(tier["seafloor_max_m"]))
+          & (grid.land == 0.0))
+    return np.nonzero(ok)
+
+
 def sample_pipeline(grid, rng, tier, tries: int = 3000, what: str = "pipeline") -> np.ndarray:
     """A random pipeline polyline on the shelf (see the module docstring).
 
@@ -202,13 +220,9 @@ def sample_pipeline(grid, rng, tier, tries: int = 3000, what: str = "pipeline") 
     NotApplicable
         No valid pipeline in ``tries`` attempts (never a silent fallback).
     """
+    n_legs, leg = _legs(tier)
+    jj, ii = _shelf_nodes(grid, tier)
     L = float(tier["pipeline_length_m"])
-    n_legs = max(1, int(round(L / LEG_M)))
-    leg = L / n_legs
-    depth = -grid.elevation.astype(np.float64)
-    ok = ((depth >= float(tier["seafloor_min_m"])) & (depth <= float(tier["seafloor_max_m"]))
-          & (grid.land == 0.0))
-    jj, ii = np.nonzero(ok)
     turn = math.radians(MAX_TURN_DEG)
     if jj.size:
         for _ in range(int(tries)):
@@ -349,6 +363,207 @@ def field_frame(poly: np.ndarray, h: float, margin: float):
     return o, np.array([c, s]), s_lo + 0.5 * h, n_lo + 0.5 * h, nx, nz
 
 
+#: Attempts of :func:`sample_pipeline` and of :func:`sample_leaks` per episode; candidates
+#: of one spawn (:func:`~oneocean.engine.constraints.spawn_positions`' default), drawn 64 at
+#: a time.
+_PIPE_TRIES = 3000
+_LEAK_TRIES = 1000
+_SPAWN_MAX = 200_000
+_SPAWN_BATCH = 64
+
+
+@hot_kernel(inline="always")
+def _arc_c(poly, arc):
+    """:func:`_arc` into ``arc`` (V,): 0, then the cumulative ``hypot`` of the legs."""
+    arc[0] = 0.0
+    acc = 0.0
+    for k in range(1, poly.shape[0]):
+        acc += math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        arc[k] = acc
+
+
+@hot_kernel(inline="always")
+def _point_at_c(poly, arc, s):
+    """:func:`point_at` with the arc lengths at hand: ``(x, z)``."""
+    v = poly.shape[0]
+    k = 0
+    while k < v and arc[k] <= s:       # searchsorted(arc, s, side="right")
+        k += 1
+    k = min(max(k - 1, 0), v - 2)
+    w = (s - arc[k]) / max(arc[k + 1] - arc[k], 1e-12)
+    return (poly[k, 0] + w * (poly[k + 1, 0] - poly[k, 0]),
+            poly[k, 1] + w * (poly[k + 1, 1] - poly[k, 1]))
+
+
+@hot_kernel(inline="always")
+def _corridor_ok_c(grid, poly, pts, smin, smax):
+    """:func:`_corridor_ok`, compiled (``pts`` a work array for the densified line): 1
+    (valid), 0 (not), -1 (``pts`` too small: left to Python)."""
+    # _densify: the first vertex, then every leg's points at np.linspace(0, 1, n + 1)[1:]
+    pts[0, 0] = poly[0, 0]
+    pts[0, 1] = poly[0, 1]
+    n_p = 1
+    for q in range(1, poly.shape[0]):
+        ax, az = poly[q - 1, 0], poly[q - 1, 1]
+        bx, bz = poly[q, 0], poly[q, 1]
+        n = max(1, int(math.ceil(math.hypot(bx - ax, bz - az) / CHECK_SPACING_M)))
+        if n_p + n > pts.shape[0]:
+            return -1
+        step = 1.0 / n
+        for i in range(1, n + 1):
+            w = 1.0 if i == n else float(i) * step + 0.0
+            pts[n_p, 0] = ax + w * (bx - ax)
+            pts[n_p, 1] = az + w * (bz - az)
+            n_p += 1
+    inside = True
+    dmin = math.inf
+    dmax = -math.inf
+    land = False
+    for k in range(n_p):
+        kk = k if k < n_p - 1 else n_p - 2            # the last point takes the last step
+        dx = pts[kk + 1, 0] - pts[kk, 0]
+        dz = pts[kk + 1, 1] - pts[kk, 1]
+        h = max(math.hypot(dx, dz), 1e-9)
+        nx = -dz / h
+        nz = dx / h
+        for side in range(3):
+            if side == 0:
+                x, z = pts[k, 0], pts[k, 1]
+            elif side == 1:
+                x, z = pts[k, 0] + CORRIDOR_CHECK_M * nx, pts[k, 1] + CORRIDOR_CHECK_M * nz
+            else:
+                x, z = pts[k, 0] - CORRIDOR_CHECK_M * nx, pts[k, 1] - CORRIDOR_CHECK_M * nz
+            if x < grid.x0 or x > grid.x_max or z < grid.z0 or z > grid.z_max:
+                inside = False
+            d = -sample_elevation(grid, x, z)
+            dmin = min(dmin, d)
+            dmax = max(dmax, d)
+            j = min(max(int((z - grid.z0) * grid.inv_dz), 0), grid.ny - 2)
+            i = min(max(int((x - grid.x0) * grid.inv_dx), 0), grid.nx - 2)
+            if (grid.land[j, i] > 0.0 or grid.land[j + 1, i] > 0.0 or grid.land[j, i + 1] > 0.0
+                    or grid.land[j + 1, i + 1] > 0.0):
+                land = True
+    if not inside or dmin < smin or dmax > smax or land:
+        return 0
+    return 1
+
+
+@hot_kernel
+def _episodes_kernel(grid, stv, buf, ii, jj, n_legs, leg, turn, smin, smax, n_leaks, sp,
+                     rate, n_agents, poly, pts, arc, s_leak, cand, out_poly, out_leaks,
+                     out_rate, out_sections, out_pos0, status):
+    """:func:`sample_pipeline`, :func:`sample_leaks`, the section starts'
+    :func:`~oneocean.engine.constraints.spawn_positions` and the leak rates from each
+    episode's stream ``stv[e]`` (``buf[e]`` its kept 32-bit half), compiled: the same draws
+    in the same order and the same checks. ``status[e]``: 0 (the episode written), 1 (no
+    pipeline, no leak placement, no start or a line too long for ``pts``: left to the
+    Python samplers, which raise their own errors)."""
+    lt = DEFAULT_LAND_THRESHOLD
+    v = n_legs + 1
+    lo_f = LEAK_ARC_FRAC
+    hi_f = 1.0 - LEAK_ARC_FRAC
+    half = 0.5 * SPAWN_BOX_M
+    for e in range(stv.shape[0]):
+        status[e] = 1
+        # the pipeline
+        found = False
+        if ii.shape[0] > 0:
+            for _ in range(_PIPE_TRIES):
+                k = streams.integers(stv, buf, e, ii.shape[0])
+                px = grid.x0 + ii[k] * grid.dx
+                pz = grid.z0 + jj[k] * grid.dz
+                px = px + streams.uniform(stv, e, -0.5, 0.5) * grid.dx
+                pz = pz + streams.uniform(stv, e, -0.5, 0.5) * grid.dz
+                hdg = streams.uniform(stv, e, -math.pi, math.pi)
+                poly[0, 0] = px
+                poly[0, 1] = pz
+                for q in range(n_legs):
+                    if q > 0:
+                        hdg += streams.uniform(stv, e, -turn, turn)
+                    poly[q + 1, 0] = poly[q, 0] + leg * math.sin(hdg)
+                    poly[q + 1, 1] = poly[q, 1] + leg * math.cos(hdg)
+                ok = _corridor_ok_c(grid, poly, pts, smin, smax)
+                if ok < 0:
+                    break
+                if ok == 1:
+                    found = True
+                    break
+        if not found:
+            continue
+        # the leaks: sorted arc lengths in the window, at least sp apart
+        _arc_c(poly, arc)
+        L = arc[v - 1]
+        lo, hi = lo_f * L, hi_f * L
+        placed = False
+        for _ in range(_LEAK_TRIES):
+            for q in range(n_leaks):
+                s_leak[q] = streams.uniform(stv, e, lo, hi)
+            for q in range(1, n_leaks):            # insertion sort: np.sort's values
+                x = s_leak[q]
+                r = q - 1
+                while r >= 0 and s_leak[r] > x:
+                    s_leak[r + 1] = s_leak[r]
+                    r -= 1
+                s_leak[r + 1] = x
+            placed = True
+            for q in range(1, n_leaks):
+                if not s_leak[q] - s_leak[q - 1] >= sp:
+                    placed = False
+                    break
+            if n_leaks < 2 or placed:
+                placed = True
+                break
+        if not placed:
+            continue
+        # the section starts: np.linspace(0, L, n_agents + 1), one start near each
+        step = L / n_agents
+        spawned = True
+        for a in range(n_agents):
+            cut = float(a) * step + 0.0
+            out_sections[e, a, 0] = cut
+            out_sections[e, a, 1] = L if a + 1 == n_agents else float(a + 1) * step + 0.0
+            cx, cz = _point_at_c(poly, arc, cut)
+            xl, xh = cx - half, cx + half
+            zl, zh = cz - half, cz + half
+            got = _spawn_altitude(grid, stv, e, cand, 1, xl, xh, zl, zh, SPAWN_ALTITUDE_M[0],
+                                  SPAWN_ALTITUDE_M[1], lt, CLEARANCE_M, 0.0, _SPAWN_MAX,
+                                  out_pos0[e, a:])
+            if got < 1:
+                spawned = False
+                break
+        if not spawned:
+            continue
+        for q in range(v):
+            out_poly[e, q, 0] = poly[q, 0]
+            out_poly[e, q, 1] = poly[q, 1]
+        for q in range(n_leaks):
+            out_leaks[e, q, 0], out_leaks[e, q, 1] = _point_at_c(poly, arc, s_leak[q])
+        for q in range(n_leaks):
+            out_rate[e, q] = rate * streams.uniform(stv, e, 0.5, 1.0)
+        status[e] = 0
+    return status
+
+
+def _episode_python(grid, rng, tier, n_agents: int, e: int) -> tuple:
+    """One episode's pipeline, leaks, leak rates, sections and starts by the Python
+    samplers."""
+    what = f"task {TASK_ID} reset (episode {e})"
+    poly = sample_pipeline(grid, rng, tier, what=what)
+    s_leak = sample_leaks(rng, poly, tier, what=what)
+    L = _arc(poly)[-1]
+    cuts = np.linspace(0.0, L, n_agents + 1)
+    p0 = np.empty((n_agents, 3))
+    for i in range(n_agents):
+        c = point_at(poly, cuts[i])
+        box = {"x": (c[0] - 0.5 * SPAWN_BOX_M, c[0] + 0.5 * SPAWN_BOX_M),
+               "z": (c[1] - 0.5 * SPAWN_BOX_M, c[1] + 0.5 * SPAWN_BOX_M),
+               "altitude": SPAWN_ALTITUDE_M}
+        p0[i] = spawn_positions(grid, rng, 1, box, clearance=CLEARANCE_M)[0]
+    leaks = np.array([point_at(poly, s) for s in s_leak])
+    rates = float(tier["leak_rate_kg_s"]) * rng.uniform(0.5, 1.0, int(tier["n_leaks"]))
+    return poly, leaks, rates, np.stack([cuts[:-1], cuts[1:]], axis=1), p0
+
+
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the pipeline, leaks, start positions and start time of every episode.
 
@@ -388,30 +603,32 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     n_leaks = int(tier["n_leaks"])
     if n_leaks < 1:
         raise ConfigError(f"task {TASK_ID}: n_leaks must be >= 1, got {n_leaks}")
-    rngs = episode_generators(seed, n_episodes)
+    rngs = streams.episode_states(seed, n_episodes, PURPOSE_RESET)   # one stream per episode
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
-    polys, leaks, rates, sections, pos0 = [], [], [], [], []
-    for e, rng in enumerate(rngs):
-        what = f"task {TASK_ID} reset (episode {e})"
-        poly = sample_pipeline(grid, rng, tier, what=what)
-        s_leak = sample_leaks(rng, poly, tier, what=what)
-        L = _arc(poly)[-1]
-        cuts = np.linspace(0.0, L, n_agents + 1)
-        p0 = np.empty((n_agents, 3))
-        for i in range(n_agents):
-            c = point_at(poly, cuts[i])
-            box = {"x": (c[0] - 0.5 * SPAWN_BOX_M, c[0] + 0.5 * SPAWN_BOX_M),
-                   "z": (c[1] - 0.5 * SPAWN_BOX_M, c[1] + 0.5 * SPAWN_BOX_M),
-                   "altitude": SPAWN_ALTITUDE_M}
-            p0[i] = spawn_positions(grid, rng, 1, box, clearance=CLEARANCE_M)[0]
-        polys.append(poly)
-        leaks.append(np.array([point_at(poly, s) for s in s_leak]))
-        rates.append(float(tier["leak_rate_kg_s"]) * rng.uniform(0.5, 1.0, n_leaks))
-        sections.append(np.stack([cuts[:-1], cuts[1:]], axis=1))
-        pos0.append(p0)
-    return {"poly": np.array(polys), "leaks": np.array(leaks), "leak_rate": np.array(rates),
-            "sections": np.array(sections), "pos0": np.array(pos0),
-            "psi0": np.zeros((n_episodes, n_agents)), "t0": t0}
+    first = rngs.copy()                     # each episode's stream where its draws begin
+    n_legs, leg = _legs(tier)
+    jj, ii = _shelf_nodes(grid, tier)
+    poly = np.empty((n_episodes, n_legs + 1, 2))
+    leaks = np.empty((n_episodes, n_leaks, 2))
+    rates = np.empty((n_episodes, n_leaks))
+    sections = np.empty((n_episodes, n_agents, 2))
+    pos0 = np.empty((n_episodes, n_agents, 3))
+    per_leg = int(math.ceil(leg / CHECK_SPACING_M)) + 2
+    status = _call(_episodes_kernel, grid, rngs, np.zeros((n_episodes, 2), dtype=np.uint64),
+                   ii.astype(np.int64), jj.astype(np.int64), n_legs, leg,
+                   math.radians(MAX_TURN_DEG), float(tier["seafloor_min_m"]),
+                   float(tier["seafloor_max_m"]), n_leaks, float(tier["leak_spacing_m"]),
+                   float(tier["leak_rate_kg_s"]), n_agents, np.empty((n_legs + 1, 2)),
+                   np.empty((n_legs * per_leg + 1, 2)), np.empty(n_legs + 1),
+                   np.empty(n_leaks), np.empty((_SPAWN_BATCH, 3)), poly, leaks, rates,
+                   sections, pos0, np.empty(n_episodes, dtype=np.int64))
+    for e in np.flatnonzero(status):
+        # the Python samplers from the episode's first draw: their own errors and messages
+        # (raised for the first such episode, as the draws in order would), or the episode
+        poly[e], leaks[e], rates[e], sections[e], pos0[e] = _episode_python(
+            grid, streams.generator(first[e]), tier, n_agents, int(e))
+    return {"poly": poly, "leaks": leaks, "leak_rate": rates, "sections": sections,
+            "pos0": pos0, "psi0": np.zeros((n_episodes, n_agents)), "t0": t0}
 
 
 # ------------------------------------------------------------------------------ kernels
@@ -1121,3 +1338,6 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_DET] = n_det / n_leak
     row[_C_FALSE] = n_false
     return n_loc == n_leak and n_false == 0
+
+
+fresh_cache(_episodes_kernel, __file__)
