@@ -296,3 +296,51 @@ def test_pi_reset_draws_what_the_python_samplers_draw(coast, tier, seed):
                  seed)
     with pytest.raises(ConfigError, match="cannot place 9 leaks 400 m apart"):
         pi.reset(coast, {**params, "n_leaks": 9, "leak_spacing_m": 400.0}, 3, 2, seed)
+
+
+@pytest.mark.parametrize("tier, seed", [(1, 0), (2, 2**40 + 3), (3, 2**64 - 1)])
+def test_spc_reset_draws_what_the_python_sampler_draws(coast, tier, seed):
+    """SPC's compiled site, staging and spill sampler gives ``_candidate_python``'s starts,
+    spill box, origin and centroid from the same streams (slack water included: its own
+    bearing draw), and fails with its errors in the episodes' order."""
+    from oneocean.tasks import spc
+    from oneocean.tasks.common import episode_generators, start_times
+
+    params = dict(Cell(coast, "SPC", tier).params)
+    calm = E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, speed_ms=0.0, tide_ms=0.0,
+                                      has_tide=False))
+    for grid in (coast, calm):
+        d = spc.reset_candidates(grid, params, 3, 8, seed)
+        rngs = episode_generators(seed, 8)
+        np.testing.assert_array_equal(d["t0"], start_times(grid, rngs, params["time_limit_s"]))
+        raw = grid._replace(gain=1.0, tide_layers=0)
+        for e, rng in enumerate(rngs):
+            want = spc._candidate_python(grid, raw, rng, params, 3, float(d["t0"][e]), e)
+            for key, w in zip(("starts", "spill", "origin", "report"), want):
+                assert np.asarray(d[key][e]).tobytes() == np.asarray(w, float).tobytes(), key
+    with pytest.raises(NotApplicable, match=r"episode 0\): no spill site clear of land within "
+                                            r"\d+ m with a clear staging point 1e\+06 m away"):
+        spc.reset_candidates(coast, {**params, "staging_distance_m": 1e6}, 3, 2, seed)
+    g = make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0)
+    g["land_mask"] = np.ones_like(g["land_mask"])
+    with pytest.raises(NotApplicable, match=r"episode 0\): spawn: found only 0 of 1"):
+        spc.reset_candidates(E.load_grid(g), params, 3, 2, seed)
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 127, 128, 129, 136, 255, 1000, 3600, 4097, 20011])
+def test_pairwise_sum_is_numpys_sum(n):
+    """The compiled spill's total adds in NumPy's pairwise order: the same bits as ``np.sum``
+    (mixed signs, zeros and magnitudes, where another order rounds differently)."""
+    from oneocean.models.pollution import pairwise_sum
+
+    rng = np.random.default_rng(n)
+    stack = np.empty((64, 5))
+    for _ in range(20):
+        a = (rng.random(n) - 0.3) * rng.random(n) ** 8 * 1e3
+        a[rng.random(n) < 0.4] = 0.0
+        assert 0.0 + pairwise_sum(a, 0, n, stack) == a.sum()
+        lo = n // 3
+        assert 0.0 + pairwise_sum(a, lo, n - lo, stack) == a[lo:].sum()
+    if n > 300:   # the naive sequential sum is not NumPy's (the test can tell the orders apart)
+        a = (rng.random(n) - 0.3) * rng.random(n) ** 8 * 1e3
+        assert math.fsum(a) != a.sum() or sum(a.tolist()) != a.sum()

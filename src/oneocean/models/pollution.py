@@ -1063,3 +1063,166 @@ def make_spill(nx: int, nz: int, h: float, centre, radius: float, mass: float, r
     C = np.zeros((n_species, nz, nx), dtype=np.float64)
     C[species] = w * (mass / (total * h * h))
     return C
+
+
+@hot_kernel(inline="always")
+def _pairwise_leaf(a, lo, n):
+    """NumPy's pairwise sum of at most 128 values (eight running sums)."""
+    if n < 8:
+        res = -0.0
+        for i in range(n):
+            res += a[lo + i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    while i < n - n % 8:
+        k = lo + i
+        r0 += a[k]
+        r1 += a[k + 1]
+        r2 += a[k + 2]
+        r3 += a[k + 3]
+        r4 += a[k + 4]
+        r5 += a[k + 5]
+        r6 += a[k + 6]
+        r7 += a[k + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@hot_kernel
+def pairwise_sum(a, lo, n, stack):
+    """``a[lo:lo + n].sum()`` of a contiguous float64 array in NumPy's order: its pairwise
+    summation (eight running sums over blocks of at most 128 values; above that the two
+    halves, the first a multiple of 8 long, summed apart and added), without the identity
+    ``0.0`` NumPy's reduction starts from (add it for ``np.sum``'s value). Iterative (numba's
+    cache cannot load a recursive function): the halves wait on ``stack``.
+
+    Parameters
+    ----------
+    a : (m,) float64
+        Values.
+    lo, n : int
+        First index and count.
+    stack : (64, 5) float64
+        Work array (a half's start, length, state and the two partial sums per level).
+
+    Returns
+    -------
+    float
+    """
+    if n <= 128:
+        return _pairwise_leaf(a, lo, n)
+    sp = 1
+    stack[0, 0] = lo
+    stack[0, 1] = n
+    stack[0, 2] = 0.0
+    out = 0.0
+    while sp > 0:
+        t = sp - 1
+        s_lo = int(stack[t, 0])
+        s_n = int(stack[t, 1])
+        state = stack[t, 2]
+        done = False
+        v = 0.0
+        if s_n <= 128:
+            v = _pairwise_leaf(a, s_lo, s_n)
+            done = True
+        else:
+            n2 = s_n // 2
+            n2 -= n2 % 8
+            if state == 0.0:
+                stack[t, 2] = 1.0
+                stack[sp, 0] = s_lo
+                stack[sp, 1] = n2
+                stack[sp, 2] = 0.0
+                sp += 1
+            elif state == 1.0:
+                stack[t, 2] = 2.0
+                stack[sp, 0] = s_lo + n2
+                stack[sp, 1] = s_n - n2
+                stack[sp, 2] = 0.0
+                sp += 1
+            else:
+                v = stack[t, 3] + stack[t, 4]
+                done = True
+        if done:
+            sp -= 1
+            if sp == 0:
+                out = v
+            elif stack[sp - 1, 2] == 1.0:
+                stack[sp - 1, 3] = v
+            else:
+                stack[sp - 1, 4] = v
+    return out
+
+
+@hot_kernel(inline="always")
+def spill_box(n, h, x0, z0, cx, cz, radius, cut, mass, stretch, th, land, i0, i1, w, stack,
+              out):
+    """:func:`make_spill` of an ``n x n`` field (one species, ``rng`` drawing ``stretch``
+    then ``th``), compiled, for a blob that lies in cells ``i0 .. i1 - 1`` along both axes
+    (the caller's box holds every cell within ``2 radius`` of the centre): the same values.
+
+    Parameters
+    ----------
+    n : int
+        Cells per side.
+    h, x0, z0 : float
+        Cell size and world centre of cell (0, 0), m.
+    cx, cz : float
+        Blob centre, m.
+    radius, mass : float
+        As in :func:`make_spill`.
+    cut : float
+        ``(2.0 * radius) ** 2`` as Python computes it (the blob's cut, m2).
+    stretch, th : float
+        The two draws of :func:`make_spill`'s generator (aspect, direction).
+    land : (n, n) uint8
+        Nonzero = land (read inside the box only).
+    i0, i1 : int
+        The box.
+    w : (n * n,) float64
+        Work array (the field's weights, row-major; zero outside the box on return).
+    stack : (64, 5) float64
+        Work array of :func:`pairwise_sum`.
+    out : (i1 - i0, i1 - i0) float64
+        The box of the field, kg m-2, written.
+
+    Returns
+    -------
+    float
+        The weights' total; not > 0 where no water cell lies near the centre (``out`` is then
+        not written; :func:`make_spill` raises).
+    """
+    sigma = 0.5 * radius
+    a = sigma * math.sqrt(stretch)
+    b = sigma / math.sqrt(stretch)
+    ct = math.cos(th)
+    st = math.sin(th)
+    for k in range(n * n):
+        w[k] = 0.0
+    for j in range(i0, i1):
+        Z = (z0 + h * j) - cz
+        for i in range(i0, i1):
+            X = (x0 + h * i) - cx
+            p = ct * X + st * Z
+            q = -st * X + ct * Z
+            pa = p / a
+            qb = q / b
+            v = math.exp(-0.5 * (pa * pa + qb * qb))
+            if X * X + Z * Z > cut or land[j, i] != 0:
+                v = 0.0
+            w[j * n + i] = v
+    total = 0.0 + pairwise_sum(w, 0, n * n, stack)
+    if not total > 0.0:
+        return total
+    scale = mass / (total * h * h)
+    for j in range(i0, i1):
+        for i in range(i0, i1):
+            out[j - i0, i - i0] = w[j * n + i] * scale
+    return total

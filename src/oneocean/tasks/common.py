@@ -1034,6 +1034,29 @@ def _no_route(what, n_legs, leg_m, lo, hi, clearance, tries) -> NotApplicable:
 
 
 @hot_kernel(inline="always")
+def _spawn_one_c(grid, stv, r, cand, y, land_threshold, clearance):
+    """:func:`_spawn_one` from stream ``r`` of ``stv``, compiled: batches of ``cand.shape[0]``
+    x, then z, then y draws over the grid at depth ``y``, up to ``_SPAWN_MAX`` candidates.
+    Returns the row of ``cand`` that holds the first valid point, or -1 (none: the draws of
+    all ``_SPAWN_MAX`` spent, as ``spawn_positions`` spends them)."""
+    xl, xh = grid.x0, grid.x_max
+    zl, zh = grid.z0, grid.z_max
+    m = cand.shape[0]
+    for _b in range(_SPAWN_MAX // m):
+        for c in range(m):
+            cand[c, 0] = streams.uniform(stv, r, xl, xh)
+        for c in range(m):
+            cand[c, 2] = streams.uniform(stv, r, zl, zh)
+        for c in range(m):
+            cand[c, 1] = streams.uniform(stv, r, y, y)
+        for c in range(m):
+            if check_move(grid, cand[c, 0], cand[c, 1], cand[c, 2], land_threshold,
+                          clearance) == OK:
+                return c
+    return -1
+
+
+@hot_kernel(inline="always")
 def _route_row(grid, stv, r, n_legs, leg_m, lo, hi, clearance, max_turn, land_threshold,
                vary_depth, tries, spacing, cand, out, j):
     """:func:`sample_route` from stream ``r`` of ``stv``, compiled: the same draws in the
@@ -1041,27 +1064,10 @@ def _route_row(grid, stv, r, n_legs, leg_m, lo, hi, clearance, max_turn, land_th
     start point spends its ``_SPAWN_MAX`` candidates, as ``spawn_positions`` does) and the
     same checks; the vertices in ``out[j]``. Returns 0 (a route), 1 (five failed start
     points) or 2 (none in ``tries``)."""
-    xl, xh = grid.x0, grid.x_max
-    zl, zh = grid.z0, grid.z_max
-    m = cand.shape[0]
     spawn_fails = 0
     for _ in range(tries):
         y = streams.uniform(stv, r, lo, hi)
-        q = -1
-        for _b in range(_SPAWN_MAX // m):
-            for c in range(m):
-                cand[c, 0] = streams.uniform(stv, r, xl, xh)
-            for c in range(m):
-                cand[c, 2] = streams.uniform(stv, r, zl, zh)
-            for c in range(m):
-                cand[c, 1] = streams.uniform(stv, r, y, y)
-            for c in range(m):
-                if check_move(grid, cand[c, 0], cand[c, 1], cand[c, 2], land_threshold,
-                              clearance) == OK:
-                    q = c
-                    break
-            if q >= 0:
-                break
+        q = _spawn_one_c(grid, stv, r, cand, y, land_threshold, clearance)
         if q < 0:
             spawn_fails += 1
             if spawn_fails >= 5:

@@ -66,14 +66,18 @@ from typing import NamedTuple
 import numpy as np
 
 from ..engine import status as st
-from ..engine.constraints import DEFAULT_LAND_THRESHOLD
+from ..engine import streams
+from ..engine.constraints import DEFAULT_LAND_THRESHOLD, check_move
+from ..engine.status import OK
 from ..engine.grid import (current_from_parts, locate_time, sample_current_data,
                            sample_current_parts, synthetic_tide)
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError, NotApplicable
 from ..models import pollution as pol
-from .common import (STANDARD, episode_generators, episode_steps, need_tier,
-                     need_tokens, path_clear, start_times)
+from ..models.pollution import spill_box
+from .common import (PURPOSE_RESET, STANDARD, _SPAWN_BATCH, _call, _segment_clear,
+                     _spawn_one_c, episode_steps, fresh_cache, need_tier, need_tokens,
+                     path_clear, start_times)
 from .loop import GO, REACHED
 from ..engine import libm
 
@@ -138,7 +142,6 @@ def _surface_codes(grid, xyz) -> np.ndarray:
     """``feasibility(grid, xyz, DEFAULT_LAND_THRESHOLD, CLEARANCE_M)`` of C-contiguous
     float64 points, through the compiled entry (no numba dispatch per call)."""
     from ..engine.constraints import check_points
-    from .common import _call
 
     return _call(check_points, grid, xyz, float(DEFAULT_LAND_THRESHOLD), float(CLEARANCE_M),
                  np.empty(xyz.shape[0], dtype=np.int64))
@@ -213,6 +216,175 @@ def _spill_box(n: int, half: float, R: float) -> slice:
     return slice(int(inside[0]), int(inside[-1]) + 1)
 
 
+#: Spill-site draws per candidate.
+_SITE_TRIES = 1000
+#: :func:`_candidates_kernel` statuses: the candidate drawn; no site in ``_SITE_TRIES``; a
+#: case the kernel leaves to the Python sampler, which raises its error (no start water for
+#: the spawn, no water cell near the spill).
+_FOUND, _NO_SITE, _PYTHON = 0, 1, 2
+
+
+def _rings(R: float) -> np.ndarray:
+    """The offsets from a spill site that must be surface water: the site, then 16 bearings
+    on rings of 0.5 to ``CLEAR_RADII`` spill radii, (m, 2) (x, z), m."""
+    ang = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+    return np.ascontiguousarray(np.concatenate(
+        [[[0.0, 0.0]]] + [r * np.stack([libm.sin(ang), libm.cos(ang)], 1)
+                          for r in np.linspace(0.5, CLEAR_RADII, 3) * R]))
+
+
+def _no_site(e: int, R: float, dist: float) -> str:
+    return (f"task {TASK_ID} reset (episode {e}): no spill site clear of land within "
+            f"{CLEAR_RADII * R:g} m with a clear staging point {dist:g} m away; the grid has "
+            f"no such water for this tier")
+
+
+def _candidate_python(grid, raw, rng, tier: dict, n_agents: int, t0: float, e: int):
+    """One candidate by the Python samplers (what :func:`_candidates_kernel` draws):
+    ``(starts, spill box, origin, report)``; raises their errors."""
+    from .common import _spawn_one
+
+    R = float(tier["spill_radius_m"])
+    dist = float(tier["staging_distance_m"])
+    n, half = field_frame(float(tier["domain_m"]))
+    off = staging_offsets(n_agents)
+    rings = _rings(R)
+    box = _spill_box(n, half, R)
+    b = box.stop - box.start
+    for _ in range(_SITE_TRIES):
+        try:   # spawn_positions(grid, rng, 1, {"y": (SURFACE_Y_M,) * 2}, ...)[0]
+            c = _spawn_one(grid, rng, SURFACE_Y_M, DEFAULT_LAND_THRESHOLD, CLEARANCE_M)
+        except ConfigError as exc:
+            raise NotApplicable(f"task {TASK_ID} reset (episode {e}): {exc}") from None
+        cxz = np.array([c[0], c[2]])
+        if not _surface_ok(grid, cxz + rings).all():
+            continue
+        # the response base lies up-current of the spill: the slick drifts away from it
+        ue, un = _call(sample_current_data, raw, float(c[0]), float(SURFACE_Y_M),
+                       float(c[2]), float(t0))
+        a = rng.uniform(-STAGING_SPREAD_RAD, STAGING_SPREAD_RAD)
+        if math.isfinite(ue) and math.isfinite(un) and ue * ue + un * un > 1e-6:
+            a += math.atan2(-ue, -un)
+        else:
+            a = rng.uniform(-np.pi, np.pi)  # slack water: any direction (documented)
+        u = np.array([math.sin(a), math.cos(a)])
+        stg = cxz + dist * u
+        rot = np.stack([u[1] * off[:, 0] + u[0] * off[:, 1],
+                        -u[0] * off[:, 0] + u[1] * off[:, 1]], 1)
+        starts = stg + rot
+        if not _surface_ok(grid, starts).all():
+            continue
+        p_s = np.array([stg[0], SURFACE_Y_M, stg[1]])
+        if path_clear(grid, p_s, c, CLEARANCE_M, DEFAULT_LAND_THRESHOLD, spacing_m=10.0):
+            break
+    else:
+        raise NotApplicable(_no_site(e, R, dist))
+    x0, z0 = cxz[0] - half, cxz[1] - half
+    # the box's land cells (none outside it), cell centres (x0 + ci[i], z0 + ci[j]), row j,
+    # as the full mask has them
+    ci = np.arange(n) * FIELD_H_M
+    land = np.zeros((n, n), dtype=np.uint8)
+    xyz = np.empty((b * b, 3))
+    xyz[:, 1] = SURFACE_Y_M
+    xyz[:, 0] = np.tile(x0 + ci[box], b)
+    xyz[:, 2] = np.repeat(z0 + ci[box], b)
+    land[box, box] = (_surface_codes(grid, xyz) != st.OK).reshape(b, b)
+    C = pol.make_spill(n, n, FIELD_H_M, cxz, R, SPILL_MASS_KG, rng, x0=x0, z0=z0, land=land)
+    if np.count_nonzero(C.view(np.int64)) != np.count_nonzero(C[0, box, box].view(np.int64)):
+        raise RuntimeError(f"task {TASK_ID} reset (episode {e}): spill mass outside its "
+                           f"box")   # never: make_spill cuts the blob at 2 R
+    xc, zc, _ = pol.centroid(C, 0, x0, z0, FIELD_H_M)
+    return starts, C[0, box, box], (x0, z0), (xc, zc)
+
+
+@hot_kernel
+def _candidates_kernel(grid, raw, stv, t0, rings, off, dist, R, cut, n, half, i0, i1, cand,
+                       land, w, stack, starts, spill, origin, report, status):
+    """:func:`_candidate_python` of every candidate from its stream ``stv[e]``, compiled: the
+    same draws in the same order, the same checks and the same values (the spill through
+    :func:`~oneocean.models.pollution.spill_box`, the centroid over its box: every other cell
+    is zero). ``status[e]``: ``_FOUND`` (``starts[e]``, ``spill[e]``, ``origin[e]``,
+    ``report[e]`` written), ``_NO_SITE`` or ``_PYTHON``."""
+    lt = DEFAULT_LAND_THRESHOLD
+    cl = CLEARANCE_M
+    y = SURFACE_Y_M
+    h = FIELD_H_M
+    n_agents = off.shape[0]
+    for e in range(stv.shape[0]):
+        status[e] = _NO_SITE
+        found = False
+        cx = cy = cz = 0.0
+        for _ in range(_SITE_TRIES):
+            q = _spawn_one_c(grid, stv, e, cand, y, lt, cl)
+            if q < 0:
+                status[e] = _PYTHON
+                break
+            cx, cy, cz = cand[q, 0], cand[q, 1], cand[q, 2]
+            clear = True
+            for k in range(rings.shape[0]):
+                if check_move(grid, cx + rings[k, 0], y, cz + rings[k, 1], lt, cl) != OK:
+                    clear = False
+                    break
+            if not clear:
+                continue
+            ue, un = sample_current_data(raw, cx, y, cz, t0[e])
+            a = streams.uniform(stv, e, -STAGING_SPREAD_RAD, STAGING_SPREAD_RAD)
+            if math.isfinite(ue) and math.isfinite(un) and ue * ue + un * un > 1e-6:
+                a += math.atan2(-ue, -un)
+            else:
+                a = streams.uniform(stv, e, -math.pi, math.pi)
+            u0 = math.sin(a)
+            u1 = math.cos(a)
+            sx = cx + dist * u0
+            sz = cz + dist * u1
+            for q in range(n_agents):
+                starts[e, q, 0] = sx + (u1 * off[q, 0] + u0 * off[q, 1])
+                starts[e, q, 1] = sz + (-u0 * off[q, 0] + u1 * off[q, 1])
+                if check_move(grid, starts[e, q, 0], y, starts[e, q, 1], lt, cl) != OK:
+                    clear = False
+                    break
+            if not clear:
+                continue
+            # path_clear(staging point -> site, spacing 10 m)
+            dx = cx - sx
+            dy = cy - y
+            dz = cz - sz
+            k_pts = max(2, int(math.ceil(math.sqrt(dx * dx + dy * dy + dz * dz) / 10.0)) + 1)
+            if _segment_clear(grid, sx, y, sz, cx, cy, cz, k_pts, lt, cl):
+                found = True
+                break
+        if not found:
+            continue
+        x0 = cx - half
+        z0 = cz - half
+        for j in range(i0, i1):
+            for i in range(i0, i1):
+                land[j, i] = 0 if check_move(grid, x0 + i * h, y, z0 + j * h,
+                                             lt, cl) == OK else 1
+        stretch = streams.uniform(stv, e, 1.0, 2.0)
+        th = streams.uniform(stv, e, 0.0, math.pi)
+        total = spill_box(n, h, x0, z0, cx, cz, R, cut, SPILL_MASS_KG, stretch, th, land, i0,
+                          i1, w, stack, spill[e])
+        if not total > 0.0:
+            status[e] = _PYTHON
+            continue
+        mm = 0.0
+        mx = 0.0
+        mz = 0.0
+        for j in range(i0, i1):
+            for i in range(i0, i1):
+                c = spill[e, j - i0, i - i0]
+                mm += c
+                mx += c * (x0 + i * h)
+                mz += c * (z0 + j * h)
+        origin[e, 0] = x0
+        origin[e, 1] = z0
+        report[e, 0] = mx / mm
+        report[e, 1] = mz / mm
+        status[e] = _FOUND
+    return status
+
+
 def reset_candidates(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """The first half of :func:`reset`: what ``Cell.reset``'s band check needs of the candidates,
     and what :func:`reset_build` needs to finish them.
@@ -260,74 +432,30 @@ def reset_candidates(grid, tier: dict, n_agents: int, n_episodes: int, seed: int
     if 2.0 * R > half:
         raise ConfigError(f"task {TASK_ID}: spill_radius_m={R:g} too large for domain_m="
                           f"{tier['domain_m']}")
-    rngs = episode_generators(seed, n_episodes)
+    rngs = streams.episode_states(seed, n_episodes, PURPOSE_RESET)   # one stream per episode
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
+    first = rngs.copy()                     # each episode's stream where its draws begin
     off = staging_offsets(n_agents)
-    ang = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
-    rings = np.concatenate([[[0.0, 0.0]]] + [r * np.stack([libm.sin(ang), libm.cos(ang)], 1)
-                                             for r in np.linspace(0.5, CLEAR_RADII, 3) * R])
+    rings = _rings(R)
     box = _spill_box(n, half, R)
     b = box.stop - box.start
     starts_all = np.empty((n_episodes, n_agents, 2))
     spill = np.empty((n_episodes, b, b))
     origin = np.empty((n_episodes, 2))
     report = np.empty((n_episodes, 2))
-    ci = np.arange(n) * FIELD_H_M
-    land = np.zeros((n, n), dtype=np.uint8)     # the box's land cells, none outside it
-    xyz = np.empty((b * b, 3))
-    xyz[:, 1] = SURFACE_Y_M
     # the mean data current (gain and tides dropped: same geometry with currents off)
     raw = grid._replace(gain=1.0, tide_layers=0)
-    from .common import _call, _spawn_one
-
-    for e, rng in enumerate(rngs):
-        found = False
-        for _ in range(1000):
-            try:   # spawn_positions(grid, rng, 1, {"y": (SURFACE_Y_M,) * 2}, ...)[0]
-                c = _spawn_one(grid, rng, SURFACE_Y_M, DEFAULT_LAND_THRESHOLD, CLEARANCE_M)
-            except ConfigError as exc:
-                raise NotApplicable(f"task {TASK_ID} reset (episode {e}): {exc}") from None
-            cxz = np.array([c[0], c[2]])
-            if not _surface_ok(grid, cxz + rings).all():
-                continue
-            # the response base lies up-current of the spill: the slick drifts away from it
-            ue, un = _call(sample_current_data, raw, float(c[0]), float(SURFACE_Y_M),
-                           float(c[2]), float(t0[e]))
-            a = rng.uniform(-STAGING_SPREAD_RAD, STAGING_SPREAD_RAD)
-            if math.isfinite(ue) and math.isfinite(un) and ue * ue + un * un > 1e-6:
-                a += math.atan2(-ue, -un)
-            else:
-                a = rng.uniform(-np.pi, np.pi)  # slack water: any direction (documented)
-            u = np.array([math.sin(a), math.cos(a)])
-            stg = cxz + dist * u
-            rot = np.stack([u[1] * off[:, 0] + u[0] * off[:, 1],
-                            -u[0] * off[:, 0] + u[1] * off[:, 1]], 1)
-            starts = stg + rot
-            if not _surface_ok(grid, starts).all():
-                continue
-            p_s = np.array([stg[0], SURFACE_Y_M, stg[1]])
-            if not path_clear(grid, p_s, c, CLEARANCE_M, DEFAULT_LAND_THRESHOLD, spacing_m=10.0):
-                continue
-            found = True
-            break
-        if not found:
-            raise NotApplicable(f"task {TASK_ID} reset (episode {e}): no spill site clear of "
-                                f"land within {CLEAR_RADII * R:g} m with a clear staging point "
-                                f"{dist:g} m away; the grid has no such water for this tier")
-        x0, z0 = cxz[0] - half, cxz[1] - half
-        # the box's cell centres (x0 + ci[i], z0 + ci[j]), row j, as the full mask has them
-        xyz[:, 0] = np.tile(x0 + ci[box], b)
-        xyz[:, 2] = np.repeat(z0 + ci[box], b)
-        land[box, box] = (_surface_codes(grid, xyz) != st.OK).reshape(b, b)
-        C = pol.make_spill(n, n, FIELD_H_M, cxz, R, SPILL_MASS_KG, rng, x0=x0, z0=z0, land=land)
-        spill[e] = C[0, box, box]
-        if np.count_nonzero(C.view(np.int64)) != np.count_nonzero(spill[e].view(np.int64)):
-            raise RuntimeError(f"task {TASK_ID} reset (episode {e}): spill mass outside its "
-                               f"box")   # never: make_spill cuts the blob at 2 R
-        origin[e] = (x0, z0)
-        xc, zc, _ = pol.centroid(C, 0, x0, z0, FIELD_H_M)
-        report[e] = (xc, zc)
-        starts_all[e] = starts
+    status = _call(_candidates_kernel, grid, raw, rngs, t0, rings, off, dist, R, (2.0 * R) ** 2,
+                   n, half, box.start, box.stop, np.empty((_SPAWN_BATCH, 3)),
+                   np.zeros((n, n), dtype=np.uint8), np.empty(n * n), np.empty((64, 5)),
+                   starts_all, spill, origin, report, np.empty(n_episodes, dtype=np.int64))
+    for e in np.flatnonzero(status):
+        # in the episodes' order, as the draws in order would: the Python sampler from the
+        # episode's first draw (its own errors and messages), or no site in the tries
+        if status[e] == _NO_SITE:
+            raise NotApplicable(_no_site(e, R, dist))
+        starts_all[e], spill[e], origin[e], report[e] = _candidate_python(
+            grid, raw, streams.generator(first[e]), tier, n_agents, float(t0[e]), int(e))
     # the current regime is judged where the slick drifts: the spill's centre at the surface
     site = np.column_stack([report[:, 0], np.full(n_episodes, SURFACE_Y_M), report[:, 1]])
     return {"t0": t0, "regime_points": site[:, None, :], "starts": starts_all,
@@ -776,3 +904,6 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_REM] = pol.total_mass(W.C[e], P.h) / m0
     row[_C_TTT] = W.k_hit[e] * P.dt if success else P.n_steps * P.dt
     return success
+
+
+fresh_cache(_candidates_kernel, __file__, pol.__file__)
