@@ -52,6 +52,34 @@ def test_states_and_draws_are_numpys(seed):
             assert streams.generator(st[r]).random() == g.random()
 
 
+@pytest.mark.parametrize("delta", [0, 1, 2, 3, 4095, 4096, 8192, 2**40 + 17, 2**64 - 1])
+def test_advance_is_numpys_pcg64_advance(delta):
+    """``advance`` jumps a stream as ``PCG64.advance`` does: the same state, then the same
+    draws (in place and into another row)."""
+    from numba import njit
+
+    @njit
+    def jump(st, i, src, j, d):
+        streams.advance(st, i, src, j, d)
+
+    for seed in (0, 7, 2**63 - 1):
+        st = streams.episode_states(seed, [3, 9], PURPOSE_RESET)
+        out = np.zeros((1, 4), dtype=np.uint64)
+        jump(out, 0, st, 1, delta)
+        ref = streams.generator(st[1])
+        ref.bit_generator.advance(delta)
+        s = ref.bit_generator.state["state"]
+        assert [int(v) for v in out[0]] == [s["state"] >> 64, s["state"] & (2**64 - 1),
+                                            s["inc"] >> 64, s["inc"] & (2**64 - 1)]
+        np.testing.assert_array_equal(streams.uniform_rows(out, -2.0, 5.0, 6)[0],
+                                      ref.uniform(-2.0, 5.0, 6))
+        jump(st, 0, st, 0, delta)                    # in place
+        ref0 = streams.generator(streams.episode_states(seed, [3], PURPOSE_RESET)[0])
+        ref0.bit_generator.advance(delta)
+        np.testing.assert_array_equal(streams.uniform_rows(st, 0.0, 1.0, 3, rows=[0])[0],
+                                      ref0.random(3))
+
+
 def test_episode_range_and_bad_seeds():
     np.testing.assert_array_equal(streams.episode_states(3, 4, 7),
                                   streams.episode_states(3, np.arange(4), 7))

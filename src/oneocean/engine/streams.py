@@ -12,6 +12,8 @@ one compiled call, and draws from them in compiled code:
   ``PCG64``'s seeding from ``generate_state(4, uint64)``);
 * :func:`next_double` / :func:`uniform` (jitted, inline) - ``Generator.random()`` and
   ``Generator.uniform(lo, hi)``: ``(next_uint64 >> 11) 2**-53`` and ``lo + (hi - lo) u``;
+* :func:`advance` (jitted, inline) - ``PCG64.advance(delta)``: a row ``delta`` draws on, in
+  ``O(log delta)`` steps;
 * :func:`uniform_rows` - ``k`` uniforms from each of several rows (``Generator.uniform(lo,
   hi, k)`` on each), from Python;
 * :func:`generator` - a NumPy generator in a row's state (for a rare path left in Python,
@@ -30,7 +32,8 @@ import numpy as np
 
 from ._jit import hot_kernel
 
-__all__ = ["episode_states", "next_double", "uniform", "uniform_rows", "seed_words", "generator"]
+__all__ = ["episode_states", "next_double", "uniform", "uniform_rows", "advance", "seed_words",
+           "generator"]
 
 _M32 = np.uint64(0xFFFFFFFF)
 _S32 = np.uint64(32)
@@ -128,6 +131,65 @@ def _step(st, i):
     carry = _ONE if lo2 < lo else _ZERO
     st[i, 0] = hi + st[i, 2] + carry
     st[i, 1] = lo2
+
+
+@hot_kernel(inline="always")
+def _mul128(ah, al, bh, bl):
+    """(a * b) mod 2**128 of two (hi, lo) uint64 pairs: (hi, lo)."""
+    return _mulhi(al, bl) + ah * bl + al * bh, al * bl
+
+
+@hot_kernel(inline="always")
+def _add128(ah, al, bh, bl):
+    """(a + b) mod 2**128 of two (hi, lo) uint64 pairs: (hi, lo)."""
+    lo = al + bl
+    return ah + bh + (_ONE if lo < al else _ZERO), lo
+
+
+@hot_kernel(inline="always")
+def advance(st, i, src, j, delta):
+    """Row ``i`` := row ``j`` of ``src`` advanced by ``delta`` steps (``PCG64.advance``).
+
+    The state ``delta`` draws of :func:`next_uint64` later, in ``O(log delta)``: the LCG's
+    jump ahead (``state * MUL**delta + inc * (MUL**delta - 1) / (MUL - 1)``, by squaring).
+    A scenario that draws a block of numbers of which it reads only the first few reads
+    those and jumps over the rest: the same numbers, the same state after the block.
+
+    Parameters
+    ----------
+    st : (n, 4) uint64
+        Stream states; row ``i`` is written.
+    i : int
+        Row written.
+    src : (m, 4) uint64
+        Stream states read (may be ``st``; ``i == j`` advances a row in place).
+    j : int
+        Row read.
+    delta : int
+        Steps, >= 0.
+    """
+    inc_h = src[j, 2]
+    inc_l = src[j, 3]
+    am_h, am_l = _ZERO, _ONE                 # accumulated multiplier
+    ap_h, ap_l = _ZERO, _ZERO                # accumulated increment
+    cm_h, cm_l = _MUL_HI, _MUL_LO            # MUL ** (2 ** bit)
+    cp_h, cp_l = inc_h, inc_l                # its increment
+    d = np.uint64(delta)
+    while d > _ZERO:
+        if d & _ONE:
+            am_h, am_l = _mul128(am_h, am_l, cm_h, cm_l)
+            ph, pl = _mul128(ap_h, ap_l, cm_h, cm_l)
+            ap_h, ap_l = _add128(ph, pl, cp_h, cp_l)
+        m1_h, m1_l = _add128(cm_h, cm_l, _ZERO, _ONE)
+        cp_h, cp_l = _mul128(m1_h, m1_l, cp_h, cp_l)
+        cm_h, cm_l = _mul128(cm_h, cm_l, cm_h, cm_l)
+        d = d >> _ONE
+    sh, sl = _mul128(am_h, am_l, src[j, 0], src[j, 1])
+    sh, sl = _add128(sh, sl, ap_h, ap_l)
+    st[i, 0] = sh
+    st[i, 1] = sl
+    st[i, 2] = inc_h
+    st[i, 3] = inc_l
 
 
 @hot_kernel(inline="always")
