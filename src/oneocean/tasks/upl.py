@@ -237,29 +237,33 @@ _SITE_TRIES = 50
 
 
 @hot_kernel
-def _sites_kernel(grid, stv, lo, hi, start_distance, xz, starts, obj0, phase0, pos0, found):
+def _sites_kernel(grid, stv, lo, hi, start_distance, n, cur, starts, obj0, phase0, pos0,
+                  found):
     """:func:`_site_candidates` and :func:`_try_site` for each episode's stream ``stv[e]``,
     compiled: the same draws in the same order and the same checks (``check_move`` for the
     candidates, slots and starts, :func:`~.common._segment_clear` for the descents).
     ``found[e]`` is 1 where a site was found (its centre, slot phase and starts written),
-    else 0."""
+    else 0.
+
+    A round's ``n`` x then ``n`` z coordinates are read from two cursors (``cur`` (2, 4)
+    uint64: the stream at the block's start and ``n`` draws on) only as far as candidates
+    are examined, and the stream jumps over the block (:func:`~oneocean.engine.streams.
+    advance`): the same numbers, the stream left where the block leaves it."""
     lt = DEFAULT_LAND_THRESHOLD
     slot_c = CLEARANCE_M + SLOT_MARGIN_M
     two_pi = 2.0 * math.pi
     for e in range(stv.shape[0]):
         found[e] = 0
         for _r in range(_SITE_ROUNDS):
-            n = xz.shape[0]
-            for c in range(n):
-                xz[c, 0] = streams.uniform(stv, e, grid.x0, grid.x_max)
-            for c in range(n):
-                xz[c, 1] = streams.uniform(stv, e, grid.z0, grid.z_max)
+            streams.advance(cur, 0, stv, e, 0)          # the block's x coordinates
+            streams.advance(cur, 1, stv, e, n)          # its z coordinates
+            streams.advance(stv, e, stv, e, 2 * n)      # the stream after the block
             tried = 0
             for c in range(n):
                 if tried == _SITE_TRIES:
                     break
-                x = xz[c, 0]
-                z = xz[c, 1]
+                x = streams.uniform(cur, 0, grid.x0, grid.x_max)
+                z = streams.uniform(cur, 1, grid.z0, grid.z_max)
                 fl = -sample_elevation(grid, x, z)
                 if not (check_move(grid, x, 0.0, z, lt, 0.0) == OK and fl >= lo and fl <= hi):
                     continue
@@ -409,8 +413,8 @@ def reset_candidates(grid, tier: dict, n_agents: int, n_episodes: int, seed: int
     obj0 = np.empty((n_episodes, 3))
     phase = np.empty(n_episodes)
     pos0 = np.empty((n_episodes, N_SLOTS, 3))
-    found = _call(_sites_kernel, grid, rngs, lo, hi, dist, np.empty((_SITE_DRAWS, 2)),
-                  np.empty((N_SLOTS, 3)), obj0, phase, pos0,
+    found = _call(_sites_kernel, grid, rngs, lo, hi, dist, _SITE_DRAWS,
+                  np.empty((2, 4), dtype=np.uint64), np.empty((N_SLOTS, 3)), obj0, phase, pos0,
                   np.empty(n_episodes, dtype=np.int64))
     for e in np.flatnonzero(found == 0)[:1]:
         raise NotApplicable(f"task {TASK_ID} reset (episode {e}): no site with seafloor depth "
