@@ -444,13 +444,35 @@ def max_waypoints(tier: dict, region, n_agents: int) -> int:
     return 2 * (-(-n // int(n_agents))) + 1
 
 
-def _along_speed(ce: float, cn: float, ux: float, uz: float, v: float) -> float:
+@hot_kernel(inline="always")
+def _pymax(a, b):
+    """Python's ``max(a, b)``: ``b`` only if it is larger (``a`` on a tie or a NaN)."""
+    return b if b > a else a
+
+
+@hot_kernel(inline="always")
+def _along_speed(ce, cn, ux, uz, v):
     """Largest ground speed along unit (ux, uz) with ``|a| <= v`` through current (ce, cn)."""
     c_par = ce * ux + cn * uz
     q2 = ce * ce + cn * cn - c_par * c_par
     if q2 >= v * v:
         return 0.0
-    return max(0.0, c_par + math.sqrt(v * v - q2))
+    return _pymax(0.0, c_par + math.sqrt(v * v - q2))
+
+
+@hot_kernel
+def _scan_kernel(cur, L, W, n, ux, uz, v):
+    """:func:`scan_times` along one axis: the mean over the samples ``cur`` (k, 2) of the
+    scan of ``n`` strips of length ``L`` over the width ``W`` along (ux, uz)."""
+    tot = 0.0
+    for s in range(cur.shape[0]):
+        ce = cur[s, 0]
+        cn = cur[s, 1]
+        strips = 0.5 * L * (1.0 / _pymax(_along_speed(ce, cn, ux, uz, v), 1e-3)
+                            + 1.0 / _pymax(_along_speed(ce, cn, -ux, -uz, v), 1e-3))
+        cross = W / n / _pymax(_along_speed(ce, cn, uz, ux, v), 1e-3)
+        tot += n * strips + (n - 1) * cross
+    return tot / max(1, cur.shape[0])
 
 
 def scan_times(cur, box, v: float, spacing: float, n_agents: int = 1):
@@ -479,18 +501,13 @@ def scan_times(cur, box, v: float, spacing: float, n_agents: int = 1):
     list of float
         ``[along x, along z]`` scan times, s.
     """
-    x_lo, z_lo, x_hi, z_hi = box
+    x_lo, z_lo, x_hi, z_hi = (float(b) for b in box)
+    cur = np.ascontiguousarray(cur, dtype=np.float64).reshape(-1, 2)
     cost = []
     for axis, (L, W) in enumerate(((x_hi - x_lo, z_hi - z_lo), (z_hi - z_lo, x_hi - x_lo))):
         ux, uz = (1.0, 0.0) if axis == 0 else (0.0, 1.0)
-        n = _n_strips(W, spacing, n_agents)
-        tot = 0.0
-        for ce, cn in np.asarray(cur, dtype=np.float64).reshape(-1, 2):
-            strips = 0.5 * L * (1.0 / max(_along_speed(ce, cn, ux, uz, v), 1e-3)
-                                + 1.0 / max(_along_speed(ce, cn, -ux, -uz, v), 1e-3))
-            cross = W / n / max(_along_speed(ce, cn, uz, ux, v), 1e-3)
-            tot += n * strips + (n - 1) * cross
-        cost.append(tot / max(1, np.asarray(cur).reshape(-1, 2).shape[0]))
+        cost.append(float(_scan_kernel(cur, L, W, _n_strips(W, spacing, n_agents), ux, uz,
+                                       float(v))))
     return cost
 
 
