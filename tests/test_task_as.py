@@ -96,6 +96,9 @@ def test_reset_raises_when_impossible(calm, coast):
         as_.reset(calm, TIER, 11, 2, 0)
     with pytest.raises(ConfigError, match="missing"):
         as_.reset(calm, {k: v for k, v in TIER.items() if k != "cell_m"}, 1, 2, 0)
+    # a region too small for its seafloor checks: a one-line error naming the key
+    with pytest.raises(ConfigError, match=r"region_short_m must be >= 30 m .* got 10"):
+        as_.reset(calm, {**TIER, "region_short_m": 10.0}, 1, 2, 0)
 
 
 @numba.njit

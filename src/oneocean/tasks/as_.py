@@ -330,7 +330,8 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     Raises
     ------
     ConfigError
-        Team size outside [1, 10] or missing tier keys; no valid start positions
+        Team size outside [1, 10], missing tier keys or a region side below two check
+        spacings (``2 CHECK_SPACING_M``); no valid start positions
         (:func:`~oneocean.engine.constraints.spawn_positions`).
     NotApplicable
         No valid scan region for some episode.
@@ -339,6 +340,12 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     if not 1 <= n_agents <= 10:
         raise ConfigError(f"task {TASK_ID}: n_agents must be in [1, 10], got {n_agents}")
     need_tier(TASK_ID, tier, *_TIER_KEYS)
+    for key in ("region_long_m", "region_short_m"):
+        # the relief check needs seafloor samples inside the region: two spacings at least
+        if not float(tier[key]) >= 2.0 * CHECK_SPACING_M:
+            raise ConfigError(f"task {TASK_ID}: {key} must be >= {2.0 * CHECK_SPACING_M:g} m "
+                              f"(two spacings of the region's seafloor checks), got "
+                              f"{tier[key]!r}")
     rngs = streams.episode_states(seed, n_episodes, PURPOSE_RESET)   # one stream per episode
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
     first = rngs.copy()                     # each episode's stream where its draws begin
