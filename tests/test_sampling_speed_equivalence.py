@@ -218,6 +218,26 @@ def test_regime_sampler_equals_sampling_the_grid_at_each_depth(has_tide, monkeyp
     assert not fresh._levels
 
 
+@pytest.mark.parametrize("step", [None, 1e-3, 0.05])
+def test_order_stats_with_ties_and_many_ranks_are_the_sorted_speeds(step):
+    """The order statistics at many ranks (both ends, neighbours, the middle) are those of
+    the sorted speeds, also where currents quantised to ``step`` m/s make many samples tie
+    (full bins, ranks sharing a bin, samples counted below a rank from the histogram)."""
+    from oneocean.engine.grid import order_stats_from_levels, speeds_from_levels
+    from oneocean.tasks import common
+
+    g = E.load_grid(make_test_grid(nt=6, nz=3, ny=30, nx=40, dt_s=3600.0))
+    _, c0, c1, ct, wk = common.RegimeSampler(g)._parts(2.7)
+    if step is not None:
+        c0, c1 = np.round(c0 / step) * step, np.round(c1 / step) * step
+    want = np.sort(speeds_from_levels(g, c0, c1, ct, wk, np.empty(c0.shape[0] * c0.shape[1])))
+    n = want.size
+    ranks = np.unique(np.array([0, 1, 2, n // 7, n // 3, n // 2, n // 2 + 1, n - 2, n - 1]))
+    vals = np.empty(ranks.size)
+    assert order_stats_from_levels(g, c0, c1, ct, wk, ranks, np.empty(n), vals)
+    assert np.array_equal(vals.view(np.int64), want[ranks].view(np.int64))
+
+
 def test_regime_quantiles_of_a_calm_grid_fall_back_to_sorting_the_speeds():
     """Where every sample has the same squared speed (no current, no tide) the order
     statistics cannot be binned: the quantiles are ``np.quantile`` of the speeds, 0."""

@@ -1294,15 +1294,31 @@ def order_stats_from_levels(grid, c0, c1, ct, wk, ranks, s2, out):
         rbin[r] = b
         w_lo[r] = bmin[b] * (1.0 - ORDER_REL) - ORDER_ABS
         w_hi[r] = bmax[b] * (1.0 + ORDER_REL) + ORDER_ABS
-    # one pass: the samples below each rank's widened bin counted, those in it gathered
+    # one pass: the samples below each rank's widened bin counted, those in it gathered.
+    # The binning is monotone in s, so a sample whose bin lies below that of w_lo[r] is below
+    # w_lo[r], one whose bin lies above that of w_hi[r] is above w_hi[r]: the first are
+    # counted from the histogram and only the samples of the bins between are compared
     n_below = np.zeros(n_r, np.int64)
     n_cand = np.zeros(n_r, np.int64)
     idx = np.empty((n_r, ORDER_MAX_CANDIDATES), np.int64)
+    near = np.zeros(nb, np.uint8)
+    b_lo = np.empty(n_r, np.int64)
+    for r in range(n_r):
+        b_lo[r] = min(int((w_lo[r] - lo) * scale), nb - 1) if w_lo[r] > lo else 0
+        b_hi = min(int((w_hi[r] - lo) * scale), nb - 1) if w_hi[r] > lo else 0
+        for b in range(b_lo[r]):
+            n_below[r] += count[b]
+        for b in range(b_lo[r], b_hi + 1):
+            near[b] = 1
     for q in range(size):
         v = s2[q]
+        b = min(int((v - lo) * scale), nb - 1)
+        if near[b] == 0:
+            continue
         for r in range(n_r):
             if v < w_lo[r]:
-                n_below[r] += 1
+                if b >= b_lo[r]:            # not counted from the histogram
+                    n_below[r] += 1
             elif v <= w_hi[r]:
                 c = n_cand[r]
                 if c == ORDER_MAX_CANDIDATES:
