@@ -1223,6 +1223,13 @@ ORDER_ABS = 1e-290
 ORDER_MAX_CANDIDATES = 1 << 16
 
 
+@hot_kernel(inline="always")
+def _order_bin(v, lo, scale, nb):
+    """:func:`order_stats_from_levels`'s bin of squared speed ``v`` (monotone in ``v``; 0 at
+    and below ``lo``, ``nb - 1`` at and above the top)."""
+    return min(int((v - lo) * scale), nb - 1) if v > lo else 0
+
+
 @njit(cache=True)
 def order_stats_from_levels(grid, c0, c1, ct, wk, ranks, s2, out):
     """Order statistics of :func:`speeds_from_levels`'s speeds without the ``hypot`` of
@@ -1277,7 +1284,7 @@ def order_stats_from_levels(grid, c0, c1, ct, wk, ranks, s2, out):
     bmax = np.full(nb, -math.inf)
     for q in range(size):
         v = s2[q]
-        b = min(int((v - lo) * scale), nb - 1)
+        b = _order_bin(v, lo, scale, nb)
         count[b] += 1
         bmin[b] = min(bmin[b], v)
         bmax[b] = max(bmax[b], v)
@@ -1304,15 +1311,15 @@ def order_stats_from_levels(grid, c0, c1, ct, wk, ranks, s2, out):
     near = np.zeros(nb, np.uint8)
     b_lo = np.empty(n_r, np.int64)
     for r in range(n_r):
-        b_lo[r] = min(int((w_lo[r] - lo) * scale), nb - 1) if w_lo[r] > lo else 0
-        b_hi = min(int((w_hi[r] - lo) * scale), nb - 1) if w_hi[r] > lo else 0
+        b_lo[r] = _order_bin(w_lo[r], lo, scale, nb)
+        b_hi = _order_bin(w_hi[r], lo, scale, nb)
         for b in range(b_lo[r]):
             n_below[r] += count[b]
         for b in range(b_lo[r], b_hi + 1):
             near[b] = 1
     for q in range(size):
         v = s2[q]
-        b = min(int((v - lo) * scale), nb - 1)
+        b = _order_bin(v, lo, scale, nb)
         if near[b] == 0:
             continue
         for r in range(n_r):
@@ -1339,7 +1346,7 @@ def order_stats_from_levels(grid, c0, c1, ct, wk, ranks, s2, out):
         if m < 0 or m >= nc:
             return False
         v = s2[idx[r, order[m]]]
-        if min(int((v - lo) * scale), nb - 1) != rbin[r]:
+        if _order_bin(v, lo, scale, nb) != rbin[r]:
             return False
         out[r] = speed[order[m]]
     return True
