@@ -27,16 +27,16 @@ def base_config() -> dict:
 
 
 @pytest.fixture(autouse=True)
-def _forget_llm_methods():
+def _forget_registered_methods():
     """A config with ``llm.models`` registers ``llm_<name>`` methods in the process
-    (:func:`oneocean.config.register_llm_methods`), and reading a packaged method's cells
-    registers it (``ppo``: :data:`oneocean.registry.PACKAGED_METHODS`); forget them after
-    each test, so tests that list the registry's methods do not depend on which test ran
-    before."""
+    (:func:`oneocean.config.register_llm_methods`), reading a packaged method's cells
+    registers it (``ppo``: :data:`oneocean.registry.PACKAGED_METHODS`) and the tables
+    register a user's method from its ``oneocean evaluate`` cells; forget every method a
+    test registered after it, so tests that list the registry's methods do not depend on
+    which test ran before in the same process."""
     from oneocean import registry
 
     before = set(registry.method_names())
     yield
     for name in set(registry.method_names()) - before:
-        if name.startswith("llm_") or name in registry.PACKAGED_METHODS:
-            registry.unregister_method(name)
+        registry.unregister_method(name)
