@@ -272,8 +272,9 @@ class Vehicle:
         return _nsub(self.params, float(dt))
 
 
+@lru_cache(maxsize=1)
 def vehicles_file() -> Path:
-    """The vehicle table, ``data/vehicles.yaml`` (shipped in the wheel).
+    """The vehicle table, ``data/vehicles.yaml`` (shipped in the wheel; located once).
 
     Returns
     -------

@@ -11,6 +11,7 @@ from __future__ import annotations
 import copy
 import functools
 import math
+import os
 from importlib import resources
 from pathlib import Path
 from typing import NamedTuple
@@ -176,6 +177,30 @@ def load_task_table(task_id: str, path: str | Path | None = None) -> dict:
         If the file cannot be read or is malformed (missing key, undeclared tier parameter, bad
         ``vehicle`` or ``calibration.seeds``).
     """
+    return copy.deepcopy(shared_task_table(task_id, path))
+
+
+def shared_task_table(task_id: str, path: str | Path | None = None) -> dict:
+    """:func:`load_task_table`'s table itself, not a copy: for readers on a hot path (an
+    episode batch's set-up reads a key or two), which must not change it.
+
+    Parameters
+    ----------
+    task_id : str
+        Registered task id.
+    path : str or Path, optional
+        The table file (as :func:`load_task_table`).
+
+    Returns
+    -------
+    dict
+        The parsed table, shared by every caller until the file changes.
+
+    Raises
+    ------
+    ConfigError
+        As :func:`load_task_table`.
+    """
     if path is None:
         from ..registry import task_spec
 
@@ -185,7 +210,7 @@ def load_task_table(task_id: str, path: str | Path | None = None) -> dict:
         stamp = f.stat()
     except OSError as exc:
         raise ConfigError(f"{f}: cannot read tier table ({exc.strerror})") from None
-    return copy.deepcopy(_task_table(str(f.resolve()), stamp.st_mtime_ns, stamp.st_size))
+    return _task_table(os.path.abspath(f), stamp.st_mtime_ns, stamp.st_size)
 
 
 @functools.lru_cache(maxsize=64)

@@ -96,12 +96,45 @@ def over_range(kernel, lo: int, hi: int, *args) -> None:
         f.result()
 
 
+class _Unkeyed(Exception):
+    """An argument whose numba type :func:`_type_key` does not derive."""
+
+
+def _type_key(v):
+    """A hashable key that determines numba's argument type of ``v`` (``typeof(v,
+    Purpose.argument)``): for an ndarray its dtype, ndim, layout flags, writeability and alignment
+    (what numba's ``_typeof_ndarray`` reads), for a tuple or NamedTuple its class and its items'
+    keys, for a Python int its bit-length class (``_typeof_int``), for the other scalars
+    their class. Anything else raises :class:`_Unkeyed`."""
+    t = type(v)
+    if t is np.ndarray:
+        f = v.flags
+        return (v.dtype, v.ndim, f.c_contiguous, f.f_contiguous, f.writeable, f.aligned)
+    if t is float or t is bool or v is None or t in _SCALAR_TYPES:
+        return t
+    if t is int:
+        n = v.bit_length()
+        return (int, n < 32, n < 64, n == 64 and v >= 0)
+    if isinstance(v, tuple):
+        return (t,) + tuple(_type_key(x) for x in v)
+    raise _Unkeyed
+
+
+_SCALAR_TYPES = frozenset((complex, np.float64, np.float32, np.int64, np.int32, np.uint64,
+                           np.uint32, np.uint8, np.int8, np.bool_, np.complex128))
+#: fast_entry's entry points: (id(dispatcher), argument type key) -> (dispatcher, entry)
+_FAST: dict = {}
+_MAX_FAST = 256
+
+
 def fast_entry(dispatcher, args):
     """The compiled entry point of the numba ``dispatcher`` for the types of ``args``.
 
     The entry point skips numba's per-call type resolution (about 20 us with the loop's
     NamedTuple arguments, several times a small batch's step). Valid while the arguments keep
-    their types.
+    their types. Found once per dispatcher and argument types: later calls with arguments of
+    the same types (every batch of a cell) look it up by :func:`_type_key`, which costs a
+    small part of numba's type resolution of the same arguments.
 
     Parameters
     ----------
@@ -117,11 +150,24 @@ def fast_entry(dispatcher, args):
         numba's internals differ.
     """
     try:
+        key = (id(dispatcher), _type_key(tuple(args)))
+    except _Unkeyed:
+        key = None
+    hit = _FAST.get(key) if key is not None else None
+    if hit is not None and hit[0] is dispatcher:
+        return hit[1]
+    try:
         sig = tuple(dispatcher.typeof_pyval(a) for a in args)
         cres = dispatcher.overloads.get(sig)
-        return cres.entry_point if cres is not None else dispatcher
     except Exception:   # pragma: no cover - a numba without these internals
         return dispatcher
+    if cres is None:
+        return dispatcher
+    if key is not None:
+        if len(_FAST) >= _MAX_FAST:
+            _FAST.clear()
+        _FAST[key] = (dispatcher, cres.entry_point)
+    return cres.entry_point
 
 
 def over_episodes(kernel, n_episodes: int, *args) -> None:
@@ -197,7 +243,7 @@ class Episodes:
         from ..kernels import kernel_module
         from .learned import make_net, no_net
         from ..sensing import nav_aid, sensing_params
-        from .common import load_task_table
+        from .common import shared_task_table
         from ..sensing.kernels import init_sensing
 
         need_tier(mod.TASK_ID, tier, "time_limit_s", "dt_s")
@@ -236,7 +282,7 @@ class Episodes:
                              int(bool(fused_plan)), self.n_steps, int(seed), dt,
                              float(vehicle.v_max),
                              sensing_params(info, dt,
-                                            nav_aid(load_task_table(mod.TASK_ID),
+                                            nav_aid(shared_task_table(mod.TASK_ID),
                                                     f"task {mod.TASK_ID}"),
                                             tier.get("forecast_lead_h")),
                              DEFAULT_LAND_THRESHOLD,

@@ -92,9 +92,9 @@ def task_power(tier: dict | None = None, task_id: str = TASK_ID):
         Speed limit, m s-1.
     """
     from ..engine import load_vehicle
-    from .common import load_task_table
+    from .common import shared_task_table
 
-    name = load_task_table(task_id)["vehicle"]
+    name = shared_task_table(task_id)["vehicle"]
     v_max = (tier or {}).get("v_max")
     return routing.power_model(name), float(v_max if v_max is not None
                                             else load_vehicle(name).v_max)
