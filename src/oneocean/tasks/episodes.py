@@ -96,6 +96,14 @@ def over_range(kernel, lo: int, hi: int, *args) -> None:
         f.result()
 
 
+#: Scalar classes :func:`_type_key` keys by their class alone.
+_SCALAR_TYPES = frozenset((complex, np.float64, np.float32, np.int64, np.int32, np.uint64,
+                           np.uint32, np.uint8, np.int8, np.bool_, np.complex128))
+#: fast_entry's entry points: (dispatcher, argument type key) -> entry
+_FAST: dict = {}
+_MAX_FAST = 256
+
+
 class _Unkeyed(Exception):
     """An argument whose numba type :func:`_type_key` does not derive."""
 
@@ -118,13 +126,6 @@ def _type_key(v):
     if isinstance(v, tuple):
         return (t,) + tuple(_type_key(x) for x in v)
     raise _Unkeyed
-
-
-_SCALAR_TYPES = frozenset((complex, np.float64, np.float32, np.int64, np.int32, np.uint64,
-                           np.uint32, np.uint8, np.int8, np.bool_, np.complex128))
-#: fast_entry's entry points: (id(dispatcher), argument type key) -> (dispatcher, entry)
-_FAST: dict = {}
-_MAX_FAST = 256
 
 
 def fast_entry(dispatcher, args):
@@ -150,12 +151,12 @@ def fast_entry(dispatcher, args):
         numba's internals differ.
     """
     try:
-        key = (id(dispatcher), _type_key(tuple(args)))
+        key = (dispatcher, _type_key(tuple(args)))
     except _Unkeyed:
         key = None
     hit = _FAST.get(key) if key is not None else None
-    if hit is not None and hit[0] is dispatcher:
-        return hit[1]
+    if hit is not None:
+        return hit
     try:
         sig = tuple(dispatcher.typeof_pyval(a) for a in args)
         cres = dispatcher.overloads.get(sig)
@@ -166,7 +167,7 @@ def fast_entry(dispatcher, args):
     if key is not None:
         if len(_FAST) >= _MAX_FAST:
             _FAST.clear()
-        _FAST[key] = (dispatcher, cres.entry_point)
+        _FAST[key] = cres.entry_point
     return cres.entry_point
 
 
