@@ -24,8 +24,9 @@ two: it passes the task's hooks and the policy's ``plan`` / ``act`` to the one l
   observations and end flags out; :meth:`oneocean.tasks.episodes.Episodes.env_step` and
   ``step_observe``), and
   ``_step_boxed``, the same call with its arguments in one
-  :class:`~oneocean.tasks.loop.StepArgs` (one object to unbox per call, not every array);
-  optional: a kernel module without them is stepped by ``_kernel`` and observed by
+  :class:`~oneocean.tasks.loop.StepArgs` (one object to unbox per call, not every array),
+  through ``_step_fields``, which reads them without counting a reference to each array
+  (:func:`~oneocean.tasks.loop.step_fields`; ``_step_boxed`` holds the struct); optional: a kernel module without them is stepped by ``_kernel`` and observed by
   ``_observe_kernel``.
 
 These wrappers are all numba's on-disk cache needs: a kernel is cached only when the hooks

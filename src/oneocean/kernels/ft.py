@@ -10,7 +10,7 @@ from ..methods.heuristic import ft as POLICY
 from ..tasks import ft as TASK
 from ..tasks.common import fresh_cache
 from ..tasks.loop import (env_step_in, env_step_out, noop_after_agent, noop_pre_step, observe_next,
-                         run_episode)
+                          run_episode, step_fields, step_kernel)
 from ..tasks.ft import begin, cue, finish, post_step
 
 
@@ -48,11 +48,19 @@ def _step_kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, 
         env_step_out(LP, LS, res, nobs, io, e, was)
 
 
+@step_kernel
+def _step_fields(A, io, e_lo, e_hi):
+    """``_step_kernel`` on the fields of ``A``, borrowed
+    (:func:`~oneocean.tasks.loop.step_fields`)."""
+    grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, nobs, nact = step_fields(A)
+    _step_kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, nobs, nact, io,
+                 e_lo, e_hi)
+
+
 @njit(cache=True, nogil=True)
 def _step_boxed(A, io, e_lo, e_hi):
     """``_step_kernel`` with its arguments in one :class:`~oneocean.tasks.loop.StepArgs`."""
-    _step_kernel(A.grid, A.vp, A.LP, A.P, A.W, A.M, A.LS, A.t0, A.state, A.cmd, A.ext, A.obs,
-                 A.act, A.res, A.nobs, A.nact, io, e_lo, e_hi)
+    _step_fields(A, io, e_lo, e_hi)
 
 
 fresh_cache(_kernel, __file__, TASK.__file__, POLICY.__file__)

@@ -267,7 +267,7 @@ class StepArgs(structref.StructRefProxy):
     copied) in one numba struct: a compiled call unboxes one object instead of every array
     of the grid and the loop (about 6 us a call with them; the step API's step at one env
     is a few us of work). Built by :func:`step_args`; read by a kernel module's
-    ``_step_boxed``."""
+    ``_step_boxed`` (:func:`step_fields`)."""
 
 
 structref.define_proxy(StepArgs, StepArgsType, STEP_FIELDS)
@@ -316,6 +316,62 @@ def step_args(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, nob
         The arrays, shared (not copied).
     """
     return StepArgs(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, nobs, nact)
+
+
+# A StepArgs' fields, read the way numba reads a struct's field (``A.grid``) but without
+# taking a reference to every array in it: a field read in jit code counts a reference to
+# each array it holds (about 60 of them) and the end of the call gives them back, which
+# cost about 0.9 us of a step() at one env (the step itself: 1-2 us for a single vehicle).
+# The StepArgs keeps its arrays alive for the call (its Python owner holds it), so a kernel
+# may borrow them. A kernel module's ``_step_boxed`` (compiled with reference counting:
+# the struct it unboxes is given back at its end) calls its ``_step_fields``, compiled
+# without (``step_kernel``), which reads the fields by :func:`step_fields`: nothing is
+# counted there, so nothing is given back either. The payload is found the way numba's own
+# ``NRT_MemInfo_data_fast`` finds it (its MemInfo layout, ``_meminfo_struct_type``);
+# without that name (another numba) the fields are read by numba's own getattr instead.
+try:
+    from numba.core.runtime.nrtdynmod import _meminfo_struct_type as _MEMINFO
+except ImportError:  # pragma: no cover - another numba's internals
+    _MEMINFO = None
+
+#: Whether :func:`step_fields` borrows (True) or reads the fields by numba's getattr.
+BORROWED_FIELDS = _MEMINFO is not None
+
+if BORROWED_FIELDS:
+    from numba.core import cgutils as _cgutils
+    from numba.core.extending import intrinsic as _intrinsic
+
+    @_intrinsic
+    def step_fields(typingctx, A):
+        """The :data:`STEP_FIELDS` of the :class:`StepArgs` ``A``, in that order, borrowed
+        (no reference counted): only in a kernel compiled without reference counting
+        (:data:`step_kernel`) and called from jit code that holds ``A`` (a kernel taking a
+        struct from Python without reference counting would keep it: never given back)."""
+        tys = [A.field_dict[f] for f in STEP_FIELDS]
+        tup = types.Tuple(tys)
+
+        def codegen(context, builder, sig, args):
+            ref = _cgutils.create_struct_proxy(sig.args[0])(context, builder, value=args[0])
+            mi = builder.bitcast(ref.meminfo, _MEMINFO.as_pointer())
+            data = builder.load(_cgutils.gep(builder, mi, 0, 3))
+            payload = sig.args[0].get_data_type()
+            ptype = context.data_model_manager[payload].get_value_type()
+            fields = _cgutils.create_struct_proxy(payload)(
+                context, builder, ref=builder.bitcast(data, ptype.as_pointer()))
+            return context.make_tuple(builder, tup, [getattr(fields, f) for f in STEP_FIELDS])
+
+        return tup(A), codegen
+
+    #: The decorator of a kernel module's ``_step_fields`` (it calls :func:`step_fields`).
+    step_kernel = hot_kernel(nogil=True)
+else:  # pragma: no cover - another numba's internals
+    @njit(cache=True)
+    def step_fields(A):
+        """The :data:`STEP_FIELDS` of the :class:`StepArgs` ``A``, in that order."""
+        return (A.grid, A.vp, A.LP, A.P, A.W, A.M, A.LS, A.t0, A.state, A.cmd, A.ext, A.obs,
+                A.act, A.res, A.nobs, A.nact)
+
+    step_kernel = njit(cache=True, nogil=True)
 
 
 @hot_kernel(inline="always")
