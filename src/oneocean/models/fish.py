@@ -58,8 +58,8 @@ from ..engine import libm
 
 __all__ = [
     "FISH_PARAM_NAMES", "FISH_PARAM_DEFAULTS", "N_FISH_PARAMS",
-    "step_school", "school_centroid", "school_spread", "fraction_inside_circle",
-    "counter_uniform", "fish_params", "init_school",
+    "step_school", "step_school_into", "school_centroid", "school_spread",
+    "fraction_inside_circle", "counter_uniform", "fish_params", "init_school",
 ]
 
 #: Parameter names in vector order (see module docstring for units).
@@ -218,41 +218,25 @@ def fraction_inside_circle(fx, fz, cx, cz, radius):
     return k / n
 
 
-@numba.njit(cache=True)
-def step_school(fx, fz, fvx, fvz, agents_x, agents_z, cur_x, cur_z, params, seed, step, dt,
-                out_x, out_z, out_vx, out_vz):
-    """Advance the school by one step of ``dt`` (synchronous update, O(N^2 + N M)).
+@numba.njit(cache=True, error_model="numpy")
+def step_school_into(fx, fz, fvx, fvz, agents_x, agents_z, cur_x, cur_z, params, seed, step,
+                     dt, out_x, out_z, out_vx, out_vz, work):
+    """:func:`step_school` with the caller's scratch ``work`` (a kernel compiled without
+    reference counting cannot allocate): the same values.
 
     Parameters
     ----------
-    fx, fz : (N,) float64, m
-        Fish positions (world).
-    fvx, fvz : (N,) float64, m s-1
-        Fish swim velocities relative to the water.
-    agents_x, agents_z : (M,) float64, m
-        Vehicle positions (M may be 0); non-finite entries are ignored.
-    cur_x, cur_z : (N,) float64, m s-1
-        Current (east, north) at each fish, sampled by the caller (NaN read as 0).
-    params : (12,) float64
-        Parameter vector (order in the module docstring; see :func:`fish_params`).
-    seed, step : int
-        Jitter stream key: the random acceleration of fish ``i`` is a pure function of
-        ``(seed, step, i)``.
-    dt : float
-        Time step, s.
+    fx, fz, fvx, fvz, agents_x, agents_z, cur_x, cur_z, params, seed, step, dt
+        As for :func:`step_school`.
     out_x, out_z, out_vx, out_vz : (N,) float64
-        New positions (m) and swim velocities (m s-1). Must not share memory with the inputs
-        (an output that starts at an input's address raises ValueError).
+        As for :func:`step_school`: written.
+    work : (7, M) float64, M >= N
+        Scratch for the neighbour sums, overwritten.
 
     Raises
     ------
     ValueError
-        If ``params`` has fewer than 12 values, the arrays' lengths disagree, or an output
-        aliases the input state.
-
-    Notes
-    -----
-    The ground speed of every fish is at most ``max_speed + |current|``.
+        As :func:`step_school`, and when ``work`` is smaller than (7, N).
     """
     n = fx.shape[0]
     m = agents_x.shape[0]
@@ -288,36 +272,56 @@ def step_school(fx, fz, fvx, fvz, agents_x, agents_z, cur_x, cur_z, params, seed
     self_w = 1.0 if r_per2 > 0.0 else 0.0  # fish i counts itself in the neighbour loop
     two_pi = 2.0 * math.pi
 
+    # neighbour sums of every fish (fish i itself included, removed below), one fish k at a
+    # time across the school: each fish's sums over k in the order of k, as a loop over k
+    # per fish takes them (the same bits), while the loop over the school's fish has no
+    # branch and runs in vector lanes. Separation: the few fish too close; the other lanes
+    # add 0.0, which leaves a sum unchanged (a sum that starts at +0.0 is never -0.0)
+    if work.shape[0] < 7 or work.shape[1] < n:
+        raise ValueError("step_school: work needs shape (7, N) or larger")
+    acc = work
+    for j in range(7):
+        for i in range(n):
+            acc[j, i] = 0.0
+    cnt_s = acc[0]
+    sx_s = acc[1]
+    sz_s = acc[2]
+    svx_s = acc[3]
+    svz_s = acc[4]
+    ax_s = acc[5]
+    az_s = acc[6]
+    for k in range(n):
+        xk = fx[k]
+        zk = fz[k]
+        uk = fvx[k]
+        vk = fvz[k]
+        for i in range(n):
+            dx = fx[i] - xk
+            dz = fz[i] - zk
+            d2 = dx * dx + dz * dz
+            w = 1.0 if d2 < r_per2 else 0.0
+            cnt_s[i] += w
+            sx_s[i] += w * xk
+            sz_s[i] += w * zk
+            svx_s[i] += w * uk
+            svz_s[i] += w * vk
+            close = d2 < r_sep2 and d2 > 0.0
+            d = math.sqrt(d2)
+            g = w_sep * (1.0 - d / r_sep) / d
+            ax_s[i] += g * dx if close else 0.0
+            az_s[i] += g * dz if close else 0.0
     for i in range(n):
         xi = fx[i]
         zi = fz[i]
         vx = fvx[i]
         vz = fvz[i]
-        # neighbours: local centroid, mean velocity, separation
-        sx = 0.0
-        sz = 0.0
-        svx = 0.0
-        svz = 0.0
-        ax = 0.0
-        az = 0.0
-        # neighbour sums without data-dependent branches (fish i itself is included here and
-        # removed below); separation is a rarely taken branch
-        cntf = 0.0
-        for k in range(n):
-            dx = xi - fx[k]
-            dz = zi - fz[k]
-            d2 = dx * dx + dz * dz
-            w = 1.0 if d2 < r_per2 else 0.0
-            cntf += w
-            sx += w * fx[k]
-            sz += w * fz[k]
-            svx += w * fvx[k]
-            svz += w * fvz[k]
-            if d2 < r_sep2 and d2 > 0.0:  # separation: the few fish that are too close
-                d = math.sqrt(d2)
-                g = w_sep * (1.0 - d / r_sep) / d
-                ax += g * dx
-                az += g * dz
+        cntf = cnt_s[i]
+        sx = sx_s[i]
+        sz = sz_s[i]
+        svx = svx_s[i]
+        svz = svz_s[i]
+        ax = ax_s[i]
+        az = az_s[i]
         cnt = int(cntf - self_w + 0.5)
         sx -= self_w * xi
         sz -= self_w * zi
@@ -376,6 +380,48 @@ def step_school(fx, fz, fvx, fvz, agents_x, agents_z, cur_x, cur_z, params, seed
         out_vz[i] = vz
         out_x[i] = xi + (vx + cx) * dt
         out_z[i] = zi + (vz + cz) * dt
+
+
+@numba.njit(cache=True, error_model="numpy")
+def step_school(fx, fz, fvx, fvz, agents_x, agents_z, cur_x, cur_z, params, seed, step, dt,
+                out_x, out_z, out_vx, out_vz):
+    """Advance the school by one step of ``dt`` (synchronous update, O(N^2 + N M)).
+
+    Parameters
+    ----------
+    fx, fz : (N,) float64, m
+        Fish positions (world).
+    fvx, fvz : (N,) float64, m s-1
+        Fish swim velocities relative to the water.
+    agents_x, agents_z : (M,) float64, m
+        Vehicle positions (M may be 0); non-finite entries are ignored.
+    cur_x, cur_z : (N,) float64, m s-1
+        Current (east, north) at each fish, sampled by the caller (NaN read as 0).
+    params : (12,) float64
+        Parameter vector (order in the module docstring; see :func:`fish_params`).
+    seed, step : int
+        Jitter stream key: the random acceleration of fish ``i`` is a pure function of
+        ``(seed, step, i)``.
+    dt : float
+        Time step, s.
+    out_x, out_z, out_vx, out_vz : (N,) float64
+        New positions (m) and swim velocities (m s-1). Must not share memory with the inputs
+        (an output that starts at an input's address raises ValueError).
+
+    Raises
+    ------
+    ValueError
+        If ``params`` has fewer than 12 values, the arrays' lengths disagree, or an output
+        aliases the input state.
+
+    Notes
+    -----
+    The ground speed of every fish is at most ``max_speed + |current|``. Each fish's
+    neighbour sums run over the school in index order (:func:`step_school_into`, which
+    takes them for every fish at once).
+    """
+    step_school_into(fx, fz, fvx, fvz, agents_x, agents_z, cur_x, cur_z, params, seed, step,
+                     dt, out_x, out_z, out_vx, out_vz, np.zeros((7, fx.shape[0])))
 
 
 def fish_params(overrides: dict | None = None) -> np.ndarray:

@@ -76,7 +76,7 @@ from ..engine.grid import locate_time, sample_current_at, synthetic_tide
 from ..engine.rng import PURPOSE_TASK, hash64, uniform01
 from ..errors import ConfigError, NotApplicable
 from ..models.fish import (fish_params, fraction_inside_circle, init_school, school_centroid,
-                           school_spread, step_school)
+                           school_spread, step_school_into)
 from ..sensing import perception, perception_values
 from ..sensing.kernels import polar_fix
 from .common import feasible_codes
@@ -438,6 +438,8 @@ class FHWork(NamedTuple):
     skey : (E,) int64
         The cell's episode whose sonar streams row ``e`` draws (:func:`seed_episode`:
         ``LP.e0 + e``; :func:`make`: ``e``).
+    fscr : (E, 7, F) float64
+        Scratch of the school's step (:func:`~oneocean.models.fish.step_school_into`).
     """
     zone: np.ndarray        # (E, 2) zone centre (x, z), m
     fish: np.ndarray        # (E, 2, 4, F) fish state double buffer (x, z, vx, vz)
@@ -466,6 +468,7 @@ class FHWork(NamedTuple):
     cest: np.ndarray        # (E, 8, 2) each agent's current estimate at its last step, m s-1
     skey: np.ndarray        # (E,) int64 the cell's episode whose sonar streams row e draws
                             #   (set by _episode: LP.e0 + e; make: e)
+    fscr: np.ndarray        # (E, 7, F) scratch of the school's step (step_school_into)
 
 
 def school_sensor(path=None) -> tuple[float, float, float, float, float]:
@@ -538,23 +541,26 @@ def make(grid, tier: dict, init: dict):
                np.zeros((n_ep, n), dtype=np.int64), np.zeros((n_ep, n)),
                np.zeros((n_ep, n), dtype=np.int64),
                np.ascontiguousarray(np.repeat(zone[:, None, :], n, axis=1)),
-               np.zeros((n_ep, n, 2)), np.arange(n_ep, dtype=np.int64))
+               np.zeros((n_ep, n, 2)), np.arange(n_ep, dtype=np.int64),
+               np.zeros((n_ep, 7, n_fish)))
     return P, W
 
 
 @njit(cache=True)
 def _fish_step(grid, fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, t, dt, land_thr, gx, gz,
-               gvx, gvz):
+               gvx, gvz, scr):
     """Sample the current at every fish, advance the school into ``g*``, keep beached fish.
     (:func:`~.common.current_at` at one time ``t``: the time located and the synthetic tide
-    taken once per step, not per fish; the same arithmetic.)"""
+    taken once per step, not per fish; the same arithmetic.) ``scr``: the school step's
+    scratch, (7, F) float64."""
     ti0, ti1, wt = locate_time(grid, t)
     te, tn = synthetic_tide(grid, t)
     for f in range(fx.shape[0]):
         ce, cn = sample_current_at(grid, fx[f], FISH_DEPTH_M, fz[f], ti0, ti1, wt)
         cx[f] = ce + te
         cz[f] = cn + tn
-    step_school(fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, dt, gx, gz, gvx, gvz)
+    step_school_into(fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, dt, gx, gz, gvx, gvz,
+                     scr)
     for f in range(fx.shape[0]):
         if check_move(grid, gx[f], FISH_DEPTH_M, gz[f], land_thr, FISH_CLEARANCE_M) != st.OK:
             gx[f] = fx[f]
@@ -719,7 +725,7 @@ def pre_step(grid, P, W, state, e, k, t):
         AX[i] = S[i, 0]
         AZ[i] = S[i, 2]
     _fish_step(grid, F[0], F[1], F[2], F[3], AX, AZ, W.fc[e, 0], W.fc[e, 1], P.fp, W.fseed[e],
-               k, t, P.dt, P.land_thr, G[0], G[1], G[2], G[3])
+               k, t, P.dt, P.land_thr, G[0], G[1], G[2], G[3], W.fscr[e])
 
 
 @hot_kernel(inline="always")
