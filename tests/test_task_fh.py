@@ -106,9 +106,10 @@ def test_fish_never_enter_land():
                 gx, gz, gvx, gvz)
     raw = np.stack([gx, np.full(n, fh.FISH_DEPTH_M), gz], axis=1)
     assert np.any(E.feasibility(grid, raw, 0.5, fh.FISH_CLEARANCE_M) != st.OK)
+    scr = np.empty((7, n))
     for k in range(120):
         fh._fish_step(grid, fx, fz, vx, vz, none, none, cx, cz, p, np.uint64(1), k, 0.0, 1.0,
-                      0.5, gx, gz, gvx, gvz)
+                      0.5, gx, gz, gvx, gvz, scr)
         pts = np.stack([gx, np.full(n, fh.FISH_DEPTH_M), gz], axis=1)
         assert np.all(E.feasibility(grid, pts, 0.5, fh.FISH_CLEARANCE_M) == st.OK)
         fx, fz, vx, vz, gx, gz, gvx, gvz = gx, gz, gvx, gvz, fx, fz, vx, vz
