@@ -279,17 +279,16 @@ def step_school_into(fx, fz, fvx, fvz, agents_x, agents_z, cur_x, cur_z, params,
     # add 0.0, which leaves a sum unchanged (a sum that starts at +0.0 is never -0.0)
     if work.shape[0] < 7 or work.shape[1] < n:
         raise ValueError("step_school: work needs shape (7, N) or larger")
-    acc = work
     for j in range(7):
         for i in range(n):
-            acc[j, i] = 0.0
-    cnt_s = acc[0]
-    sx_s = acc[1]
-    sz_s = acc[2]
-    svx_s = acc[3]
-    svz_s = acc[4]
-    ax_s = acc[5]
-    az_s = acc[6]
+            work[j, i] = 0.0
+    cnt_s = work[0]
+    sx_s = work[1]
+    sz_s = work[2]
+    svx_s = work[3]
+    svz_s = work[4]
+    ax_s = work[5]
+    az_s = work[6]
     for k in range(n):
         xk = fx[k]
         zk = fz[k]
@@ -421,7 +420,7 @@ def step_school(fx, fz, fvx, fvz, agents_x, agents_z, cur_x, cur_z, params, seed
     takes them for every fish at once).
     """
     step_school_into(fx, fz, fvx, fvz, agents_x, agents_z, cur_x, cur_z, params, seed, step,
-                     dt, out_x, out_z, out_vx, out_vz, np.zeros((7, fx.shape[0])))
+                     dt, out_x, out_z, out_vx, out_vz, np.empty((7, fx.shape[0])))
 
 
 def fish_params(overrides: dict | None = None) -> np.ndarray:
