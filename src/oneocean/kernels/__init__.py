@@ -8,8 +8,8 @@ two: it passes the task's hooks and the policy's ``plan`` / ``act`` to the one l
 (:func:`oneocean.tasks.loop.run_episode`) and exposes
 
 * ``TASK`` and ``POLICY``: the two modules it binds;
-* ``_episode``: an episode's steps (the loop with the hooks bound), one compiled copy
-  that ``_kernel`` and ``_step_kernel`` call;
+* ``_steps``: an episode's steps (the loop with the hooks bound, ``inline="always"``), and
+  ``_episode``, its compiled copy out of line, which ``_kernel`` calls once per episode;
 * ``_kernel``: the loop over a block of episodes ``[e_lo, e_hi)``
   (``njit(cache=True, nogil=True)``), which both backends run
   (:class:`oneocean.tasks.episodes.Episodes` fused; the scene backend's
@@ -17,9 +17,10 @@ two: it passes the task's hooks and the policy's ``plan`` / ``act`` to the one l
 * ``_observe_kernel``: the next observation of every agent
   (:func:`~oneocean.tasks.loop.observe_next`), for the step API;
 * ``_step_kernel``: one step of every running episode of a block, then its agents' next
-  observation, in one call (the observation, ``_observe``, inlined in its loop over
-  episodes, as in ``_observe_kernel``: an out-of-line call per episode would copy the
-  grid's and the loop's arrays, passed by value, at every step), with the step API's side
+  observation, in one call (the step, ``_steps``, and the observation, ``_observe``, both
+  inlined in its loop over episodes, as in ``_observe_kernel``: an out-of-line call per
+  episode would copy the grid's and the loop's arrays, passed by value, at every step; the
+  loop is therefore compiled twice per task, once in ``_episode`` and once here), with the step API's side
   of it (``io``, :class:`~oneocean.tasks.loop.EnvIO`: the sub-envs' actions in, their
   observations and end flags out; :meth:`oneocean.tasks.episodes.Episodes.env_step` and
   ``step_observe``), and

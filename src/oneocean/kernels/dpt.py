@@ -14,11 +14,16 @@ from ..tasks.loop import (env_step_in, env_step_out, noop_after_agent, noop_pre_
 from ..tasks.dpt import begin, cue, finish, post_step
 
 
-@hot_kernel
-def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
+@hot_kernel(inline="always")
+def _steps(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
     run_episode(begin, noop_pre_step, cue, noop_after_agent, post_step, finish, POLICY.plan,
                 POLICY.act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e,
                 k_stop)
+
+
+@hot_kernel
+def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
+    _steps(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
 
 
 @njit(cache=True, nogil=True)
@@ -43,7 +48,7 @@ def _step_kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, 
                  io, e_lo, e_hi):
     for e in range(e_lo, e_hi):
         was = env_step_in(LP, LS, ext, io, e)
-        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, -1)
+        _steps(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, -1)
         _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
         env_step_out(LP, LS, res, nobs, io, e, was)
 

@@ -44,7 +44,8 @@ Hooks are plain ``@hot_kernel`` functions of the task module (the env) and of it
 module (the policy); neither imports the other. The task's kernel module
 (:mod:`oneocean.kernels`) passes them to :func:`run_episode` (``inline="always"``) from its
 serial ``_episode`` (``hot_kernel``), which its kernel ``_kernel``
-(``njit(cache=True, nogil=True)``) runs for a block of episodes ``[e_lo, e_hi)``;
+(``njit(cache=True, nogil=True)``) runs for a block of episodes ``[e_lo, e_hi)``, and
+inlined in its step API's ``_step_kernel`` (one step per call);
 :func:`oneocean.tasks.episodes.over_episodes` runs the blocks on numba's thread count (no
 ``prange``: the parfor pass more than doubles every task kernel's compile time). ``_observe``
 / ``_observe_kernel`` do the same for :func:`observe_next`. Two numba facts shape this
