@@ -596,10 +596,41 @@ def test_pools_built_in_parts_give_the_same_episodes(coast, mode):
     assert env._n_pools == 2 and env._tail.rows == (0, 2)
 
 
-def test_a_task_with_cell_wide_values_builds_its_pools_whole(default_grid):
-    """PI's episodes share values computed on the whole pool (``cell_constants``): its
-    pools are built at once."""
-    from oneocean.envs import _Cell
+def test_a_task_with_cell_wide_values_builds_its_pools_in_parts(default_grid):
+    """PI's episodes share values computed on the whole pool (``cell_constants``: the plume
+    field's shape). Its pools are built a part at a time too, from the whole pool's reset
+    dict (drawn once per seed): every part equals those rows of the whole pool, bit for bit,
+    and building a part again (a second reset on the same seed) gives the same episodes."""
+    from oneocean.envs import OceanVectorEnv, _Cell
 
-    assert not _Cell("PI", 1, default_grid).chunked
-    assert _Cell("SPC", 1, default_grid).chunked
+    assert _Cell("PI", 1, default_grid).chunked
+    env = OceanVectorEnv("PI", 1, default_grid, num_envs=3, pool=2)
+    env.reset(seed=4)
+    assert [p.rows for p in env._pools] == [(0, 3)]
+    init = env.cell.reset(6, 4)
+    later = env._next_pool()                         # the seed's episodes 3 .. 5
+    assert later.rows == (3, 6)
+    for pool, rows in ((env._pools[0], slice(0, 3)), (later, slice(3, 6))):
+        np.testing.assert_array_equal(pool.batch.t0, init["t0"][rows])
+        np.testing.assert_array_equal(pool.batch.W.leaks, init["leaks"][rows])
+        np.testing.assert_array_equal(pool.batch.W.rate, init["leak_rate"][rows])
+        assert pool.batch.W.C.shape[2:] == tuple(init["field_shape"][::-1])
+    whole = OceanVectorEnv("PI", 1, default_grid, num_envs=3, pool=2)
+    whole._part = whole.pool_size
+    first = env.reset(seed=4)[0]
+    np.testing.assert_array_equal(first, whole.reset(seed=4)[0])
+    for name in ("C", "frame", "leak_loc", "land", "uf", "vf"):
+        np.testing.assert_array_equal(getattr(env._pools[0].batch.W, name),
+                                      getattr(whole._pools[0].batch.W, name)[:3])
+    # over autoresets through the parts of two pool seeds: every output is the same
+    def make(whole):
+        env = OceanVectorEnv("PI", 1, default_grid, num_envs=2, pool=2)
+        if whole:
+            env._part = env.pool_size
+        return env
+
+    steps = 3 * env.cell_steps
+    parts, whole = _trace(make(False), steps, 3), _trace(make(True), steps, 3)
+    assert parts[1] == whole[1] >= 4                   # into the second pool seed
+    for x, y in zip(parts[0], whole[0]):
+        np.testing.assert_array_equal(x, y)

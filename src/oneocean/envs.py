@@ -73,7 +73,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 
 from .errors import ConfigError, NotApplicable
 from .tasks import Cell
-from .tasks.common import ACT_FIELDS, OBS_DIM, OBS_FIELDS, N_MATES
+from .tasks.common import ACT_FIELDS, OBS_DIM, OBS_FIELDS, N_MATES, episode_rows
 from .tasks.loop import ENV_ENDED, ENV_SUCCESS, ENV_TRUNCATED, FINISHED, NEW, EnvIO
 from .backends.protocol import Rollout
 from .engine import libm
@@ -255,19 +255,29 @@ class _Cell(Cell):
         self.dynamics = dynamics
         self.v_max = float(self.vehicle.v_max)
         self._checked = None       # (episodes, seed, check): the last seed's candidates
+        self._whole = None         # (episodes, seed, reset): the last seed's whole reset dict
 
     @property
     def chunked(self) -> bool:
         """Whether a pool may be built a part at a time (:meth:`batch` with ``rows``): on the
-        core backend, for a task whose episodes share no cell-wide values
-        (``cell_constants``: its rows of a part are then those of the whole pool)."""
-        return self.backend == "core" and not hasattr(self.mod, "cell_constants")
+        core backend (a part's rows are those of the whole pool; a task with cell-wide values,
+        ``cell_constants``, takes them from the whole pool's reset, kept once per seed)."""
+        return self.backend == "core"
 
     def _check(self, episodes: int, seed: int) -> tuple:
         # one seed's pool is built a part at a time: its candidates are drawn and judged once
         if self._checked is None or self._checked[:2] != (episodes, seed):
             self._checked = (episodes, seed, super()._check(episodes, seed))
         return self._checked[2]
+
+    def _reset(self, episodes: int, seed: int, rows: slice = slice(None)) -> dict:
+        # a task whose episodes share cell-wide values (cell_constants: PI's field shape)
+        # builds the whole pool's reset dict once per seed; a part is a copy of its rows
+        if rows == slice(None) or not hasattr(self.mod, "cell_constants"):
+            return super()._reset(episodes, seed, rows)
+        if self._whole is None or self._whole[:2] != (episodes, seed):
+            self._whole = (episodes, seed, super()._reset(episodes, seed))
+        return episode_rows(self._whole[2], np.arange(episodes)[rows], episodes)
 
     def batch(self, n_episodes: int, seed: int, rows: tuple[int, int] | None = None) -> Rollout:
         """Externally driven episodes ``0 .. n_episodes-1`` of ``seed`` on the backend, or
