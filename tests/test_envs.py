@@ -565,19 +565,25 @@ def test_evaluate_gives_a_normalized_policy_the_envs_view(coast):
     assert pol.seen[0].shape == (3, 1, NORM_DIM)
 
 
+def _pool_env(task, grid, whole, **kw):
+    """A Tier-1 vector env of ``task`` that builds its pools in parts, or with ``whole`` each
+    pool seed's episodes at once (the baseline of the equality checks)."""
+    from oneocean.envs import OceanVectorEnv
+
+    env = OceanVectorEnv(task, 1, grid, **kw)
+    if whole:
+        env._part = env.pool_size
+    return env
+
+
 @pytest.mark.parametrize("mode", ["next_step", "same_step"])
 def test_pools_built_in_parts_give_the_same_episodes(coast, mode):
     """A reset builds only the episodes the sub-envs start on; the rest of the pool seed's
     episodes are built, ``num_envs`` at a time, when the sub-envs reach them. Every output
     over autoresets through several parts and pool seeds equals that of the same env building
     each pool seed's episodes at once, and the parts are the cell's episodes."""
-    from oneocean.envs import OceanVectorEnv
-
     def make(whole):
-        env = OceanVectorEnv("G2G", 1, coast, num_envs=2, autoreset_mode=mode, pool=3)
-        if whole:
-            env._part = env.pool_size
-        return env
+        return _pool_env("G2G", coast, whole, num_envs=2, autoreset_mode=mode, pool=3)
 
     env = make(False)
     assert env.cell.chunked
@@ -601,10 +607,10 @@ def test_a_task_with_cell_wide_values_builds_its_pools_in_parts(default_grid):
     field's shape). Its pools are built a part at a time too, from the whole pool's reset
     dict (drawn once per seed): every part equals those rows of the whole pool, bit for bit,
     and building a part again (a second reset on the same seed) gives the same episodes."""
-    from oneocean.envs import OceanVectorEnv, _Cell
+    from oneocean.envs import _Cell
 
     assert _Cell("PI", 1, default_grid).chunked
-    env = OceanVectorEnv("PI", 1, default_grid, num_envs=3, pool=2)
+    env = _pool_env("PI", default_grid, False, num_envs=3, pool=2)
     env.reset(seed=4)
     assert [p.rows for p in env._pools] == [(0, 3)]
     init = env.cell.reset(6, 4)
@@ -615,22 +621,16 @@ def test_a_task_with_cell_wide_values_builds_its_pools_in_parts(default_grid):
         np.testing.assert_array_equal(pool.batch.W.leaks, init["leaks"][rows])
         np.testing.assert_array_equal(pool.batch.W.rate, init["leak_rate"][rows])
         assert pool.batch.W.C.shape[2:] == tuple(init["field_shape"][::-1])
-    whole = OceanVectorEnv("PI", 1, default_grid, num_envs=3, pool=2)
-    whole._part = whole.pool_size
+    at_once = _pool_env("PI", default_grid, True, num_envs=3, pool=2)
     first = env.reset(seed=4)[0]
-    np.testing.assert_array_equal(first, whole.reset(seed=4)[0])
+    np.testing.assert_array_equal(first, at_once.reset(seed=4)[0])
     for name in ("C", "frame", "leak_loc", "land", "uf", "vf"):
         np.testing.assert_array_equal(getattr(env._pools[0].batch.W, name),
-                                      getattr(whole._pools[0].batch.W, name)[:3])
+                                      getattr(at_once._pools[0].batch.W, name)[:3])
     # over autoresets through the parts of two pool seeds: every output is the same
-    def make(whole):
-        env = OceanVectorEnv("PI", 1, default_grid, num_envs=2, pool=2)
-        if whole:
-            env._part = env.pool_size
-        return env
-
     steps = 3 * env.cell_steps
-    parts, whole = _trace(make(False), steps, 3), _trace(make(True), steps, 3)
+    parts, whole = (_trace(_pool_env("PI", default_grid, w, num_envs=2, pool=2), steps, 3)
+                    for w in (False, True))
     assert parts[1] == whole[1] >= 4                   # into the second pool seed
     for x, y in zip(parts[0], whole[0]):
         np.testing.assert_array_equal(x, y)
