@@ -7,12 +7,15 @@ paper's tables always use the task's own criteria; the reward is only a training
 
 Spaces (per agent; ``N`` = team size)
     observation, ``obs_mode="raw"`` (default)
-        ``OBS_DIM`` float64 values, :data:`oneocean.tasks.common.OBS_FIELDS`: the task's goal
-        cue (goal point minus the agent's navigation estimate of its position, world m), its
-        current estimate (forecast plus filtered in-situ samples, :mod:`oneocean.sensing`,
-        m s-1), depth and altitude above the seafloor (m), the pollution probe (SPC, PI), the
-        three nearest teammates' horizontal offsets (m). Values the task does not define (no
-        field, fewer teammates) are 0 here (NaN in recorded observations).
+        ``D`` float64 values: the common head :data:`oneocean.tasks.common.OBS_FIELDS` (the
+        task's cue minus the agent's navigation estimate of its position, world m; its current
+        estimate, forecast plus filtered in-situ samples, :mod:`oneocean.sensing`, m s-1;
+        depth and altitude above the seafloor, m; the task's probe; the three nearest
+        teammates' horizontal offsets, m; the navigation estimate, heading and ground
+        velocity; time, energy used, position fixes) then the task's own fields (its
+        ``OBS_EXTRA``; docs/policy.md). Values the task does not define (no field, fewer
+        teammates) are 0 here (NaN in recorded observations and in ``evaluate``'s
+        :class:`~oneocean.evaluate.Observation`).
     observation, ``obs_mode="normalized"``
         :data:`NORM_FIELDS` (:func:`normalize`): the goal cue as ``g / (|g| + 10 m)`` (a unit
         vector far away, metres / 10 close in) and ``log(1 + |g|) / log(1 + reach)`` with
@@ -23,7 +26,9 @@ Spaces (per agent; ``N`` = team size)
     action, ``action_mode="velocity"`` (default)
         3 float64: the desired velocity relative to the water, world frame (x east, y down,
         z north), m s-1, as in the paper; the loop clips its norm to the vehicle's ``v_max``
-        (the Box bounds are +-v_max per component).
+        (the Box bounds are +-v_max per component). ``step`` also takes a fourth value per
+        agent, the commanded heading (rad from north, NaN: free, the vehicle faces its
+        velocity), e.g. station keeping's heading.
     action, ``action_mode="normalized"``
         3 float64 in [-1, 1]: the desired velocity in units of ``v_max``, its norm clipped to 1
         (every bound is reachable: a unit vector along an axis is full speed that way).
@@ -58,7 +63,10 @@ Episodes and resets
 
     ``info`` carries, for sub-envs whose episode ended at this step, every result column of the
     cell table (``success``, ``T_s``, ``E``, ``coll_ratio``, ``violations`` and the task's
-    metrics) and ``is_success``, with Gymnasium's ``_<key>`` masks.
+    metrics) and ``is_success``, with Gymnasium's ``_<key>`` masks; and for sub-envs whose
+    episode started (every sub-env at ``reset``; autoreset), ``info["briefing"]``: a tuple of
+    each sub-env's briefing (the task's ``<ID>Briefing`` of one episode, docs/policy.md; None
+    for the others), with its ``_briefing`` mask.
 """
 
 from __future__ import annotations
@@ -74,6 +82,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from .errors import ConfigError, NotApplicable
 from .tasks import Cell
 from .tasks.common import ACT_FIELDS, OBS_DIM, OBS_FIELDS, N_MATES, episode_rows
+from .tasks.public import briefing_rows
 from .tasks.loop import ENV_ENDED, ENV_SUCCESS, ENV_TRUNCATED, FINISHED, NEW, EnvIO
 from .backends.protocol import Rollout
 from .engine import libm
@@ -244,7 +253,8 @@ class _Cell(Cell):
 
     def __init__(self, task: str, tier: int, grid, *, dynamics: str = "6dof",
                  n_agents: int | None = None, currents: bool = True, vehicle=None,
-                 current_gain: float = 1.0, tide=None, backend: str = "core", scene=None):
+                 current_gain: float = 1.0, tide=None, backend: str = "core", scene=None,
+                 info: str | None = None):
         if scene is None:
             from .defaults import resolve_grid
 
@@ -252,6 +262,11 @@ class _Cell(Cell):
         super().__init__(grid, task, tier, n_agents=n_agents, currents=currents,
                          vehicle=vehicle, current_gain=current_gain, tide=tide,
                          backend=backend, scene=scene)
+        if info is not None:
+            from .sensing import INFO_LEVELS
+
+            _choice("info", info, INFO_LEVELS)
+        self.info = info            # what the policy is given (None: the sensor models)
         self.dynamics = dynamics
         self.v_max = float(self.vehicle.v_max)
         self._checked = None       # (episodes, seed, check): the last seed's candidates
@@ -284,7 +299,7 @@ class _Cell(Cell):
         with ``rows = (a, b)`` its episodes ``a .. b-1`` only, bit for bit (the cell's
         shards: :meth:`~oneocean.tasks.Cell.reset`, ``Episodes(e0=a)``)."""
         return self.episodes(self.reset(n_episodes, seed, rows), None, self.dynamics, seed,
-                             e0=0 if rows is None else int(rows[0]))
+                             e0=0 if rows is None else int(rows[0]), info=self.info)
 
 
 class _Pool:
@@ -366,7 +381,8 @@ class OceanVectorEnv(VectorEnv):
     def __init__(self, task: str, tier: int, grid=None, num_envs: int = 8, *,
                  autoreset_mode="next_step", obs_mode: str = "raw",
                  action_mode: str = "velocity", reward: str = "sparse", pool: int = 4,
-                 render_mode: str | None = None, strict_seed: bool = False, **kw):
+                 render_mode: str | None = None, strict_seed: bool = False,
+                 info: str | None = None, **kw):
         if isinstance(autoreset_mode, AutoresetMode):
             autoreset_mode = {v: k for k, v in AUTORESET_MODES.items()}[autoreset_mode]
         self.autoreset = _choice("autoreset_mode", autoreset_mode, tuple(AUTORESET_MODES))
@@ -378,8 +394,9 @@ class OceanVectorEnv(VectorEnv):
         self.render_mode = render_mode
         self.strict_seed = bool(strict_seed)
         self.metadata = {**self.metadata, "autoreset_mode": AUTORESET_MODES[self.autoreset]}
-        self.cell = _Cell(task, tier, grid, **kw)
+        self.cell = _Cell(task, tier, grid, info=info, **kw)
         self.task, self.tier = task, int(tier)
+        self.obs_dim = OBS_DIM + len(getattr(self.cell.mod, "OBS_EXTRA", ()))
         n = self.cell.n_agents
         self.n_agents = n
         self.num_envs = int(num_envs)
@@ -396,9 +413,10 @@ class OceanVectorEnv(VectorEnv):
         self.single_action_space = self._act_space((n,))
         self.observation_space = self._obs_space((self.num_envs, n))
         self.action_space = self._act_space((self.num_envs, n))
-        self.obs_fields = OBS_FIELDS if self.obs_mode == "raw" else NORM_FIELDS
+        self.obs_fields = (OBS_FIELDS + tuple(getattr(self.cell.mod, "OBS_EXTRA", ()))
+                           if self.obs_mode == "raw" else NORM_FIELDS)
         self._act_shape = (self.num_envs, n, len(ACT_FIELDS))
-        self._obs_shape = (self.num_envs, n, OBS_DIM)
+        self._obs_shape = (self.num_envs, n, self.obs_dim)
         self._flags = np.zeros(self.num_envs, dtype=np.int64)
         # the raw view leaves the compiled step ready (undefined values 0) unless the dense
         # reward needs the undefined cues
@@ -411,7 +429,8 @@ class OceanVectorEnv(VectorEnv):
     # ------------------------------------------------------------------ spaces
     def _obs_space(self, lead) -> spaces.Box:
         if self.obs_mode == "raw":
-            return spaces.Box(-np.inf, np.inf, shape=tuple(lead) + (OBS_DIM,), dtype=np.float64)
+            return spaces.Box(-np.inf, np.inf, shape=tuple(lead) + (self.obs_dim,),
+                              dtype=np.float64)
         lo = np.array([-1, -1, -1, 0, -10, -10, 0, 0, 0] + [-1] * (2 * N_MATES) + [0, 0], float)
         hi = np.array([1, 1, 1, 10, 10, 10, 5, 1, 50] + [1] * (2 * N_MATES) + [10, 1], float)
         return spaces.Box(np.broadcast_to(lo, tuple(lead) + lo.shape).copy(),
@@ -524,7 +543,7 @@ class OceanVectorEnv(VectorEnv):
     def _raw_obs(self, envs=None) -> np.ndarray:
         """Raw observations (len(envs), N, OBS_DIM) of sub-envs ``envs`` (default all)."""
         want = np.arange(self.num_envs) if envs is None else np.asarray(envs)
-        out = np.empty((self.num_envs, self.n_agents, OBS_DIM))
+        out = np.empty((self.num_envs, self.n_agents, self.obs_dim))
         mask = np.zeros(self.num_envs, dtype=bool)
         mask[want] = True
         for pool, js, eps, _, _, _ in self._groups():
@@ -613,21 +632,37 @@ class OceanVectorEnv(VectorEnv):
             self._draw(np.arange(self.num_envs))
         raw = self._raw_obs()
         self._d_prev = _cue_distance(raw)
-        return self._obs(raw), {}
+        return self._obs(raw), self._briefings(np.arange(self.num_envs), {})
+
+    def _briefings(self, envs, info: dict) -> dict:
+        """``info["briefing"]`` (and its mask) for the sub-envs ``envs`` whose episode
+        just started: each one's briefing, one episode."""
+        out = [None] * self.num_envs
+        mask = np.zeros(self.num_envs, dtype=bool)
+        for j in np.asarray(envs, dtype=np.int64):
+            b = self._owner[j].batch
+            out[j] = briefing_rows(b.B, [int(self._ep[j])])
+            mask[j] = True
+        info["briefing"] = tuple(out)
+        info["_briefing"] = mask
+        return info
 
     def _checked_actions(self, actions) -> np.ndarray:
         """``actions`` as a contiguous float64 array of the action shape, else a one-line
         ConfigError naming both shapes."""
         a = np.ascontiguousarray(actions, dtype=np.float64)
-        if a.shape != self._act_shape:
-            raise ConfigError(f"actions: expected shape {self._act_shape}, got {a.shape}")
+        if a.shape != self._act_shape and a.shape != self._act_shape[:2] + (4,):
+            raise ConfigError(f"actions: expected shape {self._act_shape} (or a heading "
+                              f"column: {self._act_shape[:2] + (4,)}), got {a.shape}")
         return a
 
     def _to_velocity(self, actions) -> np.ndarray:
         a = self._checked_actions(actions)
         if self.action_mode == "normalized":
-            norm = np.sqrt((a * a).sum(-1, keepdims=True))
-            a = self.v_max * a / np.maximum(norm, 1.0)
+            v = a[..., :3]
+            norm = np.sqrt((v * v).sum(-1, keepdims=True))
+            a = a.copy()
+            a[..., :3] = self.v_max * v / np.maximum(norm, 1.0)
         return a
 
     def step(self, actions):
@@ -735,6 +770,10 @@ class OceanVectorEnv(VectorEnv):
                                   if k not in ("final_obs", "_final_obs")}
             info["_final_info"] = ended.copy()
             self._replace_episodes(idx, obs)
+        if self.autoreset == "next_step" and reset_now.size:
+            self._briefings(reset_now, info)
+        elif self.autoreset == "same_step" and ended is not None:
+            self._briefings(np.flatnonzero(ended), info)
         return obs, reward, terminated, truncated, info
 
     def _fused_env_step(self, actions, groups):
@@ -761,14 +800,14 @@ class OceanVectorEnv(VectorEnv):
         path of backends without a fused step (the scene backend's pools); the core
         backend's pools take :meth:`_fused_env_step`."""
         n = self.num_envs
-        raw = np.empty((n, self.n_agents, OBS_DIM))
+        raw = np.empty((n, self.n_agents, self.obs_dim))
         was_done = np.empty(n, dtype=bool)
         done = np.empty(n, dtype=bool)
         for pool, js, eps, lo, hi, _ in groups:
             b = pool.batch
             st = b.LS.status
             was_done[js] = st[eps] == FINISHED
-            b.ext[eps] = a[js]
+            b.set_actions(a[js], eps)
             raw[js] = _step_observe(b, lo, hi)[eps]
             done[js] = st[eps] == FINISHED
         ended = done & ~was_done

@@ -1,15 +1,28 @@
 """Score your own policy on the benchmark: the same episodes, loop and metrics as the paper's
 methods, and the same Parquet table as the workflow's rollout cells.
 
-A policy is any Python callable ``policy(obs) -> actions`` on a batch: ``obs`` is
-(E, N, OBS_DIM) float64 (:data:`oneocean.tasks.common.OBS_FIELDS`; what the step API gives
-every agent) and ``actions`` (E, N, 3): the desired velocity relative to the water, world
-frame (x east, y down, z north), m s-1, clipped to the vehicle's ``v_max``. If the object has
-a ``reset(n_episodes, n_agents)`` method it is called before the first step. Rows of finished
-episodes are ignored. A policy trained on the step API's normalised views says so with
-``obs_mode = "normalized"`` and/or ``action_mode = "normalized"`` attributes (or
-:func:`evaluate`'s arguments): it then gets the env's normalised observations and returns
-actions in units of ``v_max``, exactly as in training.
+A policy sees exactly what the built-in methods see (docs/policy.md): the task's briefing at
+the start and every agent's observation at every step. Two forms:
+
+* an object with ``reset(briefing)`` and ``act(observation)``: ``briefing`` is the task's
+  briefing of every episode (its ``<ID>Briefing``: the forecast field, the goal / route /
+  region / chart / slots / zone / report, the vehicle's limits and power model, the tier's
+  time limit, tolerances and energy allocation); ``observation`` an :class:`Observation`
+  (``agents`` (E, N, D): :data:`oneocean.tasks.common.OBS_FIELDS` then the task's own fields,
+  NaN where undefined; the task's team observation ``team``; the ``report`` buffer a task that
+  judges a report reads, e.g. PI's leak claims, written in place). The built-in heuristic
+  itself runs this way (:class:`oneocean.methods.heuristic.FusedPolicy`) and gives the same
+  episodes as its fused cell.
+* a plain callable ``policy(obs)``: ``obs`` is the agents' array (E, N, D) with undefined
+  values as 0 (the step API's raw view; the first 14 columns are the original observation).
+
+Either returns the actions (E, N, 3): the desired velocity relative to the water, world frame
+(x east, y down, z north), m s-1, clipped to the vehicle's ``v_max``; or (E, N, 4) with the
+commanded heading (rad from north, NaN: free). Rows of finished episodes are ignored. A
+policy trained on the step API's normalised views says so with ``obs_mode = "normalized"``
+and/or ``action_mode = "normalized"`` attributes (or :func:`evaluate`'s arguments): it then
+gets the env's normalised observations and returns actions in units of ``v_max``, exactly as
+in training.
 
 The grid is anything :func:`oneocean.defaults.resolve_grid` takes; None (the default) is the
 default region's grid, built into the cache on first use.
@@ -30,6 +43,7 @@ Command line::
 from __future__ import annotations
 
 import importlib
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -77,21 +91,29 @@ def load_policy(spec: str):
     return obj
 
 
+class Observation(NamedTuple):
+    """What a policy with ``reset``/``act`` receives every step (docs/policy.md)."""
+    agents: np.ndarray  # (E, N, D) float64: OBS_FIELDS then the task's OBS_EXTRA; NaN: undefined
+    team: tuple         # the task's team observation (its TEAM_OBS NamedTuple; () without one)
+    report: np.ndarray  # the report the task judges (its REPORT; an empty array without one),
+                        # written by the policy in place
+
+
 def evaluate(policy, task: str, tier: int, grid=None, *, episodes: int = 50,
              seed: int = EVALUATION_SEED,
              dynamics: str = "6dof", n_agents: int | None = None, currents: bool = True,
              vehicle=None, name: str = "user", backend: str = "core",
              scene=None, current_gain: float = 1.0, tide=None, obs_mode: str | None = None,
-             action_mode: str | None = None) -> pd.DataFrame:
+             action_mode: str | None = None, info: str | None = None) -> pd.DataFrame:
     """Run ``policy`` on ``episodes`` episodes of a (task, tier) cell through the step API's loop.
 
     The same episodes, judge and metrics as the workflow's rollout cells, on either backend.
 
     Parameters
     ----------
-    policy : callable
-        ``policy(obs) -> actions``: ``obs`` (E, N, OBS_DIM) float64, ``actions`` (E, N, 3),
-        see the module docstring. Non-finite actions are replaced by 0.
+    policy : object or callable
+        ``reset(briefing)`` and ``act(observation) -> actions``, or ``policy(obs) ->
+        actions``: see the module docstring. Non-finite velocities are replaced by 0.
     task : str
         A registered task id, e.g. ``"G2G"``.
     tier : int
@@ -130,6 +152,10 @@ def evaluate(policy, task: str, tier: int, grid=None, *, episodes: int = 50,
     action_mode : str, optional
         ``velocity`` (m s-1) or ``normalized`` (units of ``v_max``); None takes the policy's
         ``action_mode`` attribute, else ``velocity``.
+    info : str, optional
+        What the policy is given instead of the sensor models
+        (:data:`oneocean.sensing.INFO_LEVELS`): None, the sensor models, as every method;
+        ``truth`` is what the oracle is given; the others are the information ablations.
 
     Returns
     -------
@@ -157,17 +183,25 @@ def evaluate(policy, task: str, tier: int, grid=None, *, episodes: int = 50,
                          n_agents=n_agents, currents=currents, vehicle=vehicle,
                          current_gain=current_gain, tide=tide, backend=backend, scene=scene,
                          autoreset_mode="disabled", strict_seed=True, obs_mode=obs_mode,
-                         action_mode=action_mode)
+                         action_mode=action_mode, info=info)
     obs, _ = env.reset(seed=int(seed))
     b = env.batch
-    if hasattr(policy, "reset"):
-        policy.reset(b.n_episodes, b.n_agents)
+    protocol = callable(getattr(policy, "act", None)) and callable(getattr(policy, "reset", None))
+    if protocol:
+        policy.reset(b.B)
     while not b.done.all():
-        act = np.asarray(policy(obs), dtype=np.float64)
-        if act.shape != env.action_space.shape:
+        if protocol:
+            raw = b.C.O if obs_mode == "raw" else obs
+            act = policy.act(Observation(raw.copy(), b.C.T, b.C.R))
+        else:
+            act = policy(obs)
+        act = np.array(act, dtype=np.float64)
+        if (act.ndim != 3 or act.shape[:2] != env.action_space.shape[:2]
+                or act.shape[2] not in (3, 4)):
             raise ConfigError(f"policy {name!r}: returned actions of shape {act.shape}, "
-                              f"expected {env.action_space.shape} (episodes, agents, 3)")
-        act = np.where(np.isfinite(act), act, 0.0)
+                              f"expected {env.action_space.shape} (episodes, agents, 3), or "
+                              "a fourth column, the heading")
+        act[..., :3] = np.where(np.isfinite(act[..., :3]), act[..., :3], 0.0)
         obs, *_ = env.step(act)
     res = b.results()
     df = cell_frame(b.mod, res, tier, name, b.n_agents, dynamics, currents, int(episodes),

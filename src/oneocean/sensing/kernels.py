@@ -295,15 +295,22 @@ def nav_update(SP, seed, navc, nerr, state, prev, e, k, i, n_ag, dt, e0=0):
     e0 : int
         The cell's episode of row 0: row ``e`` draws episode ``e0 + e``'s streams
         (:func:`init_episode`).
+
+    Returns
+    -------
+    int
+        1 if an absolute position fix (GNSS at the surface, the acoustic aid) was fused at
+        this step, else 0.
     """
     if SP.true_position != 0:
-        return
+        return 0
     ep = e0 + e
     cnt = 2 * (k * n_ag + i)
     if state[e, i, 1] <= SP.surface_depth:
         nerr[e, i, 0] = draw(seed, ep, PURPOSE_NAV_STEP, cnt, SP.gnss_std)
         nerr[e, i, 1] = draw(seed, ep, PURPOSE_NAV_STEP, cnt + 1, SP.gnss_std)
-        return
+        return 1
+    fix = 0
     dx = state[e, i, 0] - prev[e, i, 0]
     dz = state[e, i, 2] - prev[e, i, 2]
     g = navc[e, i, 0]
@@ -321,12 +328,15 @@ def nav_update(SP, seed, navc, nerr, state, prev, e, k, i, n_ag, dt, e0=0):
             K = steady_gain(SP.fix_process_var * cyc * dt, SP.fix_std * SP.fix_std)
             ex = (1.0 - K) * ex + K * draw(seed, ep, PURPOSE_NAV_FIX, cnt, SP.fix_std)
             ez = (1.0 - K) * ez + K * draw(seed, ep, PURPOSE_NAV_FIX, cnt + 1, SP.fix_std)
+            fix = 1
     elif SP.fix_every > 0 and (k + 1) % SP.fix_every == 0:   # fuse the acoustic fix
         K = SP.fix_gain
         ex = (1.0 - K) * ex + K * draw(seed, ep, PURPOSE_NAV_FIX, cnt, SP.fix_std)
         ez = (1.0 - K) * ez + K * draw(seed, ep, PURPOSE_NAV_FIX, cnt + 1, SP.fix_std)
+        fix = 1
     nerr[e, i, 0] = ex
     nerr[e, i, 1] = ez
+    return fix
 
 
 @hot_kernel(inline="always")

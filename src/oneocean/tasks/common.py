@@ -36,17 +36,29 @@ PURPOSE_TASK_NOISE = PURPOSE_TASK + 3
 #: Columns every task returns for every episode (then its own METRICS).
 STANDARD = ("success", "T_s", "E", "coll_ratio", "violations", "current_speed_ms")
 
-#: Per-agent observation of every task, one row per (episode, step, agent) (:func:`observe`):
-#: the relative goal cue (the method's current target point: goal, route carrot, slot, ...),
-#: the current the method knows there (its estimate: :mod:`oneocean.sensing`), depth and altitude
-#: above the seafloor, the pollution probe (SPC: surface concentration kg m-2; PI: the
-#: sensor reading; NaN where the task has no field), and the N_MATES nearest teammates'
-#: horizontal offsets (NaN when there are fewer teammates). World frame, metres, m s-1.
+#: The common head of every agent's observation, one row per (episode, step, agent)
+#: (:func:`observe_common`; a task appends its own fields, its ``OBS_EXTRA``): the task's cue
+#: relative to the agent's navigation estimate (the point the task's mission computer gives:
+#: goal, station, route carrot, slot, ...; NaN where the task gives none), the current the
+#: agent knows there (its estimate: :mod:`oneocean.sensing`), depth (pressure) and altitude
+#: above the seafloor (DVL), the task's probe (SPC: surface concentration kg m-2; PI: the
+#: sensor reading; NaN where the task has none), the N_MATES nearest teammates' horizontal
+#: offsets (NaN when there are fewer teammates), the agent's navigation estimate (x east,
+#: z north), heading (rad from north, clockwise) and velocity over ground (DVL, world x, y,
+#: z), the time since the episode started, the energy proxy it has used (sum of
+#: ``|a|^2 dt``, m2 s-1) and whether an absolute position fix (GNSS at the surface, the
+#: support vessel's USBL) came at the last step (1) or not (0). World frame, metres, m s-1.
 N_MATES = 3
 OBS_FIELDS = (("goal_dx_m", "goal_dy_m", "goal_dz_m", "current_e_ms", "current_n_ms",
                "depth_m", "altitude_m", "pollution")
-              + tuple(f"mate{m + 1}_{c}_m" for m in range(N_MATES) for c in ("dx", "dz")))
+              + tuple(f"mate{m + 1}_{c}_m" for m in range(N_MATES) for c in ("dx", "dz"))
+              + ("x_m", "z_m", "heading_rad", "vx_ms", "vy_ms", "vz_ms", "t_s", "energy_m2s",
+                 "fix"))
 OBS_DIM = len(OBS_FIELDS)
+#: Column of each common field in an observation row, by name and as constants (jit code).
+OBS = {name: j for j, name in enumerate(OBS_FIELDS)}
+(O_GX, O_GY, O_GZ, O_CE, O_CN, O_DEPTH, O_ALT, O_PROBE, O_MATES, O_X, O_Z, O_PSI, O_VX, O_VY,
+ O_VZ, O_T, O_ENERGY, O_FIX) = (0, 1, 2, 3, 4, 5, 6, 7, 8, 14, 15, 16, 17, 18, 19, 20, 21, 22)
 #: The recorded action: the method's through-water velocity request (world m s-1), before
 #: the engine clips it to v_max.
 ACT_FIELDS = ("ax_ms", "ay_ms", "az_ms")
@@ -1648,53 +1660,19 @@ def obs_buffers(tier: dict, init: dict, record: bool):
     return (np.full((n_ep, steps, n_ag, OBS_DIM), np.nan),
             np.full((n_ep, steps, n_ag, len(ACT_FIELDS)), np.nan))
 
-# not inlined: it runs only while observations are recorded, and one compiled copy (cached
-# once, shared by every task kernel) instead of one inlined copy per kernel cuts each task's
-# compile time (measured G2G 64 -> 54 s, SK 84 -> 49 s from a cold cache)
-@hot_kernel
-def observe(obs, act, e, k, i, grid, nav, state, gx, gy, gz, pe, pn, pollution, ax, ay, az):
-    """Record agent ``i``'s observation and action at step ``k`` of episode ``e``, before the
-    step.
+@hot_kernel(inline="always")
+def observe_common(o, grid, X, state, e, i, gx, gy, gz, pe, pn, probe, t_s, energy, fix):
+    """Write the common head (:data:`OBS_FIELDS`) of agent ``i``'s observation row ``o``.
 
-    A no-op when ``k >= obs.shape[1]`` (the rollout allocates a zero-length step axis unless
-    observations are requested). The goal cue and the teammates' offsets are relative to the
-    positions the method knows (``nav``: its navigation estimate, the truth for the oracle);
-    depth (pressure sensor) and altitude (the DVL's beams) are measured, so they come from the
-    true ``state``.
-
-    Parameters
-    ----------
-    obs : (E, n_steps, N, OBS_DIM) float64
-        Observation buffer (``OBS_FIELDS``), written in place.
-    act : (E, n_steps, N, 3) float64
-        Action buffer (``ACT_FIELDS``), written in place.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-    grid : Grid
-        The grid export.
-    nav : (E, N, STATE_DIM) float64
-        The states the method knows.
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    gx, gy, gz : float
-        The goal cue (the task's ``cue``), world m.
-    pe, pn : float
-        The current the method knows at the agent (east, north), m s-1.
-    pollution : float
-        The pollution probe (NaN where the task has no field).
-    ax, ay, az : float
-        The action: velocity request relative to the water, world frame, m s-1.
+    The cue, the teammates' offsets, the position and the velocity are the states the method
+    knows (``X``: its navigation estimate, the truth for the oracle); depth (pressure sensor)
+    and altitude (the DVL's beams) are measured, so they come from the true ``state``. The
+    arguments after ``i`` are the cue (world m), the current estimate (m s-1), the probe, the
+    time since the start (s), the agent's energy proxy so far (m2 s-1) and the fix flag.
     """
-    if k >= obs.shape[1]:
-        return
-    o = obs[e, k, i]
-    px = nav[e, i, 0]
-    py = nav[e, i, 1]
-    pz = nav[e, i, 2]
+    px = X[e, i, 0]
+    py = X[e, i, 1]
+    pz = X[e, i, 2]
     o[0] = gx - px
     o[1] = gy - py
     o[2] = gz - pz
@@ -1702,8 +1680,8 @@ def observe(obs, act, e, k, i, grid, nav, state, gx, gy, gz, pe, pn, pollution, 
     o[4] = pn
     o[5] = state[e, i, 1]
     o[6] = -sample_elevation(grid, state[e, i, 0], state[e, i, 2]) - state[e, i, 1]
-    o[7] = pollution
-    n_ag = state.shape[1]
+    o[7] = probe
+    n_ag = X.shape[1]
     d_prev = -1.0
     j_prev = -1
     for m in range(N_MATES):
@@ -1712,7 +1690,7 @@ def observe(obs, act, e, k, i, grid, nav, state, gx, gy, gz, pe, pn, pollution, 
         for j in range(n_ag):
             if j == i:
                 continue
-            d = (nav[e, j, 0] - px) ** 2 + (nav[e, j, 2] - pz) ** 2
+            d = (X[e, j, 0] - px) ** 2 + (X[e, j, 2] - pz) ** 2
             # strictly after the previous pick in (distance, index) order
             if (d > d_prev or (d == d_prev and j > j_prev)) and d < d_best:
                 best = j
@@ -1721,11 +1699,32 @@ def observe(obs, act, e, k, i, grid, nav, state, gx, gy, gz, pe, pn, pollution, 
             o[8 + 2 * m] = math.nan
             o[9 + 2 * m] = math.nan
         else:
-            o[8 + 2 * m] = nav[e, best, 0] - px
-            o[9 + 2 * m] = nav[e, best, 2] - pz
+            o[8 + 2 * m] = X[e, best, 0] - px
+            o[9 + 2 * m] = X[e, best, 2] - pz
             d_prev = d_best
             j_prev = best
-    a = act[e, k, i]
+    o[14] = px
+    o[15] = pz
+    o[16] = X[e, i, 5]
+    o[17] = X[e, i, 12]
+    o[18] = X[e, i, 13]
+    o[19] = X[e, i, 14]
+    o[20] = t_s
+    o[21] = energy
+    o[22] = fix
+
+
+@hot_kernel
+def record_step(rec_o, rec_a, O, e, k, i, ax, ay, az):
+    """Record agent ``i``'s observation ``O[e, i]`` and its requested action at step ``k``
+    (the observation and action records ``rec_o`` (E, S, N, D) and ``rec_a`` (E, S, N, 3)).
+    Not inlined: it runs only while recording, and one compiled copy shared by every task
+    kernel keeps their compile times down."""
+    r = rec_o[e, k, i]
+    o = O[e, i]
+    for d in range(o.shape[0]):
+        r[d] = o[d]
+    a = rec_a[e, k, i]
     a[0] = ax
     a[1] = ay
     a[2] = az

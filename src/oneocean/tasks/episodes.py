@@ -20,8 +20,8 @@ from ..engine.dynamics import CMD_DIM, model_id, new_state
 from ..errors import ConfigError
 from .common import (ACT_FIELDS, CLEARANCE_M, OBS_DIM, STANDARD, episode_steps, need_tier,
                      rollout_results)
-from .loop import (EXTERNAL, FUSED, FINISHED, LEARNED, LoopParams, env_io, new_loop_state,
-                   step_args)
+from .loop import (ACT_DIM, EXTERNAL, FUSED, FINISHED, LEARNED, Ctx, LoopParams, env_io,
+                   new_loop_state, step_args)
 
 
 def learned_method(method: str) -> bool:
@@ -187,14 +187,21 @@ def over_episodes(kernel, n_episodes: int, *args) -> None:
 
 
 class Episodes:
-    """E episodes of one task under one method, advanced by the task's fused kernel: the core
-    backend's :class:`~oneocean.backends.protocol.Rollout`.
+    """E episodes of one task under one method, advanced by the task's compiled loop: the
+    core backend's :class:`~oneocean.backends.protocol.Rollout`.
+
+    The batch builds the method's public view once: the task's briefing ``B`` (its
+    ``brief``, from what the method is given: the forecast or the truth), the observation
+    array ``O`` (E, N, D) the loop fills every step, the task's team observation and report,
+    and for a fused method its params ``M`` and memory ``H`` (its policy module's ``params``
+    and ``memory`` of the briefing; its ``prepare``, a Python planner on the briefing, runs
+    here). All of it is the policy's context ``C`` (:class:`oneocean.tasks.loop.Ctx`).
 
     Parameters
     ----------
     mod : module
-        The task module (``TASK_ID``, ``METRICS``, ``make``); its compiled loop (``POLICY``,
-        ``_kernel``, ``_observe_kernel``) is its spec's kernel module
+        The task module (``TASK_ID``, ``METRICS``, ``make``, ``brief``); its compiled loop
+        (``POLICY``, ``_kernel``) is its spec's kernel module
         (:func:`oneocean.kernels.kernel_module`).
     grid : Grid
         Forcing applied (``run_cell`` sets the tier's gain or switches the current off).
@@ -204,31 +211,28 @@ class Episodes:
         The task's ``reset`` output (``pos0`` (E, N, 3), ``psi0`` (E, N), ``t0`` (E,), ...).
     method : str
         A fused method the task's policy module knows (``heuristic``, ``oracle``), a method
-        of kind ``learned`` such as ``bc`` (the heuristic's mission layer with the action
-        from the network ``net``; the heuristic's sensors), or ``None`` for external actions
-        (the step API; the sensor models).
+        of kind ``learned`` such as ``bc`` (a network on the same public view, ``net``; the
+        sensor models), or ``None`` for external actions (the step API; the sensor models).
     dyn : str
-        Dynamics model name (:data:`oneocean.vocab.DYNAMICS`: ``kinematic``, ``3dof``,
-        ``4dof``, ``6dof``).
+        Dynamics model name (:data:`oneocean.vocab.DYNAMICS`).
     vehicle : Vehicle
-        The vehicle (:class:`oneocean.engine.dynamics.Vehicle`): its ``params`` and speed
-        limit ``v_max``, m s-1.
+        The vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
     seed : int
         Run seed (sensor-error streams).
     record : bool
         Record every agent's per-step observation and action.
     fused_plan : bool
-        Call the fused policy's ``plan`` hook every step (default). ``False``: the plan
-        tokens in ``W`` are written by a Python planner between segments
-        (:meth:`run_planned`), and the fused ``act`` follows them.
+        Call the fused policy's ``plan`` hook every step (default). ``False``: the plan in the
+        method's memory ``H`` is written by a Python planner between segments
+        (:meth:`run_planned`), and the fused ``act`` follows it.
     net : dict
         A learned method only: the network's arrays
         (:func:`oneocean.tasks.learned.load_weights`).
     info : str
         What the method knows instead of its sensors (:data:`oneocean.sensing.INFO_LEVELS`):
         default the method's own (``SENSING`` of its policy module: ``sensors``, or
-        ``truth`` for the oracle); ``true_current`` / ``true_position`` are the information
-        ablations of a non-oracle method.
+        ``truth`` for the oracle); the others are the information ablations of a non-oracle
+        method (its briefing and observation with one item true).
     e0 : int
         The cell's episode of the first row: row ``e`` draws the random streams of the cell's
         episode ``e0 + e`` (0: a whole cell; a shard of episodes ``[a, b)`` runs with
@@ -243,6 +247,7 @@ class Episodes:
                  net: dict | None = None, info: str | None = None, e0: int = 0):
         from ..kernels import kernel_module
         from .learned import make_net, no_net
+        from .public import Mission
         from ..sensing import nav_aid, sensing_params
         from .common import shared_task_table
         from ..sensing.kernels import init_sensing
@@ -251,34 +256,28 @@ class Episodes:
         self.kern = kernel_module(mod.TASK_ID)
         pol = self.kern.POLICY
         learned = method is not None and learned_method(method)
-        if learned:
-            if net is None:
-                raise ConfigError(f"task {mod.TASK_ID}: method {method!r} needs its trained "
-                                  "weights")
-            method = "heuristic"   # the mission layer it keeps (and its sensors)
-        if method is not None and method not in pol.SENSING:
+        if learned and net is None:
+            raise ConfigError(f"task {mod.TASK_ID}: method {method!r} needs its trained "
+                              "weights")
+        fused = method is not None and not learned
+        if fused and method not in pol.SENSING:
             raise ConfigError(f"task {mod.TASK_ID}: method {method!r} has no fused policy "
                               f"here; fused methods: {', '.join(sorted(pol.SENSING))}")
         self.mod = mod
         self.grid = grid
         self.vehicle = vehicle
+        self.method = method
         pos0 = np.ascontiguousarray(init["pos0"], dtype=np.float64)
         n_ep, n_ag = pos0.shape[:2]
         self.n_episodes, self.n_agents = n_ep, n_ag
         self.n_steps = episode_steps(tier)
         dt = float(tier["dt_s"])
         self.dt = dt
-        # the plan tokens the task carries for the policy (sized or filled by it)
-        plan_tokens = getattr(pol, "plan_tokens", None)
-        if plan_tokens is None:
-            self.P, self.W = mod.make(grid, tier, init)
-        else:
-            self.P, self.W = mod.make(grid, tier, init, plan_tokens(grid, tier, init))
-        self.M = pol.params(method or "heuristic", tier, vehicle)
+        self.P, self.W = mod.make(grid, tier, init)
         if info is None:
-            info = pol.SENSING[method] if method is not None else "sensors"
+            info = pol.SENSING[method] if fused else "sensors"
         self.info = info
-        kind = LEARNED if learned else FUSED if method is not None else EXTERNAL
+        kind = LEARNED if learned else FUSED if fused else EXTERNAL
         self.LP = LoopParams(model_id(dyn), kind,
                              int(bool(fused_plan)), self.n_steps, int(seed), dt,
                              float(vehicle.v_max),
@@ -294,42 +293,64 @@ class Episodes:
         self.LS = new_loop_state(n_ep, n_ag)
         self._entries: dict = {}   # compiled entry points of the kernels (fast_entry)
         self.t0 = np.ascontiguousarray(init["t0"], dtype=np.float64)
-        #: which of the task's candidate episodes these are (:meth:`oneocean.tasks.Cell.reset`)
+        # the reset's candidate of each episode (its reset stream); default: the episode itself
         self.candidate = np.asarray(init.get("candidate", np.arange(n_ep)), dtype=np.int64)
         self.state = new_state(n_ep, n_ag, pos0, init["psi0"])
         LS = self.LS
         init_sensing(self.LP.sens, self.LP.seed, self.state, LS.fc, LS.cb, LS.navc, LS.nerr,
                      self.LP.e0)
+        # the public view: briefing, observation, team observation, report; the method's
+        # params and memory (a fused method's; an external or learned batch carries the
+        # heuristic's, unused, so that one compiled loop serves every kind)
+        B = mod.brief(self.P, self.W, init,
+                      Mission(grid, tier, vehicle, self.LP.sens, LS.fc, self.known_state,
+                              self.t0))
+        M = pol.params(method if fused else "heuristic", B)
+        H = pol.memory(B, M)
+        self.obs_dim = OBS_DIM + len(getattr(mod, "OBS_EXTRA", ()))
+        team = getattr(mod, "team_obs", None)
+        report = getattr(mod, "report", None)
+        self.C = Ctx(B, np.full((n_ep, n_ag, self.obs_dim), np.nan),
+                     team(self.W) if team is not None else (),
+                     M, H, report(self.W) if report is not None else np.zeros(0))
         self.cmd = np.zeros((n_ep, n_ag, CMD_DIM))
-        self.ext = np.zeros((n_ep, n_ag, len(ACT_FIELDS)))
+        self.ext = np.zeros((n_ep, n_ag, ACT_DIM))
+        self.ext[..., 3] = np.nan
         steps = self.n_steps if record else 0
         self.record = bool(record)
-        self.obs = np.full((n_ep, steps, n_ag, OBS_DIM), np.nan)
+        self.obs = np.full((n_ep, steps, n_ag, self.obs_dim), np.nan)
         self.act = np.full((n_ep, steps, n_ag, len(ACT_FIELDS)), np.nan)
         self.columns = STANDARD + tuple(mod.METRICS)
         self.res = np.zeros((n_ep, len(self.columns)))
-        # a method that plans in Python before the first step (e.g. AS's lawnmower, the G2G
-        # and RF routes) writes its plan tokens into W now, from what it knows: the loop's
-        # params and state (its information level LP.sens, the episode's forecast LS.fc) and
-        # the agents' known state; with external actions these are the heuristic's plan,
-        # the task's default mission plan, which the observation's goal cue reads (skipped
-        # where the cue does not read it: the policy's PREPARE_EXTERNAL = False)
+        self._no_io = env_io(0, n_ag, self.obs_dim)
         prepare = getattr(pol, "prepare", None)
-        if prepare is not None and (method is not None
-                                    or getattr(pol, "PREPARE_EXTERNAL", True)):
-            prepare(grid, self.P, self.W, self.M, self.t0, self.LP, self.LS, self.known_state)
+        if fused and prepare is not None:
+            prepare(B, M, H)
 
-    # ------------------------------------------------------------------ stepping
+    @property
+    def B(self):
+        """The briefing (the task's ``<ID>Briefing``) of every episode."""
+        return self.C.B
+
+    @property
+    def M(self):
+        """The fused method's params."""
+        return self.C.M
+
+    @property
+    def H(self):
+        """The fused method's memory."""
+        return self.C.H
+
     @property
     def k(self) -> np.ndarray:
-        """(E,) steps taken by each episode."""
+        """(E,) int64 steps taken."""
         return self.LS.k
 
     @property
     def known_state(self) -> np.ndarray:
-        """(E, N, STATE_DIM) the agents' state as the method knows it (what its policy
-        hooks see: the navigation estimate, the truth for a method given the true position).
-        A Python planner reads this, never :attr:`state`."""
+        """(E, N, STATE_DIM) the agents' states as the method knows them now (its navigation
+        estimate; the truth for a method given the true position)."""
         if self.LP.sens.true_position:
             return self.state
         nav = self.state.copy()
@@ -342,54 +363,53 @@ class Episodes:
         """(E,) bool: the episode has ended (success, termination or time limit)."""
         return self.LS.status == FINISHED
 
+    def _args(self):
+        return (self.grid, self.vehicle.params, self.LP, self.P, self.W, self.C, self.LS,
+                self.t0, self.state, self.cmd, self.ext, self.obs, self.act, self.res)
+
+    def _call(self, k_stop: int, lo: int, hi: int) -> None:
+        args = self._args() + (self._no_io, int(k_stop))
+        fn = self._entries.get("run")
+        over_range(fn or self.kern._kernel, lo, hi, *args)
+        if fn is None:     # compiled (or loaded) now: later calls skip numba's dispatch
+            self._entries["run"] = fast_entry(self.kern._kernel, args + (0, 1))
+
     def run(self, k_stop: int | None = None) -> "Episodes":
         """Advance every running episode up to step ``k_stop`` (default: to its end).
 
         Parameters
         ----------
         k_stop : int, optional
-            Stop every episode before this step; a negative ``k_stop`` advances each by
-            ``-k_stop`` steps from where it is (the step API, whose episodes may be at
-            different steps). None: run to the end.
+            Stop before this step (``0``: start the new episodes and take their first
+            observation); negative: advance every running episode by ``-k_stop`` steps.
+            Episodes past it or finished are left as they are. The next step's observation
+            is ready in ``C.O`` when it returns.
 
         Returns
         -------
         Episodes
             ``self``.
         """
-        k_stop = self.n_steps if k_stop is None else int(k_stop)
-        args = (self.grid, self.vehicle.params, self.LP, self.P, self.W, self.M, self.LS,
-                self.t0, self.state, self.cmd, self.ext, self.obs, self.act, self.res, k_stop)
-        fn = self._entries.get("run")
-        over_episodes(fn or self.kern._kernel, self.n_episodes, *args)
-        if fn is None:     # compiled (or loaded) now: later calls skip numba's dispatch
-            self._entries["run"] = fast_entry(self.kern._kernel, args + (0, 1))
+        self._call(self.n_steps if k_stop is None else int(k_stop), 0, self.n_episodes)
         return self
 
     def run_planned(self, planner, every: int) -> "Episodes":
         """Run to the end in segments of ``every`` steps, calling ``planner(self)`` before
-        each segment.
-
-        The planner kind of method: it reads the batch, e.g. ``W`` and ``known_state``, and
-        writes plan tokens into ``W``; build the batch with ``fused_plan=False``. Planner
-        and segments see the same step counter ``k``.
+        every segment (the batch's observation ``C.O`` holds the next step's).
 
         Parameters
         ----------
         planner : callable
-            ``planner(episodes)``, called before every segment.
+            ``planner(batch)``: a method's planning step between segments (it reads the
+            public view, ``B`` and ``C.O``, and writes the plan into the method's memory
+            ``H``); the batch is built with ``fused_plan=False``.
         every : int
-            Segment length, steps (at least 1).
+            Segment length, steps (>= 1).
 
         Returns
         -------
         Episodes
-            ``self``, every episode ended.
-
-        Raises
-        ------
-        ConfigError
-            ``every`` below 1.
+            ``self``.
         """
         every = int(every)
         if every < 1:
@@ -401,128 +421,86 @@ class Episodes:
             self.run(int(self.k[live].max()) + every)
         return self
 
-    def set_actions(self, actions) -> None:
+    def set_actions(self, actions, rows=None) -> None:
         """Set the external actions for the next step(s).
 
         Parameters
         ----------
-        actions : (E, N, 3) array_like
-            Desired velocity relative to the water, world frame (x east, y down, z north),
-            m s-1; clipped to ``v_max`` by the loop.
-
-        Raises
-        ------
-        ConfigError
-            ``actions`` of another shape.
+        actions : (E, N, 3) or (E, N, 4) array_like
+            Desired velocity relative to the water per episode and agent, world frame, m
+            s-1 (clipped to ``v_max`` by the engine); a fourth column is the commanded
+            heading, rad (NaN: free).
+        rows : (n,) int array_like, optional
+            The episodes ``actions`` are for (its leading axis is then n); default all.
         """
         a = np.asarray(actions, dtype=np.float64)
-        if a.shape != self.ext.shape:
-            raise ConfigError(f"actions: expected shape {self.ext.shape}, got {a.shape}")
-        self.ext[...] = a
+        ext = self.ext if rows is None else self.ext[np.asarray(rows)]
+        if a.ndim != 3 or a.shape[:2] != ext.shape[:2] or a.shape[2] not in (3, 4):
+            raise ConfigError(f"actions: expected shape {ext.shape[:2] + (3,)} or "
+                              f"{ext.shape}, got {a.shape}")
+        ext[..., :3] = a[..., :3]
+        ext[..., 3] = a[..., 3] if a.shape[2] == 4 else np.nan
+        if rows is not None:
+            self.ext[np.asarray(rows)] = ext
 
     def observe(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
-        """The observation of every agent before its next step.
+        """The observation of every agent before its next step (new episodes of ``lo ..
+        hi-1`` begin and take their first).
 
         Parameters
         ----------
-        lo : int
-            First episode observed.
-        hi : int, optional
-            End of the episodes observed (``lo .. hi-1``); None: every episode.
+        lo, hi : int
+            Episodes to start (default all).
 
         Returns
         -------
-        (E, N, OBS_DIM) float64
-            The observations (:data:`oneocean.tasks.common.OBS_FIELDS`); rows outside
-            ``lo .. hi-1`` are NaN. A finished episode's is that of its last state: check
-            :attr:`done`.
+        (E, N, D) float64
+            The observations (:data:`oneocean.tasks.common.OBS_FIELDS` then the task's
+            ``OBS_EXTRA``), a copy; an ended episode's is its final state's.
         """
         hi = self.n_episodes if hi is None else int(hi)
-        nobs = np.full((self.n_episodes, 1, self.n_agents, OBS_DIM), np.nan)
-        nact = np.zeros((self.n_episodes, 1, self.n_agents, len(ACT_FIELDS)))
         if hi > lo:
-            args = (self.grid, self.LP, self.P, self.W, self.LS, self.t0, self.state, nobs,
-                    nact)
-            fn = self._entries.get("observe")
-            over_range(fn or self.kern._observe_kernel, lo, hi, *args)
-            if fn is None:
-                self._entries["observe"] = fast_entry(self.kern._observe_kernel,
-                                                      args + (0, 1))
-        return nobs[:, 0]
+            self._call(0, lo, hi)
+        return self.C.O.copy()
 
     def step_observe(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
         """Advance every running episode of ``lo .. hi-1`` by one step and return the next
-        observation of every agent.
-
-        ``run(-1)`` then ``observe(lo, hi)`` in one compiled call (the step API's step).
-        Every running episode must lie in ``lo .. hi-1``.
-
-        Parameters
-        ----------
-        lo : int
-            First episode stepped.
-        hi : int, optional
-            End of the episodes stepped (``lo .. hi-1``); None: every episode.
+        observation (as :meth:`observe`, rows outside ``lo .. hi-1`` as they were).
 
         Returns
         -------
-        (E, N, OBS_DIM) float64
-            The next observations, rows ``lo .. hi-1`` valid. The batch's own buffer,
-            overwritten by the next call: copy what you keep.
+        (E, N, D) float64
+            ``C.O`` itself (not a copy).
         """
         hi = self.n_episodes if hi is None else int(hi)
-        if not self._fused_step(lo, hi, None):       # a plugin's kernel without the fused step
-            self.run(-1)
-            return self.observe(lo, hi)
-        return self._nobs[:, 0]
+        self._call(-1, lo, hi)
+        return self.C.O
 
     def env_step(self, io, lo: int, hi: int) -> bool:
-        """:meth:`step_observe` with the step API's side in the same compiled call: the
-        sub-envs' actions written, their observations and end flags read.
+        """One step of the episodes ``lo .. hi-1`` with the step API's side ``io``
+        (:class:`oneocean.tasks.loop.EnvIO`: their sub-envs' actions in, observations and end
+        flags out) in one compiled call (the kernel module's ``_step_boxed``).
 
         Parameters
         ----------
         io : EnvIO
-            The step API's side (:class:`~oneocean.tasks.loop.EnvIO`: episode ``e`` is
-            sub-env ``io.rows[e]``).
+            The step API's side.
         lo, hi : int
-            The episodes ``lo .. hi-1`` stepped.
+            Episodes of the batch.
 
         Returns
         -------
         bool
-            True when stepped; False (nothing done) for a kernel module without the fused
-            step.
+            True (the step is done).
         """
         call = self._entries.get("step")
-        if call is not None and hi - lo == 1:          # the common case, kept lean
-            call[0](*call[1], io, lo, hi)
-            return True
-        return self._fused_step(int(lo), int(hi), io)
-
-    def _fused_step(self, lo: int, hi: int, io) -> bool:
-        call = self._entries.get("step")
         if call is None:
-            kern = getattr(self.kern, "_step_kernel", None)
-            if kern is None:
-                return False
-            self._nobs = np.full((self.n_episodes, 1, self.n_agents, OBS_DIM), np.nan)
-            nact = np.zeros((self.n_episodes, 1, self.n_agents, len(ACT_FIELDS)))
-            self._no_io = env_io(0, self.n_agents, OBS_DIM)
-            # the arguments are the batch's own arrays, updated in place: built once (in one
-            # struct where the kernel module reads one: a call unboxes one object)
-            args = (self.grid, self.vehicle.params, self.LP, self.P, self.W, self.M, self.LS,
-                    self.t0, self.state, self.cmd, self.ext, self.obs, self.act, self.res,
-                    self._nobs, nact)
-            boxed = getattr(self.kern, "_step_boxed", None)
-            if boxed is not None:
-                kern, args = boxed, (step_args(*args),)
-            io = self._no_io if io is None else io
+            kern = self.kern._step_boxed
+            args = (step_args(*self._args()),)
             over_range(kern, lo, hi, *args, io)        # compiles (or loads) on first use
             self._entries["step"] = (fast_entry(kern, args + (io, 0, 1)), args)
             return True
         fn, args = call
-        io = self._no_io if io is None else io
         if hi - lo == 1:
             fn(*args, io, lo, hi)
         else:
@@ -530,19 +508,14 @@ class Episodes:
         return True
 
     def results(self) -> dict:
-        """The per-episode result columns.
+        """The rollout's results (every episode must have ended).
 
         Returns
         -------
         dict
-            One (E,) array per column of ``STANDARD`` and the task's ``METRICS``
-            (:func:`~oneocean.tasks.common.rollout_results`; the task's ``INT_METRICS`` as
-            int64), plus ``obs`` / ``act`` when recording.
-
-        Raises
-        ------
-        RuntimeError
-            An episode has not ended.
+            One (E,) array per standard and task metric column (``success`` bool,
+            ``violations`` and the task's ``INT_METRICS`` int64, the rest float64), plus
+            ``obs`` (E, n_steps, N, D) and ``act`` (E, n_steps, N, 3) when recording.
         """
         if not self.done.all():
             raise RuntimeError(f"task {self.mod.TASK_ID}: results requested before every "

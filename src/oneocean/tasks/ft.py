@@ -32,19 +32,25 @@ Metrics
     ``|p_i - p_j| >= SPACING_M - e_i - e_j`` (measured closest pairs, calibration seeds,
     T1 / T2 / T3: heuristic 10th percentile 5.6 / 5.5 / 5.8 m, least 4.0 / 1.7 / 2.8 m;
     oracle least 6.6 / 6.6 / 7.2 m).
+Briefing (:class:`FTBriefing`)
+    The route (``start``, ``goal``: the centroid's), every agent's slot offset, the success
+    radius, the slot tolerance, the slot-error bound and the form-up allowance.
+Observation
+    The cue is the task's formation reference: agent i's slot around the team's navigated
+    centroid, led ``CUE_LEAD_S`` at the transit speed ``TRANSIT_FRAC * v_max`` toward the goal
+    (stateless: a follower that closes its cue offset in ``CUE_LEAD_S`` moves the formation
+    at the transit speed while it corrects its slot). The team's navigation states are shared
+    (the escort's USBL tracks every vehicle): every agent's observation row.
 Methods
     :mod:`oneocean.methods.heuristic.ft` (a virtual centre paced by the worst slot lag, slot
     tracking with feed-forward; heuristic: the sensor models of :mod:`oneocean.sensing`;
-    oracle: true current and position). The
-    observation's goal cue is the agent's slot around the method's virtual centre
-    (``FTWork.vc``, written by the policy's ``plan``), led by ``CUE_LEAD_S`` at the centre's
-    pace: where the slot will be.
+    oracle: true current and position).
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``wedge_offsets`` and ``reset`` (Python: route, formation frame
-    and start times per episode); ``FTParams`` / ``FTWork`` and ``make``; the env hooks
-    ``begin``, ``cue``, ``post_step``, ``finish``; the compiled loop is
-    :mod:`oneocean.kernels.ft`.
+    and start times per episode); ``FTParams`` / ``FTWork`` and ``make``; the briefing
+    (``FTBriefing``, ``BRIEF_FIELDS``, ``brief``); the env hooks ``begin``, ``cue``,
+    ``post_step``, ``finish``; the compiled loop is :mod:`oneocean.kernels.ft`.
 """
 
 from __future__ import annotations
@@ -75,10 +81,12 @@ R_COLL_M = DEFAULT_R_COLL_M
 #: on (the team is released at rest in its slots and forms up on its first navigation fixes).
 SETTLE_S = 60.0
 
-#: Lead of the observation's slot cue along the virtual centre's motion, s: where the slot
-#: will be after this long at the centre's pace (a policy tracking the cue with gain
-#: 1 / CUE_LEAD_S, as the fused heuristic does, tracks the slot itself).
+#: Lead of the observation's slot cue, s: the slot as it will be after this long at the
+#: transit speed (a policy closing its cue offset with gain 1 / CUE_LEAD_S moves the
+#: formation at that speed; the fused heuristic's slot-tracking gain is the same).
 CUE_LEAD_S = 10.0 / 3.0
+#: The transit speed of the task's formation reference (the cue), as a fraction of v_max.
+TRANSIT_FRAC = 0.8
 
 _C_FERR, _C_EMAX, _C_FINAL = (len(STANDARD) + i for i in range(len(METRICS)))
 
@@ -216,11 +224,14 @@ class FTParams(NamedTuple):
         A slot error above this ends the episode as a failure, m.
     settle_k : int
         The bound applies from this step on (``SETTLE_S / dt``).
+    lead : float
+        The cue's lead toward the goal, m (``CUE_LEAD_S * TRANSIT_FRAC * v_max``).
     """
     radius: float           # success radius of the centroid around the goal, m
     slot_tol: float         # arrival: every agent within this of its slot, m
     e_bound: float          # a slot error above this ends the episode as a failure, m
     settle_k: int           # the bound applies from this step on (SETTLE_S / dt)
+    lead: float             # the cue's lead toward the goal, m
 
 
 class FTWork(NamedTuple):
@@ -240,12 +251,6 @@ class FTWork(NamedTuple):
         Sum over steps of the RMS slot error, largest slot error seen, m.
     won : (E,) int64
         1 once the team arrived in shape.
-    sigma : (E,) float64
-        Policy: the virtual centre's distance along the route, m.
-    vc : (E, 3) float64
-        Policy: the virtual centre at the start of the step, m.
-    vff : (E, 3) float64
-        Policy: the virtual centre's velocity over the step, m s-1.
     """
     offsets: np.ndarray     # (E, N, 3) world-frame slot offsets (centred), m
     start: np.ndarray       # (E, 3) centroid start, m
@@ -253,9 +258,6 @@ class FTWork(NamedTuple):
     cen: np.ndarray         # (E, 3) agents' centroid after the last step (start before), m
     acc: np.ndarray         # (E, 2) sum over steps of the RMS slot error, largest e_i seen, m
     won: np.ndarray         # (E,) int64 1 once the team arrived in shape
-    sigma: np.ndarray       # (E,) policy: virtual centre's distance along the route, m
-    vc: np.ndarray          # (E, 3) policy: virtual centre at the start of the step, m
-    vff: np.ndarray         # (E, 3) policy: virtual centre's velocity over the step, m s-1
 
 
 def make(grid, tier: dict, init: dict):
@@ -287,11 +289,63 @@ def make(grid, tier: dict, init: dict):
     n_ep = start.shape[0]
     return (FTParams(float(tier["goal_radius_m"]), float(tier["slot_tol_m"]),
                      float(tier["max_error_m"]),
-                     int(math.ceil(SETTLE_S / float(tier["dt_s"]) - 1e-9))),
+                     int(math.ceil(SETTLE_S / float(tier["dt_s"]) - 1e-9)),
+                     CUE_LEAD_S * TRANSIT_FRAC * float(tier["v_max"])),
             FTWork(np.ascontiguousarray(init["offsets"], dtype=np.float64), start,
                    np.ascontiguousarray(init["goal"], dtype=np.float64), start.copy(),
-                   np.zeros((n_ep, 2)), np.zeros(n_ep, np.int64), np.zeros(n_ep),
-                   start.copy(), np.zeros((n_ep, 3))))
+                   np.zeros((n_ep, 2)), np.zeros(n_ep, np.int64)))
+
+
+#: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
+#: unit, meaning).
+BRIEF_FIELDS = {
+    "start": ("(E, 3)", "m", "the route's start: the formation centroid's"),
+    "goal": ("(E, 3)", "m", "the route's goal: the formation centroid's"),
+    "offsets": ("(E, N, 3)", "m", "every agent's slot offset from the centroid (world frame, "
+                "centred: a wedge along the route, apex forward)"),
+    "radius": ("", "m", "success radius of the centroid around the goal"),
+    "slot_tol": ("", "m", "arrival: every agent within this of its slot"),
+    "e_bound": ("", "m", "a slot error above this ends the episode as a failure (after "
+                "settle_s)"),
+    "settle_s": ("", "s", "the form-up allowance from the release"),
+}
+
+
+class FTBriefing(NamedTuple):
+    """FT's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
+    t0: np.ndarray
+    t_lim: float
+    dt: float
+    n_agents: int
+    v_max: float
+    guidance: int
+    hotel_w: float
+    pk: float
+    energy_allocation: np.ndarray
+    sens: tuple
+    chart: tuple
+    start: np.ndarray
+    goal: np.ndarray
+    offsets: np.ndarray
+    radius: float
+    slot_tol: float
+    e_bound: float
+    settle_s: float
+
+
+def brief(P: FTParams, W: FTWork, init: dict, m) -> FTBriefing:
+    """The briefing of every episode of a batch (:class:`oneocean.tasks.public.Mission`
+    ``m``): the route, the slots, the tolerances.
+
+    Returns
+    -------
+    FTBriefing
+    """
+    from .public import common_brief
+
+    return FTBriefing(**common_brief(m), start=W.start.copy(), goal=W.goal.copy(),
+                      offsets=W.offsets.copy(), radius=P.radius, slot_tol=P.slot_tol,
+                      e_bound=P.e_bound, settle_s=SETTLE_S)
 
 
 @hot_kernel(inline="always")
@@ -327,44 +381,28 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel(inline="always")
-def cue(grid, P, W, state, e, k, i):
-    """Agent ``i``'s slot around the method's virtual centre, led by ``CUE_LEAD_S``.
-
-    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
-
-    The slot around the plan token ``W.vc``, led by ``CUE_LEAD_S`` at the centre's pace
-    (``W.vff``): where the slot will be, so the cue says how the formation moves (the
-    heuristic's feed-forward plus its slot tracking is its gain times this offset, the part a
-    learner sees).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FTParams
-        The task's params (:func:`make`).
-    W : FTWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (its navigation estimate; the truth for
-        the oracle); layout: :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-
-    Returns
-    -------
-    gx, gy, gz : float
-        The goal cue, world m.
-    probe : float
-        NaN (the task has no field).
-    """
-    return (W.vc[e, 0] + W.offsets[e, i, 0] + CUE_LEAD_S * W.vff[e, 0],
-            W.vc[e, 1] + W.offsets[e, i, 1] + CUE_LEAD_S * W.vff[e, 1],
-            W.vc[e, 2] + W.offsets[e, i, 2] + CUE_LEAD_S * W.vff[e, 2], math.nan)
+def cue(grid, P, W, X, e, k, i):
+    """Agent ``i``'s cue: its slot around the team's navigated centroid, led ``P.lead`` m
+    toward the goal (at most the centroid's distance to it): the task's formation reference.
+    Env hook (:mod:`oneocean.tasks.loop`); no probe (NaN)."""
+    n = X.shape[1]
+    cx = 0.0
+    cy = 0.0
+    cz = 0.0
+    for j in range(n):
+        cx += X[e, j, 0]
+        cy += X[e, j, 1]
+        cz += X[e, j, 2]
+    cx /= n
+    cy /= n
+    cz /= n
+    dx = W.goal[e, 0] - cx
+    dy = W.goal[e, 1] - cy
+    dz = W.goal[e, 2] - cz
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    f = min(P.lead, d) / d if d > 1e-9 else 0.0
+    return (cx + W.offsets[e, i, 0] + f * dx, cy + W.offsets[e, i, 1] + f * dy,
+            cz + W.offsets[e, i, 2] + f * dz, math.nan)
 
 
 @hot_kernel(inline="always")

@@ -26,23 +26,29 @@ Metrics
     ``final_error_m`` (primary: distance to the goal when the episode ends, m),
     ``min_error_m`` (closest approach, m), ``path_length_m`` (ground track length, m),
     ``energy_wh`` (energy used, Wh), ``energy_ratio`` (energy used / ``E_ref``).
-Observation cue
-    The goal (the method's route is its own plan, in its plan tokens ``W.wps``).
+Briefing (:class:`G2GBriefing`, after the common fields of :mod:`oneocean.tasks.public`)
+    ``start`` (the launch fix), ``goal``, ``radius`` and the forecast of the current at the
+    transit's depth on a lattice around start and goal over the episode's window (the
+    ``fc_*`` fields, :func:`oneocean.tasks.routing.mission_field`; the truth for the oracle);
+    the allocation is the common ``energy_allocation``.
+Observation
+    The cue is the goal; the task's own fields (:data:`OBS_EXTRA`) are the electrical energy
+    used so far and its fraction of the allocation.
 Methods
-    :mod:`oneocean.methods.heuristic.g2g` (both plan the route and speeds through the field,
-    then fly the plan; heuristic: on its forecast, with the sensor models of
+    :mod:`oneocean.methods.heuristic.g2g` (both plan the route and speeds through the
+    briefing's field, then fly the plan; heuristic: on the forecast, with the sensor models of
     :mod:`oneocean.sensing`; oracle: on the true field, with the true current and position).
 
 Module layout (the template of every task module; the contract: :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset`` (Python: geometry and start times per episode from
     its own stream, :func:`~oneocean.tasks.common.episode_generators` or their compiled
     twins, :mod:`oneocean.engine.streams`); ``Params`` / ``Work`` and ``make``
-    (the env's typed scalars and per-episode arrays); the env hooks ``begin``, ``cue``,
+    (the env's typed scalars and per-episode arrays); the public view: the briefing
+    (``<ID>Briefing``, ``BRIEF_FIELDS`` and ``brief``) and the observation's own fields
+    (``OBS_EXTRA`` and the ``sense`` hook); the env hooks ``begin``, ``cue``, ``sense``,
     ``post_step``, ``finish`` (``hot_kernel``, no allocation). A task module imports no
     method: its compiled loop with the fused heuristic/oracle
-    (:mod:`oneocean.methods.heuristic.g2g`) is :mod:`oneocean.kernels.g2g`, and plan tokens
-    a policy sizes reach ``make`` as its ``tokens`` argument (the policy's
-    ``plan_tokens``).
+    (:mod:`oneocean.methods.heuristic.g2g`) is :mod:`oneocean.kernels.g2g`.
 """
 
 from __future__ import annotations
@@ -57,8 +63,8 @@ from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..errors import ConfigError, NotApplicable
 from . import routing
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, current_at,
-                     need_tier, sample_routes, site_speeds, start_times)
+from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, OBS_DIM, PURPOSE_RESET, STANDARD,
+                     current_at, need_tier, sample_routes, site_speeds, start_times)
 from ..engine import libm, streams
 
 TASK_ID = "G2G"
@@ -67,8 +73,6 @@ METRICS = ("final_error_m", "min_error_m", "path_length_m", "energy_wh", "energy
 COLUMNS = STANDARD + METRICS
 
 _C_FINAL, _C_MIN, _C_PATH, _C_EWH, _C_ERAT = (len(STANDARD) + i for i in range(len(METRICS)))
-#: Plan-token capacity: vertices of a planned route.
-MAX_VERTICES = 256
 #: Candidate episodes drawn per episode kept before a current band is declared not
 #: applicable in a region.
 BAND_DRAWS = 60
@@ -313,17 +317,6 @@ class G2GWork(NamedTuple):
         Energy allocation, J (inf: none).
     eref : (E,) float64
         Least energy of the transit (the task's plan), J.
-    wps : (E, MAX_VERTICES, 2) float64
-        Plan tokens (:func:`oneocean.tasks.routing.follow_path`), written by the method's
-        prepare hook: route vertices (x, z), m; the straight line until then.
-    wspd : (E, MAX_VERTICES) float64
-        Programmed speed of each segment, m s-1 (the cruise speed until planned).
-    wcount : (E,) int64
-        Vertices.
-    widx : (E,) int64
-        Active segment.
-    planned : (E,) int64
-        1 once the method planned.
     """
     goal: np.ndarray        # (E, 3) goal positions, m
     start: np.ndarray       # (E, 3) start positions, m
@@ -331,13 +324,6 @@ class G2GWork(NamedTuple):
                             #        energy used (J)
     budget: np.ndarray      # (E,) energy allocation, J (inf: none)
     eref: np.ndarray        # (E,) least energy of the transit (the task's plan), J
-    # plan tokens of the method (oneocean.tasks.routing.follow_path), written by its
-    # prepare hook; the straight line at the cruise speed until then
-    wps: np.ndarray         # (E, MAX_VERTICES, 2) route vertices (x, z), m
-    wspd: np.ndarray        # (E, MAX_VERTICES) programmed speed of each segment, m s-1
-    wcount: np.ndarray      # (E,) int64 vertices
-    widx: np.ndarray        # (E,) int64 active segment
-    planned: np.ndarray     # (E,) int64 1 once the method planned
 
 
 def reference_energy(grid, tier: dict, start, goal, depth: float, t0: float,
@@ -452,7 +438,7 @@ def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
 
     With an ``energy_reserve`` the allocation of every episode (:func:`reference_energies`
-    on the rollout's ``grid``); the plan tokens hold the straight line at the cruise speed.
+    on the rollout's ``grid``).
 
     Parameters
     ----------
@@ -483,16 +469,85 @@ def make(grid, tier: dict, init: dict):
     eref, budget = energy_budgets(
         TASK_ID, tier, n_ep,
         batch=lambda: reference_energies(grid, tier, start, goal, init["t0"], (pw, v_max)))
-    wps = np.zeros((n_ep, MAX_VERTICES, 2))
-    wps[:, 0] = start[:, [0, 2]]
-    wps[:, 1] = goal[:, [0, 2]]
-    wspd = np.zeros((n_ep, MAX_VERTICES))
-    wspd[:, 0] = routing.cruise_speed(v_max, pw)
     P = G2GParams(float(tier["goal_radius_m"]), float(tier["time_limit_s"]),
                   float(tier["dt_s"]), pw.hotel_w, pw.k)
-    W = G2GWork(goal, start, np.zeros((n_ep, 4)), budget, eref, wps, wspd,
-                np.full(n_ep, 2, np.int64), np.zeros(n_ep, np.int64), np.zeros(n_ep, np.int64))
+    W = G2GWork(goal, start, np.zeros((n_ep, 4)), budget, eref)
     return P, W
+
+
+#: The task's own observation fields (after :data:`oneocean.tasks.common.OBS_FIELDS`): the
+#: electrical energy the vehicle used so far (J) and its fraction of the allocation (0 without
+#: one).
+OBS_EXTRA = ("energy_j", "energy_frac")
+
+#: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
+#: unit, meaning).
+BRIEF_FIELDS = {
+    "start": ("(E, 3)", "m", "the launch fix: where the vehicle starts, as its navigation "
+              "knows it"),
+    "goal": ("(E, 3)", "m", "the goal (world x east, y depth, z north)"),
+    "radius": ("", "m", "success radius around the goal"),
+    **{k: v for k, v in routing.FIELD_DOCS.items()},
+}
+
+
+class G2GBriefing(NamedTuple):
+    """G2G's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
+    t0: np.ndarray
+    t_lim: float
+    dt: float
+    n_agents: int
+    v_max: float
+    guidance: int
+    hotel_w: float
+    pk: float
+    energy_allocation: np.ndarray
+    sens: tuple
+    chart: tuple
+    start: np.ndarray
+    goal: np.ndarray
+    radius: float
+    fc_cur: np.ndarray
+    fc_times: np.ndarray
+    fc_free: np.ndarray
+    fc_x0: np.ndarray
+    fc_z0: np.ndarray
+    fc_h: np.ndarray
+    fc_shape: np.ndarray
+
+
+def brief(P: G2GParams, W: G2GWork, init: dict, m) -> G2GBriefing:
+    """The briefing of every episode of a batch.
+
+    The forecast (the truth for a method given the true current) on the transit's lattice
+    from the launch fix to the goal (:func:`oneocean.tasks.routing.mission_field`), where
+    both lie on the grid.
+
+    Parameters
+    ----------
+    P, W
+        The task's params and work arrays (:func:`make`).
+    init : dict
+        The reset's dict.
+    m : Mission
+        The batch's mission (:class:`oneocean.tasks.public.Mission`).
+
+    Returns
+    -------
+    G2GBriefing
+    """
+    from .public import common_brief
+
+    start = np.ascontiguousarray(m.X0[:, 0, :3])
+    fc = m.forecast
+    fields = []
+    for e in range(W.goal.shape[0]):
+        pts = np.array([[start[e, 0], start[e, 2]], [W.goal[e, 0], W.goal[e, 2]]])
+        fields.append(routing.mission_field(m.grid, pts, float(W.goal[e, 1]), float(m.t0[e]),
+                                            P.t_lim, fc=fc, e=e)
+                      if routing.within_grid(m.grid, pts) else None)
+    return G2GBriefing(**common_brief(m, W.budget), start=start, goal=W.goal.copy(),
+                       radius=P.radius, **routing.pack_fields(fields))
 
 
 @hot_kernel(inline="always")
@@ -564,6 +619,16 @@ def cue(grid, P, W, state, e, k, i):
         NaN (the task has no field).
     """
     return W.goal[e, 0], W.goal[e, 1], W.goal[e, 2], math.nan
+
+
+@hot_kernel(inline="always")
+def sense(grid, P, W, X, state, O, e, k):
+    """The task's observation fields (:data:`OBS_EXTRA`): the energy used and its fraction
+    of the allocation. Env hook (:mod:`oneocean.tasks.loop`)."""
+    used = W.acc[e, 3]
+    o = O[e, 0]
+    o[OBS_DIM] = used
+    o[OBS_DIM + 1] = used / W.budget[e] if W.budget[e] < math.inf else 0.0
 
 
 @hot_kernel(inline="always")

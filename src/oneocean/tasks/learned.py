@@ -1,30 +1,29 @@
-"""The loop's learned controller: a network over the standard observation features.
+"""The loop's learned controller: a network over features of the public view.
 
 A method given as the weights of a feed-forward network (``method kind learned``: behaviour
 cloning, :mod:`oneocean.methods.bc`, trains one; any method that writes a weights file in
-this layout runs the same way) acts inside the fused loop through this module: the loop
-(:func:`oneocean.tasks.loop.run_episode`) keeps the method's mission layer (the goal cue
-its observation carries) and replaces the velocity law by the network's output, for every
-agent and step. Everything here is a plain ``hot_kernel`` function on arrays, used twice:
-by the loop, and by the training code (through :func:`features_rows`) on recorded
-observations -- one implementation, so the features a network is trained on are the
-features it acts on.
+this layout runs the same way) acts inside the fused loop through this module, on exactly
+what every method may know: each agent's observation row (:data:`oneocean.tasks.common.OBS_FIELDS`
+and the task's own fields) and the briefing's time limit. It plans nothing: the target it
+steers for is the task's own cue, updated by the task for every method. Everything here is a
+plain ``hot_kernel`` function on arrays, used twice: by the loop, and by the training code
+(through :func:`features_rows`) on recorded observations -- one implementation, so the
+features a network is trained on are the features it acts on.
 
-Features (:data:`FEATURES`, from one observation row, :data:`oneocean.tasks.common.OBS_FIELDS`,
-plus the task one-hot). The paper's set -- normalised goal delta, depth, pollution probe, local
-current, task one-hot -- plus what a fair team policy needs: the altitude above the seafloor
-(every task constrains it) and the nearest teammates' offsets (collision avoidance and
-formation keeping are part of FT, SPC, UPL, FH). Every input is something the heuristic also
-sees: the current is the same estimate (:mod:`oneocean.sensing`), the goal cue is the task's
-target point relative to the same navigation estimate.
+Features (:func:`feature_names`):
 
-* ``goal_u{x,y,z}``: the goal offset ``g / (|g| + 1 m)`` (a unit vector far away, the offset
+* ``goal_u{x,y,z}``: the cue offset ``g / (|g| + 1 m)`` (a unit vector far away, the offset
   itself in metres close in) and ``goal_log_dist = log(1 + |g|)``;
-* ``current_{e,n}_ms``: the sensed current;
+* ``current_{e,n}_ms``: the current estimate;
 * ``depth_m``, ``altitude_m`` (NaN -> 0);
 * ``pollution_log = log(1 + max(p, 0))`` and ``has_pollution`` (0 where the task has no field);
 * per teammate ``m`` (nearest first): ``mate{m}_u{x,z}`` (offset / (d + 1 m)) and
   ``mate{m}_close = 1 / (1 + d)``; all 0 when there is no such teammate;
+* ``v{x,y,z}_ms``: the velocity over ground (DVL);
+* ``time_left``: ``1 - t / t_lim`` (the briefing's time limit);
+* ``extra{j}``: the task's own observation fields in their order (its ``OBS_EXTRA``: the
+  energy used against the allocation, acoustic fixes, the attachment state, ...), non-finite
+  values as 0, zeros after the task's last field (:data:`N_EXTRA` slots);
 * ``task_<ID>``: one-hot over the tasks the network was trained on.
 
 The network's output is a through-water velocity request divided by the vehicle's ``v_max``
@@ -43,16 +42,20 @@ from typing import NamedTuple
 import numpy as np
 
 from ..engine._jit import hot_kernel
-from .common import N_MATES, OBS_DIM
+from .common import N_MATES, OBS, OBS_DIM
 
 #: Arrays of a weights file (:func:`load_weights`).
 WEIGHT_KEYS = ("mu", "sd", "w", "b", "dims", "tasks", "features")
 
 #: Feature names before the task one-hot (see the module docstring).
+#: Slots for the task's own observation fields (the widest task's ``OBS_EXTRA``).
+N_EXTRA = 8
 BASE_FEATURES = (("goal_ux", "goal_uy", "goal_uz", "goal_log_dist", "current_e_ms",
                   "current_n_ms", "depth_m", "altitude_m", "pollution_log", "has_pollution")
                  + tuple(f"mate{m + 1}_{c}" for m in range(N_MATES)
-                         for c in ("ux", "uz", "close")))
+                         for c in ("ux", "uz", "close"))
+                 + ("vx_ms", "vy_ms", "vz_ms", "time_left")
+                 + tuple(f"extra{j + 1}" for j in range(N_EXTRA)))
 N_BASE = len(BASE_FEATURES)
 
 
@@ -86,8 +89,6 @@ class LearnedNet(NamedTuple):
     dims: np.ndarray    # (L + 1,) int64 layer widths, dims[0] = F, dims[L] = 3
     task: int           # index of this rollout's task in the one-hot
     n_tasks: int        # size of the one-hot
-    obs: np.ndarray     # (E, 1, N, OBS_DIM) observation scratch
-    act: np.ndarray     # (E, 1, N, 3) scratch of observe's action slot (unused)
     buf: np.ndarray     # (E, 2, width) activation scratch
 
 
@@ -135,8 +136,7 @@ def no_net() -> LearnedNet:
         compiled kernel.
     """
     return LearnedNet(np.zeros(1), np.ones(1), np.zeros((1, 1, 1)), np.zeros((1, 1)),
-                 np.zeros(2, np.int64), 0, 1, np.zeros((1, 1, 1, OBS_DIM)),
-                 np.zeros((1, 1, 1, 3)), np.zeros((1, 2, 1)))
+                      np.zeros(2, np.int64), 0, 1, np.zeros((1, 2, 1)))
 
 
 def make_net(weights: dict, task: str, n_episodes: int, n_agents: int) -> LearnedNet:
@@ -176,9 +176,7 @@ def make_net(weights: dict, task: str, n_episodes: int, n_agents: int) -> Learne
                  np.ascontiguousarray(weights["w"], dtype=np.float64),
                  np.ascontiguousarray(weights["b"], dtype=np.float64),
                  np.ascontiguousarray(weights["dims"], dtype=np.int64),
-                 tasks.index(task), len(tasks),
-                 np.zeros((n_episodes, 1, n_agents, OBS_DIM)),
-                 np.zeros((n_episodes, 1, n_agents, 3)), np.zeros((n_episodes, 2, width)))
+                      tasks.index(task), len(tasks), np.zeros((n_episodes, 2, width)))
 
 
 @hot_kernel(inline="always")
@@ -228,19 +226,22 @@ def log1p_pos(x):
 
 
 @hot_kernel
-def featurize(o, task, n_tasks, out):
+def featurize(o, t_lim, task, n_tasks, out):
     """The features (:func:`feature_names`) of one observation row.
 
     Parameters
     ----------
-    o : (OBS_DIM,) float64
-        Observation row (:data:`oneocean.tasks.common.OBS_FIELDS`).
+    o : (D,) float64
+        Observation row (:data:`oneocean.tasks.common.OBS_FIELDS`, then the task's own
+        fields).
+    t_lim : float
+        The briefing's time limit, s.
     task : int
-        Index of the rollout's task in the one-hot.
+        Index of the row's task in the one-hot.
     n_tasks : int
         Size of the one-hot.
     out : (F,) float64
-        Output, ``F = N_BASE + n_tasks``, written in place.
+        Features, written in place.
     """
     gx = _finite(o[0])
     gy = _finite(o[1])
@@ -274,6 +275,15 @@ def featurize(o, task, n_tasks, out):
             out[j] = 0.0
             out[j + 1] = 0.0
             out[j + 2] = 0.0
+    j = 10 + 3 * N_MATES
+    out[j] = _finite(o[17])
+    out[j + 1] = _finite(o[18])
+    out[j + 2] = _finite(o[19])
+    out[j + 3] = 1.0 - _finite(o[20]) / t_lim if t_lim > 0.0 else 0.0
+    j += 4
+    n_x = o.shape[0] - OBS_DIM
+    for q in range(N_EXTRA):
+        out[j + q] = _finite(o[OBS_DIM + q]) if q < n_x else 0.0
     for t in range(n_tasks):
         out[N_BASE + t] = 1.0 if t == task else 0.0
 
@@ -349,21 +359,20 @@ def forward(net, x, h):
 
 
 @hot_kernel
-def learned_act(net, e, i, v_max):
-    """Agent ``i``'s action from its observation.
-
-    The observation in ``net.obs[e, 0, i]`` (written by
-    :func:`oneocean.tasks.common.observe`): features, standardisation, forward pass, times
-    ``v_max``.
+def learned_act(net, B, O, e, i, v_max):
+    """Agent ``i``'s action from its observation ``O[e, i]`` and the briefing ``B`` (its
+    ``t_lim``): features, standardisation, forward pass, times ``v_max``.
 
     Parameters
     ----------
     net : LearnedNet
         The network with its scratch.
-    e : int
-        Episode index.
-    i : int
-        Agent index.
+    B : NamedTuple
+        The task's briefing.
+    O : (E, N, D) float64
+        This step's observations.
+    e, i : int
+        Episode and agent.
     v_max : float
         The vehicle's speed limit, m s-1.
 
@@ -374,7 +383,7 @@ def learned_act(net, e, i, v_max):
     """
     h = net.buf[e]
     x = h[0]
-    featurize(net.obs[e, 0, i], net.task, net.n_tasks, x)
+    featurize(O[e, i], B.t_lim, net.task, net.n_tasks, x)
     for q in range(net.dims[0]):
         x[q] = (x[q] - net.mu[q]) / net.sd[q]
     ax, ay, az = forward(net, x, h)
@@ -382,19 +391,9 @@ def learned_act(net, e, i, v_max):
 
 
 @hot_kernel
-def features_rows(obs, task, n_tasks, out):
-    """:func:`featurize` for every row of an observation matrix.
-
-    Parameters
-    ----------
-    obs : (R, OBS_DIM) float64
-        Observation rows.
-    task : int
-        Index of the rows' task in the one-hot.
-    n_tasks : int
-        Size of the one-hot.
-    out : (R, F) float64
-        Features, written in place.
-    """
+def features_rows(obs, t_lim, task, n_tasks, out):
+    """:func:`featurize` for every row of an observation matrix ``obs`` (R, D) into ``out``
+    (R, F), with the briefing's time limit ``t_lim`` (s) and the rows' task ``task`` of
+    ``n_tasks``."""
     for r in range(obs.shape[0]):
-        featurize(obs[r], task, n_tasks, out[r])
+        featurize(obs[r], t_lim, task, n_tasks, out[r])

@@ -1,84 +1,95 @@
-"""The one episode loop every task runs on, and the contract of a task's hooks.
+"""The one episode loop every task runs on, and the contract of a task's and a policy's hooks.
 
 A task (``oneocean.tasks.<id>``) says what the world does; a method (``oneocean.methods``)
 says what the agents do. This loop owns everything they share, so no task re-implements it:
-time, current sampling at every agent, the method's sensing and navigation (the sensor
-models of :mod:`oneocean.sensing` for every non-oracle method, the truth for the oracle),
-observation recording, the action (through :func:`advance_agent`:
-clipping to ``v_max``, dynamics, feasibility), the energy proxy (eq. 7), rejected moves,
-near-collisions (eq. 4, one ``r_coll``), termination, success and ``T``, and the metric
-horizon (below) — in resumable segments of steps (``k_stop``), so a Python planner or a step
-API can act between them.
+time, current sampling at every agent, sensing and navigation (the sensor models of
+:mod:`oneocean.sensing` for every non-oracle method, the truth for the oracle), the
+observation, the action (through :func:`advance_agent`: clipping to ``v_max``, dynamics,
+feasibility), the energy proxy (eq. 7), rejected moves, near-collisions (eq. 4, one
+``r_coll``), termination, success and ``T``, and the metric horizon (below) -- in resumable
+segments of steps (``k_stop``), so a Python planner or the step API can act between them.
 
-Per step ``k`` of episode ``e`` (``t = t0[e] + k dt``)::
+What a method knows (the public view, docs/policy.md)
+    A method is a policy of two things only: the task's **briefing** ``B`` (what the mission
+    gives before the episode: the forecast field, the goal / route / region / chart / slots /
+    zone / report, the vehicle's limits and power model, the tier's tolerances, time limit and
+    energy allocation; a typed NamedTuple of the task module, ``brief``) and the
+    **observation** ``O`` (E, N, D) of every agent at every step (the common head
+    :data:`oneocean.tasks.common.OBS_FIELDS` -- the task's cue, the current estimate, depth,
+    altitude, the probe, teammates' offsets, the navigation estimate, velocity, time, energy,
+    position fixes -- then the task's own fields ``OBS_EXTRA``: acoustic fixes of the object
+    or the school, the attachment state, ...), plus the task's team-level observation ``T``
+    (e.g. SPC's aerial oil map). The oracle gets the same in the same shape, with the truth.
+    A fused policy reads them through its context :class:`Ctx`; an external policy (the step
+    API, ``oneocean evaluate``) gets the same arrays. Nothing else: not the grid, not the
+    task's params or work arrays, not the loop's state.
 
-    env.pre_step                      task physics before the agents act (e.g. face velocities)
-    X = the agents' state as the method knows it (navigation estimate; truth for the oracle)
-    policy.plan(X)                    the method's team-level decision (assignment, map);
-                                      skipped when a Python planner writes the plan tokens
-    for every agent i:
-        c   = true current at the agent (gain and tides included)
-        c~  = the method's current estimate (forecast + filtered in-situ sample; or c)
-        a   = policy.act(X, c~)       or the external action ext[e, i] (step API)
-        record observation (env.cue on X) and action when asked
-        advance_agent(a, c) on the true state; env.after_agent
-    near-collision count (eq. 4) and the closest pair distance
-    code = env.post_step              task physics after the moves, metrics, termination
-    navigation errors propagate over the step (dead reckoning, GNSS at the surface)
-    k += 1
-    at the end: success = env.finish(...); T = k dt on success (k_succ dt after REACHED),
-    else the time limit
+Per step ``k`` of episode ``e`` (``t = t0[e] + k dt``), the same code for every policy::
+
+    sense    env.pre_step (task physics before the agents act); env.sense (the task's own
+             observation fields and its team observation T: perception, fixes); the true
+             current at every agent (kept for its move); the common head of every agent's
+             observation O[e] (the task's cue on the navigation estimate, the current
+             estimate, ...)
+    decide   policy.plan(C, e, k); a = policy.act(C, e, k, i) for every agent i -- or the
+             learned controller's action on the same view, or the external action ext[e, i]
+             (the step API); record observation and action when asked
+    move     advance_agent(a, c) on the true state for every agent; energy, rejected moves;
+             env.after_agent
+    judge    near-collisions (eq. 4) and the closest pair; code = env.post_step (task physics
+             after the moves, metrics, termination); dead reckoning over the step; k += 1
+    then the next step's sense, so that the observation of step k + 1 is ready when a segment
+    (or a step of the step API) returns; at the end: env.finish(...) -> success, T = k dt on
+    success (k_succ dt after REACHED), else the time limit; then a last observation of the
+    final state (no pre_step).
+
+Every observation is taken once, before any agent of the step moves, so a fused policy and an
+external policy that receives the step API's observation see exactly the same values, and the
+heuristic run through the step API gives the same episodes as its fused cell
+(``tests/test_parity.py``).
 
 Termination and the metric horizon. ``post_step`` returns a stop code: ``GO`` (0 / False:
 continue), ``STOP`` (1 / True: the episode ends now: success or a terminal failure, as
 ``finish`` then says) or ``REACHED`` (2: the task's success was reached at this step, but the
 episode runs on to its time limit, the task's fixed *metric horizon*, for metrics measured
 over that horizon, e.g. SPC's cleanup rate). The loop latches the first ``REACHED`` step in
-``LoopState.k_succ``; from then on the standard metrics are frozen: ``T`` is ``k_succ dt``
-(time to success), and ``E``, ``violations``, the near-collision ratio (``coll / k_succ``)
-and the closest pair distance ``LoopState.dmin`` cover the steps up to success, exactly what
-a run that stopped there would report. Everything else (the world, the agents, the task's own
-accumulators) runs to the horizon, and ``finish`` sees the final step.
+``LoopState.k_succ``; from then on the standard metrics are frozen: ``T`` is ``k_succ dt``,
+and ``E``, ``violations``, the near-collision ratio (``coll / k_succ``) and the closest pair
+distance ``LoopState.dmin`` cover the steps up to success. Everything else runs to the
+horizon, and ``finish`` sees the final step.
 
-Hooks are plain ``@hot_kernel`` functions of the task module (the env) and of its method
-module (the policy); neither imports the other. The task's kernel module
-(:mod:`oneocean.kernels`) passes them to :func:`run_episode` (``inline="always"``) from its
-serial ``_episode`` (``hot_kernel``), which its kernel ``_kernel``
-(``njit(cache=True, nogil=True)``) runs for a block of episodes ``[e_lo, e_hi)``, and
-inlined in its step API's ``_step_kernel`` (one step per call);
-:func:`oneocean.tasks.episodes.over_episodes` runs the blocks on numba's thread count (no
-``prange``: the parfor pass more than doubles every task kernel's compile time). ``_observe``
-/ ``_observe_kernel`` do the same for :func:`observe_next`. Two numba facts shape this
-(numba 0.6x; ``tests/test_loop.py`` checks that the kernels cache and that the loop state is
-written back):
-
-* functions must reach the loop as module globals of the caller and the loop must be
-  inlined there: a kernel that receives functions as run-time arguments embeds their
-  addresses and cannot be cached ("uses dynamic globals"), so it recompiles in every process;
-* code inlined directly into a ``prange`` body loses stores into arrays held by a
-  heterogeneous NamedTuple (such as :class:`LoopState` or a task's work arrays): keep the
-  serial ``_episode`` between any parallel loop and the inlined loop.
-
-NamedTuple classes crossing into a kernel need package-unique names (numba's parfor lowering
-resolves them by name: two classes both called ``Params`` collide), so they carry the task id.
-
-Env hooks (``P``: the task's params NamedTuple, ``W``: its per-episode work arrays)::
+Env hooks (``P``: the task's params NamedTuple, ``W``: its per-episode work arrays; ``X`` the
+agents' states as the method knows them, the truth for the oracle)::
 
     begin(grid, P, W, state, e) -> stop            before step 0 (state holds the start)
-    pre_step(grid, P, W, state, e, k, t)
-    cue(grid, P, W, state, e, k, i) -> (gx, gy, gz, probe)   observation's goal cue, probe
+    pre_step(grid, P, W, state, e, k, t)           world physics before the agents act
+    cue(grid, P, W, X, e, k, i) -> (gx, gy, gz, probe)   the task's cue (world m) and probe
+    sense(grid, P, W, X, state, O, e, k)           the task's observation fields (O[e, :,
+                                                   D0:]) and team observation (in W)
     after_agent(grid, P, W, state, e, k, i, code)  right after agent i moved
     post_step(grid, P, W, state, prev, e, k, t) -> GO | STOP | REACHED  (prev: positions
                                                    before the step; a bool is GO / STOP)
     finish(grid, P, W, state, e, k, row) -> success        writes the task's metric columns
 
-Policy hooks (``M``: the method's params NamedTuple; ``state`` is the state the method knows,
-``X`` above, and ``pe, pn`` its current estimate: a policy never sees the truth unless it is
-the oracle's)::
+Policy hooks (``C``: the policy's context :class:`Ctx` -- briefing, observation, team
+observation, the method's params and memory, the report it files)::
 
-    plan(grid, P, W, M, state, e, k, t)
-    act(grid, P, W, M, state, e, k, i, t, pe, pn) -> (ax, ay, az, psi)
-        desired velocity relative to the water (world m s-1) and heading (rad, NaN = free)
+    plan(C, e, k)                                  the team's decision, once per step
+    act(C, e, k, i) -> (ax, ay, az, psi)           desired velocity relative to the water
+                                                   (world m s-1) and heading (rad, NaN: free)
+
+Hooks are plain ``@hot_kernel`` functions of the task module (the env) and of its policy
+module; neither imports the other. A task's kernel module (:mod:`oneocean.kernels`) passes
+them to :func:`run_episode` (``inline="always"``) in its ``_kernel``, the one compiled loop
+over a block of episodes that serves the fused cells, the step API (one step and the next
+observation per call, :class:`EnvIO`) and the scene backend's phases;
+:func:`oneocean.tasks.episodes.over_episodes` runs the blocks on numba's thread count (no
+``prange``: the parfor pass more than doubles every task kernel's compile time). Functions
+must reach the loop as module globals of the caller and the loop must be inlined there: a
+kernel that receives functions as run-time arguments cannot be cached.
+
+NamedTuple classes crossing into a kernel need package-unique names (numba's parfor lowering
+resolves them by name), so they carry the task id.
 """
 
 from __future__ import annotations
@@ -97,26 +108,28 @@ from ..engine.step import advance_agent
 from .learned import LearnedNet, learned_act
 from ..sensing import SensingParams
 from ..sensing.kernels import current_estimate, nav_fill, nav_update
-from .common import OK, current_at, observe
+from .common import OBS_DIM, OK, current_at, observe_common, record_step
 
 #: Policy kinds inside the loop: the task's fused policy (heuristic, oracle, ...), an
 #: external action per agent and step (``ext``; the step API and Python callables), or a
-#: learned controller (a network, :mod:`oneocean.tasks.learned`, e.g. ``bc``: the fused
-#: policy's mission layer -- its plan and target point -- with the action replaced by the
-#: network's).
+#: learned controller (a network on the same public view, :mod:`oneocean.tasks.learned`).
 FUSED, EXTERNAL, LEARNED = 0, 1, 2
 
 #: Columns every task writes first in its result row (then its metrics).
 N_STANDARD = 6
 C_SUCCESS, C_T, C_E, C_COLL, C_VIOL, C_CUR = range(N_STANDARD)
 
+#: Width of an action row: desired velocity relative to the water (x east, y down, z north,
+#: m s-1) and the commanded heading (rad from north, NaN: free).
+ACT_DIM = 4
+
 
 class LoopParams(NamedTuple):
     """Parameters of the loop (one rollout, all episodes)."""
     model: int          # dynamics model id (engine.dynamics.model_id)
     policy: int         # FUSED, EXTERNAL or LEARNED
-    plan: int           # 1: call the fused policy's plan hook every step; 0: the plan tokens
-                        # in W come from a Python planner between segments
+    plan: int           # 1: call the fused policy's plan hook every step; 0: the plan in the
+                        # method's memory comes from a Python planner between segments
     n_steps: int        # episode length, steps (the time limit)
     seed: int           # run seed (sensor-error streams)
     dt: float           # step, s
@@ -134,7 +147,7 @@ class LoopParams(NamedTuple):
 class LoopState(NamedTuple):
     """Per-episode state of the loop, kept between segments."""
     k: np.ndarray           # (E,) int64 steps taken
-    status: np.ndarray      # (E,) int64 RUNNING / STOPPED / FINISHED
+    status: np.ndarray      # (E,) int64 NEW / RUNNING / FINISHED
     energy: np.ndarray      # (E,) float64 team energy proxy, m2 s-1
     viol: np.ndarray        # (E,) int64 rejected moves (team)
     coll: np.ndarray        # (E,) int64 steps with a near-collision
@@ -142,21 +155,37 @@ class LoopState(NamedTuple):
     k_succ: np.ndarray      # (E,) int64 steps to the REACHED success (-1: not reached)
     dmin: np.ndarray        # (E,) float64 smallest pair distance after a step, m (inf: N < 2)
     # what the method knows (oneocean.sensing.kernels): its navigation estimate of every
-    # agent's state (the state the policy hooks see), position errors, dead-reckoning
-    # constants, filtered forecast corrections and the episode's forecast error
+    # agent's state, position errors, dead-reckoning constants, filtered forecast corrections
+    # and the episode's forecast error
     nav: np.ndarray         # (E, N, STATE_DIM) float64
     nerr: np.ndarray        # (E, N, 2) float64 horizontal position error (x, z), m
     navc: np.ndarray        # (E, N, 3) float64 1 + scale factor, cos / sin heading bias
     cb: np.ndarray          # (E, N, 2) float64 filtered forecast correction (east, north)
     fc: np.ndarray          # (E, 5) float64 forecast error (1 + gain, cos, sin, bias e, n)
     cur: np.ndarray         # (E,) float64 sum over agents and steps of the true current speed
-    # the hand-over to a backend that moves the agents itself (phases DECIDE / JUDGE)
     en: np.ndarray          # (E, N) float64 energy proxy of each agent's executed action, m2 s-1
-    cw: np.ndarray          # (E, N, 2) float64 true current at each agent (east, north), m s-1
+    cw: np.ndarray          # (E, N, 2) float64 true current at each agent this step (e, n), m s-1
     code: np.ndarray        # (E, N) int64 status of each agent's move (engine.status)
-    # the step API's next observation sampled the true current at each agent for step k:
-    # [x, y, z, k, east, north] (k = -1: none), which the step reuses at the same position
-    ocur: np.ndarray        # (E, N, 6) float64
+    sensed: np.ndarray      # (E,) int64 the step whose observation O[e] holds (-1: none)
+    eag: np.ndarray         # (E, N) float64 each agent's energy proxy so far, m2 s-1
+    nfix: np.ndarray        # (E, N) int64 1: an absolute position fix at the last step
+
+
+class Ctx(NamedTuple):
+    """A policy's context: everything a method may read, and what it keeps and files.
+
+    ``B`` the task's briefing (its ``brief``); ``O`` (E, N, D) this step's observation of every
+    agent (:data:`oneocean.tasks.common.OBS_FIELDS`, then the task's ``OBS_EXTRA``); ``T`` the
+    task's team observation (a NamedTuple of E-leading arrays, its ``team_obs``); ``M`` the
+    method's params; ``H`` the method's memory (its own arrays: plans, estimates); ``R`` the
+    report the method files (the task's ``report``: PI's leak claims; an empty array
+    elsewhere), which the task's judge reads."""
+    B: tuple
+    O: np.ndarray
+    T: tuple
+    M: tuple
+    H: tuple
+    R: np.ndarray
 
 
 NEW, RUNNING, FINISHED = 0, 1, 2
@@ -173,19 +202,17 @@ GO, STOP, REACHED = 0, 1, 2
 
 def new_loop_state(n_episodes: int, n_agents: int) -> LoopState:
     """A fresh :class:`LoopState`: every episode ``NEW`` at step 0, no success step
-    (``k_succ = -1``), no pair distance yet (``dmin = inf``), everything else zero.
+    (``k_succ = -1``), no pair distance yet (``dmin = inf``), nothing sensed, everything else
+    zero.
 
     Parameters
     ----------
-    n_episodes : int
-        Episodes E.
-    n_agents : int
-        Team size N.
+    n_episodes, n_agents : int
+        Episodes E and team size N.
 
     Returns
     -------
     LoopState
-        Its arrays, shaped as the class documents.
     """
     E, N = n_episodes, n_agents
     return LoopState(np.zeros(E, np.int64), np.zeros(E, np.int64),
@@ -195,19 +222,20 @@ def new_loop_state(n_episodes: int, n_agents: int) -> LoopState:
                      np.zeros((E, N, STATE_DIM)), np.zeros((E, N, 2)), np.zeros((E, N, 3)),
                      np.zeros((E, N, 2)), np.zeros((E, 5)), np.zeros(E),
                      np.zeros((E, N)), np.zeros((E, N, 2)), np.zeros((E, N), np.int64),
-                     np.full((E, N, 6), -1.0))
+                     np.full(E, -1, np.int64), np.zeros((E, N)), np.zeros((E, N), np.int64))
 
 
-#: ``flags`` bits of the step API's fused step (:func:`env_step_out`): the episode ended at
-#: this step; it ended in success; it ended at the time limit without success.
+#: ``flags`` bits of a step API step (:func:`env_step_out`): the episode ended at this step;
+#: it ended in success; it ended at the time limit without success.
 ENV_ENDED, ENV_SUCCESS, ENV_TRUNCATED = 1, 2, 4
 
 
 class EnvIO(NamedTuple):
-    """The step API's side of a fused step (``_step_kernel`` of a kernel module) for ``n``
-    sub-envs. No rows in ``a``/``out``: a plain step (``step_observe``)."""
-    a: np.ndarray        # (n, N, 3) float64 actions (velocity m s-1, or units of v_max)
-    out: np.ndarray      # (n, N, OBS_DIM) float64 the next observations (raw view)
+    """The step API's side of a call of a kernel module's ``_kernel`` for ``n`` sub-envs; no
+    rows: a fused call (nothing in, nothing out)."""
+    a: np.ndarray        # (n, N, 3 or ACT_DIM) float64 actions (velocity m s-1 or units of
+                         # v_max, then the heading, rad, NaN: free)
+    out: np.ndarray      # (n, N, D) float64 the next observations
     flags: np.ndarray    # (n,) int64 ENV_* bits
     rows: np.ndarray     # (E,) int64 the sub-env of each episode of the batch (-1: none)
     normalized: int      # 1: ``a`` in units of v_max, its norm clipped to 1
@@ -215,7 +243,7 @@ class EnvIO(NamedTuple):
 
 
 def env_io(n: int, n_agents: int, obs_dim: int) -> EnvIO:
-    """An :class:`EnvIO` with no rows (a plain fused step).
+    """An :class:`EnvIO` with no rows (a fused call).
 
     Parameters
     ----------
@@ -224,22 +252,19 @@ def env_io(n: int, n_agents: int, obs_dim: int) -> EnvIO:
     n_agents : int
         Team size N.
     obs_dim : int
-        Observation width (``OBS_DIM``).
+        Observation width D.
 
     Returns
     -------
     EnvIO
-        Zero actions and observations, zero flags, an empty ``rows``, ``normalized`` and
-        ``clean`` 0.
     """
     return EnvIO(np.zeros((n, n_agents, 3)), np.zeros((n, n_agents, obs_dim)),
                  np.zeros(n, np.int64), np.zeros(0, np.int64), 0, 0)
 
 
-#: The fused step's arguments in :class:`StepArgs` (a kernel module's ``_step_kernel``
-#: arguments before ``io``).
-STEP_FIELDS = ("grid", "vp", "LP", "P", "W", "M", "LS", "t0", "state", "cmd", "ext", "obs",
-               "act", "res", "nobs", "nact")
+#: A kernel module's ``_kernel`` arguments before ``io`` (:class:`StepArgs`).
+STEP_FIELDS = ("grid", "vp", "LP", "P", "W", "C", "LS", "t0", "state", "cmd", "ext", "rec_o",
+               "rec_a", "res")
 
 
 @structref.register
@@ -253,83 +278,47 @@ class StepArgsType(types.StructRef):
         Parameters
         ----------
         fields : sequence of (str, numba type)
-            The fields' names and types.
 
         Returns
         -------
         tuple of (str, numba type)
-            The same fields, each type ``types.unliteral``.
         """
         return tuple((name, types.unliteral(t)) for name, t in fields)
 
 
 class StepArgs(structref.StructRefProxy):
-    """A batch's fused-step arguments (:data:`STEP_FIELDS`: its own arrays, shared, not
-    copied) in one numba struct: a compiled call unboxes one object instead of every array
-    of the grid and the loop (about 6 us a call with them; the step API's step at one env
-    is a few us of work). Built by :func:`step_args`; read by a kernel module's
-    ``_step_boxed`` (:func:`step_fields`)."""
+    """A batch's kernel arguments (:data:`STEP_FIELDS`: its own arrays, shared, not copied)
+    in one numba struct: a compiled call unboxes one object instead of every array of the grid
+    and the loop (about 6 us a call with them; a step of one env is a few us of work). Built by
+    :func:`step_args`; read by a kernel module's ``_step_boxed`` (:func:`step_fields`)."""
 
 
 structref.define_proxy(StepArgs, StepArgsType, STEP_FIELDS)
 
 
 @njit(cache=True)
-def step_args(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, nobs, nact):
-    """The :class:`StepArgs` of these arrays (compiled per argument types, cached).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    vp : (PARAM_DIM,) float64
-        Vehicle parameters (:func:`oneocean.engine.dynamics.vehicle_params`).
-    LP : LoopParams
-        The loop's params.
-    P, W
-        The task's params and per-episode work arrays (its ``make``).
-    M : NamedTuple
-        The method's params (its policy module's ``params``).
-    LS : LoopState
-        The loop's per-episode state.
-    t0 : (E,) float64
-        Start time of each episode, s since the grid's ``time0``.
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    cmd : (E, N, CMD_DIM) float64
-        Command rows.
-    ext : (E, N, 3) float64
-        External actions, m s-1.
-    obs : (E, n_steps, N, OBS_DIM) float64
-        Observation record (zero-length step axis unless recording).
-    act : (E, n_steps, N, 3) float64
-        Action record.
-    res : (E, C) float64
-        Result rows.
-    nobs : (E, 1, N, OBS_DIM) float64
-        The next observation of every agent.
-    nact : (E, 1, N, 3) float64
-        Scratch of :func:`observe_next`.
+def step_args(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res):
+    """The :class:`StepArgs` of a batch's kernel arguments (compiled per argument types,
+    cached); the arrays are shared, not copied (:data:`STEP_FIELDS`).
 
     Returns
     -------
     StepArgs
-        The arrays, shared (not copied).
     """
-    return StepArgs(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, nobs, nact)
+    return StepArgs(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res)
 
 
 # A StepArgs' fields, read the way numba reads a struct's field (``A.grid``) but without
 # taking a reference to every array in it: a field read in jit code counts a reference to
 # each array it holds (about 60 of them) and the end of the call gives them back, which
-# cost about 0.9 us of a step() at one env (the step itself: 1-2 us for a single vehicle).
-# The StepArgs keeps its arrays alive for the call (its Python owner holds it), so a kernel
-# may borrow them. A kernel module's ``_step_boxed`` (compiled with reference counting:
-# the struct it unboxes is given back at its end) calls its ``_step_fields``, compiled
-# without (``step_kernel``), which reads the fields by :func:`step_fields`: nothing is
-# counted there, so nothing is given back either. The payload is found the way numba's own
-# ``NRT_MemInfo_data_fast`` finds it (its MemInfo layout, ``_meminfo_struct_type``);
-# without that name (another numba) the fields are read by numba's own getattr instead.
+# cost about 0.9 us of a step() at one env. The StepArgs keeps its arrays alive for the call
+# (its Python owner holds it), so a kernel may borrow them. A kernel module's ``_step_boxed``
+# (compiled with reference counting: the struct it unboxes is given back at its end) calls its
+# ``_step_fields``, compiled without (``step_kernel``), which reads the fields by
+# :func:`step_fields` and calls the module's ``_kernel``: nothing is counted there, so nothing
+# is given back either. The payload is found the way numba's own ``NRT_MemInfo_data_fast``
+# finds it (its MemInfo layout, ``_meminfo_struct_type``); without that name (another numba)
+# the fields are read by numba's own getattr instead.
 try:
     from numba.core.runtime.nrtdynmod import _meminfo_struct_type as _MEMINFO
 except ImportError:  # pragma: no cover - another numba's internals
@@ -346,8 +335,7 @@ if BORROWED_FIELDS:
     def step_fields(typingctx, A):
         """The :data:`STEP_FIELDS` of the :class:`StepArgs` ``A``, in that order, borrowed
         (no reference counted): only in a kernel compiled without reference counting
-        (:data:`step_kernel`) and called from jit code that holds ``A`` (a kernel taking a
-        struct from Python without reference counting would keep it: never given back)."""
+        (:data:`step_kernel`) and called from jit code that holds ``A``."""
         tys = [A.field_dict[f] for f in STEP_FIELDS]
         tup = types.Tuple(tys)
 
@@ -369,32 +357,18 @@ else:  # pragma: no cover - another numba's internals
     @njit(cache=True)
     def step_fields(A):
         """The :data:`STEP_FIELDS` of the :class:`StepArgs` ``A``, in that order."""
-        return (A.grid, A.vp, A.LP, A.P, A.W, A.M, A.LS, A.t0, A.state, A.cmd, A.ext, A.obs,
-                A.act, A.res, A.nobs, A.nact)
+        return (A.grid, A.vp, A.LP, A.P, A.W, A.C, A.LS, A.t0, A.state, A.cmd, A.ext, A.rec_o,
+                A.rec_a, A.res)
 
     step_kernel = njit(cache=True, nogil=True)
 
 
 @hot_kernel(inline="always")
 def env_step_in(LP, LS, ext, io, e):
-    """Before episode ``e``'s fused step: its sub-env's action (if it has one) into
-    ``ext[e]``.
-
-    With ``io.normalized`` the action is scaled as ``v_max * a / max(|a|, 1)`` (numpy's
-    arithmetic; a non-finite norm propagates).
-
-    Parameters
-    ----------
-    LP : LoopParams
-        The loop's params (``v_max``, m s-1).
-    LS : LoopState
-        The loop's per-episode state.
-    ext : (E, N, 3) float64
-        External actions, m s-1; row ``e`` written.
-    io : EnvIO
-        The step API's side of the step (``io.rows[e]``: episode ``e``'s sub-env, -1: none).
-    e : int
-        Episode index.
+    """Before a step API step of episode ``e``: its sub-env's action (if it has one) into
+    ``ext[e]``; with ``io.normalized`` the velocity is ``v_max * a / max(|a|, 1)`` (numpy's
+    arithmetic; a non-finite norm propagates). A heading column, if ``io.a`` has one, is
+    copied as is; without one the heading is free (NaN).
 
     Returns
     -------
@@ -402,7 +376,7 @@ def env_step_in(LP, LS, ext, io, e):
         Whether the episode had already ended before the step.
     """
     was = LS.status[e] == FINISHED
-    if io.a.shape[0] > 0 and io.rows[e] >= 0:
+    if io.rows.shape[0] > 0 and io.rows[e] >= 0:
         j = io.rows[e]
         for i in range(io.a.shape[1]):
             x = io.a[j, i, 0]
@@ -418,39 +392,20 @@ def env_step_in(LP, LS, ext, io, e):
             ext[e, i, 0] = x
             ext[e, i, 1] = y
             ext[e, i, 2] = z
+            ext[e, i, 3] = io.a[j, i, 3] if io.a.shape[2] > 3 else math.nan
     return was
 
 
 @hot_kernel(inline="always")
-def env_step_out(LP, LS, res, nobs, io, e, was):
-    """After episode ``e``'s fused step and observation (``nobs[e, 0]``): its sub-env's
-    observation into ``io.out`` and its :data:`ENV_ENDED` / ``ENV_SUCCESS`` /
-    ``ENV_TRUNCATED`` bits into ``io.flags``.
-
-    Nothing for an episode without a sub-env. The bits are set only at the step the episode
-    ended; with ``io.clean`` non-finite observation values are written as 0.
-
-    Parameters
-    ----------
-    LP : LoopParams
-        The loop's params (``n_steps``).
-    LS : LoopState
-        The loop's per-episode state.
-    res : (E, C) float64
-        Result rows (``res[e, C_SUCCESS]``).
-    nobs : (E, 1, N, OBS_DIM) float64
-        The next observation of every agent (:func:`observe_next`).
-    io : EnvIO
-        The step API's side of the step, written.
-    e : int
-        Episode index.
-    was : bool
-        Whether the episode had ended before the step (:func:`env_step_in`).
-    """
-    if io.out.shape[0] == 0 or io.rows[e] < 0:
+def env_step_out(LP, LS, res, O, io, e, was):
+    """After a step API step of episode ``e``: its next observation ``O[e]`` into its
+    sub-env's row of ``io.out`` (non-finite values as 0 with ``io.clean``), and its
+    :data:`ENV_ENDED` / ``ENV_SUCCESS`` / ``ENV_TRUNCATED`` bits (set only at the step the
+    episode ended) into ``io.flags``. Nothing for an episode without a sub-env."""
+    if io.rows.shape[0] == 0 or io.rows[e] < 0:
         return
     j = io.rows[e]
-    o = nobs[e, 0]
+    o = O[e]
     for i in range(o.shape[0]):
         for d in range(o.shape[1]):
             v = o[i, d]
@@ -469,19 +424,10 @@ def env_step_out(LP, LS, res, nobs, io, e, was):
 
 @hot_kernel(inline="always")
 def known_state(LP, LS, state, e):
-    """The agents' state as the method knows it: the truth for a method given the true
-    position (the oracle), else the navigation estimate, refreshed for every agent.
-
-    Parameters
-    ----------
-    LP : LoopParams
-        The loop's params (``sens.true_position``).
-    LS : LoopState
-        The loop's per-episode state (``nerr``; ``nav`` is written).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index (the only row refreshed).
+    """The agents' states as the method knows them: the truth for a method given the true
+    position (the oracle), else the navigation estimate ``LS.nav``, refreshed for episode
+    ``e`` (true state plus the horizontal position error: depth, attitude and velocity are
+    measured).
 
     Returns
     -------
@@ -496,248 +442,93 @@ def known_state(LP, LS, state, e):
 
 
 @hot_kernel(inline="always")
-def observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact):
-    """The observation every agent gets before its episode's next step ``k`` (the step
-    API's ``obs``), into ``nobs[e, 0]``: exactly what the loop's step ``k`` will sense (the
-    filter update is computed, not stored).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    cue : function
-        The task's ``cue`` hook.
-    P, W
-        The task's params and per-episode work arrays (its ``make``).
-    LP : LoopParams
-        The loop's params.
-    LS : LoopState
-        The loop's per-episode state (``k[e]`` is the next step).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    t0 : (E,) float64
-        Start time of each episode, s since the grid's ``time0``.
-    e : int
-        Episode index.
-    nobs : (E, 1, N, OBS_DIM) float64
-        The next observations, row ``e`` written.
-    nact : (E, 1, N, 3) float64
-        Scratch (the observation's action slot).
+def sense_step(cue, sense, grid, P, W, LP, LS, state, O, t0, e, k, final):
+    """The observation ``O[e]`` of every agent before step ``k`` (every policy, every
+    backend): the task's own fields and team observation first (its ``sense``: perception,
+    fixes, which its cue may use), then for each agent the true current (``LS.cw``, the
+    current its move will meet), the method's current estimate (its filter updated with this
+    step's in-situ sample) and the common head (:func:`oneocean.tasks.common.observe_common`
+    on the task's cue). ``final``: the observation of an ended episode's final state (no
+    filter update).
     """
     n_ag = state.shape[1]
-    k = LS.k[e]
     t = t0[e] + k * LP.dt
     X = known_state(LP, LS, state, e)
+    sense(grid, P, W, X, state, O, e, k)
     for i in range(n_ag):
         s = state[e, i]
         ce, cn = current_at(grid, s[0], s[1], s[2], t)
-        q = LS.ocur[e, i]
-        q[0] = s[0]
-        q[1] = s[1]
-        q[2] = s[2]
-        q[3] = k
-        q[4] = ce
-        q[5] = cn
-        pe, pn = current_estimate(LP.sens, LP.seed, LS.cb, LS.fc, e, k, i, n_ag, ce, cn, 0,
-                                  LP.e0)
+        LS.cw[e, i, 0] = ce
+        LS.cw[e, i, 1] = cn
+        pe, pn = current_estimate(LP.sens, LP.seed, LS.cb, LS.fc, e, k, i, n_ag, ce, cn,
+                                  1 - final, LP.e0)
         gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
-        observe(nobs, nact, e, 0, i, grid, X, state, gx, gy, gz, pe, pn, pr,
-                math.nan, math.nan, math.nan)
+        observe_common(O[e, i], grid, X, state, e, i, gx, gy, gz, pe, pn, pr, k * LP.dt,
+                       LS.eag[e, i], LS.nfix[e, i])
+    LS.sensed[e] = k
 
 
 @hot_kernel(inline="always")
-def decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext, obs, act_rec, e, k, i,
-                 t, counting, cur):
-    """The decision half of agent ``i``'s step ``k`` (every backend).
-
-    Remember where the agent is (``LS.prev``), sample the true current at it (or take the
-    step API's observation's sample of it, ``LS.ocur``, at the same step and position: the
-    same value), give the method its current estimate, choose the action (the fused policy,
-    the learned controller or the external action), record the observation and write the
-    command row ``cmd[e, i]`` (unclipped, heading free unless the fused policy sets it,
-    thrust on).
-
-    Parameters
-    ----------
-    cue, act : function
-        The task's ``cue`` hook and the policy's ``act`` hook.
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P, W
-        The task's params and per-episode work arrays (its ``make``).
-    M : NamedTuple
-        The method's params.
-    LP : LoopParams
-        The loop's params.
-    LS : LoopState
-        The loop's per-episode state.
-    X : (E, N, STATE_DIM) float64
-        The states the method knows (:func:`known_state`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    cmd : (E, N, CMD_DIM) float64
-        Command rows; ``cmd[e, i]`` written.
-    ext : (E, N, 3) float64
-        External actions, m s-1 (``LP.policy == EXTERNAL``).
-    obs : (E, n_steps, N, OBS_DIM) float64
-        Observation record (zero-length step axis unless recording).
-    act_rec : (E, n_steps, N, 3) float64
-        Action record.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-    t : float
-        Time, s since the grid's ``time0`` (``t0[e] + k dt``).
-    counting : bool
-        The standard metrics still accumulate (no ``REACHED`` yet).
-    cur : float
-        The episode's sum of true current speeds so far, m s-1.
-
-    Returns
-    -------
-    cur : float
-        The updated current-speed sum, m s-1.
-    ce, cn : float
-        The true current at the agent, east and north, m s-1.
-    """
-    s = state[e, i]
-    px = s[0]
-    py = s[1]
-    pz = s[2]
-    LS.prev[e, i, 0] = px
-    LS.prev[e, i, 1] = py
-    LS.prev[e, i, 2] = pz
-    q = LS.ocur[e, i]
-    if q[3] == k and q[0] == px and q[1] == py and q[2] == pz:
-        # the step API's observation sampled it at this step and position
-        ce = q[4]
-        cn = q[5]
-    else:
-        ce, cn = current_at(grid, px, py, pz, t)
-    if counting:
-        cur += math.sqrt(ce * ce + cn * cn)
-    pe, pn = current_estimate(LP.sens, LP.seed, LS.cb, LS.fc, e, k, i, state.shape[1], ce, cn,
-                              1, LP.e0)
-    if LP.policy != EXTERNAL:
-        ax, ay, az, psi = act(grid, P, W, M, X, e, k, i, t, pe, pn)
-        if LP.policy == LEARNED:
-            # the fused policy ran for its mission layer (plan, target point, claims);
-            # the network maps the observation to the action
-            gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
-            observe(LP.net.obs, LP.net.act, e, 0, i, grid, X, state, gx, gy, gz, pe,
-                    pn, pr, math.nan, math.nan, math.nan)
-            ax, ay, az = learned_act(LP.net, e, i, LP.v_max)
+def decide_step(plan, act, C, LP, ext, cmd, rec_o, rec_a, e, k):
+    """The action of every agent at step ``k`` into its command row ``cmd[e, i]`` (unclipped,
+    thrust on): the fused policy on its context ``C``, the learned controller on the same
+    view, or the external action ``ext[e, i]``; the observation and action recorded when
+    ``rec_o`` has a step axis."""
+    n_ag = C.O.shape[1]
+    if LP.policy == FUSED and LP.plan != 0:
+        plan(C, e, k)
+    for i in range(n_ag):
+        if LP.policy == FUSED:
+            ax, ay, az, psi = act(C, e, k, i)
+        elif LP.policy == LEARNED:
+            ax, ay, az = learned_act(LP.net, C.B, C.O, e, i, LP.v_max)
             psi = math.nan
-    else:
-        ax = ext[e, i, 0]
-        ay = ext[e, i, 1]
-        az = ext[e, i, 2]
-        psi = math.nan
-    if k < obs.shape[1]:
-        gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
-        observe(obs, act_rec, e, k, i, grid, X, state, gx, gy, gz, pe, pn, pr, ax, ay, az)
-    c = cmd[e, i]
-    c[0] = ax
-    c[1] = ay
-    c[2] = az
-    c[3] = psi
-    c[4] = 1.0
-    return cur, ce, cn
+        else:
+            ax = ext[e, i, 0]
+            ay = ext[e, i, 1]
+            az = ext[e, i, 2]
+            psi = ext[e, i, 3]
+        if k < rec_o.shape[1]:
+            record_step(rec_o, rec_a, C.O, e, k, i, ax, ay, az)
+        c = cmd[e, i]
+        c[0] = ax
+        c[1] = ay
+        c[2] = az
+        c[3] = psi
+        c[4] = 1.0
 
 
 @hot_kernel(inline="always")
-def account_agent(after_agent, grid, P, W, LP, LS, state, e, k, i, en, code, counting, energy,
-                  viol):
-    """The accounting half of agent ``i``'s step after it moved (every backend).
-
-    The energy proxy ``en`` of its executed action and the move's status ``code`` (a rejected
-    move or a contact) counted up to success, the task's ``after_agent`` hook, and the
-    navigation estimate teammates acting later see.
-
-    Parameters
-    ----------
-    after_agent : function
-        The task's ``after_agent`` hook.
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P, W
-        The task's params and per-episode work arrays (its ``make``).
-    LP : LoopParams
-        The loop's params.
-    LS : LoopState
-        The loop's per-episode state.
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-    en : float
-        Energy proxy of the executed action, m2 s-1.
-    code : int
-        Status of the move (:mod:`oneocean.engine.status`; ``OK`` or a violation).
-    counting : bool
-        The standard metrics still accumulate (no ``REACHED`` yet).
-    energy : float
-        The team's energy proxy so far, m2 s-1.
-    viol : int
-        The team's rejected moves so far.
+def account_agent(after_agent, grid, P, W, LS, state, e, k, i, en, code, counting, energy,
+                  viol, cur):
+    """The accounting of agent ``i``'s step after it moved (every backend): the energy proxy
+    ``en`` of its executed action and the move's status ``code`` (a rejected move or a contact)
+    counted up to success, the true current speed it met (the metric ``current_speed_ms``),
+    its own energy so far (its observation), the task's ``after_agent``.
 
     Returns
     -------
-    energy : float
-        The updated energy proxy, m2 s-1.
-    viol : int
-        The updated violation count.
+    energy, viol, cur
+        The team's updated energy proxy (m2 s-1), violation count and current-speed sum.
     """
+    LS.eag[e, i] += en
     if counting:
         energy += en
         if code != OK:
             viol += 1
+        ce = LS.cw[e, i, 0]
+        cn = LS.cw[e, i, 1]
+        cur += math.sqrt(ce * ce + cn * cn)
     after_agent(grid, P, W, state, e, k, i, code)
-    if LP.sens.true_position == 0:   # teammates acting later see where i now thinks it is
-        nav_fill(state, LS.nerr, LS.nav, e, i)
-    return energy, viol
+    return energy, viol, cur
 
 
 @hot_kernel(inline="always")
 def end_step(post_step, grid, P, W, LP, LS, state, e, k, t, counting, coll, dmin):
-    """The end of step ``k`` once every agent moved (every backend).
-
-    Near-collisions (eq. 4) and the closest pair (while counting), the task's ``post_step``
-    judge, dead reckoning over the step, the ``REACHED`` latch (``LS.k_succ[e]``).
-
-    Parameters
-    ----------
-    post_step : function
-        The task's ``post_step`` hook.
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P, W
-        The task's params and per-episode work arrays (its ``make``).
-    LP : LoopParams
-        The loop's params.
-    LS : LoopState
-        The loop's per-episode state.
-    state : (E, N, STATE_DIM) float64
-        True vehicle states after the step (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the step's start, s since the grid's ``time0``.
-    counting : bool
-        The standard metrics still accumulate (no ``REACHED`` yet).
-    coll : int
-        Steps with a near-collision so far.
-    dmin : float
-        Smallest pair distance so far, m.
+    """The end of step ``k`` once every agent moved (every backend): near-collisions (eq. 4)
+    and the closest pair (while counting), the task's ``post_step`` judge, dead reckoning over
+    the step (and whether an absolute fix came, ``LS.nfix``), the ``REACHED`` latch
+    (``LS.k_succ[e]``).
 
     Returns
     -------
@@ -761,8 +552,8 @@ def end_step(post_step, grid, P, W, LP, LS, state, e, k, t, counting, coll, dmin
             dmin = d
     rc = int(post_step(grid, P, W, state, LS.prev, e, k, t))
     for i in range(S.shape[0]):   # dead reckoning over the step's ground displacement
-        nav_update(LP.sens, LP.seed, LS.navc, LS.nerr, state, LS.prev, e, k, i, S.shape[0],
-                   LP.dt, LP.e0)
+        LS.nfix[e, i] = nav_update(LP.sens, LP.seed, LS.navc, LS.nerr, state, LS.prev, e, k,
+                                   i, S.shape[0], LP.dt, LP.e0)
     k += 1
     stop = False
     if rc == REACHED:
@@ -777,32 +568,9 @@ def end_step(post_step, grid, P, W, LP, LS, state, e, k, t, counting, coll, dmin
 @hot_kernel(inline="always")
 def finish_episode(finish, grid, P, W, LP, LS, state, res, e, k):
     """Close episode ``e`` after ``k`` steps (every backend): the task's ``finish`` judge
-    writes its metrics, the loop the standard columns over the steps up to success.
-
-    ``T`` is the steps to success times ``dt`` on success, else the time limit; the
-    near-collision ratio and the mean current speed are per step (and agent) up to success.
-
-    Parameters
-    ----------
-    finish : function
-        The task's ``finish`` hook.
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P, W
-        The task's params and per-episode work arrays (its ``make``).
-    LP : LoopParams
-        The loop's params.
-    LS : LoopState
-        The loop's per-episode state (``status[e]`` set to ``FINISHED``).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    res : (E, C) float64
-        Result rows; row ``e`` written (the ``C_*`` columns, then the task's).
-    e : int
-        Episode index.
-    k : int
-        Steps taken.
-    """
+    writes its metrics into ``res[e]``, the loop the standard columns over the steps up to
+    success. ``T`` is the steps to success times ``dt`` on success, else the time limit; the
+    near-collision ratio and the mean current speed are per step (and agent) up to success."""
     LS.status[e] = FINISHED
     row = res[e]
     success = finish(grid, P, W, state, e, k, row)
@@ -818,62 +586,32 @@ def finish_episode(finish, grid, P, W, LP, LS, state, res, e, k):
 
 
 @hot_kernel(inline="always")
-def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
-                grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act_rec, res, e, k_stop):
+def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, plan, act,
+                grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, e, k_stop):
     """Advance episode ``e`` up to step ``k_stop`` (or its end; a negative ``k_stop``
     advances it by ``-k_stop`` steps from where it is, so episodes at different steps move
-    together); write ``res[e]`` when it ends. Serial; the per-task kernel runs it for every
-    episode of its block.
+    together); write ``res[e]`` when it ends. Serial; a task's ``_kernel`` runs it for every
+    episode of its block. The arguments are the module docstring's: the task's hooks, the
+    policy's hooks, the grid export, the vehicle parameters ``vp``, :class:`LoopParams`, the
+    task's ``P`` / ``W``, the policy's context :class:`Ctx`, :class:`LoopState`, the start
+    times ``t0`` (E,), the true states (E, N, STATE_DIM), the command rows ``cmd``, the external
+    actions ``ext`` (E, N, ACT_DIM), the observation / action records ``rec_o`` (E, S, N, D) /
+    ``rec_a`` (E, S, N, 3) (S = 0: no record) and the result rows ``res`` (E, C).
 
-    ``LP.phase`` says which part of a step this call runs: ``FULL`` (the core backend:
-    whole steps, each agent deciding and moving in turn through :func:`advance_agent`),
-    ``DECIDE`` (another backend's physics: one step's decisions of every agent -- the
-    command rows ``cmd`` and the true currents ``LS.cw`` -- with the executed action clipped
-    and its energy in ``LS.en``) or ``JUDGE`` (after that backend moved the agents and wrote
-    each move's status into ``LS.code``: the accounting and the judge of the step).
-
-    Parameters
-    ----------
-    begin, pre_step, cue, after_agent, post_step, finish : function
-        The task's env hooks (module docstring).
-    plan, act : function
-        The policy's hooks.
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    vp : (PARAM_DIM,) float64
-        Vehicle parameters (:func:`oneocean.engine.dynamics.vehicle_params`).
-    LP : LoopParams
-        The loop's params.
-    P, W
-        The task's params and per-episode work arrays (its ``make``).
-    M : NamedTuple
-        The method's params.
-    LS : LoopState
-        The loop's per-episode state, updated.
-    t0 : (E,) float64
-        Start time of each episode, s since the grid's ``time0``.
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`), advanced in place.
-    cmd : (E, N, CMD_DIM) float64
-        Command rows.
-    ext : (E, N, 3) float64
-        External actions, m s-1 (``LP.policy == EXTERNAL``).
-    obs : (E, n_steps, N, OBS_DIM) float64
-        Observation record (zero-length step axis unless recording).
-    act_rec : (E, n_steps, N, 3) float64
-        Action record.
-    res : (E, C) float64
-        Result rows; row ``e`` written when the episode ends.
-    e : int
-        Episode index.
-    k_stop : int
-        Stop before this step; negative: advance ``-k_stop`` steps.
+    A call with ``k_stop = 0`` starts a new episode and takes its first observation.
+    ``LP.phase`` says which part of a step this call runs: ``FULL`` (the core backend: whole
+    steps), ``DECIDE`` (another backend's physics: one step's observation and decisions -- the
+    command rows and the true currents ``LS.cw`` -- with the executed action clipped and its
+    energy in ``LS.en``) or ``JUDGE`` (after that backend moved the agents and wrote each
+    move's status into ``LS.code``: the accounting and the judge of the step, then the next
+    observation).
     """
     if LS.status[e] == FINISHED:
         return
     n_ag = state.shape[1]
     n_steps = LP.n_steps
     dt = LP.dt
+    O = C.O
     stop = False
     if LS.status[e] == NEW:
         LS.status[e] = RUNNING
@@ -886,49 +624,47 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
     dmin = LS.dmin[e]
     cur = LS.cur[e]
     counting = LS.k_succ[e] < 0   # standard metrics accumulate up to success (REACHED)
-    if LP.phase == FULL:
-        while k < n_steps and k < k_lim and not stop:
-            t = t0[e] + k * dt
-            pre_step(grid, P, W, state, e, k, t)
-            X = known_state(LP, LS, state, e)   # the policy's view (the truth for the oracle)
-            if LP.policy != EXTERNAL and LP.plan != 0:
-                plan(grid, P, W, M, X, e, k, t)
+    judge = LP.phase == JUDGE
+    while not stop and k < n_steps:
+        t = t0[e] + k * dt
+        if not judge:
+            if LS.sensed[e] != k:
+                pre_step(grid, P, W, state, e, k, t)
+                sense_step(cue, sense, grid, P, W, LP, LS, state, O, t0, e, k, 0)
+            if k >= k_lim:
+                break
+            decide_step(plan, act, C, LP, ext, cmd, rec_o, rec_a, e, k)
             for i in range(n_ag):
-                cur, ce, cn = decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext,
-                                           obs, act_rec, e, k, i, t, counting, cur)
-                en, code = advance_agent(grid, LP.model, vp, state[e, i], cmd[e, i], ce, cn,
-                                         LP.v_max, dt, LP.land_thr, LP.clearance)
-                energy, viol = account_agent(after_agent, grid, P, W, LP, LS, state, e, k, i,
-                                             en, code, counting, energy, viol)
-            k, stop, counting, coll, dmin = end_step(post_step, grid, P, W, LP, LS, state, e,
-                                                     k, t, counting, coll, dmin)
-    elif LP.phase == DECIDE:
-        if k < n_steps and k < k_lim and not stop:
-            t = t0[e] + k * dt
-            pre_step(grid, P, W, state, e, k, t)
-            X = known_state(LP, LS, state, e)
-            if LP.policy != EXTERNAL and LP.plan != 0:
-                plan(grid, P, W, M, X, e, k, t)
+                s = state[e, i]
+                LS.prev[e, i, 0] = s[0]
+                LS.prev[e, i, 1] = s[1]
+                LS.prev[e, i, 2] = s[2]
+            if LP.phase == DECIDE:   # another backend moves the agents
+                for i in range(n_ag):
+                    c = cmd[e, i]
+                    ax, ay, az = clip_action(c[0], c[1], c[2], LP.v_max)
+                    c[0] = ax
+                    c[1] = ay
+                    c[2] = az
+                    LS.en[e, i] = (ax * ax + ay * ay + az * az) * dt
+                break
             for i in range(n_ag):
-                cur, ce, cn = decide_agent(cue, act, grid, P, W, M, LP, LS, X, state, cmd, ext,
-                                           obs, act_rec, e, k, i, t, counting, cur)
-                c = cmd[e, i]
-                ax, ay, az = clip_action(c[0], c[1], c[2], LP.v_max)
-                c[0] = ax
-                c[1] = ay
-                c[2] = az
-                LS.en[e, i] = (ax * ax + ay * ay + az * az) * dt
-                LS.cw[e, i, 0] = ce
-                LS.cw[e, i, 1] = cn
-    else:   # JUDGE: the backend moved every agent of step k
-        if k < n_steps and k < k_lim and not stop:
-            t = t0[e] + k * dt
+                en, code = advance_agent(grid, LP.model, vp, state[e, i], cmd[e, i],
+                                         LS.cw[e, i, 0], LS.cw[e, i, 1], LP.v_max, dt,
+                                         LP.land_thr, LP.clearance)
+                energy, viol, cur = account_agent(after_agent, grid, P, W, LS, state, e, k, i,
+                                                  en, code, counting, energy, viol, cur)
+        else:   # JUDGE: the backend moved every agent of step k
+            if k >= k_lim:
+                break
             for i in range(n_ag):
-                energy, viol = account_agent(after_agent, grid, P, W, LP, LS, state, e, k, i,
-                                             LS.en[e, i], LS.code[e, i], counting, energy,
-                                             viol)
-            k, stop, counting, coll, dmin = end_step(post_step, grid, P, W, LP, LS, state, e,
-                                                     k, t, counting, coll, dmin)
+                energy, viol, cur = account_agent(after_agent, grid, P, W, LS, state, e, k, i,
+                                                  LS.en[e, i], LS.code[e, i], counting,
+                                                  energy, viol, cur)
+            judge = False
+            k_lim = k + 1   # then the next step's observation, and no further
+        k, stop, counting, coll, dmin = end_step(post_step, grid, P, W, LP, LS, state, e, k,
+                                                 t, counting, coll, dmin)
     LS.k[e] = k
     LS.energy[e] = energy
     LS.viol[e] = viol
@@ -937,73 +673,63 @@ def run_episode(begin, pre_step, cue, after_agent, post_step, finish, plan, act,
     LS.cur[e] = cur
     if stop or (k >= n_steps and LP.phase != DECIDE):
         finish_episode(finish, grid, P, W, LP, LS, state, res, e, k)
+        # the observation of the final state (the step API's last observation)
+        sense_step(cue, sense, grid, P, W, LP, LS, state, O, t0, e, k, 1)
+
+
+@hot_kernel(inline="always")
+def run_block(begin, pre_step, cue, sense, after_agent, post_step, finish, plan, act,
+              grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
+              e_lo, e_hi):
+    """:func:`run_episode` for the episodes ``[e_lo, e_hi)``, with the step API's side
+    ``io`` (:class:`EnvIO`; no rows: nothing in or out): each episode's sub-env action in
+    before its steps, its next observation and end flags out after them."""
+    for e in range(e_lo, e_hi):
+        was = env_step_in(LP, LS, ext, io, e)
+        run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, plan, act,
+                    grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, e,
+                    k_stop)
+        env_step_out(LP, LS, res, C.O, io, e, was)
 
 
 @hot_kernel(inline="always")
 def noop_pre_step(grid, P, W, state, e, k, t):
-    """A ``pre_step`` hook that does nothing (for a task without physics before the moves).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export.
-    P, W
-        The task's params and per-episode work arrays.
-    state : (E, N, STATE_DIM) float64
-        True vehicle states.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time, s since the grid's ``time0``.
-    """
+    """A ``pre_step`` hook that does nothing (a task without physics before the moves)."""
     return
 
 
 @hot_kernel(inline="always")
 def noop_after_agent(grid, P, W, state, e, k, i, code):
-    """An ``after_agent`` hook that does nothing.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export.
-    P, W
-        The task's params and per-episode work arrays.
-    state : (E, N, STATE_DIM) float64
-        True vehicle states.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-    code : int
-        Status of the agent's move (:mod:`oneocean.engine.status`).
-    """
+    """An ``after_agent`` hook that does nothing."""
     return
 
 
 @hot_kernel(inline="always")
-def noop_plan(grid, P, W, M, state, e, k, t):
-    """A policy ``plan`` hook that does nothing (a policy without a team-level decision).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export.
-    P, W
-        The task's params and per-episode work arrays.
-    M : NamedTuple
-        The method's params.
-    state : (E, N, STATE_DIM) float64
-        The vehicle states the method knows.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time, s since the grid's ``time0``.
-    """
+def noop_sense(grid, P, W, X, state, O, e, k):
+    """A ``sense`` hook that does nothing (a task without observation fields of its own)."""
     return
+
+
+@hot_kernel(inline="always")
+def noop_plan(C, e, k):
+    """A policy ``plan`` hook that does nothing (a policy without a team-level decision)."""
+    return
+
+
+@hot_kernel(inline="always")
+def policy_block(plan, act, C, ks, out, e_lo, e_hi):
+    """A fused policy outside the loop (its Python driver,
+    :class:`oneocean.methods.heuristic.FusedPolicy`): for every episode of ``[e_lo, e_hi)``
+    with a step ``ks[e] >= 0``, ``plan(C, e, k)`` then every agent's ``act`` into
+    ``out[e, i]`` (ax, ay, az, psi), exactly as the loop's decide phase calls them."""
+    for e in range(e_lo, e_hi):
+        k = ks[e]
+        if k < 0:
+            continue
+        plan(C, e, k)
+        for i in range(out.shape[1]):
+            ax, ay, az, psi = act(C, e, k, i)
+            out[e, i, 0] = ax
+            out[e, i, 1] = ay
+            out[e, i, 2] = az
+            out[e, i, 3] = psi

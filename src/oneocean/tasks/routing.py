@@ -1161,37 +1161,38 @@ def lattice_spacing(length: float) -> float:
     return float(min(max(float(length) / 40.0, 50.0), 200.0))
 
 
-def plan_mission(grid, points, depth: float, t0: float, duration: float, v_max: float,
-                 power: PowerModel | None, *, fixed: bool = False, fc=None, e: int = 0,
-                 clearance: float = 5.0, land_threshold: float = 0.5) -> Route:
-    """A vehicle's plan through the field of ``grid`` at one depth.
+class MissionField(NamedTuple):
+    """The current field a plan is made on: a planning lattice at one depth over an episode's
+    window (:func:`mission_field`), the truth or a forecast of it."""
+    cur: np.ndarray     # (nt, ny, nx, 2) float64 current at every node and time (e, n), m s-1
+    times: np.ndarray   # (nt,) float64 its times, s since the grid's time0
+    free: np.ndarray    # (ny, nx) float64 passability (> 0: water at the depth, m)
+    x0: float           # lattice origin east, m
+    z0: float           # lattice origin north, m
+    h: float            # node spacing, m
 
-    The field is the truth sampled on a lattice around the points (:func:`field_from_grid`
-    over ``[t0, t0 + duration]``), or, given ``fc``, episode ``e``'s forecast of it
-    (:func:`forecast_field`): what a vehicle carrying that forecast plans on. Speeds:
-    :func:`mission_speeds`; cross-current headroom ``HOLD_MS``; pieces of at most
-    ``PIECE_M``.
+
+def mission_field(grid, points, depth: float, t0: float, duration: float, *,
+                  fixed: bool = False, fc=None, e: int = 0, clearance: float = 5.0,
+                  land_threshold: float = 0.5) -> MissionField:
+    """The field a mission through ``points`` is planned on: the truth sampled on a lattice
+    around the points (:func:`lattice`, :func:`field_from_grid` over ``[t0, t0 + duration]``),
+    or, given ``fc``, episode ``e``'s forecast of it (:func:`forecast_field`). A task's
+    briefing carries it (the forecast for every non-oracle method, the truth for the oracle).
 
     Parameters
     ----------
     grid : Grid
         The grid export.
     points : (n, 2) array_like
-        (x, z) m: the start and goal of a transit (``fixed=False``), or the route's vertices
-        (``fixed=True``).
+        (x, z) m: the start and goal of a transit (``fixed=False``), or a route's vertices
+        (``fixed=True``: a narrower margin, the route is flown as given).
     depth : float
         Depth of the plan, m (positive down).
-    t0 : float
-        Departure time, s since the grid's ``time0``.
-    duration : float
-        Length of the field window, s.
-    v_max : float
-        The vehicle's speed limit, m s-1.
-    power : PowerModel or None
-        Its power model (None: cost = time).
+    t0, duration : float
+        Departure time (s since the grid's ``time0``) and length of the window, s.
     fixed : bool
-        False: the least-energy route and speed schedule (the fastest route at ``v_max``
-        without a power model); True: the speed schedule along the fixed route.
+        Whether the route is fixed (see ``points``).
     fc : (E, 5) array_like, optional
         Forecast-error models (``LoopState.fc``); None: the truth.
     e : int
@@ -1203,8 +1204,7 @@ def plan_mission(grid, points, depth: float, t0: float, duration: float, v_max: 
 
     Returns
     -------
-    Route
-        The plan; ``cost`` in J with a power model, else s.
+    MissionField
     """
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     length = float(np.hypot(*np.diff(pts, axis=0).T).sum())
@@ -1214,14 +1214,128 @@ def plan_mission(grid, points, depth: float, t0: float, duration: float, v_max: 
     cur, free = field_from_grid(grid, lat, depth, times, clearance, land_threshold)
     if fc is not None:
         cur = forecast_field(cur, fc, e)
+    return MissionField(cur, times, free, lat.x0, lat.z0, lat.h)
+
+
+def plan_on_field(f: MissionField, points, t0: float, v_max: float,
+                  power: PowerModel | None, *, fixed: bool = False) -> Route:
+    """A vehicle's plan through the field ``f`` (:func:`mission_field`).
+
+    Speeds: :func:`mission_speeds`; cross-current headroom ``HOLD_MS``; pieces of at most
+    ``PIECE_M``.
+
+    Parameters
+    ----------
+    f : MissionField
+        The field the vehicle knows.
+    points : (n, 2) array_like
+        (x, z) m, as for :func:`mission_field`.
+    t0 : float
+        Departure time, s since the grid's ``time0``.
+    v_max : float
+        The vehicle's speed limit, m s-1.
+    power : PowerModel or None
+        Its power model (None: cost = time).
+    fixed : bool
+        False: the least-energy route and speed schedule (the fastest route at ``v_max``
+        without a power model); True: the speed schedule along the fixed route.
+
+    Returns
+    -------
+    Route
+        The plan; ``cost`` in J with a power model, else s.
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     speeds = mission_speeds(v_max)
     pw = None if power is None else (power.hotel_w, power.k)
-    piece = PIECE_M
-    args = (cur, times, free, lat.x0, lat.z0, lat.h)
+    args = (f.cur, f.times, f.free, f.x0, f.z0, f.h)
     if fixed:
-        return schedule(*args, pts, speeds, t0, power=pw, hold=HOLD_MS, piece=piece)
+        return schedule(*args, pts, speeds, t0, power=pw, hold=HOLD_MS, piece=PIECE_M)
     return plan_route(*args, pts[0], pts[-1], speeds, t0, power=pw, hold=HOLD_MS,
-                      piece=piece)
+                      piece=PIECE_M)
+
+
+def plan_mission(grid, points, depth: float, t0: float, duration: float, v_max: float,
+                 power: PowerModel | None, *, fixed: bool = False, fc=None, e: int = 0,
+                 clearance: float = 5.0, land_threshold: float = 0.5) -> Route:
+    """A vehicle's plan through the field of ``grid`` at one depth: :func:`plan_on_field` on
+    :func:`mission_field` (the arguments are theirs).
+
+    Returns
+    -------
+    Route
+        The plan; ``cost`` in J with a power model, else s.
+    """
+    f = mission_field(grid, points, depth, t0, duration, fixed=fixed, fc=fc, e=e,
+                      clearance=clearance, land_threshold=land_threshold)
+    return plan_on_field(f, points, t0, v_max, power, fixed=fixed)
+
+
+#: A briefing's packed mission fields (:func:`pack_fields`): E-leading arrays, each
+#: episode's field in the leading corner of the padded axes. name -> (shape, unit, meaning).
+FIELD_DOCS = {
+    "fc_cur": ("(E, nt, ny, nx, 2)", "m s-1", "the forecast current (east, north) at the "
+               "mission's depth on a planning lattice over the episode's window, at the tier's "
+               "forecast lead (the truth for the oracle): node (j, i) is world "
+               "(fc_x0 + i fc_h, fc_z0 + j fc_h), time n is fc_times[n]"),
+    "fc_times": ("(E, nt)", "s", "the field's times, since the product's time origin"),
+    "fc_free": ("(E, ny, nx)", "m", "passability at the mission's depth: water below it minus "
+                "the clearance (<= 0: land or too shallow), from the chart"),
+    "fc_x0": ("(E,)", "m", "the lattice's origin east"),
+    "fc_z0": ("(E,)", "m", "the lattice's origin north"),
+    "fc_h": ("(E,)", "m", "the lattice's spacing"),
+    "fc_shape": ("(E, 3)", "", "(nt, ny, nx) of each episode's field in the padded arrays "
+                 "(zeros: none, the mission lies off the product)"),
+}
+FIELD_KEYS = tuple(FIELD_DOCS)
+#: Vertex capacity of a stored plan (:func:`write_plan`).
+MAX_VERTICES = 256
+
+
+def pack_fields(fields) -> dict:
+    """Every episode's :class:`MissionField` in padded E-leading arrays (a briefing's part).
+
+    Parameters
+    ----------
+    fields : sequence of MissionField or None
+        One per episode; None: no field (the mission's points lie off the grid).
+
+    Returns
+    -------
+    dict
+        :data:`FIELD_KEYS`: ``fc_cur`` (E, nt, ny, nx, 2) and ``fc_times`` (E, nt) float64,
+        ``fc_free`` (E, ny, nx) float64, ``fc_x0`` / ``fc_z0`` / ``fc_h`` (E,) float64 (m), and
+        ``fc_shape`` (E, 3) int64 ``(nt, ny, nx)`` of each episode's field (zeros: none).
+    """
+    n = len(fields)
+    dims = np.array([f.cur.shape[:3] if f is not None else (0, 0, 0) for f in fields],
+                    dtype=np.int64).reshape(n, 3)
+    top = dims.max(axis=0) if n else np.zeros(3, np.int64)
+    out = {"fc_cur": np.zeros((n, max(top[0], 1), max(top[1], 1), max(top[2], 1), 2)),
+           "fc_times": np.zeros((n, max(top[0], 1))),
+           "fc_free": np.zeros((n, max(top[1], 1), max(top[2], 1))),
+           "fc_x0": np.zeros(n), "fc_z0": np.zeros(n), "fc_h": np.zeros(n), "fc_shape": dims}
+    for e, f in enumerate(fields):
+        if f is None:
+            continue
+        nt, ny, nx = dims[e]
+        out["fc_cur"][e, :nt, :ny, :nx] = f.cur
+        out["fc_times"][e, :nt] = f.times
+        out["fc_free"][e, :ny, :nx] = f.free
+        out["fc_x0"][e], out["fc_z0"][e], out["fc_h"][e] = f.x0, f.z0, f.h
+    return out
+
+
+def unpack_field(B, e: int) -> MissionField | None:
+    """Episode ``e``'s :class:`MissionField` from a briefing that carries packed fields
+    (:func:`pack_fields`); None where it has none."""
+    nt, ny, nx = (int(v) for v in B.fc_shape[e])
+    if nt == 0:
+        return None
+    return MissionField(np.ascontiguousarray(B.fc_cur[e, :nt, :ny, :nx]),
+                        np.ascontiguousarray(B.fc_times[e, :nt]),
+                        np.ascontiguousarray(B.fc_free[e, :ny, :nx]),
+                        float(B.fc_x0[e]), float(B.fc_z0[e]), float(B.fc_h[e]))
 
 
 # ------------------------------------------------------------------------------ batched costs

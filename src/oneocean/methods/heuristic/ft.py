@@ -1,22 +1,23 @@
 """FT heuristic and oracle: a paced virtual centre, every agent tracking its slot around it.
 
-A virtual centre advances along the route (start centroid to goal) at
-``pace * V_NOM_FRAC * budget``, where ``pace = clip(1 - (e_max - PACE_E0_M) / PACE_E1_M, 0, 1)``
-slows it when the worst agent lags (``e_max`` = largest distance of an agent to its slot
-around the virtual centre at the start of the step); for a vehicle that cannot hover (torpedo
-guidance) the pace never drops below ``PACE_MIN_TORPEDO``. Each agent tracks its slot (around the
-virtual centre at the start of the step) with feed-forward of the virtual centre's velocity
-over the step plus P-control ``KP`` (capped at ``P_CAP_MS``) through
-:func:`~oneocean.tasks.common.steer`.
+A policy of the public view only (:class:`oneocean.tasks.loop.Ctx`): the briefing
+(:class:`oneocean.tasks.ft.FTBriefing`: the route, the slots) and the team's observations
+(each agent's navigation estimate and current estimate).
+
+A virtual centre (the method's memory, :class:`FTMemory`) advances along the route (start
+centroid to goal) at ``pace * V_NOM_FRAC * budget``, where
+``pace = clip(1 - (e_max - PACE_E0_M) / PACE_E1_M, 0, 1)`` slows it when the worst agent lags
+(``e_max`` = largest distance of an agent to its slot around the virtual centre at the start
+of the step); for a vehicle that cannot hover (torpedo guidance) the pace never drops below
+``PACE_MIN_TORPEDO``. Each agent tracks its slot (around the virtual centre at the start of
+the step) with feed-forward of the virtual centre's velocity over the step plus P-control
+``KP`` (capped at ``P_CAP_MS``) through :func:`~oneocean.tasks.common.steer`.
 
 Both: ``budget = v_max``, the same logic and gains; they differ in information only
-(:mod:`oneocean.sensing`): the heuristic's state is its navigation estimate (USBL fixes in
-turn fused with dead reckoning) and its current the filtered estimate; the oracle's are the
-truth. Given the truth the heuristic is the oracle bit for bit (tests/test_information_only.py).
-
-The virtual centre is the plan token: ``plan`` writes its position at the start of the step
-(``W.vc``, the observation's goal cue is the agent's slot around it), its velocity over the
-step (``W.vff``) and its distance along the route (``W.sigma``).
+(:mod:`oneocean.sensing`): the heuristic's positions are its navigation estimates (USBL fixes
+in turn fused with dead reckoning) and its current the filtered estimate; the oracle's are
+the truth. Given the truth the heuristic is the oracle bit for bit
+(tests/test_information_only.py).
 """
 
 from __future__ import annotations
@@ -24,8 +25,10 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numpy as np
+
 from ...engine._jit import hot_kernel
-from ...tasks.common import steer
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, steer
 from ...tasks.ft import CUE_LEAD_S
 from . import SENSING  # noqa: F401
 
@@ -78,7 +81,7 @@ class FTPolicy(NamedTuple):
     pace_min: float  # least pace (0: may stop; > 0 for vehicles that cannot hover)
 
 
-def params(method: str, tier: dict, vehicle) -> FTPolicy:
+def params(method: str, B) -> FTPolicy:
     """The policy's params: the same for every method (they differ in information only).
 
     Parameters
@@ -86,122 +89,92 @@ def params(method: str, tier: dict, vehicle) -> FTPolicy:
     method : str
         The fused method, ``"heuristic"`` or ``"oracle"``
         (:data:`oneocean.methods.heuristic.SENSING`).
-    tier : dict
-        The cell's tier parameters plus ``dt_s`` and ``v_max``
-        (:attr:`oneocean.tasks.Cell.params`).
-    vehicle : Vehicle
-        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
-        Reads ``dt_s`` and the vehicle's ``guidance`` (``"torpedo"``: cannot hover).
+    B : FTBriefing
+        The briefing (the vehicle's speed limit and guidance, the step).
 
     Returns
     -------
     FTPolicy
-        Budget ``v_max``, the module's gains and pacing, the tier's step.
+        Budget ``v_max``, the module's gains and pacing, the step.
     """
-    v_max = float(vehicle.v_max)
-    budget = v_max
-    torpedo = vehicle.spec.get("guidance", "holonomic") == "torpedo"
+    budget = float(B.v_max)
     return FTPolicy(budget, V_NOM_FRAC * budget, KP, P_CAP_MS, PACE_E0_M, PACE_E1_M,
-                    float(tier["dt_s"]), PACE_MIN_TORPEDO if torpedo else 0.0)
+                    float(B.dt), PACE_MIN_TORPEDO if B.guidance == 1 else 0.0)
+
+
+class FTMemory(NamedTuple):
+    """The method's memory ``H``: its virtual centre."""
+    sigma: np.ndarray   # (E,) distance along the route, m
+    vc: np.ndarray      # (E, 3) position at the start of the step, m
+    vff: np.ndarray     # (E, 3) velocity over the step, m s-1
+
+
+def memory(B, M: FTPolicy) -> FTMemory:
+    """A fresh memory: the virtual centre at the route's start, at rest.
+
+    Returns
+    -------
+    FTMemory
+    """
+    n_ep = B.start.shape[0]
+    return FTMemory(np.zeros(n_ep), B.start.copy(), np.zeros((n_ep, 3)))
 
 
 @hot_kernel(inline="always")
-def plan(grid, P, W, M, state, e, k, t):
+def plan(C, e, k):
     """Pace the virtual centre by the worst slot lag around it; advance it over the step.
 
-    Writes the plan tokens of episode ``e``: the virtual centre at the start of the step
-    ``W.vc[e]``, its velocity over the step ``W.vff[e]`` and its distance along the route
-    ``W.sigma[e]`` (never past the goal).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FTParams
-        The task's params (:func:`oneocean.tasks.ft.make`).
-    W : FTWork
-        The task's per-episode work arrays (:func:`oneocean.tasks.ft.make`).
-    M : FTPolicy
-        This policy's params (:func:`params`).
-    state : (E, N, STATE_DIM) float64
-        Vehicle states as the method knows them (its navigation estimate; the truth for the
-        oracle); layout in :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    Writes the memory of episode ``e``: the virtual centre at the start of the step
+    ``H.vc[e]``, its velocity over the step ``H.vff[e]`` and its distance along the route
+    ``H.sigma[e]`` (never past the goal). Policy hook (:mod:`oneocean.tasks.loop`).
     """
-    st_e = state[e]
-    n = st_e.shape[0]
-    offsets = W.offsets
-    sx = W.start[e, 0]
-    sy = W.start[e, 1]
-    sz = W.start[e, 2]
-    lx = W.goal[e, 0] - sx
-    ly = W.goal[e, 1] - sy
-    lz = W.goal[e, 2] - sz
+    B = C.B
+    M = C.M
+    H = C.H
+    O = C.O[e]
+    n = O.shape[0]
+    offsets = B.offsets
+    sx = B.start[e, 0]
+    sy = B.start[e, 1]
+    sz = B.start[e, 2]
+    lx = B.goal[e, 0] - sx
+    ly = B.goal[e, 1] - sy
+    lz = B.goal[e, 2] - sz
     length = math.sqrt(lx * lx + ly * ly + lz * lz)
     tx = lx / length
     ty = ly / length
     tz = lz / length
-    sigma = W.sigma[e]
+    sigma = H.sigma[e]
     dt = M.dt
     vcx = sx + sigma * tx
     vcy = sy + sigma * ty
     vcz = sz + sigma * tz
     lag = 0.0
     for i in range(n):
-        d = math.sqrt((st_e[i, 0] - vcx - offsets[e, i, 0]) ** 2
-                      + (st_e[i, 1] - vcy - offsets[e, i, 1]) ** 2
-                      + (st_e[i, 2] - vcz - offsets[e, i, 2]) ** 2)
+        d = math.sqrt((O[i, O_X] - vcx - offsets[e, i, 0]) ** 2
+                      + (O[i, O_DEPTH] - vcy - offsets[e, i, 1]) ** 2
+                      + (O[i, O_Z] - vcz - offsets[e, i, 2]) ** 2)
         if d > lag:
             lag = d
     pace = min(max(1.0 - (lag - M.e0) / M.e1, M.pace_min), 1.0)
     step = min(pace * M.v_nom * dt, length - sigma)
-    W.sigma[e] = sigma + step
-    W.vc[e, 0] = vcx
-    W.vc[e, 1] = vcy
-    W.vc[e, 2] = vcz
-    W.vff[e, 0] = step / dt * tx
-    W.vff[e, 1] = step / dt * ty
-    W.vff[e, 2] = step / dt * tz
+    H.sigma[e] = sigma + step
+    H.vc[e, 0] = vcx
+    H.vc[e, 1] = vcy
+    H.vc[e, 2] = vcz
+    H.vff[e, 0] = step / dt * tx
+    H.vff[e, 1] = step / dt * ty
+    H.vff[e, 2] = step / dt * tz
 
 
 @hot_kernel(inline="always")
-def act(grid, P, W, M, state, e, k, i, t, pe, pn):
+def act(C, e, k, i):
     """Track slot ``i`` around the virtual centre: feed-forward plus capped P-control.
 
-    The desired ground velocity ``W.vff[e] + kp (slot - position)`` (the P part capped at
-    ``M.p_cap``) is realised against the current estimate by
-    :func:`~oneocean.tasks.common.steer` within ``M.budget``.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FTParams
-        The task's params (:func:`oneocean.tasks.ft.make`).
-    W : FTWork
-        The task's per-episode work arrays (:func:`oneocean.tasks.ft.make`); reads the slot offsets
-        ``W.offsets`` and the plan tokens ``W.vc`` / ``W.vff``.
-    M : FTPolicy
-        This policy's params (:func:`params`).
-    state : (E, N, STATE_DIM) float64
-        Vehicle states as the method knows them (its navigation estimate; the truth for the
-        oracle); layout in :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-    t : float
-        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
-    pe, pn : float
-        The method's current estimate at the agent, east and north, m s-1 (the true current
-        for the oracle).
+    The desired ground velocity ``H.vff[e] + kp (slot - position)`` (the P part capped at
+    ``M.p_cap``) is realised against the observed current estimate by
+    :func:`~oneocean.tasks.common.steer` within ``M.budget``. Policy hook
+    (:mod:`oneocean.tasks.loop`).
 
     Returns
     -------
@@ -211,20 +184,21 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     psi : float
         Commanded heading, rad (NaN: free).
     """
-    s = state[e, i]
-    px = s[0]
-    py = s[1]
-    pz = s[2]
+    M = C.M
+    H = C.H
+    off = C.B.offsets
+    o = C.O[e, i]
     kp = M.kp
     p_cap = M.p_cap
-    qx = kp * (W.vc[e, 0] + W.offsets[e, i, 0] - px)
-    qy = kp * (W.vc[e, 1] + W.offsets[e, i, 1] - py)
-    qz = kp * (W.vc[e, 2] + W.offsets[e, i, 2] - pz)
+    qx = kp * (H.vc[e, 0] + off[e, i, 0] - o[O_X])
+    qy = kp * (H.vc[e, 1] + off[e, i, 1] - o[O_DEPTH])
+    qz = kp * (H.vc[e, 2] + off[e, i, 2] - o[O_Z])
     qn = math.sqrt(qx * qx + qy * qy + qz * qz)
     if qn > p_cap:
         f = p_cap / qn
         qx *= f
         qy *= f
         qz *= f
-    ax, ay, az = steer(W.vff[e, 0] + qx, W.vff[e, 1] + qy, W.vff[e, 2] + qz, M.budget, pe, pn)
+    ax, ay, az = steer(H.vff[e, 0] + qx, H.vff[e, 1] + qy, H.vff[e, 2] + qz, M.budget,
+                       o[O_CE], o[O_CN])
     return ax, ay, az, math.nan

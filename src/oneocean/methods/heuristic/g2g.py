@@ -1,31 +1,30 @@
-"""G2G heuristic and oracle: plan the transit through the field, then fly the plan.
+"""G2G heuristic and oracle: plan the transit through the briefing's field, then fly the plan.
+
+A policy of the public view only (:class:`oneocean.tasks.loop.Ctx`): the briefing
+(:class:`oneocean.tasks.g2g.G2GBriefing`) and each step's observation.
 
 Plan
-    Made in Python by :func:`prepare` before the episode's first step; the plan tokens are
-    the work arrays ``W.wps``, ``W.wspd``, ``W.wcount``, ``W.widx`` of
-    :mod:`oneocean.tasks.g2g`. The least-energy route and speed schedule from the start (as
-    the method knows it) to the goal through the current field over the episode
-    (:func:`oneocean.tasks.routing.plan_mission`: time-dependent Dijkstra over a lattice,
-    string pulling, then the programmed speed of every stretch of at most ``PIECE_M`` m among
-    the mission speeds ``SPEED_MIN .. v_max``, with the vehicle's power model
-    ``data/vehicles.yaml`` ``power:``; without a power model: the fastest route at
-    ``v_max``). The field is what the method knows of the currents: a method with the true
-    current (the oracle; an information ablation) plans on the truth, every other method on
-    its FORECAST of it (the true field through the episode's forecast-error model
-    ``LoopState.fc``, :mod:`oneocean.sensing`).
+    Made in Python by :func:`prepare` before the first step, into the method's memory
+    (:class:`G2GMemory`: the route's vertices and programmed speeds, the active segment). The
+    least-energy route and speed schedule from the launch fix to the goal through the
+    briefing's field (:func:`oneocean.tasks.routing.plan_on_field`: time-dependent Dijkstra
+    over the lattice, string pulling, then the programmed speed of every stretch of at most
+    ``PIECE_M`` m among the mission speeds ``SPEED_MIN .. v_max``, with the vehicle's power
+    model from the briefing; without one: the fastest route at ``v_max``). The field is the
+    forecast for the heuristic and the truth for the oracle: the briefing says which.
 Act
     ``act``, every step. Line-of-sight following of the planned polyline
-    (:func:`~oneocean.tasks.routing.follow_path`: a carrot ``LOOKAHEAD_M`` ahead), crabbing
-    with the current estimate (:func:`~oneocean.tasks.common.seek_max`: the cross-track
-    current is cancelled first) at the stretch's programmed speed, raised when the sensed
-    current needs it (:func:`~oneocean.tasks.routing.hold_speed`: cross-current headroom and
-    a minimum ground speed, up to ``v_max``). The carrot is the observation's goal cue.
+    (:func:`~oneocean.tasks.routing.follow_path`: a carrot ``LOOKAHEAD_M`` ahead of the
+    observed position), crabbing with the observed current estimate
+    (:func:`~oneocean.tasks.common.seek_max`: the cross-track current is cancelled first) at
+    the stretch's programmed speed, raised when the current needs it
+    (:func:`~oneocean.tasks.routing.hold_speed`: cross-current headroom and a minimum ground
+    speed, up to ``v_max``).
 
-Heuristic and oracle differ in information only (forecast vs true field for the plan, the
-sensor models vs the truth for steering and navigation): the same planner, steering and
-gains. :func:`straight_plan` is the plan of a vehicle that does not plan (the straight line
-at its cruise speed, :func:`~oneocean.tasks.routing.cruise_speed`): the baseline the
-calibration compares against.
+Heuristic and oracle differ in information only (the briefing and observation they are given):
+the same planner, steering and gains. :func:`straight_plan` is the plan of a vehicle that
+does not plan (the straight line at its cruise speed,
+:func:`~oneocean.tasks.routing.cruise_speed`): the baseline the calibration compares against.
 """
 
 from __future__ import annotations
@@ -36,8 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...errors import ConfigError
-from ...tasks.common import ARRIVE_M, seek_max
+from ...tasks.common import ARRIVE_M, O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python)
 from ...tasks import routing
 from ...tasks.routing import follow_path, hold_speed
@@ -79,7 +77,7 @@ class G2GPolicy(NamedTuple):
     pk: float
 
 
-def params(method: str, tier: dict, vehicle) -> G2GPolicy:
+def params(method: str, B) -> G2GPolicy:
     """The policy's params: the same for every method (they differ in information only).
 
     Parameters
@@ -87,40 +85,14 @@ def params(method: str, tier: dict, vehicle) -> G2GPolicy:
     method : str
         The fused method, ``"heuristic"`` or ``"oracle"``
         (:data:`oneocean.methods.heuristic.SENSING`).
-    tier : dict
-        The cell's tier parameters plus ``dt_s`` and ``v_max``
-        (:attr:`oneocean.tasks.Cell.params`).
-    vehicle : Vehicle
-        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
-        Its power model (:func:`vehicle_power`), if any.
+    B : G2GBriefing
+        The briefing (its vehicle's speed limit and power model).
 
     Returns
     -------
     G2GPolicy
-        ``v_max``, the module's gains, the power model's ``hotel_w`` and ``k`` (0 without one).
     """
-    pw = vehicle_power(vehicle)
-    return G2GPolicy(float(vehicle.v_max), KP, LOOKAHEAD_M, WP_TOL_M,
-                     0.0 if pw is None else pw.hotel_w, 0.0 if pw is None else pw.k)
-
-
-def vehicle_power(vehicle):
-    """The vehicle's power model (``power:`` section of ``data/vehicles.yaml``).
-
-    Parameters
-    ----------
-    vehicle : Vehicle
-        The vehicle (:class:`oneocean.engine.dynamics.Vehicle`); its ``name`` is looked up.
-
-    Returns
-    -------
-    PowerModel or None
-        :class:`~oneocean.tasks.routing.PowerModel`, None if the vehicle has none.
-    """
-    try:
-        return routing.power_model(vehicle.name)
-    except ConfigError:
-        return None
+    return G2GPolicy(float(B.v_max), KP, LOOKAHEAD_M, WP_TOL_M, float(B.hotel_w), float(B.pk))
 
 
 def _power(M: G2GPolicy):
@@ -128,74 +100,67 @@ def _power(M: G2GPolicy):
                                                                             M.pk)
 
 
-def plan_episode(grid, M: G2GPolicy, start, goal, depth: float, t0: float, duration: float,
-                 fc=None, e: int = 0) -> routing.Route:
-    """The method's route and speed schedule for one episode.
+class G2GMemory(NamedTuple):
+    """The method's memory ``H``: its plan (:func:`oneocean.tasks.routing.follow_path`)."""
+    wps: np.ndarray         # (E, MAX_VERTICES, 2) route vertices (x, z), m
+    wspd: np.ndarray        # (E, MAX_VERTICES) programmed speed of each segment, m s-1
+    wcount: np.ndarray      # (E,) int64 vertices
+    widx: np.ndarray        # (E,) int64 active segment
 
-    :func:`oneocean.tasks.routing.plan_mission` from ``start`` to ``goal``; :func:`straight_plan`
-    where no plan holds: no speed, a point outside the grid, or no passable route through the
-    field the method knows.
 
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    M : G2GPolicy
-        The policy's params (:func:`params`).
-    start, goal : tuple of float
-        Start and goal (x, z), m.
-    depth : float
-        The transit's depth, m (positive down).
-    t0 : float
-        Episode start time, s since the grid's ``time0_unix_s``.
-    duration : float
-        The episode's time limit, s (the planner's field window).
-    fc : (E, 5) float64, optional
-        The episodes' forecast errors (``LoopState.fc``); None: plan on the true currents.
-    e : int, optional
-        Episode index into ``fc`` (default 0).
+def memory(B, M: G2GPolicy) -> G2GMemory:
+    """A fresh memory: the straight line from the launch fix to the goal at the cruise speed
+    (the plan until :func:`prepare` makes one).
+
+    Returns
+    -------
+    G2GMemory
+    """
+    n_ep = B.goal.shape[0]
+    wps = np.zeros((n_ep, routing.MAX_VERTICES, 2))
+    wps[:, 0] = B.start[:, [0, 2]]
+    wps[:, 1] = B.goal[:, [0, 2]]
+    wspd = np.zeros((n_ep, routing.MAX_VERTICES))
+    wspd[:, 0] = routing.cruise_speed(M.v_max, _power(M))
+    return G2GMemory(wps, wspd, np.full(n_ep, 2, np.int64), np.zeros(n_ep, np.int64))
+
+
+def plan_episode(B, M: G2GPolicy, e: int) -> routing.Route:
+    """The method's route and speed schedule for episode ``e``.
+
+    :func:`oneocean.tasks.routing.plan_on_field` from the launch fix to the goal on the
+    briefing's field; :func:`straight_plan` where no plan holds: no speed, no field (the
+    mission lies off the product), or no passable route through it.
 
     Returns
     -------
     Route
         The plan (:class:`oneocean.tasks.routing.Route`).
     """
-    pts = np.array([start, goal], dtype=np.float64)
-    if not (M.v_max > 0.0 and routing.within_grid(grid, pts)):
-        return straight_plan(grid, M, start, goal, depth, t0, duration, fc, e)
-    r = routing.plan_mission(grid, pts, depth, t0, duration, M.v_max, _power(M), fc=fc, e=e)
+    start = (float(B.start[e, 0]), float(B.start[e, 2]))
+    goal = (float(B.goal[e, 0]), float(B.goal[e, 2]))
+    f = routing.unpack_field(B, e)
+    if not M.v_max > 0.0 or f is None:
+        return straight_plan(M, start, goal, float(B.t0[e]))
+    r = routing.plan_on_field(f, np.array([start, goal]), float(B.t0[e]), M.v_max, _power(M))
     if not r.ok:   # no passable route through the field the method knows: the straight line
-        return straight_plan(grid, M, start, goal, depth, t0, duration, fc, e)
+        return straight_plan(M, start, goal, float(B.t0[e]))
     return r
 
 
-def straight_plan(grid, M: G2GPolicy, start, goal, depth: float, t0: float, duration: float,
-                  fc=None, e: int = 0) -> routing.Route:
-    """The plan of a vehicle that does not plan: the straight line at its cruise speed.
-
-    The cruise speed is :func:`oneocean.tasks.routing.cruise_speed` (the mission speed nearest
-    the vehicle's maximum-range speed, else ``v_max``).
+def straight_plan(M: G2GPolicy, start, goal, t0: float) -> routing.Route:
+    """The plan of a vehicle that does not plan: the straight line at its cruise speed
+    (:func:`oneocean.tasks.routing.cruise_speed`: the mission speed nearest the vehicle's
+    maximum-range speed, else ``v_max``).
 
     Parameters
     ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
     M : G2GPolicy
         The policy's params (:func:`params`).
     start, goal : tuple of float
         Start and goal (x, z), m.
-    depth : float
-        The transit's depth, m (positive down).
     t0 : float
-        Episode start time, s since the grid's ``time0_unix_s``.
-    duration : float
-        The episode's time limit, s (the planner's field window).
-    fc : (E, 5) float64, optional
-        The episodes' forecast errors (``LoopState.fc``); None: plan on the true currents.
-    e : int, optional
-        Episode index into ``fc`` (default 0).
-        ``depth``, ``duration``, ``fc`` and ``e`` are unused (the signature of
-        :func:`plan_episode`).
+        Departure time, s since the product's time origin.
 
     Returns
     -------
@@ -207,87 +172,23 @@ def straight_plan(grid, M: G2GPolicy, start, goal, depth: float, t0: float, dura
                          np.array([float(t0), math.nan]), math.nan, True)
 
 
-#: The task's observation cue does not read this policy's plan tokens (its route and speed
-#: schedule), so a rollout with external actions (the step API) skips :func:`prepare`.
-PREPARE_EXTERNAL = False
-
-
-def prepare(grid, P, W, M: G2GPolicy, t0, LP=None, LS=None, X=None) -> None:
-    """The Python planner: plan every episode not yet planned (``W.planned``).
-
-    From the start the method knows (``X``: the known state, else the task's start
-    ``W.start``) to the goal at its depth, on the field it knows (``LP.sens.true_current``:
-    the truth, else the forecast ``LS.fc``); written as the plan tokens ``W.wps``, ``W.wspd``,
-    ``W.wcount``, ``W.widx`` (:func:`oneocean.tasks.routing.write_plan`).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : G2GParams
-        The task's params (:func:`oneocean.tasks.g2g.make`).
-    W : G2GWork
-        The task's per-episode work arrays; the plan tokens are written in place.
-    M : G2GPolicy
-        This policy's params (:func:`params`).
-    t0 : (E,) float64
-        Episode start times, s since the grid's ``time0_unix_s``.
-    LP : LoopParams, optional
-        The loop's params (:class:`oneocean.tasks.loop.LoopParams`); ``LP.sens`` says what the
-        method knows. None: the truth.
-    LS : LoopState, optional
-        The loop's state (:class:`oneocean.tasks.loop.LoopState`); ``LS.fc`` (E, 5) is each
-        episode's forecast error. None: the truth.
-    X : (E, N, STATE_DIM) float64, optional
-        The agents' state as the method knows it before the first step
-        (:attr:`oneocean.tasks.episodes.Episodes.known_state`).
-    """
-    todo = np.flatnonzero(W.planned == 0)
-    truth = LP is None or LS is None or LP.sens.true_current != 0
-    for e in todo:
-        s = X[e, 0] if X is not None else W.start[e]
-        start = (float(s[0]), float(s[2]))
-        goal = (float(W.goal[e, 0]), float(W.goal[e, 2]))
-        r = plan_episode(grid, M, start, goal, float(W.goal[e, 1]), float(t0[e]), P.t_lim,
-                         None if truth else LS.fc, int(e))
-        routing.write_plan(r, W.wps, W.wspd, W.wcount, W.widx, int(e))
-        W.planned[e] = 1
+def prepare(B, M: G2GPolicy, H: G2GMemory) -> None:
+    """The Python planner: plan every episode (:func:`plan_episode`) into the memory ``H``
+    (:func:`oneocean.tasks.routing.write_plan`). Run once, before the first step."""
+    for e in range(B.goal.shape[0]):
+        routing.write_plan(plan_episode(B, M, e), H.wps, H.wspd, H.wcount, H.widx, e)
 
 
 @hot_kernel(inline="always")
-def act(grid, P, W, M, state, e, k, i, t, pe, pn):
-    """The vehicle's action: line-of-sight following of the planned route at its programmed speed.
+def act(C, e, k, i):
+    """The vehicle's action: line-of-sight following of the planned route at its programmed
+    speed.
 
     A carrot ``M.look`` ahead along the planned polyline
-    (:func:`~oneocean.tasks.routing.follow_path`), at the goal's depth, sought with
-    :func:`~oneocean.tasks.common.seek_max` at the programmed speed raised where the sensed
-    current needs it (:func:`~oneocean.tasks.routing.hold_speed`).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : G2GParams
-        The task's params (:func:`oneocean.tasks.g2g.make`).
-    W : G2GWork
-        The task's per-episode work arrays (:func:`oneocean.tasks.g2g.make`); reads the goal and
-        the plan tokens ``wps`` / ``wspd`` / ``wcount``, advances ``widx``.
-    M : G2GPolicy
-        This policy's params (:func:`params`).
-    state : (E, N, STATE_DIM) float64
-        Vehicle states as the method knows them (its navigation estimate; the truth for the
-        oracle); layout in :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-    t : float
-        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
-    pe, pn : float
-        The method's current estimate at the agent, east and north, m s-1 (the true current
-        for the oracle).
+    (:func:`~oneocean.tasks.routing.follow_path`) from the observed position, at the goal's
+    depth, sought with :func:`~oneocean.tasks.common.seek_max` at the programmed speed raised
+    where the observed current needs it (:func:`~oneocean.tasks.routing.hold_speed`).
+    Policy hook (:mod:`oneocean.tasks.loop`).
 
     Returns
     -------
@@ -297,9 +198,15 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     psi : float
         Commanded heading, rad (NaN: free).
     """
-    s = state[e, i]
-    cx, cz, u = follow_path(W.wps, W.wspd, W.wcount, W.widx, e, s[0], s[2], M.look, M.tol, 1)
-    gy = W.goal[e, 1]
-    u = hold_speed(u, cx - s[0], cz - s[2], pe, pn, M.v_max)
-    ax, ay, az = seek_max(s[0], s[1], s[2], cx, gy, cz, u, M.kp, pe, pn)
+    M = C.M
+    H = C.H
+    o = C.O[e, i]
+    px = o[O_X]
+    pz = o[O_Z]
+    pe = o[O_CE]
+    pn = o[O_CN]
+    cx, cz, u = follow_path(H.wps, H.wspd, H.wcount, H.widx, e, px, pz, M.look, M.tol, 1)
+    gy = C.B.goal[e, 1]
+    u = hold_speed(u, cx - px, cz - pz, pe, pn, M.v_max)
+    ax, ay, az = seek_max(px, o[O_DEPTH], pz, cx, gy, cz, u, M.kp, pe, pn)
     return ax, ay, az, math.nan
