@@ -40,3 +40,12 @@ def _forget_registered_methods():
     yield
     for name in set(registry.method_names()) - before:
         registry.unregister_method(name)
+
+
+@pytest.fixture(scope="session")
+def default_grid():
+    """The embedded default region's grid export (what ``run_cell(None, ...)``, the step API
+    and ``evaluate`` use without a grid)."""
+    from oneocean.defaults import resolve_grid
+
+    return resolve_grid(None)

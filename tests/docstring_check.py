@@ -5,7 +5,10 @@ top-level function and class whose name does not start with ``_``, and every met
 class whose name does not start with ``_`` (``__init__`` included: its parameters belong to
 the class). Each must have a docstring that numpydoc parses, with a one-line summary; every
 parameter named in its signature (but ``self``/``cls`` and ``*args``/``**kwargs``-style
-catch-alls) described under ``Parameters`` (the class docstring may describe ``__init__``'s
+catch-alls, the parameters of a task's or a policy's hook, documented once in
+:mod:`oneocean.tasks.loop` and :mod:`oneocean.tasks.public`: :data:`CONTRACTS`, and the names
+of a module's ``VOCABULARY`` dict, which documents them once for all its functions) described
+under ``Parameters`` (the class docstring may describe ``__init__``'s
 parameters, and a dataclass/NamedTuple's fields under ``Attributes`` or ``Parameters``); no
 parameter described that the signature lacks; a ``Returns`` (or ``Yields``) section where the
 function returns a value; and the docstring, as numpydoc hands it to Sphinx, is valid
@@ -55,6 +58,22 @@ def _returns_value(fn: ast.AST) -> bool:
             return True
         stack.extend(ast.iter_child_nodes(n))
     return False
+
+
+#: Signatures whose parameters are documented once, in the contract of the episode loop
+#: (``oneocean.tasks.loop``: the env hooks and the policy hooks on their context) and of the
+#: public view (``oneocean.tasks.public``: a task's ``brief``, ``team_obs`` and ``report``; a
+#: policy's ``params``, ``memory`` and ``prepare``): a hook's docstring says what it does, not
+#: its arguments again.
+CONTRACTS = {
+    ("C", "e", "k"), ("C", "e", "k", "i"),
+    ("grid", "P", "W", "state", "e"), ("grid", "P", "W", "state", "e", "k", "t"),
+    ("grid", "P", "W", "X", "e", "k", "i"), ("grid", "P", "W", "X", "state", "O", "e", "k"),
+    ("grid", "P", "W", "state", "e", "k", "i", "code"),
+    ("grid", "P", "W", "state", "prev", "e", "k", "t"),
+    ("grid", "P", "W", "state", "e", "k", "row"),
+    ("P", "W", "init", "m"), ("W",), ("method", "B"), ("B", "M"), ("B", "M", "H"),
+}
 
 
 def _arg_names(fn) -> list[str]:
@@ -145,8 +164,21 @@ def rst_problems(text: str) -> list[str]:
             if "WARNING/" in ln or "ERROR/" in ln or "SEVERE/" in ln]
 
 
-def check_function(fn, where: str, problems: list[str], class_doc=None) -> None:
-    """Append ``fn``'s docstring problems to ``problems``."""
+def vocabulary(tree: ast.Module) -> set[str]:
+    """The keys of a module's ``VOCABULARY = {...}`` (names documented once for every function
+    of the module), or an empty set."""
+    for node in tree.body:
+        if (isinstance(node, ast.Assign) and len(node.targets) == 1
+                and isinstance(node.targets[0], ast.Name) and node.targets[0].id == "VOCABULARY"
+                and isinstance(node.value, ast.Dict)):
+            return {k.value for k in node.value.keys if isinstance(k, ast.Constant)}
+    return set()
+
+
+def check_function(fn, where: str, problems: list[str], class_doc=None,
+                   known: set[str] = frozenset()) -> None:
+    """Append ``fn``'s docstring problems to ``problems`` (``known``: names documented
+    once for the module, its ``VOCABULARY``)."""
     text = ast.get_docstring(fn)
     if fn.name == "__init__" and not text:
         text = None
@@ -164,7 +196,7 @@ def check_function(fn, where: str, problems: list[str], class_doc=None) -> None:
     if _is_property(fn):
         return
     args = _arg_names(fn)
-    have = set()
+    have = set(args) if tuple(args) in CONTRACTS else set(known)
     if doc is not None:
         have |= _documented(doc, "Parameters", "Other Parameters")
     if fn.name == "__init__" and class_doc is not None:
@@ -186,11 +218,13 @@ def check_file(path: Path) -> list[str]:
     """Every docstring problem of the public objects in ``path``."""
     rel = path.relative_to(SRC.parent) if path.is_relative_to(SRC.parent) else path
     tree = ast.parse(path.read_text())
+    known = vocabulary(tree)
     problems: list[str] = []
     for node in tree.body:
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
             if not node.name.startswith("_"):
-                check_function(node, f"{rel}:{node.lineno} {node.name}", problems)
+                check_function(node, f"{rel}:{node.lineno} {node.name}", problems,
+                               known=known)
         elif isinstance(node, ast.ClassDef) and not node.name.startswith("_"):
             where = f"{rel}:{node.lineno} {node.name}"
             text = ast.get_docstring(node)

@@ -452,7 +452,11 @@ def _trace(env, steps, seed, rng_seed=0):
             np.linalg.norm(obs[0, :, 0:3], axis=-1, keepdims=True), 1e-9)
         obs, r, term, trunc, info = env.step(a)
         out += [obs, r, term, trunc]
-        out += [np.asarray(info[k]) for k in sorted(info) if not isinstance(info[k], dict)]
+        out += [np.asarray(info[k]) for k in sorted(info)
+                if not isinstance(info[k], (dict, tuple))]
+        for b in info.get("briefing", ()):     # the new episodes' briefings, field by field
+            if b is not None:
+                out += [np.asarray(v) for v in b if isinstance(v, (np.ndarray, float, int))]
         ends += int((term | trunc).sum())
     return out, ends
 

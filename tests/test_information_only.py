@@ -1,7 +1,7 @@
 """Heuristic and oracle differ in information only (docs/sensing.md, "Heuristic and oracle"):
-given the truth, the heuristic of every task whose table row says "information only" IS the
-oracle, bit for bit; SPC, whose oracle also has a better map (the exact aerial map every
-step), differs exactly there."""
+given the truth (its briefing's forecast is the true field; its observation the true current,
+position and target; SPC's aerial map exact every step), the heuristic of every task IS the
+oracle, bit for bit."""
 
 from __future__ import annotations
 
@@ -12,9 +12,6 @@ from oneocean import engine as E
 from oneocean.tasks import run_cell
 from oneocean.testing import make_test_grid
 from oneocean.vocab import TASK_IDS
-
-#: Tasks whose oracle differs from the heuristic in more than information (docs/sensing.md).
-ORACLE_EXTRAS = {"SPC": "the exact aerial map every step"}
 
 
 @pytest.fixture(scope="module")
@@ -29,9 +26,6 @@ def test_heuristic_given_the_truth_is_the_oracle(coast, task):
     t = run_cell(coast, task, 1, "heuristic", info="truth", **kw)
     h = run_cell(coast, task, 1, "heuristic", **kw)
     cols = [c for c in o.columns if c not in ("method",)]
-    if task in ORACLE_EXTRAS:
-        assert not o[cols].equals(t[cols]), ORACLE_EXTRAS[task]
-    else:
-        assert o[cols].equals(t[cols])
+    assert o[cols].equals(t[cols])
     # with its sensors the heuristic is a different run (its estimates are not the truth)
     assert not h[cols].equals(t[cols])

@@ -83,10 +83,45 @@ def test_ft_cue_lead_is_the_inverse_of_the_tracking_gain():
     assert policy.KP == 0.3 and policy.KP * ft.CUE_LEAD_S == pytest.approx(1.0)
 
 
-def test_a_task_whose_policy_gives_no_plan_tokens_says_which_are_missing():
-    from oneocean.tasks.common import need_tokens
+#: What a policy module may not name: the task's params and work arrays, the grid (the
+#: truth), the loop's params and state, the true states (docs/policy.md). A policy reads its
+#: context ``C`` (briefing, observation, team observation, its params and memory, report).
+HIDDEN = {"grid", "P", "W", "LS", "LP", "state"}
 
-    assert need_tokens("AS", {"max_waypoints": 3}, "max_waypoints") == {"max_waypoints": 3}
-    with pytest.raises(ConfigError, match=r"^task PI: plan tokens missing: wps, max_events "
-                                          r"\(the policy module's plan_tokens"):
-        need_tokens("PI", {"wcount": 1}, "wps", "wcount", "max_events")
+
+def _policy_functions(path: Path):
+    tree = ast.parse(path.read_text())
+    return [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)]
+
+
+@pytest.mark.parametrize("path", sorted((PKG / "methods" / "heuristic").glob("[!_]*.py")),
+                         ids=lambda p: p.stem)
+def test_a_policy_reads_only_the_public_view(path):
+    """Every built-in heuristic is a policy of the briefing and the observation: its hooks
+    take the context ``(C, e, k[, i])``, its Python functions the briefing, its params and its
+    memory, and no function names the task's params, work arrays, the grid, the loop's state
+    or the true states (the parity test, tests/test_parity.py, shows it decides the same
+    through the step API)."""
+    funcs = {f.name: f for f in _policy_functions(path)}
+    args = {name: [a.arg for a in f.args.args] for name, f in funcs.items()}
+    assert args["act"] == ["C", "e", "k", "i"]
+    assert "plan" not in args or args["plan"] == ["C", "e", "k"]
+    assert args["params"] == ["method", "B"] and args["memory"][:2] == ["B", "M"]
+    if "prepare" in args:
+        assert args["prepare"] == ["B", "M", "H"]
+    bad = []
+    for f in funcs.values():
+        for node in ast.walk(f):
+            if isinstance(node, ast.Name) and node.id in HIDDEN:
+                bad.append(f"{f.name}: {node.id}")
+            elif isinstance(node, ast.arg) and node.arg in HIDDEN:
+                bad.append(f"{f.name}: argument {node.arg}")
+    assert bad == []
+
+
+def test_the_layering_check_catches_a_policy_that_reads_the_work_arrays(tmp_path):
+    src = tmp_path / "leaky.py"
+    src.write_text("def act(C, e, k, i):\n    return W.goal[e, 0], 0.0, 0.0, 0.0\n")
+    names = {n.id for f in _policy_functions(src) for n in ast.walk(f)
+             if isinstance(n, ast.Name)}
+    assert names & HIDDEN == {"W"}

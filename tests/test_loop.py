@@ -114,9 +114,10 @@ def test_task_kernel_loads_from_the_cache_in_a_new_process(coast):
 
 
 def test_python_planner_between_segments_drives_the_fused_policy(coast):
-    """The planner kind: a Python planner writes the plan tokens between K-step segments and
-    the fused low-level policy follows them. Replaying the fused plan hook from Python every
-    step reproduces the fused rollout exactly; planning every 5 steps changes it."""
+    """The planner kind: a Python planner writes the method's plan between K-step segments
+    and the fused low-level policy follows it. A segment ends with the next step's
+    observation taken, so replaying the fused plan hook from Python every step reproduces
+    the fused rollout exactly; planning every 5 steps changes it."""
     cell = Cell(coast, "FT", 1, n_agents=4)
     fused = _episodes(cell, "heuristic", n=3).run()
 
@@ -125,8 +126,8 @@ def test_python_planner_between_segments_drives_the_fused_policy(coast):
         for e in range(ep.n_episodes):
             if not ep.done[e]:
                 k = int(ep.k[e])
-                pol.plan(ep.grid, ep.P, ep.W, ep.M, ep.known_state, e, k,
-                         ep.t0[e] + k * ep.dt)
+                assert ep.LS.sensed[e] == k   # the observation of step k is in C.O
+                pol.plan(ep.C, e, k)
 
     def make():
         return Episodes(cell.mod, cell.grid, cell.params, cell.reset(3, 1), "heuristic",
@@ -138,3 +139,41 @@ def test_python_planner_between_segments_drives_the_fused_policy(coast):
     assert not np.array_equal(sparse.res, fused.res)
     with pytest.raises(ConfigError, match="every must be"):
         make().run_planned(replay, every=0)
+
+
+def test_the_observation_is_taken_once_before_anyone_moves(coast):
+    """Every agent's observation of step k is taken before any agent of step k moves: the
+    teammates' offsets an agent sees are those of the step start, as an external policy sees
+    them through the step API; a segment ends with the next step's observation in ``C.O``;
+    the final state's observation stays after the end."""
+    cell = Cell(coast, "FT", 1, n_agents=4)
+    ep = _episodes(cell, "heuristic", n=2, record=True).run()
+    X = ep.obs[..., [14, 15]]                      # navigation x, z of every agent
+    for m in range(3):                             # the nearest teammates' offsets
+        dx = ep.obs[..., 8 + 2 * m]
+        ok = np.isfinite(dx)
+        mates = np.full(dx.shape, np.nan)
+        for i in range(4):
+            d = X - X[:, :, i:i + 1]
+            dd = np.where(np.arange(4) == i, np.inf, np.hypot(d[..., 0], d[..., 1]))
+            j = np.argsort(dd, axis=-1, kind="stable")[..., m]
+            mates[:, :, i] = np.take_along_axis(d[..., 0], j[..., None], -1)[..., 0]
+        np.testing.assert_allclose(dx[ok], mates[ok], rtol=0, atol=1e-9)
+    part = _episodes(cell, "heuristic", n=2)
+    part.run(10)
+    np.testing.assert_array_equal(part.LS.sensed, [10, 10])
+    np.testing.assert_allclose(part.C.O[..., 20], 10 * part.dt)     # t_s of step 10
+    done = part.run()
+    assert np.isfinite(done.C.O[..., 14]).all()
+
+
+def test_external_heading_reaches_the_vehicle(coast):
+    """An external action's fourth column is the commanded heading (NaN: free)."""
+    ep = _episodes(Cell(coast, "G2G", 1), None, n=2)
+    a = np.zeros((2, 1, 4))
+    a[..., 3] = [[0.5], [np.nan]]
+    ep.set_actions(a)
+    ep.run(1)
+    assert ep.cmd[0, 0, 3] == 0.5 and np.isnan(ep.cmd[1, 0, 3])
+    ep.set_actions(np.zeros((2, 1, 3)))
+    assert np.isnan(ep.ext[..., 3]).all()

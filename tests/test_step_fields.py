@@ -36,10 +36,10 @@ def _read_borrowed(A, out):
     out[0] = f[0].u[1] + f[0].n
     out[1] = f[1][0]
     f[1][0] += 1.0
-    out[2] = f[14][0]
-    f[14][0] += 1.0
+    out[2] = f[13][0]
+    f[13][0] += 1.0
     out[3] = f[6].u[2] + f[6].n
-    out[4] = f[13][1]
+    out[4] = f[11][1]
 
 
 @njit
@@ -54,14 +54,14 @@ def test_the_fields_are_the_structs_own_arrays_and_values():
     vals, A = _toy_args()
     out = np.zeros(5)
     _read(A, out)
-    np.testing.assert_array_equal(out, [1.0, 1.0, 14.0, 68.0, 13.0])
+    np.testing.assert_array_equal(out, [1.0, 1.0, 13.0, 68.0, 11.0])
     # the writes went to the arrays the caller gave (shared, not copied)
-    assert vals[1][0] == 2.0 and vals[14][0] == 15.0 and vals[1][1] == 1.0
+    assert vals[1][0] == 2.0 and vals[13][0] == 14.0 and vals[1][1] == 1.0
 
 
 def test_no_reference_is_left_behind():
     vals = _toy_args()[0]
-    arrays = (vals[1], vals[14], vals[0].u)
+    arrays = (vals[1], vals[13], vals[0].u)
     before = [sys.getrefcount(v) for v in arrays]
     A = StepArgs(*vals)
     out = np.zeros(5)
@@ -77,12 +77,12 @@ def test_no_reference_is_left_behind():
 def _getattr_step(kern):
     """A kernel module's ``_step_boxed`` written with numba's own field reads (each
     array's reference counted), the baseline of the borrowed one."""
-    inner = kern._step_kernel
+    inner = kern._kernel
 
     @njit(nogil=True)
     def boxed(A, io, e_lo, e_hi):
-        inner(A.grid, A.vp, A.LP, A.P, A.W, A.M, A.LS, A.t0, A.state, A.cmd, A.ext, A.obs,
-              A.act, A.res, A.nobs, A.nact, io, e_lo, e_hi)
+        inner(A.grid, A.vp, A.LP, A.P, A.W, A.C, A.LS, A.t0, A.state, A.cmd, A.ext, A.rec_o,
+              A.rec_a, A.res, io, -1, e_lo, e_hi)
 
     return boxed
 
@@ -120,7 +120,7 @@ def test_a_stepped_batch_is_freed_with_its_env():
         env.step(np.zeros(env.action_space.shape))
     batch = env._pools[0].batch
     assert batch._entries.get("step") is not None          # stepped by _step_boxed
-    gone = [weakref.ref(batch.state), weakref.ref(batch.LS.k), weakref.ref(batch._nobs)]
+    gone = [weakref.ref(batch.state), weakref.ref(batch.LS.k), weakref.ref(batch.C.O)]
     del batch
     env.close()
     del env

@@ -1,5 +1,5 @@
 """AS (area scan over 3-D terrain): geometry, sensor footprint, success rule, metrics,
-determinism, planning and the tier table."""
+determinism, the briefing and the task's survey cue, planning and the tier table."""
 
 from __future__ import annotations
 
@@ -17,8 +17,10 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.methods.heuristic import as_ as pol
 from oneocean.tasks import as_, run_cell
-from oneocean.tasks.common import STANDARD, load_task_table
+from oneocean.tasks.common import (O_CE, O_CN, O_GX, O_GY, O_GZ, O_X, O_Z, STANDARD,
+                                   load_task_table, seek_max)
 from oneocean.tasks.episodes import Episodes, rollout
+from oneocean.tasks.public import COMMON
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
@@ -148,6 +150,108 @@ def test_hovering_vehicle_covers_its_altitude_footprint_only(calm):
     np.testing.assert_array_equal(r2["footprint_loss_frac"], 1.0)
 
 
+def test_briefing_holds_the_mission_and_the_forecast_at_the_centre(coast):
+    tier = {**TIER, "min_relief_m": 3.0}
+    init = as_.reset(coast, tier, 2, 3, 4)
+    veh = E.load_vehicle()
+    eps = {m: Episodes(as_, coast, tier, init, m, "kinematic", veh, 0)
+           for m in ("heuristic", "oracle")}
+    for m, ep in eps.items():
+        B = ep.B
+        assert B._fields == tuple(COMMON) + tuple(as_.BRIEF_FIELDS)
+        np.testing.assert_array_equal(B.region, init["region"])
+        np.testing.assert_array_equal(B.long_axis, init["long_axis"])
+        np.testing.assert_array_equal(B.start, ep.known_state[:, :, :3])   # the start fixes
+        assert (B.max_altitude, B.half_angle_deg, B.cell, B.coverage_threshold) == (
+            tier["max_altitude_m"], tier["half_angle_deg"], tier["cell_m"],
+            tier["coverage_threshold"])
+        assert B.survey_alt == as_.SURVEY_ALT_FRAC * tier["max_altitude_m"]
+        lines, cnt = as_.survey_plan(init["region"], init["long_axis"], B.line_spacing, 2)
+        np.testing.assert_array_equal(B.lines, lines)
+        np.testing.assert_array_equal(B.line_count, cnt)
+        for e in range(3):
+            # the forecast (the truth for the oracle) at the survey depth over the window
+            ts, cur, depth = as_.centre_forecast(
+                coast, tuple(init["region"][e]), init["t0"][e], tier["time_limit_s"],
+                B.survey_alt, None if m == "oracle" else ep.LS.fc, e)
+            np.testing.assert_array_equal(B.forecast_times[e], ts)
+            np.testing.assert_array_equal(B.forecast_centre[e], cur)
+            assert B.forecast_depth[e] == depth
+            c = init["region"][e]
+            seafloor = -E.sample_elevation(coast, 0.5 * (c[0] + c[2]), 0.5 * (c[1] + c[3]))
+            assert depth == pytest.approx(max(seafloor - B.survey_alt, as_.MIN_DEPTH_M))
+    h, o = eps["heuristic"].B, eps["oracle"].B
+    np.testing.assert_array_equal(o.start, init["pos0"])               # the truth
+    assert not np.array_equal(h.start, o.start)                        # a start fix error
+    np.testing.assert_allclose(h.start, o.start, atol=5.0)
+    np.testing.assert_array_equal(h.start[..., 1], o.start[..., 1])    # depth is measured
+    assert not np.array_equal(h.forecast_centre, o.forecast_centre)    # a forecast
+
+
+def test_survey_plan_is_a_team_lawnmower_along_the_long_axis():
+    region = np.array([[0.0, 0.0, 200.0, 100.0], [0.0, 0.0, 100.0, 200.0]])
+    lines, cnt = as_.survey_plan(region, [0, 1], 20.0, 2)
+    assert cnt.tolist() == [[7, 5], [7, 5]]   # 5 strips: 3 + 2, run-in first
+    # episode 0: strips along x at z = 10, 30, 50 (agent 0) and 70, 90 (agent 1), each
+    # block a boustrophedon from the low end, led in RUNIN_M before its first strip
+    np.testing.assert_allclose(lines[0, 0, :7], [[-20, 10], [0, 10], [200, 10], [200, 30],
+                                                 [0, 30], [0, 50], [200, 50]])
+    np.testing.assert_allclose(lines[0, 1, :5], [[-20, 70], [0, 70], [200, 70], [200, 90],
+                                                 [0, 90]])
+    # episode 1: the same along z
+    np.testing.assert_allclose(lines[1, :, :, ::-1], lines[0])
+    # the task's spacing: 2 a tan(half-angle) (1 - overlap) at the survey altitude
+    assert as_.survey_spacing(TIER) == pytest.approx(
+        2.0 * 0.75 * 20.0 * math.tan(math.radians(45.0)) * 0.8)
+
+
+def _cue_point(O, e, i):
+    """Agent i's cue in world m (its offset plus the observed position and depth)."""
+    from oneocean.tasks.common import O_DEPTH
+    o = O[e, i]
+    return np.array([o[O_GX] + o[O_X], o[O_GY] + o[O_DEPTH], o[O_GZ] + o[O_Z]])
+
+
+def _follow(O, v_max):
+    """A follower of the cue: seek it at full speed against the observed current."""
+    a = np.zeros(O.shape[:2] + (3,))
+    for e in range(O.shape[0]):
+        for i in range(O.shape[1]):
+            o = O[e, i]
+            if np.isfinite(o[O_GX]):
+                a[e, i] = seek_max(0.0, 0.0, 0.0, o[O_GX], o[O_GY], o[O_GZ], v_max, 0.5,
+                                   o[O_CE], o[O_CN])
+    return a
+
+
+@pytest.mark.parametrize("info", ["truth", "sensors"])
+def test_the_cue_leads_each_agent_along_its_lines_and_a_follower_covers_the_region(calm,
+                                                                                   info):
+    """The task's mission computer: the cue starts at each agent's run-in point at the
+    survey altitude above the chart and moves along its lines as the agent follows it; a
+    policy that only follows the cue covers the region (calm water, short strips)."""
+    init = as_.reset(calm, TIER, 2, 3, 1)
+    veh = E.load_vehicle()
+    ep = Episodes(as_, calm, TIER, init, None, "kinematic", veh, 0, info=info)
+    O = ep.observe()
+    B = ep.B
+    for e in range(3):
+        for i in range(2):
+            x, z = B.lines[e, i, 0]
+            want = [x, -E.sample_elevation(calm, x, z) - B.survey_alt, z]
+            np.testing.assert_allclose(_cue_point(O, e, i), want, atol=1e-9)
+    np.testing.assert_array_equal(ep.W.lidx, 0)
+    seen = set()
+    while not ep.done.all():
+        ep.set_actions(_follow(O, veh.v_max))
+        O = ep.step_observe()
+        seen.update(int(w) for w in ep.W.lidx.ravel())
+    r = ep.results()
+    assert r["success"].all(), r["coverage_fraction"]
+    np.testing.assert_array_equal(r["footprint_loss_frac"], 0.0)
+    assert seen >= set(range(1, int(B.line_count.min())))   # every leg was cued
+
+
 def test_both_methods_complete_the_scan_in_calm_water(calm):
     init = as_.reset(calm, TIER, 1, 4, 3)
     for method in ("oracle", "heuristic"):
@@ -158,8 +262,8 @@ def test_both_methods_complete_the_scan_in_calm_water(calm):
         np.testing.assert_array_equal(r["violations"], 0)
         np.testing.assert_array_equal(r["footprint_loss_frac"], 0.0)
         # terrain following: the mean altitude is the method's commanded altitude
-        np.testing.assert_allclose(r["mean_altitude_m"], pol.method_altitude(TIER, method),
-                                   atol=1.5)
+        np.testing.assert_allclose(r["mean_altitude_m"],
+                                   pol.method_altitude(TIER["max_altitude_m"]), atol=1.5)
 
 
 def test_torpedo_does_not_orbit_its_first_waypoint(calm):
@@ -199,10 +303,10 @@ def test_both_methods_orient_the_strips_across_a_strong_current():
         ep = Episodes(as_, grid, TIER, init, method, "6dof", veh, 0)
         runs[method] = ep
         for e in range(4):
-            w = ep.W.wps[e, 0, 1:ep.W.wcount[e, 0]]
+            w = ep.H.wps[e, 0, 1:ep.H.wcount[e, 0]]
             assert np.allclose(w[0::2, 0], w[1::2, 0]), method   # strips along z
     reg = init["region"]
-    o, h = runs["oracle"].W, runs["heuristic"].W
+    o, h = runs["oracle"].H, runs["heuristic"].H
     for e in range(4):
         wo = o.wps[e, 0, 1:o.wcount[e, 0]]
         wh = h.wps[e, 0, 1:h.wcount[e, 0]]
@@ -292,30 +396,42 @@ def test_navigation_sigma_and_margins_from_the_sensor_table():
     assert 17.0 < m[3] < 18.0 and m[0] < 2.5
     assert pol.nav_margins(_sp("truth"), (0.0, 0.0, 1000.0, 100.0), [[0.0, 0.0]],
                            900.0) == (0.0, 0.0, 0.0, 0.0)
-    assert pol.margin_bound({"time_limit_s": 900.0}, [(0.0, 0.0, 1000.0, 100.0)]) >= max(m)
+    assert pol.margin_bound(SP, 900.0, [(0.0, 0.0, 1000.0, 100.0)]) >= max(m)
+    assert pol.margin_bound(_sp("truth"), 900.0, [(0.0, 0.0, 1000.0, 100.0)]) == 0.0
+
+
+def _briefs(grid, tier, init):
+    """The heuristic's and the oracle's briefings of ``init``."""
+    return {m: Episodes(as_, grid, tier, init, m, "kinematic", E.load_vehicle(), 0).B
+            for m in ("heuristic", "oracle")}
 
 
 def test_planner_narrows_its_margin_to_fit_the_time_limit(calm):
-    M = pol.params("heuristic", TIER, E.load_vehicle())
-    assert M == pol.params("oracle", TIER, E.load_vehicle())   # information only
+    B = _briefs(calm, TIER, as_.reset(calm, TIER, 1, 2, 0))
+    M = pol.params("heuristic", B["heuristic"])
+    assert M == pol.params("oracle", B["oracle"])   # information only
     box = (300.0, 300.0, 1300.0, 400.0)
     starts = np.array([[310.0, 310.0]])
     SP = _sp()
     full = pol.nav_margins(SP, box, starts, 4000.0)
-    wps, cnt, t_full = pol.plan_episode(calm, M, box, 0.0, 4000.0, 1, starts, SP)
+
+    def cur(duration):   # still water
+        return as_.centre_forecast(calm, box, 0.0, duration, M.alt)[1]
+
+    wps, cnt, t_full = pol.plan_episode(M, box, cur(4000.0), 4000.0, 1, starts, SP)
     w = wps[0, 1:cnt[0]]
     # ample time: the whole NAV_K margin, strips along x (the long axis in still water)
     np.testing.assert_allclose([w[:, 0].min(), w[:, 0].max()],
                                [box[0] - full[0], box[2] + full[2]])
     assert t_full <= 4000.0
     # too little time for any margin: the region itself, as the oracle plans it
-    wps0, cnt0, t0_ = pol.plan_episode(calm, M, box, 0.0, 600.0, 1, starts, SP)
-    wpo, cnto, _ = pol.plan_episode(calm, M, box, 0.0, 600.0, 1, starts, _sp("truth"))
+    wps0, cnt0, t0_ = pol.plan_episode(M, box, cur(600.0), 600.0, 1, starts, SP)
+    wpo, cnto, _ = pol.plan_episode(M, box, cur(600.0), 600.0, 1, starts, _sp("truth"))
     np.testing.assert_array_equal(wps0, wpo)
     np.testing.assert_allclose([wpo[0, 1:, 0].min(), wpo[0, 1:, 0].max()], [box[0], box[2]])
     # in between: a narrower margin whose predicted scan fits
     lim = 0.5 * (t_full + t0_) / (1.0 - pol.TIME_RESERVE)
-    wpm, cntm, t_mid = pol.plan_episode(calm, M, box, 0.0, lim, 1, starts, SP)
+    wpm, cntm, t_mid = pol.plan_episode(M, box, cur(lim), lim, 1, starts, SP)
     assert t_mid <= (1.0 - pol.TIME_RESERVE) * lim
     assert box[0] - full[0] < wpm[0, 1:cntm[0], 0].min() < box[0]
 

@@ -1,4 +1,5 @@
-"""DPT (depth-profile tracking): profile geometry, success rule, metrics, determinism."""
+"""DPT (depth-profile tracking): profile geometry, success rule, metrics, the briefing, the
+task's cue and the heuristic's own leg pointer, determinism."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from oneocean.errors import ConfigError
 from oneocean.methods.heuristic import dpt as pol_dpt
 from oneocean.tasks import dpt, run_cell
 from oneocean.tasks.common import load_task_table, path_clear
-from oneocean.tasks.episodes import rollout
+from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
@@ -86,8 +87,9 @@ def test_profile_preview_tracks_the_ramp(monkeypatch):
     # without the preview a P depth loop lags on the 0.1 slope at the full 2.5 m/s:
     # ~0.1 * 2.5 / KZ = 0.83 m; it flies the whole route but its RMS depth error exceeds the
     # 0.5 m tolerance, while the slope feed-forward stays well inside
-    plain = pol_dpt.params("oracle", TIER, VEHICLE)._replace(preview=0)
-    monkeypatch.setattr(pol_dpt, "params", lambda method, tier, vehicle: plain)
+    params = pol_dpt.params
+    monkeypatch.setattr(pol_dpt, "params",
+                        lambda method, B: params(method, B)._replace(preview=0))
     _, rn = _run(_grid(), TIER, "oracle", dyn="6dof", init=_ramp())
     assert rn["waypoints_reached"][0] == 2
     assert 0.5 < rn["max_depth_error_m"][0] < 1.5
@@ -134,3 +136,30 @@ def test_tier_table_monotone_and_declared():
         assert {"current_band", "time_limit_s"} <= set(tiers[t])
     assert table["vehicle"] == "remus100"
     assert table["agents"] == {"default": 1, "range": [1, 1]}
+
+
+def test_briefing_cue_and_the_heuristics_own_leg_pointer():
+    # the briefing: the route with its profile and the tolerances
+    init = _ramp()
+    ep = Episodes(dpt, _grid(), TIER, init, "oracle", "6dof", VEHICLE, 0)
+    np.testing.assert_array_equal(ep.B.route, init["route"])
+    assert ep.B.radius == TIER["wp_radius_m"] and ep.B.depth_tol == TIER["depth_tol_m"]
+    assert dpt.OBS_EXTRA == ()
+    # the cue: CUE_LOOKAHEAD_M along the first leg from the known projection, at the target
+    # depth (the profile at the projection: 5 m + 25 m over the first 250 m)
+    O = ep.observe()
+    np.testing.assert_allclose(O[0, 0, :3], [dpt.CUE_LOOKAHEAD_M, 0.0, 0.0], atol=1e-12)
+    ep.run(40)
+    X = ep.known_state[0, 0, :3]
+    s = X[0] + 400.0
+    assert 20.0 < s < 230.0
+    np.testing.assert_allclose(X + ep.C.O[0, 0, :3],
+                               [X[0] + dpt.CUE_LOOKAHEAD_M, 5.0 + 0.1 * s, 0.0], atol=1e-9)
+    r = ep.run().results()
+    assert r["success"][0] and r["waypoints_reached"][0] == 2
+    # the task's mission computer advanced its pointer on the final state too (the route
+    # done: the cue is the last waypoint); the method's own pointer, advanced in its act on
+    # the observations of the steps it acted on, stopped at the last leg
+    assert ep.W.nwp[0] == 3 and ep.H.nwp[0] == 2
+    np.testing.assert_allclose(ep.known_state[0, 0, :3] + ep.C.O[0, 0, :3],
+                               init["route"][0, -1], atol=1e-9)

@@ -1,5 +1,6 @@
 """FH (fish herding): reset geometry, fish stay in water, success rule, metrics, determinism
-(seeds and threads), tier table."""
+(seeds and threads), tier table; the public view: briefing, the sonar's observation fields,
+the team observation and the task's herding cue."""
 
 from __future__ import annotations
 
@@ -13,10 +14,11 @@ from oneocean import engine as E
 from oneocean.engine import status as st
 from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
-from oneocean.models.fish import fish_params, init_school, step_school
+from oneocean.models.fish import fish_params, init_school, school_spread, step_school
 from oneocean.tasks import fh, run_cell
-from oneocean.tasks.episodes import rollout
+from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
+from oneocean.tasks.public import COMMON
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
@@ -268,3 +270,118 @@ def test_tracker_gains():
     assert 0.0 < b < a < 1.0
     a2, b2 = tracker_gains(0.2, 0.5, 1.0)   # a faster target: larger gains
     assert a2 > a and b2 > b
+
+
+def _wrap(a):
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def _uniform(ce, cn):
+    return E.load_grid(uniform_grid(ce, cn, depth_m=30.0, nx=21, ny=21, dx_m=100.0))
+
+
+def test_the_briefing_and_what_the_method_is_given(calm):
+    init = _hand_init((80.0, 0.0), ring=60.0)
+    for method, flags in (("heuristic", (0, 0)), ("oracle", (1, 1))):
+        ep = Episodes(fh, calm, TIER, init, method, "kinematic", E.load_vehicle(), 0)
+        B = ep.B
+        assert B._fields == tuple(COMMON) + tuple(fh.BRIEF_FIELDS)
+        np.testing.assert_array_equal(B.zone, init["zone"])
+        np.testing.assert_allclose(B.school0, init["fish0"].mean(axis=2), atol=1e-12)
+        assert (B.zone_radius, B.hold_s, B.depth) == (10.0, 20.0, fh.FISH_DEPTH_M)
+        assert (B.fish_count, B.school_radius, B.sonar_range) == (60, fh.SCHOOL_RADIUS_M, 50.0)
+        assert (B.flee_radius, B.fish_speed) == (15.0, 0.8)
+        # brief tells the task's sensing what the method is given
+        assert tuple(ep.W.sinfo[0, 1:]) == flags
+        np.testing.assert_array_equal(ep.W.fce, 0.0 if method == "oracle" else ep.LS.fc)
+
+
+def test_the_sonar_fields_and_the_team_fix():
+    """Each agent's reading (offset of the echo centroid from its navigation estimate,
+    extent; NaN beyond the sonar's range), the team's fix (the readings placed at the agents'
+    positions, averaged), no velocity, the forecast of the current at the fix."""
+    grid = _uniform(0.2, -0.1)
+    init = _hand_init((80.0, 0.0), ring=40.0)
+    init["pos0"][0, 0] = (200.0, fh.FISH_DEPTH_M, 0.0)      # out of the sonar's range
+    ep = Episodes(fh, grid, TIER, init, None, "kinematic", E.load_vehicle(), 0)
+    O = ep.observe()[0]
+    X = ep.known_state[0]
+    W, T = ep.W, ep.C.T
+    assert O.shape[1] == fh.OBS_DIM + len(fh.OBS_EXTRA) == fh.O_SSPREAD + 1
+    assert O[0, fh.O_SEEN] == 0.0 and np.isnan(O[0, fh.O_SDX:]).all()
+    assert (O[1:, fh.O_SEEN] == 1.0).all()
+    for j, c in ((fh.O_SDX, 1), (fh.O_SDZ, 2), (fh.O_SSPREAD, 3)):
+        np.testing.assert_array_equal(O[1:, j], W.sfix[0, 1:, c])
+    placed = X[1:, [0, 2]] + O[1:, [fh.O_SDX, fh.O_SDZ]]
+    np.testing.assert_allclose(T.fix[0, :2], placed.mean(axis=0), atol=1e-9)
+    np.testing.assert_allclose(T.fix[0, 2], O[1:, fh.O_SSPREAD].mean(), atol=1e-12)
+    true = W.school[0, :2]
+    assert 0.0 < np.hypot(*(T.fix[0, :2] - true)) < 2.0   # the echo centroid: near the truth
+    assert 0.0 < T.fix[0, 2] < fh.SCHOOL_RADIUS_M
+    assert np.isnan(T.vel).all()
+    g, c, s, be, bn = ep.LS.fc[0]
+    np.testing.assert_allclose(T.cur[0], (g * (c * 0.2 - s * 0.1) + be,
+                                          g * (-c * 0.1 - s * 0.2) + bn), atol=1e-9)
+    # given the target: the true centroid's offset and spread at any range, its velocity;
+    # given the true current: the current at the school
+    ep = Episodes(fh, grid, TIER, init, None, "kinematic", E.load_vehicle(), 0, info="truth")
+    for k in range(3):
+        O = ep.observe()[0] if k == 0 else ep.step_observe()[0].copy()
+        X, W, T = ep.state[0], ep.W, ep.C.T
+        F = W.fish[0, W.fcur[0]]
+        assert (O[:, fh.O_SEEN] == 1.0).all()
+        np.testing.assert_allclose(X[:, 0] + O[:, fh.O_SDX], W.school[0, 0], atol=1e-9)
+        np.testing.assert_allclose(X[:, 2] + O[:, fh.O_SDZ], W.school[0, 1], atol=1e-9)
+        np.testing.assert_array_equal(O[:, fh.O_SSPREAD], school_spread(F[0], F[1]))
+        np.testing.assert_array_equal(T.fix[0], (*W.school[0, :2], school_spread(F[0], F[1])))
+        np.testing.assert_array_equal(T.vel[0], W.school[0, 2:4])
+        np.testing.assert_allclose(T.cur[0], (0.2, -0.1), atol=1e-12)
+    assert np.any(T.vel[0] != 0.0)
+
+
+def test_the_cue_is_the_tasks_herding_station(calm):
+    """Every agent's cue: a station on the arc behind the school's team fix, opposite the
+    zone, CUE_STANDOFF_M plus the school's extent out, at most CUE_STEP_DEG of arc from the
+    agent's own bearing -- the task's own, the same for every method."""
+    init = _hand_init((80.0, 30.0), ring=40.0)
+    ep = Episodes(fh, calm, TIER, init, None, "kinematic", E.load_vehicle(), 0)
+    O = ep.observe()[0]
+    X = ep.known_state[0]
+    fix = ep.C.T.fix[0]
+    np.testing.assert_allclose(O[:, 1], fh.FISH_DEPTH_M - X[:, 1], atol=1e-12)
+    st = X[:, [0, 2]] + O[:, [0, 2]] - fix[:2]
+    np.testing.assert_allclose(np.hypot(st[:, 0], st[:, 1]), fh.CUE_STANDOFF_M + fix[2],
+                               atol=1e-9)
+    zone = init["zone"][0] - fix[:2]
+    th = np.arctan2(-zone[0], -zone[1])                       # behind the school
+    a = _wrap(np.arctan2(st[:, 0], st[:, 1]) - th)
+    own = _wrap(np.arctan2(X[:, 0] - fix[0], X[:, 2] - fix[1]) - th)
+    assert np.all(np.abs(_wrap(a - own)) <= np.radians(fh.CUE_STEP_DEG) + 1e-9)
+    slot = np.radians(fh.CUE_ARC_DEG) * (np.argsort(np.argsort(own)) / (N - 1) - 0.5)
+    np.testing.assert_allclose(a, np.where(np.abs(slot - own) <= np.radians(fh.CUE_STEP_DEG),
+                                           slot, a), atol=1e-9)
+    # the task's own cue: the fused heuristic's observation is the same
+    fz = Episodes(fh, calm, TIER, init, "heuristic", "kinematic", E.load_vehicle(), 0,
+                  record=True).run()
+    np.testing.assert_array_equal(fz.obs[0, 0], ep.observe()[0])
+
+
+@pytest.mark.parametrize("current", [(0.0, 0.0), (0.2, 0.1)])
+def test_a_follower_of_the_cue_herds_the_school_in(current):
+    # the task's cue alone herds the school: seek the station (gain 0.5 s-1, capped at
+    # v_max), cancel the known current
+    grid = _uniform(*current)
+    veh = E.load_vehicle()
+    ep = Episodes(fh, grid, TIER, _hand_init((80.0, 0.0), ring=60.0), None, "kinematic", veh,
+                  0)
+    O = ep.observe()
+    while not ep.done.all():
+        g = O[..., 0:3]
+        d = np.linalg.norm(g, axis=-1, keepdims=True)
+        a = g / np.maximum(d, 1e-9) * np.minimum(veh.v_max, 0.5 * d)
+        a[..., 0] -= O[..., 3]
+        a[..., 2] -= O[..., 4]
+        ep.set_actions(a)
+        O = ep.step_observe()
+    r = ep.results()
+    assert r["success"][0] and r["final_centroid_distance_m"][0] <= TIER["zone_radius_m"]

@@ -92,13 +92,13 @@ def test_oracle_transits_in_formation():
     assert r["coll_ratio"][0] == 0.0 and r["violations"][0] == 0
     # the virtual centre runs at the method's v_nom (V_NOM_FRAC * its budget,
     # methods.heuristic.ft): 395 m in 395 / v_nom s
-    v_nom = FT_POLICY.params("oracle", TIER, E.load_vehicle()).v_nom
+    v_nom = FT_POLICY.V_NOM_FRAC * E.load_vehicle().v_max
     assert 395.0 / v_nom - 2.0 <= r["T_s"][0] <= 395.0 / v_nom + 13.0
 
 
 def test_heuristic_in_calm_and_default_team(coast):
     _, r = _run(_grid(), TIER, "heuristic", n_agents=5, init=_line_init(5))
-    v_nom = FT_POLICY.params("heuristic", TIER, E.load_vehicle()).v_nom
+    v_nom = FT_POLICY.V_NOM_FRAC * E.load_vehicle().v_max
     assert r["success"][0] and 395 / v_nom - 2 < r["T_s"][0] < 395 / v_nom + 20
     _, r = _run(E.with_forcing(coast, current_gain=0.0), TIER, "heuristic", n_agents=10, n=3)
     assert r["success"].all()
@@ -248,3 +248,36 @@ def test_tier_table_monotone_and_declared():
         assert set(tiers[t]) == set(table["harder"])
         assert tiers[t]["slot_tol_m"] < tiers[t]["max_error_m"]
     assert table["agents"] == {"default": 10, "range": [2, 10]}
+
+
+def test_the_cue_is_the_tasks_formation_reference():
+    # every agent's cue: its slot around the team's navigated centroid, led P.lead m toward
+    # the goal -- the task's own, the same for every method (the heuristic never writes it)
+    grid = _grid(0.3, -0.2)
+    init = _line_init(5)
+    veh = E.load_vehicle()
+    ep = Episodes(ft, grid, TIER, init, None, "kinematic", veh, 0)
+    O = ep.observe()
+    X = ep.known_state[0, :, :3]
+    c = X.mean(axis=0)
+    u = (init["goal"][0] - c) / np.linalg.norm(init["goal"][0] - c)
+    lead = ft.CUE_LEAD_S * ft.TRANSIT_FRAC * veh.v_max
+    np.testing.assert_allclose(X + O[0, :, 0:3], c + init["offsets"][0] + lead * u, atol=1e-9)
+    assert ep.P.lead == lead
+
+
+def test_a_follower_of_the_cue_transits_in_formation():
+    # the task's cue alone is enough in calm water: close the cue offset in CUE_LEAD_S
+    # (the docs' example controller: seek the cue, cancel the known current)
+    grid = _grid()
+    init = _line_init(5)
+    ep = Episodes(ft, grid, TIER, init, None, "kinematic", E.load_vehicle(), 0)
+    O = ep.observe()
+    while not ep.done.all():
+        a = O[..., 0:3] / ft.CUE_LEAD_S
+        a[..., 0] -= O[..., 3]
+        a[..., 2] -= O[..., 4]
+        ep.set_actions(a)
+        O = ep.step_observe()
+    r = ep.results()
+    assert r["success"][0] and r["max_slot_error_m"][0] < TIER["slot_tol_m"]

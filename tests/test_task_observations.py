@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 
 from oneocean import engine as E
-from oneocean.tasks import Cell, run_cell
-from oneocean.tasks.common import ACT_FIELDS, N_MATES, OBS_DIM, OBS_FIELDS
+from oneocean.tasks import Cell, run_cell, task_module
+from oneocean.tasks.common import ACT_FIELDS, N_MATES, OBS_DIM, OBS_DOCS, OBS_FIELDS
 from oneocean.testing import make_test_grid
 from oneocean.vocab import TASK_IDS
 
@@ -28,8 +28,12 @@ def coast():
 
 
 def test_layout():
-    assert OBS_DIM == len(OBS_FIELDS) == 8 + 2 * N_MATES
+    assert OBS_DIM == len(OBS_FIELDS) == 8 + 2 * N_MATES + 9
     assert len(set(OBS_FIELDS)) == OBS_DIM and len(ACT_FIELDS) == 3
+    assert tuple(OBS_DOCS) == OBS_FIELDS and all(len(v) == 2 for v in OBS_DOCS.values())
+    for task in TASK_IDS:                 # a task's own fields follow the common head
+        extra = getattr(task_module(task), "OBS_EXTRA", ())
+        assert len(extra) <= 8 and not set(extra) & set(OBS_FIELDS)
 
 
 @pytest.mark.parametrize("task", TASK_IDS)
@@ -44,7 +48,8 @@ def test_observations_and_actions(coast, task):
                               n_agents=n_agents, observations=True, info="true_position")
     n = int(df["n_agents"].iloc[0])
     assert obs.shape[:3] == act.shape[:3] and obs.shape[0] == 2 and obs.shape[2] == n
-    assert obs.shape[3] == OBS_DIM and act.shape[3] == 3
+    extra = getattr(task_module(task), "OBS_EXTRA", ())
+    assert obs.shape[3] == OBS_DIM + len(extra) and act.shape[3] == 3
     # the cell's episodes: the candidates its current band kept (recorded in the table)
     init = Cell(coast, task, tier, n_agents=n_agents).reset(2, 3)
     np.testing.assert_array_equal(df["candidate"], init["candidate"])
@@ -62,8 +67,8 @@ def test_observations_and_actions(coast, task):
             assert np.all(pol[rec] >= 0.0)
         else:
             assert np.isnan(pol).all()
-        # teammates: the nearest first, NaN past the team (agent 0 moves first: exact check)
-        mates = o0[:, 8:].reshape(n, N_MATES, 2)
+        # teammates: the nearest first, NaN past the team (the step's start: exact check)
+        mates = o0[:, 8:8 + 2 * N_MATES].reshape(n, N_MATES, 2)
         k = min(n - 1, N_MATES)
         for i in range(n):
             d = np.hypot(mates[i, :, 0], mates[i, :, 1])
@@ -77,6 +82,11 @@ def test_observations_and_actions(coast, task):
             assert math.isclose(np.hypot(*m0), others.min(), rel_tol=1e-9)
             # with the sensors they are off by the agents' start fixes (3-sigma truncated)
             assert abs(np.hypot(*mates[0, 0]) - others.min()) <= 2 * 3 * 3.0 * math.sqrt(2)
+        # time, position and velocity: the step's, the navigation estimate's, the DVL's
+        np.testing.assert_allclose(o0[:, COL["t_s"]], 0.0)
+        np.testing.assert_allclose(obs_true[e, 0, :, COL["x_m"]], init["pos0"][e, :, 0])
+        np.testing.assert_allclose(obs_true[e, 0, :, COL["z_m"]], init["pos0"][e, :, 2])
+        np.testing.assert_allclose(obs_true[e, 0, :, COL["vx_ms"]], 0.0)
         # the recorded steps are a prefix covering the episode (T), actions alongside
         rec = np.isfinite(obs[e, :, 0, 0])
         m = int(rec.sum())
@@ -84,6 +94,10 @@ def test_observations_and_actions(coast, task):
         if df["success"].iloc[e]:   # T is the time to success (a failure's is the limit)
             assert m >= int(round(df["T_s"].iloc[e]))
         assert np.isfinite(act[e, :m]).all() and not np.isfinite(act[e, m:]).any()
+        np.testing.assert_allclose(obs[e, :m, 0, COL["t_s"]], np.arange(m) * float(
+            Cell(coast, task, tier, n_agents=n_agents).params["dt_s"]))
+        # the energy proxy each agent has used grows with its actions
+        assert np.all(np.diff(obs[e, :m, :, COL["energy_m2s"]], axis=0) >= 0.0)
 
 def test_goal_cue_points_at_the_goal(coast):
     df, obs, _ = run_cell(coast, "G2G", 1, "oracle", episodes=2, seed=1, observations=True)

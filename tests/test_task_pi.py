@@ -1,4 +1,5 @@
-"""PI (pipeline inspection / leak detection): geometry, plume sensing, estimators, success
+"""PI (pipeline inspection / leak detection): geometry, plume sensing, the public view
+(briefing, the mission computer's cue and ``section_done``, the report), estimators, success
 rule, metrics, determinism and the tier table."""
 
 from __future__ import annotations
@@ -19,8 +20,11 @@ from oneocean.errors import ConfigError
 from oneocean.methods.heuristic import pi as pi_policy
 from oneocean.models import pollution as pol
 from oneocean.tasks import pi, run_cell
-from oneocean.tasks.common import STANDARD, load_task_table
+from oneocean.tasks import public
+from oneocean.tasks.common import (OBS_DIM, O_CE, O_CN, O_DEPTH, O_GX, O_GY, O_GZ, O_PROBE,
+                                   O_X, O_Z, STANDARD, load_task_table)
 from oneocean.tasks.episodes import Episodes, rollout
+from oneocean.tasks.loop import Ctx
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
@@ -54,11 +58,16 @@ def _still():
     return dataclasses.replace(veh, params=p)
 
 
-def _make(grid):
-    """The task's params and work arrays for the straight-pipeline episode, with the
-    heuristic's plan tokens (its survey)."""
-    init = _straight_init(grid)
-    return pi.make(grid, TIER, init, pi_policy.plan_tokens(grid, TIER, init))
+def _view(grid, n_agents=1):
+    """A batch of the straight-pipeline episode under the heuristic (nothing run): its public
+    view (briefing ``B``, memory ``H``, the report ``C.R``) and the task's ``P`` / ``W``."""
+    return Episodes(pi, grid, TIER, _straight_init(grid, n_agents=n_agents), "heuristic",
+                    "6dof", E.load_vehicle(), 0)
+
+
+def _valid(claims):
+    """The claims of a report row block (rows with a finite position)."""
+    return claims[np.isfinite(claims[:, 0]) & np.isfinite(claims[:, 1])]
 
 
 def _straight_init(grid, x0=-450.0, x1=450.0, z=0.0, leaks=(-150.0, 150.0), n_agents=1,
@@ -78,9 +87,10 @@ def _straight_init(grid, x0=-450.0, x1=450.0, z=0.0, leaks=(-150.0, 150.0), n_ag
 
 
 def _run(grid, tier, init, method, vehicle, seed=0, info=None):
-    """Results and the final work arrays (field, per-leak peaks, logs and estimates)."""
+    """Results and the finished batch (the task's work arrays ``W``: field, mission computer,
+    report; the method's memory ``H``)."""
     ep = Episodes(pi, grid, tier, init, method, "6dof", vehicle, seed, info=info).run()
-    return ep.results(), ep.W
+    return ep.results(), ep
 
 
 def test_reset_geometry_is_valid(coast):
@@ -218,9 +228,9 @@ def test_match_claims_hand_cases():
 
 
 @numba.njit
-def _feed(W, xs, rs, fe, thr, estimator):
+def _feed(H, R, xs, rs, fe, thr, estimator):
     for m in range(xs.size):
-        pi_policy.detect(W, 0, 0, xs[m], 0.0, rs[m], fe, 0.0, thr, estimator)
+        pi_policy.detect(H, R, 0, 0, xs[m], 0.0, rs[m], fe, 0.0, thr, estimator)
 
 
 def test_event_detector_on_a_hand_made_series(calm):
@@ -237,50 +247,128 @@ def test_event_detector_on_a_hand_made_series(calm):
 
     r = plume(0.0) + plume(250.0)
     for est, want in ((pi_policy.PEAK, (30.0, 280.0)), (pi_policy.ONSET, (0.0, 250.0))):
-        _, W = _make(calm)
-        _feed(W, x, r, 0.5, thr, est)
-        n = W.nclaim[0]
+        ep = _view(calm)
+        H, R = ep.H, ep.C.R
+        _feed(H, R, x, r, 0.5, thr, est)
+        n = H.nclaim[0]
         assert n == 2, est
-        np.testing.assert_allclose(W.claims[0, :n, 0], want, atol=6.0)
-        np.testing.assert_allclose(W.claims[0, :n, 1], 0.0)
-    _, W = _make(calm)
-    _feed(W, x, 0.4 + 0.3 * np.sin(x / 7.0), 0.5, thr, pi_policy.PEAK)
-    assert W.nclaim[0] == 0
+        np.testing.assert_allclose(R[0, :n, 0], want, atol=6.0)
+        np.testing.assert_allclose(R[0, :n, 1], 0.0)
+        assert np.all(np.isnan(R[0, n:]))        # the report is compact
+    ep = _view(calm)
+    _feed(ep.H, ep.C.R, x, 0.4 + 0.3 * np.sin(x / 7.0), 0.5, thr, pi_policy.PEAK)
+    assert ep.H.nclaim[0] == 0 and np.all(np.isnan(ep.C.R))
 
 
 def test_readings_are_placed_where_the_method_believes_it_is(calm):
     """The sensor reads at the vehicle's true position, but the method is handed the value
-    only (``W.sense[e, i]``, kg m-3): the event it opens, and the claim it files, sit at its
-    navigation estimate (the state it is given, never the truth); the observation's probe
-    (``cue``) is that same reading, whatever state the cue is given."""
-    P, W = _make(calm)
-    M = pi_policy.params("heuristic", TIER, E.load_vehicle())
+    only (the observation's probe, kg m-3): the event it opens, and the claim it files, sit
+    at its navigation estimate (the observation's position, never the truth); the
+    observation's probe (``cue``) is the latest reading (``W.sense``), whatever state the cue
+    is given."""
+    ep = _view(calm)
+    P, W, B, M, H, R = ep.P, ep.W, ep.B, ep.M, ep.H, ep.C.R
     assert W.sense.shape == (1, 1)
-    W.widx[0, 0] = 1
+    H.widx[0, 0] = 1
+    O = np.full((1, 1, ep.obs_dim), np.nan)
+    C = Ctx(B, O, (), M, H, R)
 
-    def believed(x, z):
-        s = np.zeros((1, 1, E.STATE_DIM))
-        s[0, 0, 0], s[0, 0, 2] = x, z
-        s[0, 0, 1] = -E.sample_elevation(calm, x, z) - M.alt
-        return s
+    def believed(x, z, reading):
+        O[0, 0, O_X], O[0, 0, O_Z] = x, z
+        O[0, 0, O_DEPTH] = -E.sample_elevation(calm, x, z) - M.alt
+        O[0, 0, O_CE:O_CN + 1] = 0.0
+        O[0, 0, O_PROBE] = reading
 
-    W.sense[0, 0] = 0.0                       # background: the trough
-    pi_policy.act(calm, P, W, M, believed(-120.0, 3.0), 0, 4, 0, 4.0, 0.0, 0.0)
-    assert W.ev_on[0, 0] == 0 and W.nclaim[0] == 0
-    W.sense[0, 0] = 10.0 * P.thr              # a plume
-    pi_policy.act(calm, P, W, M, believed(-118.0, 7.0), 0, 5, 0, 5.0, 0.0, 0.0)
-    assert W.ev_on[0, 0] == 1 and W.nclaim[0] == 1
-    assert tuple(W.ev_pos[0, 0, :2]) == (-118.0, 7.0)
-    assert tuple(W.claims[0, 0, :2]) == (-118.0, 7.0)
+    believed(-120.0, 3.0, 0.0)                 # background: the trough
+    pi_policy.act(C, 0, 4, 0)
+    assert H.ev_on[0, 0] == 0 and H.nclaim[0] == 0
+    believed(-118.0, 7.0, 10.0 * B.thr)        # a plume
+    pi_policy.act(C, 0, 5, 0)
+    assert H.ev_on[0, 0] == 1 and H.nclaim[0] == 1
+    assert tuple(H.ev_pos[0, 0, :2]) == (-118.0, 7.0)
+    assert tuple(R[0, 0, :2]) == (-118.0, 7.0)
+    assert R is W.claims                       # the report the judge reads
+    W.sense[0, 0] = 10.0 * P.thr
     for x in (-118.0, 300.0):
-        probe = pi.cue(calm, P, W, believed(x, 0.0), 0, 5, 0)[3]
-        assert probe == 10.0 * P.thr
+        s = np.zeros((1, 1, E.STATE_DIM))
+        s[0, 0, 0] = x
+        assert pi.cue(calm, P, W, s, 0, 5, 0)[3] == 10.0 * P.thr
+
+
+def test_briefing_is_the_mission_and_the_plan_is_the_methods(calm):
+    """The briefing: the common fields in order, then the task's own (the pipeline chart,
+    the sections, the mission computer's routes, the sensor's and the scoring's constants);
+    every E-leading array a copy. The heuristic's survey plan (its memory) is built from the
+    chart and the sections: with its overlap the task's route."""
+    ep = _view(calm, n_agents=2)
+    B, init = ep.B, _straight_init(calm, n_agents=2)
+    assert B._fields == tuple(public.COMMON) + tuple(pi.BRIEF_FIELDS)
+    np.testing.assert_array_equal(B.pipeline, init["poly"])
+    np.testing.assert_array_equal(B.sections, init["sections"])
+    assert B.thr == TIER["detect_threshold_kg_m3"] and B.loc_tol == TIER["loc_tolerance_m"]
+    assert B.gate == pi.DETECT_GATE_M and B.max_claims == pi.MAX_CLAIMS
+    assert B.cue_alt == pi.CUE_ALT_M and B.plume_scale == pi.PLUME_SCALE_M
+    assert not np.shares_memory(B.route, ep.W.route)
+    # agent 0 from the pipeline's start, agent 1 from ROUTE_OVERLAP_M before its section
+    # (x = 0 on the straight west-east pipeline), both to their section's end
+    assert list(B.route_n[0]) == [2, 3]
+    np.testing.assert_allclose(B.route[0, 0], [[-450.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    np.testing.assert_allclose(B.route[0, 1], [[-pi.ROUTE_OVERLAP_M, 0.0], [0.0, 0.0],
+                                               [450.0, 0.0]])
+    assert pi_policy.OVERLAP_M == B.route_overlap
+    np.testing.assert_array_equal(ep.H.wps, B.route)
+    np.testing.assert_array_equal(ep.H.wcount, B.route_n)
+    sub = public.briefing_rows(B, [0])
+    assert sub.route.shape == B.route.shape and sub.thr == B.thr
+
+
+def test_cue_is_the_mission_computers_carrot_and_section_done(calm):
+    """The task's own cue (every method): the carrot along the agent's route at the
+    inspection altitude over the charted seafloor, from a pointer the task advances on the
+    navigation estimate; ``section_done`` turns 1 past the route's end and the report is
+    final (the episode ends) once every agent's is. The fused heuristic flies the same
+    carrot. A policy that only follows the cue inspects its section: it ends the episode
+    before the time limit, its report (here the true leaks, written in place) scored."""
+    init = _straight_init(calm, n_agents=2)
+    veh = E.load_vehicle()
+    ep = Episodes(pi, calm, TIER, init, "heuristic", "6dof", veh, 0, record=True).run()
+    r = ep.results()
+    k_end = int(ep.k[0])
+    assert r["success"][0] and k_end < ep.n_steps
+    obs = ep.obs[0, :k_end]
+    done = obs[:, :, OBS_DIM]
+    assert pi.OBS_EXTRA == ("section_done",)
+    assert set(np.unique(done)) == {0.0, 1.0}
+    assert np.all(np.diff(done, axis=0) >= 0)            # latched
+    assert np.all(done[-1] == 1.0) and not np.all(done[-2] == 1.0)
+    gx = obs[:, :, O_GX] + obs[:, :, O_X]
+    gy = obs[:, :, O_GY] + obs[:, :, O_DEPTH]
+    gz = obs[:, :, O_GZ] + obs[:, :, O_Z]
+    # on the pipeline (z = 0), at the inspection altitude over the charted seafloor
+    np.testing.assert_allclose(gz, 0.0, atol=1e-9)
+    floor = -np.array([[E.sample_elevation(calm, x, 0.0) for x in row] for row in gx])
+    np.testing.assert_allclose(gy, floor - pi.CUE_ALT_M, atol=1e-6)
+    # the heuristic's last carrot is the task's last cue (holding at the section's end)
+    np.testing.assert_array_equal(ep.H.tgt[0], ep.W.tgt[0])
+    np.testing.assert_allclose(gx[-1], [0.0, 450.0], atol=1e-6)
+    # a cue follower (no method of its own: seek the cue at v_max)
+    ext = Episodes(pi, calm, TIER, init, None, "6dof", veh, 0)
+    O = ext.observe()
+    ext.C.R[0, :2, :2] = init["leaks"][0]
+    while not ext.done.all():
+        d = O[:, :, O_GX:O_GZ + 1]
+        n = np.linalg.norm(d, axis=2, keepdims=True)
+        ext.set_actions(veh.v_max * d / np.maximum(n, 1e-9))
+        O = ext.step_observe().copy()
+    rf = ext.results()
+    assert ext.k[0] < ext.n_steps and np.all(O[0, :, OBS_DIM] == 1.0)
+    assert rf["success"][0] and rf["T_s"][0] < TIER["time_limit_s"]
 
 
 def test_calm_water_both_methods_localise_every_leak(calm):
     init = _straight_init(calm)
     for method in ("oracle", "heuristic"):
-        r, W = _run(calm, TIER, init, method, E.load_vehicle())
+        r, ep = _run(calm, TIER, init, method, E.load_vehicle())
         assert r["success"][0], method
         assert r["inspection_score"][0] == 1.0 and r["detection_rate"][0] == 1.0
         assert r["localisation_error_m"][0] < 10.0
@@ -290,7 +378,7 @@ def test_calm_water_both_methods_localise_every_leak(calm):
         assert 900.0 / E.load_vehicle().v_max < r["T_s"][0] < TIER["time_limit_s"]
         # the field only holds emitted tracer (no mass is created)
         emitted = init["leak_rate"].sum() * (pi.SPINUP_S + r["T_s"][0] + 3.0)
-        assert 0.0 < pol.total_mass(W.C[0], pi.FIELD_H_M) <= emitted * (1 + 1e-9)
+        assert 0.0 < pol.total_mass(ep.W.C[0], pi.FIELD_H_M) <= emitted * (1 + 1e-9)
 
 
 def test_torpedo_start_off_the_section_start_still_surveys(calm):
@@ -302,15 +390,15 @@ def test_torpedo_start_off_the_section_start_still_surveys(calm):
         init = _straight_init(calm)
         init["pos0"][0, 0, 2] += dz
         init["psi0"][0, 0] = psi
-        r, W = _run(calm, TIER, init, "oracle", veh)
+        r, ep = _run(calm, TIER, init, "oracle", veh)
         assert r["success"][0], (dz, psi)
-        assert W.done[0, 0] == 1 and r["T_s"][0] < 600.0
+        assert ep.W.done[0, 0] == 1 and ep.H.done[0, 0] == 1 and r["T_s"][0] < 600.0
     assert pi_policy.ARRIVE_M > 2.0 * veh.params[P_RTURN]   # beyond the turning circle
 
 
 @numba.njit
-def _end_section(W, x, z):
-    pi_policy.close_event(W, 0, 0, x, z, True)
+def _end_section(H, R, x, z):
+    pi_policy.close_event(H, R, 0, 0, x, z, True)
 
 
 def test_event_reopened_on_the_tail_of_a_plume_keeps_its_own_claim(calm):
@@ -323,28 +411,31 @@ def test_event_reopened_on_the_tail_of_a_plume_keeps_its_own_claim(calm):
     # leak at 0: peak 25 at 0, decays to a trough of 3 at 40 m; then a slow rise to a
     # second leak's peak 20 at 220 m (the event opens ~42 m from the first claim)
     r = np.interp(x, [-40.0, 0.0, 40.0, 220.0, 260.0, 500.0], [0.0, 25.0, 3.0, 20.0, 0.0, 0.0])
-    _, W = _make(calm)
-    _feed(W, x, r, 0.0, thr, pi_policy.PEAK)
-    n = W.nclaim[0]
+    ep = _view(calm)
+    H, R = ep.H, ep.C.R
+    _feed(H, R, x, r, 0.0, thr, pi_policy.PEAK)
+    n = H.nclaim[0]
     assert n == 2
-    np.testing.assert_allclose(np.sort(W.claims[0, :n, 0]), [0.0, 220.0], atol=3.0)
+    np.testing.assert_allclose(np.sort(R[0, :n, 0]), [0.0, 220.0], atol=3.0)
     # one plume seen as two events (a dip in the readings): one claim, at the stronger peak
     r = np.interp(x, [-40.0, 0.0, 10.0, 20.0, 30.0, 70.0], [0.0, 12.0, 5.0, 14.0, 0.0, 0.0])
-    _, W = _make(calm)
-    _feed(W, x, r, 0.0, thr, pi_policy.PEAK)
-    assert W.nclaim[0] == 1
-    assert W.claims[0, 0, 0] == pytest.approx(20.0, abs=2.0)
-    assert np.all(np.isnan(W.claims[0, 1:]))
+    ep = _view(calm)
+    H, R = ep.H, ep.C.R
+    _feed(H, R, x, r, 0.0, thr, pi_policy.PEAK)
+    assert H.nclaim[0] == 1
+    assert R[0, 0, 0] == pytest.approx(20.0, abs=2.0)
+    assert np.all(np.isnan(R[0, 1:]))
     # a plume still rising where the section ends: its source lies beyond (a teammate's
     # section); the claim is withdrawn, a complete event's is kept
     for x_end, want in ((50.0, 0), (160.0, 1)):
         xs = x[x <= x_end]
         r = np.interp(xs, [-100.0, 0.0, 60.0, 120.0], [0.0, 0.0, 10.0, 0.0])
-        _, W = _make(calm)
-        _feed(W, xs, r, 0.0, thr, pi_policy.ONSET)
-        if W.ev_on[0, 0]:
-            _end_section(W, xs[-1], 0.0)
-        assert W.nclaim[0] == want, x_end
+        ep = _view(calm)
+        H, R = ep.H, ep.C.R
+        _feed(H, R, xs, r, 0.0, thr, pi_policy.ONSET)
+        if H.ev_on[0, 0]:
+            _end_section(H, R, xs[-1], 0.0)
+        assert H.nclaim[0] == want and len(_valid(R[0])) == want, x_end
 
 
 def test_failure_modes_do_nothing_and_high_threshold(calm):
@@ -370,14 +461,15 @@ def test_along_pipe_current_biases_the_peak_not_the_onset(monkeypatch):
     for k in pi.METRICS:
         np.testing.assert_array_equal(rt[k], ro[k], err_msg=k)
     # the same method claiming each event's peak instead of its onset
-    peak = pi_policy.params("oracle", tier, E.load_vehicle())._replace(estimator=pi_policy.PEAK)
-    monkeypatch.setattr(pi_policy, "params", lambda method, tier, vehicle: peak)
-    rh, wh = _run(grid, tier, init, "oracle", E.load_vehicle())
+    peak = Episodes(pi, grid, tier, init, "oracle", "6dof", E.load_vehicle(), 0).M._replace(
+        estimator=pi_policy.PEAK)
+    monkeypatch.setattr(pi_policy, "params", lambda method, B: peak)
+    rh, eh = _run(grid, tier, init, "oracle", E.load_vehicle())
     assert ro["success"][0] and ro["localisation_error_m"][0] < 12.0
     assert rh["detection_rate"][0] == 1.0 and rh["false_claims"][0] == 0
     # the peak claims lie east (downstream) of the leaks
-    claims = wh.claims[0, :wh.nclaim[0], :2]
-    assert claims.shape == (2, 2)
+    claims = _valid(eh.C.R[0])[:, :2]
+    assert claims.shape == (2, 2) and eh.H.nclaim[0] == 2
     for leak in init["leaks"][0]:
         c = claims[np.argmin(np.linalg.norm(claims - leak, axis=1))]
         assert c[0] > leak[0] + 5.0
@@ -388,13 +480,15 @@ def test_score_comes_from_the_claims_through_the_loop(calm):
     """Through the real loop: the score is the method's claims matched to the truth. The
     fused method's claims do not depend on the true leak positions (moving them in ``W``
     after the plumes were made leaves the claims bit-identical: only the score changes), and
-    a report written from Python (external method) is scored as filed."""
+    a report written from Python (an outside method, into the batch's report ``C.R``) is
+    scored as filed."""
     init = _straight_init(calm)
     veh = E.load_vehicle()
     a = Episodes(pi, calm, TIER, init, "heuristic", "6dof", veh, 0).run()
     ra = a.results()
-    n = a.W.nclaim[0]
-    claims = a.W.claims[0, :n, :2].copy()
+    n = a.H.nclaim[0]
+    claims = a.C.R[0, :n, :2].copy()
+    assert np.all(np.isnan(a.C.R[0, n:]))
     assert ra["success"][0] and n == 2
     want = pi.score_claims(claims, init["leaks"][0], TIER["loc_tolerance_m"])
     for k in pi.METRICS:
@@ -403,17 +497,16 @@ def test_score_comes_from_the_claims_through_the_loop(calm):
     b = Episodes(pi, calm, TIER, init, "heuristic", "6dof", veh, 0)
     b.W.leaks[...] += 1000.0
     rb = b.run().results()
-    np.testing.assert_array_equal(b.W.claims[0, :n, :2], claims)
+    np.testing.assert_array_equal(b.C.R[0, :n, :2], claims)
     assert rb["inspection_score"][0] == 0.0 and rb["false_claims"][0] == 2
     assert not rb["success"][0] and math.isnan(rb["localisation_error_m"][0])
     # external method: truth fixed, the claims it files decide the score
     leaks = init["leaks"][0]
     tier = {**TIER, "time_limit_s": 20.0}
 
-    def external(report):
+    def external(report, rows=None):
         ep = Episodes(pi, calm, tier, init, None, "6dof", veh, 0).run(5)
-        ep.W.claims[0, :len(report), :2] = report
-        ep.W.nclaim[0] = len(report)
+        ep.C.R[0, np.arange(len(report)) if rows is None else rows, :2] = report
         return ep.run().results()
 
     r = external(leaks + [[3.0, 4.0], [0.0, -5.0]])
@@ -425,6 +518,8 @@ def test_score_comes_from_the_claims_through_the_loop(calm):
     r = external(np.vstack([leaks, [[0.0, 400.0]]]))   # a claim far from every leak
     assert r["false_claims"][0] == 1 and r["inspection_score"][0] == pytest.approx(2.0 / 3.0)
     assert not r["success"][0]
+    r = external(leaks, rows=[pi.MAX_CLAIMS - 1, 7])    # any rows; the NaN rows are none
+    assert r["success"][0] and r["false_claims"][0] == 0
 
 
 def test_team_inspects_faster(calm):

@@ -1,6 +1,7 @@
 """RF (route following): reset geometry, waypoint/xte/energy success rule, metrics, the speed
-schedule planned through the field (heuristic on its forecast, oracle on the truth, the
-constant-speed crabber), determinism, tier table."""
+schedule planned through the briefing's field (heuristic on its forecast, oracle on the truth,
+the constant-speed crabber), the briefing, the task's cue and observation fields, determinism,
+tier table."""
 
 from __future__ import annotations
 
@@ -16,7 +17,8 @@ from oneocean.engine.grid import with_forcing
 from oneocean.errors import ConfigError
 from oneocean.methods.heuristic import rf as POLICY
 from oneocean.tasks import rf, run_cell
-from oneocean.tasks.common import load_task_table, path_clear
+from oneocean.tasks import routing
+from oneocean.tasks.common import OBS_DIM, load_task_table, path_clear
 from oneocean.tasks.routing import power_model
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
@@ -196,7 +198,7 @@ def test_speed_schedule_beats_the_constant_speed_crabber(monkeypatch):
     _, ro = _run(g, tier, "oracle", init=init)
     assert ro["success"][0] and ro["energy_ratio"][0] <= 1.0
     ep = Episodes(rf, g, tier, init, "oracle", "kinematic", VEHICLE, 0)
-    assert np.all(ep.W.wspd[0, :ep.W.wcount[0] - 1] > 1.25)
+    assert np.all(ep.H.wspd[0, :ep.H.wcount[0] - 1] > 1.25)
     monkeypatch.setattr(POLICY, "plan_episode", POLICY.straight_plan)
     _, rs = _run(g, tier, "heuristic", init=init, info="truth")
     assert not rs["success"][0] and rs["energy_ratio"][0] >= 1.5
@@ -238,3 +240,74 @@ def test_energy_allocation_is_the_best_schedule_plus_the_reserve():
     r = ep.run().results()
     assert not r["success"][0] and r["waypoints_reached"][0] == 2
     assert r["energy_ratio"][0] > 0.95 and r["T_s"][0] == tier["time_limit_s"]
+
+
+# ------------------------------------------------------------------------------ public view
+
+def test_briefing_is_the_route_and_the_field_the_method_is_given():
+    # the route, its tolerances and the field at its depth around its vertices: the truth
+    # for the oracle, the forecast (the episode's forecast error on the truth) for the
+    # heuristic; the plan is made from the briefing alone
+    g = _grid(-0.5, 0.3)
+    tier = {**TIER, "time_limit_s": 6000.0, "energy_reserve": 0.05, "forecast_lead_h": 48.0}
+    init = _east(2)
+    eo = Episodes(rf, g, tier, init, "oracle", "kinematic", VEHICLE, 0)
+    eh = Episodes(rf, g, tier, init, "heuristic", "kinematic", VEHICLE, 0)
+    for ep in (eo, eh):
+        B = ep.B
+        np.testing.assert_array_equal(B.route, init["route"])
+        assert B.radius == TIER["wp_radius_m"] and B.xte_max == TIER["xte_max_m"]
+        np.testing.assert_array_equal(B.energy_allocation, ep.W.budget)
+        assert np.isfinite(B.energy_allocation).all()
+    pts = init["route"][0][:, [0, 2]]
+    truth = routing.mission_field(g, pts, 5.0, 0.0, tier["time_limit_s"], fixed=True)
+    fc = routing.mission_field(g, pts, 5.0, 0.0, tier["time_limit_s"], fixed=True,
+                               fc=eh.LS.fc, e=1)
+    for got, want in ((routing.unpack_field(eo.B, 0), truth),
+                      (routing.unpack_field(eh.B, 1), fc)):
+        for k in ("cur", "times", "free"):
+            np.testing.assert_array_equal(getattr(got, k), getattr(want, k), err_msg=k)
+        assert (got.x0, got.z0, got.h) == (want.x0, want.z0, want.h)
+    assert not np.array_equal(routing.unpack_field(eh.B, 1).cur, truth.cur)
+    # the method's plan: the schedule on its briefing's field, in its memory
+    for ep in (eo, eh):
+        H = POLICY.memory(ep.B, ep.M)
+        POLICY.prepare(ep.B, ep.M, H)
+        for a, b in zip(H, ep.H):
+            np.testing.assert_array_equal(a, b)
+        r = routing.plan_on_field(routing.unpack_field(ep.B, 0), pts, 0.0, VEHICLE.v_max,
+                                  power_model("remus100"), fixed=True)
+        np.testing.assert_array_equal(ep.H.wspd[0, :ep.H.wcount[0] - 1], r.speed)
+
+
+def test_cue_and_energy_fields():
+    # the cue: the route point CUE_LOOKAHEAD_M ahead of the known projection on the mission
+    # computer's leg; the task's own fields: the energy used (J) and its share of the allocation
+    g = _grid(-0.5, 0.3)
+    tier = {**TIER, "time_limit_s": 6000.0, "energy_reserve": 0.05}
+    init = _east()
+    ep = Episodes(rf, g, tier, init, "oracle", "kinematic", VEHICLE, 0)
+    assert rf.OBS_EXTRA == ("energy_j", "energy_frac")
+    O = ep.observe()
+    assert O.shape == (1, 1, OBS_DIM + 2)
+    np.testing.assert_array_equal(O[0, 0, :3], [rf.CUE_LOOKAHEAD_M, 0.0, 0.0])
+    np.testing.assert_array_equal(O[0, 0, OBS_DIM:], [0.0, 0.0])
+    ep.run(100)
+    O = ep.C.O
+    used = ep.W.acc[0, 2]
+    assert used > 0.0
+    assert O[0, 0, OBS_DIM] == used and O[0, 0, OBS_DIM + 1] == used / ep.W.budget[0]
+    # the cue is on the route (z = 0, 5 m deep), CUE_LOOKAHEAD_M ahead of the projection
+    X = ep.known_state[0, 0, :3]
+    cue = X + O[0, 0, :3]
+    np.testing.assert_allclose(cue, [X[0] + rf.CUE_LOOKAHEAD_M, 5.0, 0.0], atol=1e-9)
+    r = ep.run().results()
+    O = ep.C.O   # the final state's: the whole episode's energy
+    assert O[0, 0, OBS_DIM] == pytest.approx(r["energy_wh"][0] * 3600.0, rel=1e-12)
+    # past the route as far as the vehicle knows: the cue is the last waypoint
+    np.testing.assert_allclose(ep.known_state[0, 0, :3] + O[0, 0, :3], init["route"][0, -1],
+                               atol=1e-9)
+    # without a reserve there is no allocation: the share is 0
+    ep = Episodes(rf, g, TIER, init, "oracle", "kinematic", VEHICLE, 0)
+    ep.run(50)
+    assert ep.C.O[0, 0, OBS_DIM] > 0.0 and ep.C.O[0, 0, OBS_DIM + 1] == 0.0

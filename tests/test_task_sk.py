@@ -1,6 +1,6 @@
 """SK (station keeping): reset geometry (release offset, start time in a changing current),
 hold rule, metrics (station-keeping RMS over the window for every episode, hold-window RMS),
-determinism, tier table."""
+the briefing and the cue, determinism, tier table."""
 
 from __future__ import annotations
 
@@ -18,7 +18,9 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.tasks import cell_frame, run_cell, sk
 from oneocean.tasks.common import episode_generators, load_task_table, start_times
-from oneocean.tasks.episodes import rollout
+from oneocean.evaluate import Observation
+from oneocean.methods.heuristic import FusedPolicy
+from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
@@ -272,3 +274,27 @@ def test_tier_table_monotone_and_declared():
     assert table["vehicle"] == "bluerov2_heavy"
     assert table["agents"] == {"default": 1, "range": [1, 1]}
     assert math.isclose(table["dt_s"], 1.0)
+
+
+def test_briefing_cue_and_the_commanded_heading():
+    # the briefing holds the station, its heading and the tolerances; the cue is the station;
+    # the policy commands the briefing's station heading
+    g = _grid(0.3, -0.1)
+    tier = {**TIER, "start_offset_m": 3.0}
+    init = sk.reset(g, tier, 1, 3, 0)
+    ep = Episodes(sk, g, tier, init, "heuristic", "kinematic", E.load_vehicle(), 0)
+    B = ep.B
+    np.testing.assert_array_equal(B.station, init["station"])
+    np.testing.assert_array_equal(B.heading, init["heading"])
+    assert (B.radius, B.hold_s, B.settle_s) == (TIER["hold_radius_m"], TIER["hold_time_s"],
+                                                sk.SETTLE_S)
+    assert sk.OBS_EXTRA == ()
+    O = ep.observe()
+    np.testing.assert_allclose(ep.known_state[:, 0, :3] + O[:, 0, :3], init["station"],
+                               atol=1e-9)
+    d = np.linalg.norm(O[:, 0, :3], axis=1)
+    assert np.all(np.abs(d - 3.0) < 2.0)   # released 3 m off, known to a few decimetres
+    pol = FusedPolicy("SK")
+    pol.reset(B)
+    a = pol.act(Observation(O, (), np.zeros(0)))
+    np.testing.assert_array_equal(a[:, 0, 3], init["heading"])

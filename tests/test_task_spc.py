@@ -1,5 +1,6 @@
 """SPC (surface pollution cleanup): reset geometry, mass budget, success rule, the cleanup
-rate over the fixed metric horizon, near-collisions, determinism."""
+rate over the fixed metric horizon, near-collisions, determinism; the public view: the
+briefing, the aerial survey (the team observation), the task's own cue."""
 
 from __future__ import annotations
 
@@ -16,7 +17,8 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.models import pollution as pol
 from oneocean.tasks import run_cell, spc
-from oneocean.tasks.common import STANDARD, load_task_table
+from oneocean.tasks.common import (O_CE, O_CN, O_DEPTH, O_GX, O_GY, O_GZ, O_X, O_Z, STANDARD,
+                                   load_task_table)
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
@@ -188,6 +190,145 @@ def test_runs_to_the_metric_horizon_with_standard_metrics_frozen_at_success(calm
     seg.run()
     np.testing.assert_array_equal(seg.res, whole.res)           # resumable, bit for bit
     assert np.all(seg.LS.energy == r["E"])
+
+
+def _blocks(W, e, nbz, nbx):
+    """The aerial map of episode ``e``'s field, by numpy: block masses (kg) and mass
+    centroids (m; 0 where empty)."""
+    b, h = spc.AERIAL_BLOCK_CELLS, spc.FIELD_H_M
+    C = W.C[e, 0]
+    nz, nx = C.shape
+    pad = np.zeros((nbz * b, nbx * b, 3))
+    X, Z = np.meshgrid(W.origin[e, 0] + h * np.arange(nx), W.origin[e, 1] + h * np.arange(nz))
+    pos = C > 0.0
+    pad[:nz, :nx, 0] = np.where(pos, C, 0.0)
+    pad[:nz, :nx, 1] = np.where(pos, C * X, 0.0)
+    pad[:nz, :nx, 2] = np.where(pos, C * Z, 0.0)
+    s = pad.reshape(nbz, b, nbx, b, 3).sum(axis=(1, 3)).reshape(-1, 3)
+    m = s[:, 0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (m * h * h, np.where(m > 0, s[:, 1] / m, 0.0), np.where(m > 0, s[:, 2] / m, 0.0))
+
+
+def test_briefing_and_the_aerial_survey_team_observation(calm):
+    """The briefing holds the spill report and the survey's schedule and layout; the team
+    observation is the task's aerial map: none before the first overflight (one aerial
+    period after the start), then a new one every period, kept in between; the oracle (given
+    the true target) has the exact map every step from step 0. Each map is the field at its
+    step summed over the survey's blocks (masses, mass centroids, the total)."""
+    from oneocean.tasks.public import COMMON
+
+    init = spc.reset(calm, TIER, 4, 2, 0)
+    ep = Episodes(spc, calm, TIER, init, "heuristic", "kinematic", VEHICLE, 0)
+    B, T = ep.B, ep.C.T
+    assert isinstance(B, spc.SPCBriefing)
+    assert B._fields == tuple(COMMON) + tuple(spc.BRIEF_FIELDS)
+    np.testing.assert_array_equal(B.report, init["report"])
+    np.testing.assert_array_equal(B.field_origin, init["origin"])
+    assert (B.spill_radius, B.depth, B.field_h) == (TIER["spill_radius_m"], spc.SURFACE_Y_M,
+                                                     spc.FIELD_H_M)
+    assert B.aerial_period_s == TIER["aerial_period_s"] == B.aerial_first_s
+    assert (B.removal_radius, B.removal_rate, B.target_fraction) == (
+        TIER["removal_radius_m"], TIER["removal_rate_s"], TIER["target_fraction"])
+    n = spc.field_frame(TIER["domain_m"])[0]
+    nb1 = -(-n // spc.AERIAL_BLOCK_CELLS)
+    assert B.block_cells == spc.AERIAL_BLOCK_CELLS and B.map_nbx == B.map_nbz == nb1
+    assert isinstance(T, spc.SPCTeamObs) and T._fields == tuple(spc.TEAM_FIELDS)
+    assert T.mass.shape == T.x.shape == T.z.shape == (2, nb1 * nb1)
+    ep.run(19)   # the observation of step 19: no map yet
+    assert np.isnan(T.t_map).all() and (T.mass == 0.0).all() and (T.total == 0.0).all()
+    for k in (20, 39, 40):
+        ep.run(k)   # the observation of step k (taken before the agents move)
+        np.testing.assert_array_equal(T.t_map, init["t0"] + 20.0 * (k // 20))
+        if k % 20 == 0:
+            for e in range(2):
+                m, x, z = _blocks(ep.W, e, nb1, nb1)
+                np.testing.assert_allclose(T.mass[e], m, rtol=1e-12, atol=1e-12)
+                np.testing.assert_allclose(T.x[e], x, rtol=1e-12)
+                np.testing.assert_allclose(T.z[e], z, rtol=1e-12)
+                assert T.total[e] == pytest.approx(pol.total_mass(ep.W.C[e], spc.FIELD_H_M),
+                                                   rel=1e-12)
+                assert T.total[e] == pytest.approx(m.sum(), rel=1e-12)
+                assert 0.0 < T.total[e] < spc.SPILL_MASS_KG   # the team removes oil
+    # the oracle: the exact map every step, from step 0
+    o = Episodes(spc, calm, TIER, init, "oracle", "kinematic", VEHICLE, 0)
+    assert o.B.aerial_period_s == TIER["dt_s"] and o.B.aerial_first_s == 0.0
+    for k in (0, 1, 7):
+        o.run(k)
+        np.testing.assert_array_equal(o.C.T.t_map, init["t0"] + k)
+        m, _, _ = _blocks(o.W, 0, nb1, nb1)
+        np.testing.assert_allclose(o.C.T.mass[0], m, rtol=1e-12, atol=1e-12)
+
+
+def _cue_reference(pos, mass, x, z, frac):
+    """The task's cue assignment, by its documented rule: the blocks of at least ``frac`` of
+    the heaviest's mass, heaviest first (lower index on ties), each to the nearest agent
+    without one, round after round."""
+    q = [b for b in np.argsort(-mass, kind="stable") if mass[b] >= frac * mass.max()]
+    free = list(range(len(pos)))
+    out = np.empty((len(pos), 2))
+    for j in range(len(pos)):
+        b = q[j % len(q)]
+        d = [(pos[i, 0] - x[b]) ** 2 + (pos[i, 1] - z[b]) ** 2 for i in free]
+        i = free.pop(int(np.argmin(d)))
+        out[i] = x[b], z[b]
+    return out
+
+
+def test_the_tasks_cue_ring_then_the_mapped_blocks_drifting_with_the_current(coast):
+    """The task's own cue (every method gets it): a ring of CUE_RING_FRAC spill radii around
+    the spill report before the first map, then at every map each agent's block by the
+    documented assignment (its mass centroid); in between it drifts from its time with the
+    agent's current estimate of the previous observation. At the operating depth."""
+    init = spc.reset(coast, TIER, 6, 2, 1)
+    ep = Episodes(spc, coast, TIER, init, "heuristic", "kinematic", VEHICLE, 1, record=True)
+    ep.run(20)
+    T = ep.C.T
+    O20 = ep.C.O.copy()
+    snap = [a.copy() for a in T]
+    ep.run()
+    obs = ep.obs
+    n = 6
+    ring = spc.CUE_RING_FRAC * TIER["spill_radius_m"]
+    a = 2.0 * np.pi * np.arange(n) / n
+    for e in range(2):
+        cue = lambda k: np.stack([obs[e, k, :, O_GX] + obs[e, k, :, O_X],  # noqa: E731
+                                  obs[e, k, :, O_GZ] + obs[e, k, :, O_Z]], 1)
+        np.testing.assert_allclose(obs[e, :, :, O_GY] + obs[e, :, :, O_DEPTH], spc.SURFACE_Y_M,
+                                   atol=1e-9)
+        ring0 = init["report"][e] + ring * np.stack([np.sin(a), np.cos(a)], 1)
+        np.testing.assert_allclose(cue(0), ring0, atol=1e-9)
+        for k in (1, 7, 19):
+            drift = np.stack([obs[e, k - 1, :, O_CE], obs[e, k - 1, :, O_CN]], 1) * k
+            np.testing.assert_allclose(cue(k), ring0 + drift, atol=1e-9)
+        # the map of step 20: the assignment on the agents' known positions, no drift yet
+        pos = O20[e][:, [O_X, O_Z]]
+        blocks = _cue_reference(pos, snap[1][e], snap[2][e], snap[3][e], spc.CUE_MASS_FRAC)
+        np.testing.assert_array_equal(obs[e, 20][:, [O_X, O_Z]], pos)
+        np.testing.assert_allclose(cue(20), blocks, atol=1e-9)
+        assert len({tuple(b) for b in blocks}) > 1          # the team is spread
+        for k in (21, 33):
+            drift = np.stack([obs[e, k - 1, :, O_CE], obs[e, k - 1, :, O_CN]], 1) * (k - 20)
+            np.testing.assert_allclose(cue(k), blocks + drift, atol=1e-9)
+
+
+def test_a_follower_of_the_cue_cleans(coast):
+    """A policy that only closes its cue offset through the water (0.5 s-1, capped at
+    v_max; the cue drifts with the water) cleans the slick: it reaches the target in the
+    episodes the heuristic does, with a cleanup rate near the heuristic's."""
+    init = spc.reset(coast, TIER, 6, 4, 2)
+    ep = Episodes(spc, coast, TIER, init, None, "kinematic", VEHICLE, 2)
+    v = VEHICLE.v_max
+    O = ep.observe()
+    while not ep.done.all():
+        w = 0.5 * np.nan_to_num(O[..., [O_GX, O_GY, O_GZ]])
+        nw = np.linalg.norm(w, axis=-1, keepdims=True)
+        ep.set_actions(np.where(nw > v, w * v / np.maximum(nw, 1e-12), w))
+        O = ep.step_observe()
+    r = ep.results()
+    h = rollout(spc, coast, TIER, init, "heuristic", "kinematic", VEHICLE, 2)
+    assert h["success"].all() and r["success"].all()
+    assert np.all(r["cleanup_rate"] > h["cleanup_rate"] - 0.1)
 
 
 def test_cleanup_rate_is_removed_mass_over_the_fixed_horizon(calm):

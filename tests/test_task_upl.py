@@ -1,6 +1,7 @@
 """UPL (cooperative lift): reset geometry, the survey's chart, reachability, attach/lift
 physics, success rule, the object's perception (sonar fixes, the team's filter, the search),
-metrics, determinism (seeds and threads), tier table."""
+the public view (briefing, the observation's own fields, the team observation, the task's
+cue, which a follower can lift by), metrics, determinism (seeds and threads), tier table."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ from oneocean.engine import status as st
 from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError, NotApplicable
 from oneocean.tasks import run_cell, upl
-from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
+from oneocean.tasks.common import (OBS_DIM, STANDARD, load_task_table, path_clear,
+                                   tier_params)
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
@@ -276,7 +278,7 @@ def test_sonar_fixes_within_range_and_the_oracle_exact(calm):
     init = _at_slots(offset=3.0)
     init["pos0"][0, 4] += np.array([150.0, -30.0, 0.0])
     init["chart"] = init["obj0"] + np.array([[6.0, 0.0, -8.0]])
-    h = _batch(calm, TIER, init).run(1)
+    h = _batch(calm, TIER, init).run(0)   # the first observation: step 0's fixes, fused
     fix = h.W.fix[0]
     assert np.all(fix[:4, 3] == 1.0) and fix[4, 3] == 0.0
     # the measured offsets of the step's start, with the sonar's noise (not exact)
@@ -286,7 +288,7 @@ def test_sonar_fixes_within_range_and_the_oracle_exact(calm):
     # the team's estimate left the chart for the object
     est = h.W.oest[0, :3]
     assert np.linalg.norm(est - init["obj0"][0]) < 1.0
-    o = _batch(calm, TIER, init, method="oracle").run(1)
+    o = _batch(calm, TIER, init, method="oracle").run(0)
     assert np.all(o.W.fix[0, :, 3] == 1.0)   # exact, at any range
     np.testing.assert_array_equal(o.W.oest[0, :3], o.W.obj[0])
 
@@ -308,7 +310,106 @@ def test_search_finds_an_object_far_off_the_chart(calm):
     tier = {**TIER, "survey_std_m": 40.0, "time_limit_s": 900.0}
     h = _batch(calm, tier, init).run()
     r = h.results()
-    assert h.W.srch[0, 0] == 1.0 and h.W.odet[0] == 1
+    assert h.H.srch[0, 0] == 1.0 and h.W.odet[0] == 1
     assert r["success"][0]
     o = _roll(calm, tier, init)
     assert o["success"][0] and o["T_s"][0] < r["T_s"][0]
+
+
+def test_briefing_holds_the_mission_and_the_oracle_the_truth(calm):
+    init = _at_slots(offset=3.0)
+    init["chart"] = init["obj0"] + np.array([[6.0, 0.0, -8.0]])
+    h = _batch(calm, TIER, init)
+    B = h.B
+    assert isinstance(B, upl.UPLBriefing)
+    assert B._fields[len(B._fields) - len(upl.BRIEF_FIELDS):] == tuple(upl.BRIEF_FIELDS)
+    np.testing.assert_array_equal(B.obj_chart, init["chart"])
+    np.testing.assert_array_equal(B.slot_off, init["slot_off"])
+    assert (B.quorum, B.attach_radius, B.attach_dwell, B.detach_radius, B.sink_speed,
+            B.success_depth, B.hold_radius, B.survey_std) == (5, 1.0, 5.0, 2.5, 0.3, 2.5, 30.0,
+                                                              10.0)
+    assert B.p_range == upl.object_perception(1.0)[0]
+    assert h.W.pcfg[1] == 0
+    # the oracle perceives the object exactly: its chart is the truth
+    o = _batch(calm, TIER, init, method="oracle")
+    np.testing.assert_array_equal(o.B.obj_chart, init["obj0"])
+    assert o.W.pcfg[1] == 1
+    # the sonar's error stream is the run's (seed, the cell's episodes)
+    h.run(1)
+    assert h.W.pcfg[0] == 0 and h.W.pcfg[2] == 0
+    assert _batch(calm, TIER, init, seed=7).run(1).W.pcfg[0] == 7
+
+
+def _check_fields(b, e=0):
+    """The task's observation fields and team observation of ``b``'s current step."""
+    O = b.C.O[e]
+    X = b.known_state[e]
+    W = b.W
+    assert len(upl.OBS_EXTRA) == O.shape[1] - OBS_DIM <= 8
+    x = O[:, OBS_DIM:]
+    np.testing.assert_array_equal(x[:, 0], W.odet[e])
+    np.testing.assert_allclose(x[:, 1:4], W.oest[e, :3] - X[:, :3], atol=1e-9)
+    np.testing.assert_array_equal(x[:, 4:7], np.tile(W.oest[e, 3:], (upl.N_SLOTS, 1)))
+    np.testing.assert_array_equal(x[:, 7], W.att[e])
+    # the team observation: views of the team's estimate
+    T = b.C.T
+    assert isinstance(T, upl.UPLTeamObs) and set(T._fields) == set(upl.TEAM_FIELDS)
+    assert np.shares_memory(T.obj_est, W.oest) and np.shares_memory(T.obj_det, W.odet)
+    return O, X
+
+
+def test_observation_fields_and_the_task_cue(calm):
+    # agents 3 m above their slots; the chart 6 m off: the team's estimate leaves it
+    init = _at_slots(offset=3.0)
+    init["chart"] = init["obj0"] + np.array([[6.0, 0.0, -8.0]])
+    h = _batch(calm, TIER, init).run(2)
+    O, X = _check_fields(h)
+    assert np.all(O[:, OBS_DIM] == 1.0) and np.all(O[:, OBS_DIM + 7] == -1.0)
+    est = h.W.oest[0, :3]
+    off = init["slot_off"][0]
+    # unattached: the cue is the nearest slot on the estimate (here each agent's own)
+    goal = X[:, :3] + O[:, :3]
+    np.testing.assert_allclose(goal, est + off, atol=1e-9)
+    # the oracle on its slots: attached after the dwell (5 s), its own slot, then the lift:
+    # the slot at the surface
+    o = _batch(calm, TIER, _at_slots(), method="oracle").run(5)
+    O, X = _check_fields(o)
+    att = o.W.att[0]
+    assert np.all(att >= 0)
+    np.testing.assert_array_equal(O[:, OBS_DIM + 7], att)
+    lift = o.W.oest[0, :3].copy()
+    lift[1] = upl.SLOT_RISE_M
+    np.testing.assert_allclose(X[:, :3] + O[:, :3], lift + off[att], atol=1e-9)
+    assert np.allclose(O[:, 1], -X[:, 1])   # the slots' depth 0
+    # one agent attached, the others not: its own slot at the object's depth, the others the
+    # nearest free slot (never the held one)
+    init = _at_slots()
+    init["pos0"][0, 1:] = init["pos0"][0, 0] + np.array([0.0, -2.0, 0.0])
+    init["pos0"][0, 1:] += np.arange(1, 5)[:, None] * np.array([0.0, 0.0, 1.0])
+    o = _batch(calm, {**TIER, "time_limit_s": 60.0}, init, method="oracle").run(5)
+    O, X = _check_fields(o)
+    assert o.W.att[0, 0] == 0 and np.all(o.W.att[0, 1:] == -1)
+    est = o.W.oest[0, :3]
+    goal = X[:, :3] + O[:, :3]
+    np.testing.assert_allclose(goal[0], est + off[0], atol=1e-9)
+    for i in range(1, 5):
+        d = np.linalg.norm(X[i, :3] - (est + off), axis=1)
+        d[0] = np.inf
+        np.testing.assert_allclose(goal[i], est + off[np.argmin(d)], atol=1e-9)
+
+
+def test_a_cue_follower_attaches_and_lifts(calm):
+    # an outside policy that flies to its cue (P-control, v_max) and nothing else: it
+    # attaches (one agent from 25 m away) and lifts the object
+    init = _at_slots(offset=3.0)
+    init["pos0"][0, 4] += np.array([25.0, -10.0, 0.0])
+    init["chart"] = init["obj0"] + np.array([[5.0, 0.0, 5.0]])
+    b = _batch(calm, TIER, init, method=None)
+    O = b.observe()
+    while not b.done.all():
+        a = 0.6 * np.nan_to_num(O[..., :3])
+        n = np.linalg.norm(a, axis=-1, keepdims=True)
+        b.set_actions(a * np.minimum(1.0, VEHICLE.v_max / np.maximum(n, 1e-12)))
+        O = b.step_observe()
+    r = b.results()
+    assert r["success"][0] and r["attach_time_s"][0] < r["T_s"][0]

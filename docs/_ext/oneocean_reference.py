@@ -283,6 +283,51 @@ def _tier_table(tiers: dict, keys: list[str]) -> str:
     return "".join(out)
 
 
+def _fields_table(fields: dict, with_shape: bool = True) -> str:
+    head = "| field | shape | unit | meaning |\n|---|---|---|---|\n" if with_shape else \
+        "| field | unit | meaning |\n|---|---|---|\n"
+    rows = []
+    for name, doc in fields.items():
+        if with_shape:
+            shape, unit, meaning = doc
+            rows.append(f"| `{name}` | {shape} | {unit} | {_cell(meaning)} |\n")
+        else:
+            unit, meaning = doc
+            rows.append(f"| `{name}` | {unit} | {_cell(meaning)} |\n")
+    return head + "".join(rows)
+
+
+def _public_view(spec) -> str:
+    """The task's "What a policy sees" section: its briefing's own fields (after the common
+    ones), its observation's own fields (after the common head), its team observation and
+    report, from the task module's ``BRIEF_FIELDS``, ``OBS_EXTRA_DOCS``, ``TEAM_FIELDS`` and
+    ``REPORT_DOC``."""
+    import importlib
+
+    mod = importlib.import_module(spec.module)
+    out = ["\n## What a policy sees\n\n"
+           "Every method but the oracle gets exactly this ({doc}`/policy`): the briefing "
+           f"(`{spec.module}.{spec.id}Briefing`: the common fields, then these) at the start, "
+           "the observation (the common head, then these) every step. The oracle gets the "
+           "truth in the same shape.\n\n### Briefing\n\n"]
+    brief = getattr(mod, "BRIEF_FIELDS", {})
+    out.append(_fields_table(brief) if brief else "The common fields only.\n")
+    out.append("\n### Observation\n\n")
+    extra = getattr(mod, "OBS_EXTRA_DOCS", {})
+    out.append(_fields_table(extra, with_shape=False) if extra
+               else "The common head only.\n")
+    cue = getattr(mod, "CUE_DOC", "")
+    if cue:
+        out.append(f"\nThe cue: {_md(cue)}\n")
+    team = getattr(mod, "TEAM_FIELDS", {})
+    if team:
+        out.append("\n### Team observation\n\n" + _fields_table(team))
+    report = getattr(mod, "REPORT_DOC", "")
+    if report:
+        out.append(f"\n### Report\n\n{_md(report)}\n")
+    return "".join(out)
+
+
 def task_pages() -> dict[str, dict]:
     """Per registered task: ``{"spec", "table", "description", "harder", "comments",
     "page"}`` (``page`` is the Markdown text of ``reference/tasks/<ID>.md``)."""
@@ -344,6 +389,7 @@ def task_pages() -> dict[str, dict]:
             lines.append("\n## Other keys\n\n")
             for k in extra:
                 lines.append(f"- `{k}`: {_code(table[k])}\n")
+        lines.append(_public_view(spec))
         lines.append(f"\nPython: {{py:mod}}`{spec.module}`.\n")
         pages[tid] = {"spec": spec, "table": table, "description": description,
                       "harder": harder, "comments": comments, "page": "".join(lines)}

@@ -17,12 +17,13 @@ Spaces (per agent; ``N`` = team size)
         teammates) are 0 here (NaN in recorded observations and in ``evaluate``'s
         :class:`~oneocean.evaluate.Observation`).
     observation, ``obs_mode="normalized"``
-        :data:`NORM_FIELDS` (:func:`normalize`): the goal cue as ``g / (|g| + 10 m)`` (a unit
+        :data:`NORM_FIELDS` (:func:`normalize`): the cue as ``g / (|g| + 10 m)`` (a unit
         vector far away, metres / 10 close in) and ``log(1 + |g|) / log(1 + reach)`` with
         ``reach = v_max x time limit`` (the task's range); the current estimate / ``v_max``;
         depth / 100 m (clipped to 5); altitude clipped to 50 m, / 50 m (1 where undefined);
-        ``log(1 + probe)``; each teammate's offset / (distance + 10 m); and what the tier
-        sets: ``v_max`` (m s-1) and the fraction of the time limit left.
+        ``log(1 + probe)``; each teammate's offset / (distance + 10 m); ``v_max`` (m s-1) and
+        the fraction of the time limit left; the ground velocity / ``v_max``; then the task's
+        own fields as ``sign(x) log(1 + |x|)`` (0 where undefined).
     action, ``action_mode="velocity"`` (default)
         3 float64: the desired velocity relative to the water, world frame (x east, y down,
         z north), m s-1, as in the paper; the loop clips its norm to the vehicle's ``v_max``
@@ -35,9 +36,11 @@ Spaces (per agent; ``N`` = team size)
     reward, ``reward="sparse"`` (default)
         1 on the step an episode ends in success, else 0.
     reward, ``reward="dense"``
-        :func:`dense_reward`: progress toward the goal cue, penalties for energy (the
-        control effort E's increment), rejected moves and near-collisions, and the success
-        reward.
+        :func:`dense_reward`, consistent with the task's success rule: progress toward the
+        cue as a bounded potential, the energy used against the task's allocation (the
+        judge's; else the control effort), a penalty as large as success when the allocation
+        is exceeded, small penalties for rejected moves and near-collisions, and 1 on success
+        (a successful episode earns more than a failed one).
 
 Episodes and resets
     ``reset(seed=s)`` starts the same episodes as ``run_cell(..., seed=s)``: sub-env ``j``
@@ -71,6 +74,7 @@ Episodes and resets
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -81,7 +85,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 
 from .errors import ConfigError, NotApplicable
 from .tasks import Cell
-from .tasks.common import ACT_FIELDS, OBS_DIM, OBS_FIELDS, N_MATES, episode_rows
+from .tasks.common import (ACT_FIELDS, O_T, O_VX, O_VZ, OBS_DIM, OBS_FIELDS, N_MATES,
+                           episode_rows)
 from .tasks.public import briefing_rows
 from .tasks.loop import ENV_ENDED, ENV_SUCCESS, ENV_TRUNCATED, FINISHED, NEW, EnvIO
 from .backends.protocol import Rollout
@@ -89,26 +94,27 @@ from .engine import libm
 
 AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP,
                    "disabled": AutoresetMode.DISABLED}
-OBS_MODES = ("raw", "normalized")
+OBS_MODES = ("raw", "normalized", "dict")
 ACTION_MODES = ("velocity", "normalized")
 REWARDS = ("sparse", "dense")
 
-#: The normalised observation's fields (``obs_mode="normalized"``; see the module docstring).
+#: The normalised observation's fields before the task's own (``obs_mode="normalized"``;
+#: see the module docstring); then one ``x_<name>`` per field of the task's ``OBS_EXTRA``.
 NORM_FIELDS = (("goal_ux", "goal_uy", "goal_uz", "goal_log_dist", "current_e", "current_n",
                 "depth", "altitude", "pollution_log")
                + tuple(f"mate{m + 1}_{c}" for m in range(N_MATES) for c in ("ux", "uz"))
-               + ("v_max_ms", "time_left"))
+               + ("v_max_ms", "time_left", "vx", "vy", "vz"))
 NORM_DIM = len(NORM_FIELDS)
 #: Length scales of the normalised view, m.
 GOAL_SCALE_M, MATE_SCALE_M, DEPTH_SCALE_M, ALTITUDE_CLIP_M = 10.0, 10.0, 100.0, 50.0
-#: Dense reward: weight of the progress term (per step, progress in units of v_max dt) and
-#: the penalties per rejected move and per step with a near-collision.
-PROGRESS_WEIGHT, VIOLATION_PENALTY, COLLISION_PENALTY = 0.1, 0.1, 0.1
-#: Dense reward: weight of the energy term (per step, the team's mean energy proxy
-#: ``||a||^2 dt`` in units of ``v_max^2 dt``: 1 at full speed). Half the progress weight, so a
-#: step straight at the goal at any speed ``u`` earns ``0.1 u / v_max - 0.05 (u / v_max)^2
-#: > 0``: the term prefers the cheaper of two ways to the goal, never standing still.
-ENERGY_WEIGHT = 0.05
+#: Dense reward (:func:`dense_reward`): the weight of the progress potential (over an
+#: episode at most this much), of the energy term (over an episode at most this much; against
+#: the allocation where the task has one), the penalty per rejected move and per step with a
+#: near-collision (each in units of one over the episode's steps), and the penalty at the step
+#: a task's energy allocation is exceeded (the judge's failure), as large as success.
+PROGRESS_WEIGHT, ENERGY_WEIGHT = 0.5, 0.5
+VIOLATION_PENALTY, COLLISION_PENALTY = 1.0, 1.0
+ALLOCATION_PENALTY = 1.0
 #: Pool seeds tried before a reset gives up on a cell that cannot host episodes.
 SEED_TRIES = 16
 _NONE = np.zeros(0, dtype=np.int64)
@@ -141,28 +147,36 @@ def _choice(name: str, value: str, valid) -> str:
     return value
 
 
-def normalize(obs: np.ndarray, v_max: float, reach: float, time_left) -> np.ndarray:
+def _slog(x):
+    """``sign(x) log(1 + |x|)``, non-finite values as 0."""
+    x = np.nan_to_num(np.asarray(x, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    return np.sign(x) * libm.log1p(np.abs(x))
+
+
+def normalize(obs: np.ndarray, v_max: float, reach: float, t_lim: float) -> np.ndarray:
     """The normalised view of raw observations (the module docstring gives the fields).
 
     Parameters
     ----------
-    obs : (..., N, OBS_DIM) array_like
-        Raw observations (:data:`oneocean.tasks.common.OBS_FIELDS`), NaN for undefined values.
+    obs : (..., N, D) array_like
+        Raw observations (:data:`oneocean.tasks.common.OBS_FIELDS`, then the task's own
+        fields), NaN for undefined values.
     v_max : float
         The vehicle's speed limit, m s-1.
     reach : float
         The task's range, m (``v_max`` x the time limit).
-    time_left : float or array_like
-        Fraction of the time limit left, shaped as the axes before the agent axis (per
-        episode); broadcast over the agents.
+    t_lim : float
+        The time limit, s (the fraction left is from the observation's time).
 
     Returns
     -------
-    (..., N, NORM_DIM) float64
-        The normalised observations (:data:`NORM_FIELDS`), finite.
+    (..., N, NORM_DIM + D - OBS_DIM) float64
+        The normalised observations (:data:`NORM_FIELDS`, then the task's fields as
+        ``sign(x) log(1 + |x|)``), finite.
     """
     o = np.asarray(obs, dtype=np.float64)
-    out = np.zeros(o.shape[:-1] + (NORM_DIM,))
+    n_x = o.shape[-1] - OBS_DIM
+    out = np.zeros(o.shape[:-1] + (NORM_DIM + n_x,))
     g = np.nan_to_num(o[..., 0:3])
     d = np.sqrt((g * g).sum(-1))
     out[..., 0:3] = g / (d + GOAL_SCALE_M)[..., None]
@@ -181,53 +195,66 @@ def normalize(obs: np.ndarray, v_max: float, reach: float, time_left) -> np.ndar
         out[..., 9 + 2 * m] = np.where(ok, dx / dm, 0.0)
         out[..., 10 + 2 * m] = np.where(ok, dz / dm, 0.0)
     out[..., 15] = v_max
-    out[..., 16] = np.asarray(time_left, dtype=np.float64)[(...,) + (None,) * (o.ndim - 2)]
+    out[..., 16] = np.clip(1.0 - np.nan_to_num(o[..., O_T]) / float(t_lim), 0.0, 1.0)
+    out[..., 17:20] = np.clip(np.nan_to_num(o[..., O_VX:O_VZ + 1]) / v_max, -2.0, 2.0)
+    out[..., NORM_DIM:] = np.clip(_slog(o[..., OBS_DIM:]), -20.0, 20.0)
     return out
 
 
-def dense_reward(d_prev, d_now, new_viol, new_coll, success, v_max: float, dt: float,
-                 new_energy=0.0, n_agents: int = 1):
-    """The opt-in dense reward of one step per sub-env.
+def dense_reward(d0, d_prev, d_now, new_viol, new_coll, success, over, new_energy, scale,
+                 n_steps: int, max_step: float):
+    """The opt-in dense reward of one step per sub-env: consistent with the task's success
+    rule, so that a policy maximising it does not fail the task.
 
-    ``PROGRESS_WEIGHT`` x the team's mean progress toward its goal cues in units of
-    ``v_max dt`` (each agent's clipped to [-2, 2]; an agent whose cue jumped by more than
-    ``2 v_max dt + 1 m`` -- a new waypoint, slot or target -- or is undefined counts 0 that
-    step), minus ``ENERGY_WEIGHT`` x the team's mean energy proxy of the step in units of
-    ``v_max^2 dt`` (1 for an agent at full speed), minus ``VIOLATION_PENALTY`` per rejected
-    move, minus ``COLLISION_PENALTY`` if the step had a near-collision, plus 1 on success.
+    Progress toward the cue as a potential: ``PROGRESS_WEIGHT`` x the team's mean decrease
+    of the distance to its cues over the step, each agent's in units of its distance at the
+    episode's start (at least 1 m; an agent whose cue jumped by more than ``2 max_step + 1 m``
+    -- a new waypoint, slot or target -- or is undefined counts 0 that step): over an
+    episode at most ``PROGRESS_WEIGHT`` while the cue stays. The energy used: ``ENERGY_WEIGHT`` x
+    its increment over ``scale`` (the task's energy allocation in J where it has one, so that
+    the progress per energy decides the speed as the judge's allocation does; else the team's
+    energy proxy at full speed over the time limit): over an episode at most ``ENERGY_WEIGHT``
+    within the allocation. ``ALLOCATION_PENALTY`` at the step the allocation is exceeded (the
+    judge fails the episode from then on), ``VIOLATION_PENALTY`` per rejected move and
+    ``COLLISION_PENALTY`` per step with a near-collision, both over ``n_steps``, and 1 on
+    success. A successful episode therefore earns more than a failed one.
 
     Parameters
     ----------
+    d0 : (E, N) float64
+        Each agent's distance to its cue at the episode's start, m.
     d_prev, d_now : (E, N) float64
-        Each agent's distance to its goal cue before and after the step, m (NaN: undefined).
+        Each agent's distance to its cue before and after the step, m (NaN: undefined).
     new_viol : (E,) int
         Rejected moves of the step.
     new_coll : (E,) int
         Steps with a near-collision counted at this step (0 or 1).
     success : (E,) bool
         The episode ended in success at this step.
-    v_max : float
-        The vehicle's speed limit, m s-1.
-    dt : float
-        Step, s.
-    new_energy : (E,) float64 or float, default 0.0
-        The team's energy proxy of the step (the increment of the episode's control effort
-        E, ``sum ||a||^2 dt`` over agents), m2 s-1.
-    n_agents : int, default 1
-        Team size N.
+    over : (E,) bool
+        The episode's energy allocation was exceeded at this step.
+    new_energy : (E,) float64
+        The energy of the step: J against an allocation, else the energy proxy (m2 s-1).
+    scale : (E,) float64
+        The allocation (J), else the energy proxy at full speed over the time limit.
+    n_steps : int
+        The episode's steps (its time limit).
+    max_step : float
+        The longest move through the water in a step, m (``v_max dt``).
 
     Returns
     -------
     (E,) float64
         The reward of each sub-env.
     """
-    step = v_max * dt
     delta = d_prev - d_now
-    jump = np.abs(delta) > 2.0 * step + 1.0
-    prog = np.where(jump | ~np.isfinite(delta), 0.0, np.clip(delta / step, -2.0, 2.0))
-    effort = np.asarray(new_energy, dtype=np.float64) / (n_agents * v_max * v_max * dt)
-    return (PROGRESS_WEIGHT * prog.mean(-1) - ENERGY_WEIGHT * effort
-            - VIOLATION_PENALTY * new_viol - COLLISION_PENALTY * (new_coll > 0)
+    ref = np.maximum(np.nan_to_num(d0, nan=1.0), 1.0)
+    jump = ~np.isfinite(delta) | (np.abs(delta) > 2.0 * max_step + 1.0)
+    step = np.where(jump, 0.0, delta / ref)
+    return (PROGRESS_WEIGHT * step.mean(-1)
+            - ENERGY_WEIGHT * np.asarray(new_energy, dtype=np.float64) / scale
+            - ALLOCATION_PENALTY * np.asarray(over, dtype=np.float64)
+            - (VIOLATION_PENALTY * new_viol + COLLISION_PENALTY * (new_coll > 0)) / n_steps
             + success.astype(np.float64))
 
 
@@ -369,6 +396,10 @@ class OceanVectorEnv(VectorEnv):
         gain on the data currents, a synthetic tide term; episodes are the same under any
         forcing); ``backend``, ``scene``: the execution backend (``core``, or ``mujoco``
         with a :class:`oneocean.backends.mujoco.scenes.Scene`).
+    info : str, optional
+        What the policy is given instead of the sensor models
+        (:data:`oneocean.sensing.INFO_LEVELS`; None: the sensor models, as every method;
+        ``truth``: what the oracle is given).
 
     Raises
     ------
@@ -396,6 +427,7 @@ class OceanVectorEnv(VectorEnv):
         self.metadata = {**self.metadata, "autoreset_mode": AUTORESET_MODES[self.autoreset]}
         self.cell = _Cell(task, tier, grid, info=info, **kw)
         self.task, self.tier = task, int(tier)
+        self._view = "raw" if self.obs_mode == "dict" else self.obs_mode   # the agents' part
         self.obs_dim = OBS_DIM + len(getattr(self.cell.mod, "OBS_EXTRA", ()))
         n = self.cell.n_agents
         self.n_agents = n
@@ -408,31 +440,44 @@ class OceanVectorEnv(VectorEnv):
         p = self.cell.params
         self.v_max = self.cell.v_max
         self.dt = float(p["dt_s"])
-        self.reach = self.v_max * float(p["time_limit_s"])
+        self.t_lim = float(p["time_limit_s"])
+        self.reach = self.v_max * self.t_lim
+        extra = tuple(getattr(self.cell.mod, "OBS_EXTRA", ()))
+        self._energy_col = OBS_DIM + extra.index("energy_j") if "energy_j" in extra else None
         self.single_observation_space = self._obs_space((n,))
         self.single_action_space = self._act_space((n,))
         self.observation_space = self._obs_space((self.num_envs, n))
         self.action_space = self._act_space((self.num_envs, n))
         self.obs_fields = (OBS_FIELDS + tuple(getattr(self.cell.mod, "OBS_EXTRA", ()))
-                           if self.obs_mode == "raw" else NORM_FIELDS)
+                           if self._view == "raw" else NORM_FIELDS)
         self._act_shape = (self.num_envs, n, len(ACT_FIELDS))
         self._obs_shape = (self.num_envs, n, self.obs_dim)
         self._flags = np.zeros(self.num_envs, dtype=np.int64)
         # the raw view leaves the compiled step ready (undefined values 0) unless the dense
         # reward needs the undefined cues
-        self._clean = int(self.obs_mode == "raw" and self.reward_mode == "sparse")
+        self._clean = int(self._view == "raw" and self.reward_mode == "sparse")
         self._normalized = int(self.action_mode == "normalized")
         self._pools: list[_Pool] = []
         self._tail: _Pool | None = None      # the pool built last
         self._seed = None
 
     # ------------------------------------------------------------------ spaces
-    def _obs_space(self, lead) -> spaces.Box:
-        if self.obs_mode == "raw":
+    def _obs_space(self, lead) -> spaces.Space:
+        if self.obs_mode == "dict":
+            parts = {"agents": spaces.Box(-np.inf, np.inf, shape=tuple(lead) + (self.obs_dim,),
+                                          dtype=np.float64)}
+            for name, shape in self._team_shapes().items():
+                parts[name] = spaces.Box(-np.inf, np.inf, shape=tuple(lead[:-1]) + shape,
+                                         dtype=np.float64)
+            return spaces.Dict(parts)
+        if self._view == "raw":
             return spaces.Box(-np.inf, np.inf, shape=tuple(lead) + (self.obs_dim,),
                               dtype=np.float64)
-        lo = np.array([-1, -1, -1, 0, -10, -10, 0, 0, 0] + [-1] * (2 * N_MATES) + [0, 0], float)
-        hi = np.array([1, 1, 1, 10, 10, 10, 5, 1, 50] + [1] * (2 * N_MATES) + [10, 1], float)
+        n_x = self.obs_dim - OBS_DIM
+        lo = np.array([-1, -1, -1, 0, -10, -10, 0, 0, 0] + [-1] * (2 * N_MATES)
+                      + [0, 0, -2, -2, -2] + [-20] * n_x, float)
+        hi = np.array([1, 1, 1, 10, 10, 10, 5, 1, 50] + [1] * (2 * N_MATES)
+                      + [10, 1, 2, 2, 2] + [20] * n_x, float)
         return spaces.Box(np.broadcast_to(lo, tuple(lead) + lo.shape).copy(),
                           np.broadcast_to(hi, tuple(lead) + hi.shape).copy(), dtype=np.float64)
 
@@ -493,10 +538,8 @@ class OceanVectorEnv(VectorEnv):
             done += e.size
             self._group_cache = None
             pool.batch.run(0)              # begin the drawn episodes (step 0 not taken)
-        self._d_prev[envs] = np.nan
         self._viol_prev[envs] = 0
         self._coll_prev[envs] = 0
-        self._energy_prev[envs] = 0.0
 
     def _release(self, envs) -> None:
         for j in envs:
@@ -558,14 +601,39 @@ class OceanVectorEnv(VectorEnv):
     def _obs(self, raw: np.ndarray, envs=None, inplace: bool = False) -> np.ndarray:
         """The observation of raw observations ``raw`` of sub-envs ``envs`` (default all) in
         the env's view (``inplace``: the raw view may overwrite ``raw``)."""
-        if self.obs_mode == "raw":
+        if self._view == "raw":
             out = raw if inplace else raw.copy()
             out[~np.isfinite(out)] = 0.0
             return out
-        k = self._gather("k")
-        k = k if envs is None else k[np.asarray(envs)]
-        left = 1.0 - k / float(self.cell_steps)
-        return normalize(raw, self.v_max, self.reach, left)
+        return normalize(raw, self.v_max, self.reach, self.t_lim)
+
+    def _team_shapes(self) -> dict:
+        """The task's team observation fields and their shapes per sub-env (``obs_mode =
+        "dict"``), read off a batch of one episode (the shapes are the cell's)."""
+        if not hasattr(self, "_team_shape_cache"):
+            shapes = {}
+            if getattr(self.cell.mod, "team_obs", None) is not None:
+                T = self.cell.batch(1, 0).C.T
+                shapes = {k: tuple(v.shape[1:]) for k, v in T._asdict().items()}
+            self._team_shape_cache = shapes
+        return self._team_shape_cache
+
+    def _present(self, obs):
+        """The observation as the env gives it: the agents' view, or with ``obs_mode="dict"``
+        a dict of it (``agents``) and the task's team observation of every sub-env (undefined
+        values 0)."""
+        if self.obs_mode != "dict":
+            return obs
+        out = {"agents": obs}
+        shapes = self._team_shapes()
+        for name, shape in shapes.items():
+            out[name] = np.zeros((self.num_envs,) + shape)
+        if shapes:
+            for pool, js, eps, _, _, _ in self._groups():
+                T = pool.batch.C.T
+                for name in shapes:
+                    out[name][js] = np.nan_to_num(getattr(T, name)[eps])
+        return out
 
     @property
     def batch(self) -> Rollout | None:
@@ -618,10 +686,14 @@ class OceanVectorEnv(VectorEnv):
         self._ep = np.zeros(self.num_envs, dtype=np.int64)
         self._pending = np.zeros(self.num_envs, dtype=bool)
         self._n_pending = 0
+        self._d0 = np.full((self.num_envs, self.n_agents), np.nan)
         self._d_prev = np.full((self.num_envs, self.n_agents), np.nan)
         self._viol_prev = np.zeros(self.num_envs, dtype=np.int64)
         self._coll_prev = np.zeros(self.num_envs, dtype=np.int64)
         self._energy_prev = np.zeros(self.num_envs)
+        self._scale = np.ones(self.num_envs)
+        self._alloc = np.zeros(self.num_envs, dtype=bool)
+        self._over = np.zeros(self.num_envs, dtype=bool)
         if self.autoreset == "disabled":
             pool = self._new_pool(self.num_envs)
             pool.drawn = pool.live = self.num_envs
@@ -631,8 +703,34 @@ class OceanVectorEnv(VectorEnv):
         else:
             self._draw(np.arange(self.num_envs))
         raw = self._raw_obs()
-        self._d_prev = _cue_distance(raw)
-        return self._obs(raw), self._briefings(np.arange(self.num_envs), {})
+        self._start_rewards(np.arange(self.num_envs), raw)
+        return (self._present(self._obs(raw)),
+                self._briefings(np.arange(self.num_envs), {}))
+
+    def _start_rewards(self, envs, raw) -> None:
+        """The dense reward's references of sub-envs ``envs`` whose episodes start, from their
+        first raw observations ``raw`` (rows of those sub-envs) and briefings."""
+        envs = np.asarray(envs, dtype=np.int64)
+        d = _cue_distance(raw)
+        self._d0[envs] = d
+        self._d_prev[envs] = d
+        self._energy_prev[envs] = 0.0
+        self._over[envs] = False
+        proxy = self.n_agents * self.v_max * self.v_max * self.t_lim
+        for j in envs:
+            alloc = float(self._owner[j].batch.B.energy_allocation[int(self._ep[j])])
+            self._alloc[j] = self._energy_col is not None and math.isfinite(alloc)
+            self._scale[j] = alloc if self._alloc[j] else proxy
+
+    def _energy(self, raw) -> np.ndarray:
+        """Each sub-env's energy used so far in the dense reward's measure: the task's own
+        ``energy_j`` (summed over the team) where the episode has an allocation, else the
+        team's energy proxy E."""
+        proxy = self._gather("energy")
+        if self._energy_col is None or not self._alloc.any():
+            return proxy
+        j_used = np.nansum(raw[..., self._energy_col], axis=-1)
+        return np.where(self._alloc, j_used, proxy)
 
     def _briefings(self, envs, info: dict) -> dict:
         """``info["briefing"]`` (and its mask) for the sub-envs ``envs`` whose episode
@@ -641,7 +739,8 @@ class OceanVectorEnv(VectorEnv):
         mask = np.zeros(self.num_envs, dtype=bool)
         for j in np.asarray(envs, dtype=np.int64):
             b = self._owner[j].batch
-            out[j] = briefing_rows(b.B, [int(self._ep[j])])
+            # the user keeps it: a copy of every array (the chart's too), none shared
+            out[j] = copy.deepcopy(briefing_rows(b.B, [int(self._ep[j])]))
             mask[j] = True
         info["briefing"] = tuple(out)
         info["_briefing"] = mask
@@ -739,14 +838,16 @@ class OceanVectorEnv(VectorEnv):
         else:
             d_now = _cue_distance(raw)
             viol, coll = self._gather("viol"), self._gather("coll")
-            energy = self._gather("energy")
-            reward = dense_reward(self._d_prev, d_now, viol - self._viol_prev,
+            energy = self._energy(raw)
+            over = self._alloc & ~self._over & (energy > self._scale)
+            reward = dense_reward(self._d0, self._d_prev, d_now, viol - self._viol_prev,
                                   coll - self._coll_prev,
                                   np.zeros(n, dtype=bool) if success is None else success,
-                                  self.v_max, self.dt, energy - self._energy_prev,
-                                  self.n_agents)
+                                  over, energy - self._energy_prev, self._scale,
+                                  self.cell_steps, self.v_max * self.dt)
             self._viol_prev, self._coll_prev = viol, coll
             self._energy_prev = energy
+            self._over |= over
             self._d_prev = d_now
         if reset_now.size:
             reward[reset_now] = 0.0
@@ -764,7 +865,7 @@ class OceanVectorEnv(VectorEnv):
                 self._n_pending = int(ended.sum())
         elif self.autoreset == "same_step" and ended is not None:
             idx = np.flatnonzero(ended)
-            info["final_obs"] = obs.copy()
+            info["final_obs"] = self._present(obs.copy())
             info["_final_obs"] = ended.copy()
             info["final_info"] = {k: v for k, v in info.items()
                                   if k not in ("final_obs", "_final_obs")}
@@ -774,7 +875,7 @@ class OceanVectorEnv(VectorEnv):
             self._briefings(reset_now, info)
         elif self.autoreset == "same_step" and ended is not None:
             self._briefings(np.flatnonzero(ended), info)
-        return obs, reward, terminated, truncated, info
+        return self._present(obs), reward, terminated, truncated, info
 
     def _fused_env_step(self, actions, groups):
         """The step of every sub-env (each pool's running episodes) with the actions
@@ -820,7 +921,7 @@ class OceanVectorEnv(VectorEnv):
         self._draw(envs)
         fresh = self._raw_obs(envs)
         obs[envs] = self._obs(fresh, envs)
-        self._d_prev[envs] = _cue_distance(fresh)
+        self._start_rewards(envs, fresh)
 
     def render(self):
         """A top-down RGB view of sub-env 0: the current speed near the surface at the
@@ -852,6 +953,15 @@ class OceanVectorEnv(VectorEnv):
         """
         self._pools, self._tail = [], None
         self._group_cache = None
+
+
+def _row(obs, j: int, i: int | None = None):
+    """Sub-env ``j``'s observation (agent ``i``'s, if given) of a vector env's observation:
+    an array, or a dict (``obs_mode="dict"``: the agents' part indexed, the team's by
+    sub-env)."""
+    if isinstance(obs, dict):
+        return {k: (v[j] if k != "agents" or i is None else v[j, i]) for k, v in obs.items()}
+    return obs[j] if i is None else obs[j, i]
 
 
 class OceanEnv(gym.Env):
@@ -902,8 +1012,8 @@ class OceanEnv(gym.Env):
         """
         super().reset(seed=seed)
         s = seed if seed is not None else int(self.np_random.integers(2**31))
-        obs, _ = self.venv.reset(seed=int(s))
-        return obs[0], {}
+        obs, info = self.venv.reset(seed=int(s))
+        return _row(obs, 0), {"briefing": info["briefing"][0]}
 
     def step(self, action):
         """Advance the episode by one step.
@@ -931,7 +1041,7 @@ class OceanEnv(gym.Env):
                if not k.startswith("_")}
         if "is_success" in one:
             one["is_success"] = bool(one["is_success"])
-        return obs[0], float(r[0]), bool(term[0]), bool(trunc[0]), one
+        return _row(obs, 0), float(r[0]), bool(term[0]), bool(trunc[0]), one
 
     def render(self):
         """The vector env's :meth:`~OceanVectorEnv.render`.
@@ -992,10 +1102,10 @@ def parallel_env(task: str, tier: int, grid=None, **kw):
 
         def reset(self, seed=None, options=None):
             s = int(seed) if seed is not None else int(np.random.SeedSequence().entropy % 2**31)
-            obs, _ = self.venv.reset(seed=s)
+            obs, info = self.venv.reset(seed=s)
             self.agents = list(self.possible_agents)
-            return ({a: obs[0, i] for i, a in enumerate(self.agents)},
-                    {a: {} for a in self.agents})
+            return ({a: _row(obs, 0, i) for i, a in enumerate(self.agents)},
+                    {a: {"briefing": info["briefing"][0]} for a in self.agents})
 
         def step(self, actions):
             n = len(self.possible_agents)
@@ -1007,7 +1117,7 @@ def parallel_env(task: str, tier: int, grid=None, **kw):
             metrics = {k: (bool(v[0]) if k == "is_success" else float(v[0]))
                        for k, v in info.items() if not k.startswith("_")}
             agents = list(self.agents)
-            out = ({x: obs[0, self.possible_agents.index(x)] for x in agents},
+            out = ({x: _row(obs, 0, self.possible_agents.index(x)) for x in agents},
                    {x: float(r[0]) for x in agents},
                    {x: bool(term[0]) for x in agents},
                    {x: bool(trunc[0]) for x in agents},

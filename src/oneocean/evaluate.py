@@ -62,8 +62,9 @@ def load_policy(spec: str):
 
     Returns
     -------
-    callable
-        The object named by ``spec``.
+    object
+        The object named by ``spec``; a class is instantiated without arguments (a policy
+        with ``reset`` and ``act``).
 
     Raises
     ------
@@ -88,6 +89,12 @@ def load_policy(spec: str):
         obj = getattr(obj, part)
     if not callable(obj):
         raise ConfigError(f"policy {spec!r}: {attr!r} is not callable")
+    if isinstance(obj, type):
+        try:
+            obj = obj()
+        except TypeError as exc:
+            raise ConfigError(f"policy {spec!r}: the class {attr!r} cannot be made without "
+                              f"arguments ({exc})") from None
     return obj
 
 

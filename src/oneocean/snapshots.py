@@ -430,8 +430,8 @@ def _upl_label(fr):
 # ---- AS: the region, its coverage map and the lawnmower plan
 
 def _as_static(ep, e):
-    W, P = ep.W, ep.P
-    plan = tuple(W.wps[e, i, :int(W.wcount[e, i])].copy() for i in range(W.wps.shape[1]))
+    W, P, H = ep.W, ep.P, ep.H     # the lawnmower: the fused method's plan (its memory)
+    plan = tuple(H.wps[e, i, :int(H.wcount[e, i])].copy() for i in range(H.wps.shape[1]))
     return {"region": W.region[e].copy(), "cell": float(P.cell),
             "ncell": W.ncell[e].copy(), "plan": plan}
 

@@ -2,8 +2,10 @@
 
 TOY ("ascend"): one vehicle starts at depth and must rise to within ``tol_m`` of
 ``target_depth_m`` before the time limit. Its tier table (with its registry spec) is
-``oneocean_toy.yaml`` beside this file; its heuristic is the ``act`` hook below. Importing
-this module registers the task (list it under ``plugins:`` in a config).
+``oneocean_toy.yaml`` beside this file; its briefing is the common fields plus the target
+depth and tolerance; its heuristic is the ``act`` hook below, a policy of the briefing and
+the observation. Importing this module registers the task (list it under ``plugins:`` in a
+config).
 """
 
 from __future__ import annotations
@@ -18,9 +20,11 @@ from numba import njit
 from oneocean import registry
 from oneocean.engine._jit import hot_kernel
 from oneocean.engine.constraints import spawn_positions
-from oneocean.tasks.common import episode_generators, fresh_cache, start_times
+from oneocean.tasks.common import (O_CE, O_CN, O_DEPTH, episode_generators, fresh_cache,
+                                   start_times)
 from oneocean.tasks.loop import (N_STANDARD, noop_after_agent, noop_plan, noop_pre_step,
-                                 observe_next, run_episode)
+                                 noop_sense, policy_block, run_block)
+from oneocean.tasks.public import common_brief
 
 registry.register_task(registry.load_task_spec(Path(__file__).with_name("oneocean_toy.yaml")))
 
@@ -37,17 +41,22 @@ class _Policy:
     SENSING = {"heuristic": "sensors", "oracle": "truth"}
 
     @staticmethod
-    def params(method, tier, vehicle):
-        return TOYPolicy(float(vehicle.v_max) * (0.5 if method == "heuristic" else 1.0))
+    def params(method, B):
+        return TOYPolicy(float(B.v_max) * (0.5 if method == "heuristic" else 1.0))
+
+    @staticmethod
+    def memory(B, M):
+        return (np.zeros(B.t0.shape[0]),)
 
     plan = noop_plan
 
 
 @hot_kernel(inline="always")
-def _act(grid, P, W, M, state, e, k, i, t, pe, pn):
-    dy = P.target - state[e, i, 1]
-    v = min(abs(dy), M.speed)
-    return -pe, math.copysign(v, dy), -pn, math.nan
+def _act(C, e, k, i):
+    o = C.O[e, i]
+    dy = C.B.target - o[O_DEPTH]
+    v = min(abs(dy), C.M.speed)
+    return -o[O_CE], math.copysign(v, dy), -o[O_CN], math.nan
 
 
 _Policy.act = _act
@@ -80,6 +89,26 @@ def make(grid, tier, init):
             TOYWork(np.zeros(n_ep)))
 
 
+class TOYBriefing(NamedTuple):
+    t0: np.ndarray
+    t_lim: float
+    dt: float
+    n_agents: int
+    v_max: float
+    guidance: int
+    hotel_w: float
+    pk: float
+    energy_allocation: np.ndarray
+    sens: tuple
+    chart: tuple
+    target: float       # the target depth, m
+    tol: float          # success: within this of it, m
+
+
+def brief(P, W, init, m):
+    return TOYBriefing(**common_brief(m), target=P.target, tol=P.tol)
+
+
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
     W.err[e] = abs(state[e, 0, 1] - P.target)
@@ -103,27 +132,17 @@ def finish(grid, P, W, state, e, k, row):
     return W.err[e] <= P.tol
 
 
-@hot_kernel
-def _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop):
-    run_episode(begin, noop_pre_step, cue, noop_after_agent, post_step, finish, noop_plan,
-                _act, grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
+@hot_kernel(nogil=True)
+def _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
+            e_lo, e_hi):
+    run_block(begin, noop_pre_step, cue, noop_sense, noop_after_agent, post_step, finish,
+              noop_plan, _act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a,
+              res, io, k_stop, e_lo, e_hi)
 
 
-@njit(cache=True, nogil=True)
-def _kernel(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, k_stop, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _episode(grid, vp, LP, P, W, M, LS, t0, state, cmd, ext, obs, act, res, e, k_stop)
-
-
-@hot_kernel
-def _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e):
-    observe_next(grid, cue, P, W, LP, LS, state, t0, e, nobs, nact)
-
-
-@njit(cache=True, nogil=True)
-def _observe_kernel(grid, LP, P, W, LS, t0, state, nobs, nact, e_lo, e_hi):
-    for e in range(e_lo, e_hi):
-        _observe(grid, LP, P, W, LS, t0, state, nobs, nact, e)
+@hot_kernel(nogil=True)
+def _policy(C, ks, out, e_lo, e_hi):
+    policy_block(noop_plan, _act, C, ks, out, e_lo, e_hi)
 
 
 fresh_cache(_kernel, __file__)

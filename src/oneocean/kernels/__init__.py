@@ -1,34 +1,22 @@
 """Each task's compiled episode loop: where a task and its fused methods meet.
 
-A task module (:mod:`oneocean.tasks`) says what the world does -- its scenario, hooks,
-judge and accounting -- and a policy module (:mod:`oneocean.methods.heuristic`) says what
-the fused heuristic and oracle do; neither imports the other (a policy reads only the task's
-public view: its work arrays, cue and helpers). The module ``kernels/<task>.py`` binds the
-two: it passes the task's hooks and the policy's ``plan`` / ``act`` to the one loop
-(:func:`oneocean.tasks.loop.run_episode`) and exposes
+A task module (:mod:`oneocean.tasks`) says what the world does -- its scenario, hooks, public
+view, judge and accounting -- and a policy module (:mod:`oneocean.methods.heuristic`) says
+what the fused heuristic and oracle do from that public view; neither imports the other. The
+module ``kernels/<task>.py`` binds the two: it passes the task's hooks and the policy's
+``plan`` / ``act`` to the one loop (:func:`oneocean.tasks.loop.run_block`) and exposes
 
 * ``TASK`` and ``POLICY``: the two modules it binds;
-* ``_steps``: an episode's steps (the loop with the hooks bound, ``inline="always"``), and
-  ``_episode``, its compiled copy out of line, which ``_kernel`` calls once per episode;
-* ``_kernel``: the loop over a block of episodes ``[e_lo, e_hi)``
-  (``njit(cache=True, nogil=True)``), which both backends run
-  (:class:`oneocean.tasks.episodes.Episodes` fused; the scene backend's
-  :class:`oneocean.backends.mujoco.episodes.SteppedEpisodes` in its decide and judge phases);
-* ``_observe_kernel``: the next observation of every agent
-  (:func:`~oneocean.tasks.loop.observe_next`), for the step API;
-* ``_step_kernel``: one step of every running episode of a block, then its agents' next
-  observation, in one call (the step, ``_steps``, and the observation, ``_observe``, both
-  inlined in its loop over episodes, as in ``_observe_kernel``: an out-of-line call per
-  episode would copy the grid's and the loop's arrays, passed by value, at every step; the
-  loop is therefore compiled twice per task, once in ``_episode`` and once here), with the step API's side
-  of it (``io``, :class:`~oneocean.tasks.loop.EnvIO`: the sub-envs' actions in, their
-  observations and end flags out; :meth:`oneocean.tasks.episodes.Episodes.env_step` and
-  ``step_observe``), and
-  ``_step_boxed``, the same call with its arguments in one
-  :class:`~oneocean.tasks.loop.StepArgs` (one object to unbox per call, not every array),
-  through ``_step_fields``, which reads them without counting a reference to each array
-  (:func:`~oneocean.tasks.loop.step_fields`; ``_step_boxed`` holds the struct); optional: a kernel module without them is stepped by ``_kernel`` and observed by
-  ``_observe_kernel``.
+* ``_kernel``: the loop over a block of episodes ``[e_lo, e_hi)`` (``hot_kernel(nogil=True)``),
+  the one compiled copy of the loop, which serves the fused cells (``k_stop``: up to a step),
+  the step API (one step and the next observation, with its side ``io``,
+  :class:`~oneocean.tasks.loop.EnvIO`) and the scene backend's decide and judge phases;
+* ``_step_boxed``: one step of ``_kernel`` with its arguments in one
+  :class:`~oneocean.tasks.loop.StepArgs` (one object to unbox per call of the step API, not
+  every array), through ``_step_fields``, which reads them without counting a reference to
+  each array (:func:`~oneocean.tasks.loop.step_fields`);
+* ``_policy``: the fused policy alone on its context (:func:`oneocean.tasks.loop.policy_block`),
+  for :class:`oneocean.methods.heuristic.FusedPolicy`, the heuristic as an outside policy.
 
 These wrappers are all numba's on-disk cache needs: a kernel is cached only when the hooks
 reach the inlined loop as module globals (:mod:`oneocean.tasks.loop`), so each task has one
@@ -55,7 +43,7 @@ def kernel_module(task_id: str):
     -------
     module
         The module named by the task spec's ``kernel`` (:class:`oneocean.registry.TaskSpec`),
-        with ``POLICY``, ``_kernel`` and ``_observe_kernel``.
+        with ``POLICY``, ``_kernel``, ``_step_boxed`` and ``_policy``.
 
     Raises
     ------

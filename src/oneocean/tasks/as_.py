@@ -23,29 +23,46 @@ Metrics
     ``coverage_fraction`` (primary: covered cells / region cells at the end),
     ``footprint_loss_frac`` (fraction of agent-steps above ``max_altitude_m``: no imaging),
     ``mean_altitude_m`` (mean altitude over agent-steps, m).
+Briefing (:class:`ASBriefing`, after the common fields of :mod:`oneocean.tasks.public`)
+    The survey region and its long axis, the sensor (``max_altitude``, ``half_angle_deg``),
+    the coverage cell and threshold, the agents' start fixes (``start``), the forecast of the
+    current at the region's centre at the survey depth over the episode's window
+    (``forecast_centre`` at ``forecast_times``, ``N_TIMES`` even times from the start to the
+    time limit, at ``forecast_depth``: the chart's seafloor depth there less the survey
+    altitude; the truth for the oracle), and the task's survey plan (below: ``survey_alt``,
+    ``line_spacing``, ``lines``, ``line_count``). The chart (common ``chart``) is the
+    bathymetry.
+Observation
+    The cue is the task's mission computer (:func:`cue`): every agent follows its own lines of
+    the task's survey plan, a boustrophedon lawnmower over the region for the team
+    (:func:`survey_plan`): strips along the region's long axis at the spacing
+    ``2 a tan(half_angle) (1 - SURVEY_OVERLAP)`` of the survey altitude
+    ``a = SURVEY_ALT_FRAC * max_altitude``, split into contiguous blocks, one per agent, each
+    led in by a run-in point ``RUNIN_M`` before its first strip. The mission computer keeps
+    each agent's place on its lines (``ASWork.lidx``, advanced on the agent's navigation
+    estimate, the same for every method): the cue is the transit point (the run-in, reached
+    within ``ARRIVE_M``), then a line-of-sight point ``CUE_LOOK_M`` ahead on the current strip
+    or cross leg (a leg ends ``CUE_TOL_M`` before its end), then the last point; at the
+    survey altitude above the chart there (never shallower than ``MIN_DEPTH_M``). A follower
+    of the cue flies the plain plan on its navigation estimate: with no margins for its
+    dead-reckoning drift it leaves holidays at the edges of long strips. The task has no
+    observation fields of its own (:data:`OBS_EXTRA`).
 Methods
-    :mod:`oneocean.methods.heuristic.as_` (a lawnmower: strips at a commanded altitude,
-    terrain following, current feed-forward, full speed; one policy for the heuristic and the
-    oracle, which differ in information only). The strips are flown on the method's
-    navigation estimate while the sensor images the true seafloor, so the heuristic's
-    dead-reckoning drift (no navigation aid: a 0.5 m start fix, then ~0.9 % of the
-    displacement) opens holidays at the region's edges; its planner extends the region by the
-    margins its navigation error needs, as wide as the time limit allows, and orients the
-    strips by the scan time predicted on its forecast of the currents (the oracle: the true
-    currents, zero margins). Its
-    plan (the waypoint lists per agent) is made in Python before the episode's first step and
-    kept in ``W`` (``wps``, ``wcount``, ``widx``: the plan tokens); the observation's goal cue
-    is the carrot the method follows (``W.tgt``).
+    :mod:`oneocean.methods.heuristic.as_` (its own lawnmower: strips at a commanded altitude,
+    terrain following on the chart, current feed-forward, full speed, the strips oriented by
+    the scan time predicted on the briefing's forecast and the region extended by the margins
+    its navigation error needs, as wide as the time limit allows; one policy for the heuristic
+    and the oracle, which differ in information only: the oracle's briefing holds the true
+    current and start and its sensors give zero margins). The plan is the method's memory.
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset`` (Python: region, starts and start times per episode);
-    ``ASParams`` / ``ASWork`` and ``make`` (the env's typed scalars and per-episode arrays:
-    coverage map, counters, plan tokens); the env hooks ``begin``, ``cue``, ``after_agent``
-    (altitude, footprint, coverage after every agent's move), ``post_step`` (success),
-    ``finish`` (``hot_kernel``, no allocation). The plan tokens hold
-    ``tokens["max_waypoints"]`` waypoints per agent (the policy's ``plan_tokens``); the
-    policy's Python planner ``prepare`` writes them before the first segment
-    (:class:`~oneocean.tasks.episodes.Episodes` calls it); the compiled loop is
+    the survey geometry (:func:`plan_lawnmower`, :func:`with_runin`, :func:`survey_plan`,
+    :func:`centre_forecast`); ``ASParams`` / ``ASWork`` and ``make`` (the env's typed scalars
+    and per-episode arrays: coverage map, counters, the mission computer's plan); the
+    briefing (``ASBriefing``, ``BRIEF_FIELDS``, ``brief``); the env hooks ``begin``, ``cue``,
+    ``after_agent`` (altitude, footprint, coverage after every agent's move), ``post_step``
+    (success), ``finish`` (``hot_kernel``, no allocation); the compiled loop is
     :mod:`oneocean.kernels.as_`.
 
 Default team size: N = 1, as in the paper's Table V (so SRs are comparable); any N in
@@ -64,8 +81,8 @@ from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, spawn_positions
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError, NotApplicable
-from .common import (PURPOSE_RESET, STANDARD, _call, fresh_cache, need_tier, need_tokens,
-                     _spawn_altitude, start_times)
+from .common import (ARRIVE_M, PURPOSE_RESET, STANDARD, _call, fresh_cache, need_tier,
+                     _spawn_altitude, start_times, waypoint_carrot)
 
 TASK_ID = "AS"
 METRICS = ("coverage_fraction", "footprint_loss_frac", "mean_altitude_m")
@@ -84,6 +101,20 @@ CHECK_SPACING_M = 15.0
 CLEARANCE_M = 1.0
 #: Near-collision distance for coll_ratio, m (engine default).
 R_COLL_M = 2.0
+
+#: The task's survey plan (the cue, :func:`survey_plan`): survey altitude as a fraction of the
+#: sensor's maximum altitude; swath overlap of neighbouring strips (fraction of the swath
+#: width); run-in before each agent's first strip, m.
+SURVEY_ALT_FRAC = 0.75
+SURVEY_OVERLAP = 0.2
+RUNIN_M = 20.0
+#: The cue's line-of-sight lookahead along a leg, m; a leg ends this far (m) before its end.
+CUE_LOOK_M = 12.0
+CUE_TOL_M = 1.0
+#: Shallowest cue depth, m (stay submerged); also the shallowest forecast depth.
+MIN_DEPTH_M = 1.0
+#: Times (even, from the start to the time limit) of the briefing's forecast at the centre.
+N_TIMES = 7
 
 _TIER_KEYS = ("current_band", "time_limit_s", "region_long_m",
               "region_short_m", "coverage_threshold", "max_altitude_m", "half_angle_deg",
@@ -377,6 +408,240 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
             "psi0": np.zeros((n_episodes, n_agents)), "t0": t0, "regime_points": pts}
 
 
+# ------------------------------------------------------------------------------ survey
+
+def n_strips(width: float, spacing: float, n_agents: int) -> int:
+    """Strips of a lawnmower over ``width`` at most ``spacing`` apart, at least one per agent.
+
+    Parameters
+    ----------
+    width : float
+        Width to cover, m.
+    spacing : float
+        Largest strip spacing, m.
+    n_agents : int
+        Team size N.
+
+    Returns
+    -------
+    int
+        ``max(1, ceil(width / spacing), n_agents)``.
+    """
+    return max(1, int(math.ceil(width / spacing - 1e-9)), int(n_agents))
+
+
+def plan_lawnmower(box, axis: int, spacing: float, n_agents: int, seam: float = 0.0):
+    """Boustrophedon waypoints (x, z) per agent over ``box``, strips along ``axis``.
+
+    ``n = max(ceil((W + (n_agents - 1) seam) / spacing), n_agents)`` strips (every agent gets
+    at least one; a large team flies narrower, overlapping strips rather than idling or
+    crowding), split into contiguous blocks, one per agent; every block starts at the strips'
+    low end. The strips lie at ``(k + 1/2) U / n`` over the width unrolled to
+    ``U = W + (n_agents - 1) seam``, block ``i`` shifted back by ``i seam``: neighbouring
+    agents' swaths overlap by an extra ``seam`` m at the seam between their blocks (0: evenly
+    spaced strips).
+
+    Parameters
+    ----------
+    box : tuple of float
+        The region ``(x_lo, z_lo, x_hi, z_hi)``, m.
+    axis : int
+        Strip orientation: 0 along x (offsets along z), 1 along z.
+    spacing : float
+        Strip spacing, m.
+    n_agents : int
+        Team size N.
+    seam : float, optional
+        Extra overlap between neighbouring agents' blocks, m (default 0).
+
+    Returns
+    -------
+    wps : (n_agents, n_max, 2) float64
+        Waypoints (x, z), m; agent ``i`` uses ``wps[i, :count[i]]`` (start and end of each
+        strip).
+    count : (n_agents,) int64
+        Waypoints of each agent.
+    """
+    x_lo, z_lo, x_hi, z_hi = box
+    if axis == 0:  # strips along x, offsets along z
+        a_lo, a_hi, b_lo, b_hi = x_lo, x_hi, z_lo, z_hi
+    else:
+        a_lo, a_hi, b_lo, b_hi = z_lo, z_hi, x_lo, x_hi
+    width = b_hi - b_lo + (n_agents - 1) * seam
+    n = n_strips(width, spacing, n_agents)
+    offs = b_lo + (np.arange(n) + 0.5) * width / n
+    blocks = np.array_split(np.arange(n), n_agents)
+    n_max = 2 * max(len(b) for b in blocks)
+    wps = np.zeros((n_agents, n_max, 2))
+    count = np.zeros(n_agents, dtype=np.int64)
+    for i, blk in enumerate(blocks):
+        k = 0
+        for j, s in enumerate(blk):
+            ends = (a_lo, a_hi) if j % 2 == 0 else (a_hi, a_lo)
+            b = offs[s] - i * seam
+            for a in ends:
+                wps[i, k] = (a, b) if axis == 0 else (b, a)
+                k += 1
+        count[i] = k
+    return wps, count
+
+
+def with_runin(wps, count, runin: float = RUNIN_M):
+    """The waypoints with a run-in waypoint prepended per agent.
+
+    The run-in lies ``runin`` m before the first strip's start, on the strip's line (outside
+    the region, inside its water margin), so a torpedo AUV enters the region aligned with
+    the strip.
+
+    Parameters
+    ----------
+    wps : (n_agents, n_max, 2) float64
+        Waypoints (x, z), m (:func:`plan_lawnmower`).
+    count : (n_agents,) int64
+        Waypoints of each agent.
+    runin : float, optional
+        Run-in distance, m (default :data:`RUNIN_M`).
+
+    Returns
+    -------
+    wps : (n_agents, n_max + 1, 2) float64
+        Waypoints with the run-in first, m.
+    count : (n_agents,) int64
+        ``count + 1``.
+    """
+    n_ag, n_max, _ = wps.shape
+    out = np.zeros((n_ag, n_max + 1, 2))
+    out[:, 1:] = wps
+    for i in range(n_ag):
+        a, b = wps[i, 0], wps[i, 1]
+        d = b - a
+        L = float(np.hypot(d[0], d[1]))
+        out[i, 0] = a - d / L * runin if L > 1e-9 else a
+    return out, count + 1
+
+
+def survey_altitude(tier: dict) -> float:
+    """The survey altitude of the task's plan.
+
+    Parameters
+    ----------
+    tier : dict
+        Tier parameters; reads ``max_altitude_m``, the sensor's maximum altitude, m.
+
+    Returns
+    -------
+    float
+        ``SURVEY_ALT_FRAC * max_altitude_m``, m.
+    """
+    return SURVEY_ALT_FRAC * float(tier["max_altitude_m"])
+
+
+def survey_spacing(tier: dict) -> float:
+    """The strip spacing of the task's plan.
+
+    Parameters
+    ----------
+    tier : dict
+        Tier parameters; reads ``max_altitude_m`` (m) and ``half_angle_deg`` (the sensor's
+        half swath angle, degrees).
+
+    Returns
+    -------
+    float
+        ``2 a tan(half_angle) (1 - SURVEY_OVERLAP)``, m, at the :func:`survey_altitude` ``a``.
+    """
+    return (2.0 * survey_altitude(tier) * math.tan(math.radians(float(tier["half_angle_deg"])))
+            * (1.0 - SURVEY_OVERLAP))
+
+
+def survey_plan(region, long_axis, spacing: float, n_agents: int):
+    """The task's survey plan of every episode: the cue's lines.
+
+    A lawnmower (:func:`plan_lawnmower`) over each region, strips along its long axis at
+    ``spacing``, split into one block per agent, each led in by its run-in
+    (:func:`with_runin`).
+
+    Parameters
+    ----------
+    region : (E, 4) array_like
+        The regions ``(x_lo, z_lo, x_hi, z_hi)``, m.
+    long_axis : (E,) array_like
+        0: the long side runs along x.
+    spacing : float
+        Strip spacing, m.
+    n_agents : int
+        Team size N.
+
+    Returns
+    -------
+    lines : (E, N, L, 2) float64
+        Each agent's points (x, z), m, run-in first (zeros past its count).
+    count : (E, N) int64
+        Points of each agent.
+    """
+    region = np.asarray(region, dtype=np.float64).reshape(-1, 4)
+    plans = [with_runin(*plan_lawnmower(tuple(region[e]), int(long_axis[e]), spacing,
+                                        n_agents)) for e in range(region.shape[0])]
+    n_max = max((w.shape[1] for w, _ in plans), default=1)
+    lines = np.zeros((region.shape[0], n_agents, n_max, 2))
+    count = np.zeros((region.shape[0], n_agents), dtype=np.int64)
+    for e, (w, c) in enumerate(plans):
+        lines[e, :, :w.shape[1]] = w
+        count[e] = c
+    return lines, count
+
+
+def centre_forecast(grid, box, t0: float, duration: float, altitude: float, fc=None,
+                    e: int = 0, n_times: int = N_TIMES):
+    """The current at the centre of ``box`` at the survey depth over the episode.
+
+    Sampled at ``n_times`` even times over ``[t0, t0 + duration]`` at the depth
+    ``max(seafloor depth at the centre - altitude, MIN_DEPTH_M)``: the truth, or given ``fc``
+    episode ``e``'s forecast of it (:func:`oneocean.tasks.routing.forecast_field`).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    box : tuple of float
+        The region ``(x_lo, z_lo, x_hi, z_hi)``, m.
+    t0 : float
+        Episode start time, s since the grid's ``time0_unix_s``.
+    duration : float
+        Episode duration, s.
+    altitude : float
+        Survey altitude above the seafloor, m.
+    fc : (E, 5) float64, optional
+        The episodes' forecast errors (``Mission.fc``); None: the truth.
+    e : int, optional
+        Episode index into ``fc`` (default 0).
+    n_times : int, optional
+        Number of sample times (default :data:`N_TIMES`).
+
+    Returns
+    -------
+    times : (n_times,) float64
+        The sample times, s since the grid's ``time0_unix_s``.
+    cur : (n_times, 2) float64
+        Currents (east, north), m s-1.
+    depth : float
+        The sampling depth, m.
+    """
+    from ..engine.grid import sample_currents
+    from .routing import forecast_field
+
+    x_lo, z_lo, x_hi, z_hi = box
+    depth = float(-sample_elevation_points(
+        grid, np.array([[0.5 * (x_lo + x_hi), 0.5 * (z_lo + z_hi)]]), np.empty(1))[0]) - altitude
+    depth = max(depth, MIN_DEPTH_M)
+    ts = float(t0) + np.linspace(0.0, float(duration), int(n_times))
+    xyz = np.tile([0.5 * (x_lo + x_hi), float(depth), 0.5 * (z_lo + z_hi)], (ts.size, 1))
+    cur = np.ascontiguousarray(sample_currents(grid, xyz, ts), dtype=np.float64)
+    if fc is not None:
+        cur = forecast_field(cur.reshape(ts.size, 1, 1, 2), fc, e).reshape(ts.size, 2)
+    return ts, cur, depth
+
+
 # ------------------------------------------------------------------------------ env
 
 class ASParams(NamedTuple):
@@ -393,13 +658,19 @@ class ASParams(NamedTuple):
     thr : float
         Coverage fraction of success.
     t_lim : float
-        Time limit, s (the planner's horizon).
+        Time limit, s.
+    alt : float
+        The survey altitude of the task's plan (the cue's), m (:func:`survey_altitude`).
+    spacing : float
+        The strip spacing of the task's plan, m (:func:`survey_spacing`).
     """
     alt_max: float          # sensor's maximum altitude (bottom lock), m
     tan_h: float            # tan(half_angle): footprint radius per metre of altitude
     cell: float             # coverage cell side, m
     thr: float              # coverage fraction of success
-    t_lim: float            # time limit, s (the planner's horizon)
+    t_lim: float            # time limit, s
+    alt: float              # survey altitude of the task's plan (the cue's), m
+    spacing: float          # strip spacing of the task's plan, m
 
 
 class ASWork(NamedTuple):
@@ -419,17 +690,12 @@ class ASWork(NamedTuple):
         Covered cells, agent-steps above ``alt_max``.
     alt_sum : (E,) float64
         Sum of altitudes over agent-steps, m.
-    wps : (E, N, n_max, 2) float64
-        Plan tokens (the method's, written by its ``prepare``; read by the cue): lawnmower
-        waypoints (x, z) per agent, m.
-    wcount : (E, N) int64
-        Waypoints of each agent.
-    widx : (E, N) int64
-        Current waypoint of each agent.
-    tgt : (E, N, 3) float64
-        The carrot each agent follows (the goal cue), m; NaN until the method writes it.
-    planned : (E,) int64
-        1 once the plan tokens are written.
+    lines : (E, N, L, 2) float64
+        The task's survey plan (:func:`survey_plan`): each agent's points (x, z), m.
+    lcount : (E, N) int64
+        Points of each agent.
+    lidx : (E, N) int64
+        The mission computer's place on each agent's lines (:func:`cue`).
     """
     region: np.ndarray      # (E, 4) [x_lo, z_lo, x_hi, z_hi], m
     long_axis: np.ndarray   # (E,) int64, 0 = the long side runs along x
@@ -437,19 +703,14 @@ class ASWork(NamedTuple):
     cov: np.ndarray         # (E, max cells) uint8 coverage map (row-major, z rows)
     cnt: np.ndarray         # (E, 2) int64 covered cells, agent-steps above alt_max
     alt_sum: np.ndarray     # (E,) sum of altitudes over agent-steps, m
-    # plan tokens (the method's, written by its prepare; read by the cue)
-    wps: np.ndarray         # (E, N, n_max, 2) lawnmower waypoints (x, z) per agent, m
-    wcount: np.ndarray      # (E, N) int64 waypoints of each agent
-    widx: np.ndarray        # (E, N) int64 current waypoint of each agent
-    tgt: np.ndarray         # (E, N, 3) the carrot each agent follows (goal cue), m
-    planned: np.ndarray     # (E,) int64 1 once the plan tokens are written
+    # the mission computer (the cue): the task's survey plan and each agent's place on it
+    lines: np.ndarray       # (E, N, L, 2) each agent's points (x, z), m, run-in first
+    lcount: np.ndarray      # (E, N) int64 points of each agent
+    lidx: np.ndarray        # (E, N) int64 each agent's place on its lines
 
 
-def make(grid, tier: dict, init: dict, tokens: dict | None = None):
+def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
-
-    The plan tokens (the waypoints of every agent's plan, filled by the policy's
-    ``prepare``) hold ``tokens["max_waypoints"]`` per agent.
 
     Parameters
     ----------
@@ -459,24 +720,22 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
         Tier parameters plus ``dt_s``.
     init : dict
         The reset's dict (:func:`reset`).
-    tokens : dict
-        The policy's plan tokens (``plan_tokens``); ``max_waypoints``: waypoints per agent.
 
     Returns
     -------
     P : ASParams
         The env's typed scalars.
     W : ASWork
-        The env's per-episode work arrays.
+        The env's per-episode work arrays (the task's survey plan: :func:`survey_plan`).
 
     Raises
     ------
     ConfigError
-        Missing tier parameters or plan tokens.
+        Missing tier parameters.
     """
     need_tier(TASK_ID, tier, *_TIER_KEYS)
-    tokens = need_tokens(TASK_ID, tokens, "max_waypoints")
     region = np.ascontiguousarray(init["region"], dtype=np.float64)
+    long_axis = np.ascontiguousarray(init["long_axis"], dtype=np.int64)
     n_ep = region.shape[0]
     n_ag = init["pos0"].shape[1]
     cell = float(tier["cell_m"])
@@ -484,16 +743,116 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
     ncell[:, 0] = np.maximum(1, np.round((region[:, 2] - region[:, 0]) / cell)).astype(np.int64)
     ncell[:, 1] = np.maximum(1, np.round((region[:, 3] - region[:, 1]) / cell)).astype(np.int64)
     n_cells = int((ncell[:, 0] * ncell[:, 1]).max()) if n_ep else 1
-    n_max = int(tokens["max_waypoints"])
     P = ASParams(float(tier["max_altitude_m"]),
                  math.tan(math.radians(float(tier["half_angle_deg"]))), cell,
-                 float(tier["coverage_threshold"]), float(tier["time_limit_s"]))
-    W = ASWork(region, np.ascontiguousarray(init["long_axis"], dtype=np.int64), ncell,
-               np.zeros((n_ep, n_cells), dtype=np.uint8), np.zeros((n_ep, 2), dtype=np.int64),
-               np.zeros(n_ep), np.zeros((n_ep, n_ag, n_max, 2)),
-               np.zeros((n_ep, n_ag), dtype=np.int64), np.zeros((n_ep, n_ag), dtype=np.int64),
-               np.full((n_ep, n_ag, 3), np.nan), np.zeros(n_ep, dtype=np.int64))
+                 float(tier["coverage_threshold"]), float(tier["time_limit_s"]),
+                 survey_altitude(tier), survey_spacing(tier))
+    lines, lcount = survey_plan(region, long_axis, P.spacing, n_ag)
+    W = ASWork(region, long_axis, ncell, np.zeros((n_ep, n_cells), dtype=np.uint8),
+               np.zeros((n_ep, 2), dtype=np.int64), np.zeros(n_ep), lines, lcount,
+               np.zeros((n_ep, n_ag), dtype=np.int64))
     return P, W
+
+
+#: The task's own observation fields (after :data:`oneocean.tasks.common.OBS_FIELDS`): none.
+OBS_EXTRA = ()
+
+#: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
+#: unit, meaning).
+BRIEF_FIELDS = {
+    "region": ("(E, 4)", "m", "the survey region [x_lo, z_lo, x_hi, z_hi] (world x east, "
+               "z north)"),
+    "long_axis": ("(E,)", "", "0: the region's long side runs along x (east), 1 along z"),
+    "max_altitude": ("", "m", "the sensor's maximum altitude: nothing is imaged above it"),
+    "half_angle_deg": ("", "deg", "the sensor's half swath angle: footprint radius = "
+                       "altitude tan(half angle)"),
+    "cell": ("", "m", "side of the coverage cells"),
+    "coverage_threshold": ("", "", "success: the team's covered fraction of the region's "
+                           "cells"),
+    "start": ("(E, N, 3)", "m", "the agents' start fixes (world x east, y depth, z north), "
+              "as their navigation knows them"),
+    "forecast_centre": ("(E, N_TIMES, 2)", "m s-1", "the forecast current (east, north) at "
+                        "the region's centre at forecast_depth, at forecast_times (the "
+                        "truth for the oracle)"),
+    "forecast_times": ("(E, N_TIMES)", "s", "the forecast's times: N_TIMES even times from "
+                       "the start to the time limit, since the product's time origin"),
+    "forecast_depth": ("(E,)", "m", "the forecast's depth: the chart's seafloor depth at the "
+                       "centre less survey_alt (at least MIN_DEPTH_M)"),
+    "survey_alt": ("", "m", "the task's survey plan: altitude above the chart of its cue"),
+    "line_spacing": ("", "m", "the task's survey plan: strip spacing"),
+    "lines": ("(E, N, L, 2)", "m", "the task's survey plan: each agent's points (x, z), "
+              "run-in first, then the ends of its strips (the cue follows them)"),
+    "line_count": ("(E, N)", "", "the task's survey plan: points of each agent"),
+}
+
+
+class ASBriefing(NamedTuple):
+    """AS's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
+    t0: np.ndarray
+    t_lim: float
+    dt: float
+    n_agents: int
+    v_max: float
+    guidance: int
+    hotel_w: float
+    pk: float
+    energy_allocation: np.ndarray
+    sens: tuple
+    chart: tuple
+    region: np.ndarray
+    long_axis: np.ndarray
+    max_altitude: float
+    half_angle_deg: float
+    cell: float
+    coverage_threshold: float
+    start: np.ndarray
+    forecast_centre: np.ndarray
+    forecast_times: np.ndarray
+    forecast_depth: np.ndarray
+    survey_alt: float
+    line_spacing: float
+    lines: np.ndarray
+    line_count: np.ndarray
+
+
+def brief(P: ASParams, W: ASWork, init: dict, m) -> ASBriefing:
+    """The briefing of every episode of a batch.
+
+    The region, the sensor, the success rule, the start fixes (``m.X0``), the forecast at the
+    region's centre (:func:`centre_forecast` at the survey altitude; the truth for a method
+    given the true current) and the task's survey plan.
+
+    Parameters
+    ----------
+    P, W
+        The task's params and work arrays (:func:`make`).
+    init : dict
+        The reset's dict.
+    m : Mission
+        The batch's mission (:class:`oneocean.tasks.public.Mission`).
+
+    Returns
+    -------
+    ASBriefing
+    """
+    from .public import common_brief
+
+    n_ep = W.region.shape[0]
+    times = np.zeros((n_ep, N_TIMES))
+    cur = np.zeros((n_ep, N_TIMES, 2))
+    depth = np.zeros(n_ep)
+    fc = m.forecast
+    for e in range(n_ep):
+        times[e], cur[e], depth[e] = centre_forecast(m.grid, tuple(W.region[e]),
+                                                     float(m.t0[e]), P.t_lim, P.alt, fc, e)
+    return ASBriefing(**common_brief(m), region=W.region.copy(),
+                      long_axis=W.long_axis.copy(), max_altitude=P.alt_max,
+                      half_angle_deg=float(m.tier["half_angle_deg"]), cell=P.cell,
+                      coverage_threshold=P.thr,
+                      start=np.ascontiguousarray(m.X0[:, :, :3], dtype=np.float64),
+                      forecast_centre=cur, forecast_times=times, forecast_depth=depth,
+                      survey_alt=P.alt, line_spacing=P.spacing, lines=W.lines.copy(),
+                      line_count=W.lcount.copy())
 
 
 @hot_kernel(inline="always")
@@ -527,7 +886,7 @@ def _mark(cov, e, x, z, r, x_lo, z_lo, cell, ncx, ncz):
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
-    """Clear the coverage map and the counters.
+    """Clear the coverage map and the counters; every agent at the start of its lines.
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
 
@@ -554,14 +913,22 @@ def begin(grid, P, W, state, e):
     W.cnt[e, 0] = 0
     W.cnt[e, 1] = 0
     W.alt_sum[e] = 0.0
+    for i in range(W.lidx.shape[1]):
+        W.lidx[e, i] = 0
     return False
 
 
 @hot_kernel(inline="always")
-def cue(grid, P, W, state, e, k, i):
-    """The goal cue: the carrot the method follows (``W.tgt``).
+def cue(grid, P, W, X, e, k, i):
+    """The mission computer: the point of agent ``i``'s lines to make for.
 
-    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
+    Env hook (:mod:`oneocean.tasks.loop`): the observation's cue. On the agent's navigation
+    estimate ``X[e, i]``, agent ``i``'s place on its lines of the task's survey plan
+    (``W.lidx``) advances (:func:`~oneocean.tasks.common.waypoint_carrot`: the transit to the
+    run-in ends within ``ARRIVE_M``, a leg ``CUE_TOL_M`` before its end); the cue is the
+    run-in during the transit, then the point ``CUE_LOOK_M`` ahead on the current leg, then
+    the last point, at the survey altitude ``P.alt`` above the seafloor there (at least
+    ``MIN_DEPTH_M`` deep).
 
     Parameters
     ----------
@@ -570,8 +937,8 @@ def cue(grid, P, W, state, e, k, i):
     P : ASParams
         The task's params (:func:`make`).
     W : ASWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
+        The task's per-episode work arrays (:func:`make`); advances ``lidx``.
+    X : (E, N, STATE_DIM) float64
         The vehicle states the method knows (its navigation estimate; the truth for
         the oracle); layout: :mod:`oneocean.engine.dynamics`.
     e : int
@@ -584,12 +951,16 @@ def cue(grid, P, W, state, e, k, i):
     Returns
     -------
     gx, gy, gz : float
-        The goal cue, world m.
+        The cue, world m.
     probe : float
         NaN (the task has no field).
     """
-    g = W.tgt[e, i]
-    return g[0], g[1], g[2], math.nan
+    gx, gz, w = waypoint_carrot(W.lines, W.lidx, W.lcount, e, i, X[e, i, 0], X[e, i, 2],
+                                CUE_LOOK_M, CUE_TOL_M, ARRIVE_M)
+    gy = -sample_elevation(grid, gx, gz) - P.alt
+    if gy < MIN_DEPTH_M:
+        gy = MIN_DEPTH_M
+    return gx, gy, gz, math.nan
 
 
 @hot_kernel(inline="always")

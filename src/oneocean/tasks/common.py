@@ -55,6 +55,36 @@ OBS_FIELDS = (("goal_dx_m", "goal_dy_m", "goal_dz_m", "current_e_ms", "current_n
               + ("x_m", "z_m", "heading_rad", "vx_ms", "vy_ms", "vz_ms", "t_s", "energy_m2s",
                  "fix"))
 OBS_DIM = len(OBS_FIELDS)
+#: The common head's fields: name -> (unit, meaning).
+OBS_DOCS = {
+    "goal_dx_m": ("m", "the task's cue minus the agent's navigation estimate, east"),
+    "goal_dy_m": ("m", "the same, down (depth)"),
+    "goal_dz_m": ("m", "the same, north"),
+    "current_e_ms": ("m s-1", "the current the agent knows at its position, east: the "
+                     "briefing's forecast corrected by a Kalman filter on in-situ samples "
+                     "(ADCP/DVL class); the truth for the oracle"),
+    "current_n_ms": ("m s-1", "the same, north"),
+    "depth_m": ("m", "depth (pressure sensor)"),
+    "altitude_m": ("m", "height above the seafloor (DVL beams)"),
+    "pollution": ("task's", "the task's probe (SPC: surface concentration, kg m-2; PI: the "
+                  "plume sensor's reading); NaN where the task has none"),
+    **{f"mate{m + 1}_{c}_m": ("m", f"the {m + 1}{('st', 'nd', 'rd')[m]} nearest teammate's "
+                              f"offset from the agent, {'east' if c == 'dx' else 'north'} "
+                              "(navigation estimates; NaN: no such teammate)")
+       for m in range(N_MATES) for c in ("dx", "dz")},
+    "x_m": ("m", "the agent's navigation estimate, east (DVL dead reckoning with the task's "
+            "position fixes; the truth for the oracle)"),
+    "z_m": ("m", "the same, north"),
+    "heading_rad": ("rad", "heading, clockwise from north (compass)"),
+    "vx_ms": ("m s-1", "velocity over ground, east (DVL)"),
+    "vy_ms": ("m s-1", "the same, down"),
+    "vz_ms": ("m s-1", "the same, north"),
+    "t_s": ("s", "time since the episode started (the step times dt)"),
+    "energy_m2s": ("m2 s-1", "the energy proxy the agent used so far, sum of |a|^2 dt"),
+    "fix": ("", "1 if an absolute position fix (GNSS at the surface, the support vessel's "
+            "USBL) came at the last step, else 0"),
+}
+assert tuple(OBS_DOCS) == OBS_FIELDS
 #: Column of each common field in an observation row, by name and as constants (jit code).
 OBS = {name: j for j, name in enumerate(OBS_FIELDS)}
 (O_GX, O_GY, O_GZ, O_CE, O_CN, O_DEPTH, O_ALT, O_PROBE, O_MATES, O_X, O_Z, O_PSI, O_VX, O_VY,
@@ -1538,36 +1568,6 @@ def fresh_cache(kernel, module_file: str, *deps) -> bool:
 
 
 
-def need_tokens(task_id: str, tokens, *keys: str) -> dict:
-    """The plan tokens, checked for the keys a task needs.
-
-    Parameters
-    ----------
-    task_id : str
-        Task id, for the message.
-    tokens : dict or None
-        Plan tokens (the fused policy's ``plan_tokens``).
-    *keys : str
-        Keys the task needs.
-
-    Returns
-    -------
-    dict
-        A copy of ``tokens`` (empty for None).
-
-    Raises
-    ------
-    ConfigError
-        One line naming the ``keys`` it lacks.
-    """
-    tokens = dict(tokens or {})
-    missing = [k for k in keys if k not in tokens]
-    if missing:
-        raise ConfigError(f"task {task_id}: plan tokens missing: {', '.join(missing)} (the "
-                          "policy module's plan_tokens(grid, tier, init) gives them)")
-    return tokens
-
-
 def need_tier(task_id: str, tier: dict, *keys: str) -> None:
     """Check that a tier has the parameters a task needs.
 
@@ -1616,7 +1616,7 @@ def rollout_results(res: np.ndarray, columns, obs, act, record: bool) -> dict:
     columns : sequence of str
         Column names (the task's ``COLUMNS``).
     obs : (E, n_steps, N, OBS_DIM) float64
-        Recorded observations (:func:`obs_buffers`).
+        Recorded observations (:meth:`oneocean.tasks.episodes.Episodes` ``record``).
     act : (E, n_steps, N, 3) float64
         Recorded actions.
     record : bool
@@ -1635,40 +1635,36 @@ def rollout_results(res: np.ndarray, columns, obs, act, record: bool) -> dict:
         out["obs"], out["act"] = obs, act
     return out
 
-def obs_buffers(tier: dict, init: dict, record: bool):
-    """Observation and action buffers of a rollout.
-
-    Parameters
-    ----------
-    tier : dict
-        Tier parameters (``time_limit_s``, ``dt_s`` when ``record``).
-    init : dict
-        The reset's dict (its ``pos0`` (E, N, 3) gives E and N).
-    record : bool
-        Whether observations are recorded.
-
-    Returns
-    -------
-    obs : (E, n_steps, N, OBS_DIM) float64
-        Filled with NaN (steps after an episode ends stay NaN); zero-length step axis unless
-        ``record`` (then :func:`observe` does nothing).
-    act : (E, n_steps, N, 3) float64
-        The same for the actions.
-    """
-    n_ep, n_ag = init["pos0"].shape[:2]
-    steps = episode_steps(tier) if record else 0
-    return (np.full((n_ep, steps, n_ag, OBS_DIM), np.nan),
-            np.full((n_ep, steps, n_ag, len(ACT_FIELDS)), np.nan))
-
 @hot_kernel(inline="always")
 def observe_common(o, grid, X, state, e, i, gx, gy, gz, pe, pn, probe, t_s, energy, fix):
     """Write the common head (:data:`OBS_FIELDS`) of agent ``i``'s observation row ``o``.
 
     The cue, the teammates' offsets, the position and the velocity are the states the method
     knows (``X``: its navigation estimate, the truth for the oracle); depth (pressure sensor)
-    and altitude (the DVL's beams) are measured, so they come from the true ``state``. The
-    arguments after ``i`` are the cue (world m), the current estimate (m s-1), the probe, the
-    time since the start (s), the agent's energy proxy so far (m2 s-1) and the fix flag.
+    and altitude (the DVL's beams) are measured, so they come from the true ``state``.
+
+    Parameters
+    ----------
+    o : (D,) float64
+        The observation row, its first :data:`OBS_DIM` values written.
+    grid : Grid
+        The grid export (the true seafloor under the agent).
+    X, state : (E, N, STATE_DIM) float64
+        The states the method knows and the true states.
+    e, i : int
+        Episode and agent.
+    gx, gy, gz : float
+        The task's cue, world m.
+    pe, pn : float
+        The current estimate, east and north, m s-1.
+    probe : float
+        The task's probe (NaN: none).
+    t_s : float
+        Time since the episode started, s.
+    energy : float
+        The agent's energy proxy so far, m2 s-1.
+    fix : int
+        1 if an absolute position fix came at the last step.
     """
     px = X[e, i, 0]
     py = X[e, i, 1]
@@ -1716,10 +1712,22 @@ def observe_common(o, grid, X, state, e, i, gx, gy, gz, pe, pn, probe, t_s, ener
 
 @hot_kernel
 def record_step(rec_o, rec_a, O, e, k, i, ax, ay, az):
-    """Record agent ``i``'s observation ``O[e, i]`` and its requested action at step ``k``
-    (the observation and action records ``rec_o`` (E, S, N, D) and ``rec_a`` (E, S, N, 3)).
+    """Record agent ``i``'s observation and its requested action at step ``k``.
+
     Not inlined: it runs only while recording, and one compiled copy shared by every task
-    kernel keeps their compile times down."""
+    kernel keeps their compile times down.
+
+    Parameters
+    ----------
+    rec_o, rec_a : (E, S, N, D) and (E, S, N, 3) float64
+        The observation and action records, ``[e, k, i]`` written.
+    O : (E, N, D) float64
+        This step's observations.
+    e, k, i : int
+        Episode, step and agent.
+    ax, ay, az : float
+        The requested action, world m s-1.
+    """
     r = rec_o[e, k, i]
     o = O[e, i]
     for d in range(o.shape[0]):

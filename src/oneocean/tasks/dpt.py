@@ -24,18 +24,25 @@ Active leg
     (:func:`~oneocean.tasks.common.nav_waypoint`): a vehicle whose navigation has drifted
     turns for the next leg where it believes the waypoint is, and a waypoint it missed does
     not count.
-Observation cue
-    The point ``CUE_LOOKAHEAD_M`` ahead of the agent's known horizontal projection on the
-    mission computer's active leg (clamped to the waypoint), at the profile's depth there.
+Briefing (:class:`DPTBriefing`, after the common fields of :mod:`oneocean.tasks.public`)
+    The ``route`` with its depth profile (vertex 0: where the vehicle starts), the waypoint
+    radius and the bound on the RMS depth error.
+Observation
+    The cue is the point ``CUE_LOOKAHEAD_M`` ahead of the agent's known horizontal
+    projection on the mission computer's active leg (``W.nwp``, advanced in the cue; clamped
+    to the waypoint), at the target depth ``y*`` (the profile at the projection itself, so
+    ``goal_dy_m`` is minus the depth error as the vehicle knows it); once the route is done
+    as far as the vehicle knows, the last waypoint. The task has no observation fields of its own.
 Methods
-    :mod:`oneocean.methods.heuristic.dpt` (depth loop plus horizontal line-of-sight guidance;
-    both at full speed, both with the profile's slope fed forward; heuristic: the sensor
-    models of :mod:`oneocean.sensing`; oracle: true current and position).
+    :mod:`oneocean.methods.heuristic.dpt` (depth loop plus horizontal line-of-sight guidance
+    on its own copy of the mission computer's leg pointer; both at full speed, both with the
+    profile's slope fed forward; heuristic: the sensor models of :mod:`oneocean.sensing`;
+    oracle: true current and position).
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
-    ``TASK_ID``, ``METRICS``; ``reset``; ``DPTParams`` / ``DPTWork`` and ``make``; the env
-    hooks ``begin``, ``cue``, ``post_step``, ``finish``; the compiled loop is
-    :mod:`oneocean.kernels.dpt`.
+    ``TASK_ID``, ``METRICS``; ``reset``; ``DPTParams`` / ``DPTWork`` and ``make``; the briefing
+    (``DPTBriefing``, ``BRIEF_FIELDS``, ``brief``); the env hooks ``begin``, ``cue``,
+    ``post_step``, ``finish``; the compiled loop is :mod:`oneocean.kernels.dpt`.
 """
 
 from __future__ import annotations
@@ -191,6 +198,61 @@ def make(grid, tier: dict, init: dict):
             DPTWork(route, np.ones(n_ep, np.int64), np.ones(n_ep, np.int64), np.zeros((n_ep, 3))))
 
 
+#: The task's own observation fields: none (the cue carries the target depth).
+OBS_EXTRA = ()
+
+#: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
+#: unit, meaning).
+BRIEF_FIELDS = {
+    "route": ("(E, W + 1, 3)", "m", "the route's vertices (world x east, y the target depth, "
+              "z north): vertex 0 where the vehicle starts, then the waypoints in order; the "
+              "target depth is linear in the horizontal distance along each leg"),
+    "radius": ("", "m", "horizontal waypoint radius"),
+    "depth_tol": ("", "m", "success: RMS depth error at most this"),
+}
+
+
+class DPTBriefing(NamedTuple):
+    """DPT's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
+    t0: np.ndarray
+    t_lim: float
+    dt: float
+    n_agents: int
+    v_max: float
+    guidance: int
+    hotel_w: float
+    pk: float
+    energy_allocation: np.ndarray
+    sens: tuple
+    chart: tuple
+    route: np.ndarray
+    radius: float
+    depth_tol: float
+
+
+def brief(P: DPTParams, W: DPTWork, init: dict, m) -> DPTBriefing:
+    """The briefing of every episode of a batch (:class:`oneocean.tasks.public.Mission`
+    ``m``): the route and its depth profile, the waypoint radius, the depth tolerance.
+
+    Parameters
+    ----------
+    P, W
+        The task's params and work arrays (:func:`make`).
+    init : dict
+        The reset's dict.
+    m : Mission
+        The batch's mission (:class:`oneocean.tasks.public.Mission`).
+
+    Returns
+    -------
+    DPTBriefing
+    """
+    from .public import common_brief
+
+    return DPTBriefing(**common_brief(m), route=W.route.copy(), radius=P.radius,
+                       depth_tol=P.depth_tol)
+
+
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
     """Reset the waypoint pointers and accumulators.
@@ -224,9 +286,9 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel(inline="always")
-def cue(grid, P, W, state, e, k, i):
+def cue(grid, P, W, X, e, k, i):
     """The route point ``P.look`` m ahead of the agent's known horizontal projection on the
-    active leg, at the profile's depth there.
+    active leg, at the target depth (the profile at the projection).
 
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
 
@@ -242,7 +304,7 @@ def cue(grid, P, W, state, e, k, i):
         The task's params (:func:`make`).
     W : DPTWork
         The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
+    X : (E, N, STATE_DIM) float64
         The vehicle states the method knows (its navigation estimate; the truth for
         the oracle); layout: :mod:`oneocean.engine.dynamics`.
     e : int
@@ -259,7 +321,7 @@ def cue(grid, P, W, state, e, k, i):
     probe : float
         NaN (the task has no field).
     """
-    s = state[e, i]
+    s = X[e, i]
     wp = nav_waypoint(W.route, W.nwp, e, s[0], s[1], s[2], P.radius, 1)
     if wp > W.route.shape[1] - 1:   # route done as far as the vehicle knows: the last waypoint
         g = W.route[e, wp - 1]

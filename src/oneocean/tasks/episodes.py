@@ -304,7 +304,7 @@ class Episodes:
         # heuristic's, unused, so that one compiled loop serves every kind)
         B = mod.brief(self.P, self.W, init,
                       Mission(grid, tier, vehicle, self.LP.sens, LS.fc, self.known_state,
-                              self.t0))
+                              self.t0, self.LP.seed, self.LP.e0))
         M = pol.params(method if fused else "heuristic", B)
         H = pol.memory(B, M)
         self.obs_dim = OBS_DIM + len(getattr(mod, "OBS_EXTRA", ()))
@@ -467,6 +467,11 @@ class Episodes:
         """Advance every running episode of ``lo .. hi-1`` by one step and return the next
         observation (as :meth:`observe`, rows outside ``lo .. hi-1`` as they were).
 
+        Parameters
+        ----------
+        lo, hi : int
+            Episodes to step (default all).
+
         Returns
         -------
         (E, N, D) float64
@@ -479,7 +484,8 @@ class Episodes:
     def env_step(self, io, lo: int, hi: int) -> bool:
         """One step of the episodes ``lo .. hi-1`` with the step API's side ``io``
         (:class:`oneocean.tasks.loop.EnvIO`: their sub-envs' actions in, observations and end
-        flags out) in one compiled call (the kernel module's ``_step_boxed``).
+        flags out) in one compiled call (the kernel module's ``_step_boxed``, else its
+        ``_kernel``).
 
         Parameters
         ----------
@@ -495,7 +501,10 @@ class Episodes:
         """
         call = self._entries.get("step")
         if call is None:
-            kern = self.kern._step_boxed
+            kern = getattr(self.kern, "_step_boxed", None)
+            if kern is None:   # a plugin's kernel module without it: the plain kernel
+                over_range(self.kern._kernel, lo, hi, *self._args(), io, -1)
+                return True
             args = (step_args(*self._args()),)
             over_range(kern, lo, hi, *args, io)        # compiles (or loads) on first use
             self._entries["step"] = (fast_entry(kern, args + (io, 0, 1)), args)

@@ -21,17 +21,15 @@ Fish physics (the environment)
     judging, snapshots, and what a method given the target perceives) are updated.
 Perception (every non-oracle method; :func:`sonar`)
     Each ROV's imaging sonar (``sensors.yaml`` ``perception.fh_school``, read by
-    :func:`school_sensor`) reports, at the start and after every step, the offset of the
-    school's echo centroid from the ROV and the echo's extent (``W.sfix``): the fish within
-    ``range_m`` of it, weighted by a fluctuating echo intensity (exponential, coefficient of
-    variation ``echo_cv``) and by the shadowing of the fish in front
-    (``exp(-(d - d_near) / extinction_m)``), so the centroid is pulled toward the sensor by a
-    fraction of the school's extent; its offset gets the sonar's range and bearing noise
-    (:func:`~oneocean.sensing.kernels.polar_fix`). The method places the readings where each
-    ROV knows it is and tracks the school (:mod:`oneocean.methods.heuristic.fh`). A method
-    given the target (``SensingParams.true_target``: the oracle, the ``true_target``
-    ablation) perceives the true school instead; ``_episode`` copies the run seed and the
-    sensing flags the hooks need into ``W.sinfo``.
+    :func:`school_sensor`) reports, at every step's observation, the offset of the school's
+    echo centroid from the ROV and the echo's extent: the fish within ``range_m`` of it,
+    weighted by a fluctuating echo intensity (exponential, coefficient of variation
+    ``echo_cv``) and by the shadowing of the fish in front (``exp(-(d - d_near) /
+    extinction_m)``), so the centroid is pulled toward the sensor by a fraction of the
+    school's extent; its offset gets the sonar's range and bearing noise
+    (:func:`~oneocean.sensing.kernels.polar_fix`). A method given the target
+    (``SensingParams.true_target``: the oracle, the ``true_target`` ablation; ``brief`` sets
+    it in ``W.sinfo``) perceives the true school instead, at any range.
 Success
     The school's centroid stays inside the safe zone (distance <= ``zone_radius_m``) for
     ``hold_s`` consecutive seconds (checked after every step; the episode stops when the hold
@@ -40,23 +38,45 @@ Metrics
     ``containment_success`` (primary, 0/1), ``final_centroid_distance_m`` (centroid to zone
     centre at the end, m), ``fraction_inside`` (fraction of fish inside the zone at the end),
     ``school_spread_m`` (RMS distance of the fish from their centroid at the end, m).
-Methods (task logic; the environment above does not depend on it)
+Briefing (:class:`FHBriefing`, after the common fields of :mod:`oneocean.tasks.public`)
+    The zone (``zone``, ``zone_radius``), the hold time, the school's and the team's depth,
+    the school as reported when the team was deployed (``school0``: its centroid;
+    ``school_radius``: the disc it occupied), ``fish_count``, the species' flee radius and
+    sustained swim speed (the fish model's), the sonar's range (:data:`BRIEF_FIELDS`).
+Observation
+    The task's own fields (:data:`OBS_EXTRA`) are each agent's sonar reading: whether it sees
+    the school, the offset of the echo centroid from the agent (m) and the echo's extent (m);
+    NaN where it sees none. A method given the target reads, at any range, the offset of the
+    true centroid from the agent's known position and the school's RMS spread. The team
+    observation (:class:`FHTeamObs`, :data:`TEAM_FIELDS`) is the
+    team's fused fix of the school (the mean of the agents' readings placed at their
+    navigation estimates; the truth for a method given the target), its velocity (the truth
+    for a method given the target, else NaN: a sonar gives positions) and the current at
+    the school's last fix (the truth for a method given the true current, else the
+    mission's forecast there: no vehicle samples the water at the school's centre).
+    The cue is the task's herding station (:func:`stations`): agent i's station on an arc
+    of ``CUE_ARC_DEG`` behind the school's last team fix (opposite the zone centre), agents
+    matched to stations in angular order around the school, at most ``CUE_STEP_DEG`` of arc
+    ahead of the agent's own bearing (a follower goes around the school, not through it),
+    ``CUE_STANDOFF_M`` plus the school's extent out while the school is ``CUE_RAMP_M`` or
+    more from the zone centre, backing off linearly to ``CUE_BACKOFF_M`` at the centre; the
+    arc's direction is frozen within ``CUE_DEADBAND_FRAC`` of the zone radius of the centre.
+    A follower of the cue pushes the school toward the zone.
+Methods
     :mod:`oneocean.methods.heuristic.fh` (herding from behind on an arc around the school;
     both at the vehicle's full speed, the school crabbed across the current, standoff adapted
     to its swim speed). Heuristic and oracle differ in information only: the heuristic
     tracks the school from the team's sonar readings, takes the team's mean current estimate
     at the school and navigates by the sensor models of :mod:`oneocean.sensing`; the oracle
-    knows the school, the current at its centroid and its position.
-    The observation's goal cue is the agent's herding waypoint (``W.tgt``, written by the
-    method's ``plan``; the zone centre for external policies).
+    perceives the school exactly and knows the current at its centroid and its own position.
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
-    ``TASK_ID``, ``METRICS``; ``reset``; ``FHParams`` / ``FHWork`` and ``make``; the env hooks
-    ``begin``, ``pre_step`` (the fish step), ``cue``, ``post_step``, ``finish``;
-    ``seed_episode`` (called by the compiled loop, :mod:`oneocean.kernels.fh`, before the
-    episode: derives the episode's fish-jitter key ``W.fseed`` from the run seed and copies
-    the seed and the sensing flags into ``W.sinfo``; the env and policy hooks do not see the
-    loop's params).
+    ``TASK_ID``, ``METRICS``; ``reset``; ``FHParams`` / ``FHWork`` and ``make``; the public
+    view: the briefing (``FHBriefing``, ``BRIEF_FIELDS``, ``brief``), the observation's own
+    fields (``OBS_EXTRA``) and the team observation (``FHTeamObs``, ``TEAM_FIELDS``,
+    ``team_obs``); the env hooks ``begin``, ``pre_step`` (the fish step), ``cue``, ``sense``
+    (the sonar, the team fix, the current at the school, the stations), ``post_step``,
+    ``finish``; the compiled loop is :mod:`oneocean.kernels.fh`.
 """
 
 from __future__ import annotations
@@ -75,14 +95,14 @@ from ..engine.status import OK
 from ..engine.grid import locate_time, sample_current_at, synthetic_tide
 from ..engine.rng import PURPOSE_TASK, hash64, uniform01
 from ..errors import ConfigError, NotApplicable
-from ..models.fish import (fish_params, fraction_inside_circle, init_school, school_centroid,
-                           school_spread, step_school_into)
+from ..models.fish import (FISH_PARAM_NAMES, fish_params, fraction_inside_circle, init_school,
+                           school_centroid, school_spread, step_school_into)
 from ..sensing import perception, perception_values
-from ..sensing.kernels import polar_fix
+from ..sensing.kernels import forecast, polar_fix
 from .common import feasible_codes
-from .common import (_SPAWN_BATCH, PURPOSE_RESET, PURPOSE_TASK_NOISE, STANDARD, _call,
-                     _route_row, _segment_clear, fresh_cache, need_tier, path_clear,
-                     sample_route, start_times)
+from .common import (_SPAWN_BATCH, OBS_DIM, PURPOSE_RESET, PURPOSE_TASK_NOISE, STANDARD, _call,
+                     _route_row, _segment_clear, current_at, fresh_cache, need_tier,
+                     path_clear, sample_route, start_times)
 from ..engine import libm
 from ..engine import streams
 
@@ -112,6 +132,19 @@ CLEARANCE_M = 1.0
 #: Random stream of the sonar's per-fish echo intensities (one draw per fish, agent and
 #: ping; the range and bearing noise of a reading is ``polar_fix``'s PURPOSE_PERCEPTION).
 PURPOSE_SCHOOL_ECHO = PURPOSE_TASK + 24
+
+#: The task's herding stations (the observation's cue, :func:`stations`): the arc behind the
+#: school (degrees), at most this much arc ahead of the agent's own bearing around the school
+#: (degrees), the standoff from the school's fix under a push (m, plus the school's extent),
+#: the standoff at the zone centre (m, outside the fish's 15 m flee radius), the distance of
+#: the school from the zone centre over which it backs off (m), and the dead band (fraction of
+#: the zone radius around the centre) within which the arc's direction is frozen.
+CUE_ARC_DEG = 200.0
+CUE_STEP_DEG = 45.0
+CUE_STANDOFF_M = 8.0
+CUE_BACKOFF_M = 20.0
+CUE_RAMP_M = 15.0
+CUE_DEADBAND_FRAC = 0.25
 
 _C_CONT, _C_DIST, _C_FRAC, _C_SPREAD = (len(STANDARD) + i for i in range(len(METRICS)))
 
@@ -407,68 +440,73 @@ class FHWork(NamedTuple):
     apos : (E, 2, 8) float64
         Agent x / z seen by the fish, m.
     fseed : (E,) uint64
-        Fish-jitter key (set by :func:`seed_episode` from the run seed).
+        Fish-jitter key (set by :func:`brief` from the run seed).
     school : (E, 5) float64
-        The truth (judging, snapshots; the oracle's perception): centroid x, z (m), its
-        velocity over the last step (m s-1), time inside the zone (s).
+        The truth (judging, snapshots; the perception of a method given the target): centroid
+        x, z (m), its velocity over the last step (m s-1), time inside the zone (s).
     done : (E,) int64
         1 once the hold is complete.
     sinfo : (E, 3) int64
-        The method's information, copied by :func:`seed_episode` from the loop's params:
-        run seed, ``true_target``, ``true_current``.
+        The run seed (:func:`brief`) and what the method is
+        given (:func:`brief`, from the mission): ``true_target``, ``true_current``.
     sfix : (E, 8, 4) float64
-        Each agent's latest sonar reading of the school: seen (1/0), offset of the echo
-        centroid from the agent x, z (m), extent (weighted RMS radius, m); unused with
+        Each agent's latest sonar reading of the school (:func:`sonar`): seen (1/0), offset of
+        the echo centroid from the agent x, z (m), extent (weighted RMS radius, m); unused with
         ``true_target``.
-    sest : (E, 6) float64
-        The method's school estimate (:mod:`oneocean.methods.heuristic.fh`, as the rest):
-        centroid x, z (m), velocity (m s-1), spread (m), 1 once initialised.
-    herd : (E, 3) float64
-        Angle behind the school (rad), integral standoff (m), slot radius (m).
-    order : (E, 8) int64
-        Agents in angular order around the school.
-    keys : (E, 8) float64
-        Angle of each agent relative to the arc centre, rad.
-    rank : (E, 8) int64
-        Arc slot of each agent.
-    tgt : (E, 8, 2) float64
-        Waypoint (x, z) of each agent, m (plan token, goal cue).
-    cest : (E, 8, 2) float64
-        Each agent's current estimate at its last step, m s-1.
     skey : (E,) int64
-        The cell's episode whose sonar streams row ``e`` draws (:func:`seed_episode`:
+        The cell's episode whose sonar streams row ``e`` draws (:func:`brief`:
         ``LP.e0 + e``; :func:`make`: ``e``).
     fscr : (E, 7, F) float64
         Scratch of the school's step (:func:`~oneocean.models.fish.step_school_into`).
+    t0 : (E,) float64
+        Start times, s since the grid's ``time0`` (the current at the school).
+    fce : (E, 5) float64
+        The episode's forecast error (:func:`brief`, from the mission; zeros for a method
+        given the true current): the forecast of the current at the school.
+    school0 : (E, 2) float64
+        The school's centroid at the start (x, z), m: the briefing's report.
+    fix : (E, 3) float64
+        The team's fix of the school at this step (the team observation): x, z (m), extent
+        (m); NaN when no agent sees it.
+    vel : (E, 2) float64
+        The school's velocity (the team observation), m s-1; NaN unless perceived exactly.
+    cur : (E, 2) float64
+        The current at the school's last fix (the team observation), east, north, m s-1.
+    sch : (E, 3) float64
+        The school's last team fix: x, z (m), extent (m) (the reported start before any).
+    cth : (E,) float64
+        The stations' direction behind the school, compass rad (NaN: not yet set).
+    ckey : (E, 8) float64
+        Scratch: each agent's bearing around the school relative to ``cth``, rad.
+    cue : (E, 8, 2) float64
+        Each agent's herding station (x, z), m: the observation's cue.
     """
     zone: np.ndarray        # (E, 2) zone centre (x, z), m
     fish: np.ndarray        # (E, 2, 4, F) fish state double buffer (x, z, vx, vz)
     fcur: np.ndarray        # (E,) int64 index of the current buffer of ``fish``
     fc: np.ndarray          # (E, 2, F) currents at the fish, m s-1
     apos: np.ndarray        # (E, 2, 8) agent x/z seen by the fish, m
-    fseed: np.ndarray       # (E,) uint64 fish-jitter key (set by _episode from the run seed)
-    school: np.ndarray      # (E, 5) the truth (judging, snapshots; the oracle's perception):
-                            #   centroid x, z (m), its velocity over the last step (m s-1),
-                            #   time inside the zone (s)
+    fseed: np.ndarray       # (E,) uint64 fish-jitter key (set by brief from the run seed)
+    school: np.ndarray      # (E, 5) the truth: centroid x, z (m), its velocity over the last
+                            #   step (m s-1), time inside the zone (s)
     done: np.ndarray        # (E,) int64 1 once the hold is complete
-    sinfo: np.ndarray       # (E, 3) int64 the method's information, copied by _episode from
-                            #   the loop's params: run seed, true_target, true_current
-    sfix: np.ndarray        # (E, 8, 4) each agent's latest sonar reading of the school: seen
-                            #   (1/0), offset of the echo centroid from the agent x, z (m),
-                            #   extent (weighted RMS radius, m); unused with true_target
-    # method state (oneocean.methods.heuristic.fh)
-    sest: np.ndarray        # (E, 6) the method's school estimate: centroid x, z (m), velocity
-                            #   (m s-1), spread (m), 1 once initialised
-    herd: np.ndarray        # (E, 3) angle behind the school (rad), integral standoff (m),
-                            #   slot radius (m)
-    order: np.ndarray       # (E, 8) int64 agents in angular order around the school
-    keys: np.ndarray        # (E, 8) angle of each agent relative to the arc centre, rad
-    rank: np.ndarray        # (E, 8) int64 arc slot of each agent
-    tgt: np.ndarray         # (E, 8, 2) waypoint (x, z) of each agent, m (plan token, goal cue)
-    cest: np.ndarray        # (E, 8, 2) each agent's current estimate at its last step, m s-1
+    sinfo: np.ndarray       # (E, 3) int64 run seed (brief), true_target, true_current
+                            #   (brief)
+    sfix: np.ndarray        # (E, 8, 4) each agent's latest sonar reading: seen (1/0), offset
+                            #   of the echo centroid x, z (m), extent (m)
     skey: np.ndarray        # (E,) int64 the cell's episode whose sonar streams row e draws
-                            #   (set by _episode: LP.e0 + e; make: e)
     fscr: np.ndarray        # (E, 7, F) scratch of the school's step (step_school_into)
+    t0: np.ndarray          # (E,) start times, s
+    fce: np.ndarray         # (E, 5) forecast error (brief; zeros given the true current)
+    school0: np.ndarray     # (E, 2) the school's centroid at the start (x, z), m
+    # the public view the task keeps (sense): the team observation and the cue
+    fix: np.ndarray         # (E, 3) team fix of the school this step: x, z, extent (m); NaN
+    vel: np.ndarray         # (E, 2) the school's velocity, m s-1 (NaN unless exact)
+    cur: np.ndarray         # (E, 2) current at the school's last fix, m s-1
+    sch: np.ndarray         # (E, 3) the school's last team fix: x, z, extent (m)
+    cth: np.ndarray         # (E,) stations' direction behind the school, rad (NaN: unset)
+    ckey: np.ndarray        # (E, 8) scratch: agents' bearings around the school, rad
+    cue: np.ndarray         # (E, 8, 2) each agent's herding station (x, z), m
 
 
 def school_sensor(path=None) -> tuple[float, float, float, float, float]:
@@ -518,7 +556,7 @@ def make(grid, tier: dict, init: dict):
     P : FHParams
         The env's typed scalars.
     W : FHWork
-        The env's per-episode work arrays (the herding waypoints start at the zone centre).
+        The env's per-episode work arrays.
 
     Raises
     ------
@@ -532,18 +570,156 @@ def make(grid, tier: dict, init: dict):
     zone = np.ascontiguousarray(init["zone"], dtype=np.float64)
     fish = np.zeros((n_ep, 2, 4, n_fish))
     fish[:, 0, :2] = fish0
+    school0 = np.empty((n_ep, 2))
+    for e in range(n_ep):
+        school0[e] = school_centroid(fish[e, 0, 0], fish[e, 0, 1])
     P = FHParams(float(tier["zone_radius_m"]), float(tier["hold_s"]), float(tier["dt_s"]),
                  FISH_DEPTH_M, DEFAULT_LAND_THRESHOLD, fish_params(), *school_sensor())
     W = FHWork(zone, fish, np.zeros(n_ep, dtype=np.int64), np.zeros((n_ep, 2, n_fish)),
                np.zeros((n_ep, 2, n)), np.zeros(n_ep, dtype=np.uint64), np.zeros((n_ep, 5)),
                np.zeros(n_ep, dtype=np.int64), np.zeros((n_ep, 3), dtype=np.int64),
-               np.zeros((n_ep, n, 4)), np.zeros((n_ep, 6)), np.zeros((n_ep, 3)),
-               np.zeros((n_ep, n), dtype=np.int64), np.zeros((n_ep, n)),
-               np.zeros((n_ep, n), dtype=np.int64),
-               np.ascontiguousarray(np.repeat(zone[:, None, :], n, axis=1)),
-               np.zeros((n_ep, n, 2)), np.arange(n_ep, dtype=np.int64),
-               np.zeros((n_ep, 7, n_fish)))
+               np.zeros((n_ep, n, 4)), np.arange(n_ep, dtype=np.int64),
+               np.zeros((n_ep, 7, n_fish)),
+               np.ascontiguousarray(init["t0"], dtype=np.float64).copy(), np.zeros((n_ep, 5)),
+               school0, np.full((n_ep, 3), np.nan), np.full((n_ep, 2), np.nan),
+               np.full((n_ep, 2), np.nan), np.zeros((n_ep, 3)), np.full(n_ep, np.nan),
+               np.zeros((n_ep, n)), np.zeros((n_ep, n, 2)))
     return P, W
+
+
+#: The task's own observation fields (after :data:`oneocean.tasks.common.OBS_FIELDS`): the
+#: agent's sonar reading of the school (:func:`sonar`): 1 if it sees the school, else 0; the
+#: offset of the school's echo centroid from the agent (measured from where it is), x east
+#: and z north, m; the echo's extent (weighted RMS radius), m. NaN (and 0) where the sonar
+#: sees no fish in range. A method given the target reads, at any range, the offset of the
+#: true centroid from the agent's known position (its ``x_m``, ``z_m``) and the school's RMS
+#: spread.
+OBS_EXTRA = ("school_seen", "school_dx_m", "school_dz_m", "school_spread_m")
+#: Their columns in an observation row.
+O_SEEN, O_SDX, O_SDZ, O_SSPREAD = (OBS_DIM + j for j in range(len(OBS_EXTRA)))
+
+#: The team observation (:class:`FHTeamObs`): name -> (shape, unit, meaning).
+TEAM_FIELDS = {
+    "fix": ("(E, 3)", "m", "the team's fix of the school at this step: x, z and extent, the "
+            "mean of the readings of the agents that see it, each placed at the agent's "
+            "navigation estimate (the true centroid and RMS spread for a method given the "
+            "target); NaN when no agent sees it"),
+    "vel": ("(E, 2)", "m s-1", "the school centroid's velocity over the last step (x, z) for a "
+            "method given the target; NaN otherwise (the sonar measures positions)"),
+    "cur": ("(E, 2)", "m s-1", "the current (east, north) at the school's last team fix (before "
+            "any: the reported start): the truth for a method given the true current, else "
+            "the mission's forecast there (no vehicle samples it)"),
+}
+
+
+class FHTeamObs(NamedTuple):
+    """FH's team observation (:data:`TEAM_FIELDS`): views of the task's work arrays, updated
+    by :func:`sense` every step."""
+    fix: np.ndarray
+    vel: np.ndarray
+    cur: np.ndarray
+
+
+def team_obs(W: FHWork) -> FHTeamObs:
+    """The team observation of every episode: views of ``W.fix``, ``W.vel``, ``W.cur``.
+
+    Parameters
+    ----------
+    W : FHWork
+        The task's per-episode work arrays (:func:`make`).
+
+    Returns
+    -------
+    FHTeamObs
+    """
+    return FHTeamObs(W.fix, W.vel, W.cur)
+
+
+#: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
+#: unit, meaning).
+BRIEF_FIELDS = {
+    "zone": ("(E, 2)", "m", "the safe zone's centre (x east, z north)"),
+    "zone_radius": ("", "m", "the safe zone's radius: success is the school's centroid within "
+                    "it"),
+    "hold_s": ("", "s", "how long the centroid must stay inside the zone without a break"),
+    "depth": ("", "m", "the school's depth, where the team works"),
+    "school0": ("(E, 2)", "m", "the school's centroid (x, z) when the team was deployed, as "
+                "the mission reports it"),
+    "school_radius": ("", "m", "the radius of the disc around school0 the school occupied"),
+    "fish_count": ("", "", "fish in the school"),
+    "flee_radius": ("", "m", "the species' reaction distance: fish flee a vehicle closer than "
+                    "this"),
+    "fish_speed": ("", "m s-1", "the species' sustained swim speed (relative to the water)"),
+    "sonar_range": ("", "m", "each vehicle's sonar sees the fish within this horizontal range"),
+}
+
+
+class FHBriefing(NamedTuple):
+    """FH's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
+    t0: np.ndarray
+    t_lim: float
+    dt: float
+    n_agents: int
+    v_max: float
+    guidance: int
+    hotel_w: float
+    pk: float
+    energy_allocation: np.ndarray
+    sens: tuple
+    chart: tuple
+    zone: np.ndarray
+    zone_radius: float
+    hold_s: float
+    depth: float
+    school0: np.ndarray
+    school_radius: float
+    fish_count: int
+    flee_radius: float
+    fish_speed: float
+    sonar_range: float
+
+
+def brief(P: FHParams, W: FHWork, init: dict, m) -> FHBriefing:
+    """The briefing of every episode of a batch (:class:`oneocean.tasks.public.Mission`
+    ``m``): the zone, the hold, the reported school, the species' behaviour, the sonar's range.
+
+    Sets what the task's sensing depends on in ``W.sinfo`` (the run seed; a method given
+    the target perceives the school exactly; one given the true current gets the true
+    current at the school), the fish-jitter keys and the sonar's episodes (``W.fseed``,
+    ``W.skey``: the cell's episode ``m.e0 + e`` of row ``e``) and the episodes' forecast
+    errors in ``W.fce`` (the forecast at the school).
+
+    Parameters
+    ----------
+    P, W
+        The task's params and work arrays (:func:`make`); ``W.sinfo``, ``W.fseed``,
+        ``W.skey`` and ``W.fce`` written.
+    init : dict
+        The reset's dict.
+    m : Mission
+        The batch's mission (:class:`oneocean.tasks.public.Mission`).
+
+    Returns
+    -------
+    FHBriefing
+    """
+    from .public import common_brief
+
+    n_ep = W.zone.shape[0]
+    for e in range(n_ep):      # the fish-jitter keys and the sonar's streams: the run's
+        W.fseed[e] = hash64(m.seed, m.e0 + e, PURPOSE_TASK_NOISE, 0)
+    W.skey[:] = m.e0 + np.arange(n_ep)
+    W.sinfo[:, 0] = m.seed
+    W.sinfo[:, 1] = int(m.sens.true_target != 0)
+    W.sinfo[:, 2] = int(m.sens.true_current != 0)
+    fc = m.forecast
+    W.fce[:] = 0.0 if fc is None else fc
+    fi = FISH_PARAM_NAMES.index
+    return FHBriefing(**common_brief(m), zone=W.zone.copy(), zone_radius=P.zone_r,
+                      hold_s=P.hold, depth=P.depth, school0=W.school0.copy(),
+                      school_radius=SCHOOL_RADIUS_M, fish_count=int(W.fish.shape[3]),
+                      flee_radius=float(P.fp[fi("flee_radius")]),
+                      fish_speed=float(P.fp[fi("max_speed")]), sonar_range=P.sonar_r)
 
 
 @njit(cache=True)
@@ -573,7 +749,7 @@ def _fish_step(grid, fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, t, dt, land
 @hot_kernel(inline="always")
 def sonar(P, W, state, e, ping):
     """Every agent's sonar reading of the school (``sensors.yaml`` ``perception.fh_school``)
-    into ``W.sfix[e]``, from the true agents and fish.
+    into ``W.sfix[e]``, from the true agents and fish (the current buffer of ``W.fish``).
 
     The echo centroid of agent ``i`` is the mean of the fish within ``P.sonar_r`` of it,
     weighted by each fish's echo intensity ``max(0, 1 + echo_cv (X - 1))`` (``X`` an
@@ -596,8 +772,8 @@ def sonar(P, W, state, e, ping):
     e : int
         Episode index.
     ping : int
-        Number of the reading (0 at the start, ``k + 1`` after step ``k``), so that no two
-        draws share a counter.
+        Number of the reading (the step ``k`` whose observation it is), so that no two draws
+        share a counter.
     """
     if W.sinfo[e, 1] != 0:
         return
@@ -654,8 +830,8 @@ def sonar(P, W, state, e, ping):
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
-    """Start the school's truth (centroid, no velocity, no time inside), clear the
-    method's school estimate and take the first sonar readings.
+    """Start the school's truth (centroid, no velocity, no time inside) and the task's view
+    of it: the last team fix is the reported start, the stations' direction unset.
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
 
@@ -686,8 +862,10 @@ def begin(grid, P, W, state, e):
     W.school[e, 3] = 0.0
     W.school[e, 4] = 0.0
     W.done[e] = 0
-    W.sest[e, 5] = 0.0
-    sonar(P, W, state, e, 0)
+    W.sch[e, 0] = W.school0[e, 0]
+    W.sch[e, 1] = W.school0[e, 1]
+    W.sch[e, 2] = SCHOOL_RADIUS_M / math.sqrt(2.0)   # RMS radius of the reported disc
+    W.cth[e] = math.nan
     return False
 
 
@@ -729,10 +907,9 @@ def pre_step(grid, P, W, state, e, k, t):
 
 
 @hot_kernel(inline="always")
-def cue(grid, P, W, state, e, k, i):
-    """The goal cue: the agent's herding waypoint (``W.tgt``) at the school's depth.
-
-    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
+def cue(grid, P, W, X, e, k, i):
+    """Agent ``i``'s cue: its herding station (:func:`stations`, computed by :func:`sense`
+    this step) at the school's depth. Env hook (:mod:`oneocean.tasks.loop`).
 
     Parameters
     ----------
@@ -742,30 +919,178 @@ def cue(grid, P, W, state, e, k, i):
         The task's params (:func:`make`).
     W : FHWork
         The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (its navigation estimate; the truth for
-        the oracle); layout: :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
+    X : (E, N, STATE_DIM) float64
+        The states the method knows (its navigation estimate; the truth for the oracle).
+    e, k, i : int
+        Episode, step and agent.
 
     Returns
     -------
     gx, gy, gz : float
-        The goal cue, world m.
+        The station, world m.
     probe : float
         NaN (the task has no field).
     """
-    return W.tgt[e, i, 0], P.depth, W.tgt[e, i, 1], math.nan
+    return W.cue[e, i, 0], P.depth, W.cue[e, i, 1], math.nan
+
+
+@hot_kernel(inline="always")
+def stations(P, W, X, e):
+    """Every agent's herding station ``W.cue[e]`` around the school's last team fix
+    ``W.sch[e]`` (the task's cue, module docstring).
+
+    The arc's centre lies behind the fix, opposite the zone centre (compass angle
+    ``W.cth[e]``, kept while the fix is within ``CUE_DEADBAND_FRAC`` zone radii of the
+    centre); its radius is ``CUE_STANDOFF_M`` plus the school's extent, backing off linearly
+    to ``CUE_BACKOFF_M`` plus the extent as the fix nears the centre (within ``CUE_RAMP_M``).
+    The agents (at their known positions ``X``) take the ``CUE_ARC_DEG`` arc's evenly spaced
+    slots in the angular order of their bearings from the fix; each station is on the arc's
+    circle at most ``CUE_STEP_DEG`` from the agent's own bearing toward its slot.
+
+    Parameters
+    ----------
+    P : FHParams
+        The task's params (:func:`make`).
+    W : FHWork
+        The task's per-episode work arrays; ``cth[e]``, ``ckey[e]`` and ``cue[e]`` written.
+    X : (E, N, STATE_DIM) float64
+        The states the method knows.
+    e : int
+        Episode index.
+    """
+    n = X.shape[1]
+    cx = W.sch[e, 0]
+    cz = W.sch[e, 1]
+    dx = W.zone[e, 0] - cx
+    dz = W.zone[e, 1] - cz
+    d = math.sqrt(dx * dx + dz * dz)
+    th = W.cth[e]
+    if th != th or d > CUE_DEADBAND_FRAC * P.zone_r:
+        th = math.atan2(-dx, -dz)
+        W.cth[e] = th
+    g = d / CUE_RAMP_M
+    if g > 1.0:
+        g = 1.0
+    r = CUE_STANDOFF_M + (CUE_BACKOFF_M - CUE_STANDOFF_M) * (1.0 - g) + W.sch[e, 2]
+    arc = math.radians(CUE_ARC_DEG)
+    step = math.radians(CUE_STEP_DEG)
+    KY = W.ckey[e]
+    for i in range(n):
+        a = math.atan2(X[e, i, 0] - cx, X[e, i, 2] - cz) - th
+        KY[i] = a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
+    for i in range(n):
+        rank = 0
+        for j in range(n):
+            if KY[j] < KY[i] or (KY[j] == KY[i] and j < i):
+                rank += 1
+        delta = -0.5 * arc + arc * rank / (n - 1) if n > 1 else 0.0
+        dang = delta - KY[i]
+        if dang > step:
+            dang = step
+        elif dang < -step:
+            dang = -step
+        a = th + KY[i] + dang
+        W.cue[e, i, 0] = cx + r * math.sin(a)
+        W.cue[e, i, 1] = cz + r * math.cos(a)
+
+
+@hot_kernel(inline="always")
+def sense(grid, P, W, X, state, O, e, k):
+    """The task's observation fields (:data:`OBS_EXTRA`), its team observation
+    (:data:`TEAM_FIELDS`) and the stations of the cue, before step ``k``.
+
+    Every agent's sonar reading (:func:`sonar`, ping ``k``) -- or, for a method given the
+    target, the true centroid's offset and the school's spread --; the team's fix (the mean
+    of the seen readings placed at the agents' known positions ``X``) and the last one in
+    ``W.sch``; the school's velocity (given the target); the current at the last fix at the
+    step's time (the truth given the true current, else the forecast there); then
+    :func:`stations`. Env hook (:mod:`oneocean.tasks.loop`).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : FHParams
+        The task's params (:func:`make`).
+    W : FHWork
+        The task's per-episode work arrays: ``sfix``, ``fix``, ``vel``, ``cur``, ``sch`` and
+        the stations' written.
+    X : (E, N, STATE_DIM) float64
+        The states the method knows (its navigation estimate; the truth for the oracle).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (the sonar's positions).
+    O : (E, N, D) float64
+        The observations; the columns of :data:`OBS_EXTRA` of episode ``e`` written.
+    e : int
+        Episode index.
+    k : int
+        Step index (the sonar's ping; the time ``t0[e] + k dt`` of the current).
+    """
+    n = X.shape[1]
+    fx = W.fix[e]
+    if W.sinfo[e, 1] != 0:   # the school perceived exactly (oracle, true_target ablation)
+        F = W.fish[e, W.fcur[e]]
+        cx = W.school[e, 0]
+        cz = W.school[e, 1]
+        sp = school_spread(F[0], F[1])
+        for i in range(n):
+            o = O[e, i]
+            o[O_SEEN] = 1.0
+            o[O_SDX] = cx - X[e, i, 0]
+            o[O_SDZ] = cz - X[e, i, 2]
+            o[O_SSPREAD] = sp
+        fx[0] = cx
+        fx[1] = cz
+        fx[2] = sp
+        W.vel[e, 0] = W.school[e, 2]
+        W.vel[e, 1] = W.school[e, 3]
+    else:
+        sonar(P, W, state, e, k)
+        m = 0.0
+        mx = 0.0
+        mz = 0.0
+        ms = 0.0
+        for j in range(n):
+            o = O[e, j]
+            if W.sfix[e, j, 0] != 0.0:
+                o[O_SEEN] = 1.0
+                o[O_SDX] = W.sfix[e, j, 1]
+                o[O_SDZ] = W.sfix[e, j, 2]
+                o[O_SSPREAD] = W.sfix[e, j, 3]
+                m += 1.0
+                mx += X[e, j, 0] + W.sfix[e, j, 1]
+                mz += X[e, j, 2] + W.sfix[e, j, 2]
+                ms += W.sfix[e, j, 3]
+            else:
+                o[O_SEEN] = 0.0
+                o[O_SDX] = math.nan
+                o[O_SDZ] = math.nan
+                o[O_SSPREAD] = math.nan
+        if m > 0.0:
+            fx[0] = mx / m
+            fx[1] = mz / m
+            fx[2] = ms / m
+        else:
+            fx[0] = math.nan
+            fx[1] = math.nan
+            fx[2] = math.nan
+        W.vel[e, 0] = math.nan
+        W.vel[e, 1] = math.nan
+    if fx[0] == fx[0]:
+        W.sch[e, 0] = fx[0]
+        W.sch[e, 1] = fx[1]
+        W.sch[e, 2] = fx[2]
+    ce, cn = current_at(grid, W.sch[e, 0], P.depth, W.sch[e, 1], W.t0[e] + k * P.dt)
+    if W.sinfo[e, 2] == 0:
+        ce, cn = forecast(W.fce, e, ce, cn)
+    W.cur[e, 0] = ce
+    W.cur[e, 1] = cn
+    stations(P, W, X, e)
 
 
 @hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
-    """Swap the fish buffers, update the school's truth and the sonar readings, and time
-    the hold inside the zone.
+    """Swap the fish buffers, update the school's truth and time the hold inside the zone.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``: the
     time inside the zone grows by ``dt`` while the centroid is within ``P.zone_r`` of the
@@ -809,7 +1134,6 @@ def post_step(grid, P, W, state, prev, e, k, t):
     sc[1] = nz
     zx = W.zone[e, 0]
     zz = W.zone[e, 1]
-    sonar(P, W, state, e, k + 1)   # what the sensors see of the school after the step
     if math.sqrt((nx - zx) ** 2 + (nz - zz) ** 2) <= P.zone_r:
         sc[4] += dt
         if sc[4] >= P.hold - 1e-9:
@@ -859,30 +1183,6 @@ def finish(grid, P, W, state, e, k, row):
     row[_C_FRAC] = fraction_inside_circle(F[0], F[1], zx, zz, P.zone_r)
     row[_C_SPREAD] = school_spread(F[0], F[1])
     return success
-
-
-@hot_kernel(inline="always")
-def seed_episode(W, LP, e):
-    """Before the episode, from the loop's params (which only they carry): the fish-jitter
-    key of the episode and the run seed and sensing flags the sonar's draws and the method's
-    information need. The kernel calls it before the loop.
-
-    Parameters
-    ----------
-    W : FHWork
-        The task's per-episode work arrays; ``fseed[e]``, ``skey[e]`` and ``sinfo[e]``
-        written.
-    LP : LoopParams
-        The loop's params (:class:`oneocean.tasks.loop.LoopParams`: ``seed``, ``e0``,
-        ``sens``).
-    e : int
-        Episode index (row ``e`` is the cell's episode ``LP.e0 + e``).
-    """
-    W.fseed[e] = hash64(LP.seed, LP.e0 + e, PURPOSE_TASK_NOISE, 0)
-    W.skey[e] = LP.e0 + e
-    W.sinfo[e, 0] = LP.seed
-    W.sinfo[e, 1] = LP.sens.true_target
-    W.sinfo[e, 2] = LP.sens.true_current
 
 
 fresh_cache(_episodes_kernel, __file__, Path(__file__).resolve().parents[1] / "models" /

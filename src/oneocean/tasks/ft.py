@@ -290,10 +290,21 @@ def make(grid, tier: dict, init: dict):
     return (FTParams(float(tier["goal_radius_m"]), float(tier["slot_tol_m"]),
                      float(tier["max_error_m"]),
                      int(math.ceil(SETTLE_S / float(tier["dt_s"]) - 1e-9)),
-                     CUE_LEAD_S * TRANSIT_FRAC * float(tier["v_max"])),
+                     CUE_LEAD_S * TRANSIT_FRAC * _v_max(tier)),
             FTWork(np.ascontiguousarray(init["offsets"], dtype=np.float64), start,
                    np.ascontiguousarray(init["goal"], dtype=np.float64), start.copy(),
                    np.zeros((n_ep, 2)), np.zeros(n_ep, np.int64)))
+
+
+def _v_max(tier: dict) -> float:
+    """The cell's speed limit (``v_max`` of :attr:`oneocean.tasks.Cell.params`), else the task
+    table's vehicle's, m s-1."""
+    if tier.get("v_max") is not None:
+        return float(tier["v_max"])
+    from ..engine import load_vehicle
+    from .common import shared_task_table
+
+    return float(load_vehicle(shared_task_table(TASK_ID)["vehicle"]).v_max)
 
 
 #: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
@@ -384,7 +395,15 @@ def begin(grid, P, W, state, e):
 def cue(grid, P, W, X, e, k, i):
     """Agent ``i``'s cue: its slot around the team's navigated centroid, led ``P.lead`` m
     toward the goal (at most the centroid's distance to it): the task's formation reference.
-    Env hook (:mod:`oneocean.tasks.loop`); no probe (NaN)."""
+    Env hook (:mod:`oneocean.tasks.loop`).
+
+    Returns
+    -------
+    gx, gy, gz : float
+        The cue, world m.
+    probe : float
+        NaN (no probe).
+    """
     n = X.shape[1]
     cx = 0.0
     cy = 0.0

@@ -392,8 +392,18 @@ def learned_act(net, B, O, e, i, v_max):
 
 @hot_kernel
 def features_rows(obs, t_lim, task, n_tasks, out):
-    """:func:`featurize` for every row of an observation matrix ``obs`` (R, D) into ``out``
-    (R, F), with the briefing's time limit ``t_lim`` (s) and the rows' task ``task`` of
-    ``n_tasks``."""
+    """:func:`featurize` for every row of an observation matrix.
+
+    Parameters
+    ----------
+    obs : (R, D) float64
+        Observation rows.
+    t_lim : float
+        The briefing's time limit, s.
+    task, n_tasks : int
+        The rows' task in the one-hot, and its size.
+    out : (R, F) float64
+        Features, written.
+    """
     for r in range(obs.shape[0]):
         featurize(obs[r], t_lim, task, n_tasks, out[r])

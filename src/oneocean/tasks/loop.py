@@ -110,6 +110,59 @@ from ..sensing import SensingParams
 from ..sensing.kernels import current_estimate, nav_fill, nav_update
 from .common import OBS_DIM, OK, current_at, observe_common, record_step
 
+#: The loop's arguments, documented once for every function of this module (a function's
+#: docstring says what it does with them).
+VOCABULARY = {
+    "grid": "Grid: the grid export (oneocean.engine.grid.Grid), the truth",
+    "vp": "(PARAM_DIM,) float64: vehicle parameters (oneocean.engine.dynamics)",
+    "LP": "LoopParams: the loop's params",
+    "P": "NamedTuple: the task's params (its make)",
+    "W": "NamedTuple: the task's per-episode work arrays (its make)",
+    "C": "Ctx: the policy's context",
+    "LS": "LoopState: the loop's per-episode state",
+    "t0": "(E,) float64: start time of each episode, s since the grid's time0",
+    "state": "(E, N, STATE_DIM) float64: true vehicle states (oneocean.engine.dynamics)",
+    "cmd": "(E, N, CMD_DIM) float64: command rows",
+    "ext": "(E, N, ACT_DIM) float64: external actions (velocity m s-1, heading rad)",
+    "rec_o": "(E, S, N, D) float64: observation record (S = 0: none)",
+    "rec_a": "(E, S, N, 3) float64: action record",
+    "res": "(E, C) float64: result rows (the C_* columns, then the task's)",
+    "O": "(E, N, D) float64: this step's observations",
+    "io": "EnvIO: the step API's side of a call",
+    "e": "int: episode (row of the batch)",
+    "k": "int: step",
+    "i": "int: agent",
+    "t": "float: time at the step's start, s since the grid's time0",
+    "k_stop": "int: stop before this step; negative: advance -k_stop steps",
+    "e_lo": "int: first episode of the block",
+    "e_hi": "int: end of the block",
+    "begin": "function: the task's begin hook",
+    "pre_step": "function: the task's pre_step hook",
+    "cue": "function: the task's cue hook",
+    "sense": "function: the task's sense hook",
+    "after_agent": "function: the task's after_agent hook",
+    "post_step": "function: the task's post_step hook",
+    "finish": "function: the task's finish hook",
+    "plan": "function: the policy's plan hook",
+    "act": "function: the policy's act hook",
+    "final": "int: 1 for the observation of an ended episode's final state",
+    "counting": "bool: the standard metrics still accumulate (no REACHED yet)",
+    "energy": "float: the team's energy proxy so far, m2 s-1",
+    "viol": "int: the team's rejected moves so far",
+    "cur": "float: the episode's sum of true current speeds so far, m s-1",
+    "coll": "int: steps with a near-collision so far",
+    "dmin": "float: smallest pair distance so far, m",
+    "en": "float: energy proxy of the agent's executed action, m2 s-1",
+    "code": "int: status of the agent's move (oneocean.engine.status)",
+    "was": "bool: the episode had ended before the step",
+    "ks": "(E,) int64: each episode's step (< 0: skip the episode)",
+    "out": "(E, N, ACT_DIM) float64: the policy's actions, written",
+    "n_episodes": "int: episodes E",
+    "n_agents": "int: team size N",
+    "n": "int: sub-envs",
+    "obs_dim": "int: observation width D",
+}
+
 #: Policy kinds inside the loop: the task's fused policy (heuristic, oracle, ...), an
 #: external action per agent and step (``ext``; the step API and Python callables), or a
 #: learned controller (a network on the same public view, :mod:`oneocean.tasks.learned`).
@@ -205,11 +258,6 @@ def new_loop_state(n_episodes: int, n_agents: int) -> LoopState:
     (``k_succ = -1``), no pair distance yet (``dmin = inf``), nothing sensed, everything else
     zero.
 
-    Parameters
-    ----------
-    n_episodes, n_agents : int
-        Episodes E and team size N.
-
     Returns
     -------
     LoopState
@@ -244,15 +292,6 @@ class EnvIO(NamedTuple):
 
 def env_io(n: int, n_agents: int, obs_dim: int) -> EnvIO:
     """An :class:`EnvIO` with no rows (a fused call).
-
-    Parameters
-    ----------
-    n : int
-        Sub-envs (rows of ``a``, ``out`` and ``flags``).
-    n_agents : int
-        Team size N.
-    obs_dim : int
-        Observation width D.
 
     Returns
     -------

@@ -22,18 +22,30 @@ Plume physics (the environment; identical for every method)
     PLUME_SCALE_M`` (kg m-3) at altitude ``a`` (an exponential vertical profile holding the
     column mass ``C``), so flying high weakens the signal.
 Sensing (the environment)
-    After every agent's move the env takes the agent's reading and hands it to the method
-    (``W.sense[e, i]``: the value, kg m-3; the reading at the start position after the
-    spin-up before step 0). The method knows where it took the reading only as well as it
-    knows its own position (its navigation estimate at its next decision). Nothing else
-    about the leaks reaches the method: it is never told which reading is near which leak.
-Claims (the method's report)
-    The method files *leak claims*: positions it asserts are leaks, in ``W.claims[e, :n]``
-    (``n = W.nclaim[e]``; columns x, z and the method's own strength, unused by the score).
-    The fused heuristic and oracle detect plume events in each agent's own reading series
-    and claim one position per event (:mod:`oneocean.methods.heuristic.pi`); a method driven
-    from Python (step API, planner) writes ``W.claims`` / ``W.nclaim`` itself before the
-    episode ends. Claims with a non-finite position are ignored.
+    After every agent's move the env takes the agent's reading (the value, kg m-3; the
+    reading at the start position after the spin-up before step 0): the observation's probe
+    at the next step. The method knows where it took the reading only as well as it knows
+    its own position (its navigation estimate, the observation's position then). Nothing
+    else about the leaks reaches the method: it is never told which reading is near which
+    leak.
+Mission computer (the cue; the same for every method)
+    Each agent has a survey route (:func:`survey_route`, in the briefing): its section of the
+    pipeline polyline, from ``ROUTE_OVERLAP_M`` before the section's start (the first agent:
+    from the start itself) to the section's end, so that the sections' coverage overlaps at
+    the boundaries. The task's pointer along it advances on the agent's navigation estimate
+    at every step (:func:`~oneocean.tasks.common.waypoint_carrot`: the transit to the route's
+    start ends within ``ARRIVE_M``, each leg ends within ``CUE_WP_TOL_M`` of its end, the
+    carrot lies ``CUE_LOOKAHEAD_M`` ahead on the leg); the cue is that carrot at
+    ``CUE_ALT_M`` above the charted seafloor (never shallower than ``CUE_MIN_DEPTH_M``), and
+    past the route's last waypoint the agent's section is *finished* (the cue holds there).
+    A follower of the cue inspects its section low over the pipeline.
+Claims (the method's report, :func:`report`)
+    The method files *leak claims*: positions it asserts are leaks, in the report
+    (:data:`REPORT_DOC`: ``(E, MAX_CLAIMS, 3)`` rows x, z (m) and the method's own strength,
+    unused by the score; a row with a non-finite x or z is no claim). The fused heuristic
+    and oracle detect plume events in each agent's own reading series and claim one
+    position per event (:mod:`oneocean.methods.heuristic.pi`); an outside policy writes the
+    report it is handed (``Observation.report``) in place, before the episode ends.
 Scoring (:func:`match_claims`, ground truth enters only here)
     Claims are matched one-to-one to the true leaks, greedily by increasing distance, among
     pairs closer than the detection gate ``DETECT_GATE_M``: repeatedly the closest unmatched
@@ -42,8 +54,8 @@ Scoring (:func:`match_claims`, ground truth enters only here)
     within the gate of at most one leak and the greedy matching is the optimal one.) A leak
     is *detected* if a claim is matched to it and *localised* if that claim lies within
     ``loc_tolerance_m``; an unmatched claim is a *false claim* (a second claim near an
-    already matched leak is one too). The report is final when
-    every agent has finished its section, or at the time limit.
+    already matched leak is one too). The report is final when every agent's section is
+    finished (the mission computer's), or at the time limit.
 Success
     Every leak localised and no false claim when the report is final; ``T_s`` is then the time
     at which the last agent finished its section (the time limit on failure).
@@ -53,22 +65,33 @@ Metrics
     pay), ``localisation_error_m`` (mean distance of the matched claims to their leaks, m,
     <= ``DETECT_GATE_M`` by construction; NaN if no claim was matched),
     ``detection_rate`` (detected / leaks), ``false_claims`` (count of unmatched claims).
+Briefing (:class:`PIBriefing`, after the common fields of :mod:`oneocean.tasks.public`)
+    The pipeline chart (its polyline), each agent's section, the mission computer's survey
+    routes and the cue's altitude, the sensor's detection threshold and vertical scale, the
+    scoring's gate and localisation tolerance, the report's room (:data:`BRIEF_FIELDS`).
+Observation
+    The cue is the mission computer's carrot along the agent's survey route; the probe is the
+    agent's latest reading (kg m-3, taken at the vehicle's true position: where the
+    observation's depth and altitude are measured). The task's own field
+    (:data:`OBS_EXTRA`): ``section_done``, 1 once the agent's section is finished, else 0.
 Methods
     :mod:`oneocean.methods.heuristic.pi` (both follow their section's polyline low over the
     seafloor at the full ``v_max``, detect plume events in their own readings and claim one
     position per event, its upstream edge along the current; heuristic: the sensor models of
     :mod:`oneocean.sensing`, so it logs and claims positions from its dead reckoning;
-    oracle: true current and position). The survey waypoints are the method's plan
-    (``survey``, stored in the work arrays); the claims are its report, scored here.
+    oracle: true current and position). Their survey waypoints and event memory are their
+    own; their claims are the report, scored here.
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
-    ``TASK_ID``, ``METRICS``; ``reset``; ``PIParams`` / ``PIWork`` and ``make``; the env hooks
-    ``begin`` (plume spin-up, the first readings), ``pre_step`` (the field's emit and
-    transport), ``cue`` (the agent's carrot and the reading before the move), ``after_agent``
-    (the reading after the move, handed to the method), ``post_step`` (the report is final
-    when every agent has finished its section), ``finish`` (the method's claims, scored by
-    :func:`match_claims`); the survey plan is the policy's (``make``'s ``tokens``); the
-    compiled loop is :mod:`oneocean.kernels.pi`.
+    ``TASK_ID``, ``METRICS``; ``reset``; ``PIParams`` / ``PIWork``, ``cell_constants`` and
+    ``make``; the public view: the briefing (``PIBriefing``, ``BRIEF_FIELDS``, ``brief``),
+    the observation's own field (``OBS_EXTRA``) and the report (``report``,
+    ``REPORT_DOC``); the env hooks ``begin`` (plume spin-up, the first readings, the
+    mission computer and the report cleared), ``pre_step`` (the field's emit and transport),
+    ``sense`` (the mission computer's pointer, ``section_done``), ``cue`` (the carrot and the
+    latest reading), ``after_agent`` (the reading after the move), ``post_step`` (the report
+    is final when every agent's section is finished), ``finish`` (the report, scored by
+    :func:`match_claims`); the compiled loop is :mod:`oneocean.kernels.pi`.
 """
 
 from __future__ import annotations
@@ -85,8 +108,8 @@ from ..engine.grid import (current_from_parts, locate_time, sample_current_parts
                            sample_elevation, sample_elevation_points, synthetic_tide)
 from ..errors import ConfigError, NotApplicable
 from ..models import pollution as pol
-from .common import (PURPOSE_RESET, STANDARD, _call, fresh_cache, need_tier, need_tokens,
-                     _spawn_altitude, start_times)
+from .common import (ARRIVE_M, OBS_DIM, PURPOSE_RESET, STANDARD, _call, fresh_cache,
+                     need_tier, _spawn_altitude, start_times, waypoint_carrot)
 
 TASK_ID = "PI"
 METRICS = ("inspection_score", "localisation_error_m", "detection_rate", "false_claims")
@@ -125,11 +148,23 @@ PLUME_SCALE_M = 5.0
 #: Detection gate: a claim is matched to a leak only if it lies within this distance, m
 #: (a 2.5-cell plume neighbourhood; every tier's leaks are >= 2 gates apart).
 DETECT_GATE_M = 50.0
-#: Room for the team's claims per episode (a method filing more has the rest dropped).
+#: Rows of the report: room for the team's claims per episode (:data:`REPORT_DOC`).
 MAX_CLAIMS = 32
 #: Seafloor clearance of the feasibility check, m; near-collision distance, m.
 CLEARANCE_M = 1.0
 R_COLL_M = 2.0
+# ---- the mission computer (the cue)
+#: Every agent's survey route but the first starts this far before its section, m (the
+#: sections' coverage overlaps at the boundaries).
+ROUTE_OVERLAP_M = 60.0
+#: The cue's carrot lookahead along the route's leg, m; a leg ends within CUE_WP_TOL_M of
+#: its end, m; the transit to the route's start ends within common.ARRIVE_M.
+CUE_LOOKAHEAD_M = 12.0
+CUE_WP_TOL_M = 1.0
+#: The cue's altitude above the charted seafloor (the inspection altitude), m; its shallowest
+#: depth, m.
+CUE_ALT_M = 2.5
+CUE_MIN_DEPTH_M = 1.0
 
 _TIER_KEYS = ("current_band", "time_limit_s", "pipeline_length_m",
               "n_leaks", "leak_spacing_m", "leak_rate_kg_s", "detect_threshold_kg_m3",
@@ -287,6 +322,45 @@ def sub_polyline(poly: np.ndarray, s0: float, s1: float) -> np.ndarray:
     arc = _arc(poly)
     inner = [poly[k] for k in range(len(poly)) if s0 < arc[k] < s1]
     return np.array([point_at(poly, s0), *inner, point_at(poly, s1)])
+
+
+def survey_route(poly, sections, overlap: float = ROUTE_OVERLAP_M):
+    """Every agent's survey route: its section of the pipeline polyline as waypoints.
+
+    Each agent's waypoints run from ``overlap`` m before its section's start (the first agent
+    from the start itself; never before the pipeline's start) to the section's end: the
+    vertices of the pipeline strictly between, with the two ends (:func:`sub_polyline`).
+
+    Parameters
+    ----------
+    poly : (E, V, 2) array_like
+        Pipeline vertices [x, z], m.
+    sections : (E, N, 2) array_like
+        The arc-length range of each agent's section, m.
+    overlap : float
+        How far before its section a route starts (every agent but the first), m.
+
+    Returns
+    -------
+    wps : (E, N, R, 2) float64
+        Waypoints [x, z], m (R: the most any agent has; rows past ``wcount`` are 0).
+    wcount : (E, N) int64
+        Waypoints of each agent.
+    """
+    poly = np.asarray(poly, dtype=np.float64)
+    sections = np.asarray(sections, dtype=np.float64)
+    n_ep, n_ag = sections.shape[:2]
+    secs = [[sub_polyline(poly[e], max(float(sections[e, i, 0]) - overlap, 0.0)
+                          if i > 0 else float(sections[e, i, 0]), float(sections[e, i, 1]))
+             for i in range(n_ag)] for e in range(n_ep)]
+    n_max = max(len(s) for row in secs for s in row)
+    wps = np.zeros((n_ep, n_ag, n_max, 2))
+    wcount = np.zeros((n_ep, n_ag), dtype=np.int64)
+    for e in range(n_ep):
+        for i in range(n_ag):
+            wps[e, i, :len(secs[e][i])] = secs[e][i]
+            wcount[e, i] = len(secs[e][i])
+    return wps, wcount
 
 
 def sample_leaks(rng, poly: np.ndarray, tier, tries: int = 1000, what: str = "leaks"):
@@ -769,10 +843,9 @@ class PIParams(NamedTuple):
 class PIWork(NamedTuple):
     """PI's per-episode work arrays.
 
-    The env's episode and plume field are the truth (the method never reads them); the
-    sensor (``sense``) goes from the env to the method, the report (``claims``, ``nclaim``)
-    from the method to the env; the rest is the policy's
-    (:mod:`oneocean.methods.heuristic.pi`).
+    The env's episode and plume field are the truth (no method reads them); the sensor
+    (``sense``) and the mission computer (``route`` .. ``done``) give the observation; the
+    report (``claims``) is the method's, which the judge reads.
 
     Attributes
     ----------
@@ -803,35 +876,21 @@ class PIWork(NamedTuple):
         (:func:`oneocean.engine.grid.sample_current_parts`); ``F = nz (nx + 1) + (nz + 1)
         nx``, the along-chord faces row by row, then the cross-chord ones.
     sense : (E, N) float64
-        Each agent's latest reading, kg m-3.
-    claims : (E, MAX_CLAIMS, 3) float64
-        The team's leak claims [x, z (m), strength]; NaN where unfiled.
-    nclaim : (E,) int64
-        Claims filed.
-    wps : (E, N, V, 2) float64
-        Survey waypoints [x, z], m (plan tokens).
-    wcount : (E, N) int64
-        Waypoints of each agent.
-    widx : (E, N) int64
-        Waypoint being followed.
+        Each agent's latest reading, kg m-3 (the observation's probe).
+    route : (E, N, R, 2) float64
+        Every agent's survey route [x, z], m (:func:`survey_route`).
+    route_n : (E, N) int64
+        Waypoints of each route.
+    ridx : (E, N) int64
+        The mission computer's pointer: the route waypoint the agent is heading for.
     tgt : (E, N, 3) float64
-        The step's carrot (the observation's goal cue), m.
+        The cue: the carrot at the inspection altitude, world m.
     done : (E, N) int64
-        1: the agent has finished its section.
-    ev_on : (E, N) int64
-        1: a plume event is open.
-    ev_lvl : (E, N, 3) float64
-        Trough since the last event, event background, peak, kg m-3.
-    ev_pos : (E, N, 4) float64
-        Event origin [x, z] and peak position [x, z], m.
-    ev_n : (E, N) int64
-        Readings in the event buffer.
-    ev_buf : (E, N, max_events, 4) float64
-        [x, z, value, downstream coordinate] of the event's readings.
-    ev_claim : (E, N) int64
-        The claim the open event files into (-1: none yet).
+        1: the agent's section is finished (past its route's last waypoint).
+    claims : (E, MAX_CLAIMS, 3) float64
+        The report: the method's leak claims [x, z (m), strength]; NaN rows: none.
     """
-    # ---- env: the episode and the plume field (truth: the method never reads these)
+    # ---- env: the episode and the plume field (truth: no method reads these)
     t0: np.ndarray          # (E,) start times, s (the spin-up ends there)
     leaks: np.ndarray       # (E, n_leaks, 2) leak positions [x, z], m (scoring only)
     leak_loc: np.ndarray    # (E, n_leaks, 2) the same in the field's local frame, m
@@ -844,23 +903,16 @@ class PIWork(NamedTuple):
     work: np.ndarray        # (E, work_size) step_field scratch
     fkey: np.ndarray        # (E, 2) int64 the time interval fpart holds (-1: none)
     fpart: np.ndarray       # (E, F, 8) the face centres' currents over it, in parts
-    # ---- env -> method: the sensor
+    # ---- env -> method: the sensor (the observation's probe)
     sense: np.ndarray       # (E, N) the agent's latest reading, kg m-3
+    # ---- the mission computer (the cue and section_done)
+    route: np.ndarray       # (E, N, R, 2) every agent's survey route [x, z], m
+    route_n: np.ndarray     # (E, N) int64 waypoints of each route
+    ridx: np.ndarray        # (E, N) int64 the route waypoint the agent is heading for
+    tgt: np.ndarray         # (E, N, 3) the cue: the carrot at the inspection altitude, m
+    done: np.ndarray        # (E, N) int64 1: the agent's section is finished
     # ---- method -> env: the report (scored by finish)
-    claims: np.ndarray      # (E, MAX_CLAIMS, 3) the team's leak claims [x, z, strength], m
-    nclaim: np.ndarray      # (E,) int64 claims filed
-    # ---- policy (plan tokens and memory; see oneocean.methods.heuristic.pi)
-    wps: np.ndarray         # (E, N, V, 2) survey waypoints [x, z], m
-    wcount: np.ndarray      # (E, N) int64 waypoints of each agent
-    widx: np.ndarray        # (E, N) int64 waypoint being followed
-    tgt: np.ndarray         # (E, N, 3) the step's carrot (the observation's goal cue), m
-    done: np.ndarray        # (E, N) int64 1: the agent has finished its section
-    ev_on: np.ndarray       # (E, N) int64 1: a plume event is open
-    ev_lvl: np.ndarray      # (E, N, 3) trough since the last event, event background, peak
-    ev_pos: np.ndarray      # (E, N, 4) event origin [x, z] and peak position [x, z], m
-    ev_n: np.ndarray        # (E, N) int64 readings in the event buffer
-    ev_buf: np.ndarray      # (E, N, MAX_EVENT, 4) [x, z, value, downstream coordinate]
-    ev_claim: np.ndarray    # (E, N) int64 the claim the open event files into (-1: none yet)
+    claims: np.ndarray      # (E, MAX_CLAIMS, 3) the leak claims [x, z, strength]; NaN: none
 
 
 def _field_shape(frames) -> tuple[int, int]:
@@ -891,7 +943,7 @@ def cell_constants(tier: dict, init: dict) -> dict:
     return {"field_shape": _field_shape(frames)}
 
 
-def make(grid, tier: dict, init: dict, tokens: dict | None = None):
+def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
 
     Every episode's field has the same shape, the cell's largest (``init["field_shape"]``
@@ -906,10 +958,6 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
         Tier parameters plus ``dt_s``.
     init : dict
         The reset's dict (:func:`reset`; ``field_shape`` optional).
-    tokens : dict
-        The policy's plan tokens (its ``plan_tokens``): every agent's survey waypoints
-        ``wps`` (E, N, V, 2) m and ``wcount`` (E, N), and ``max_events``, room for events
-        per agent.
 
     Returns
     -------
@@ -921,11 +969,10 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
     Raises
     ------
     ConfigError
-        Missing tier parameters or plan tokens, more than 62 leaks, or a ``field_shape``
-        smaller than an episode's field.
+        Missing tier parameters, more than 62 leaks, or a ``field_shape`` smaller than an
+        episode's field.
     """
     need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
-    tokens = need_tokens(TASK_ID, tokens, "wps", "wcount", "max_events")
     dt = float(tier["dt_s"])
     poly = np.asarray(init["poly"], dtype=np.float64)
     n_ep = poly.shape[0]
@@ -956,35 +1003,126 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
         leak_loc[e, :, 0] = dx * ax_[0] + dz * ax_[1]
         leak_loc[e, :, 1] = -dx * ax_[1] + dz * ax_[0]
         land[e] = _field_land(grid, frame[e], nx, nz, h)
-    wps = np.ascontiguousarray(tokens["wps"], dtype=np.float64)
-    wcount = np.ascontiguousarray(tokens["wcount"], dtype=np.int64)
+    route, route_n = survey_route(poly, init["sections"])
     dtf = FIELD_EVERY * dt
     _, tracer = pol.field_params(pol.KIND_TRACER, 1)
     P = PIParams(n_leak, int(round(SPINUP_S / dtf)), max(1, int(round(FIELD_REFRESH_S / dtf))),
                  dt, float(tier["detect_threshold_kg_m3"]), float(tier["loc_tolerance_m"]),
                  DETECT_GATE_M, h, KAPPA_M2_S, tracer)
-    ev_lvl = np.zeros((n_ep, n_ag, 3))
-    ev_lvl[..., 0] = np.inf
     W = PIWork(np.ascontiguousarray(init["t0"], dtype=np.float64), leaks, leak_loc,
                np.ascontiguousarray(init["leak_rate"], dtype=np.float64), frame,
                np.zeros((n_ep, 1, nz, nx)), np.zeros((n_ep, nz, nx + 1)),
                np.zeros((n_ep, nz + 1, nx)), land, np.zeros((n_ep, pol.work_size(1, nz, nx))),
                np.full((n_ep, 2), -1, dtype=np.int64),
                np.zeros((n_ep, nz * (nx + 1) + (nz + 1) * nx, 8)),
-               np.zeros((n_ep, n_ag)),
-               np.full((n_ep, MAX_CLAIMS, 3), np.nan), np.zeros(n_ep, dtype=np.int64),
-               wps, wcount, np.zeros((n_ep, n_ag), dtype=np.int64), np.zeros((n_ep, n_ag, 3)),
-               np.zeros((n_ep, n_ag), dtype=np.int64),
-               np.zeros((n_ep, n_ag), dtype=np.int64), ev_lvl, np.zeros((n_ep, n_ag, 4)),
-               np.zeros((n_ep, n_ag), dtype=np.int64),
-               np.zeros((n_ep, n_ag, int(tokens["max_events"]), 4)),
-               np.full((n_ep, n_ag), -1, dtype=np.int64))
+               np.zeros((n_ep, n_ag)), route, route_n, np.zeros((n_ep, n_ag), dtype=np.int64),
+               np.zeros((n_ep, n_ag, 3)), np.zeros((n_ep, n_ag), dtype=np.int64),
+               np.full((n_ep, MAX_CLAIMS, 3), np.nan))
     return P, W
+
+
+#: The task's own observation field (after :data:`oneocean.tasks.common.OBS_FIELDS`): 1 once
+#: the mission computer has the agent's section finished (past its route's last waypoint;
+#: the report is final once every agent's is), else 0.
+OBS_EXTRA = ("section_done",)
+
+#: The report a method files and the judge reads (:func:`report`; ``Ctx.R`` of a fused
+#: policy, ``Observation.report`` of an outside one, written in place).
+REPORT_DOC = (
+    "(E, MAX_CLAIMS, 3) float64, the team's leak claims of each episode, one per row: x "
+    "(east) and z (north) of the claimed leak position, world m, and a strength of the "
+    "method's own (unused by the score). A row whose x or z is not finite is no claim; the "
+    "report starts all NaN. Rows may be written, changed or cleared at any step; the judge "
+    "reads every row once the report is final (every agent's section finished, or the time "
+    "limit) and matches the claims one-to-one to the true leaks within the detection gate "
+    "(match_claims).")
+
+#: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
+#: unit, meaning).
+BRIEF_FIELDS = {
+    "pipeline": ("(E, V, 2)", "m", "the pipeline chart: the polyline's vertices [x east, "
+                 "z north] (the pipeline lies on the seafloor)"),
+    "sections": ("(E, N, 2)", "m", "each agent's section: its arc-length range along the "
+                 "pipeline from the first vertex"),
+    "route": ("(E, N, R, 2)", "m", "the mission computer's survey route of each agent "
+              "[x, z] (survey_route: its section, from route_overlap before it for every "
+              "agent but the first); rows past route_n are 0"),
+    "route_n": ("(E, N)", "", "waypoints of each route"),
+    "route_overlap": ("", "m", "how far before its section every route but the first starts"),
+    "cue_alt": ("", "m", "the cue's altitude above the charted seafloor (the inspection "
+                "altitude)"),
+    "thr": ("", "kg m-3", "the sensor's detection threshold"),
+    "plume_scale": ("", "m", "the plume's vertical scale: a reading is C exp(-a / scale) / "
+                    "scale at altitude a over column mass C (kg m-2)"),
+    "gate": ("", "m", "the scoring's detection gate: a claim is matched to a leak only "
+             "within it"),
+    "loc_tol": ("", "m", "the localisation tolerance: a matched claim within it localises "
+                "its leak"),
+    "max_claims": ("", "", "rows of the report (MAX_CLAIMS)"),
+}
+
+
+class PIBriefing(NamedTuple):
+    """PI's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
+    t0: np.ndarray
+    t_lim: float
+    dt: float
+    n_agents: int
+    v_max: float
+    guidance: int
+    hotel_w: float
+    pk: float
+    energy_allocation: np.ndarray
+    sens: tuple
+    chart: tuple
+    pipeline: np.ndarray
+    sections: np.ndarray
+    route: np.ndarray
+    route_n: np.ndarray
+    route_overlap: float
+    cue_alt: float
+    thr: float
+    plume_scale: float
+    gate: float
+    loc_tol: float
+    max_claims: int
+
+
+def brief(P: PIParams, W: PIWork, init: dict, m) -> PIBriefing:
+    """The briefing of every episode of a batch (:class:`oneocean.tasks.public.Mission`
+    ``m``): the pipeline chart, the sections and routes, the sensor's threshold, the
+    scoring's gate and tolerance.
+
+    Returns
+    -------
+    PIBriefing
+    """
+    from .public import common_brief
+
+    return PIBriefing(**common_brief(m),
+                      pipeline=np.array(init["poly"], dtype=np.float64),
+                      sections=np.array(init["sections"], dtype=np.float64),
+                      route=W.route.copy(), route_n=W.route_n.copy(),
+                      route_overlap=ROUTE_OVERLAP_M, cue_alt=CUE_ALT_M, thr=P.thr,
+                      plume_scale=PLUME_SCALE_M, gate=P.gate, loc_tol=P.tol,
+                      max_claims=int(W.claims.shape[1]))
+
+
+def report(W: PIWork) -> np.ndarray:
+    """The report the method files and the judge reads (:data:`REPORT_DOC`): ``W.claims``
+    itself (a method writes it in place).
+
+    Returns
+    -------
+    (E, MAX_CLAIMS, 3) float64
+    """
+    return W.claims
 
 
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
-    """Spin up the plumes and take every agent's first reading, at its start position.
+    """Spin up the plumes and take every agent's first reading, at its start position; the
+    mission computer at the routes' starts, the report empty.
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0: the field is cleared, then the
     leaks emit for ``P.n_spin`` field steps ending at ``t0``.
@@ -1026,6 +1164,11 @@ def begin(grid, P, W, state, e):
                     h, s0, n0, dtf, P.kappa)
     for i in range(state.shape[1]):
         _take_reading(grid, P, W, state, e, i)
+        W.ridx[e, i] = 0
+        W.done[e, i] = 0
+    for j in range(W.claims.shape[1]):
+        for c in range(W.claims.shape[2]):
+            W.claims[e, j, c] = math.nan
     return False
 
 
@@ -1074,9 +1217,54 @@ def _reading(grid, P, W, e, x, z, alt):
 
 
 @hot_kernel(inline="always")
-def cue(grid, P, W, state, e, k, i):
-    """The goal cue: the agent's carrot (plan token ``tgt``); the probe: the agent's latest
-    reading (``W.sense``), the one the fused method processes at this decision.
+def sense(grid, P, W, X, state, O, e, k):
+    """The mission computer: every agent's pointer along its survey route advanced on the
+    state the method knows (its navigation estimate; the truth for the oracle), the cue's
+    carrot (``W.tgt``) and whether its section is finished (``W.done``, the observation's
+    ``section_done``).
+
+    Env hook (:mod:`oneocean.tasks.loop`), at the start of every step before the cues (module
+    docstring: Mission computer).
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : PIParams
+        The task's params (:func:`make`).
+    W : PIWork
+        The task's per-episode work arrays (:func:`make`).
+    X : (E, N, STATE_DIM) float64
+        The vehicle states the method knows; layout: :mod:`oneocean.engine.dynamics`.
+    state : (E, N, STATE_DIM) float64
+        True vehicle states.
+    O : (E, N, D) float64
+        The observations; the task's field ``O[e, i, OBS_DIM]`` written.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    """
+    for i in range(X.shape[1]):
+        px = X[e, i, 0]
+        pz = X[e, i, 2]
+        gx, gz, w = waypoint_carrot(W.route, W.ridx, W.route_n, e, i, px, pz,
+                                    CUE_LOOKAHEAD_M, CUE_WP_TOL_M, ARRIVE_M)
+        W.done[e, i] = 0 if w < W.route_n[e, i] else 1
+        gy = -sample_elevation(grid, gx, gz) - CUE_ALT_M
+        if gy < CUE_MIN_DEPTH_M:
+            gy = CUE_MIN_DEPTH_M
+        W.tgt[e, i, 0] = gx
+        W.tgt[e, i, 1] = gy
+        W.tgt[e, i, 2] = gz
+        O[e, i, OBS_DIM] = float(W.done[e, i])
+
+
+@hot_kernel(inline="always")
+def cue(grid, P, W, X, e, k, i):
+    """The cue: the mission computer's carrot along agent ``i``'s survey route at the
+    inspection altitude (``W.tgt``, from :func:`sense`); the probe: the agent's latest
+    reading (``W.sense``, kg m-3).
 
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe. The reading
     was taken by the sensor at the vehicle's true position (after its last move, or at the
@@ -1090,9 +1278,8 @@ def cue(grid, P, W, state, e, k, i):
         The task's params (:func:`make`).
     W : PIWork
         The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (its navigation estimate; the truth for
-        the oracle); layout: :mod:`oneocean.engine.dynamics`.
+    X : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (unused: :func:`sense` advanced the pointer).
     e : int
         Episode index.
     k : int
@@ -1103,7 +1290,7 @@ def cue(grid, P, W, state, e, k, i):
     Returns
     -------
     gx, gy, gz : float
-        The goal cue, world m.
+        The cue, world m.
     probe : float
         The sensor's concentration, kg m-3.
     """
@@ -1122,8 +1309,8 @@ def _take_reading(grid, P, W, state, e, i):
 
 @hot_kernel(inline="always")
 def after_agent(grid, P, W, state, e, k, i, code):
-    """Take agent ``i``'s reading after its move into ``W.sense`` (the method processes it
-    at its next decision).
+    """Take agent ``i``'s reading after its move into ``W.sense`` (the probe of its next
+    observation).
 
     Env hook (:mod:`oneocean.tasks.loop`), right after the agent moved.
 
@@ -1151,7 +1338,8 @@ def after_agent(grid, P, W, state, e, k, i, code):
 
 @hot_kernel(inline="always")
 def post_step(grid, P, W, state, prev, e, k, t):
-    """The report is final once every agent has finished its section (``W.done``).
+    """The report is final once every agent's section is finished (``W.done``, the mission
+    computer's).
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
 
@@ -1302,8 +1490,8 @@ def score_claims(claims, leaks, tol: float, gate: float = DETECT_GATE_M) -> dict
 
 @hot_kernel(inline="always")
 def finish(grid, P, W, state, e, k, row):
-    """Score the method's claims (``W.claims``) against the true leaks (:func:`match_claims`)
-    and write the PI metrics.
+    """Score the report (``W.claims``: every row, non-finite ones no claim) against the true
+    leaks (:func:`match_claims`) and write the PI metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
 
@@ -1330,9 +1518,8 @@ def finish(grid, P, W, state, e, k, row):
         Success: every leak localised and no false claim.
     """
     n_leak = P.n_leak
-    n_claims = min(W.nclaim[e], W.claims.shape[1])
-    n_det, n_loc, n_false, err = match_claims(W.claims[e], n_claims, W.leaks[e], n_leak,
-                                              P.gate, P.tol)
+    n_det, n_loc, n_false, err = match_claims(W.claims[e], W.claims.shape[1], W.leaks[e],
+                                              n_leak, P.gate, P.tol)
     row[_C_SCORE] = n_loc / (n_leak + n_false)
     row[_C_LOC] = err / n_det if n_det > 0 else math.nan
     row[_C_DET] = n_det / n_leak

@@ -28,8 +28,9 @@ class Mission(NamedTuple):
     """What a task's ``brief`` may draw on besides its own params, work arrays and reset:
     the environment's knowledge, of which the briefing gives each method its share. A task
     whose own sensors depend on what the method is given (the oracle perceives UPL's object
-    or FH's school exactly: ``sens.true_target``) sets that in its work arrays in ``brief``:
-    the task's hooks see only ``P`` and ``W``."""
+    or FH's school exactly: ``sens.true_target``), or whose own sensors draw errors (a sonar:
+    the run's ``seed`` and the row's episode ``e0 + e``), sets that in its work arrays in
+    ``brief``: the task's hooks see only ``P`` and ``W``."""
     grid: Grid            # the rollout's grid export (the truth)
     tier: dict            # the cell's tier parameters (plus dt_s, v_max)
     vehicle: object       # the task's vehicle (oneocean.engine.dynamics.Vehicle)
@@ -37,6 +38,8 @@ class Mission(NamedTuple):
     fc: np.ndarray        # (E, 5) each episode's forecast error (LoopState.fc)
     X0: np.ndarray        # (E, N, STATE_DIM) the agents' start fixes (known states at step 0)
     t0: np.ndarray        # (E,) start times, s since the grid's time0
+    seed: int = 0         # the run seed (the sensor models' error streams)
+    e0: int = 0           # the cell's episode of row 0 (row e draws episode e0 + e's streams)
 
     @property
     def forecast(self):
@@ -122,8 +125,17 @@ def common_brief(m: Mission, allocation=None) -> dict:
 
 
 def briefing_dict(B) -> dict:
-    """A briefing as a plain dict (the step API's ``info["briefing"]``): its fields, with the
-    sensor models as a dict and the chart as the grid export's arrays and axes."""
+    """A briefing as a plain dict: its fields, with the sensor models and the chart as dicts.
+
+    Parameters
+    ----------
+    B : NamedTuple
+        A task's briefing.
+
+    Returns
+    -------
+    dict
+    """
     out = {}
     for name, v in B._asdict().items():
         out[name] = v._asdict() if isinstance(v, tuple) and hasattr(v, "_asdict") else v

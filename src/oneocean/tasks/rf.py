@@ -23,20 +23,31 @@ Metrics
     near the agent = the nearer of the active leg and the previous leg, as segments, m),
     ``waypoints_reached`` (count), ``max_cross_track_m`` (m), ``energy_wh`` (Wh),
     ``energy_ratio`` (energy used / ``E_ref``).
-Observation cue
-    The route point ``CUE_LOOKAHEAD_M`` ahead of the agent's known projection on the active
-    leg (clamped to the waypoint), the leg as the vehicle's mission computer knows it: its
-    pointer ``W.nwp`` advances on the known position
-    (:func:`~oneocean.tasks.common.nav_waypoint`), the judge's ``W.wp`` on the truth.
+Briefing (:class:`RFBriefing`, after the common fields of :mod:`oneocean.tasks.public`)
+    The ``route`` (vertex 0: where the vehicle starts), the waypoint radius, the cross-track
+    bound and the forecast of the current at the route's depth on a lattice around the route
+    over the episode's window (the ``fc_*`` fields,
+    :func:`oneocean.tasks.routing.mission_field` with ``fixed``; the truth for the oracle);
+    the allocation is the common ``energy_allocation``.
+Observation
+    The cue is the route point ``CUE_LOOKAHEAD_M`` ahead of the agent's known projection on
+    the active leg (clamped to the waypoint), the leg as the vehicle's mission computer knows
+    it: the task's pointer ``W.nwp`` advances in the cue on the known position
+    (:func:`~oneocean.tasks.common.nav_waypoint`), the judge's ``W.wp`` on the truth; once the
+    route is done as far as the vehicle knows, the last waypoint. The task's own fields
+    (:data:`OBS_EXTRA`) are the electrical energy used so far (J) and its fraction of the
+    allocation (0 without one).
 Methods
-    :mod:`oneocean.methods.heuristic.rf` (both plan the speed schedule along the route,
-    then fly it with line-of-sight guidance; heuristic: on its forecast, with the sensor
-    models of :mod:`oneocean.sensing`; oracle: on the true field, true current and position).
+    :mod:`oneocean.methods.heuristic.rf` (both plan the speed schedule along the route
+    through the briefing's field, then fly it with line-of-sight guidance; heuristic: on the
+    forecast, with the sensor models of :mod:`oneocean.sensing`; oracle: on the true field,
+    true current and position).
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
-    ``TASK_ID``, ``METRICS``; ``reset``; ``RFParams`` / ``RFWork`` and ``make``; the env hooks
-    ``begin``, ``cue``, ``post_step``, ``finish``; the compiled loop is
-    :mod:`oneocean.kernels.rf`.
+    ``TASK_ID``, ``METRICS``; ``reset``; ``RFParams`` / ``RFWork`` and ``make``; the briefing
+    (``RFBriefing``, ``BRIEF_FIELDS``, ``brief``) and the observation's own fields
+    (``OBS_EXTRA``, ``sense``); the env hooks ``begin``, ``cue``, ``sense``, ``post_step``,
+    ``finish``; the compiled loop is :mod:`oneocean.kernels.rf`.
 """
 
 from __future__ import annotations
@@ -50,9 +61,10 @@ from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from . import routing
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, STANDARD, nav_waypoint, need_tier,
-                     sample_routes, start_times)
-from .g2g import MAX_VERTICES, draw_in_band, energy_budgets, step_energy, task_power
+from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, OBS_DIM, STANDARD, nav_waypoint,
+                     need_tier, sample_routes, start_times)
+from .g2g import draw_in_band, energy_budgets, step_energy, task_power
+from .routing import MAX_VERTICES
 from ..engine import libm
 
 TASK_ID = "RF"
@@ -227,17 +239,6 @@ class RFWork(NamedTuple):
         Energy allocation, J (inf: none).
     eref : (E,) float64
         Least energy of the route (the task's schedule), J.
-    wps : (E, MAX_VERTICES, 2) float64
-        Plan tokens (:func:`oneocean.tasks.routing.follow_path`), written by the method's
-        prepare hook: vertices (x, z), m; the route's legs until then.
-    wspd : (E, MAX_VERTICES) float64
-        Programmed speed of each segment, m s-1 (the cruise speed until planned).
-    wcount : (E,) int64
-        Vertices.
-    widx : (E,) int64
-        Active segment.
-    planned : (E,) int64
-        1 once the method planned.
     """
     route: np.ndarray       # (E, W + 1, 3) route vertices, m
     wp: np.ndarray          # (E,) int64 the judge's active waypoint (true position; 1..W;
@@ -247,13 +248,6 @@ class RFWork(NamedTuple):
     acc: np.ndarray         # (E, 3) sum and max of the cross-track error (m), energy used (J)
     budget: np.ndarray      # (E,) energy allocation, J (inf: none)
     eref: np.ndarray        # (E,) least energy of the route (the task's schedule), J
-    # plan tokens of the method (oneocean.tasks.routing.follow_path), written by its
-    # prepare hook; the legs at the cruise speed until then
-    wps: np.ndarray         # (E, MAX_VERTICES, 2) vertices (x, z), m
-    wspd: np.ndarray        # (E, MAX_VERTICES) programmed speed of each segment, m s-1
-    wcount: np.ndarray      # (E,) int64 vertices
-    widx: np.ndarray        # (E,) int64 active segment
-    planned: np.ndarray     # (E,) int64 1 once the method planned
 
 
 def reference_energy(grid, tier: dict, route, t0: float, power=None) -> float:
@@ -320,7 +314,7 @@ def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
 
     With an ``energy_reserve`` the allocation of every episode (:func:`reference_energies`
-    on the rollout's ``grid``); the plan tokens hold the route's legs at the cruise speed.
+    on the rollout's ``grid``).
 
     Parameters
     ----------
@@ -341,7 +335,8 @@ def make(grid, tier: dict, init: dict):
     Raises
     ------
     ConfigError
-        Missing tier parameters, more than ``MAX_VERTICES - 1`` waypoints or a negative
+        Missing tier parameters, more than ``MAX_VERTICES - 1`` waypoints (a stored plan's
+        capacity, :data:`oneocean.tasks.routing.MAX_VERTICES`) or a negative
         ``energy_reserve``.
     """
     need_tier(TASK_ID, tier, "wp_radius_m", "xte_max_m", "time_limit_s", "dt_s")
@@ -353,15 +348,85 @@ def make(grid, tier: dict, init: dict):
     eref, budget = energy_budgets(
         TASK_ID, tier, n_ep,
         batch=lambda: reference_energies(grid, tier, route, init["t0"], (pw, v_max)))
-    wps = np.zeros((n_ep, MAX_VERTICES, 2))
-    wps[:, :n_v] = route[:, :, [0, 2]]
-    wspd = np.zeros((n_ep, MAX_VERTICES))
-    wspd[:, :n_v - 1] = routing.cruise_speed(v_max, pw)
     P = RFParams(float(tier["wp_radius_m"]), float(tier["xte_max_m"]), CUE_LOOKAHEAD_M,
                  float(tier["time_limit_s"]), float(tier["dt_s"]), pw.hotel_w, pw.k)
-    W = RFWork(route, np.ones(n_ep, np.int64), np.ones(n_ep, np.int64), np.zeros((n_ep, 3)), budget, eref, wps, wspd,
-               np.full(n_ep, n_v, np.int64), np.zeros(n_ep, np.int64), np.zeros(n_ep, np.int64))
+    W = RFWork(route, np.ones(n_ep, np.int64), np.ones(n_ep, np.int64), np.zeros((n_ep, 3)),
+               budget, eref)
     return P, W
+
+
+#: The task's own observation fields (after :data:`oneocean.tasks.common.OBS_FIELDS`): the
+#: electrical energy the vehicle used so far (J) and its fraction of the allocation (0 without
+#: one).
+OBS_EXTRA = ("energy_j", "energy_frac")
+
+#: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
+#: unit, meaning).
+BRIEF_FIELDS = {
+    "route": ("(E, W + 1, 3)", "m", "the route's vertices (world x east, y depth, z north): "
+              "vertex 0 where the vehicle starts, then the waypoints in order"),
+    "radius": ("", "m", "waypoint radius (3-D)"),
+    "xte_max": ("", "m", "success: mean cross-track error at most this"),
+    **{k: v for k, v in routing.FIELD_DOCS.items()},
+}
+
+
+class RFBriefing(NamedTuple):
+    """RF's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
+    t0: np.ndarray
+    t_lim: float
+    dt: float
+    n_agents: int
+    v_max: float
+    guidance: int
+    hotel_w: float
+    pk: float
+    energy_allocation: np.ndarray
+    sens: tuple
+    chart: tuple
+    route: np.ndarray
+    radius: float
+    xte_max: float
+    fc_cur: np.ndarray
+    fc_times: np.ndarray
+    fc_free: np.ndarray
+    fc_x0: np.ndarray
+    fc_z0: np.ndarray
+    fc_h: np.ndarray
+    fc_shape: np.ndarray
+
+
+def brief(P: RFParams, W: RFWork, init: dict, m) -> RFBriefing:
+    """The briefing of every episode of a batch.
+
+    The forecast (the truth for a method given the true current) at the route's depth on the
+    lattice around its vertices (:func:`oneocean.tasks.routing.mission_field` with
+    ``fixed``), where the route lies on the grid.
+
+    Parameters
+    ----------
+    P, W
+        The task's params and work arrays (:func:`make`).
+    init : dict
+        The reset's dict.
+    m : Mission
+        The batch's mission (:class:`oneocean.tasks.public.Mission`).
+
+    Returns
+    -------
+    RFBriefing
+    """
+    from .public import common_brief
+
+    fc = m.forecast
+    fields = []
+    for e in range(W.route.shape[0]):
+        pts = np.ascontiguousarray(W.route[e][:, [0, 2]])
+        fields.append(routing.mission_field(m.grid, pts, float(W.route[e, 0, 1]),
+                                            float(m.t0[e]), P.t_lim, fixed=True, fc=fc, e=e)
+                      if routing.within_grid(m.grid, pts) else None)
+    return RFBriefing(**common_brief(m, W.budget), route=W.route.copy(), radius=P.radius,
+                      xte_max=P.xte_max, **routing.pack_fields(fields))
 
 
 @hot_kernel(inline="always")
@@ -397,7 +462,7 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel(inline="always")
-def cue(grid, P, W, state, e, k, i):
+def cue(grid, P, W, X, e, k, i):
     """The route point ``P.look`` m ahead of the agent's known projection on the active leg.
 
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
@@ -414,7 +479,7 @@ def cue(grid, P, W, state, e, k, i):
         The task's params (:func:`make`).
     W : RFWork
         The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
+    X : (E, N, STATE_DIM) float64
         The vehicle states the method knows (its navigation estimate; the truth for
         the oracle); layout: :mod:`oneocean.engine.dynamics`.
     e : int
@@ -431,7 +496,7 @@ def cue(grid, P, W, state, e, k, i):
     probe : float
         NaN (the task has no field).
     """
-    s = state[e, i]
+    s = X[e, i]
     wp = nav_waypoint(W.route, W.nwp, e, s[0], s[1], s[2], P.radius, 0)
     if wp > W.route.shape[1] - 1:   # route done as far as the vehicle knows: the last waypoint
         g = W.route[e, wp - 1]
@@ -442,6 +507,36 @@ def cue(grid, P, W, state, e, k, i):
                                          s[0], s[1], s[2])
     sl = min(max(al, 0.0) + P.look, ln)
     return a0[0] + sl * tx, a0[1] + sl * ty, a0[2] + sl * tz, math.nan
+
+
+@hot_kernel(inline="always")
+def sense(grid, P, W, X, state, O, e, k):
+    """The task's observation fields (:data:`OBS_EXTRA`): the energy used and its fraction
+    of the allocation. Env hook (:mod:`oneocean.tasks.loop`), before the step's cues.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (:class:`oneocean.engine.grid.Grid`).
+    P : RFParams
+        The task's params (:func:`make`).
+    W : RFWork
+        The task's per-episode work arrays (:func:`make`).
+    X : (E, N, STATE_DIM) float64
+        The vehicle states the method knows.
+    state : (E, N, STATE_DIM) float64
+        True vehicle states.
+    O : (E, N, D) float64
+        The observations; ``O[e, 0, OBS_DIM:]`` written.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    """
+    used = W.acc[e, 2]
+    o = O[e, 0]
+    o[OBS_DIM] = used
+    o[OBS_DIM + 1] = used / W.budget[e] if W.budget[e] < math.inf else 0.0
 
 
 @hot_kernel(inline="always")

@@ -1259,7 +1259,14 @@ def plan_mission(grid, points, depth: float, t0: float, duration: float, v_max: 
                  power: PowerModel | None, *, fixed: bool = False, fc=None, e: int = 0,
                  clearance: float = 5.0, land_threshold: float = 0.5) -> Route:
     """A vehicle's plan through the field of ``grid`` at one depth: :func:`plan_on_field` on
-    :func:`mission_field` (the arguments are theirs).
+    :func:`mission_field`.
+
+    Parameters
+    ----------
+    grid, points, depth, t0, duration, fixed, fc, e, clearance, land_threshold
+        As for :func:`mission_field`.
+    v_max, power
+        As for :func:`plan_on_field`.
 
     Returns
     -------
@@ -1327,8 +1334,20 @@ def pack_fields(fields) -> dict:
 
 
 def unpack_field(B, e: int) -> MissionField | None:
-    """Episode ``e``'s :class:`MissionField` from a briefing that carries packed fields
-    (:func:`pack_fields`); None where it has none."""
+    """Episode ``e``'s :class:`MissionField` from a briefing that carries packed fields.
+
+    Parameters
+    ----------
+    B : NamedTuple
+        A briefing with the :data:`FIELD_KEYS` (:func:`pack_fields`).
+    e : int
+        Episode.
+
+    Returns
+    -------
+    MissionField or None
+        None where the episode has no field.
+    """
     nt, ny, nx = (int(v) for v in B.fc_shape[e])
     if nt == 0:
         return None

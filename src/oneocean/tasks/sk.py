@@ -46,15 +46,20 @@ Metrics (distances are 3-D, sampled after every step)
     ``max_error_m`` (largest distance over the station-keeping window, m), ``hold_s`` (longest
     contiguous in-radius time over the episode, s), ``final_rms_m`` (RMS distance over the
     episode's last ``H`` steps: the last ``hold_time_s`` before the time limit, m).
+Briefing (:class:`SKBriefing`, after the common fields of :mod:`oneocean.tasks.public`)
+    The ``station`` and its ``heading``, the hold radius, the hold time and the settling
+    allowance.
+Observation
+    The cue is the station; the task has no observation fields of its own.
 Methods
     :mod:`oneocean.methods.heuristic.sk` (P-control plus current feed-forward with the full
-    ``v_max``, heading commanded to the station heading; heuristic: the sensor models of
-    :mod:`oneocean.sensing`; oracle: true current and position).
+    ``v_max``, heading commanded to the briefing's station heading; heuristic: the sensor
+    models of :mod:`oneocean.sensing`; oracle: true current and position).
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
-    ``TASK_ID``, ``METRICS``; ``reset``; ``SKParams`` / ``SKWork`` and ``make``; the env hooks
-    ``begin``, ``cue``, ``post_step``, ``finish``; the compiled loop is
-    :mod:`oneocean.kernels.sk`.
+    ``TASK_ID``, ``METRICS``; ``reset``; ``SKParams`` / ``SKWork`` and ``make``; the briefing
+    (``SKBriefing``, ``BRIEF_FIELDS``, ``brief``); the env hooks ``begin``, ``cue``,
+    ``post_step``, ``finish``; the compiled loop is :mod:`oneocean.kernels.sk`.
 """
 
 from __future__ import annotations
@@ -281,6 +286,65 @@ def make(grid, tier: dict, init: dict):
                    np.zeros((n_ep, 6)), np.zeros((n_ep, 3), np.int64), np.zeros((n_ep, hold))))
 
 
+#: The task's own observation fields: none (the cue is the station).
+OBS_EXTRA = ()
+
+#: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
+#: unit, meaning).
+BRIEF_FIELDS = {
+    "station": ("(E, 3)", "m", "the station (world x east, y depth, z north)"),
+    "heading": ("(E,)", "rad", "the station heading to hold (compass, from north, clockwise)"),
+    "radius": ("", "m", "hold radius around the station"),
+    "hold_s": ("", "s", "success: within the radius for this long, contiguously"),
+    "settle_s": ("", "s", "settling allowance after the release: the station-keeping window "
+                 "(the primary metric) starts after it"),
+}
+
+
+class SKBriefing(NamedTuple):
+    """SK's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
+    t0: np.ndarray
+    t_lim: float
+    dt: float
+    n_agents: int
+    v_max: float
+    guidance: int
+    hotel_w: float
+    pk: float
+    energy_allocation: np.ndarray
+    sens: tuple
+    chart: tuple
+    station: np.ndarray
+    heading: np.ndarray
+    radius: float
+    hold_s: float
+    settle_s: float
+
+
+def brief(P: SKParams, W: SKWork, init: dict, m) -> SKBriefing:
+    """The briefing of every episode of a batch (:class:`oneocean.tasks.public.Mission`
+    ``m``): the station, its heading, the hold radius and time, the settling allowance.
+
+    Parameters
+    ----------
+    P, W
+        The task's params and work arrays (:func:`make`).
+    init : dict
+        The reset's dict.
+    m : Mission
+        The batch's mission (:class:`oneocean.tasks.public.Mission`).
+
+    Returns
+    -------
+    SKBriefing
+    """
+    from .public import common_brief
+
+    return SKBriefing(**common_brief(m), station=W.station.copy(), heading=W.heading.copy(),
+                      radius=P.radius, hold_s=float(m.tier["hold_time_s"]),
+                      settle_s=SETTLE_S)
+
+
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
     """Reset the accumulators and counters.
@@ -314,7 +378,7 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel(inline="always")
-def cue(grid, P, W, state, e, k, i):
+def cue(grid, P, W, X, e, k, i):
     """The goal cue: the station.
 
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
@@ -327,7 +391,7 @@ def cue(grid, P, W, state, e, k, i):
         The task's params (:func:`make`).
     W : SKWork
         The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
+    X : (E, N, STATE_DIM) float64
         The vehicle states the method knows (its navigation estimate; the truth for
         the oracle); layout: :mod:`oneocean.engine.dynamics`.
     e : int

@@ -38,24 +38,48 @@ Metrics (fractions of the initial mass, at the metric horizon)
     grid / initial), ``remaining_fraction`` (still on the grid / initial),
     ``time_to_target_s`` (time at which the target fraction was reached; the time limit on
     failure, like ``T_s``).
+Aerial survey (the task's sensor; the team observation :class:`SPCTeamObs`)
+    Oil spill response relies on periodic surveillance overflights (aircraft / drone SLAR,
+    IR); a surface vehicle's own sensor only sees the concentration under it. The survey maps
+    the surface field in blocks of ``AERIAL_BLOCK_CELLS x AERIAL_BLOCK_CELLS`` cells (40 m):
+    each block's oil mass and mass centroid, and the mapped total. It flies every
+    ``aerial_period_s`` (the tier's), the first map one period after the start; a method given
+    the true target (the oracle, ``SensingParams.true_target``: :func:`brief` sets it in
+    ``W``) has the exact map every step from step 0. The map is taken at the step start
+    (before the agents move) and kept until the next one; its time ``t_map`` says how old it is.
+Briefing (:class:`SPCBriefing`, after the common fields of :mod:`oneocean.tasks.public`)
+    The spill report (``report``: the spill's initial centroid, and its radius), the operating
+    depth, the survey's period and first map, the layout of the survey's blocks (the field's
+    cell (0, 0) centre, cell size, block size and counts), the cleanup equipment (removal
+    radius and rate) and the success fraction.
 Observation
-    The goal cue is the point the agent steers to, ``W.aim`` (E, N, 2) (x, z) at
-    ``SURFACE_Y_M``: written by the fused policy every step (its target drifted with the
-    probed current); for external policies it stays at the spill's reported initial centroid.
-    The pollution probe is the surface concentration under the vehicle, kg m-2.
+    The cue is the task's own oil reference for each agent, at ``SURFACE_Y_M``: before the
+    first map a ring of radius ``CUE_RING_FRAC * spill_radius_m`` around the spill report
+    (agent i at bearing ``2 pi i / N``); at every map the blocks holding at least
+    ``CUE_MASS_FRAC`` of the heaviest block's mass, heaviest first, each go to the nearest
+    agent (its known position) without one, again from the heaviest once every such block has
+    one (:func:`sense`), and the cue is the agent's block's mass centroid. Either is drifted
+    since its time (the start, the map's) with the agent's current estimate of its last
+    observation (``current_e_ms`` / ``current_n_ms``; none at step 0): the slick drifts with
+    the water, so a follower that closes its cue offset through the water (not over ground)
+    keeps up with its oil. The pollution probe is the surface concentration under the vehicle
+    (its known position), kg m-2. No fields of its own (:data:`OBS_EXTRA` is empty); the team
+    observation is the aerial map.
 Methods
-    :mod:`oneocean.methods.heuristic.spc` (aerial map and greedy block assignment as the
-    team-level ``plan``; both at full speed; heuristic: stale periodic map and the sensor
-    models of :mod:`oneocean.sensing`; oracle: the exact map every step, true current and
-    position).
+    :mod:`oneocean.methods.heuristic.spc` (greedy assignment of the agents to the mapped
+    blocks as the team-level ``plan``, drift-compensated seek; both at full speed; heuristic:
+    the periodic survey and the sensor models of :mod:`oneocean.sensing`; oracle: the exact
+    map every step, true current and position).
 
 Module layout: as :mod:`oneocean.tasks.g2g` (``reset``, split as ``reset_candidates`` /
 ``reset_build`` so that ``Cell.reset`` builds only the spills its current band keeps;
 ``SPCParams`` / ``SPCWork`` and ``make``: the per-episode field, land mask, face
-velocities, mass accumulators and the policy's plan tokens and map scratch with a leading
-episode axis; env hooks ``begin``, ``pre_step`` (face refresh), ``cue``, ``post_step``
-(removal in agent order, field step, success reached), ``finish``; the map scratch is sized
-by the policy (``make``'s ``tokens``); the compiled loop is :mod:`oneocean.kernels.spc`).
+velocities, mass accumulators, the survey's map and the cue's reference with a leading
+episode axis; the public view: ``SPCBriefing`` / ``BRIEF_FIELDS`` / ``brief``,
+``SPCTeamObs`` / ``TEAM_FIELDS`` / ``team_obs``; env hooks ``begin``, ``pre_step`` (face
+refresh), ``cue``, ``sense`` (the survey, the cue's reference), ``post_step`` (removal in
+agent order, field step, success reached), ``finish``; the compiled loop is
+:mod:`oneocean.kernels.spc`).
 """
 
 from __future__ import annotations
@@ -75,8 +99,8 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError, NotApplicable
 from ..models import pollution as pol
 from ..models.pollution import spill_box
-from .common import (PURPOSE_RESET, STANDARD, _SPAWN_BATCH, _call, _segment_clear,
-                     _spawn_one_c, episode_steps, fresh_cache, need_tier, need_tokens,
+from .common import (O_CE, O_CN, PURPOSE_RESET, STANDARD, _SPAWN_BATCH, _call,
+                     _segment_clear, _spawn_one_c, episode_steps, fresh_cache, need_tier,
                      path_clear, start_times)
 from .loop import GO, REACHED
 from ..engine import libm
@@ -103,6 +127,13 @@ STAGING_SPACING_M = 6.0
 STAGING_SPREAD_RAD = math.pi / 4
 #: The spill centre must have surface-feasible water on rings up to this many spill radii.
 CLEAR_RADII = 1.5
+#: Aerial survey block size, cells (with the task's 10 m cells: 40 m blocks).
+AERIAL_BLOCK_CELLS = 4
+#: The cue's blocks: those holding at least this fraction of the heaviest mapped block's mass.
+CUE_MASS_FRAC = 0.25
+#: Before the first map the cue spreads the team on a ring of this many spill radii around
+#: the spill report.
+CUE_RING_FRAC = 0.5
 
 _C_CLEAN, _C_ESC, _C_REM, _C_TTT = (len(STANDARD) + i for i in range(len(METRICS)))
 
@@ -581,6 +612,12 @@ class SPCParams(NamedTuple):
         Success: removed fraction of the initial mass.
     refresh : int
         Face velocities are re-sampled every this many steps.
+    cue_frac : float
+        The cue's blocks hold at least this fraction of the heaviest block's mass
+        (:data:`CUE_MASS_FRAC`).
+    ring : float
+        Radius of the cue's ring around the spill report before the first map, m
+        (``CUE_RING_FRAC * spill_radius_m``).
     """
     dt: float           # step, s
     n_steps: int        # episode length, steps (the time limit)
@@ -591,6 +628,8 @@ class SPCParams(NamedTuple):
     eff: float          # removal rate, s-1
     target: float       # success: removed fraction of the initial mass
     refresh: int        # face velocities re-sampled every this many steps
+    cue_frac: float     # the cue's blocks: at least this fraction of the heaviest's mass
+    ring: float         # radius of the cue's ring around the report before the first map, m
 
 
 class SPCWork(NamedTuple):
@@ -602,6 +641,8 @@ class SPCWork(NamedTuple):
         World (x, z) of cell (0, 0) centre, m.
     report : (E, 2) float64
         Reported initial spill centroid (x, z), m.
+    t0 : (E,) float64
+        Start times, s since the grid's ``time0``.
     C : (E, 1, nz, nx) float64
         Field, kg m-2 (a copy of ``init["C0"]``).
     land : (E, nz, nx) uint8
@@ -625,24 +666,34 @@ class SPCWork(NamedTuple):
         Initial mass, removed, escaped, kg.
     k_hit : (E,) int64
         Steps to the target fraction (-1: not reached).
-    aim : (E, N, 2) float64
-        Goal cue: the point each agent steers to (x, z), m.
-    tgt : (E, N, 2) float64
-        Policy plan tokens (:mod:`oneocean.methods.heuristic.spc`): targets (x, z) at the map
-        time, m.
+    map_every, map_from : (E,) int64
+        The aerial survey maps at the steps ``k >= map_from`` with ``k % map_every == 0``
+        (:func:`make`: every ``aerial_period_s`` from one period on; :func:`brief`: every step
+        from step 0 for a method given the true target).
     tmap : (E,) float64
-        Map time, s.
+        The map's time, s since the grid's ``time0`` (NaN: no map yet).
     bm : (E, nb) float64
-        Block masses, kg.
+        The map's block masses, kg.
     bx, bz : (E, nb) float64
-        Block mass centroids x and z, m.
-    cnt : (E, nb) int64
-        Agents per block.
-    done : (E, N) int64
-        Agent assigned.
+        The map's block mass centroids x and z, m (0 for an empty block).
+    mtot : (E,) float64
+        The mapped mass, kg.
+    cue_xz : (E, N, 2) float64
+        Each agent's cue point (x, z) at the cue's time, m (the ring around the report, then
+        its block's centroid).
+    cue_t : (E,) float64
+        The cue's time (the start, then the map's), s since the grid's ``time0``.
+    cest : (E, N, 2) float64
+        Each agent's current estimate (east, north) of its last observation, m s-1 (0 at
+        step 0): the cue's drift.
+    cue_used : (E, nb) int64
+        Scratch of the cue's assignment: block given in the current round.
+    cue_given : (E, N) int64
+        Scratch of the cue's assignment: agent given a block.
     """
     origin: np.ndarray  # (E, 2) world (x, z) of cell (0, 0) centre, m
     report: np.ndarray  # (E, 2) reported initial spill centroid (x, z), m
+    t0: np.ndarray      # (E,) start times, s since the grid's time0
     C: np.ndarray       # (E, 1, nz, nx) field, kg m-2 (a copy of init C0)
     land: np.ndarray    # (E, nz, nx) uint8 frozen cells
     uf: np.ndarray      # (E, nz, nx + 1) x-face velocities, m s-1
@@ -653,22 +704,62 @@ class SPCWork(NamedTuple):
     fpar: np.ndarray    # (E, 1) field-kind parameters (tracer: unused)
     acc: np.ndarray     # (E, 3) initial mass, removed, escaped, kg
     k_hit: np.ndarray   # (E,) int64 steps to the target fraction (-1: not reached)
-    aim: np.ndarray     # (E, N, 2) goal cue: the point each agent steers to (x, z), m
-    # the policy's plan tokens and map scratch (methods.heuristic.spc)
-    tgt: np.ndarray     # (E, N, 2) targets (x, z) at the map time, m
-    tmap: np.ndarray    # (E,) map time, s
+    # the aerial survey (the team observation, team_obs)
+    map_every: np.ndarray  # (E,) int64 a map every this many steps ...
+    map_from: np.ndarray   # (E,) int64 ... from this step on
+    tmap: np.ndarray    # (E,) the map's time, s since time0 (NaN: none yet)
     bm: np.ndarray      # (E, nb) block masses, kg
     bx: np.ndarray      # (E, nb) block mass centroids x, m
     bz: np.ndarray      # (E, nb) block mass centroids z, m
-    cnt: np.ndarray     # (E, nb) int64 agents per block
-    done: np.ndarray    # (E, N) int64 agent assigned
+    mtot: np.ndarray    # (E,) mapped mass, kg
+    # the cue's reference
+    cue_xz: np.ndarray  # (E, N, 2) cue points (x, z) at the cue's time, m
+    cue_t: np.ndarray   # (E,) the cue's time (start, then the map's), s since time0
+    cest: np.ndarray    # (E, N, 2) current estimates of the last observation, m s-1
+    cue_used: np.ndarray   # (E, nb) int64 scratch: block given in this round
+    cue_given: np.ndarray  # (E, N) int64 scratch: agent given a block
 
 
-def make(grid, tier: dict, init: dict, tokens: dict | None = None):
+def n_blocks(nz: int, nx: int) -> tuple[int, int]:
+    """The aerial survey's blocks of an (nz, nx) field.
+
+    Parameters
+    ----------
+    nz, nx : int
+        Field cells along z (north) and x (east).
+
+    Returns
+    -------
+    nbz, nbx : int
+        Blocks of ``AERIAL_BLOCK_CELLS x AERIAL_BLOCK_CELLS`` cells along z and x (partial
+        blocks at the far edges included); block ``b = jb nbx + ib`` holds the cells
+        ``[jb B, (jb + 1) B) x [ib B, (ib + 1) B)`` (z, x; ``B = AERIAL_BLOCK_CELLS``).
+    """
+    b = AERIAL_BLOCK_CELLS
+    return (nz + b - 1) // b, (nx + b - 1) // b
+
+
+def aerial_steps(tier: dict) -> int:
+    """The aerial survey's period in steps: ``aerial_period_s / dt_s`` (at least 1).
+
+    Parameters
+    ----------
+    tier : dict
+        Tier parameters plus ``dt_s``.
+
+    Returns
+    -------
+    int
+    """
+    return max(1, int(round(float(tier["aerial_period_s"]) / float(tier["dt_s"]))))
+
+
+def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
 
-    The field is a copy of ``init["C0"]`` (never modified); the goal cue starts at the
-    reported spill centroid.
+    The field is a copy of ``init["C0"]`` (never modified); the survey maps every
+    ``aerial_period_s`` from one period on (:func:`brief` makes it every step for a method
+    given the true target).
 
     Parameters
     ----------
@@ -678,8 +769,6 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
         Tier parameters plus ``dt_s``.
     init : dict
         The reset's dict (:func:`reset`).
-    tokens : dict
-        The policy's plan tokens (``plan_tokens``); ``map_blocks``: blocks of the map scratch.
 
     Returns
     -------
@@ -691,36 +780,157 @@ def make(grid, tier: dict, init: dict, tokens: dict | None = None):
     Raises
     ------
     ConfigError
-        Missing tier parameters or plan tokens.
+        Missing tier parameters.
     """
     need_tier(TASK_ID, tier, *_TIER_KEYS, "dt_s")
-    tokens = need_tokens(TASK_ID, tokens, "map_blocks")
     C = np.ascontiguousarray(init["C0"], dtype=np.float64).copy()
     n_ep, _, nz, nx = C.shape
     n_ag = init["pos0"].shape[1]
-    nb = int(tokens["map_blocks"])
+    nbz, nbx = n_blocks(int(nz), int(nx))
+    nb = nbz * nbx
     report = np.ascontiguousarray(init["report"], dtype=np.float64)
     P = SPCParams(float(tier["dt_s"]), episode_steps(tier), FIELD_H_M, SURFACE_Y_M,
                   float(tier["kappa_m2s"]), float(tier["removal_radius_m"]),
                   float(tier["removal_rate_s"]), float(tier["target_fraction"]),
-                  FACE_REFRESH_STEPS)
-    W = SPCWork(np.ascontiguousarray(init["origin"], dtype=np.float64), report, C,
+                  FACE_REFRESH_STEPS, CUE_MASS_FRAC,
+                  CUE_RING_FRAC * float(tier["spill_radius_m"]))
+    W = SPCWork(np.ascontiguousarray(init["origin"], dtype=np.float64), report,
+                np.ascontiguousarray(init["t0"], dtype=np.float64).copy(), C,
                 np.ascontiguousarray(init["land"], dtype=np.uint8),
                 np.zeros((n_ep, nz, nx + 1)), np.zeros((n_ep, nz + 1, nx)),
                 np.zeros((n_ep, pol.work_size(1, nz, nx))),
                 np.full((n_ep, 2), -1, dtype=np.int64),
                 np.zeros((n_ep, nz * (nx + 1) + (nz + 1) * nx, 4)), np.zeros((n_ep, 1)),
                 np.zeros((n_ep, 3)), np.full(n_ep, -1, np.int64),
+                np.full(n_ep, aerial_steps(tier), np.int64), np.ones(n_ep, np.int64),
+                np.full(n_ep, np.nan), np.zeros((n_ep, nb)), np.zeros((n_ep, nb)),
+                np.zeros((n_ep, nb)), np.zeros(n_ep),
                 np.repeat(report[:, None, :], n_ag, axis=1),
-                np.zeros((n_ep, n_ag, 2)), np.zeros(n_ep), np.zeros((n_ep, nb)),
-                np.zeros((n_ep, nb)), np.zeros((n_ep, nb)), np.zeros((n_ep, nb), np.int64),
+                np.ascontiguousarray(init["t0"], dtype=np.float64).copy(),
+                np.zeros((n_ep, n_ag, 2)), np.zeros((n_ep, nb), np.int64),
                 np.zeros((n_ep, n_ag), np.int64))
     return P, W
 
 
+#: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
+#: unit, meaning).
+BRIEF_FIELDS = {
+    "report": ("(E, 2)", "m", "the spill report: the spill's initial mass centroid (x east, "
+               "z north)"),
+    "spill_radius": ("", "m", "the spill report: the spill's radius"),
+    "depth": ("", "m", "the operating depth of the surface vehicles (y, positive down)"),
+    "aerial_period_s": ("", "s", "the aerial survey's period (a map every this long; the step "
+                        "for a method given the true target)"),
+    "aerial_first_s": ("", "s", "time of the first map after the start (0: at the start)"),
+    "field_origin": ("(E, 2)", "m", "world (x, z) of the centre of the surveyed area's cell "
+                     "(0, 0)"),
+    "field_h": ("", "m", "the survey's cell size"),
+    "block_cells": ("", "", "survey block size, cells (per side)"),
+    "map_nbx": ("", "", "survey blocks along x (east); block b = jb * map_nbx + ib covers "
+                "cells [ib, ib + 1) * block_cells along x and [jb, jb + 1) * block_cells "
+                "along z"),
+    "map_nbz": ("", "", "survey blocks along z (north)"),
+    "removal_radius": ("", "m", "each vehicle removes oil from the cells whose centre is "
+                       "this close"),
+    "removal_rate": ("", "s-1", "... the fraction removal_rate * dt of their concentration "
+                     "every step"),
+    "target_fraction": ("", "", "success: the removed fraction of the initial mass"),
+}
+
+
+class SPCBriefing(NamedTuple):
+    """SPC's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
+    t0: np.ndarray
+    t_lim: float
+    dt: float
+    n_agents: int
+    v_max: float
+    guidance: int
+    hotel_w: float
+    pk: float
+    energy_allocation: np.ndarray
+    sens: tuple
+    chart: tuple
+    report: np.ndarray
+    spill_radius: float
+    depth: float
+    aerial_period_s: float
+    aerial_first_s: float
+    field_origin: np.ndarray
+    field_h: float
+    block_cells: int
+    map_nbx: int
+    map_nbz: int
+    removal_radius: float
+    removal_rate: float
+    target_fraction: float
+
+
+def brief(P: SPCParams, W: SPCWork, init: dict, m) -> SPCBriefing:
+    """The briefing of every episode of a batch (:class:`oneocean.tasks.public.Mission`
+    ``m``): the spill report, the survey's schedule and layout, the equipment, the target.
+
+    A method given the true target (``m.sens.true_target``: the oracle) has the exact aerial
+    map every step from step 0: set here in ``W.map_every`` / ``W.map_from``.
+
+    Returns
+    -------
+    SPCBriefing
+    """
+    from .public import common_brief
+
+    if m.sens.true_target != 0:
+        W.map_every[:] = 1
+        W.map_from[:] = 0
+    every = int(W.map_every[0]) if W.map_every.shape[0] else 1
+    first = -(-int(W.map_from[0]) // every) * every if W.map_from.shape[0] else 0
+    nbz, nbx = n_blocks(W.C.shape[2], W.C.shape[3])
+    return SPCBriefing(**common_brief(m), report=W.report.copy(),
+                       spill_radius=float(m.tier["spill_radius_m"]), depth=P.y,
+                       aerial_period_s=every * P.dt, aerial_first_s=first * P.dt,
+                       field_origin=W.origin.copy(), field_h=P.h,
+                       block_cells=AERIAL_BLOCK_CELLS, map_nbx=nbx, map_nbz=nbz,
+                       removal_radius=P.rad, removal_rate=P.eff, target_fraction=P.target)
+
+
+#: The team observation's fields (:class:`SPCTeamObs`): name -> (shape, unit, meaning).
+TEAM_FIELDS = {
+    "t_map": ("(E,)", "s", "the aerial map's time, since the product's time origin (as "
+              "t0; the map's age is t0 + t_s - t_map); NaN before the first map"),
+    "mass": ("(E, nb)", "kg", "each survey block's oil mass (nb = map_nbz * map_nbx)"),
+    "x": ("(E, nb)", "m", "each block's oil mass centroid, x east (0: no oil)"),
+    "z": ("(E, nb)", "m", "each block's oil mass centroid, z north (0: no oil)"),
+    "total": ("(E,)", "kg", "the mapped oil mass"),
+}
+
+
+class SPCTeamObs(NamedTuple):
+    """SPC's team observation: the aerial map (:data:`TEAM_FIELDS`), views of ``W``."""
+    t_map: np.ndarray
+    mass: np.ndarray
+    x: np.ndarray
+    z: np.ndarray
+    total: np.ndarray
+
+
+def team_obs(W: SPCWork) -> SPCTeamObs:
+    """The team observation: the aerial map the ``sense`` hook keeps in ``W`` (views).
+
+    Returns
+    -------
+    SPCTeamObs
+    """
+    return SPCTeamObs(W.tmap, W.bm, W.bx, W.bz, W.mtot)
+
+
+#: The task's own observation fields: none (the aerial map is the team observation).
+OBS_EXTRA = ()
+
+
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
-    """Record the initial mass and reset the accumulators.
+    """Record the initial mass and reset the accumulators, the map (none yet) and the cue
+    (the ring around the spill report, at the start).
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
 
@@ -747,6 +957,20 @@ def begin(grid, P, W, state, e):
     W.acc[e, 1] = 0.0
     W.acc[e, 2] = 0.0
     W.k_hit[e] = -1
+    W.tmap[e] = math.nan
+    W.mtot[e] = 0.0
+    for b in range(W.bm.shape[1]):
+        W.bm[e, b] = 0.0
+        W.bx[e, b] = 0.0
+        W.bz[e, b] = 0.0
+    W.cue_t[e] = W.t0[e]
+    n_ag = W.cue_xz.shape[1]
+    for i in range(n_ag):   # a ring around the report, agent i at bearing 2 pi i / N
+        a = 2.0 * math.pi * i / n_ag
+        W.cue_xz[e, i, 0] = W.report[e, 0] + P.ring * math.sin(a)
+        W.cue_xz[e, i, 1] = W.report[e, 1] + P.ring * math.cos(a)
+        W.cest[e, i, 0] = 0.0
+        W.cest[e, i, 1] = 0.0
     if 0.0 >= P.target * m0:   # nothing to remove: success at step 0, the episode ends
         W.k_hit[e] = 0
         return True
@@ -781,11 +1005,142 @@ def pre_step(grid, P, W, state, e, k, t):
                        W.fkey[e], W.fpart[e], t)
 
 
-@hot_kernel(inline="always")
-def cue(grid, P, W, state, e, k, i):
-    """The goal cue ``W.aim`` at the operating depth, and the pollution probe.
+@hot_kernel
+def aerial_map(C, x0, z0, h, bsz, bm, bx, bz):
+    """The aerial survey of a field: block masses (kg) and mass centroids (m).
 
-    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
+    Parameters
+    ----------
+    C : (1, nz, nx) float64
+        The field, kg m-2.
+    x0, z0 : float
+        World (x, z) of cell (0, 0) centre, m.
+    h : float
+        Cell size, m.
+    bsz : int
+        Block size, cells.
+    bm, bx, bz : (nb,) float64
+        Written: each block's mass (kg) and mass centroid x, z (m; 0 for an empty block).
+
+    Returns
+    -------
+    float
+        The mapped mass, kg.
+    """
+    nz = C.shape[1]
+    nx = C.shape[2]
+    nbx = (nx + bsz - 1) // bsz
+    nb = bm.shape[0]
+    for b in range(nb):
+        bm[b] = 0.0
+        bx[b] = 0.0
+        bz[b] = 0.0
+    for j in range(nz):
+        for i in range(nx):
+            c = C[0, j, i]
+            if c > 0.0:
+                b = (j // bsz) * nbx + i // bsz
+                bm[b] += c
+                bx[b] += c * (x0 + i * h)
+                bz[b] += c * (z0 + j * h)
+    tot = 0.0
+    for b in range(nb):
+        if bm[b] > 0.0:
+            bx[b] /= bm[b]
+            bz[b] /= bm[b]
+            tot += bm[b]
+        bm[b] *= h * h
+    return tot * h * h
+
+
+@hot_kernel
+def _cue_assign(X, bm, bx, bz, thr, used, given, cue_xz):
+    """The cue's blocks: those of mass >= ``thr``, heaviest first (the lower index on a tie),
+    each to the nearest agent (known positions ``X`` (N, STATE_DIM)) without one; once every
+    such block has one, again from the heaviest. Writes ``cue_xz`` (N, 2)."""
+    n_ag = X.shape[0]
+    nb = bm.shape[0]
+    for b in range(nb):
+        used[b] = 0
+    for i in range(n_ag):
+        given[i] = 0
+    for _ in range(n_ag):
+        best = -1
+        for _r in range(2):
+            m_best = -1.0
+            for b in range(nb):
+                if used[b] == 0 and bm[b] >= thr and bm[b] > m_best:
+                    m_best = bm[b]
+                    best = b
+            if best >= 0:
+                break
+            for b in range(nb):   # every block has one: the next round
+                used[b] = 0
+        ia = -1
+        d_best = math.inf
+        for i in range(n_ag):
+            if given[i] == 0:
+                d = (X[i, 0] - bx[best]) ** 2 + (X[i, 2] - bz[best]) ** 2
+                if d < d_best:
+                    d_best = d
+                    ia = i
+        used[best] = 1
+        given[ia] = 1
+        cue_xz[ia, 0] = bx[best]
+        cue_xz[ia, 1] = bz[best]
+
+
+@hot_kernel(inline="always")
+def sense(grid, P, W, X, state, O, e, k):
+    """The aerial survey (the team observation) at its steps, and the cue's reference.
+
+    Each agent's current estimate of its last observation (``O[e, i]`` still holds step
+    ``k - 1``'s; 0 at step 0) is kept as its cue's drift. At a map step (``k >= W.map_from[e]``,
+    ``k % W.map_every[e] == 0``) the field is surveyed into ``W.bm`` / ``W.bx`` / ``W.bz`` /
+    ``W.mtot`` at the time ``W.tmap[e]``, and the cue points are assigned
+    (:func:`_cue_assign`, blocks of at least ``P.cue_frac`` of the heaviest block's mass, on
+    the known positions ``X``; unchanged when the map holds no oil). Env hook
+    (:mod:`oneocean.tasks.loop`).
+    """
+    n_ag = X.shape[1]
+    for i in range(n_ag):
+        ce = 0.0
+        cn = 0.0
+        if k > 0:
+            ce = O[e, i, O_CE]
+            cn = O[e, i, O_CN]
+            if not (math.isfinite(ce) and math.isfinite(cn)):
+                ce = 0.0
+                cn = 0.0
+        W.cest[e, i, 0] = ce
+        W.cest[e, i, 1] = cn
+    if k < W.map_from[e] or k % W.map_every[e] != 0:
+        return
+    bm = W.bm[e]
+    bx = W.bx[e]
+    bz = W.bz[e]
+    W.mtot[e] = aerial_map(W.C[e], W.origin[e, 0], W.origin[e, 1], P.h, AERIAL_BLOCK_CELLS,
+                           bm, bx, bz)
+    t = W.t0[e] + k * P.dt
+    W.tmap[e] = t
+    heavy = 0.0
+    for b in range(bm.shape[0]):
+        if bm[b] > heavy:
+            heavy = bm[b]
+    if not heavy > 0.0:
+        return
+    W.cue_t[e] = t
+    _cue_assign(X[e], bm, bx, bz, P.cue_frac * heavy, W.cue_used[e], W.cue_given[e],
+                W.cue_xz[e])
+
+
+@hot_kernel(inline="always")
+def cue(grid, P, W, X, e, k, i):
+    """The task's oil reference at the operating depth, and the pollution probe.
+
+    Env hook (:mod:`oneocean.tasks.loop`): agent ``i``'s cue point (its place on the ring
+    around the spill report, then its block of the last aerial map: :func:`sense`) drifted
+    since the cue's time with the agent's current estimate of its last observation.
 
     Parameters
     ----------
@@ -795,7 +1150,7 @@ def cue(grid, P, W, state, e, k, i):
         The task's params (:func:`make`).
     W : SPCWork
         The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
+    X : (E, N, STATE_DIM) float64
         The vehicle states the method knows (its navigation estimate; the truth for
         the oracle); layout: :mod:`oneocean.engine.dynamics`.
     e : int
@@ -808,13 +1163,14 @@ def cue(grid, P, W, state, e, k, i):
     Returns
     -------
     gx, gy, gz : float
-        The goal cue, world m.
+        The cue, world m.
     probe : float
         Surface concentration under the vehicle (its known position), kg m-2.
     """
-    s = state[e, i]
-    # surface concentration under the vehicle, kg m-2
-    return (W.aim[e, i, 0], P.y, W.aim[e, i, 1],
+    s = X[e, i]
+    age = W.t0[e] + k * P.dt - W.cue_t[e]
+    return (W.cue_xz[e, i, 0] + W.cest[e, i, 0] * age, P.y,
+            W.cue_xz[e, i, 1] + W.cest[e, i, 1] * age,
             pol.probe(W.C[e], 0, s[0], s[2], W.origin[e, 0], W.origin[e, 1], P.h))
 
 

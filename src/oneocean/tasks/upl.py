@@ -18,10 +18,16 @@ Mission data and perception
     docs/sensing.md): ``pre_step`` writes every agent's fix (the object's offset from the
     agent with range, bearing and elevation noise and the echo centre's offset, within the
     detection range, once per period) into ``W.fix``; a method that perceives the target
-    exactly (the oracle, the ``true_target`` ablation) gets the exact offset at any range. The
-    slot offsets (the object's drawing) are mission data. The method keeps its own estimate
-    of the object (:mod:`oneocean.methods.heuristic.upl`); attach, detach and success are
-    judged on the truth.
+    exactly (the oracle, the ``true_target`` ablation; ``brief`` sets it) gets the exact
+    offset at any range. The team fuses the fixes into one estimate of the object
+    (:func:`perceive`, in ``sense``, every step, for every method): a constant-velocity
+    Kalman filter per axis (process noise ``QA_REST`` while the object rests or sinks,
+    ``QA_LIFT`` while the quorum lifts it), started at the chart (its stated error
+    ``survey_std_m`` horizontally, ``SITE_PRIOR_STD_Y_M`` vertically), each fix placed at the
+    ROV's navigation estimate with the sonar's range and angular noise at its range, the echo
+    centre's offset and the USBL-aided navigation's error ``NAV_STD_M`` (horizontal); exact
+    (the true centre and velocity) for a method that perceives the object exactly. Attach,
+    detach and success are judged on the truth.
 Physics (the environment; identical for every method)
     * Attach: an unattached agent that stays within ``attach_radius_m`` of the same free slot
       for ``attach_dwell_s`` consecutive seconds latches onto it. Any agent may take any free
@@ -54,23 +60,41 @@ Metrics
     ``lift_success`` (primary, 0/1), ``final_object_depth_m`` (object centre depth at the end,
     m), ``attach_time_s`` (first time the quorum was attached, s; the time limit if never),
     ``object_drift_m`` (horizontal distance of the object from the site at the end, m).
+Briefing (:class:`UPLBriefing`)
+    The object's chart (its last known centre; the true one for a method that perceives the
+    object exactly), the slot offsets (the object's drawing), the rules (quorum, attach radius
+    and dwell, detach radius, the object's sink speed, success depth, hold radius), the
+    survey's stated error and the sonar's detection range.
+Observation
+    The cue is the task's own slot guidance, on the team's object estimate: the agent's own
+    slot while attached, else the nearest slot no agent holds; while the agent is attached
+    and the quorum holds (the lift), that slot at the surface (the vertical goal of the lift:
+    the object's centre then ``SLOT_RISE_M`` deep, above the success depth, so a follower
+    that closes its cue offset only in part still lifts the object past it). It does not
+    search: where the chart is farther off than the sonar's range, a follower waits at the
+    charted slot. The task's own fields
+    (:data:`OBS_EXTRA`): whether the team has a fix of the object, the team's estimate of the
+    object's centre relative to the agent's navigation estimate and its velocity, and the
+    agent's attached slot (-1: none; the attachments are physical state the team sees). The
+    team observation (:class:`UPLTeamObs`): the team's object estimate in world coordinates
+    and the detection flag.
 Methods
-    :mod:`oneocean.methods.heuristic.upl` (the team's object filter, greedy slot assignment,
-    slot seeking with a search when the chart is wrong, held lift; both at full speed;
-    heuristic: the sensor models of :mod:`oneocean.sensing` and the object's sonar model;
-    oracle: true current, position and object; information only). The environment above does
-    not depend on the method.
+    :mod:`oneocean.methods.heuristic.upl` (greedy slot assignment, slot seeking with a search
+    when the chart is wrong, held lift; both at full speed; heuristic: the sensor models of
+    :mod:`oneocean.sensing` and the object's sonar model; oracle: true current, position and
+    object; information only). The environment above does not depend on the method.
 
 Module layout (as :mod:`oneocean.tasks.g2g`; the contract is :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset`` (Python: site, slots, starts, start times, chart);
     ``UPLParams`` / ``UPLWork`` and ``make`` (the env's typed scalars and per-episode arrays:
-    object, attachments, sonar fixes, the method's object estimate and slot targets);
-    ``object_perception`` (the sonar model's scalars); the env hooks ``begin``, ``pre_step``
-    (positions, attached count and sonar fixes at the step start), ``cue`` (the agent's slot
-    on the method's estimate), ``after_agent`` (after the last agent's move: the object and
-    the assembly move, so the near-collision count sees the carried agents), ``post_step``
-    (attach / detach, quorum time, success), ``finish``; the team's object estimate every
-    method shares (:func:`perceive`); the compiled loop is :mod:`oneocean.kernels.upl`.
+    object, attachments, sonar fixes, the team's object estimate); ``object_perception`` (the
+    sonar model's scalars); the public view: ``UPLBriefing`` / ``BRIEF_FIELDS`` / ``brief``,
+    ``OBS_EXTRA``, ``UPLTeamObs`` / ``TEAM_FIELDS`` / ``team_obs``; the env hooks ``begin``,
+    ``pre_step`` (positions, attached count and sonar fixes at the step start), ``cue``,
+    ``sense`` (the team's object estimate, :func:`perceive`, and the observation's fields),
+    ``after_agent`` (after the last agent's move: the object and the assembly move, so the
+    near-collision count sees the carried agents), ``post_step`` (attach / detach, quorum
+    time, success), ``finish``; the compiled loop is :mod:`oneocean.kernels.upl`.
 """
 
 from __future__ import annotations
@@ -88,8 +112,9 @@ from ..errors import ConfigError, NotApplicable
 from ..sensing import perception, perception_values
 from ..sensing.kernels import PURPOSE_PERCEPTION, draw, polar_fix
 from .common import feasible_codes
-from .common import (OK, PURPOSE_RESET, STANDARD, _call, _segment_clear, current_at,
-                     episode_steps, fresh_cache, need_tier, path_clear, start_times)
+from .common import (OBS_DIM, OK, PURPOSE_RESET, STANDARD, _call, _segment_clear,
+                     current_at, episode_steps, fresh_cache, need_tier, path_clear,
+                     start_times)
 from ..engine import libm
 from ..engine import streams
 
@@ -119,7 +144,7 @@ CLEARANCE_M = 1.0
 #: Extra altitude margin required at every slot of a sampled site, m.
 SLOT_MARGIN_M = 0.5
 #: Vertical standard deviation of the charted object depth (the chart's seafloor depth at the
-#: charted point vs the object's), m: the prior of the method's object filter.
+#: charted point vs the object's), m: the prior of the team's object filter.
 SITE_PRIOR_STD_Y_M = 2.0
 
 _C_LIFT, _C_DEPTH, _C_ATT_T, _C_DRIFT = (len(STANDARD) + i for i in range(len(METRICS)))
@@ -611,28 +636,19 @@ class UPLWork(NamedTuple):
     chart : (E, 3) float64
         The survey's charted object centre (mission data), m.
     pcfg : (3,) int64
-        The object's perception (:func:`perception_setup`): run seed, 1 = the method
-        perceives the object exactly, the cell's episode of row 0 (row ``e`` draws episode
-        ``pcfg[2] + e``).
+        The object's perception: run seed (:func:`brief`), 1 = the method
+        perceives the object exactly (:func:`brief`), the cell's episode of row 0 (row ``e``
+        draws episode ``pcfg[2] + e``; :func:`brief`).
     fix : (E, 5, 4) float64
         This step's sonar fix per agent: measured offset of the object's centre from the
         agent (x, y, z) m, 1 = valid.
-    target : (E, 5) int64
-        Slot assigned to each agent (the method's, :mod:`oneocean.methods.heuristic.upl`,
-        as the rest).
-    hold : (E, 2) float64
-        The step's hold velocity of the assembly (x, z), m s-1.
     oest : (E, 6) float64
-        The object's estimate: centre (x, y, z) m, velocity m s-1.
+        The team's estimate of the object (:func:`perceive`): centre (x, y, z) m, velocity
+        m s-1.
     ocov : (E, 3, 3) float64
         Its covariance per axis: P_pp m2, P_pv m2 s-1, P_vv m2 s-2.
     odet : (E,) int64
         1 once the team has a fix of the object.
-    srch : (E, 2) float64
-        1 while the team searches (arrived, no fix); the search spiral's turn, rad.
-    hsite : (E, 3) float64
-        Where the team holds the lift: its site estimate (x, z) m, set (third entry 1) when
-        the quorum first holds.
     fixk : (E,) int64
         Step of the latest fixes in ``fix`` (-1: none yet).
     kf : (E,) int64
@@ -652,21 +668,15 @@ class UPLWork(NamedTuple):
     n_att: np.ndarray       # (E,) int attached agents at the start of the step
     t_att: np.ndarray       # (E,) first time the quorum was attached, s (-1: not yet)
     chart: np.ndarray       # (E, 3) the survey's charted object centre (mission data), m
-    # the object's perception (pre_step; perception_setup, from the policy's prepare, sets pcfg)
+    # the object's perception (pre_step: the fixes; sense: the team's estimate; brief sets
+    # pcfg)
     pcfg: np.ndarray        # (3,) int: run seed, 1 = the method perceives the object exactly,
                             #   the cell's episode of row 0 (row e draws episode pcfg[2] + e)
     fix: np.ndarray         # (E, 5, 4) this step's sonar fix per agent: measured offset of
                             # the object's centre from the agent (x, y, z) m, 1 = valid
-    # the method's (oneocean.methods.heuristic.upl)
-    target: np.ndarray      # (E, 5) int slot assigned to each agent
-    hold: np.ndarray        # (E, 2) the step's hold velocity of the assembly (x, z), m s-1
-    oest: np.ndarray        # (E, 6) the object's estimate: centre (x, y, z) m, velocity m s-1
+    oest: np.ndarray        # (E, 6) the team's object estimate: centre (x, y, z) m, velocity
     ocov: np.ndarray        # (E, 3, 3) its covariance per axis: P_pp m2, P_pv m2 s-1, P_vv
     odet: np.ndarray        # (E,) int 1 once the team has a fix of the object
-    srch: np.ndarray        # (E, 2) 1 while the team searches (arrived, no fix); the search
-                            # spiral's turn, rad
-    hsite: np.ndarray       # (E, 3) where the team holds the lift: its site estimate (x, z),
-                            # set (third entry 1) when the quorum first holds
     fixk: np.ndarray        # (E,) int step of the latest fixes in ``fix`` (-1: none yet)
     kf: np.ndarray          # (E,) int step of the fixes the estimate last fused (-1: none)
 
@@ -713,10 +723,9 @@ def make(grid, tier: dict, init: dict):
                 np.zeros((n_ep, n)), np.full((n_ep, n), -1, dtype=np.int64),
                 np.zeros((n_ep, n, 3)), np.zeros(n_ep), np.zeros(n_ep, dtype=np.int64),
                 np.full(n_ep, -1.0), chart.copy(), np.zeros(3, dtype=np.int64),
-                np.zeros((n_ep, n, 4)), np.full((n_ep, n), -1, dtype=np.int64),
-                np.zeros((n_ep, 2)), np.zeros((n_ep, 6)), np.zeros((n_ep, 3, 3)),
-                np.zeros(n_ep, dtype=np.int64), np.zeros((n_ep, 2)), np.zeros((n_ep, 3)),
-                np.full(n_ep, -1, dtype=np.int64), np.full(n_ep, -1, dtype=np.int64))
+                np.zeros((n_ep, n, 4)), np.zeros((n_ep, 6)), np.zeros((n_ep, 3, 3)),
+                np.zeros(n_ep, dtype=np.int64), np.full(n_ep, -1, dtype=np.int64),
+                np.full(n_ep, -1, dtype=np.int64))
     return P, W
 
 
@@ -747,10 +756,133 @@ def object_perception(dt: float) -> tuple[float, float, float, float, int]:
     return rng, rstd, math.radians(bdeg), cstd, every
 
 
+#: The task's own observation fields (after :data:`oneocean.tasks.common.OBS_FIELDS`): 1 once
+#: the team has a sonar fix of the object (0: its estimate is still the chart); the team's
+#: estimate of the object's centre relative to the agent's navigation estimate (x east, y
+#: down, z north), m; the estimate's velocity (world), m s-1; the agent's attached slot (index
+#: into the briefing's ``slot_off``; -1: not attached). The team's attachments are every
+#: agent's ``slot`` (the number attached: the rows with ``slot >= 0``).
+OBS_EXTRA = ("obj_detected", "obj_dx_m", "obj_dy_m", "obj_dz_m", "obj_vx_ms", "obj_vy_ms",
+             "obj_vz_ms", "slot")
+
+#: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
+#: unit, meaning).
+BRIEF_FIELDS = {
+    "obj_chart": ("(E, 3)", "m", "the object's charted centre: its last known position, the "
+                  "site survey's (the true centre for a method that perceives the object "
+                  "exactly)"),
+    "slot_off": ("(E, 5, 3)", "m", "the attachment slots' offsets from the object's centre "
+                 "(the object's drawing; world frame)"),
+    "quorum": ("", "", "attached agents needed before the object moves"),
+    "attach_radius": ("", "m", "an agent attaches within this distance of a free slot ..."),
+    "attach_dwell": ("", "s", "... after staying there this long"),
+    "detach_radius": ("", "m", "an attached agent farther than this from its slot detaches"),
+    "sink_speed": ("", "m s-1", "sink speed of the object's net weight alone (the attached "
+                   "agents share it)"),
+    "success_depth": ("", "m", "success: the object's centre at most this deep ..."),
+    "hold_radius": ("", "m", "... within this horizontal distance of the site (the vessel "
+                    "waits above it)"),
+    "survey_std": ("", "m", "the chart's stated error per horizontal axis"),
+    "p_range": ("", "m", "the ROVs' sonar detection range (slant) of the object"),
+}
+
+
+class UPLBriefing(NamedTuple):
+    """UPL's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
+    t0: np.ndarray
+    t_lim: float
+    dt: float
+    n_agents: int
+    v_max: float
+    guidance: int
+    hotel_w: float
+    pk: float
+    energy_allocation: np.ndarray
+    sens: tuple
+    chart: tuple
+    obj_chart: np.ndarray
+    slot_off: np.ndarray
+    quorum: int
+    attach_radius: float
+    attach_dwell: float
+    detach_radius: float
+    sink_speed: float
+    success_depth: float
+    hold_radius: float
+    survey_std: float
+    p_range: float
+
+
+def brief(P: UPLParams, W: UPLWork, init: dict, m) -> UPLBriefing:
+    """The briefing of every episode of a batch (:class:`oneocean.tasks.public.Mission`
+    ``m``): the object's chart, its slots, the rules.
+
+    Also sets the team's sonar (``W.pcfg``): its error streams (the run's seed, the cell's
+    episode of row 0) and whether it perceives the object exactly (the method is given the
+    true target, ``m.sens.true_target``: the oracle and the ``true_target`` ablation); such a
+    method's chart is the object's true centre.
+
+    Parameters
+    ----------
+    P, W
+        The task's params and work arrays (:func:`make`); ``W.pcfg`` written.
+    init : dict
+        The reset's dict (unused: ``W`` holds it).
+    m : Mission
+        The batch's mission (:class:`oneocean.tasks.public.Mission`).
+
+    Returns
+    -------
+    UPLBriefing
+    """
+    from .public import common_brief
+
+    exact = int(m.sens.true_target != 0)
+    W.pcfg[0] = m.seed        # the sonar's error streams: the run's, row e is episode e0 + e
+    W.pcfg[1] = exact
+    W.pcfg[2] = m.e0
+    return UPLBriefing(**common_brief(m), obj_chart=(W.site if exact else W.chart).copy(),
+                       slot_off=W.slot_off.copy(), quorum=P.quorum, attach_radius=P.att_r,
+                       attach_dwell=P.dwell_s, detach_radius=P.det_r, sink_speed=P.sink,
+                       success_depth=P.succ_d, hold_radius=P.hold_r, survey_std=P.survey_std,
+                       p_range=P.p_range)
+
+
+class UPLTeamObs(NamedTuple):
+    """UPL's team observation (:data:`TEAM_FIELDS`): views of the team's object estimate,
+    updated by :func:`sense` every step."""
+    obj_est: np.ndarray     # (E, 6) the object's centre (x, y, z) m and velocity m s-1
+    obj_det: np.ndarray     # (E,) int64 1 once the team has a fix of the object
+
+
+#: The team observation's fields: name -> (shape, unit, meaning).
+TEAM_FIELDS = {
+    "obj_est": ("(E, 6)", "m, m s-1", "the team's estimate of the object: its centre (world x "
+                "east, y down, z north; the navigation's frame) and velocity; the chart at "
+                "rest before the first fix"),
+    "obj_det": ("(E,)", "", "1 once the team has a sonar fix of the object"),
+}
+
+
+def team_obs(W: UPLWork) -> UPLTeamObs:
+    """The team observation: views of ``W.oest`` and ``W.odet`` (:func:`sense` updates them).
+
+    Parameters
+    ----------
+    W : UPLWork
+        The task's per-episode work arrays (:func:`make`).
+
+    Returns
+    -------
+    UPLTeamObs
+    """
+    return UPLTeamObs(W.oest, W.odet)
+
+
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
     """Put the object at its site, at rest on the floor, clear the attachments, and start
-    the method's object estimate from the chart.
+    the team's object estimate from the chart.
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start. The
     estimate's prior: the charted centre at rest, with the survey's stated error
@@ -785,7 +917,7 @@ def begin(grid, P, W, state, e):
         W.dwell[e, i] = 0.0
         W.dslot[e, i] = -1
     W.t_att[e] = -1.0
-    # the method's prior of the object: the chart, at rest, with the survey's stated error
+    # the team's prior of the object: the chart, at rest, with the survey's stated error
     # (horizontal) and the charted seafloor's (vertical, SITE_PRIOR_STD_Y_M)
     for c in range(3):
         W.oest[e, c] = W.chart[e, c]
@@ -794,12 +926,9 @@ def begin(grid, P, W, state, e):
         W.ocov[e, c, 0] = sd * sd + 1e-6
         W.ocov[e, c, 1] = 0.0
         W.ocov[e, c, 2] = 1e-6
-        W.hsite[e, c] = 0.0
     W.odet[e] = 0
     W.fixk[e] = -1
     W.kf[e] = -1
-    W.srch[e, 0] = 0.0
-    W.srch[e, 1] = 0.0
     return False
 
 
@@ -895,24 +1024,6 @@ NAV_STD_M = 0.15
 QA_REST = 0.02
 QA_LIFT = 0.2
 
-def perception_setup(W, LP) -> None:
-    """What the method perceives of the object (``W.pcfg``): the run seed of the sonar's
-    error stream, whether it perceives the object exactly (``LP.sens.true_target``: the
-    oracle and the ``true_target`` ablation) and the cell's episode of row 0. Called before
-    the first step (a policy's ``prepare``).
-
-    Parameters
-    ----------
-    W : UPLWork
-        The task's per-episode work arrays; ``pcfg`` written.
-    LP : LoopParams or None
-        The loop's params (:class:`oneocean.tasks.loop.LoopParams`); None: nothing is set.
-    """
-    if LP is not None:
-        W.pcfg[0] = int(LP.seed)
-        W.pcfg[1] = int(LP.sens.true_target != 0)
-        W.pcfg[2] = int(LP.e0)
-
 
 @hot_kernel(inline="always")
 def _filter(P, W, state, e):
@@ -957,15 +1068,14 @@ def _filter(P, W, state, e):
 
 
 @hot_kernel(inline="always")
-def perceive(P, W, state, e):
-    """Fuse the latest sonar fixes into the object's estimate, once per set of fixes
+def perceive(P, W, X, e):
+    """Fuse the latest sonar fixes into the team's object estimate, once per set of fixes
     (``W.fixk`` / ``W.kf``).
 
-    Exact for a method that perceives the object exactly (``W.pcfg[1]``,
-    :func:`perception_setup`), else a constant-velocity Kalman filter per axis with the
-    fixes placed at the agents' known positions ``state``. Called by the observation cue and
-    by the fused policy's ``plan``, so a method acting through the step API gets the same
-    estimate (one step later).
+    Exact for a method that perceives the object exactly (``W.pcfg[1]``, :func:`brief`),
+    else a constant-velocity Kalman filter per axis with the fixes placed at the agents'
+    known positions ``X`` (module docstring). Called by :func:`sense` every step, for every
+    method.
 
     Parameters
     ----------
@@ -974,7 +1084,7 @@ def perceive(P, W, state, e):
     W : UPLWork
         The task's per-episode work arrays (:func:`make`); ``oest``, ``ocov``, ``odet`` and
         ``kf`` updated.
-    state : (E, N, STATE_DIM) float64
+    X : (E, N, STATE_DIM) float64
         The vehicle states the method knows (layout: :mod:`oneocean.engine.dynamics`).
     e : int
         Episode index.
@@ -988,21 +1098,18 @@ def perceive(P, W, state, e):
             W.oest[e, 3 + c] = W.vobj[e, c]
         W.odet[e] = 1
     else:
-        _filter(P, W, state, e)
+        _filter(P, W, X, e)
 
 
 @hot_kernel(inline="always")
-def cue(grid, P, W, state, e, k, i):
-    """The goal cue: the agent's slot as the method knows it.
+def cue(grid, P, W, X, e, k, i):
+    """Agent ``i``'s cue: its slot on the team's object estimate (the task's own guidance).
 
-    Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe. The slot is
-    placed on the method's object estimate ``W.oest``, which has fused every sonar fix up to
-    the last step (:func:`perceive`, so a policy acting through the step API perceives the
-    object as the fused heuristic does): the agent's own slot when attached, else the
-    method's target (the nearest slot when no fused method assigns one). During the lift
-    (the agent attached, the quorum held) the cue is where the lift takes its slot, at the
-    object's success depth: the vertical goal the heuristic flies at full speed (what a
-    learner must see to start the lift).
+    Env hook (:mod:`oneocean.tasks.loop`), after :func:`sense` updated the estimate. The
+    agent's own slot while attached; else the nearest slot (to its navigation estimate) that
+    no agent holds. While the agent is attached and the quorum holds (the lift), the slot at
+    the surface (the object's centre ``SLOT_RISE_M`` deep, above the success depth): the
+    vertical goal of the lift. No probe (NaN).
 
     Parameters
     ----------
@@ -1012,9 +1119,9 @@ def cue(grid, P, W, state, e, k, i):
         The task's params (:func:`make`).
     W : UPLWork
         The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (its navigation estimate; the truth for
-        the oracle); layout: :mod:`oneocean.engine.dynamics`.
+    X : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (its navigation estimate; the truth for the
+        oracle); layout: :mod:`oneocean.engine.dynamics`.
     e : int
         Episode index.
     k : int
@@ -1029,26 +1136,69 @@ def cue(grid, P, W, state, e, k, i):
     probe : float
         NaN (the task has no field).
     """
-    perceive(P, W, state, e)
     off = W.slot_off[e]
     ox = W.oest[e, 0]
     oy = W.oest[e, 1]
     oz = W.oest[e, 2]
+    n_att = 0
+    for i2 in range(X.shape[1]):
+        if W.att[e, i2] >= 0:
+            n_att += 1
     j = W.att[e, i]
-    if j < 0:
-        j = W.target[e, i]
     if j < 0:
         best = np.inf
         for j2 in range(off.shape[0]):
-            d2 = ((state[e, i, 0] - ox - off[j2, 0]) ** 2
-                  + (state[e, i, 1] - oy - off[j2, 1]) ** 2
-                  + (state[e, i, 2] - oz - off[j2, 2]) ** 2)
+            if W.owner[e, j2] >= 0:
+                continue
+            d2 = ((X[e, i, 0] - ox - off[j2, 0]) ** 2
+                  + (X[e, i, 1] - oy - off[j2, 1]) ** 2
+                  + (X[e, i, 2] - oz - off[j2, 2]) ** 2)
             if d2 < best:
                 best = d2
                 j = j2
-    if W.att[e, i] >= 0 and W.n_att[e] >= P.quorum:   # lifting: the slot at the surface
-        oy = min(oy, P.succ_d)
+    elif n_att >= P.quorum:   # lifting: the slot at the surface
+        oy = SLOT_RISE_M
+    if j < 0:   # every slot held (a team larger than the slots): no cue
+        return math.nan, math.nan, math.nan, math.nan
     return ox + off[j, 0], oy + off[j, 1], oz + off[j, 2], math.nan
+
+
+@hot_kernel(inline="always")
+def sense(grid, P, W, X, state, O, e, k):
+    """The team's object estimate (:func:`perceive`, on this step's sonar fixes) and the
+    task's observation fields (:data:`OBS_EXTRA`) of every agent. Env hook
+    (:mod:`oneocean.tasks.loop`), before the cue.
+
+    Parameters
+    ----------
+    grid : Grid
+        The grid export (unused).
+    P, W
+        The task's params and work arrays (:func:`make`).
+    X : (E, N, STATE_DIM) float64
+        The vehicle states the method knows (the truth for the oracle).
+    state : (E, N, STATE_DIM) float64
+        True vehicle states (unused).
+    O : (E, N, D) float64
+        The observation; the columns from ``OBS_DIM`` of episode ``e`` written.
+    e : int
+        Episode index.
+    k : int
+        Step index.
+    """
+    perceive(P, W, X, e)
+    est = W.oest[e]
+    det = float(W.odet[e])
+    for i in range(X.shape[1]):
+        o = O[e, i]
+        o[OBS_DIM] = det
+        o[OBS_DIM + 1] = est[0] - X[e, i, 0]
+        o[OBS_DIM + 2] = est[1] - X[e, i, 1]
+        o[OBS_DIM + 3] = est[2] - X[e, i, 2]
+        o[OBS_DIM + 4] = est[3]
+        o[OBS_DIM + 5] = est[4]
+        o[OBS_DIM + 6] = est[5]
+        o[OBS_DIM + 7] = float(W.att[e, i])
 
 
 @hot_kernel(inline="always")

@@ -66,10 +66,29 @@ class SteppedEpisodes(Episodes):
         self._judge = self.LP._replace(phase=JUDGE)
         self.trace = [self.state.copy()] if trace else None
 
-    def _call(self, LP, k_stop: int) -> None:
-        self.kern._kernel(self.grid, self.vehicle.params, LP, self.P, self.W, self.M, self.LS,
-                         self.t0, self.state, self.cmd, self.ext, self.obs, self.act, self.res,
-                         int(k_stop), 0, self.n_episodes)
+    #: No fused step API call: the step API steps these episodes through :meth:`step_observe`.
+    env_step = None
+
+    def step_observe(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
+        """Advance every running episode by one step (this backend's physics).
+
+        Parameters
+        ----------
+        lo, hi : int
+            Unused (every running episode steps).
+
+        Returns
+        -------
+        (E, N, D) float64
+            The next observation ``C.O``.
+        """
+        self.run(-1)
+        return self.C.O
+
+    def _phase(self, LP, k_stop: int) -> None:
+        args = self._args()
+        self.kern._kernel(*args[:2], LP, *args[3:], self._no_io, int(k_stop), 0,
+                          self.n_episodes)
 
     def run(self, k_stop: int | None = None) -> "SteppedEpisodes":
         """Advance every running episode up to step ``k_stop``, one step at a time.
@@ -105,12 +124,12 @@ class SteppedEpisodes(Episodes):
     def _step(self, live: np.ndarray, k_stop: int) -> None:
         """One step of the ``live`` episodes: decide, move, judge."""
         LS = self.LS
-        self._call(self._decide, k_stop)
+        self._phase(self._decide, k_stop)
         moving = live & (LS.status != FINISHED)   # a task's begin may end an episode
         codes = self.physics.step(self.state, self.cmd, LS.cw, live=moving)
         codes = np.where(codes != OK, codes, self._feasibility())
         LS.code[moving] = codes[moving]
-        self._call(self._judge, k_stop)
+        self._phase(self._judge, k_stop)
         if self.trace is not None:
             self.trace.append(self.state.copy())
 

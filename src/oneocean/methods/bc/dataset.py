@@ -1,9 +1,10 @@
 """The BC training set: the heuristic teacher's (observation, action) pairs.
 
 For every (task, tier) and training seed, :func:`teacher_rows` runs the heuristic on the
-cell's episodes of that seed with observations recorded *inside the loop* (the observation
-of every agent from its true pre-step state, and the action the teacher requested there:
-:func:`oneocean.tasks.common.observe`), never reconstructed from positions afterwards. Rows
+cell's episodes of that seed with observations recorded *inside the loop* (the public
+observation every agent got at the step's start -- :data:`oneocean.tasks.common.OBS_FIELDS`
+then the task's own fields, as ``extra1 ..`` -- and the action the teacher requested there),
+never reconstructed from positions afterwards; ``t_lim_s`` is the briefing's time limit. Rows
 are kept every ``stride`` steps while the episode runs; a cell with more than ``max_rows``
 rows keeps an evenly spaced subset. Training seeds must differ from the evaluation seed
 (:data:`oneocean.vocab.EVALUATION_SEED`; :func:`check_seeds`).
@@ -15,9 +16,14 @@ import numpy as np
 import pandas as pd
 
 from ...errors import ConfigError, NotApplicable
-from ...tasks.common import ACT_FIELDS, OBS_FIELDS
+from ...tasks.common import ACT_FIELDS, OBS_DIM, OBS_FIELDS
+from ...tasks.learned import N_EXTRA
 
-#: Identifying columns of a dataset row, then OBS_FIELDS, ACT_FIELDS and ``v_max_ms``.
+#: The dataset's columns of the task's own observation fields (NaN after the task's last).
+EXTRA_FIELDS = tuple(f"extra{j + 1}" for j in range(N_EXTRA))
+
+#: Identifying columns of a dataset row, then OBS_FIELDS, EXTRA_FIELDS, ACT_FIELDS,
+#: ``v_max_ms`` and ``t_lim_s``.
 KEY_COLUMNS = ("task", "tier", "seed", "episode", "step", "agent")
 
 
@@ -109,9 +115,12 @@ def teacher_rows(cell, seed: int, episodes: int, dynamics: str, stride: int,
                        "agent": i.ravel()[idx].astype(np.int64)})
     for j, name in enumerate(OBS_FIELDS):
         df[name] = o[:, j]
+    for j, name in enumerate(EXTRA_FIELDS):
+        df[name] = o[:, OBS_DIM + j] if OBS_DIM + j < o.shape[1] else np.nan
     for j, name in enumerate(ACT_FIELDS):
         df[name] = a[:, j]
     df["v_max_ms"] = float(cell.vehicle.v_max)
+    df["t_lim_s"] = float(cell.params["time_limit_s"])
     return df
 
 

@@ -31,6 +31,7 @@ import pandas as pd
 from ...errors import ConfigError
 from ...tasks.common import ACT_FIELDS, OBS_FIELDS
 from ...tasks.learned import N_BASE, feature_names, features_rows
+from .dataset import EXTRA_FIELDS
 
 
 def task_order(tasks) -> list[str]:
@@ -70,14 +71,15 @@ def features(df: pd.DataFrame, tasks: list[str]) -> np.ndarray:
     (R, F) float64
         ``F = N_BASE + len(tasks)`` features per row.
     """
-    obs = np.ascontiguousarray(df[list(OBS_FIELDS)].to_numpy(np.float64))
+    obs = np.ascontiguousarray(df[list(OBS_FIELDS + EXTRA_FIELDS)].to_numpy(np.float64))
     out = np.zeros((len(df), N_BASE + len(tasks)))
     task_idx = df["task"].map({t: j for j, t in enumerate(tasks)}).to_numpy(np.int64)
+    t_lim = df["t_lim_s"].to_numpy(np.float64)
     for j in range(len(tasks)):
-        rows = np.flatnonzero(task_idx == j)
-        if rows.size:
+        for tl in np.unique(t_lim[task_idx == j]):
+            rows = np.flatnonzero((task_idx == j) & (t_lim == tl))
             block = np.zeros((rows.size, out.shape[1]))
-            features_rows(np.ascontiguousarray(obs[rows]), j, len(tasks), block)
+            features_rows(np.ascontiguousarray(obs[rows]), float(tl), j, len(tasks), block)
             out[rows] = block
     return out
 

@@ -1,5 +1,12 @@
 """FH heuristic and oracle: herd the school from behind, agents on an arc around it.
 
+A policy of the public view only (:class:`oneocean.tasks.loop.Ctx`): the briefing
+(:class:`oneocean.tasks.fh.FHBriefing`: the zone, the school's depth), every agent's
+observation (its navigation estimate, its current estimate and its sonar reading of the
+school, :data:`oneocean.tasks.fh.OBS_EXTRA`) and the team observation
+(:class:`oneocean.tasks.fh.FHTeamObs`: the school's velocity and the current at the school,
+for a method given the target or the true current).
+
 Steer from behind: the school should move toward the zone centre at the planned ground
 velocity ``v = min(PUSH_SPEED_MS, KP_PUSH * distance)``; the needed swim is ``w``. The eight
 agents take slots on an arc of ``ARC_RAD`` centred behind the school (opposite to ``w``) at
@@ -8,7 +15,7 @@ agents take slots on an arc of ``ARC_RAD`` centred behind the school (opposite t
 to slots in angular order around the school (no crossings) and travel around it (waypoints at
 most 45 degrees of arc ahead on the slot circle), not through it. Each agent seeks its
 waypoint with P-control, feed-forward of the school's velocity and of its current estimate.
-The push direction is frozen while the centroid is within ``deadband * zone_radius_m`` of the
+The push direction is frozen while the centroid is within ``deadband * zone_radius`` of the
 centre.
 
 Within ``I_ZONE_M`` of the zone centre an integral action on the school's velocity error
@@ -19,19 +26,18 @@ velocity toward the zone with ``|w| <= ORACLE_SWIM_MS`` (the school crabs across
 same ramp); the arc turns at most ``SLEW_RAD_S``; full ``v_max``, crab steering of the
 vehicles (:func:`~oneocean.tasks.common.seek_max`).
 
-What the school is (centroid, velocity, spread: ``W.sest``). Given the target
-(``W.sinfo[e, 1]``: the oracle, the ``true_target`` ablation) the truth (``W.school``, the
-fish). Otherwise the team's sonar readings (``W.sfix``, the task's perception model
-``sensors.yaml`` ``perception.fh_school``: each agent's offset to the school's echo centroid
-and the echo's extent): every step the readings are placed where each agent knows it is
-(its navigation estimate) and averaged, and an alpha-beta tracker (steady-state
-constant-velocity Kalman filter, :func:`tracker_gains`) filters the centroid and estimates
-its velocity; the extent is smoothed with the same alpha. Before the first reading the
-agents hold still. The current at the school: the true current at the known centroid given
-the true current (``W.sinfo[e, 2]``), else the team's mean current estimate (``W.cest``, each
-agent's at its last step; the agents are within a few tens of metres of the school).
-Heuristic and oracle have the same params: they differ in information only, and given the
-truth the heuristic is the oracle.
+What the school is (centroid, velocity, spread: the memory's ``sest``). Given the target
+(``B.sens.true_target``: the oracle, the ``true_target`` ablation) the team observation's
+exact fix and velocity. Otherwise the team's sonar readings: every step each seen reading is
+placed where its agent knows it is (its navigation estimate plus the reading's offset) and
+the placements are averaged, and an alpha-beta tracker (steady-state constant-velocity
+Kalman filter, :func:`tracker_gains`) filters the centroid and estimates its velocity; the
+extent is smoothed with the same alpha. Before the first reading the agents hold still. The
+current at the school: given the true current (``B.sens.true_current``) the team
+observation's (the truth at the school's last team fix), else the team's mean current
+estimate (``cest``, each agent's at its last step; the agents are within a few tens of metres
+of the school). Heuristic and oracle have the same params: they differ in information only,
+and given the truth the heuristic is the oracle.
 
 Constants (calibrated for the BlueROV2 Heavy, 0.85 m/s, and the fish model's 0.8 m/s
 sustained flee with a 15 m reaction radius): the school is pushed gently (``PUSH_SPEED_MS``
@@ -41,9 +47,9 @@ for repositioning and can get ahead of it; the slots sit at the edge of the flee
 does not split it) and back off to ``BACKOFF_M`` 20 m (outside the 15 m flee radius) when
 no push is needed.
 
-The waypoints are the plan token: ``plan`` writes every agent's waypoint ``W.tgt`` (the
-observation's goal cue) from the arc state ``W.herd`` (angle behind the school, integral
-standoff, slot radius) and the angular matching ``W.order`` / ``W.keys`` / ``W.rank``.
+The method's memory (:class:`FHMemory`): the school estimate, the arc state (angle behind
+the school, integral standoff, slot radius), the angular matching, every agent's waypoint
+(``plan`` writes them, ``act`` follows them) and every agent's last current estimate.
 """
 
 from __future__ import annotations
@@ -51,9 +57,11 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numpy as np
+
 from ...engine._jit import hot_kernel
-from ...models.fish import school_spread
-from ...tasks.common import current_at, seek_max
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
+from ...tasks.fh import O_SDX, O_SDZ, O_SEEN, O_SSPREAD
 from . import SENSING  # noqa: F401
 
 #: Slot-tracking proportional gain, s-1.
@@ -178,34 +186,62 @@ def tracker_gains(acc_std: float, fix_std: float, dt: float) -> tuple[float, flo
     return alpha, beta
 
 
-def params(method: str, tier: dict, vehicle) -> FHPolicy:
-    """The policy's params: the same for every method.
-
-    Heuristic and oracle differ in information only (the sensing flags the task copies into
-    ``W.sinfo``).
+def params(method: str, B) -> FHPolicy:
+    """The policy's params: the same for every method (they differ in information only).
 
     Parameters
     ----------
     method : str
         The fused method, ``"heuristic"`` or ``"oracle"``
         (:data:`oneocean.methods.heuristic.SENSING`).
-    tier : dict
-        The cell's tier parameters plus ``dt_s`` and ``v_max``
-        (:attr:`oneocean.tasks.Cell.params`).
-    vehicle : Vehicle
-        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
-        Reads ``dt_s`` (the tracker's gains, :func:`tracker_gains`).
+    B : FHBriefing
+        The briefing (the vehicle's speed limit; the step, for the tracker's gains,
+        :func:`tracker_gains`).
 
     Returns
     -------
     FHPolicy
         Budget ``v_max``, the module's constants and the tracker's gains.
     """
-    v_max = float(vehicle.v_max)
-    fa, fb = tracker_gains(SCHOOL_ACC_STD, FIX_STD_M, float(tier["dt_s"]))
+    v_max = float(B.v_max)
+    fa, fb = tracker_gains(SCHOOL_ACC_STD, FIX_STD_M, float(B.dt))
     return FHPolicy(v_max, KP, ARC_RAD,
                     STANDOFF_M, SPREAD_GAIN, BACKOFF_M, PUSH_SPEED_MS, ORACLE_SWIM_MS, KP_PUSH,
                     DEADBAND_FRAC, STANDOFF_KS, STANDOFF_MIN_M, SLEW_RAD_S, I_ZONE_M, fa, fb, fa)
+
+
+class FHMemory(NamedTuple):
+    """The method's memory ``H`` (N agents)."""
+    sest: np.ndarray    # (E, 6) school estimate: centroid x, z (m), velocity (m s-1), spread
+                        #   (m), 1 once initialised
+    herd: np.ndarray    # (E, 3) angle behind the school (rad), integral standoff (m), slot
+                        #   radius (m)
+    order: np.ndarray   # (E, N) int64 agents in angular order around the school
+    keys: np.ndarray    # (E, N) angle of each agent relative to the arc centre, rad
+    rank: np.ndarray    # (E, N) int64 arc slot of each agent
+    tgt: np.ndarray     # (E, N, 2) waypoint (x, z) of each agent, m
+    cest: np.ndarray    # (E, N, 2) each agent's current estimate at its last step, m s-1
+
+
+def memory(B, M: FHPolicy) -> FHMemory:
+    """A fresh memory: no school estimate yet, no current estimates (zeros).
+
+    Parameters
+    ----------
+    B : FHBriefing
+        The briefing (episodes, team size).
+    M : FHPolicy
+        The policy's params.
+
+    Returns
+    -------
+    FHMemory
+    """
+    n_ep = B.zone.shape[0]
+    n = int(B.n_agents)
+    return FHMemory(np.zeros((n_ep, 6)), np.zeros((n_ep, 3)), np.zeros((n_ep, n), np.int64),
+                    np.zeros((n_ep, n)), np.zeros((n_ep, n), np.int64), np.zeros((n_ep, n, 2)),
+                    np.zeros((n_ep, n, 2)))
 
 
 @hot_kernel(inline="always")
@@ -213,63 +249,47 @@ def _wrap(a):
     return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
 
-@hot_kernel
-def _current(grid, x, y, z, t):
-    """:func:`~oneocean.tasks.common.current_at`, not inlined (once per step)."""
-    return current_at(grid, x, y, z, t)
-
-
 @hot_kernel(inline="always")
-def plan(grid, P, W, M, state, e, k, t):
+def plan(C, e, k):
     """The team's herding plan for episode ``e``: school estimate, arc and slot waypoints.
 
-    The school estimate ``W.sest[e]`` (the truth, or the team's tracked sonar readings); push
-    direction, arc angle and standoff (``W.herd[e]``); agents matched to arc slots
-    (``W.order``, ``W.keys``, ``W.rank``); every agent's waypoint ``W.tgt[e]`` (module doc).
-    Before the first sonar reading every agent's waypoint is its own position.
+    The school estimate ``H.sest[e]`` (the exact fix given the target, or the team's tracked
+    sonar readings); push direction, arc angle and standoff (``H.herd[e]``); agents matched to
+    arc slots (``H.order``, ``H.keys``, ``H.rank``); every agent's waypoint ``H.tgt[e]``
+    (module doc). Before the first sonar reading every agent's waypoint is its own position.
+    Policy hook (:mod:`oneocean.tasks.loop`).
 
     Parameters
     ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FHParams
-        The task's params (:func:`oneocean.tasks.fh.make`).
-    W : FHWork
-        The task's per-episode work arrays (:func:`oneocean.tasks.fh.make`); the policy's state
-        (``sest``, ``herd``, ``order``, ``keys``, ``rank``, ``tgt``) is written in place.
-    M : FHPolicy
-        This policy's params (:func:`params`).
-    state : (E, N, STATE_DIM) float64
-        Vehicle states as the method knows them (its navigation estimate; the truth for the
-        oracle); layout in :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    C : Ctx
+        The policy's context (:class:`oneocean.tasks.loop.Ctx`): briefing, observation, team
+        observation, params, memory (written).
+    e, k : int
+        Episode and step.
     """
-    S = state[e]
-    n = S.shape[0]
-    F = W.fish[e, W.fcur[e]]
-    H = W.herd[e]
-    OR = W.order[e]
-    KY = W.keys[e]
-    RK = W.rank[e]
-    TG = W.tgt[e]
-    zx = W.zone[e, 0]
-    zz = W.zone[e, 1]
-    zr = P.zone_r
-    dt = P.dt
-    SE = W.sest[e]
+    B = C.B
+    M = C.M
+    H = C.H
+    O = C.O[e]
+    n = O.shape[0]
+    HD = H.herd[e]
+    OR = H.order[e]
+    KY = H.keys[e]
+    RK = H.rank[e]
+    TG = H.tgt[e]
+    zx = B.zone[e, 0]
+    zz = B.zone[e, 1]
+    zr = B.zone_radius
+    dt = B.dt
+    SE = H.sest[e]
     first = SE[5] == 0.0   # the first plan with a school estimate
-    if W.sinfo[e, 1] != 0:
-        # the school perceived exactly (oracle, true_target ablation)
-        SE[0] = W.school[e, 0]
-        SE[1] = W.school[e, 1]
-        SE[2] = W.school[e, 2]
-        SE[3] = W.school[e, 3]
-        SE[4] = school_spread(F[0], F[1])
+    if B.sens.true_target != 0:
+        # the school perceived exactly (oracle, true_target ablation): the team's fix
+        SE[0] = C.T.fix[e, 0]
+        SE[1] = C.T.fix[e, 1]
+        SE[2] = C.T.vel[e, 0]
+        SE[3] = C.T.vel[e, 1]
+        SE[4] = C.T.fix[e, 2]
         SE[5] = 1.0
     else:
         # fuse the team's sonar readings (each agent's offset to the echo centroid from
@@ -279,16 +299,16 @@ def plan(grid, P, W, M, state, e, k, t):
         mz = 0.0
         ms = 0.0
         for j in range(n):
-            if W.sfix[e, j, 0] != 0.0:
+            if O[j, O_SEEN] != 0.0:
                 m += 1.0
-                mx += S[j, 0] + W.sfix[e, j, 1]
-                mz += S[j, 2] + W.sfix[e, j, 2]
-                ms += W.sfix[e, j, 3]
+                mx += O[j, O_X] + O[j, O_SDX]
+                mz += O[j, O_Z] + O[j, O_SDZ]
+                ms += O[j, O_SSPREAD]
         if SE[5] == 0.0:
             if m == 0.0:
                 for j in range(n):   # nothing seen yet: hold still
-                    TG[j, 0] = S[j, 0]
-                    TG[j, 1] = S[j, 2]
+                    TG[j, 0] = O[j, O_X]
+                    TG[j, 1] = O[j, O_Z]
                 return
             SE[0] = mx / m
             SE[1] = mz / m
@@ -311,8 +331,8 @@ def plan(grid, P, W, M, state, e, k, t):
     czs = SE[1]
     vcx = SE[2]
     vcz = SE[3]
-    th_back = H[0]
-    r_int = H[1]
+    th_back = HD[0]
+    r_int = HD[1]
     push = M.push
     oswim = M.oswim
     kpp = M.kpp
@@ -326,19 +346,21 @@ def plan(grid, P, W, M, state, e, k, t):
     dist = math.sqrt(dxz * dxz + dzz * dzz)
     # push direction: the swim ``w`` the school needs: the fastest ground speed toward the
     # zone whose swim, against the current at the centroid, is at most ``oswim`` (crab
-    # steering of the school), ramped down near the zone. The current there: the truth at
-    # the known centroid (given the true current), or the team's mean current estimate at
-    # its last step (the agents are within a few tens of metres of the school)
+    # steering of the school), ramped down near the zone. The current there: the team
+    # observation's (the truth at the school's fix) given the true current, or the team's
+    # mean current estimate at its last step (the agents are within a few tens of metres of
+    # the school)
     ux = dxz / dist if dist > 1e-9 else 0.0
     uz = dzz / dist if dist > 1e-9 else 0.0
-    if W.sinfo[e, 2] != 0:
-        ce, cn = _current(grid, cxs, P.depth, czs, t)
+    if B.sens.true_current != 0:
+        ce = C.T.cur[e, 0]
+        cn = C.T.cur[e, 1]
     else:
         ce = 0.0
         cn = 0.0
         for j in range(n):
-            ce += W.cest[e, j, 0]
-            cn += W.cest[e, j, 1]
+            ce += H.cest[e, j, 0]
+            cn += H.cest[e, j, 1]
         ce /= n
         cn /= n
     cpar = ce * ux + cn * uz
@@ -386,13 +408,13 @@ def plan(grid, P, W, M, state, e, k, t):
         r_int = 0.0
     r_adj += r_int
     r_slot = r_adj + M.sgain * spread
-    H[0] = th_back
-    H[1] = r_int
-    H[2] = r_slot
+    HD[0] = th_back
+    HD[1] = r_int
+    HD[2] = r_slot
     # match agents to arc slots in angular order around the school
     for i in range(n):
         OR[i] = i
-        KY[i] = _wrap(math.atan2(S[i, 0] - cxs, S[i, 2] - czs) - th_back)
+        KY[i] = _wrap(math.atan2(O[i, O_X] - cxs, O[i, O_Z] - czs) - th_back)
     for i in range(1, n):
         j = i
         while j > 0 and KY[OR[j - 1]] > KY[OR[j]]:
@@ -417,39 +439,21 @@ def plan(grid, P, W, M, state, e, k, t):
 
 
 @hot_kernel(inline="always")
-def act(grid, P, W, M, state, e, k, i, t, pe, pn):
+def act(C, e, k, i):
     """Seek the agent's waypoint with feed-forward of the school's velocity and the current.
 
-    Records the agent's current estimate in ``W.cest[e, i]`` (the team's current at the school
-    in the next :func:`plan`), then :func:`~oneocean.tasks.common.seek_max` toward
-    ``W.tgt[e, i]`` at the school's depth ``P.depth``, the school's estimated velocity fed
-    forward with the current.
+    Records the agent's current estimate (its observation's) in ``H.cest[e, i]`` (the team's
+    current at the school in the next :func:`plan`), then
+    :func:`~oneocean.tasks.common.seek_max` toward ``H.tgt[e, i]`` at the school's depth
+    ``B.depth``, the school's estimated velocity fed forward with the current. Policy hook
+    (:mod:`oneocean.tasks.loop`).
 
     Parameters
     ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FHParams
-        The task's params (:func:`oneocean.tasks.fh.make`).
-    W : FHWork
-        The task's per-episode work arrays (:func:`oneocean.tasks.fh.make`); reads ``tgt`` and
-        ``sest``, writes ``cest``.
-    M : FHPolicy
-        This policy's params (:func:`params`).
-    state : (E, N, STATE_DIM) float64
-        Vehicle states as the method knows them (its navigation estimate; the truth for the
-        oracle); layout in :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-    t : float
-        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
-    pe, pn : float
-        The method's current estimate at the agent, east and north, m s-1 (the true current
-        for the oracle).
+    C : Ctx
+        The policy's context (:class:`oneocean.tasks.loop.Ctx`).
+    e, k, i : int
+        Episode, step and agent.
 
     Returns
     -------
@@ -459,12 +463,17 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     psi : float
         Commanded heading, rad (NaN: free).
     """
-    s = state[e, i]
-    gx = W.tgt[e, i, 0]
-    gz = W.tgt[e, i, 1]
-    vcx = W.sest[e, 2]
-    vcz = W.sest[e, 3]
-    W.cest[e, i, 0] = pe
-    W.cest[e, i, 1] = pn
-    ax, ay, az = seek_max(s[0], s[1], s[2], gx, P.depth, gz, M.speed, M.kp, pe - vcx, pn - vcz)
+    M = C.M
+    H = C.H
+    o = C.O[e, i]
+    gx = H.tgt[e, i, 0]
+    gz = H.tgt[e, i, 1]
+    vcx = H.sest[e, 2]
+    vcz = H.sest[e, 3]
+    pe = o[O_CE]
+    pn = o[O_CN]
+    H.cest[e, i, 0] = pe
+    H.cest[e, i, 1] = pn
+    ax, ay, az = seek_max(o[O_X], o[O_DEPTH], o[O_Z], gx, C.B.depth, gz, M.speed, M.kp,
+                          pe - vcx, pn - vcz)
     return ax, ay, az, math.nan

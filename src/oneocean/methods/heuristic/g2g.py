@@ -132,6 +132,15 @@ def plan_episode(B, M: G2GPolicy, e: int) -> routing.Route:
     briefing's field; :func:`straight_plan` where no plan holds: no speed, no field (the
     mission lies off the product), or no passable route through it.
 
+    Parameters
+    ----------
+    B : G2GBriefing
+        The briefing.
+    M : G2GPolicy
+        The policy's params.
+    e : int
+        Episode.
+
     Returns
     -------
     Route

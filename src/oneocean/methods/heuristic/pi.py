@@ -1,21 +1,30 @@
 """PI heuristic and oracle: follow one's pipeline section low over the seafloor, detect plume
 events in one's own readings and claim a leak position for each.
 
+A policy of the public view only (:class:`oneocean.tasks.loop.Ctx`): the briefing
+(:class:`oneocean.tasks.pi.PIBriefing`: the pipeline chart, the sections, the sensor's
+threshold, the nautical chart), each agent's observation (its navigation estimate, depth,
+current estimate and its latest reading, the probe) and the report it files (``C.R``, the
+task's :data:`~oneocean.tasks.pi.REPORT_DOC`). Its survey plan and event memory are its own
+(:class:`PIMemory`).
+
 Survey plan (:func:`survey`, the waypoints; ``act``): agent ``i`` follows the pipeline polyline
 of its section (the i-th of N equal arc-length sections) with line-of-sight guidance (carrot
 ``LOOKAHEAD_M`` ahead, :func:`~oneocean.tasks.common.waypoint_carrot`), terrain-following at a
-low commanded altitude (never shallower than ``MIN_DEPTH_M``), crabbing against the sensed
-current (:func:`~oneocean.tasks.common.seek_max`, approach gain ``KP``) with the vehicle's full
-speed budget ``v_max``. The transit to the section start ends within ``ARRIVE_M`` (beyond a
-torpedo's turning circle: closer arrival radii make it orbit the start for ever). Past its last
-waypoint the agent holds there and declares its section finished.
+low commanded altitude over the chart's seafloor (never shallower than ``MIN_DEPTH_M``),
+crabbing against the sensed current (:func:`~oneocean.tasks.common.seek_max`, approach gain
+``KP``) with the vehicle's full speed budget ``v_max``. The transit to the section start ends
+within ``ARRIVE_M`` (beyond a torpedo's turning circle: closer arrival radii make it orbit the
+start for ever). Past its last waypoint the agent holds there and its section is finished.
+(The plan is the task's mission route, :func:`oneocean.tasks.pi.survey_route`: the task's cue
+is the same carrot.)
 
-Event detection (:func:`detect`; both methods, from the agent's own readings only: the env
-hands each reading over in ``W.sense``, and the method never reads the leaks or the field).
-While surveying (from the section's first waypoint until the section is finished), each
-agent processes the reading at its position at every decision if it is within ``ALT_BAND_M``
-of its commanded altitude (the plume's vertical profile is steep: the descent to the survey
-altitude inside a plume would look like a rise). Idle, it
+Event detection (:func:`detect`; both methods, from the agent's own readings only: the
+observation's probe, and the method never reads the leaks or the field). While surveying
+(from the section's first waypoint until the section is finished), each agent processes the
+reading at its position at every decision if it is within ``ALT_BAND_M`` of its commanded
+altitude (the plume's vertical profile is steep: the descent to the survey altitude inside a
+plume would look like a rise). Idle, it
 tracks the trough (smallest reading since its last event); a reading ``r >= thr`` (the
 sensor's detection threshold) that rises at least ``RISE_FRAC * thr`` above the trough opens an
 *event* (background ``b`` = the trough). The event logs its readings (position, value,
@@ -27,11 +36,12 @@ source); the trough restarts at the closing reading, so the next leak's rise on 
 decaying plume opens a new event.
 
 Claims (:func:`file_claim`, :func:`close_event`): every event files its own claim in the
-team's report ``W.claims`` (x, z, strength = the event's peak reading), updated at every
-reading while it is open. When the event closes (or the agent's section is finished), a claim
-whose final estimate lies within ``MERGE_M`` of another claim (the same plume seen twice: a
-teammate's event at a section boundary, or the agent's own event re-opened on one plume)
-merges into it, keeping the stronger event's estimate, and the report is compacted. The
+team's report (``C.R``: x, z, strength = the event's peak reading; the memory counts the
+claims filed, ``H.nclaim``, and keeps the report compact: rows ``[0, nclaim)``), updated at
+every reading while it is open. When the event closes (or the agent's section is finished), a
+claim whose final estimate lies within ``MERGE_M`` of another claim (the same plume seen
+twice: a teammate's event at a section boundary, or the agent's own event re-opened on one
+plume) merges into it, keeping the stronger event's estimate, and the report is compacted. The
 merge is decided on the final estimate, not the first: an event that opens on the decaying
 tail of one leak's plume, near that leak's claim, and climbs to the next leak keeps its
 own claim. An event still open when the agent's section ends whose estimate lies within
@@ -49,11 +59,6 @@ the position of the event's largest reading, is kept as an alternative estimator
 Both spend the full ``v_max``: they differ in information only. The heuristic's current
 estimate and its navigation (so the positions it logs and claims) come from the sensor models
 (:mod:`oneocean.sensing`: dead reckoning drifts along the pipe); the oracle's are the truth.
-Policy state lives in the task's work arrays (:class:`oneocean.tasks.pi.PIWork`): the plan
-tokens ``wps`` / ``wcount`` (each agent's survey waypoints, from :func:`survey`), ``widx``
-(the waypoint being followed), ``tgt`` (the step's carrot: the observation's goal cue),
-``done`` (section finished: the env ends the survey when every agent's is), the event memory
-``ev_*`` and the report ``claims`` / ``nclaim``.
 """
 
 from __future__ import annotations
@@ -65,7 +70,8 @@ import numpy as np
 
 from ...engine._jit import hot_kernel
 from ...engine.grid import sample_elevation
-from ...tasks.common import ARRIVE_M, seek_max, waypoint_carrot
+from ...tasks.common import (ARRIVE_M, O_CE, O_CN, O_DEPTH, O_PROBE, O_X, O_Z, seek_max,
+                             waypoint_carrot)
 from . import SENSING  # noqa: F401
 
 #: Commanded altitude above the seafloor, m: the lowest a survey AUV flies terrain-following
@@ -125,15 +131,18 @@ class PIPolicy(NamedTuple):
     estimator : int
         Leak estimator, :data:`PEAK` or :data:`ONSET` (:func:`peak_estimate`,
         :func:`onset_estimate`).
+    thr : float
+        The sensor's detection threshold, kg m-3 (the briefing's ``thr``).
     """
     budget: float       # speed budget through the water, m s-1
     kp: float           # approach gain, s-1
     alt: float          # commanded altitude above the seafloor, m
     look: float         # line-of-sight lookahead, m
     estimator: int      # PEAK or ONSET
+    thr: float          # the sensor's detection threshold, kg m-3
 
 
-def params(method: str, tier: dict, vehicle) -> PIPolicy:
+def params(method: str, B) -> PIPolicy:
     """The policy's params: the same for every method (they differ in information only).
 
     Parameters
@@ -141,57 +150,72 @@ def params(method: str, tier: dict, vehicle) -> PIPolicy:
     method : str
         The fused method, ``"heuristic"`` or ``"oracle"``
         (:data:`oneocean.methods.heuristic.SENSING`).
-    tier : dict
-        The cell's tier parameters plus ``dt_s`` and ``v_max``
-        (:attr:`oneocean.tasks.Cell.params`).
-    vehicle : Vehicle
-        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+    B : PIBriefing
+        The briefing (the vehicle's speed limit, the sensor's detection threshold).
 
     Returns
     -------
     PIPolicy
-        Budget ``v_max``, :data:`KP`, :data:`ALT_M`, :data:`LOOKAHEAD_M` and the
-        :data:`ONSET` estimator.
+        Budget ``v_max``, :data:`KP`, :data:`ALT_M`, :data:`LOOKAHEAD_M`, the
+        :data:`ONSET` estimator and the threshold.
     """
-    return PIPolicy(float(vehicle.v_max), KP, ALT_M, LOOKAHEAD_M, ONSET)
+    return PIPolicy(float(B.v_max), KP, ALT_M, LOOKAHEAD_M, ONSET, float(B.thr))
 
 
-def plan_tokens(grid, tier: dict, init: dict) -> dict:
-    """The plan the task carries for this policy (:func:`oneocean.tasks.pi.make`).
+class PIMemory(NamedTuple):
+    """The method's memory ``H``: every agent's survey plan and pointer, its event detector
+    and the count of the claims it filed in the report.
+
+    Attributes
+    ----------
+    wps : (E, N, V, 2) float64
+        Survey waypoints [x, z], m (:func:`survey`).
+    wcount : (E, N) int64
+        Waypoints of each agent.
+    widx : (E, N) int64
+        Waypoint being followed.
+    tgt : (E, N, 3) float64
+        The step's carrot, m.
+    done : (E, N) int64
+        1: the agent has finished its section.
+    nclaim : (E,) int64
+        Claims filed in the report (its rows ``[0, nclaim)``).
+    ev_on : (E, N) int64
+        1: a plume event is open.
+    ev_lvl : (E, N, 3) float64
+        Trough since the last event, event background, peak, kg m-3.
+    ev_pos : (E, N, 4) float64
+        Event origin [x, z] and peak position [x, z], m.
+    ev_n : (E, N) int64
+        Readings in the event buffer.
+    ev_buf : (E, N, MAX_EVENT, 4) float64
+        [x, z, value, downstream coordinate] of the event's readings.
+    ev_claim : (E, N) int64
+        The report row the open event files into (-1: none yet).
+    """
+    wps: np.ndarray         # (E, N, V, 2) survey waypoints [x, z], m
+    wcount: np.ndarray      # (E, N) int64 waypoints of each agent
+    widx: np.ndarray        # (E, N) int64 waypoint being followed
+    tgt: np.ndarray         # (E, N, 3) the step's carrot, m
+    done: np.ndarray        # (E, N) int64 1: the agent has finished its section
+    nclaim: np.ndarray      # (E,) int64 claims filed in the report
+    ev_on: np.ndarray       # (E, N) int64 1: a plume event is open
+    ev_lvl: np.ndarray      # (E, N, 3) trough since the last event, event background, peak
+    ev_pos: np.ndarray      # (E, N, 4) event origin [x, z] and peak position [x, z], m
+    ev_n: np.ndarray        # (E, N) int64 readings in the event buffer
+    ev_buf: np.ndarray      # (E, N, MAX_EVENT, 4) [x, z, value, downstream coordinate]
+    ev_claim: np.ndarray    # (E, N) int64 the report row the open event files into (-1: none)
+
+
+def survey(B):
+    """The survey plan of every agent: its section of the briefing's pipeline as waypoints,
+    from ``OVERLAP_M`` before the section's start (the first agent from the start itself) to
+    the section's end (:func:`oneocean.tasks.pi.survey_route`).
 
     Parameters
     ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        The cell's tier parameters plus ``dt_s`` and ``v_max``.
-    init : dict
-        The cell's episodes (:func:`oneocean.tasks.pi.reset`).
-        Reads ``poly`` and ``sections`` (:func:`survey`).
-
-    Returns
-    -------
-    dict
-        ``wps`` (E, N, V, 2) float64 and ``wcount`` (E, N) int64: every agent's survey
-        waypoints (:func:`survey`); ``max_events``: room for :data:`MAX_EVENT` event readings
-        per agent.
-    """
-    wps, wcount = survey(init)
-    return {"wps": wps, "wcount": wcount, "max_events": MAX_EVENT}
-
-
-def survey(init: dict):
-    """The survey plan of every agent: its section of the pipeline polyline as waypoints.
-
-    Each agent's waypoints run from ``OVERLAP_M`` before its section's start (the first agent
-    from the start itself) to the section's end.
-
-    Parameters
-    ----------
-    init : dict
-        The cell's episodes (:func:`oneocean.tasks.pi.reset`): ``poly`` (E, V, 2) pipeline
-        vertices [x, z], m, and ``sections`` (E, N, 2) the arc-length range of each agent's
-        section, m.
+    B : PIBriefing
+        The briefing (``pipeline`` (E, V, 2) and ``sections`` (E, N, 2), m).
 
     Returns
     -------
@@ -200,87 +224,50 @@ def survey(init: dict):
     wcount : (E, N) int64
         Waypoints of each agent.
     """
-    from ...tasks.pi import sub_polyline  # the task's geometry
+    from ...tasks.pi import survey_route  # the task's geometry
 
-    poly = np.asarray(init["poly"], dtype=np.float64)
-    sections = init["sections"]
-    n_ep, n_ag = sections.shape[:2]
-    secs = [[sub_polyline(poly[e], max(float(sections[e, i, 0]) - OVERLAP_M, 0.0)
-                          if i > 0 else float(sections[e, i, 0]), float(sections[e, i, 1]))
-             for i in range(n_ag)] for e in range(n_ep)]
-    n_max = max(len(s) for row in secs for s in row)
-    wps = np.zeros((n_ep, n_ag, n_max, 2))
-    wcount = np.zeros((n_ep, n_ag), dtype=np.int64)
-    for e in range(n_ep):
-        for i in range(n_ag):
-            wps[e, i, :len(secs[e][i])] = secs[e][i]
-            wcount[e, i] = len(secs[e][i])
-    return wps, wcount
+    return survey_route(B.pipeline, B.sections, OVERLAP_M)
+
+
+def memory(B, M: PIPolicy) -> PIMemory:
+    """A fresh memory: the survey plan (:func:`survey`), every agent at its transit, no event,
+    no claim.
+
+    Returns
+    -------
+    PIMemory
+    """
+    wps, wcount = survey(B)
+    n_ep, n_ag = wcount.shape
+    ev_lvl = np.zeros((n_ep, n_ag, 3))
+    ev_lvl[..., 0] = np.inf
+    return PIMemory(wps, wcount, np.zeros((n_ep, n_ag), dtype=np.int64),
+                    np.zeros((n_ep, n_ag, 3)), np.zeros((n_ep, n_ag), dtype=np.int64),
+                    np.zeros(n_ep, dtype=np.int64), np.zeros((n_ep, n_ag), dtype=np.int64),
+                    ev_lvl, np.zeros((n_ep, n_ag, 4)), np.zeros((n_ep, n_ag), dtype=np.int64),
+                    np.zeros((n_ep, n_ag, MAX_EVENT, 4)),
+                    np.full((n_ep, n_ag), -1, dtype=np.int64))
 
 
 @hot_kernel(inline="always")
-def plan(grid, P, W, M, state, e, k, t):
-    """No team-level decision: every agent acts on its own readings (a no-op).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : PIParams
-        The task's params (:func:`oneocean.tasks.pi.make`).
-    W : PIWork
-        The task's per-episode work arrays (:func:`oneocean.tasks.pi.make`).
-    M : PIPolicy
-        This policy's params (:func:`params`).
-    state : (E, N, STATE_DIM) float64
-        Vehicle states as the method knows them (its navigation estimate; the truth for the
-        oracle); layout in :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
-    """
+def plan(C, e, k):
+    """No team-level decision: every agent acts on its own readings (a no-op). Policy hook
+    (:mod:`oneocean.tasks.loop`)."""
     return
 
 
 @hot_kernel(inline="always")
-def act(grid, P, W, M, state, e, k, i, t, pe, pn):
+def act(C, e, k, i):
     """Agent ``i``'s action: detect plume events and follow its section low over the seabed.
 
-    While surveying at the survey altitude (within ``ALT_BAND_M`` of it) the agent's reading
-    ``W.sense[e, i]`` goes through :func:`detect`; the carrot of its waypoint list
-    (:func:`~oneocean.tasks.common.waypoint_carrot`) at ``M.alt`` above the seafloor (never
-    shallower than ``MIN_DEPTH_M``) is written to ``W.tgt[e, i]`` and sought with
-    :func:`~oneocean.tasks.common.seek_max`. Past its last waypoint the section is finished
-    (``W.done``) and an open event is closed (:func:`close_event` with ``at_end``).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : PIParams
-        The task's params (:func:`oneocean.tasks.pi.make`).
-    W : PIWork
-        The task's per-episode work arrays (:func:`oneocean.tasks.pi.make`); the policy's state
-        (module doc) is read and written in place.
-    M : PIPolicy
-        This policy's params (:func:`params`).
-    state : (E, N, STATE_DIM) float64
-        Vehicle states as the method knows them (its navigation estimate; the truth for the
-        oracle); layout in :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-    t : float
-        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
-    pe, pn : float
-        The method's current estimate at the agent, east and north, m s-1 (the true current
-        for the oracle).
+    While surveying at the survey altitude (within ``ALT_BAND_M`` of it, over the chart's
+    seafloor at its navigation estimate) the agent's reading (the observation's probe) goes
+    through :func:`detect`; the carrot of its waypoint list
+    (:func:`~oneocean.tasks.common.waypoint_carrot`) at ``M.alt`` above the charted seafloor
+    (never shallower than ``MIN_DEPTH_M``) is kept in ``H.tgt[e, i]`` and sought with
+    :func:`~oneocean.tasks.common.seek_max` against the observed current estimate. Past its
+    last waypoint the section is finished (``H.done``) and an open event is closed
+    (:func:`close_event` with ``at_end``). Policy hook (:mod:`oneocean.tasks.loop`).
 
     Returns
     -------
@@ -290,33 +277,38 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     psi : float
         Commanded heading, rad (NaN: free).
     """
-    s = state[e, i]
-    px = s[0]
-    py = s[1]
-    pz = s[2]
+    M = C.M
+    H = C.H
+    chart = C.B.chart
+    o = C.O[e, i]
+    px = o[O_X]
+    py = o[O_DEPTH]
+    pz = o[O_Z]
+    pe = o[O_CE]
+    pn = o[O_CN]
     # on the survey (past the transit to the section start, not finished) at the survey
     # altitude: the reading at this position (readings are comparable only at one altitude:
     # the plume's vertical profile is steep)
-    if (W.widx[e, i] >= 1 and W.done[e, i] == 0
-            and abs(-sample_elevation(grid, px, pz) - py - M.alt) <= ALT_BAND_M):
-        detect(W, e, i, px, pz, W.sense[e, i], pe, pn, P.thr, M.estimator)
-    gx, gz, w = waypoint_carrot(W.wps, W.widx, W.wcount, e, i, px, pz, M.look, WP_TOL_M,
+    if (H.widx[e, i] >= 1 and H.done[e, i] == 0
+            and abs(-sample_elevation(chart, px, pz) - py - M.alt) <= ALT_BAND_M):
+        detect(H, C.R, e, i, px, pz, o[O_PROBE], pe, pn, M.thr, M.estimator)
+    gx, gz, w = waypoint_carrot(H.wps, H.widx, H.wcount, e, i, px, pz, M.look, WP_TOL_M,
                                 ARRIVE_M)
-    W.done[e, i] = 0 if w < W.wcount[e, i] else 1
-    if W.done[e, i] == 1 and W.ev_on[e, i] == 1:
-        close_event(W, e, i, px, pz, True)   # the section is finished: the claim is final
-    gy = -sample_elevation(grid, gx, gz) - M.alt
+    H.done[e, i] = 0 if w < H.wcount[e, i] else 1
+    if H.done[e, i] == 1 and H.ev_on[e, i] == 1:
+        close_event(H, C.R, e, i, px, pz, True)   # the section is finished: the claim is final
+    gy = -sample_elevation(chart, gx, gz) - M.alt
     if gy < MIN_DEPTH_M:
         gy = MIN_DEPTH_M
-    W.tgt[e, i, 0] = gx
-    W.tgt[e, i, 1] = gy
-    W.tgt[e, i, 2] = gz
+    H.tgt[e, i, 0] = gx
+    H.tgt[e, i, 1] = gy
+    H.tgt[e, i, 2] = gz
     ax, ay, az = seek_max(px, py, pz, gx, gy, gz, M.budget, M.kp, pe, pn)
     return ax, ay, az, math.nan
 
 
 @hot_kernel(inline="always")
-def detect(W, e, i, x, z, r, fe, fn, thr, estimator):
+def detect(H, R, e, i, x, z, r, fe, fn, thr, estimator):
     """Agent ``i``'s event detector: one reading ``r`` at ``(x, z)`` (module doc).
 
     Opens, extends and closes events; an open event's estimate is filed as a claim at every
@@ -324,9 +316,10 @@ def detect(W, e, i, x, z, r, fe, fn, thr, estimator):
 
     Parameters
     ----------
-    W : PIWork
-        The task's work arrays; the event memory ``ev_*`` and the report ``claims`` /
-        ``nclaim`` are updated in place.
+    H : PIMemory
+        The method's memory; the event memory ``ev_*`` and ``nclaim`` are updated in place.
+    R : (E, MAX_CLAIMS, 3) float64
+        The report (:data:`oneocean.tasks.pi.REPORT_DOC`), updated in place.
     e : int
         Episode index.
     i : int
@@ -339,56 +332,56 @@ def detect(W, e, i, x, z, r, fe, fn, thr, estimator):
         The current the agent senses there, east and north, m s-1 (the reading's downstream
         coordinate is along it).
     thr : float
-        The sensor's detection threshold, kg m-3 (``P.thr``).
+        The sensor's detection threshold, kg m-3 (the briefing's ``thr``).
     estimator : int
         :data:`PEAK` or :data:`ONSET`: how the event's claim position is estimated.
     """
-    lvl = W.ev_lvl[e, i]   # trough, background, peak
-    pos = W.ev_pos[e, i]   # origin x, z; peak x, z
-    if W.ev_on[e, i] == 0:
+    lvl = H.ev_lvl[e, i]   # trough, background, peak
+    pos = H.ev_pos[e, i]   # origin x, z; peak x, z
+    if H.ev_on[e, i] == 0:
         if r < lvl[0]:
             lvl[0] = r
         if not (r >= thr and r - lvl[0] >= RISE_FRAC * thr):
             return
-        W.ev_on[e, i] = 1
-        W.ev_n[e, i] = 0
-        W.ev_claim[e, i] = -1
+        H.ev_on[e, i] = 1
+        H.ev_n[e, i] = 0
+        H.ev_claim[e, i] = -1
         lvl[1] = lvl[0]
         lvl[2] = r
         pos[0] = x
         pos[1] = z
         pos[2] = x
         pos[3] = z
-    n = W.ev_n[e, i]
-    if n < W.ev_buf.shape[2]:
+    n = H.ev_n[e, i]
+    if n < H.ev_buf.shape[2]:
         cs = math.sqrt(fe * fe + fn * fn)
         dn = 0.0
         if cs > MIN_CURRENT_MS:
             dn = ((x - pos[0]) * fe + (z - pos[1]) * fn) / cs
-        b = W.ev_buf[e, i, n]
+        b = H.ev_buf[e, i, n]
         b[0] = x
         b[1] = z
         b[2] = r
         b[3] = dn
-        W.ev_n[e, i] = n + 1
+        H.ev_n[e, i] = n + 1
     if r > lvl[2]:
         lvl[2] = r
         pos[2] = x
         pos[3] = z
     if estimator == ONSET:
-        ex, ez = onset_estimate(W.ev_buf[e, i], W.ev_n[e, i], lvl[1], lvl[2])
+        ex, ez = onset_estimate(H.ev_buf[e, i], H.ev_n[e, i], lvl[1], lvl[2])
     else:
         ex = pos[2]
         ez = pos[3]
-    file_claim(W, e, i, ex, ez, lvl[2])
+    file_claim(H, R, e, i, ex, ez, lvl[2])
     if (r <= lvl[2] - DROP_FRAC * (lvl[2] - lvl[1])
             or (x - pos[2]) ** 2 + (z - pos[3]) ** 2 > CLOSE_M * CLOSE_M):
-        close_event(W, e, i, x, z, False)
+        close_event(H, R, e, i, x, z, False)
         lvl[0] = r
 
 
 @hot_kernel(inline="always")
-def file_claim(W, e, i, x, z, strength):
+def file_claim(H, R, e, i, x, z, strength):
     """File (or update) the claim of agent ``i``'s open event in the team's report.
 
     The event's own claim (a new one at its first reading, dropped when the report is full)
@@ -396,8 +389,10 @@ def file_claim(W, e, i, x, z, strength):
 
     Parameters
     ----------
-    W : PIWork
-        The task's work arrays; ``claims``, ``nclaim`` and ``ev_claim`` are updated in place.
+    H : PIMemory
+        The method's memory; ``nclaim`` and ``ev_claim`` are updated in place.
+    R : (E, MAX_CLAIMS, 3) float64
+        The report, updated in place.
     e : int
         Episode index.
     i : int
@@ -407,15 +402,15 @@ def file_claim(W, e, i, x, z, strength):
     strength : float
         The event's peak reading, kg m-3.
     """
-    j = W.ev_claim[e, i]
-    claims = W.claims[e]
+    j = H.ev_claim[e, i]
+    claims = R[e]
     if j < 0:
-        j = W.nclaim[e]
+        j = H.nclaim[e]
         if j >= claims.shape[0]:
             return
-        W.nclaim[e] = j + 1
+        H.nclaim[e] = j + 1
         claims[j, 2] = -math.inf
-        W.ev_claim[e, i] = j
+        H.ev_claim[e, i] = j
     if strength >= claims[j, 2]:
         claims[j, 0] = x
         claims[j, 1] = z
@@ -423,7 +418,7 @@ def file_claim(W, e, i, x, z, strength):
 
 
 @hot_kernel(inline="always")
-def close_event(W, e, i, px, pz, at_end):
+def close_event(H, R, e, i, px, pz, at_end):
     """Close agent ``i``'s open event and settle its claim; the report is kept compact.
 
     The claim, at the event's final estimate, merges into the nearest other final claim (not
@@ -433,9 +428,10 @@ def close_event(W, e, i, px, pz, at_end):
 
     Parameters
     ----------
-    W : PIWork
-        The task's work arrays; ``ev_on``, ``ev_claim``, ``claims`` and ``nclaim`` are updated
-        in place.
+    H : PIMemory
+        The method's memory; ``ev_on``, ``ev_claim`` and ``nclaim`` are updated in place.
+    R : (E, MAX_CLAIMS, 3) float64
+        The report, updated in place.
     e : int
         Episode index.
     i : int
@@ -447,23 +443,23 @@ def close_event(W, e, i, px, pz, at_end):
         withdrawn -- the plume was still rising where the survey stopped, so its source lies
         beyond the section (a teammate's, whose survey overlaps ``OVERLAP_M``).
     """
-    W.ev_on[e, i] = 0
-    j = W.ev_claim[e, i]
-    W.ev_claim[e, i] = -1
+    H.ev_on[e, i] = 0
+    j = H.ev_claim[e, i]
+    H.ev_claim[e, i] = -1
     if j < 0:
         return
-    claims = W.claims[e]
+    claims = R[e]
     if at_end and (claims[j, 0] - px) ** 2 + (claims[j, 1] - pz) ** 2 <= END_M * END_M:
-        drop_claim(W, e, j)
+        drop_claim(H, R, e, j)
         return
     c_best = -1
     d_best = MERGE_M * MERGE_M
-    for c in range(W.nclaim[e]):
+    for c in range(H.nclaim[e]):
         if c == j:
             continue
         open_ = False
-        for a in range(W.ev_claim.shape[1]):
-            if W.ev_claim[e, a] == c:
+        for a in range(H.ev_claim.shape[1]):
+            if H.ev_claim[e, a] == c:
                 open_ = True
         if open_:
             continue
@@ -477,38 +473,40 @@ def close_event(W, e, i, px, pz, at_end):
         claims[c_best, 0] = claims[j, 0]
         claims[c_best, 1] = claims[j, 1]
         claims[c_best, 2] = claims[j, 2]
-    drop_claim(W, e, j)
+    drop_claim(H, R, e, j)
 
 
 @hot_kernel(inline="always")
-def drop_claim(W, e, j):
+def drop_claim(H, R, e, j):
     """Remove claim ``j`` from the report: the last claim moves into its slot.
 
-    An open event filing into the moved claim follows it (``W.ev_claim``); the freed last row
+    An open event filing into the moved claim follows it (``H.ev_claim``); the freed last row
     is set to NaN.
 
     Parameters
     ----------
-    W : PIWork
-        The task's work arrays; ``claims``, ``nclaim`` and ``ev_claim`` are updated in place.
+    H : PIMemory
+        The method's memory; ``nclaim`` and ``ev_claim`` are updated in place.
+    R : (E, MAX_CLAIMS, 3) float64
+        The report, updated in place.
     e : int
         Episode index.
     j : int
-        Index of the claim in ``W.claims[e]``.
+        Row of the claim in the report ``R[e]``.
     """
-    claims = W.claims[e]
-    last = W.nclaim[e] - 1
+    claims = R[e]
+    last = H.nclaim[e] - 1
     if j != last:
         claims[j, 0] = claims[last, 0]
         claims[j, 1] = claims[last, 1]
         claims[j, 2] = claims[last, 2]
-        for a in range(W.ev_claim.shape[1]):
-            if W.ev_claim[e, a] == last:
-                W.ev_claim[e, a] = j
+        for a in range(H.ev_claim.shape[1]):
+            if H.ev_claim[e, a] == last:
+                H.ev_claim[e, a] = j
     claims[last, 0] = math.nan
     claims[last, 1] = math.nan
     claims[last, 2] = math.nan
-    W.nclaim[e] = last
+    H.nclaim[e] = last
 
 
 @hot_kernel(inline="always")

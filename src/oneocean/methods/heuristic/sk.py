@@ -1,18 +1,25 @@
 """SK heuristic and oracle: dynamic positioning on the station with current feed-forward.
 
-Both: P-control (``KP``) to the station plus feed-forward of the sensed current within the
-vehicle's full speed budget ``|a| <= v_max`` (:func:`~oneocean.tasks.common.seek_max`), heading
-commanded to the station heading. They differ in information only: ``heuristic`` feeds forward
-its current estimate and steers by its navigation estimate (:mod:`oneocean.sensing`);
-``oracle`` the true current and position. Neither can hold against a current above ``v_max``.
+A policy of the public view only (:class:`oneocean.tasks.loop.Ctx`): the briefing
+(:class:`oneocean.tasks.sk.SKBriefing`: the station and its heading) and each step's
+observation (the navigation estimate, depth, the current estimate).
+
+Both: P-control (``KP``) to the station plus feed-forward of the observed current within the
+vehicle's full speed budget ``|a| <= v_max`` (:func:`~oneocean.tasks.common.seek_max`),
+heading commanded to the briefing's station heading. They differ in information only:
+``heuristic`` feeds forward its current estimate and steers by its navigation estimate
+(:mod:`oneocean.sensing`); ``oracle`` the true current and position. Neither can hold against
+a current above ``v_max``.
 """
 
 from __future__ import annotations
 
 from typing import NamedTuple
 
+import numpy as np
+
 from ...engine._jit import hot_kernel
-from ...tasks.common import seek_max
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision)
 from . import SENSING  # noqa: F401
 
@@ -34,7 +41,12 @@ class SKPolicy(NamedTuple):
     kp: float       # position gain, s-1
 
 
-def params(method: str, tier: dict, vehicle) -> SKPolicy:
+class SKMemory(NamedTuple):
+    """The method's memory ``H``: none (a stateless controller; one placeholder array)."""
+    unused: np.ndarray      # (E,) float64
+
+
+def params(method: str, B) -> SKPolicy:
     """The policy's params: the same for every method (they differ in information only).
 
     Parameters
@@ -42,49 +54,49 @@ def params(method: str, tier: dict, vehicle) -> SKPolicy:
     method : str
         The fused method, ``"heuristic"`` or ``"oracle"``
         (:data:`oneocean.methods.heuristic.SENSING`).
-    tier : dict
-        The cell's tier parameters plus ``dt_s`` and ``v_max``
-        (:attr:`oneocean.tasks.Cell.params`).
-    vehicle : Vehicle
-        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+    B : SKBriefing
+        The briefing (its vehicle's speed limit).
 
     Returns
     -------
     SKPolicy
         Budget ``v_max`` and :data:`KP`.
     """
-    return SKPolicy(float(vehicle.v_max), KP)
+    return SKPolicy(float(B.v_max), KP)
 
 
-@hot_kernel(inline="always")
-def act(grid, P, W, M, state, e, k, i, t, pe, pn):
-    """Agent ``i``'s action: P-control to the station plus current feed-forward, station heading.
+def memory(B, M: SKPolicy) -> SKMemory:
+    """A fresh memory (nothing to remember).
 
     Parameters
     ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : SKParams
-        The task's params (:func:`oneocean.tasks.sk.make`).
-    W : SKWork
-        The task's per-episode work arrays (:func:`oneocean.tasks.sk.make`); reads the station
-        ``W.station`` (E, 3) m and its heading ``W.heading`` (E,) rad.
+    B : SKBriefing
+        The briefing.
     M : SKPolicy
-        This policy's params (:func:`params`).
-    state : (E, N, STATE_DIM) float64
-        Vehicle states as the method knows them (its navigation estimate; the truth for the
-        oracle); layout in :mod:`oneocean.engine.dynamics`.
+        The policy's params (:func:`params`).
+
+    Returns
+    -------
+    SKMemory
+    """
+    return SKMemory(np.zeros(B.t0.shape[0]))
+
+
+@hot_kernel(inline="always")
+def act(C, e, k, i):
+    """Agent ``i``'s action: P-control to the station plus current feed-forward, station
+    heading. Policy hook (:mod:`oneocean.tasks.loop`).
+
+    Parameters
+    ----------
+    C : Ctx
+        The policy's context (:class:`oneocean.tasks.loop.Ctx`).
     e : int
         Episode index.
     k : int
         Step index.
     i : int
         Agent index.
-    t : float
-        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
-    pe, pn : float
-        The method's current estimate at the agent, east and north, m s-1 (the true current
-        for the oracle).
 
     Returns
     -------
@@ -92,9 +104,11 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
         Desired velocity relative to the water, world frame (x east, y down, z north), m s-1
         (:func:`~oneocean.tasks.common.seek_max`, ``|a| <= M.budget``).
     psi : float
-        Commanded heading, rad: the station heading ``W.heading[e]``.
+        Commanded heading, rad: the briefing's station heading.
     """
-    s = state[e, i]
-    g = W.station[e]
-    ax, ay, az = seek_max(s[0], s[1], s[2], g[0], g[1], g[2], M.budget, M.kp, pe, pn)
-    return ax, ay, az, W.heading[e]
+    M = C.M
+    o = C.O[e, i]
+    g = C.B.station[e]
+    ax, ay, az = seek_max(o[O_X], o[O_DEPTH], o[O_Z], g[0], g[1], g[2], M.budget, M.kp,
+                          o[O_CE], o[O_CN])
+    return ax, ay, az, C.B.heading[e]

@@ -1,31 +1,28 @@
-"""SPC heuristic and oracle: aerial map, greedy block assignment, drift-compensated seek.
+"""SPC heuristic and oracle: greedy block assignment on the aerial map, drift-compensated seek.
 
-Targets come from a coarse "aerial" map: the field summed over blocks of
-``BLOCK_CELLS x BLOCK_CELLS`` cells (mass and mass centroid per block). Justification: oil
-spill response relies on periodic surveillance overflights (aircraft / drone SLAR, IR); a
-surface vehicle's own sensor only sees the concentration under it. Assignment (greedy,
-distinct targets first): N times, take the block with the largest ``mass / (1 + number of
-agents already on it)`` (blocks lighter than ``MIN_BLOCK_FRAC`` of the mapped mass excluded)
-and give it to the nearest unassigned agent; its target is the block's mass centroid. Between
-maps each agent moves its target with the current it probes (the spill drifts with the water).
-Steering: through-water velocity ``KP * (target - position)`` capped at the speed budget, plus
-a teammate repulsion inside ``SEP_M`` (keeps >= 3 m apart), realised against the (probed)
-current by :func:`~oneocean.tasks.common.steer`; depth held at the task's operating depth
-(``P.y``, gain ``KP_DEPTH``).
+A policy of the public view only (:class:`oneocean.tasks.loop.Ctx`): the briefing
+(:class:`oneocean.tasks.spc.SPCBriefing`: the spill report, the operating depth), the team
+observation (:class:`oneocean.tasks.spc.SPCTeamObs`: the task's aerial map, its blocks'
+masses and mass centroids and its time) and the agents' observations (navigation estimate,
+current estimate, time).
 
-``heuristic``: knows only the spill's reported initial centroid until the first overflight
-(targets on a ring of radius ``spill_radius_m / 2`` around the report), then gets the aerial
-map every ``aerial_period_s`` (tier; the map is what every non-oracle method gets); its
-current estimate and navigation from the sensor models (:mod:`oneocean.sensing`).
-``oracle``: the exact map every step (from step 0), true current and position. Both spend the
-vehicle's full speed budget ``v_max``: they differ in information (stale map and sensors vs
-the true field, current and position), never in speed.
+Assignment (greedy, distinct targets first), at every new aerial map: N times, take the block
+with the largest ``mass / (1 + number of agents already on it)`` (blocks lighter than
+``MIN_BLOCK_FRAC`` of the mapped mass excluded) and give it to the nearest unassigned agent
+(navigation estimates at the step start); its target is the block's mass centroid. Before the
+first map the targets lie on a ring of radius ``spill_radius / 2`` around the spill report.
+Between maps each agent moves its target with the current it estimates (the spill drifts with
+the water). Steering: through-water velocity ``KP * (target - position)`` capped at the speed
+budget, plus a teammate repulsion inside ``SEP_M`` (keeps >= 3 m apart; teammates' navigation
+estimates at the step start), realised against the current estimate by
+:func:`~oneocean.tasks.common.steer`; depth held at the briefing's operating depth (gain
+``KP_DEPTH``).
 
-The team-level decision (ring before the first map, aerial map and assignment) is
-:func:`plan`; its plan tokens live in the task's work arrays ``W``: ``tgt`` (E, N, 2) targets
-(x, z) at the map time, ``tmap`` (E,) the map time (s), and the scratch of the map
-(``bm``/``bx``/``bz``/``cnt``/``done``). :func:`act` writes the drifted target it steers to
-into ``W.aim`` (the observation's goal cue).
+Both spend the vehicle's full speed budget ``v_max`` with the same logic: they differ in
+information (the heuristic: the periodic survey and the sensor models of
+:mod:`oneocean.sensing`; the oracle: the exact map every step, the true current and
+position), never in speed. The assignment, the targets and their time are the method's
+memory (:class:`SPCMemory`).
 """
 
 from __future__ import annotations
@@ -36,11 +33,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import steer
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_T, O_X, O_Z, steer
 from . import SENSING  # noqa: F401
 
-#: Aerial-map block size, cells (with the task's 10 m cells: 40 m blocks).
-BLOCK_CELLS = 4
 #: Target-approach gain, s-1; depth-hold gain, s-1.
 KP = 0.5
 KP_DEPTH = 0.5
@@ -52,7 +47,7 @@ MIN_BLOCK_FRAC = 1e-4
 
 
 class SPCPolicy(NamedTuple):
-    """Parameters ``M`` of the SPC policy (heuristic and oracle differ in their map timing).
+    """Parameters ``M`` of the SPC policy (the same for heuristic and oracle).
 
     Attributes
     ----------
@@ -67,13 +62,9 @@ class SPCPolicy(NamedTuple):
     sep_gain : float
         Repulsion gain, s-1 (:data:`SEP_GAIN`).
     ring : float
-        Radius of the ring targets before the first map, m (``spill_radius_m / 2``).
-    map_every : int
-        A map every this many steps (heuristic: ``aerial_period_s / dt_s``; oracle: 1) ...
-    map_from : int
-        ... from this step on (heuristic: 1; oracle: 0).
-    block : int
-        Aerial-map block size, cells (:data:`BLOCK_CELLS`).
+        Radius of the ring targets before the first map, m (``spill_radius / 2``).
+    depth : float
+        Operating depth, m.
     """
     budget: float       # speed budget through the water, m s-1
     kp: float           # target-approach gain, s-1
@@ -81,116 +72,58 @@ class SPCPolicy(NamedTuple):
     sep: float          # teammate repulsion radius, m
     sep_gain: float     # repulsion gain, s-1
     ring: float         # radius of the ring targets before the first map, m
-    map_every: int      # a map every this many steps ...
-    map_from: int       # ... from this step on (oracle: 0, heuristic: 1)
-    block: int          # aerial-map block size, cells
+    depth: float        # operating depth, m
 
 
-def plan_tokens(grid, tier: dict, init: dict) -> dict:
-    """The size of the map scratch the task carries for this policy.
-
-    The scratch of :func:`oneocean.tasks.spc.make`: the aerial map's blocks.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        The cell's tier parameters plus ``dt_s`` and ``v_max``.
-    init : dict
-        The cell's episodes (:func:`oneocean.tasks.spc.reset`).
-        Reads the initial field ``C0`` (E, 1, nz, nx).
-
-    Returns
-    -------
-    dict
-        ``map_blocks``: the aerial map's blocks of the field (:func:`n_blocks`).
-    """
-    nz, nx = init["C0"].shape[2:]
-    return {"map_blocks": n_blocks(int(nz), int(nx))}
-
-
-def n_blocks(nz: int, nx: int) -> int:
-    """Aerial-map blocks of an (nz, nx) field: the size of the map scratch in ``W``.
-
-    Parameters
-    ----------
-    nz, nx : int
-        Field cells along z (north) and x (east).
-
-    Returns
-    -------
-    int
-        Blocks of ``BLOCK_CELLS x BLOCK_CELLS`` cells covering the field (partial blocks at the
-        edges included).
-    """
-    return ((nx + BLOCK_CELLS - 1) // BLOCK_CELLS) * ((nz + BLOCK_CELLS - 1) // BLOCK_CELLS)
-
-
-def params(method: str, tier: dict, vehicle) -> SPCPolicy:
-    """The policy's params: the heuristic maps every aerial period, the oracle every step.
-
-    Both spend the vehicle's full speed budget with the same gains.
+def params(method: str, B) -> SPCPolicy:
+    """The policy's params: the same for every method (they differ in information only; the
+    oracle's map is the task's, every step).
 
     Parameters
     ----------
     method : str
         The fused method, ``"heuristic"`` or ``"oracle"``
         (:data:`oneocean.methods.heuristic.SENSING`).
-    tier : dict
-        The cell's tier parameters plus ``dt_s`` and ``v_max``
-        (:attr:`oneocean.tasks.Cell.params`).
-    vehicle : Vehicle
-        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
-        Reads ``spill_radius_m`` (m), and for the heuristic ``aerial_period_s`` (s) and
-        ``dt_s``.
+    B : SPCBriefing
+        The briefing (the vehicle's speed limit, the spill's radius, the operating depth).
 
     Returns
     -------
     SPCPolicy
-        Budget ``v_max``, the module's gains, the ring radius and the method's map timing.
+        Budget ``v_max``, the module's gains, the ring radius and the depth.
     """
-    v_max = float(vehicle.v_max)
-    ring = 0.5 * float(tier["spill_radius_m"])
-    if method == "heuristic":
-        every = max(1, int(round(float(tier["aerial_period_s"]) / float(tier["dt_s"]))))
-        return SPCPolicy(v_max, KP, KP_DEPTH, SEP_M, SEP_GAIN, ring, every, 1, BLOCK_CELLS)
-    return SPCPolicy(v_max, KP, KP_DEPTH, SEP_M, SEP_GAIN, ring, 1, 0, BLOCK_CELLS)
+    return SPCPolicy(float(B.v_max), KP, KP_DEPTH, SEP_M, SEP_GAIN,
+                     0.5 * float(B.spill_radius), float(B.depth))
+
+
+class SPCMemory(NamedTuple):
+    """The method's memory ``H``: its targets and the assignment's scratch."""
+    tgt: np.ndarray     # (E, N, 2) targets (x, z) at their time, m
+    tmap: np.ndarray    # (E,) the targets' time (the start, then the map's), s since time0
+    seen: np.ndarray    # (E,) time of the last map assigned from (NaN: none)
+    cnt: np.ndarray     # (E, nb) int64 agents per block
+    done: np.ndarray    # (E, N) int64 agent assigned
+
+
+def memory(B, M: SPCPolicy) -> SPCMemory:
+    """A fresh memory: no targets, no map seen.
+
+    Returns
+    -------
+    SPCMemory
+    """
+    n_ep = B.t0.shape[0]
+    n_ag = int(B.n_agents)
+    nb = int(B.map_nbx) * int(B.map_nbz)
+    return SPCMemory(np.zeros((n_ep, n_ag, 2)), np.zeros(n_ep), np.full(n_ep, np.nan),
+                     np.zeros((n_ep, nb), np.int64), np.zeros((n_ep, n_ag), np.int64))
 
 
 @hot_kernel
-def _aerial_map(C, x0, z0, h, bsz, bm, bx, bz):
-    """Block masses (kg) and mass centroids (m) of the field; returns the total mass (kg)."""
-    nz = C.shape[1]
-    nx = C.shape[2]
-    nbx = (nx + bsz - 1) // bsz
-    nb = bm.shape[0]
-    for b in range(nb):
-        bm[b] = 0.0
-        bx[b] = 0.0
-        bz[b] = 0.0
-    for j in range(nz):
-        for i in range(nx):
-            c = C[0, j, i]
-            if c > 0.0:
-                b = (j // bsz) * nbx + i // bsz
-                bm[b] += c
-                bx[b] += c * (x0 + i * h)
-                bz[b] += c * (z0 + j * h)
-    tot = 0.0
-    for b in range(nb):
-        if bm[b] > 0.0:
-            bx[b] /= bm[b]
-            bz[b] /= bm[b]
-            tot += bm[b]
-        bm[b] *= h * h
-    return tot * h * h
-
-
-@hot_kernel
-def _assign(S, bm, bx, bz, cnt, tgt, done, tot):
-    """Greedy assignment: N times, the block with max mass/(1+count) -> nearest free agent."""
-    n_ag = S.shape[0]
+def _assign(O, bm, bx, bz, cnt, tgt, done, tot):
+    """Greedy assignment: N times, the block with max mass/(1+count) -> nearest free agent
+    (``O`` (N, D) the team's observation rows: navigation estimates)."""
+    n_ag = O.shape[0]
     nb = bm.shape[0]
     for b in range(nb):
         cnt[b] = 0
@@ -211,7 +144,7 @@ def _assign(S, bm, bx, bz, cnt, tgt, done, tot):
         dmin = np.inf
         for i in range(n_ag):
             if done[i] == 0:
-                d = (S[i, 0] - bx[best]) ** 2 + (S[i, 2] - bz[best]) ** 2
+                d = (O[i, O_X] - bx[best]) ** 2 + (O[i, O_Z] - bz[best]) ** 2
                 if d < dmin:
                     dmin = d
                     ia = i
@@ -222,85 +155,45 @@ def _assign(S, bm, bx, bz, cnt, tgt, done, tot):
 
 
 @hot_kernel(inline="always")
-def plan(grid, P, W, M, state, e, k, t):
-    """Ring targets around the report at step 0; the aerial map and greedy assignment at map steps.
+def plan(C, e, k):
+    """Ring targets around the spill report at step 0; the greedy assignment at every new
+    aerial map (the team observation's ``t_map`` changed).
 
-    At a map step (``k >= M.map_from`` and ``k % M.map_every == 0``) the field is summed into
-    blocks (``W.bm``, ``W.bx``, ``W.bz``) and the agents are assigned to them greedily
-    (``W.tgt[e]``); the map time ``W.tmap[e]`` is then ``t``.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : SPCParams
-        The task's params (:func:`oneocean.tasks.spc.make`).
-    W : SPCWork
-        The task's per-episode work arrays (:func:`oneocean.tasks.spc.make`); the plan tokens
-        ``tgt`` / ``tmap`` and the map scratch are written in place.
-    M : SPCPolicy
-        This policy's params (:func:`params`).
-    state : (E, N, STATE_DIM) float64
-        Vehicle states as the method knows them (its navigation estimate; the truth for the
-        oracle); layout in :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
+    Writes the memory of episode ``e``: the targets ``H.tgt[e]`` and their time
+    ``H.tmap[e]`` (the step's time at step 0, then the map's). Policy hook
+    (:mod:`oneocean.tasks.loop`).
     """
-    tgt = W.tgt[e]
+    B = C.B
+    H = C.H
+    T = C.T
+    O = C.O[e]
+    tgt = H.tgt[e]
     if k == 0:
         # before the first map: a ring around the reported centroid (the oracle maps at k = 0)
-        n_ag = state.shape[1]
+        n_ag = O.shape[0]
+        ring = C.M.ring
         for i in range(n_ag):
             a = 2.0 * math.pi * i / n_ag
-            tgt[i, 0] = W.report[e, 0] + M.ring * math.sin(a)
-            tgt[i, 1] = W.report[e, 1] + M.ring * math.cos(a)
-        W.tmap[e] = t
-    if k >= M.map_from and k % M.map_every == 0:
-        tot = _aerial_map(W.C[e], W.origin[e, 0], W.origin[e, 1], P.h, M.block, W.bm[e],
-                          W.bx[e], W.bz[e])
-        _assign(state[e], W.bm[e], W.bx[e], W.bz[e], W.cnt[e], tgt, W.done[e], tot)
-        W.tmap[e] = t
+            tgt[i, 0] = B.report[e, 0] + ring * math.sin(a)
+            tgt[i, 1] = B.report[e, 1] + ring * math.cos(a)
+        H.tmap[e] = B.t0[e] + O[0, O_T]
+    tm = T.t_map[e]
+    if tm == tm and tm != H.seen[e]:   # a new map
+        _assign(O, T.mass[e], T.x[e], T.z[e], H.cnt[e], tgt, H.done[e], T.total[e])
+        H.tmap[e] = tm
+        H.seen[e] = tm
 
 
 @hot_kernel(inline="always")
-def act(grid, P, W, M, state, e, k, i, t, pe, pn):
-    """Agent ``i``'s action: seek its target drifted with the probed current, apart from teammates.
+def act(C, e, k, i):
+    """Agent ``i``'s action: seek its target drifted with the estimated current, apart from
+    teammates.
 
-    The target ``W.tgt[e, i]`` drifted with the current estimate since the map time is
-    written to ``W.aim[e, i]`` (the observation's goal cue); the through-water velocity
-    ``M.kp (aim - position)`` (capped at ``M.budget``) plus a teammate repulsion inside
-    ``M.sep`` is realised against the current by :func:`~oneocean.tasks.common.steer`, with a
-    depth hold toward ``P.y`` (gain ``M.kp_depth``).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : SPCParams
-        The task's params (:func:`oneocean.tasks.spc.make`).
-    W : SPCWork
-        The task's per-episode work arrays (:func:`oneocean.tasks.spc.make`); reads ``tgt`` /
-        ``tmap``, writes ``aim``.
-    M : SPCPolicy
-        This policy's params (:func:`params`).
-    state : (E, N, STATE_DIM) float64
-        Vehicle states as the method knows them (its navigation estimate; the truth for the
-        oracle); layout in :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-    t : float
-        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
-    pe, pn : float
-        The method's current estimate at the agent, east and north, m s-1 (the true current
-        for the oracle).
+    The target ``H.tgt[e, i]`` drifted with the current estimate since its time; the
+    through-water velocity ``M.kp (target - position)`` (capped at ``M.budget``) plus a
+    teammate repulsion inside ``M.sep`` is realised against the current by
+    :func:`~oneocean.tasks.common.steer`, with a depth hold toward ``M.depth`` (gain
+    ``M.kp_depth``). Policy hook (:mod:`oneocean.tasks.loop`).
 
     Returns
     -------
@@ -310,21 +203,23 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     psi : float
         Commanded heading, rad (NaN: free).
     """
-    S = state[e]
-    s = S[i]
-    px = s[0]
-    py = s[1]
-    pz = s[2]
-    n_ag = S.shape[0]
-    age = t - W.tmap[e]
+    M = C.M
+    H = C.H
+    O = C.O[e]
+    o = O[i]
+    px = o[O_X]
+    py = o[O_DEPTH]
+    pz = o[O_Z]
+    pe = o[O_CE]
+    pn = o[O_CN]
+    n_ag = O.shape[0]
+    age = C.B.t0[e] + o[O_T] - H.tmap[e]
     budget = M.budget
     sep = M.sep
     sep_gain = M.sep_gain
-    # the target drifted with the probed current since the map (the observation's cue)
-    gx = W.tgt[e, i, 0] + pe * age
-    gz = W.tgt[e, i, 1] + pn * age
-    W.aim[e, i, 0] = gx
-    W.aim[e, i, 1] = gz
+    # the target drifted with the estimated current since its time
+    gx = H.tgt[e, i, 0] + pe * age
+    gz = H.tgt[e, i, 1] + pn * age
     # through-water velocity toward the (drifting) target
     wx = M.kp * (gx - px)
     wz = M.kp * (gz - pz)
@@ -334,8 +229,8 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
         wz *= budget / w
     for j in range(n_ag):
         if j != i:
-            dx = px - S[j, 0]
-            dz = pz - S[j, 2]
+            dx = px - O[j, O_X]
+            dz = pz - O[j, O_Z]
             d = math.sqrt(dx * dx + dz * dz)
             if d < sep:
                 if d > 1e-6:
@@ -343,5 +238,5 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
                     wz += sep_gain * (sep - d) * dz / d
                 else:
                     wx += sep_gain * sep * (1.0 if i > j else -1.0)
-    ax, ay, az = steer(wx + pe, M.kp_depth * (P.y - py), wz + pn, budget, pe, pn)
+    ax, ay, az = steer(wx + pe, M.kp_depth * (M.depth - py), wz + pn, budget, pe, pn)
     return ax, ay, az, math.nan

@@ -1,19 +1,12 @@
-"""UPL heuristic and oracle: the object as the team perceives it, greedy slot assignment,
-slot seeking (a search when the object is not where the chart says), then a held lift.
+"""UPL heuristic and oracle: greedy slot assignment, slot seeking (a search when the object is
+not where the chart says), then a held lift.
 
-Perception (``plan``, every step: the task's perception model,
-:func:`oneocean.tasks.upl.perceive`, which the observation cue uses too). The team keeps one
-estimate of the object's centre and velocity (``W.oest``, covariance ``W.ocov``): a
-constant-velocity Kalman filter per axis (process noise ``QA_REST`` while the object rests or
-sinks, ``QA_LIFT`` while the quorum lifts it), started at the site survey's chart (mission
-data: ``W.chart``, its stated error ``P.survey_std`` horizontally) and updated with every
-sonar fix of every ROV (``W.fix``: the measured offset of the object from the ROV,
-:func:`oneocean.tasks.upl._sonar_fixes`) placed at the ROV's navigation estimate; the fix's
-variance is the sonar's range and angular noise at its range, the echo centre's offset and
-the USBL-aided navigation's error ``NAV_STD_M`` (horizontal). A method that perceives the
-target exactly (the oracle; the ``true_target`` ablation) has the object's true centre and
-velocity instead. Slot targets are the estimate plus the slots' offsets
-(the object's drawing, mission data).
+A policy of the public view only (:class:`oneocean.tasks.loop.Ctx`): the briefing
+(:class:`oneocean.tasks.upl.UPLBriefing`: the slots, the quorum, the sonar's range, the
+chart), the team observation (:class:`oneocean.tasks.upl.UPLTeamObs`: the team's estimate of
+the object, fused by the task from every ROV's sonar fixes, and whether it has a fix) and the
+team's observation rows (each agent's navigation estimate, current estimate and attached
+slot). Slot targets are the object's estimate plus the slots' offsets.
 
 Assignment (``plan`` at step 0): greedy nearest (agent, slot) pairs on the estimate; an agent
 whose slot was taken by another retargets the nearest free slot (``act``). Search: when an
@@ -23,22 +16,19 @@ slots' bearings, from the sonar's detection range outward by ``SEARCH_PITCH`` ra
 fifth of a turn, the point moving at ``SEARCH_SPEED_MS``), at the slot depth kept
 ``SEARCH_ALTITUDE_M`` above the charted seafloor, until the first fix. Unattached agents seek
 their slot with crab steering (:func:`~oneocean.tasks.common.seek_max`, P-gain ``KP``, capped
-at the speed budget) and
-feed-forward of the current estimate and the object's estimated velocity. Attached agents
-hold their slot until the quorum is attached, then lift: desired ground velocity = slot
-tracking + hold (P toward the team's site estimate -- the object's estimate when the quorum
-first held --, ``KP_HOLD``, capped at ``HOLD_SPEED_MS``; computed once per step by ``plan``)
-+ full upward speed; the horizontal part (incl. the current feed-forward) has priority and
-the vertical part gets the rest of the speed budget.
+at the speed budget) and feed-forward of the current estimate and the object's estimated
+velocity. Attached agents hold their slot until the quorum is attached, then lift: desired
+ground velocity = slot tracking + hold (P toward the team's site estimate -- the object's
+estimate when the quorum first held --, ``KP_HOLD``, capped at ``HOLD_SPEED_MS``; computed
+once per step by ``plan``) + full upward speed; the horizontal part (incl. the current
+feed-forward) has priority and the vertical part gets the rest of the speed budget.
 
 Both methods: speed budget ``v_max``, the same logic and gains. ``heuristic``: the sensor
 models of :mod:`oneocean.sensing` (USBL-aided navigation, filtered current estimate, the
 object's sonar model). ``oracle``: true current, position and object (information only).
 
-Policy state lives in the task's work arrays (:class:`oneocean.tasks.upl.UPLWork`):
-``target`` (E, 5) the slot assigned to every agent, ``hold`` (E, 2) the step's hold
-velocity, ``oest`` / ``ocov`` / ``odet`` the object's filter, ``srch`` the search flag,
-``hsite`` the site estimate held during the lift.
+The method's memory (:class:`UPLMemory`): the slot assigned to every agent, the search's
+state, the site held during the lift and the step's hold velocity.
 """
 
 from __future__ import annotations
@@ -51,8 +41,7 @@ import numpy as np
 from ...engine._jit import hot_kernel
 from ...engine.dynamics import sincos
 from ...engine.grid import sample_elevation
-from ...tasks.common import seek_max
-from ...tasks.upl import perceive, perception_setup
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, OBS_DIM, seek_max
 from . import SENSING  # noqa: F401
 
 #: Slot-tracking proportional gain, s-1.
@@ -73,6 +62,9 @@ SEARCH_PITCH = 1.6
 SEARCH_ALTITUDE_M = 3.0
 #: Agents of the search (one per slot: the spiral's arms are the slots' bearings).
 N_SPOKES = 5
+#: Column of the agent's attached slot in its observation row (the task's ``slot`` field,
+#: :data:`oneocean.tasks.upl.OBS_EXTRA`).
+O_SLOT = OBS_DIM + 7
 
 
 class UPLPolicy(NamedTuple):
@@ -88,14 +80,23 @@ class UPLPolicy(NamedTuple):
         Hold gain (object over the site), s-1 (:data:`KP_HOLD`).
     hold_v : float
         Hold speed cap, m s-1 (:data:`HOLD_SPEED_MS`).
+    dt : float
+        Step, s.
+    quorum : int
+        Attached agents needed to lift.
+    p_range : float
+        The sonar's detection range, m: the search spiral's first radius.
     """
     speed: float        # speed budget through the water, m s-1
     kp: float           # slot-tracking gain, s-1
     kp_hold: float      # hold gain, s-1
     hold_v: float       # hold speed cap, m s-1
+    dt: float           # step, s
+    quorum: int         # attached agents needed to lift
+    p_range: float      # the sonar's detection range (the spiral's first radius), m
 
 
-def params(method: str, tier: dict, vehicle) -> UPLPolicy:
+def params(method: str, B) -> UPLPolicy:
     """The policy's params (the same for heuristic and oracle).
 
     Parameters
@@ -103,98 +104,102 @@ def params(method: str, tier: dict, vehicle) -> UPLPolicy:
     method : str
         The fused method, ``"heuristic"`` or ``"oracle"``
         (:data:`oneocean.methods.heuristic.SENSING`).
-    tier : dict
-        The cell's tier parameters plus ``dt_s`` and ``v_max``
-        (:attr:`oneocean.tasks.Cell.params`).
-    vehicle : Vehicle
-        The task's vehicle (:class:`oneocean.engine.dynamics.Vehicle`).
+    B : UPLBriefing
+        The briefing (the vehicle's speed limit, the step, the quorum, the sonar's range).
 
     Returns
     -------
     UPLPolicy
         Budget ``v_max`` and the module's gains.
     """
-    v_max = float(vehicle.v_max)
-    return UPLPolicy(v_max, KP, KP_HOLD, HOLD_SPEED_MS)
+    return UPLPolicy(float(B.v_max), KP, KP_HOLD, HOLD_SPEED_MS, float(B.dt), int(B.quorum),
+                     float(B.p_range))
 
 
-def prepare(grid, P, W, M: UPLPolicy, t0, LP=None, LS=None, X=None) -> None:
-    """Before the first step: set up what the method perceives of the object.
+class UPLMemory(NamedTuple):
+    """The method's memory ``H``.
 
-    Writes ``W.pcfg`` (:func:`oneocean.tasks.upl.perception_setup`): the run seed of the
-    sonar's error stream and whether the method perceives the object exactly
-    (``LP.sens.true_target``: the oracle and the ``true_target`` ablation).
-
-    Parameters
+    Attributes
     ----------
-    grid : Grid
-        The grid export (unused).
-    P : UPLParams
-        The task's params (unused).
-    W : UPLWork
-        The task's per-episode work arrays; ``W.pcfg`` is written in place.
-    M : UPLPolicy
-        This policy's params (unused).
-    t0 : (E,) float64
-        Episode start times, s since the grid's ``time0_unix_s`` (unused).
-    LP : LoopParams, optional
-        The loop's params (:class:`oneocean.tasks.loop.LoopParams`): its seed, ``LP.sens`` and
-        ``LP.e0``; None: nothing is written.
-    LS : LoopState, optional
-        The loop's state (unused).
-    X : (E, N, STATE_DIM) float64, optional
-        The agents' known state (unused).
+    target : (E, N) int64
+        Slot assigned to each agent (-1: none yet).
+    srch : (E, 2) float64
+        1 while the team searches (arrived, no fix); the search spiral's turn, rad.
+    hsite : (E, 3) float64
+        Where the team holds the lift: its site estimate (x, z) m, set (third entry 1) when
+        the quorum first holds.
+    hold : (E, 2) float64
+        The step's hold velocity of the assembly (x, z), m s-1.
     """
-    perception_setup(W, LP)
+    target: np.ndarray  # (E, N) int64 slot assigned to each agent (-1: none yet)
+    srch: np.ndarray    # (E, 2) 1 while the team searches; the search spiral's turn, rad
+    hsite: np.ndarray   # (E, 3) the lift's site estimate (x, z) m; 1 once set
+    hold: np.ndarray    # (E, 2) the step's hold velocity of the assembly (x, z), m s-1
 
 
-@hot_kernel(inline="always")
-def _spiral_radius(P, phi):
-    """Distance of the search point from the chart after a turn of ``phi`` rad, m."""
-    return P.p_range * (1.0 + SEARCH_PITCH * phi * N_SPOKES / (2.0 * math.pi))
-
-
-@hot_kernel(inline="always")
-def plan(grid, P, W, M, state, e, k, t):
-    """The team's step: perceive the object, assign slots, search, hold the lift (module doc).
-
-    Updates the object's estimate (:func:`oneocean.tasks.upl.perceive`); at step 0 the greedy
-    nearest (agent, slot) assignment ``W.target[e]``; before the first fix the search flag and
-    spiral turn ``W.srch[e]``; the site estimate ``W.hsite[e]`` when the quorum first holds;
-    and the step's hold velocity ``W.hold[e]`` toward it (gain ``M.kp_hold``, capped at
-    ``M.hold_v``).
+def memory(B, M: UPLPolicy) -> UPLMemory:
+    """A fresh memory: no slot assigned, no search, no lift.
 
     Parameters
     ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : UPLParams
-        The task's params (:func:`oneocean.tasks.upl.make`).
-    W : UPLWork
-        The task's per-episode work arrays (:func:`oneocean.tasks.upl.make`); the policy's state
-        (``oest``, ``ocov``, ``odet``, ``target``, ``srch``, ``hsite``, ``hold``) is written in
-        place.
+    B : UPLBriefing
+        The briefing.
     M : UPLPolicy
-        This policy's params (:func:`params`).
-    state : (E, N, STATE_DIM) float64
-        Vehicle states as the method knows them (its navigation estimate; the truth for the
-        oracle); layout in :mod:`oneocean.engine.dynamics`.
+        The policy's params (unused).
+
+    Returns
+    -------
+    UPLMemory
+    """
+    n_ep, n = B.slot_off.shape[:2]
+    return UPLMemory(np.full((n_ep, n), -1, dtype=np.int64), np.zeros((n_ep, 2)),
+                     np.zeros((n_ep, 3)), np.zeros((n_ep, 2)))
+
+
+@hot_kernel(inline="always")
+def _spiral_radius(M, phi):
+    """Distance of the search point from the chart after a turn of ``phi`` rad, m."""
+    return M.p_range * (1.0 + SEARCH_PITCH * phi * N_SPOKES / (2.0 * math.pi))
+
+
+@hot_kernel(inline="always")
+def _n_attached(O):
+    """Attached agents of the team (its observation rows ``O`` (N, D): slot >= 0)."""
+    n_att = 0
+    for i in range(O.shape[0]):
+        if O[i, O_SLOT] >= 0.0:
+            n_att += 1
+    return n_att
+
+
+@hot_kernel(inline="always")
+def plan(C, e, k):
+    """The team's step: assign slots, search, hold the lift (module docstring).
+
+    Writes the memory of episode ``e``: at step 0 the greedy nearest (agent, slot)
+    assignment ``H.target[e]``; before the first fix the search flag and spiral turn
+    ``H.srch[e]``; the site estimate ``H.hsite[e]`` when the quorum first holds; and the
+    step's hold velocity ``H.hold[e]`` toward it (gain ``M.kp_hold``, capped at
+    ``M.hold_v``). Policy hook (:mod:`oneocean.tasks.loop`).
+
+    Parameters
+    ----------
+    C : Ctx
+        The policy's context (:class:`oneocean.tasks.loop.Ctx`).
     e : int
         Episode index.
     k : int
         Step index.
-    t : float
-        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
     """
-    n = state.shape[1]
-    S = state[e]
-    TG = W.target[e]
-    off = W.slot_off[e]
-    O = W.oest[e]
-    perceive(P, W, state, e)
-    ox = O[0]
-    oy = O[1]
-    oz = O[2]
+    M = C.M
+    H = C.H
+    O = C.O[e]
+    n = O.shape[0]
+    TG = H.target[e]
+    off = C.B.slot_off[e]
+    ox = C.T.obj_est[e, 0]
+    oy = C.T.obj_est[e, 1]
+    oz = C.T.obj_est[e, 2]
     if k == 0:
         # greedy nearest (agent, slot) assignment
         for i in range(n):
@@ -213,78 +218,64 @@ def plan(grid, P, W, M, state, e, k, t):
                             taken = True
                     if taken:
                         continue
-                    d2 = ((S[i, 0] - ox - off[j, 0]) ** 2 + (S[i, 1] - oy - off[j, 1]) ** 2
-                          + (S[i, 2] - oz - off[j, 2]) ** 2)
+                    d2 = ((O[i, O_X] - ox - off[j, 0]) ** 2
+                          + (O[i, O_DEPTH] - oy - off[j, 1]) ** 2
+                          + (O[i, O_Z] - oz - off[j, 2]) ** 2)
                     if d2 < best:
                         best = d2
                         bi = i
                         bj = j
             TG[bi] = bj
-    if W.odet[e] == 0:
-        if W.srch[e, 0] == 0.0:   # arrived at the chart and nothing seen: search
+    if C.T.obj_det[e] == 0:
+        if H.srch[e, 0] == 0.0:   # arrived at the chart and nothing seen: search
             for i in range(n):
                 j = TG[i]
-                if ((S[i, 0] - ox - off[j, 0]) ** 2 + (S[i, 2] - oz - off[j, 2]) ** 2
+                if ((O[i, O_X] - ox - off[j, 0]) ** 2 + (O[i, O_Z] - oz - off[j, 2]) ** 2
                         <= SEARCH_ARRIVE_M * SEARCH_ARRIVE_M):
-                    W.srch[e, 0] = 1.0
+                    H.srch[e, 0] = 1.0
         else:   # the spiral's turn advances at the search speed along it
-            W.srch[e, 1] += SEARCH_SPEED_MS * P.dt / _spiral_radius(P, W.srch[e, 1])
-    if W.n_att[e] >= P.quorum and W.hsite[e, 2] == 0.0:   # the lift starts here
-        W.hsite[e, 0] = ox
-        W.hsite[e, 1] = oz
-        W.hsite[e, 2] = 1.0
+            H.srch[e, 1] += SEARCH_SPEED_MS * M.dt / _spiral_radius(M, H.srch[e, 1])
+    if _n_attached(O) >= M.quorum and H.hsite[e, 2] == 0.0:   # the lift starts here
+        H.hsite[e, 0] = ox
+        H.hsite[e, 1] = oz
+        H.hsite[e, 2] = 1.0
     # hold: desired horizontal velocity of the assembly toward the site estimate
     kph = M.kp_hold
     hold_v = M.hold_v
-    hx = kph * (W.hsite[e, 0] - ox)
-    hz = kph * (W.hsite[e, 1] - oz)
+    hx = kph * (H.hsite[e, 0] - ox)
+    hz = kph * (H.hsite[e, 1] - oz)
     hn = math.sqrt(hx * hx + hz * hz)
     if hn > hold_v:
         hx *= hold_v / hn
         hz *= hold_v / hn
-    W.hold[e, 0] = hx
-    W.hold[e, 1] = hz
+    H.hold[e, 0] = hx
+    H.hold[e, 1] = hz
 
 
 @hot_kernel(inline="always")
-def act(grid, P, W, M, state, e, k, i, t, pe, pn):
-    """Agent ``i``'s action: seek its slot (or its search point), or hold and lift once attached.
+def act(C, e, k, i):
+    """Agent ``i``'s action: seek its slot (or its search point), or hold and lift once
+    attached.
 
-    An unattached agent whose slot a teammate holds retargets the nearest free slot
-    (``W.target``). While the team searches, the slot's horizontal position is replaced by the
-    agent's point of the search spiral, at the slot depth but at least ``SEARCH_ALTITUDE_M``
-    above the seafloor there (and at least 1 m deep).
-    An attached agent, once the quorum is attached, tracks its slot plus the hold velocity
-    ``W.hold[e]`` and lifts at full speed (the horizontal part has priority); otherwise
-    :func:`~oneocean.tasks.common.seek_max` toward the slot with the object's estimated
-    velocity fed forward.
+    An unattached agent whose slot a teammate holds (a teammate's observed ``slot``)
+    retargets the nearest free slot (``H.target``). While the team searches, the slot's
+    horizontal position is replaced by the agent's point of the search spiral, at the slot
+    depth but at least ``SEARCH_ALTITUDE_M`` above the charted seafloor there (and at least
+    1 m deep). An attached agent, once the quorum is attached, tracks its slot plus the hold
+    velocity ``H.hold[e]`` and lifts at full speed (the horizontal part has priority);
+    otherwise :func:`~oneocean.tasks.common.seek_max` toward the slot with the object's
+    estimated velocity fed forward. Policy hook (:mod:`oneocean.tasks.loop`).
 
     Parameters
     ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : UPLParams
-        The task's params (:func:`oneocean.tasks.upl.make`).
-    W : UPLWork
-        The task's per-episode work arrays (:func:`oneocean.tasks.upl.make`); reads the attachments
-        ``att`` / ``owner``, the object's estimate ``oest`` and the plan tokens, may update
-        ``target``.
-    M : UPLPolicy
-        This policy's params (:func:`params`).
-    state : (E, N, STATE_DIM) float64
-        Vehicle states as the method knows them (its navigation estimate; the truth for the
-        oracle); layout in :mod:`oneocean.engine.dynamics`.
+    C : Ctx
+        The policy's context (:class:`oneocean.tasks.loop.Ctx`).
     e : int
         Episode index.
     k : int
         Step index.
     i : int
         Agent index.
-    t : float
-        Time of the step, s since the grid's ``time0_unix_s`` (``t0[e] + k dt``).
-    pe, pn : float
-        The method's current estimate at the agent, east and north, m s-1 (the true current
-        for the oracle).
 
     Returns
     -------
@@ -294,29 +285,44 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     psi : float
         Commanded heading, rad (NaN: free).
     """
-    n = state.shape[1]
+    M = C.M
+    H = C.H
+    O = C.O[e]
+    n = O.shape[0]
     speed = M.speed
     kp = M.kp
-    A = W.att[e]
-    O = W.owner[e]
-    TG = W.target[e]
-    off = W.slot_off[e]
-    ox = W.oest[e, 0]
-    oy = W.oest[e, 1]
-    oz = W.oest[e, 2]
-    vx = W.oest[e, 3]
-    vy = W.oest[e, 4]
-    vz = W.oest[e, 5]
-    px = state[e, i, 0]
-    py = state[e, i, 1]
-    pz = state[e, i, 2]
-    j = A[i]
+    TG = H.target[e]
+    off = C.B.slot_off[e]
+    est = C.T.obj_est[e]
+    ox = est[0]
+    oy = est[1]
+    oz = est[2]
+    vx = est[3]
+    vy = est[4]
+    vz = est[5]
+    o = O[i]
+    px = o[O_X]
+    py = o[O_DEPTH]
+    pz = o[O_Z]
+    pe = o[O_CE]
+    pn = o[O_CN]
+    att = int(o[O_SLOT])
+    j = att
     if j < 0:
         j = TG[i]
-        if O[j] >= 0 and O[j] != i:  # taken by a teammate: nearest free slot
+        # the agent holding slot j, if any (-1: free)
+        own = -1
+        for i2 in range(n):
+            if int(O[i2, O_SLOT]) == j:
+                own = i2
+        if own >= 0 and own != i:  # taken by a teammate: nearest free slot
             best = np.inf
             for j2 in range(n):
-                if O[j2] < 0:
+                free = True
+                for i2 in range(n):
+                    if int(O[i2, O_SLOT]) == j2:
+                        free = False
+                if free:
                     d2 = ((px - ox - off[j2, 0]) ** 2 + (py - oy - off[j2, 1]) ** 2
                           + (pz - oz - off[j2, 2]) ** 2)
                     if d2 < best:
@@ -326,9 +332,9 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
     gx = ox + off[j, 0]
     gy = oy + off[j, 1]
     gz = oz + off[j, 2]
-    if W.odet[e] == 0 and W.srch[e, 0] != 0.0:   # search: the agent's point of the spiral
-        phi = W.srch[e, 1]
-        rho = _spiral_radius(P, phi)
+    if C.T.obj_det[e] == 0 and H.srch[e, 0] != 0.0:   # search: the agent's point of the spiral
+        phi = H.srch[e, 1]
+        rho = _spiral_radius(M, phi)
         hr = math.sqrt(off[j, 0] * off[j, 0] + off[j, 2] * off[j, 2])
         if hr > 0.0:
             sn, cs = sincos(phi)
@@ -336,14 +342,14 @@ def act(grid, P, W, M, state, e, k, i, t, pe, pn):
             uz = off[j, 2] / hr
             gx = ox + rho * (ux * cs + uz * sn)
             gz = oz + rho * (uz * cs - ux * sn)
-        floor = -sample_elevation(grid, gx, gz)
+        floor = -sample_elevation(C.B.chart, gx, gz)
         if gy > floor - SEARCH_ALTITUDE_M:
             gy = floor - SEARCH_ALTITUDE_M
         if gy < 1.0:
             gy = 1.0
-    if A[i] >= 0 and W.n_att[e] >= P.quorum:  # lifting
-        ax = kp * (gx - px) + W.hold[e, 0] - pe
-        az = kp * (gz - pz) + W.hold[e, 1] - pn
+    if att >= 0 and _n_attached(O) >= M.quorum:  # lifting
+        ax = kp * (gx - px) + H.hold[e, 0] - pe
+        az = kp * (gz - pz) + H.hold[e, 1] - pn
         vy_ = kp * (gy - py) - speed
         ah = math.sqrt(ax * ax + az * az)
         if ah >= speed:

@@ -1,39 +1,43 @@
-"""Task adapters of the LLM planner: what the model is asked, and how its answer becomes plan
-tokens the fused heuristic ``act`` follows.
+"""Task adapters of the LLM planner: what the model is asked, and how its answer becomes the
+plan the fused heuristic ``act`` follows.
 
-The planner works only at the high level. Before each K-step segment of a batch
-(:meth:`oneocean.tasks.episodes.Episodes.run_planned`, built with ``fused_plan=False``), for
-every live episode ``e`` at its step ``k`` (``t = t0[e] + k dt``) the task's adapter
+The planner works only at the high level, on the public view (the briefing, the observation,
+the team observation and the heuristic's own memory; never the task's work arrays). Before
+each K-step segment of a batch (:meth:`oneocean.tasks.episodes.Episodes.run_planned`, built
+with ``fused_plan=False``: the observation of the next step is taken), for every live
+episode ``e`` at its step ``k`` the task's adapter
 
 1. :meth:`~Adapter.decide`: writes the deterministic fallback -- what the fused heuristic
-   would plan now -- into the work arrays ``W`` (so it is in place whatever the model does) and
-   returns a :class:`Decision` (summary text, agents, targets, the fallback as ints) if there
-   is a choice to make now, else None (no call);
-2. :meth:`~Adapter.apply`: writes a *valid* assignment into the plan tokens of ``W``.
+   would plan now -- into the heuristic's memory ``H`` (so it is in place whatever the model
+   does) and returns a :class:`Decision` (summary text, agents, targets, the fallback as
+   ints) if there is a choice to make now, else None (no call);
+2. :meth:`~Adapter.apply`: writes a *valid* assignment into the memory ``H``.
 
 An assignment is one integer per agent in ``[0, n_targets)`` (:mod:`.plan`). The summaries hold
-only what the heuristic itself knows (its aerial map, its own positions, waypoints and
-report), never the task's hidden truth.
+only what every method is given: the briefing (the spill report, the survey region, the
+pipeline sections), the observation (the agents' navigation estimates), the task's team
+observation (the aerial map) and the heuristic's own plan and report (its waypoints, its leak
+claims).
 
 ``SPC`` (source assignment; :class:`SPCAdapter`)
-    At the heuristic's map steps (``k >= map_from``, ``k % map_every == 0``) its plan hook
-    maps the slick into blocks and assigns them greedily (``W.tgt``, ``W.tmap``). Targets:
+    At the aerial map's steps (the team observation's ``t_map`` is the step's time) the
+    heuristic's plan hook assigns the mapped blocks greedily (``H.tgt``, ``H.tmap``). Targets:
     the mapped blocks heavier than ``MIN_BLOCK_FRAC`` of the mapped mass, heaviest first (ties
     by block index), at most ``N + EXTRA_CANDIDATES``; the fallback gives each agent the
     candidate its greedy target is (the greedy picks among the N heaviest, so it is listed).
-    Applying sets ``W.tgt[e, i]`` to candidate ``a[i]``'s centroid, ``W.tmap[e] = t``. Step 0
+    Applying sets ``H.tgt[e, i]`` to candidate ``a[i]``'s centroid, ``H.tmap[e] = t``. Step 0
     (the ring around the report) and other steps are no decision. K must be a multiple of the
     map period (default: the map period, so every map step is a planning step).
 ``AS``, ``PI`` (waypoint skipping; :class:`WaypointAdapter`)
-    Each agent follows its list ``W.wps[e, i, :W.wcount[e, i]]``; ``W.widx[e, i]`` is the
+    Each agent follows its list ``H.wps[e, i, :H.wcount[e, i]]``; ``H.widx[e, i]`` is the
     waypoint it heads for. Target ``j`` of an agent = offset ``j`` from ``widx``: head for
     waypoint ``widx + j`` next, skipping the ``j`` before it (0 = the heuristic's order, the
     fallback, which writes nothing). ``n_targets`` = the fewest remaining waypoints over the
     agents, at most ``HORIZON``; with fewer than 2 there is no choice, so no call (an agent
     that has finished its list has none left). PI: an agent still in transit to its section
-    start (``widx == 0``: detection is off until it arrives, ``waypoint_carrot``'s arrival
-    logic moves it to 1) has no choice either -- skipping the start would survey from the
-    transit -- and a finished section (``W.done``) has nothing left. Default K: 30 steps.
+    start (``widx == 0``: detection is off until it arrives) has no choice either -- skipping
+    the start would survey from the transit -- and a finished section (``H.done``) has nothing
+    left. Default K: 30 steps.
 """
 
 from __future__ import annotations
@@ -41,11 +45,9 @@ from __future__ import annotations
 from typing import NamedTuple, Sequence
 
 import numpy as np
-from numba import njit
-
 from ...errors import ConfigError
 from ...tasks import spc as SPC_TASK
-from ...tasks.common import fresh_cache
+from ...tasks.common import O_DEPTH, O_X, O_Z
 from ..heuristic import spc as SPC_POLICY
 
 #: SPC: candidate blocks offered beyond the team size.
@@ -155,7 +157,8 @@ class Adapter:
         return int(every)
 
     def decide(self, ep, e: int) -> Decision | None:
-        """Write the fallback into ``W`` and return the choice to put to the model, if any.
+        """Write the fallback into the memory ``H`` and return the choice to put to the model,
+        if any.
 
         The fallback (what the fused heuristic would plan now) is in place whatever the model
         does.
@@ -176,7 +179,7 @@ class Adapter:
         raise NotImplementedError
 
     def apply(self, ep, e: int, d: Decision, assignment: Sequence[int]) -> None:
-        """Write a valid assignment into the plan tokens of ``W``.
+        """Write a valid assignment into the heuristic's memory ``H``.
 
         Parameters
         ----------
@@ -198,18 +201,6 @@ class Adapter:
 
 
 # ------------------------------------------------------------------------------ SPC
-
-@njit(cache=True)
-def _spc_plan(grid, P, W, M, state, e, k, t, bm, bx, bz):
-    """The fused heuristic's plan hook for episode ``e`` at step ``k`` (writes ``W``); at a
-    map step also the mapped mass (kg, the greedy's threshold base), else -1. ``bm``/``bx``/
-    ``bz`` are scratch of the block map (``W``'s own map is left as the hook wrote it)."""
-    SPC_POLICY.plan(grid, P, W, M, state, e, k, t)
-    if k >= M.map_from and k % M.map_every == 0:
-        return SPC_POLICY._aerial_map(W.C[e], W.origin[e, 0], W.origin[e, 1], P.h, M.block,
-                                      bm, bx, bz)
-    return -1.0
-
 
 def spc_candidates(bm: np.ndarray, total: float, n_agents: int) -> np.ndarray:
     """Block indices offered as SPC targets.
@@ -294,9 +285,9 @@ class SPCAdapter(Adapter):
         Returns
         -------
         int
-            Steps (the heuristic's ``map_every``).
+            Steps (the aerial map's period, :func:`oneocean.tasks.spc.aerial_steps`).
         """
-        return int(SPC_POLICY.params("heuristic", params, vehicle).map_every)
+        return SPC_TASK.aerial_steps(params)
 
     def every(self, params: dict, vehicle, every: int | None) -> int:
         """The planning period to use: ``every`` (checked) or :meth:`default_every`.
@@ -354,26 +345,25 @@ class SPCAdapter(Adapter):
         (:func:`spc_candidates`).
         """
         k, t = _now(ep, e)
-        W, M = ep.W, ep.M
-        nb = W.bm.shape[1]
-        bm, bx, bz = np.zeros(nb), np.zeros(nb), np.zeros(nb)
-        X = ep.known_state   # where the agents think they are
-        total = _spc_plan(ep.grid, ep.P, W, M, X, e, k, t, bm, bx, bz)
-        if total < 0.0:   # step 0 (the ring) or no map now: nothing to choose
+        C = ep.C
+        SPC_POLICY.plan(C, e, k)          # the fallback: the ring at step 0, the greedy at a map
+        if k == 0 or not C.T.t_map[e] == t:   # no map now: nothing to choose
             return None
+        H = C.H
         n_ag = ep.n_agents
-        if not (W.done[e] == 1).all():   # the greedy left an agent without a target
+        if not (H.done[e] == 1).all():   # the greedy left an agent without a target
             return None
-        cand = spc_candidates(W.bm[e], total, n_ag)
-        cents = np.column_stack([W.bx[e, cand], W.bz[e, cand]])
+        bm = C.T.mass[e]
+        cand = spc_candidates(bm, float(C.T.total[e]), n_ag)
+        cents = np.column_stack([C.T.x[e, cand], C.T.z[e, cand]])
         fallback = []
         for i in range(n_ag):
-            hit = np.flatnonzero((cents[:, 0] == W.tgt[e, i, 0]) & (cents[:, 1] == W.tgt[e, i, 1]))
+            hit = np.flatnonzero((cents[:, 0] == H.tgt[e, i, 0]) & (cents[:, 1] == H.tgt[e, i, 1]))
             if hit.size == 0:
                 return None   # cannot happen (module doc); keep the heuristic's plan
             fallback.append(int(hit[0]))
-        summary = spc_summary(t - float(ep.t0[e]), k, W.report[e], X[e][:, [0, 2]],
-                              cents, W.bm[e, cand])
+        summary = spc_summary(t - float(ep.t0[e]), k, C.B.report[e],
+                              C.O[e][:, [O_X, O_Z]], cents, bm[cand])
         return Decision(summary, n_ag, len(cand), tuple(fallback), cents)
 
     def apply(self, ep, e: int, d: Decision, assignment: Sequence[int]) -> None:
@@ -397,12 +387,12 @@ class SPCAdapter(Adapter):
 
         Notes
         -----
-        Sets ``W.tgt[e, i]`` to candidate ``assignment[i]``'s centroid and ``W.tmap[e] = t``.
+        Sets ``H.tgt[e, i]`` to candidate ``assignment[i]``'s centroid and ``H.tmap[e] = t``.
         """
         a = _check_assignment(assignment, d)
         _, t = _now(ep, e)
-        ep.W.tgt[e] = d.options[a]
-        ep.W.tmap[e] = t
+        ep.H.tgt[e] = d.options[a]
+        ep.H.tmap[e] = t
 
 
 # ------------------------------------------------------------------------------ AS, PI
@@ -415,12 +405,12 @@ class WaypointAdapter(Adapter):
 
     label = ""
 
-    def choices(self, W, e: int) -> np.ndarray:
+    def choices(self, H, e: int) -> np.ndarray:
         """Waypoints each agent may head for next: its remaining ones, at most ``HORIZON``.
 
         Parameters
         ----------
-        W : Work
+        H : NamedTuple
             The task's work arrays (:class:`oneocean.tasks.as_.ASWork` or
             :class:`oneocean.tasks.pi.PIWork`).
         e : int
@@ -431,7 +421,7 @@ class WaypointAdapter(Adapter):
         (N,) int64
             Per agent: 0 (list finished or nothing to choose), 1 (no choice) up to ``HORIZON``.
         """
-        return np.clip(W.wcount[e] - W.widx[e], 0, HORIZON)
+        return np.clip(H.wcount[e] - H.widx[e], 0, HORIZON)
 
     def progress(self, ep, e: int) -> list[str]:
         """Task-level lines of the summary (what the team knows of its progress).
@@ -451,7 +441,8 @@ class WaypointAdapter(Adapter):
         return []
 
     def decide(self, ep, e: int) -> Decision | None:
-        """Write the fallback into ``W`` and return the choice to put to the model, if any.
+        """Write the fallback into the memory ``H`` and return the choice to put to the model,
+        if any.
 
         The fallback (what the fused heuristic would plan now) is in place whatever the model
         does.
@@ -474,8 +465,8 @@ class WaypointAdapter(Adapter):
         No decision when some agent has fewer than two waypoints to choose among; the fallback is
         0 for every agent (the planned order).
         """
-        W = ep.W
-        left = self.choices(W, e)
+        H = ep.H
+        left = self.choices(H, e)
         n_t = int(left.min())
         if n_t < 2:   # some agent has no choice: the only valid assignment is the fallback
             return None
@@ -485,20 +476,20 @@ class WaypointAdapter(Adapter):
                  f"(step {k}).", *self.progress(ep, e),
                  "Agents (position (x, z) m, x east, z north, and depth m; waypoints reached "
                  "of the list; next waypoints as offset: (x, z) m):"]
-        X = ep.known_state   # where the agents think they are
+        O = ep.C.O[e]        # where the agents think they are (their observations)
         for i in range(ep.n_agents):
-            s = X[e, i]
-            w, nw = int(W.widx[e, i]), int(W.wcount[e, i])
-            nxt = ", ".join(f"{j}: {_xz(*W.wps[e, i, w + j])}" for j in range(int(left[i])))
-            lines.append(f"  {i}: at {_xz(s[0], s[2])} depth {s[1]:.0f}; reached {w} of {nw}; "
-                         f"next {nxt}")
+            o = O[i]
+            w, nw = int(H.widx[e, i]), int(H.wcount[e, i])
+            nxt = ", ".join(f"{j}: {_xz(*H.wps[e, i, w + j])}" for j in range(int(left[i])))
+            lines.append(f"  {i}: at {_xz(o[O_X], o[O_Z])} depth {o[O_DEPTH]:.0f}; reached "
+                         f"{w} of {nw}; next {nxt}")
         lines.append("Target = the offset of the waypoint an agent heads for next: 0 keeps "
                      "the planned order, j skips the j waypoints before it.")
         return Decision("\n".join(lines), ep.n_agents, n_t, (0,) * ep.n_agents,
                         np.zeros((0, 2)))
 
     def apply(self, ep, e: int, d: Decision, assignment: Sequence[int]) -> None:
-        """Write a valid assignment into the plan tokens of ``W``.
+        """Write a valid assignment into the heuristic's memory ``H``.
 
         Parameters
         ----------
@@ -518,12 +509,12 @@ class WaypointAdapter(Adapter):
 
         Notes
         -----
-        Agent ``i`` skips ``assignment[i]`` waypoints: ``W.widx[e, i]`` advances by it.
+        Agent ``i`` skips ``assignment[i]`` waypoints: ``H.widx[e, i]`` advances by it.
         """
         a = _check_assignment(assignment, d)
         for i, j in enumerate(a):
             if j > 0:
-                ep.W.widx[e, i] += j
+                ep.H.widx[e, i] += j
 
 
 class ASAdapter(WaypointAdapter):
@@ -547,31 +538,29 @@ class ASAdapter(WaypointAdapter):
         list of str
             Summary lines.
         """
-        W = ep.W
-        x0, z0, x1, z1 = W.region[e]
-        n_cells = int(W.ncell[e, 0] * W.ncell[e, 1])
-        return [f"Survey region: x {x0:.0f}..{x1:.0f} m, z {z0:.0f}..{z1:.0f} m. Seafloor "
-                f"imaged so far: {100.0 * W.cnt[e, 0] / n_cells:.1f}% of the region (success "
-                f"at {100.0 * ep.P.thr:.0f}%)."]
+        B = ep.B
+        x0, z0, x1, z1 = B.region[e]
+        return [f"Survey region: x {x0:.0f}..{x1:.0f} m, z {z0:.0f}..{z1:.0f} m. Success: "
+                f"at least {100.0 * B.coverage_threshold:.1f}% of its seafloor imaged."]
 
 
 class PIAdapter(WaypointAdapter):
     """PI: skip along one's pipeline section.
 
     No choice in transit to the section start (``widx == 0``) nor once the section is
-    finished (``W.done``).
+    finished (``H.done``).
     """
 
     task = "PI"
     label = ("pipeline inspection for leaks (each vehicle surveys its section of the "
              "pipeline)")
 
-    def choices(self, W, e: int) -> np.ndarray:
+    def choices(self, H, e: int) -> np.ndarray:
         """Waypoints each agent may head for next (none in transit or once finished).
 
         Parameters
         ----------
-        W : Work
+        H : NamedTuple
             The task's work arrays (:class:`oneocean.tasks.as_.ASWork` or
             :class:`oneocean.tasks.pi.PIWork`).
         e : int
@@ -582,9 +571,9 @@ class PIAdapter(WaypointAdapter):
         (N,) int64
             Per agent: 0 (list finished or nothing to choose), 1 (no choice) up to ``HORIZON``.
         """
-        left = super().choices(W, e)
-        left = np.where(W.widx[e] == 0, np.minimum(left, 1), left)
-        return np.where(W.done[e] == 1, 0, left)
+        left = super().choices(H, e)
+        left = np.where(H.widx[e] == 0, np.minimum(left, 1), left)
+        return np.where(H.done[e] == 1, 0, left)
 
     def progress(self, ep, e: int) -> list[str]:
         """The leak claims the team has filed so far.
@@ -601,9 +590,10 @@ class PIAdapter(WaypointAdapter):
         list of str
             Summary lines.
         """
-        W = ep.W
-        n = int(W.nclaim[e])
-        claims = "; ".join(_xz(W.claims[e, j, 0], W.claims[e, j, 1]) for j in range(n))
+        R = ep.C.R[e]        # the report the heuristic files (its claims)
+        rows = np.flatnonzero(np.isfinite(R[:, 0]) & np.isfinite(R[:, 1]))
+        n = rows.size
+        claims = "; ".join(_xz(R[j, 0], R[j, 1]) for j in rows)
         return [f"Leak claims filed so far: {n}" + (f", at {claims} m." if n else ".")]
 
 
@@ -639,7 +629,3 @@ def adapter_for(task: str) -> Adapter:
         raise ConfigError(f"llm planner: no adapter for task {task!r}; tasks: "
                           f"{', '.join(sorted(ADAPTERS))}") from None
 
-
-# numba keys a cache entry on this file only; drop it when the heuristic's plan hook (or the
-# task's work arrays, the engine, the loop) changes.
-fresh_cache(_spc_plan, __file__, SPC_POLICY.__file__, SPC_TASK.__file__)

@@ -3,10 +3,10 @@
 :func:`load` turns a ``policy.zip`` (:mod:`oneocean.methods.ppo.train`) into the callable
 :func:`oneocean.evaluate.evaluate` scores: it declares the normalised views it was trained
 on, so the evaluation gives it the env's normalised observations
-(:func:`oneocean.envs.normalize`: the vehicle's ``v_max``, the task's reach ``v_max x time
-limit``, the fraction of the time limit left) and reads its deterministic action in units of
-``v_max`` (norm clipped to 1: the env's ``action_mode="normalized"``), exactly as the
-training env did.
+(:func:`oneocean.envs.normalize` of the public observation: the vehicle's ``v_max``, the
+task's reach ``v_max x time limit``, the fraction of the time limit left, the task's own
+fields) and reads its deterministic action in units of ``v_max`` (norm clipped to 1: the
+env's ``action_mode="normalized"``), exactly as the training env did.
 
 :func:`evaluate_to_file` scores it on exactly a workflow cell's episodes (the evaluation
 seed, ``rollouts.episodes``; :func:`oneocean.evaluate.evaluate`) and writes the cell file in
@@ -47,8 +47,8 @@ def episode_constants(task: str, tier: int) -> dict:
     Returns
     -------
     dict
-        ``v_max`` (m s-1, the task's vehicle), ``reach`` (m, ``v_max x time_limit_s``) and
-        ``n_steps`` (the episode length, steps).
+        ``v_max`` (m s-1, the task's vehicle), ``reach`` (m, ``v_max x time_limit_s``),
+        ``t_lim`` (s) and ``n_steps`` (the episode length, steps).
     """
     from ...engine import load_vehicle
     from ...tasks.common import episode_steps, load_task_table, tier_params
@@ -57,17 +57,19 @@ def episode_constants(task: str, tier: int) -> dict:
     params = tier_params(task, int(tier))
     v_max = float(load_vehicle(table.get("vehicle")).v_max)
     return {"v_max": v_max, "reach": v_max * float(params["time_limit_s"]),
+            "t_lim": float(params["time_limit_s"]),
             "n_steps": episode_steps({**params, "dt_s": float(table["dt_s"])})}
 
 
 class PPOPolicy:
-    """A trained PPO network as ``policy(obs) -> actions`` for one (task, tier).
+    """A trained PPO network as a policy (``reset(briefing)``, ``act(observation)``) for one
+    (task, tier).
 
     It declares the views it was trained on (``obs_mode = action_mode = "normalized"``), so
     :func:`oneocean.evaluate.evaluate` gives it the env's normalised observations (E, N,
-    NORM_DIM), computed exactly as in training, and reads its actions in units of ``v_max``
-    (norm clipped to 1); it returns the network's deterministic action (E, N, 3).
-    :meth:`normalized` maps raw observations to that view for use outside the env.
+    NORM_DIM + the task's fields), computed exactly as in training, and reads its actions in
+    units of ``v_max`` (norm clipped to 1); it returns the network's deterministic action
+    (E, N, 3). :meth:`normalized` maps raw observations to that view for use outside the env.
 
     Parameters
     ----------
@@ -76,7 +78,7 @@ class PPOPolicy:
     task : str
         Task id.
     tier : int
-        Tier (:func:`episode_constants`: ``v_max``, ``reach``, ``n_steps``).
+        Tier (:func:`episode_constants`: ``v_max``, ``reach``, ``t_lim``).
     """
 
     obs_mode = "normalized"
@@ -86,47 +88,60 @@ class PPOPolicy:
         c = episode_constants(task, tier)
         self.model = model
         self.task, self.tier = task, int(tier)
-        self.v_max, self.reach, self.n_steps = c["v_max"], c["reach"], c["n_steps"]
+        self.v_max, self.reach, self.t_lim = c["v_max"], c["reach"], c["t_lim"]
 
-    def reset(self, n_episodes: int | None = None, n_agents: int | None = None) -> None:
-        """Start a batch of episodes: one torch thread (after the env's numba threads started).
+    def reset(self, briefing=None) -> None:
+        """Start a batch of episodes: one torch thread (after the env's numba threads
+        started).
 
         Parameters
         ----------
-        n_episodes, n_agents : int, optional
-            The batch's size (unused: the policy keeps no per-episode state).
+        briefing : NamedTuple, optional
+            The task's briefing (not used: the network acts on the observation alone).
         """
         import torch
 
         torch.set_num_threads(1)       # after the env's numba threads started (train.py)
 
-    def normalized(self, obs, k: int = 0) -> np.ndarray:
-        """The training env's view of raw observations at a step of the episodes.
+    def normalized(self, obs) -> np.ndarray:
+        """The training env's view of raw observations.
 
         Parameters
         ----------
-        obs : (E, N, OBS_DIM) array_like
+        obs : (E, N, D) array_like
             Raw observations (NaN where undefined).
-        k : int, optional
-            Step index of the episodes (default 0): the view's fraction of the time limit left.
 
         Returns
         -------
-        (E, N, NORM_DIM) float64
+        (E, N, NORM_DIM + D - OBS_DIM) float64
             The normalised view (:func:`oneocean.envs.normalize`).
         """
         from ...envs import normalize
 
-        o = np.asarray(obs, dtype=np.float64)
-        left = max(0.0, 1.0 - int(k) / float(self.n_steps))
-        return normalize(o, self.v_max, self.reach, np.full(o.shape[0], left))
+        return normalize(np.asarray(obs, dtype=np.float64), self.v_max, self.reach, self.t_lim)
+
+    def act(self, observation) -> np.ndarray:
+        """The actions of a step: :meth:`__call__` on the observation's agents' array.
+
+        Parameters
+        ----------
+        observation : Observation
+            The step's observation (:class:`oneocean.evaluate.Observation`; its ``agents``
+            in the env's normalised view).
+
+        Returns
+        -------
+        (E, N, 3) float64
+            Actions in units of ``v_max``.
+        """
+        return self(observation.agents)
 
     def __call__(self, obs) -> np.ndarray:
         """The network's deterministic actions for a batch of normalised observations.
 
         Parameters
         ----------
-        obs : (E, N, NORM_DIM) array_like
+        obs : (E, N, NORM_DIM + the task's fields) array_like
             The env's normalised observations.
 
         Returns
