@@ -10,10 +10,10 @@ import oneocean.engine as E
 from oneocean.errors import ConfigError
 from oneocean.io import sha256_file, write_npz_atomic
 from oneocean.tasks.learned import load_weights
-from oneocean.methods.bc.dataset import build_dataset, check_seeds, teacher_rows
+from oneocean.methods.bc.dataset import EXTRA_FIELDS, build_dataset, check_seeds, teacher_rows
 from oneocean.tasks.learned import learned_act, feature_names, make_net
 from oneocean.methods.bc.train import features, train
-from oneocean.tasks import Cell
+from oneocean.tasks import Cell, task_module
 from oneocean.tasks.common import ACT_FIELDS, OBS_FIELDS
 from oneocean.testing import make_test_grid
 
@@ -131,8 +131,9 @@ def test_kernel_forward_equals_the_training_forward_pass(dataset, trained):
     for r in range(0, len(dataset), 37):
         row = dataset.iloc[r]
         net = make_net(w, row["task"], 1, 1)
-        net.obs[0, 0, 0] = row[list(OBS_FIELDS)].to_numpy(np.float64)
-        out = np.array(learned_act(net, 0, 0, 2.0))
+        n_x = len(task_module(row["task"]).OBS_EXTRA)     # the row as the loop holds it
+        O = row[list(OBS_FIELDS + EXTRA_FIELDS[:n_x])].to_numpy(np.float64)[None, None]
+        out = np.array(learned_act(net, float(row["t_lim_s"]), O, 0, 0, 2.0))
         np.testing.assert_array_equal(out, 2.0 * pred[r])
 
 
@@ -150,7 +151,10 @@ def test_in_loop_learned_actions_equal_the_forward_pass_of_the_saved_weights(gri
     df, obs, act = cell.run("bc", 3, 1000, "6dof", observations=True, net=saved)
     live = np.isfinite(act).all(axis=-1)
     o = obs[live]
-    rows = pd.DataFrame(o, columns=list(OBS_FIELDS)).assign(task="G2G")
+    rows = pd.DataFrame(o, columns=list(OBS_FIELDS + EXTRA_FIELDS[:2])).assign(
+        task="G2G", t_lim_s=float(cell.params["time_limit_s"]))
+    for c in EXTRA_FIELDS[2:]:
+        rows[c] = np.nan
     Z = (features(rows, ["G2G", "SK"]) - saved["mu"]) / saved["sd"]
     pred = MLP(saved["w"], saved["b"], saved["dims"]).predict(Z)
     assert len(rows) > 50

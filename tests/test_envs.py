@@ -67,12 +67,16 @@ def test_vector_env_contract(coast):
     env = OceanVectorEnv("G2G", 1, coast, num_envs=3, autoreset_mode="disabled")
     assert env.metadata["autoreset_mode"] == AutoresetMode.DISABLED
     obs, info = env.reset(seed=5)
-    assert obs.shape == (3, 1, OBS_DIM) == env.observation_space.shape
+    assert obs.shape == (3, 1, OBS_DIM + 2) == env.observation_space.shape   # G2G's own 2
+    # the briefing of every sub-env's episode: one episode each, the cell's goals
+    assert info["_briefing"].all() and [b.goal.shape for b in info["briefing"]] == [(1, 3)] * 3
     obs2, _ = env.reset(seed=5)
     np.testing.assert_array_equal(obs, obs2)            # same seed, same episodes
     # the goal cue is the goal relative to where the vehicle thinks it is: the true offset
     # up to its start fix (0.5 m per horizontal axis, truncated at 3 sigma; depth is measured)
     init = env.cell.reset(3, 5)
+    np.testing.assert_array_equal(np.concatenate([b.goal for b in info["briefing"]]),
+                                  init["goal"])
     err = obs[:, 0, :3] - (init["goal"] - init["pos0"][:, 0])
     assert np.all(np.abs(err[:, [0, 2]]) <= 1.5) and np.any(np.abs(err[:, [0, 2]]) > 1e-3)
     np.testing.assert_allclose(err[:, 1], 0.0, atol=1e-9)
@@ -80,7 +84,8 @@ def test_vector_env_contract(coast):
     obs, r, term, trunc, info = env.step(a)
     assert r.shape == term.shape == trunc.shape == (3,)
     assert not term.any() and not trunc.any() and info == {}
-    assert OBS_FIELDS[0] == "goal_dx_m" and env.obs_fields == OBS_FIELDS
+    assert OBS_FIELDS[0] == "goal_dx_m"
+    assert env.obs_fields == OBS_FIELDS + ("energy_j", "energy_frac")
 
 
 def test_episode_end_reports_metrics_in_info(coast):
@@ -112,7 +117,7 @@ def test_pettingzoo_parallel_api(coast):
     env = parallel_env("G2G", 1, coast)
     parallel_api_test(env, num_cycles=50)
     obs, _ = env.reset(seed=1)
-    assert list(obs) == ["vehicle_0"] and obs["vehicle_0"].shape == (OBS_DIM,)
+    assert list(obs) == ["vehicle_0"] and obs["vehicle_0"].shape == (OBS_DIM + 2,)
 
 
 def test_pettingzoo_multi_agent_team(coast):
@@ -222,7 +227,8 @@ def test_next_step_autoreset_resets_on_the_following_step(coast):
         obs, r, term, trunc, info = env.step(np.zeros(env.action_space.shape))
     assert trunc.all() and not term.any()
     obs, r, term, trunc, info = env.step(np.full(env.action_space.shape, 9.0))
-    assert (r == 0).all() and not term.any() and not trunc.any() and info == {}
+    assert (r == 0).all() and not term.any() and not trunc.any()
+    assert set(info) == {"briefing", "_briefing"} and info["_briefing"].all()   # new episodes
     init = env.cell.reset(4, 4)                  # pool of 2 x 2: episodes 2, 3 come next
     np.testing.assert_allclose(obs[:, 0, [0, 2]],
                                (init["goal"] - init["pos0"][:, 0])[2:4][:, [0, 2]], atol=1.5)
@@ -255,6 +261,7 @@ def test_normalized_view_and_norm_bounded_action(coast):
                          action_mode="normalized")
     obs, _ = env.reset(seed=1)
     assert obs.shape == (2, 3, len(NORM_FIELDS)) and env.observation_space.contains(obs)
+    assert NORM_FIELDS[-5:] == ("v_max_ms", "time_left", "vx", "vy", "vz")
     assert np.allclose(obs[..., NORM_FIELDS.index("v_max_ms")], env.v_max)
     assert np.allclose(obs[..., NORM_FIELDS.index("time_left")], 1.0)
     assert env.action_space.low.min() == -1.0 and env.action_space.high.max() == 1.0
@@ -266,58 +273,57 @@ def test_normalized_view_and_norm_bounded_action(coast):
         obs, *_ = env.step(np.zeros(env.action_space.shape))
     assert np.allclose(obs[..., NORM_FIELDS.index("time_left")], 1.0 - 5 / env.cell_steps)
     raw = np.array([[30.0, 4.0, 40.0, 0.3, -0.1, 12.0, np.nan, np.nan]
-                    + [5.0, 0.0] + [np.nan] * 4])
-    n = normalize(raw[None], 2.0, 1000.0, np.array([0.5]))[0, 0]
+                    + [5.0, 0.0] + [np.nan] * 4
+                    + [100.0, 200.0, 0.3, 1.0, 0.5, -4.0, 600.0, 10.0, 0.0]    # x .. fix
+                    + [np.e - 1.0, np.nan]])                                  # the task's own
+    n = normalize(raw[None], 2.0, 1000.0, 1200.0)[0, 0]
     np.testing.assert_allclose(n[:3], np.array([30, 4, 40]) / (np.hypot(50, 4) + 10))
     np.testing.assert_allclose(n[3], np.log1p(np.hypot(50, 4)) / np.log1p(1000.0))
     np.testing.assert_allclose(n[4:9], [0.15, -0.05, 0.12, 1.0, 0.0])
     np.testing.assert_allclose(n[9:11], [5 / 15, 0.0])
     assert n[11:15].tolist() == [0, 0, 0, 0] and n[15] == 2.0 and n[16] == 0.5
+    np.testing.assert_allclose(n[17:20], [0.5, 0.25, -2.0])      # ground velocity / v_max
+    np.testing.assert_allclose(n[20:], [1.0, 0.0])              # sign(x) log(1 + |x|), NaN 0
 
 
-def test_dense_reward_pays_progress_and_success_only_as_a_signal(coast):
-    """Moving toward the goal earns reward, standing still earns none; the metrics and
-    ``is_success`` in info are the task's own, whatever the reward."""
-    from oneocean.envs import OceanVectorEnv, dense_reward
+def test_dense_reward_terms():
+    """Progress toward the cue over the distance at the start (a cue jump counts 0), the
+    energy over its scale, the allocation penalty, violations and near-collisions over the
+    episode's steps, and 1 on success."""
+    from oneocean.envs import dense_reward
 
-    r = dense_reward(np.array([[10.0], [10.0], [10.0]]), np.array([[9.0], [10.0], [40.0]]),
-                     np.array([0, 1, 0]), np.array([0, 0, 0]), np.array([False, False, True]),
-                     1.0, 1.0)
-    np.testing.assert_allclose(r, [0.1, -0.1, 1.0])   # progress; a violation; a cue jump
-    # the energy term: the team's mean ||a||^2 dt in units of v_max^2 dt, weight 0.05
-    r = dense_reward(np.array([[10.0, 10.0], [10.0, 10.0]]), np.array([[8.0, 8.0], [10.0, 10.0]]),
-                     np.array([0, 0]), np.array([0, 0]), np.array([False, False]), 2.0, 1.0,
-                     new_energy=np.array([8.0, 2.0]), n_agents=2)
-    np.testing.assert_allclose(r, [0.1 - 0.05, -0.05 * 0.25])
-    env = OceanVectorEnv("SK", 1, coast, num_envs=2, reward="dense",
+    d0 = np.array([[100.0], [100.0], [100.0], [100.0]])
+    r = dense_reward(d0, np.array([[50.0], [50.0], [50.0], [50.0]]),
+                     np.array([[49.0], [50.0], [90.0], [50.0]]), np.array([0, 2, 0, 0]),
+                     np.array([0, 0, 1, 0]), np.array([False, False, True, False]),
+                     np.array([False, False, False, True]), np.array([0.0, 10.0, 0.0, 0.0]),
+                     np.full(4, 100.0), 200, 2.0)
+    np.testing.assert_allclose(r, [0.5 * 1 / 100, -0.5 * 0.1 - 2 / 200, 1.0 - 1 / 200, -1.0])
+
+
+def test_dense_reward_sums_stay_within_their_weights_and_success_pays_most(coast):
+    """Over an episode the progress terms add up to at most PROGRESS_WEIGHT and the energy
+    terms to the energy over its scale (the allocation where the task has one): a successful
+    episode earns more than a failed one. The metrics and ``is_success`` in info are the
+    task's own, whatever the reward."""
+    from oneocean.envs import ENERGY_WEIGHT, PROGRESS_WEIGHT, OceanVectorEnv
+
+    env = OceanVectorEnv("G2G", 1, coast, num_envs=3, reward="dense",
                          autoreset_mode="disabled")
     obs, _ = env.reset(seed=2)
-    _, r_go, *_ = env.step(_toward_goal(obs, env.v_max))
-    sparse = OceanVectorEnv("SK", 1, coast, num_envs=2, autoreset_mode="disabled")
-    sparse.reset(seed=2)
-    _, r_sp, *_ = sparse.step(_toward_goal(obs, env.v_max))
-    assert (r_sp == 0).all() and np.isfinite(r_go).all() and (np.abs(r_go) <= 0.2 + 1e-9).all()
-
-
-def test_dense_reward_energy_term_sums_to_the_episodes_control_effort(coast, monkeypatch):
-    """With the other terms weighted 0, the dense rewards of an episode's steps add up to
-    -ENERGY_WEIGHT x its control effort E (the metric's m2 s-1) / (N v_max^2 dt): at full
-    speed 0.05 a step, at half speed a quarter of that."""
-    from oneocean import envs as envs_mod
-    from oneocean.envs import ENERGY_WEIGHT, OceanVectorEnv
-
-    monkeypatch.setattr(envs_mod, "PROGRESS_WEIGHT", 0.0)
-    for scale, per_step in ((1.0, 0.05), (0.5, 0.0125)):
-        env = OceanVectorEnv("SK", 1, coast, num_envs=2, reward="dense",
-                             autoreset_mode="disabled")
-        obs, _ = env.reset(seed=3)
-        total = np.zeros(2)
-        for _ in range(6):
-            _, r, *_ = env.step(scale * _toward_goal(obs, env.v_max))
-            total += r
-        energy = env._gather("energy")
-        np.testing.assert_allclose(total, -ENERGY_WEIGHT * energy / (env.v_max ** 2 * env.dt))
-        np.testing.assert_allclose(total, -6 * per_step, rtol=1e-6)
+    total = np.zeros(3)
+    done = np.zeros(3, dtype=bool)
+    while not done.all():
+        obs, r, term, trunc, info = env.step(_toward_goal(obs, 1.25))
+        total += np.where(done, 0.0, r)
+        done |= term | trunc
+    res = env.batch.results()
+    used = res["energy_wh"] * 3600.0
+    alloc = env.batch.B.energy_allocation
+    expect = (PROGRESS_WEIGHT * (1.0 - res["final_error_m"] / env._d0[:, 0])
+              - ENERGY_WEIGHT * used / alloc - (used > alloc) + res["success"])
+    np.testing.assert_allclose(total, expect, atol=0.02)
+    assert total[res["success"]].min() > max(total[~res["success"]].max(initial=-9), 0.5)
 
 
 def test_rgb_render_shows_land_water_and_agents(coast):
@@ -406,7 +412,7 @@ def test_gymnasium_vector_wrappers_accept_the_vector_env(default_grid):
     obs, _ = env.reset(seed=0)
     for _ in range(5):
         obs, r, term, trunc, info = env.step(np.zeros(env.action_space.shape))
-    assert np.isfinite(obs).all() and obs.shape == (4, 1, 17)
+    assert np.isfinite(obs).all() and obs.shape == (4, 1, 20)      # SK: no fields of its own
 
 
 def test_a_seed_the_cell_cannot_host_moves_on_to_the_next_pool_seed(default_grid):
@@ -497,31 +503,24 @@ def test_fused_step_equals_run_then_observe(coast, monkeypatch, mode, view):
     assert fused[0][1] >= 3
 
 
-def test_the_step_reuses_its_observations_current_only_at_that_step_and_position(coast):
-    """The step takes the true current at each agent from the sample its observation took
-    (the same step, the same position: the same value, so the episodes stay the cell's);
-    a sample taken anywhere else is never used."""
+def test_the_step_moves_each_agent_in_the_current_its_observation_sampled(coast):
+    """The true current each agent's move meets is the one sampled when its observation was
+    taken (the step's start: ``LS.cw``), so an observation and its step agree; a different
+    current there moves the agents differently."""
     from oneocean.envs import OceanVectorEnv
 
     def trace(poison):
         env = OceanVectorEnv("G2G", 1, coast, num_envs=2, autoreset_mode="disabled")
         out = [env.reset(seed=3)[0]]
         for _ in range(6):
-            if poison is not None:
-                poison(env.batch.LS.ocur)        # [x, y, z, step, east, north] per agent
+            if poison:
+                env.batch.LS.cw[...] = 5.0
             out.append(env.step(np.full(env.action_space.shape, 0.4))[0])
         return np.array(out)
 
-    def elsewhere(q):
-        q[..., 0] += 1e-6
-        q[..., 4:6] = 5.0
-
-    def here(q):
-        q[..., 4:6] = 5.0
-
-    clean = trace(None)
-    np.testing.assert_array_equal(trace(elsewhere), clean)
-    assert not np.array_equal(trace(here), clean)        # the sample is what the step uses
+    clean = trace(False)
+    np.testing.assert_array_equal(trace(False), clean)
+    assert not np.array_equal(trace(True), clean)
 
 
 def test_evaluate_runs_the_forcing_it_is_given(coast):
@@ -566,7 +565,7 @@ def test_evaluate_gives_a_normalized_policy_the_envs_view(coast):
     env = OceanVectorEnv("G2G", 1, coast, num_envs=3, autoreset_mode="disabled",
                          obs_mode="normalized")
     np.testing.assert_array_equal(pol.seen[0], env.reset(seed=1)[0])
-    assert pol.seen[0].shape == (3, 1, NORM_DIM)
+    assert pol.seen[0].shape == (3, 1, NORM_DIM + 2)          # G2G's own two fields
 
 
 def _pool_env(task, grid, whole, **kw):

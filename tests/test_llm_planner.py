@@ -22,7 +22,7 @@ from fake_llm_server import (FakeLLMServer, answer, assignment, prompt_words, ro
 from oneocean import engine as E
 from oneocean.engine.recording import read_metrics_meta
 from oneocean.errors import ConfigError, NotApplicable
-from oneocean.methods.heuristic import spc as spc_policy
+from oneocean.tasks import spc as spc_task
 from oneocean.methods.llm import ADAPTERS, planner_cell, planner_cell_to_file
 from oneocean.methods.llm.adapters import EXTRA_CANDIDATES, HORIZON, WAYPOINT_EVERY, PIAdapter
 from oneocean.methods.llm.rollout import ACCOUNTING, model_config
@@ -102,8 +102,7 @@ def test_always_failing_model_reproduces_the_heuristic_exactly(coast, heuristic,
     assert (df["llm_latency_s"] > 0).all()
     assert df["llm_calls"].dtype == np.int64 and df["llm_latency_s"].dtype == np.float64
     if task == "SPC":   # one call per aerial map step: k = 20, 40, ..., 880 of 900 steps
-        period = spc_policy.params("heuristic", Cell(coast, "SPC", 1).params,
-                                   Cell(coast, "SPC", 1).vehicle).map_every
+        period = spc_task.aerial_steps(Cell(coast, "SPC", 1).params)
         assert_counts(df, llm_calls=len(range(period, 900, period)))
 
 
@@ -187,31 +186,34 @@ def _batch(coast, task: str, n_episodes: int = 2):
 
 def test_spc_adapter_offers_the_heaviest_blocks_and_writes_the_chosen_centroids(coast):
     ep = _batch(coast, "SPC")
-    ad, W, n_ag = ADAPTERS["SPC"], ep.W, ep.n_agents
+    ad, H, T, n_ag = ADAPTERS["SPC"], ep.H, ep.C.T, ep.n_agents
     assert all(ad.decide(ep, e) is None for e in range(ep.n_episodes))  # k = 0: the ring
-    np.testing.assert_array_equal(W.tmap, ep.t0)
-    ring = W.report[0] + ep.M.ring * np.column_stack(
+    np.testing.assert_array_equal(H.tmap, ep.t0)
+    ring = ep.B.report[0] + ep.M.ring * np.column_stack(
         [np.sin(2 * np.pi * np.arange(n_ag) / n_ag), np.cos(2 * np.pi * np.arange(n_ag) / n_ag)])
-    np.testing.assert_allclose(W.tgt[0], ring, rtol=0, atol=1e-9)
-    period = ep.M.map_every
+    np.testing.assert_allclose(H.tgt[0], ring, rtol=0, atol=1e-9)
+    tier, kw = CELLS["SPC"]
+    period = ad.default_every(Cell(coast, "SPC", tier, **kw).params, ep.vehicle)
     ep.run(period)
     for e in range(ep.n_episodes):
         d = ad.decide(ep, e)
-        # candidates: the heaviest mapped blocks, in decreasing mass, at most N + extra
-        nb = W.bm[e]
+        # candidates: the heaviest mapped blocks (the team observation's aerial map), in
+        # decreasing mass, at most N + extra
+        nb = T.mass[e]
+        assert T.t_map[e] == ep.t0[e] + period * ep.dt
         assert d.n_agents == n_ag and d.n_targets == min(int((nb > 0).sum()),
                                                          n_ag + EXTRA_CANDIDATES)
         order = np.argsort(-nb, kind="stable")[:d.n_targets]
-        np.testing.assert_array_equal(d.options, np.column_stack([W.bx[e, order],
-                                                                  W.bz[e, order]]))
+        np.testing.assert_array_equal(d.options, np.column_stack([T.x[e, order],
+                                                                  T.z[e, order]]))
         # the fallback is the greedy's own targets, written now (tmap = t)
-        np.testing.assert_array_equal(d.options[list(d.fallback)], W.tgt[e])
-        assert W.tmap[e] == ep.t0[e] + period * ep.dt
+        np.testing.assert_array_equal(d.options[list(d.fallback)], H.tgt[e])
+        assert H.tmap[e] == ep.t0[e] + period * ep.dt
         assert f"{d.n_targets} candidate target blocks" in d.summary
         assert d.summary.count("\n  ") == d.n_targets + n_ag
         a = [(i + 1) % d.n_targets for i in range(n_ag)]
         ad.apply(ep, e, d, a)
-        np.testing.assert_array_equal(W.tgt[e], d.options[a])
+        np.testing.assert_array_equal(H.tgt[e], d.options[a])
         with pytest.raises(ValueError, match="not 4 targets"):
             ad.apply(ep, e, d, [d.n_targets] * n_ag)
     ep.run(period + 1)
@@ -220,42 +222,44 @@ def test_spc_adapter_offers_the_heaviest_blocks_and_writes_the_chosen_centroids(
 
 def test_waypoint_adapters_skip_to_the_chosen_waypoint(coast):
     ep = _batch(coast, "AS")
-    W = ep.W
+    H = ep.H
     d = ADAPTERS["AS"].decide(ep, 1)
-    n_left = min(HORIZON, int(W.wcount[1, 0]))
+    n_left = min(HORIZON, int(H.wcount[1, 0]))
     assert (d.n_agents, d.n_targets, d.fallback) == (1, n_left, (0,))
     for j in range(n_left):
-        x, z = W.wps[1, 0, j]
+        x, z = H.wps[1, 0, j]
         assert f"{j}: ({x:.0f}, {z:.0f})" in d.summary
+    assert "Survey region" in d.summary and "imaged so far" not in d.summary
     ADAPTERS["AS"].apply(ep, 1, d, [2])
-    assert W.widx[1, 0] == 2 and W.widx[0, 0] == 0
+    assert H.widx[1, 0] == 2 and H.widx[0, 0] == 0
     # PI: in transit to the section start (widx 0) there is no choice
     ep = _batch(coast, "PI")
-    assert (ep.W.widx == 0).all() and ADAPTERS["PI"].decide(ep, 0) is None
-    while ep.W.widx[0, 0] == 0:
+    assert (ep.H.widx == 0).all() and ADAPTERS["PI"].decide(ep, 0) is None
+    while ep.H.widx[0, 0] == 0:
         ep.run(int(ep.k[0]) + 10)
-    w = int(ep.W.widx[0, 0])
+    w = int(ep.H.widx[0, 0])
     d = ADAPTERS["PI"].decide(ep, 0)
-    assert d.n_targets == min(HORIZON, int(ep.W.wcount[0, 0]) - w) >= 2
+    assert d.n_targets == min(HORIZON, int(ep.H.wcount[0, 0]) - w) >= 2
     ADAPTERS["PI"].apply(ep, 0, d, [1])
-    assert ep.W.widx[0, 0] == w + 1
+    assert ep.H.widx[0, 0] == w + 1
 
 
-def test_spc_plan_wrapper_loads_from_the_cache_in_a_new_process():
-    """The SPC adapter's jitted wrapper reaches the heuristic's plan hook as a module global,
-    so numba caches it: a second process loads it instead of compiling it again."""
+def test_spc_plan_hook_called_from_python_loads_from_the_cache_in_a_new_process():
+    """The SPC adapter calls the heuristic's plan hook from Python: numba caches that entry,
+    so a second process loads it instead of compiling it again."""
     code = textwrap.dedent("""
         from oneocean import engine as E
         from oneocean.testing import make_test_grid
         from oneocean.tasks import Cell
         from oneocean.tasks.episodes import Episodes
+        from oneocean.methods.heuristic import spc
         from oneocean.methods.llm import adapters
         g = E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
         c = Cell(g, "SPC", 1, n_agents=2)
         ep = Episodes(c.mod, c.grid, c.params, c.reset(1, 0), "heuristic", "6dof", c.vehicle,
                       0, fused_plan=False).run(0)
         adapters.ADAPTERS["SPC"].decide(ep, 0)
-        st = adapters._spc_plan.stats
+        st = spc.plan.stats
         print(sum(st.cache_hits.values()), sum(st.cache_misses.values()))
     """)
     out = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

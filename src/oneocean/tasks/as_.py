@@ -83,6 +83,7 @@ from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError, NotApplicable
 from .common import (ARRIVE_M, PURPOSE_RESET, STANDARD, _call, fresh_cache, need_tier,
                      _spawn_altitude, start_times, waypoint_carrot)
+from .public import briefing_class, common_brief
 
 TASK_ID = "AS"
 METRICS = ("coverage_fraction", "footprint_loss_frac", "mean_altitude_m")
@@ -755,7 +756,12 @@ def make(grid, tier: dict, init: dict):
 
 
 #: The task's own observation fields (after :data:`oneocean.tasks.common.OBS_FIELDS`): none.
+OBS_EXTRA_DOCS: dict = {}
 OBS_EXTRA = ()
+#: What the cue is (the observation's ``goal_d*`` fields).
+CUE_DOC = ("the next point of the agent's lines of the task's survey plan (a lawnmower over the "
+           "region for the team, at 0.75 of the maximum altitude above the chart): its run-in "
+           "point, then 12 m ahead on the current strip or cross leg")
 
 #: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
 #: unit, meaning).
@@ -786,33 +792,7 @@ BRIEF_FIELDS = {
 }
 
 
-class ASBriefing(NamedTuple):
-    """AS's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
-    t0: np.ndarray
-    t_lim: float
-    dt: float
-    n_agents: int
-    v_max: float
-    guidance: int
-    hotel_w: float
-    pk: float
-    energy_allocation: np.ndarray
-    sens: tuple
-    chart: tuple
-    region: np.ndarray
-    long_axis: np.ndarray
-    max_altitude: float
-    half_angle_deg: float
-    cell: float
-    coverage_threshold: float
-    start: np.ndarray
-    forecast_centre: np.ndarray
-    forecast_times: np.ndarray
-    forecast_depth: np.ndarray
-    survey_alt: float
-    line_spacing: float
-    lines: np.ndarray
-    line_count: np.ndarray
+ASBriefing = briefing_class("AS", BRIEF_FIELDS, __name__)
 
 
 def brief(P: ASParams, W: ASWork, init: dict, m) -> ASBriefing:
@@ -835,8 +815,6 @@ def brief(P: ASParams, W: ASWork, init: dict, m) -> ASBriefing:
     -------
     ASBriefing
     """
-    from .public import common_brief
-
     n_ep = W.region.shape[0]
     times = np.zeros((n_ep, N_TIMES))
     cur = np.zeros((n_ep, N_TIMES, 2))

@@ -57,6 +57,7 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from .common import (MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, nav_waypoint, need_tier,
                      profile_at, sample_routes, start_times)
+from .public import briefing_class, common_brief
 from ..engine import streams
 from ..engine import libm
 
@@ -199,7 +200,12 @@ def make(grid, tier: dict, init: dict):
 
 
 #: The task's own observation fields: none (the cue carries the target depth).
+OBS_EXTRA_DOCS: dict = {}
 OBS_EXTRA = ()
+#: What the cue is (the observation's ``goal_d*`` fields).
+CUE_DOC = ("the route point 20 m ahead of the vehicle's known horizontal projection on the active "
+           "leg, at the target depth at the projection (so goal_dy_m is minus the depth error); "
+           "the last waypoint once the route is done")
 
 #: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
 #: unit, meaning).
@@ -212,22 +218,7 @@ BRIEF_FIELDS = {
 }
 
 
-class DPTBriefing(NamedTuple):
-    """DPT's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
-    t0: np.ndarray
-    t_lim: float
-    dt: float
-    n_agents: int
-    v_max: float
-    guidance: int
-    hotel_w: float
-    pk: float
-    energy_allocation: np.ndarray
-    sens: tuple
-    chart: tuple
-    route: np.ndarray
-    radius: float
-    depth_tol: float
+DPTBriefing = briefing_class("DPT", BRIEF_FIELDS, __name__)
 
 
 def brief(P: DPTParams, W: DPTWork, init: dict, m) -> DPTBriefing:
@@ -247,8 +238,6 @@ def brief(P: DPTParams, W: DPTWork, init: dict, m) -> DPTBriefing:
     -------
     DPTBriefing
     """
-    from .public import common_brief
-
     return DPTBriefing(**common_brief(m), route=W.route.copy(), radius=P.radius,
                        depth_tol=P.depth_tol)
 

@@ -100,6 +100,7 @@ from ..models.fish import (FISH_PARAM_NAMES, fish_params, fraction_inside_circle
 from ..sensing import perception, perception_values
 from ..sensing.kernels import forecast, polar_fix
 from .common import feasible_codes
+from .public import briefing_class, common_brief
 from .common import (_SPAWN_BATCH, OBS_DIM, PURPOSE_RESET, PURPOSE_TASK_NOISE, STANDARD, _call,
                      _route_row, _segment_clear, current_at, fresh_cache, need_tier,
                      path_clear, sample_route, start_times)
@@ -594,7 +595,17 @@ def make(grid, tier: dict, init: dict):
 #: sees no fish in range. A method given the target reads, at any range, the offset of the
 #: true centroid from the agent's known position (its ``x_m``, ``z_m``) and the school's RMS
 #: spread.
-OBS_EXTRA = ("school_seen", "school_dx_m", "school_dz_m", "school_spread_m")
+OBS_EXTRA_DOCS = {
+    "school_seen": ("", "1 if the agent's imaging sonar sees the school, else 0"),
+    "school_dx_m": ("m", "the sonar's echo centroid minus the agent's navigation estimate, east "
+                         "(NaN: none seen)"),
+    "school_dz_m": ("m", "the same, north"),
+    "school_spread_m": ("m", "the echo's extent (NaN: none seen)"),
+}
+OBS_EXTRA = tuple(OBS_EXTRA_DOCS)
+#: What the cue is (the observation's ``goal_d*`` fields).
+CUE_DOC = ("the agent's herding station on an arc behind the school's last team fix, opposite the "
+           "zone centre, a standoff plus the school's extent out")
 #: Their columns in an observation row.
 O_SEEN, O_SDX, O_SDZ, O_SSPREAD = (OBS_DIM + j for j in range(len(OBS_EXTRA)))
 
@@ -654,29 +665,7 @@ BRIEF_FIELDS = {
 }
 
 
-class FHBriefing(NamedTuple):
-    """FH's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
-    t0: np.ndarray
-    t_lim: float
-    dt: float
-    n_agents: int
-    v_max: float
-    guidance: int
-    hotel_w: float
-    pk: float
-    energy_allocation: np.ndarray
-    sens: tuple
-    chart: tuple
-    zone: np.ndarray
-    zone_radius: float
-    hold_s: float
-    depth: float
-    school0: np.ndarray
-    school_radius: float
-    fish_count: int
-    flee_radius: float
-    fish_speed: float
-    sonar_range: float
+FHBriefing = briefing_class("FH", BRIEF_FIELDS, __name__)
 
 
 def brief(P: FHParams, W: FHWork, init: dict, m) -> FHBriefing:
@@ -703,8 +692,6 @@ def brief(P: FHParams, W: FHWork, init: dict, m) -> FHBriefing:
     -------
     FHBriefing
     """
-    from .public import common_brief
-
     n_ep = W.zone.shape[0]
     for e in range(n_ep):      # the fish-jitter keys and the sonar's streams: the run's
         W.fseed[e] = hash64(m.seed, m.e0 + e, PURPOSE_TASK_NOISE, 0)

@@ -65,6 +65,7 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError, NotApplicable
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, need_tier,
                      paths_clear, sample_routes, start_times)
+from .public import briefing_class, common_brief
 from ..engine import libm, streams
 
 TASK_ID = "FT"
@@ -307,6 +308,12 @@ def _v_max(tier: dict) -> float:
     return float(load_vehicle(shared_task_table(TASK_ID)["vehicle"]).v_max)
 
 
+OBS_EXTRA_DOCS: dict = {}
+OBS_EXTRA = ()
+#: What the cue is (the observation's ``goal_d*`` fields).
+CUE_DOC = ("the agent's slot around the team's navigated centroid, led 10/3 s at the transit "
+           "speed (0.8 v_max) toward the goal")
+
 #: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
 #: unit, meaning).
 BRIEF_FIELDS = {
@@ -322,26 +329,7 @@ BRIEF_FIELDS = {
 }
 
 
-class FTBriefing(NamedTuple):
-    """FT's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
-    t0: np.ndarray
-    t_lim: float
-    dt: float
-    n_agents: int
-    v_max: float
-    guidance: int
-    hotel_w: float
-    pk: float
-    energy_allocation: np.ndarray
-    sens: tuple
-    chart: tuple
-    start: np.ndarray
-    goal: np.ndarray
-    offsets: np.ndarray
-    radius: float
-    slot_tol: float
-    e_bound: float
-    settle_s: float
+FTBriefing = briefing_class("FT", BRIEF_FIELDS, __name__)
 
 
 def brief(P: FTParams, W: FTWork, init: dict, m) -> FTBriefing:
@@ -352,8 +340,6 @@ def brief(P: FTParams, W: FTWork, init: dict, m) -> FTBriefing:
     -------
     FTBriefing
     """
-    from .public import common_brief
-
     return FTBriefing(**common_brief(m), start=W.start.copy(), goal=W.goal.copy(),
                       offsets=W.offsets.copy(), radius=P.radius, slot_tol=P.slot_tol,
                       e_bound=P.e_bound, settle_s=SETTLE_S)

@@ -65,6 +65,7 @@ from ..errors import ConfigError, NotApplicable
 from . import routing
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, OBS_DIM, PURPOSE_RESET, STANDARD,
                      current_at, need_tier, sample_routes, site_speeds, start_times)
+from .public import briefing_class, common_brief
 from ..engine import libm, streams
 
 TASK_ID = "G2G"
@@ -478,7 +479,15 @@ def make(grid, tier: dict, init: dict):
 #: The task's own observation fields (after :data:`oneocean.tasks.common.OBS_FIELDS`): the
 #: electrical energy the vehicle used so far (J) and its fraction of the allocation (0 without
 #: one).
-OBS_EXTRA = ("energy_j", "energy_frac")
+OBS_EXTRA_DOCS = {
+    "energy_j": ("J", "the electrical energy the vehicle used so far (its power model over its "
+                      "speed through the water)"),
+    "energy_frac": ("", "that energy over the episode's allocation (0 without one): above 1 the "
+                        "episode fails"),
+}
+OBS_EXTRA = tuple(OBS_EXTRA_DOCS)
+#: What the cue is (the observation's ``goal_d*`` fields).
+CUE_DOC = ("the goal")
 
 #: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
 #: unit, meaning).
@@ -491,29 +500,7 @@ BRIEF_FIELDS = {
 }
 
 
-class G2GBriefing(NamedTuple):
-    """G2G's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
-    t0: np.ndarray
-    t_lim: float
-    dt: float
-    n_agents: int
-    v_max: float
-    guidance: int
-    hotel_w: float
-    pk: float
-    energy_allocation: np.ndarray
-    sens: tuple
-    chart: tuple
-    start: np.ndarray
-    goal: np.ndarray
-    radius: float
-    fc_cur: np.ndarray
-    fc_times: np.ndarray
-    fc_free: np.ndarray
-    fc_x0: np.ndarray
-    fc_z0: np.ndarray
-    fc_h: np.ndarray
-    fc_shape: np.ndarray
+G2GBriefing = briefing_class("G2G", BRIEF_FIELDS, __name__)
 
 
 def brief(P: G2GParams, W: G2GWork, init: dict, m) -> G2GBriefing:
@@ -536,8 +523,6 @@ def brief(P: G2GParams, W: G2GWork, init: dict, m) -> G2GBriefing:
     -------
     G2GBriefing
     """
-    from .public import common_brief
-
     start = np.ascontiguousarray(m.X0[:, 0, :3])
     fc = m.forecast
     fields = []

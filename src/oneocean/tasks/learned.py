@@ -359,16 +359,17 @@ def forward(net, x, h):
 
 
 @hot_kernel
-def learned_act(net, B, O, e, i, v_max):
-    """Agent ``i``'s action from its observation ``O[e, i]`` and the briefing ``B`` (its
-    ``t_lim``): features, standardisation, forward pass, times ``v_max``.
+def learned_act(net, t_lim, O, e, i, v_max):
+    """Agent ``i``'s action from its observation ``O[e, i]`` and the briefing's time limit:
+    features, standardisation, forward pass, times ``v_max``. (Plain arguments, no task's
+    types: one cached copy serves every task, a plugin's too.)
 
     Parameters
     ----------
     net : LearnedNet
         The network with its scratch.
-    B : NamedTuple
-        The task's briefing.
+    t_lim : float
+        The briefing's time limit, s.
     O : (E, N, D) float64
         This step's observations.
     e, i : int
@@ -383,7 +384,7 @@ def learned_act(net, B, O, e, i, v_max):
     """
     h = net.buf[e]
     x = h[0]
-    featurize(O[e, i], B.t_lim, net.task, net.n_tasks, x)
+    featurize(O[e, i], t_lim, net.task, net.n_tasks, x)
     for q in range(net.dims[0]):
         x[q] = (x[q] - net.mu[q]) / net.sd[q]
     ax, ay, az = forward(net, x, h)

@@ -520,7 +520,7 @@ def decide_step(plan, act, C, LP, ext, cmd, rec_o, rec_a, e, k):
         if LP.policy == FUSED:
             ax, ay, az, psi = act(C, e, k, i)
         elif LP.policy == LEARNED:
-            ax, ay, az = learned_act(LP.net, C.B, C.O, e, i, LP.v_max)
+            ax, ay, az = learned_act(LP.net, C.B.t_lim, C.O, e, i, LP.v_max)
             psi = math.nan
         else:
             ax = ext[e, i, 0]

@@ -110,6 +110,7 @@ from ..errors import ConfigError, NotApplicable
 from ..models import pollution as pol
 from .common import (ARRIVE_M, OBS_DIM, PURPOSE_RESET, STANDARD, _call, fresh_cache,
                      need_tier, _spawn_altitude, start_times, waypoint_carrot)
+from .public import briefing_class, common_brief
 
 TASK_ID = "PI"
 METRICS = ("inspection_score", "localisation_error_m", "detection_rate", "false_claims")
@@ -1024,7 +1025,14 @@ def make(grid, tier: dict, init: dict):
 #: The task's own observation field (after :data:`oneocean.tasks.common.OBS_FIELDS`): 1 once
 #: the mission computer has the agent's section finished (past its route's last waypoint;
 #: the report is final once every agent's is), else 0.
-OBS_EXTRA = ("section_done",)
+OBS_EXTRA_DOCS = {
+    "section_done": ("", "1 once the agent's section of the pipeline is finished (its route's "
+                         "last waypoint passed, as its mission computer knows it), else 0"),
+}
+OBS_EXTRA = tuple(OBS_EXTRA_DOCS)
+#: What the cue is (the observation's ``goal_d*`` fields).
+CUE_DOC = ("the carrot 12 m ahead along the agent's survey route over its section of the "
+           "pipeline, 2.5 m above the charted seafloor")
 
 #: The report a method files and the judge reads (:func:`report`; ``Ctx.R`` of a fused
 #: policy, ``Observation.report`` of an outside one, written in place).
@@ -1062,30 +1070,7 @@ BRIEF_FIELDS = {
 }
 
 
-class PIBriefing(NamedTuple):
-    """PI's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
-    t0: np.ndarray
-    t_lim: float
-    dt: float
-    n_agents: int
-    v_max: float
-    guidance: int
-    hotel_w: float
-    pk: float
-    energy_allocation: np.ndarray
-    sens: tuple
-    chart: tuple
-    pipeline: np.ndarray
-    sections: np.ndarray
-    route: np.ndarray
-    route_n: np.ndarray
-    route_overlap: float
-    cue_alt: float
-    thr: float
-    plume_scale: float
-    gate: float
-    loc_tol: float
-    max_claims: int
+PIBriefing = briefing_class("PI", BRIEF_FIELDS, __name__)
 
 
 def brief(P: PIParams, W: PIWork, init: dict, m) -> PIBriefing:
@@ -1097,8 +1082,6 @@ def brief(P: PIParams, W: PIWork, init: dict, m) -> PIBriefing:
     -------
     PIBriefing
     """
-    from .public import common_brief
-
     return PIBriefing(**common_brief(m),
                       pipeline=np.array(init["poly"], dtype=np.float64),
                       sections=np.array(init["sections"], dtype=np.float64),

@@ -16,6 +16,7 @@ episode of the batch. Fields starting ``fc_`` are a mission field packed per epi
 
 from __future__ import annotations
 
+import collections
 from typing import NamedTuple
 
 import numpy as np
@@ -68,6 +69,30 @@ COMMON = {
     "chart": ("", "", "the nautical chart: the product's bathymetry and land mask "
               "(a Grid with no currents; oneocean.engine.grid.sample_elevation)"),
 }
+
+
+def briefing_class(task_id: str, fields, module: str) -> type:
+    """The NamedTuple class of a task's briefing, ``<ID>Briefing``: the :data:`COMMON` fields,
+    then the task's own.
+
+    Parameters
+    ----------
+    task_id : str
+        The task's id (the class's name prefix: numba tells NamedTuple classes apart by name).
+    fields : iterable of str
+        The task's own fields, in order (its ``BRIEF_FIELDS``).
+    module : str
+        The task module's name (the class's ``__module__``).
+
+    Returns
+    -------
+    type
+    """
+    cls = collections.namedtuple(f"{task_id}Briefing", tuple(COMMON) + tuple(fields),
+                                 module=module)
+    cls.__doc__ = (f"{task_id}'s briefing: the common fields "
+                   f"(:data:`oneocean.tasks.public.COMMON`), then its ``BRIEF_FIELDS``.")
+    return cls
 
 
 def chart(grid: Grid) -> Grid:
@@ -156,7 +181,8 @@ def briefing_rows(B, rows):
     Returns
     -------
     NamedTuple
-        The same type, n episodes.
+        The same type, n episodes (a packed mission field, ``fc_*``, padded to their own
+        largest: the same whatever batch they came from).
     """
     n_ep = B.t0.shape[0]
     vals = {}
@@ -165,4 +191,9 @@ def briefing_rows(B, rows):
             vals[name] = np.ascontiguousarray(v[rows])
         else:
             vals[name] = v
+    if "fc_shape" in vals:     # a packed mission field: padded to these episodes' own
+        nt, ny, nx = (max(int(n), 1) for n in vals["fc_shape"].max(axis=0, initial=0))
+        vals["fc_cur"] = np.ascontiguousarray(vals["fc_cur"][:, :nt, :ny, :nx])
+        vals["fc_times"] = np.ascontiguousarray(vals["fc_times"][:, :nt])
+        vals["fc_free"] = np.ascontiguousarray(vals["fc_free"][:, :ny, :nx])
     return type(B)(**vals)

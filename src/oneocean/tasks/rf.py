@@ -63,6 +63,7 @@ from ..errors import ConfigError
 from . import routing
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, OBS_DIM, STANDARD, nav_waypoint,
                      need_tier, sample_routes, start_times)
+from .public import briefing_class, common_brief
 from .g2g import draw_in_band, energy_budgets, step_energy, task_power
 from .routing import MAX_VERTICES
 from ..engine import libm
@@ -358,7 +359,17 @@ def make(grid, tier: dict, init: dict):
 #: The task's own observation fields (after :data:`oneocean.tasks.common.OBS_FIELDS`): the
 #: electrical energy the vehicle used so far (J) and its fraction of the allocation (0 without
 #: one).
-OBS_EXTRA = ("energy_j", "energy_frac")
+OBS_EXTRA_DOCS = {
+    "energy_j": ("J", "the electrical energy the vehicle used so far (its power model over its "
+                      "speed through the water)"),
+    "energy_frac": ("", "that energy over the episode's allocation (0 without one): above 1 the "
+                        "episode fails"),
+}
+OBS_EXTRA = tuple(OBS_EXTRA_DOCS)
+#: What the cue is (the observation's ``goal_d*`` fields).
+CUE_DOC = ("the route point 20 m ahead of the vehicle's known projection on the active leg, the "
+           "leg as its mission computer sequences it on the navigation estimate (the last "
+           "waypoint once the route is done)")
 
 #: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
 #: unit, meaning).
@@ -371,29 +382,7 @@ BRIEF_FIELDS = {
 }
 
 
-class RFBriefing(NamedTuple):
-    """RF's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
-    t0: np.ndarray
-    t_lim: float
-    dt: float
-    n_agents: int
-    v_max: float
-    guidance: int
-    hotel_w: float
-    pk: float
-    energy_allocation: np.ndarray
-    sens: tuple
-    chart: tuple
-    route: np.ndarray
-    radius: float
-    xte_max: float
-    fc_cur: np.ndarray
-    fc_times: np.ndarray
-    fc_free: np.ndarray
-    fc_x0: np.ndarray
-    fc_z0: np.ndarray
-    fc_h: np.ndarray
-    fc_shape: np.ndarray
+RFBriefing = briefing_class("RF", BRIEF_FIELDS, __name__)
 
 
 def brief(P: RFParams, W: RFWork, init: dict, m) -> RFBriefing:
@@ -416,8 +405,6 @@ def brief(P: RFParams, W: RFWork, init: dict, m) -> RFBriefing:
     -------
     RFBriefing
     """
-    from .public import common_brief
-
     fc = m.forecast
     fields = []
     for e in range(W.route.shape[0]):

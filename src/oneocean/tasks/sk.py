@@ -78,6 +78,7 @@ from ..engine import streams
 from ..errors import ConfigError, NotApplicable
 from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, feasible_codes,
                      need_tier, sample_routes, start_times)
+from .public import briefing_class, common_brief
 from .loop import GO, REACHED
 from ..engine import libm
 
@@ -287,7 +288,10 @@ def make(grid, tier: dict, init: dict):
 
 
 #: The task's own observation fields: none (the cue is the station).
+OBS_EXTRA_DOCS: dict = {}
 OBS_EXTRA = ()
+#: What the cue is (the observation's ``goal_d*`` fields).
+CUE_DOC = ("the station")
 
 #: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
 #: unit, meaning).
@@ -301,24 +305,7 @@ BRIEF_FIELDS = {
 }
 
 
-class SKBriefing(NamedTuple):
-    """SK's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
-    t0: np.ndarray
-    t_lim: float
-    dt: float
-    n_agents: int
-    v_max: float
-    guidance: int
-    hotel_w: float
-    pk: float
-    energy_allocation: np.ndarray
-    sens: tuple
-    chart: tuple
-    station: np.ndarray
-    heading: np.ndarray
-    radius: float
-    hold_s: float
-    settle_s: float
+SKBriefing = briefing_class("SK", BRIEF_FIELDS, __name__)
 
 
 def brief(P: SKParams, W: SKWork, init: dict, m) -> SKBriefing:
@@ -338,8 +325,6 @@ def brief(P: SKParams, W: SKWork, init: dict, m) -> SKBriefing:
     -------
     SKBriefing
     """
-    from .public import common_brief
-
     return SKBriefing(**common_brief(m), station=W.station.copy(), heading=W.heading.copy(),
                       radius=P.radius, hold_s=float(m.tier["hold_time_s"]),
                       settle_s=SETTLE_S)

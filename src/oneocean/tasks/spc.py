@@ -102,6 +102,7 @@ from ..models.pollution import spill_box
 from .common import (O_CE, O_CN, PURPOSE_RESET, STANDARD, _SPAWN_BATCH, _call,
                      _segment_clear, _spawn_one_c, episode_steps, fresh_cache, need_tier,
                      path_clear, start_times)
+from .public import briefing_class, common_brief
 from .loop import GO, REACHED
 from ..engine import libm
 
@@ -838,32 +839,7 @@ BRIEF_FIELDS = {
 }
 
 
-class SPCBriefing(NamedTuple):
-    """SPC's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
-    t0: np.ndarray
-    t_lim: float
-    dt: float
-    n_agents: int
-    v_max: float
-    guidance: int
-    hotel_w: float
-    pk: float
-    energy_allocation: np.ndarray
-    sens: tuple
-    chart: tuple
-    report: np.ndarray
-    spill_radius: float
-    depth: float
-    aerial_period_s: float
-    aerial_first_s: float
-    field_origin: np.ndarray
-    field_h: float
-    block_cells: int
-    map_nbx: int
-    map_nbz: int
-    removal_radius: float
-    removal_rate: float
-    target_fraction: float
+SPCBriefing = briefing_class("SPC", BRIEF_FIELDS, __name__)
 
 
 def brief(P: SPCParams, W: SPCWork, init: dict, m) -> SPCBriefing:
@@ -877,8 +853,6 @@ def brief(P: SPCParams, W: SPCWork, init: dict, m) -> SPCBriefing:
     -------
     SPCBriefing
     """
-    from .public import common_brief
-
     if m.sens.true_target != 0:
         W.map_every[:] = 1
         W.map_from[:] = 0
@@ -924,7 +898,13 @@ def team_obs(W: SPCWork) -> SPCTeamObs:
 
 
 #: The task's own observation fields: none (the aerial map is the team observation).
+OBS_EXTRA_DOCS: dict = {}
 OBS_EXTRA = ()
+#: What the cue is (the observation's ``goal_d*`` fields).
+CUE_DOC = ("the surface point of the oil the task's dispatcher gives the agent: before the first "
+           "aerial map a ring around the spill report, then at every map the heaviest mapped "
+           "blocks, each to the nearest agent without one; drifted since its time with the "
+           "agent's current estimate")
 
 
 @hot_kernel(inline="always")

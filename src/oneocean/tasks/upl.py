@@ -112,6 +112,7 @@ from ..errors import ConfigError, NotApplicable
 from ..sensing import perception, perception_values
 from ..sensing.kernels import PURPOSE_PERCEPTION, draw, polar_fix
 from .common import feasible_codes
+from .public import briefing_class, common_brief
 from .common import (OBS_DIM, OK, PURPOSE_RESET, STANDARD, _call, _segment_clear,
                      current_at, episode_steps, fresh_cache, need_tier, path_clear,
                      start_times)
@@ -762,8 +763,21 @@ def object_perception(dt: float) -> tuple[float, float, float, float, int]:
 #: down, z north), m; the estimate's velocity (world), m s-1; the agent's attached slot (index
 #: into the briefing's ``slot_off``; -1: not attached). The team's attachments are every
 #: agent's ``slot`` (the number attached: the rows with ``slot >= 0``).
-OBS_EXTRA = ("obj_detected", "obj_dx_m", "obj_dy_m", "obj_dz_m", "obj_vx_ms", "obj_vy_ms",
-             "obj_vz_ms", "slot")
+OBS_EXTRA_DOCS = {
+    "obj_detected": ("", "1 once the team has a sonar fix of the object, else 0"),
+    "obj_dx_m": ("m", "the team's estimate of the object's centre minus the agent's navigation "
+                      "estimate, east"),
+    "obj_dy_m": ("m", "the same, down"),
+    "obj_dz_m": ("m", "the same, north"),
+    "obj_vx_ms": ("m s-1", "the estimate's velocity, east"),
+    "obj_vy_ms": ("m s-1", "the same, down"),
+    "obj_vz_ms": ("m s-1", "the same, north"),
+    "slot": ("", "the slot the agent is attached to (-1: none)"),
+}
+OBS_EXTRA = tuple(OBS_EXTRA_DOCS)
+#: What the cue is (the observation's ``goal_d*`` fields).
+CUE_DOC = ("the agent's own slot on the team's object estimate while attached, else the nearest "
+           "slot no agent holds; during the lift, that slot at the surface")
 
 #: The briefing's own fields (after :data:`oneocean.tasks.public.COMMON`): name -> (shape,
 #: unit, meaning).
@@ -787,30 +801,7 @@ BRIEF_FIELDS = {
 }
 
 
-class UPLBriefing(NamedTuple):
-    """UPL's briefing (:data:`oneocean.tasks.public.COMMON`, then :data:`BRIEF_FIELDS`)."""
-    t0: np.ndarray
-    t_lim: float
-    dt: float
-    n_agents: int
-    v_max: float
-    guidance: int
-    hotel_w: float
-    pk: float
-    energy_allocation: np.ndarray
-    sens: tuple
-    chart: tuple
-    obj_chart: np.ndarray
-    slot_off: np.ndarray
-    quorum: int
-    attach_radius: float
-    attach_dwell: float
-    detach_radius: float
-    sink_speed: float
-    success_depth: float
-    hold_radius: float
-    survey_std: float
-    p_range: float
+UPLBriefing = briefing_class("UPL", BRIEF_FIELDS, __name__)
 
 
 def brief(P: UPLParams, W: UPLWork, init: dict, m) -> UPLBriefing:
@@ -835,8 +826,6 @@ def brief(P: UPLParams, W: UPLWork, init: dict, m) -> UPLBriefing:
     -------
     UPLBriefing
     """
-    from .public import common_brief
-
     exact = int(m.sens.true_target != 0)
     W.pcfg[0] = m.seed        # the sonar's error streams: the run's, row e is episode e0 + e
     W.pcfg[1] = exact
