@@ -106,19 +106,17 @@ def main(argv=None) -> dict:
         from oneocean.evaluate import evaluate
 
         probe = OceanVectorEnv("FT", a.tier, grid, num_envs=1)
-        probe.reset(seed=0)
-        v_max, reach, n_steps = probe.v_max, probe.reach, probe.cell_steps
+        v_max, reach, t_lim = probe.v_max, probe.reach, probe.t_lim
 
-        class Policy:                       # raw observations in, m s-1 out
-            def reset(self, n_episodes, n_agents):
-                self.k = 0
+        class Policy:                       # the public observation in, m s-1 out
+            def reset(self, briefing):
+                pass
 
-            def __call__(self, obs):
-                e, n, _ = obs.shape
-                x = normalize(obs, v_max, reach, np.full(e, 1.0 - self.k / n_steps))
+            def act(self, observation):
+                e, n, _ = observation.agents.shape
+                x = normalize(observation.agents, v_max, reach, t_lim)
                 act, _ = model.predict(x.reshape(e * n, -1), deterministic=True)
                 act = act.reshape(e, n, 3)
-                self.k += 1
                 return v_max * act / np.maximum(np.linalg.norm(act, axis=-1,
                                                                keepdims=True), 1.0)
 

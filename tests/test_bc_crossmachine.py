@@ -35,6 +35,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from oneocean.methods.bc.dataset import EXTRA_FIELDS
 from oneocean.tasks.common import ACT_FIELDS, OBS_FIELDS
 
 LD_SO = "/lib64/ld-linux-x86-64.so.2"
@@ -74,6 +75,7 @@ else:
 from oneocean.io import write_json_atomic, write_npz_atomic
 from oneocean.tasks.learned import learned_act, make_net
 from oneocean.tasks.common import OBS_FIELDS
+from oneocean.methods.bc.dataset import EXTRA_FIELDS
 
 df = pd.read_parquet(dataset)
 _, w, report = train(df, hidden=(64, 64), epochs=3, batch_size=64, seed=7)
@@ -84,13 +86,13 @@ write_json_atomic(out + ".json", report)
 # row, with fixed weights (the parent's), so that only the forward pass can differ
 from oneocean.tasks.learned import load_weights
 fixed = load_weights(fixed_weights)
-obs = df[list(OBS_FIELDS)].to_numpy(np.float64)
+obs = df[list(OBS_FIELDS + EXTRA_FIELDS)].to_numpy(np.float64)
+t_lim = df["t_lim_s"].to_numpy(np.float64)
 act = np.zeros((len(df), 3))
 for task in [str(t) for t in fixed["tasks"]]:
     net = make_net(fixed, task, 1, 1)
     for r in np.flatnonzero(df["task"].to_numpy() == task):
-        net.obs[0, 0, 0] = obs[r]
-        act[r] = learned_act(net, 0, 0, 1.5)
+        act[r] = learned_act(net, t_lim[r], obs[r][None, None], 0, 0, 1.5)
 np.save(out + "_act.npy", act)
 
 facts = {}
@@ -176,7 +178,7 @@ def _dataset(path: Path) -> None:
         for seed in (100, 101):
             for episode in range(5):
                 n = 120
-                o = np.full((n, len(OBS_FIELDS)), np.nan)
+                o = np.full((n, len(OBS_FIELDS) + len(EXTRA_FIELDS)), np.nan)
                 o[:, 0:3] = rng.normal(0.0, 150.0, (n, 3)) * [1.0, 1.0, 0.1]
                 o[:, 3:5] = rng.normal(0.0, 0.3, (n, 2))
                 o[:, 5] = rng.uniform(0.0, 80.0, n)
@@ -185,6 +187,13 @@ def _dataset(path: Path) -> None:
                     o[:, 7] = rng.exponential(2.0, n)
                 for m in range(n_mates):
                     o[:, 8 + 2 * m:10 + 2 * m] = rng.normal(0.0, 20.0, (n, 2))
+                o[:, 14:20] = rng.normal(0.0, 1.0, (n, 6))          # position, heading, velocity
+                o[:, 20] = np.arange(n, dtype=np.float64)           # time
+                o[:, 21] = rng.uniform(0.0, 50.0, n)
+                o[:, 22] = 0.0
+                if task == "G2G":                                   # its own two fields
+                    o[:, 23] = rng.uniform(0.0, 5e4, n)
+                    o[:, 24] = o[:, 23] / 6e4
                 g = o[:, 0:3]
                 dist = np.sqrt((g ** 2).sum(axis=1))[:, None]
                 a = 2.0 * g / (dist + 25.0)
@@ -193,11 +202,12 @@ def _dataset(path: Path) -> None:
                 df = pd.DataFrame({"task": task, "tier": np.int64(1), "seed": np.int64(seed),
                                    "episode": np.int64(episode), "step": np.arange(n),
                                    "agent": np.int64(0)})
-                for j, name in enumerate(OBS_FIELDS):
+                for j, name in enumerate(OBS_FIELDS + EXTRA_FIELDS):
                     df[name] = o[:, j]
                 for j, name in enumerate(ACT_FIELDS):
                     df[name] = np.clip(a[:, j], -2.0, 2.0)
                 df["v_max_ms"] = 2.0
+                df["t_lim_s"] = 600.0
                 parts.append(df)
     pd.concat(parts, ignore_index=True).to_parquet(path)
 

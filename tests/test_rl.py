@@ -18,7 +18,7 @@ import pytest
 pytest.importorskip("torch")
 pytest.importorskip("stable_baselines3")
 
-from oneocean.envs import OceanEnv, OceanVectorEnv  # noqa: E402
+from oneocean.envs import NORM_DIM, NORM_FIELDS, OceanEnv, OceanVectorEnv  # noqa: E402
 from oneocean.errors import ConfigError  # noqa: E402
 from oneocean.registry import builtin_task_ids  # noqa: E402
 from oneocean.vocab import EVALUATION_SEED  # noqa: E402
@@ -156,8 +156,9 @@ def test_forced_timeout_gives_sb3_terminal_values(grid):
     for j, info in enumerate(infos):
         assert info["TimeLimit.truncated"] is True and info["is_success"] is False
         np.testing.assert_array_equal(info["terminal_observation"], final[j, 0])
-        assert info["terminal_observation"][-1] == 0.0           # no time left
-        assert obs[j][-1] == 1.0                                 # the next episode began
+        left = NORM_FIELDS.index("time_left")
+        assert info["terminal_observation"][left] == 0.0         # no time left
+        assert obs[j][left] == 1.0                               # the next episode began
         for col in ("success", "T_s", "E", "coll_ratio", "violations", "rms_error_m"):
             assert info[col] == pytest.approx(float(tinfo[col][j]))
         assert info["episode"]["l"] == steps
@@ -252,11 +253,11 @@ def test_train_save_load_evaluate_round_trip(grid_path, tmp_path, monkeypatch):
     assert cell["method"] == "ppo" and cell["forcing"] == "data" and cell["applicable"]
     assert list(df["candidate"]) == list(ref["candidate"])          # the same episodes
     pol = load(a / "policy.zip", "SK", 3)
-    pol.reset(1, 1)
+    pol.reset(None)
     # it declares the views it trained on: the env's normalised observation in, the action
     # in units of v_max out (inside the Box; the env clips its norm to 1)
     assert pol.obs_mode == "normalized" and pol.action_mode == "normalized"
-    act = pol(np.zeros((2, 1, 17)))
+    act = pol(np.zeros((2, 1, NORM_DIM)))                        # SK: no fields of its own
     assert act.shape == (2, 1, 3) and np.all(np.abs(act) <= 1.0)
     # Table V: a PPO row (SR, Wilson interval) only when its cells exist
     long = task_success_table([heur, a / "ppo.parquet"], tmp_path / "t5.tex")

@@ -365,6 +365,38 @@ def test_cue_is_the_mission_computers_carrot_and_section_done(calm):
     assert rf["success"][0] and rf["T_s"][0] < TIER["time_limit_s"]
 
 
+def test_the_payloads_event_log_and_the_reference_report(calm):
+    """The team observation logs every run of readings at or above the threshold at its
+    peak (for every method); a policy that follows the cue and copies the log into its report
+    (the task's reference rule, which behaviour cloning files by) localises every leak."""
+    init = _straight_init(calm, n_agents=1)
+    veh = E.load_vehicle()
+    ext = Episodes(pi, calm, TIER, init, None, "6dof", veh, 0, record=True)
+    O = ext.observe()
+    assert ext.C.T._fields == tuple(pi.TEAM_FIELDS) and ext.C.T.n_events[0] == 0
+    assert np.isnan(ext.C.T.events).all()
+    k = 0
+    while not ext.done.all():
+        d = O[:, :, O_GX:O_GZ + 1]
+        n = np.linalg.norm(d, axis=2, keepdims=True)
+        ext.set_actions(veh.v_max * d / np.maximum(n, 1e-9))
+        pi.reference_report.py_func(ext.C, 0, k)
+        O = ext.step_observe().copy()
+        k += 1
+    r = ext.results()
+    n_ev = int(ext.C.T.n_events[0])
+    events = ext.C.T.events[0, :n_ev]
+    assert n_ev >= 2 and np.isnan(ext.C.T.events[0, n_ev:]).all()
+    assert (events[:, 2] >= TIER["detect_threshold_kg_m3"]).all()      # the runs' peaks
+    # every event's peak is a recorded reading, where the vehicle knew it was then
+    probe = ext.obs[0, :, 0, O_PROBE]
+    for x, z, peak in events:
+        j = np.flatnonzero(probe == peak)
+        assert j.size and np.isclose(ext.obs[0, j[0], 0, O_X], x)
+    np.testing.assert_array_equal(ext.C.R[0, :n_ev], events)
+    assert r["success"][0] and r["detection_rate"][0] == 1.0
+
+
 def test_calm_water_both_methods_localise_every_leak(calm):
     init = _straight_init(calm)
     for method in ("oracle", "heuristic"):

@@ -23,7 +23,7 @@ from oneocean.engine.constraints import spawn_positions
 from oneocean.tasks.common import (O_CE, O_CN, O_DEPTH, episode_generators, fresh_cache,
                                    start_times)
 from oneocean.tasks.loop import (N_STANDARD, noop_after_agent, noop_plan, noop_pre_step,
-                                 noop_sense, policy_block, run_block)
+                                 noop_report, noop_sense, policy_block, run_block)
 from oneocean.tasks.public import common_brief
 
 registry.register_task(registry.load_task_spec(Path(__file__).with_name("oneocean_toy.yaml")))
@@ -136,8 +136,8 @@ def finish(grid, P, W, state, e, k, row):
 def _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
             e_lo, e_hi):
     run_block(begin, noop_pre_step, cue, noop_sense, noop_after_agent, post_step, finish,
-              noop_plan, _act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a,
-              res, io, k_stop, e_lo, e_hi)
+              noop_report, noop_plan, _act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext,
+              rec_o, rec_a, res, io, k_stop, e_lo, e_hi)
 
 
 @hot_kernel(nogil=True)

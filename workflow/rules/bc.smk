@@ -24,7 +24,8 @@ rule bc_dataset:
         tiers=lambda wc: bc_cells()[1],
         dynamics=lambda wc: config["rollouts"]["dynamics"],
         evaluation_seed=lambda wc: config["rollouts"]["seed"],
-        bc=lambda wc: {k: config["bc"][k] for k in ("train_seeds", "episodes", "stride", "max_rows")},
+        bc=lambda wc: {k: config["bc"][k] for k in ("train_seeds", "episodes", "stride", "max_rows",
+                                                     "noise")},
         code=lambda wc: tasks_code(bc_cells()[0]),
     threads: lambda wc: config["rollouts"]["threads"]
     # measured 41 s, 355 MB

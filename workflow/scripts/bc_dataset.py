@@ -8,6 +8,6 @@ smk.run(
         s.params.bc["train_seeds"], episodes=s.params.bc["episodes"],
         dynamics=s.params.dynamics, stride=s.params.bc["stride"],
         max_rows=s.params.bc["max_rows"], evaluation_seed=s.params.evaluation_seed,
-        threads=s.threads,
+        noise=s.params.bc["noise"], threads=s.threads,
     ),
 )

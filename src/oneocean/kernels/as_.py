@@ -9,15 +9,15 @@ from ..engine._jit import hot_kernel
 from ..methods.heuristic import as_ as POLICY
 from ..tasks import as_ as TASK
 from ..tasks.common import fresh_cache
-from ..tasks.loop import (noop_pre_step, noop_sense, policy_block, run_block, step_fields,
-                          step_kernel)
+from ..tasks.loop import (noop_pre_step, noop_report, noop_sense, policy_block, run_block,
+                          step_fields, step_kernel)
 from ..tasks.as_ import after_agent, begin, cue, finish, post_step
 
 
 @hot_kernel(nogil=True)
 def _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
             e_lo, e_hi):
-    run_block(begin, noop_pre_step, cue, noop_sense, after_agent, post_step, finish,
+    run_block(begin, noop_pre_step, cue, noop_sense, after_agent, post_step, finish, noop_report,
               POLICY.plan, POLICY.act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o,
               rec_a, res, io, k_stop, e_lo, e_hi)
 

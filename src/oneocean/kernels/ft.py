@@ -9,8 +9,8 @@ from ..engine._jit import hot_kernel
 from ..methods.heuristic import ft as POLICY
 from ..tasks import ft as TASK
 from ..tasks.common import fresh_cache
-from ..tasks.loop import (noop_after_agent, noop_pre_step, noop_sense, policy_block, run_block,
-                          step_fields, step_kernel)
+from ..tasks.loop import (noop_after_agent, noop_pre_step, noop_report, noop_sense, policy_block,
+                          run_block, step_fields, step_kernel)
 from ..tasks.ft import begin, cue, finish, post_step
 
 
@@ -18,6 +18,7 @@ from ..tasks.ft import begin, cue, finish, post_step
 def _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
             e_lo, e_hi):
     run_block(begin, noop_pre_step, cue, noop_sense, noop_after_agent, post_step, finish,
+              noop_report,
               POLICY.plan, POLICY.act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o,
               rec_a, res, io, k_stop, e_lo, e_hi)
 

@@ -11,13 +11,14 @@ from ..models import pollution
 from ..tasks import pi as TASK
 from ..tasks.common import fresh_cache
 from ..tasks.loop import policy_block, run_block, step_fields, step_kernel
-from ..tasks.pi import after_agent, begin, cue, finish, post_step, pre_step, sense
+from ..tasks.pi import (after_agent, begin, cue, finish, post_step, pre_step, reference_report,
+                        sense)
 
 
 @hot_kernel(nogil=True)
 def _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
             e_lo, e_hi):
-    run_block(begin, pre_step, cue, sense, after_agent, post_step, finish,
+    run_block(begin, pre_step, cue, sense, after_agent, post_step, finish, reference_report,
               POLICY.plan, POLICY.act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o,
               rec_a, res, io, k_stop, e_lo, e_hi)
 

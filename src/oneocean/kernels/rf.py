@@ -10,15 +10,15 @@ from ..methods.heuristic import rf as POLICY
 from ..tasks import rf as TASK
 from ..tasks import g2g, routing
 from ..tasks.common import fresh_cache
-from ..tasks.loop import (noop_after_agent, noop_pre_step, policy_block, run_block, step_fields,
-                          step_kernel)
+from ..tasks.loop import (noop_after_agent, noop_pre_step, noop_report, policy_block, run_block,
+                          step_fields, step_kernel)
 from ..tasks.rf import begin, cue, finish, post_step, sense
 
 
 @hot_kernel(nogil=True)
 def _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
             e_lo, e_hi):
-    run_block(begin, noop_pre_step, cue, sense, noop_after_agent, post_step, finish,
+    run_block(begin, noop_pre_step, cue, sense, noop_after_agent, post_step, finish, noop_report,
               POLICY.plan, POLICY.act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o,
               rec_a, res, io, k_stop, e_lo, e_hi)
 

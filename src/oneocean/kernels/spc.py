@@ -10,14 +10,15 @@ from ..methods.heuristic import spc as POLICY
 from ..models import pollution
 from ..tasks import spc as TASK
 from ..tasks.common import fresh_cache
-from ..tasks.loop import (noop_after_agent, policy_block, run_block, step_fields, step_kernel)
+from ..tasks.loop import (noop_after_agent, noop_report, policy_block, run_block, step_fields,
+                          step_kernel)
 from ..tasks.spc import begin, cue, finish, post_step, pre_step, sense
 
 
 @hot_kernel(nogil=True)
 def _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
             e_lo, e_hi):
-    run_block(begin, pre_step, cue, sense, noop_after_agent, post_step, finish,
+    run_block(begin, pre_step, cue, sense, noop_after_agent, post_step, finish, noop_report,
               POLICY.plan, POLICY.act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o,
               rec_a, res, io, k_stop, e_lo, e_hi)
 

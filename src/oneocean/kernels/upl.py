@@ -9,14 +9,14 @@ from ..engine._jit import hot_kernel
 from ..methods.heuristic import upl as POLICY
 from ..tasks import upl as TASK
 from ..tasks.common import fresh_cache
-from ..tasks.loop import (policy_block, run_block, step_fields, step_kernel)
+from ..tasks.loop import noop_report, policy_block, run_block, step_fields, step_kernel
 from ..tasks.upl import after_agent, begin, cue, finish, post_step, pre_step, sense
 
 
 @hot_kernel(nogil=True)
 def _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
             e_lo, e_hi):
-    run_block(begin, pre_step, cue, sense, after_agent, post_step, finish,
+    run_block(begin, pre_step, cue, sense, after_agent, post_step, finish, noop_report,
               POLICY.plan, POLICY.act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o,
               rec_a, res, io, k_stop, e_lo, e_hi)
 

@@ -332,7 +332,7 @@ class Cell:
 
     def run(self, method: str, episodes: int, seed: int, dynamics: str,
             observations: bool = False, net: dict | None = None, info: str | None = None,
-            shard: tuple[int, int] | None = None):
+            shard: tuple[int, int] | None = None, noise: float = 0.0, expert: bool = False):
         """Sample ``episodes`` episodes of ``seed`` and run them with a fused ``method`` (or
         ``bc`` with its network ``net``).
 
@@ -357,6 +357,11 @@ class Cell:
             ``(a, b)``: only the cell's episodes ``a .. b-1`` (rows ``episode`` a .. b-1),
             each bit for bit its row of the whole cell's table (:meth:`reset`; the episodes'
             random streams are keyed by the cell's episode, ``Episodes(e0=a)``).
+        noise : float, optional
+            A fused method's teacher noise (``Episodes(noise=...)``; default 0: none).
+        expert : bool, optional
+            A learned method with the heuristic as its shadow expert
+            (``Episodes(expert=...)``; default False).
 
         Returns
         -------
@@ -377,7 +382,7 @@ class Cell:
         e0 = 0 if shard is None else int(shard[0])
         n = int(init["candidate"].shape[0])
         res = self.episodes(init, method, dynamics, seed, record=observations, net=net,
-                            info=info, e0=e0).run().results()
+                            info=info, e0=e0, noise=noise, expert=expert).run().results()
         df = cell_frame(self.mod, res, self.tier, method, self.n_agents, dynamics,
                         self.currents, n, seed, e0=e0)
         df.insert(df.columns.get_loc("seed") + 1, "candidate", init["candidate"])

@@ -237,6 +237,11 @@ class Episodes:
         The cell's episode of the first row: row ``e`` draws the random streams of the cell's
         episode ``e0 + e`` (0: a whole cell; a shard of episodes ``[a, b)`` runs with
         ``e0 = a``, :meth:`oneocean.tasks.Cell.run`).
+    noise : float
+        A fused method's teacher noise (``LoopParams.noise``, in units of ``v_max``; 0: none).
+    expert : bool
+        A learned method with the fused heuristic as its shadow expert: the recorded actions
+        are the heuristic's on the learner's observations (``LoopParams.expert``, DAgger).
     """
 
     #: The execution backend (:data:`oneocean.backends.protocol.BACKENDS`).
@@ -244,7 +249,8 @@ class Episodes:
 
     def __init__(self, mod, grid, tier: dict, init: dict, method: str | None, dyn: str,
                  vehicle, seed: int, *, record: bool = False, fused_plan: bool = True,
-                 net: dict | None = None, info: str | None = None, e0: int = 0):
+                 net: dict | None = None, info: str | None = None, e0: int = 0,
+                 noise: float = 0.0, expert: bool = False):
         from ..kernels import kernel_module
         from .learned import make_net, no_net
         from .public import Mission
@@ -289,7 +295,7 @@ class Episodes:
                              float(getattr(mod, "CLEARANCE_M", CLEARANCE_M)),
                              float(getattr(mod, "R_COLL_M", DEFAULT_R_COLL_M)),
                              make_net(net, mod.TASK_ID, n_ep, n_ag) if learned else no_net(),
-                             e0=int(e0))
+                             e0=int(e0), noise=float(noise), expert=int(bool(expert)))
         self.LS = new_loop_state(n_ep, n_ag)
         self._entries: dict = {}   # compiled entry points of the kernels (fast_entry)
         self.t0 = np.ascontiguousarray(init["t0"], dtype=np.float64)
@@ -324,7 +330,7 @@ class Episodes:
         self.res = np.zeros((n_ep, len(self.columns)))
         self._no_io = env_io(0, n_ag, self.obs_dim)
         prepare = getattr(pol, "prepare", None)
-        if fused and prepare is not None:
+        if (fused or expert) and prepare is not None:
             prepare(B, M, H)
 
     @property

@@ -13,18 +13,21 @@ features a network is trained on are the features it acts on.
 Features (:func:`feature_names`):
 
 * ``goal_u{x,y,z}``: the cue offset ``g / (|g| + 1 m)`` (a unit vector far away, the offset
-  itself in metres close in) and ``goal_log_dist = log(1 + |g|)``;
+  itself in metres close in), ``goal_log_dist = log(1 + |g|)`` and ``goal_c{x,y,z}``, the
+  offset clipped to ``CUE_CLIP_M`` (what a proportional law on the cue reads);
 * ``current_{e,n}_ms``: the current estimate;
 * ``depth_m``, ``altitude_m`` (NaN -> 0);
 * ``pollution_log = log(1 + max(p, 0))`` and ``has_pollution`` (0 where the task has no field);
 * per teammate ``m`` (nearest first): ``mate{m}_u{x,z}`` (offset / (d + 1 m)) and
   ``mate{m}_close = 1 / (1 + d)``; all 0 when there is no such teammate;
-* ``v{x,y,z}_ms``: the velocity over ground (DVL);
 * ``time_left``: ``1 - t / t_lim`` (the briefing's time limit);
 * ``extra{j}``: the task's own observation fields in their order (its ``OBS_EXTRA``: the
   energy used against the allocation, acoustic fixes, the attachment state, ...), non-finite
   values as 0, zeros after the task's last field (:data:`N_EXTRA` slots);
 * ``task_<ID>``: one-hot over the tasks the network was trained on.
+
+Not the vehicle's own velocity: it is mostly the last action's effect, so a network given it
+learns to repeat itself (behaviour cloning's "copycat" confusion) and drifts once it errs.
 
 The network's output is a through-water velocity request divided by the vehicle's ``v_max``
 (a REMUS 100 and a BlueROV2 share one network); the loop multiplies it back by ``v_max``.
@@ -50,11 +53,14 @@ WEIGHT_KEYS = ("mu", "sd", "w", "b", "dims", "tasks", "features")
 #: Feature names before the task one-hot (see the module docstring).
 #: Slots for the task's own observation fields (the widest task's ``OBS_EXTRA``).
 N_EXTRA = 8
-BASE_FEATURES = (("goal_ux", "goal_uy", "goal_uz", "goal_log_dist", "current_e_ms",
+#: The cue offset's clip, m (the clipped offset is the features ``goal_c{x,y,z}``).
+CUE_CLIP_M = 20.0
+BASE_FEATURES = (("goal_ux", "goal_uy", "goal_uz", "goal_log_dist", "goal_cx", "goal_cy",
+                  "goal_cz", "current_e_ms",
                   "current_n_ms", "depth_m", "altitude_m", "pollution_log", "has_pollution")
                  + tuple(f"mate{m + 1}_{c}" for m in range(N_MATES)
                          for c in ("ux", "uz", "close"))
-                 + ("vx_ms", "vy_ms", "vz_ms", "time_left")
+                 + ("time_left",)
                  + tuple(f"extra{j + 1}" for j in range(N_EXTRA)))
 N_BASE = len(BASE_FEATURES)
 
@@ -251,21 +257,24 @@ def featurize(o, t_lim, task, n_tasks, out):
     out[1] = gy / (d + 1.0)
     out[2] = gz / (d + 1.0)
     out[3] = log1p_pos(d)
-    out[4] = _finite(o[3])
-    out[5] = _finite(o[4])
-    out[6] = _finite(o[5])
-    out[7] = _finite(o[6])
+    out[4] = min(max(gx, -CUE_CLIP_M), CUE_CLIP_M)
+    out[5] = min(max(gy, -CUE_CLIP_M), CUE_CLIP_M)
+    out[6] = min(max(gz, -CUE_CLIP_M), CUE_CLIP_M)
+    out[7] = _finite(o[3])
+    out[8] = _finite(o[4])
+    out[9] = _finite(o[5])
+    out[10] = _finite(o[6])
     p = o[7]
     if math.isfinite(p):
-        out[8] = log1p_pos(max(p, 0.0))
-        out[9] = 1.0
+        out[11] = log1p_pos(max(p, 0.0))
+        out[12] = 1.0
     else:
-        out[8] = 0.0
-        out[9] = 0.0
+        out[11] = 0.0
+        out[12] = 0.0
     for m in range(N_MATES):
         dx = o[8 + 2 * m]
         dz = o[9 + 2 * m]
-        j = 10 + 3 * m
+        j = 13 + 3 * m
         if math.isfinite(dx) and math.isfinite(dz):
             dm = math.sqrt(dx * dx + dz * dz)
             out[j] = dx / (dm + 1.0)
@@ -275,12 +284,9 @@ def featurize(o, t_lim, task, n_tasks, out):
             out[j] = 0.0
             out[j + 1] = 0.0
             out[j + 2] = 0.0
-    j = 10 + 3 * N_MATES
-    out[j] = _finite(o[17])
-    out[j + 1] = _finite(o[18])
-    out[j + 2] = _finite(o[19])
-    out[j + 3] = 1.0 - _finite(o[20]) / t_lim if t_lim > 0.0 else 0.0
-    j += 4
+    j = 13 + 3 * N_MATES
+    out[j] = 1.0 - _finite(o[20]) / t_lim if t_lim > 0.0 else 0.0
+    j += 1
     n_x = o.shape[0] - OBS_DIM
     for q in range(N_EXTRA):
         out[j + q] = _finite(o[OBS_DIM + q]) if q < n_x else 0.0

@@ -70,6 +70,9 @@ agents' states as the method knows them, the truth for the oracle)::
     post_step(grid, P, W, state, prev, e, k, t) -> GO | STOP | REACHED  (prev: positions
                                                    before the step; a bool is GO / STOP)
     finish(grid, P, W, state, e, k, row) -> success        writes the task's metric columns
+    report(C, e, k)                                the task's reference report rule (PI:
+                                                   claim every logged event), which a
+                                                   learned policy files by
 
 Policy hooks (``C``: the policy's context :class:`Ctx` -- briefing, observation, team
 observation, the method's params and memory, the report it files)::
@@ -104,10 +107,11 @@ from numba.experimental import structref
 from ..engine.constraints import min_pairwise_distance
 from ..engine.dynamics import STATE_DIM, clip_action
 from ..engine._jit import hot_kernel
+from ..engine.rng import PURPOSE_TASK
 from ..engine.step import advance_agent
 from .learned import LearnedNet, learned_act
 from ..sensing import SensingParams
-from ..sensing.kernels import current_estimate, nav_fill, nav_update
+from ..sensing.kernels import current_estimate, draw, nav_fill, nav_update
 from .common import OBS_DIM, OK, current_at, observe_common, record_step
 
 #: The loop's arguments, documented once for every function of this module (a function's
@@ -143,6 +147,7 @@ VOCABULARY = {
     "after_agent": "function: the task's after_agent hook",
     "post_step": "function: the task's post_step hook",
     "finish": "function: the task's finish hook",
+    "report": "function: the task's reference report hook (a learned policy files by it)",
     "plan": "function: the policy's plan hook",
     "act": "function: the policy's act hook",
     "final": "int: 1 for the observation of an ended episode's final state",
@@ -175,6 +180,8 @@ C_SUCCESS, C_T, C_E, C_COLL, C_VIOL, C_CUR = range(N_STANDARD)
 #: Width of an action row: desired velocity relative to the water (x east, y down, z north,
 #: m s-1) and the commanded heading (rad from north, NaN: free).
 ACT_DIM = 4
+#: Random-stream purpose of the teacher noise (``LoopParams.noise``).
+PURPOSE_TEACHER = PURPOSE_TASK + 9
 
 
 class LoopParams(NamedTuple):
@@ -195,6 +202,12 @@ class LoopParams(NamedTuple):
     phase: int = 0      # FULL (the core backend), DECIDE or JUDGE (another backend's physics)
     e0: int = 0         # the cell's episode of row 0: row e draws episode e0 + e's random
                         # streams (0 unless the cell runs in shards of episodes)
+    noise: float = 0.0  # a fused policy's teacher noise: each executed velocity component
+                        # disturbed by N(0, (noise v_max)^2), the recorded action clean
+                        # (behaviour cloning's demonstrations: DART; 0: none)
+    expert: int = 0     # 1: a learned policy runs with the fused policy as its shadow expert:
+                        # the recorded action is the expert's on the same observation, the
+                        # executed one the network's (behaviour cloning's DAgger rounds)
 
 
 class LoopState(NamedTuple):
@@ -508,27 +521,45 @@ def sense_step(cue, sense, grid, P, W, LP, LS, state, O, t0, e, k, final):
 
 
 @hot_kernel(inline="always")
-def decide_step(plan, act, C, LP, ext, cmd, rec_o, rec_a, e, k):
+def decide_step(plan, act, report, C, LP, ext, cmd, rec_o, rec_a, e, k):
     """The action of every agent at step ``k`` into its command row ``cmd[e, i]`` (unclipped,
     thrust on): the fused policy on its context ``C``, the learned controller on the same
-    view, or the external action ``ext[e, i]``; the observation and action recorded when
-    ``rec_o`` has a step axis."""
+    view (its report, where the task judges one, by the task's reference rule), or the
+    external action ``ext[e, i]``; the observation and action recorded when ``rec_o`` has a
+    step axis (with ``LP.expert`` a learned policy's recorded action is the fused policy's on
+    the same observation); a fused policy's executed action disturbed by ``LP.noise`` (the
+    recorded action clean)."""
     n_ag = C.O.shape[1]
     if LP.policy == FUSED and LP.plan != 0:
         plan(C, e, k)
+    elif LP.policy == LEARNED:
+        report(C, e, k)
+        if LP.expert != 0:   # the shadow expert plans on the learner's observations
+            plan(C, e, k)
     for i in range(n_ag):
         if LP.policy == FUSED:
             ax, ay, az, psi = act(C, e, k, i)
+            lx, ly, lz = ax, ay, az
         elif LP.policy == LEARNED:
             ax, ay, az = learned_act(LP.net, C.B.t_lim, C.O, e, i, LP.v_max)
             psi = math.nan
+            lx, ly, lz = ax, ay, az
+            if LP.expert != 0:
+                lx, ly, lz, _ = act(C, e, k, i)
         else:
             ax = ext[e, i, 0]
             ay = ext[e, i, 1]
             az = ext[e, i, 2]
             psi = ext[e, i, 3]
+            lx, ly, lz = ax, ay, az
         if k < rec_o.shape[1]:
-            record_step(rec_o, rec_a, C.O, e, k, i, ax, ay, az)
+            record_step(rec_o, rec_a, C.O, e, k, i, lx, ly, lz)
+        if LP.noise > 0.0 and LP.policy == FUSED:   # the teacher's disturbed execution
+            std = LP.noise * LP.v_max
+            cnt = 3 * (k * n_ag + i)
+            ax += draw(LP.seed, LP.e0 + e, PURPOSE_TEACHER, cnt, std)
+            ay += draw(LP.seed, LP.e0 + e, PURPOSE_TEACHER, cnt + 1, std)
+            az += draw(LP.seed, LP.e0 + e, PURPOSE_TEACHER, cnt + 2, std)
         c = cmd[e, i]
         c[0] = ax
         c[1] = ay
@@ -625,7 +656,7 @@ def finish_episode(finish, grid, P, W, LP, LS, state, res, e, k):
 
 
 @hot_kernel(inline="always")
-def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, plan, act,
+def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, report, plan, act,
                 grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, e, k_stop):
     """Advance episode ``e`` up to step ``k_stop`` (or its end; a negative ``k_stop``
     advances it by ``-k_stop`` steps from where it is, so episodes at different steps move
@@ -672,7 +703,7 @@ def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, pla
                 sense_step(cue, sense, grid, P, W, LP, LS, state, O, t0, e, k, 0)
             if k >= k_lim:
                 break
-            decide_step(plan, act, C, LP, ext, cmd, rec_o, rec_a, e, k)
+            decide_step(plan, act, report, C, LP, ext, cmd, rec_o, rec_a, e, k)
             for i in range(n_ag):
                 s = state[e, i]
                 LS.prev[e, i, 0] = s[0]
@@ -717,7 +748,7 @@ def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, pla
 
 
 @hot_kernel(inline="always")
-def run_block(begin, pre_step, cue, sense, after_agent, post_step, finish, plan, act,
+def run_block(begin, pre_step, cue, sense, after_agent, post_step, finish, report, plan, act,
               grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
               e_lo, e_hi):
     """:func:`run_episode` for the episodes ``[e_lo, e_hi)``, with the step API's side
@@ -725,8 +756,8 @@ def run_block(begin, pre_step, cue, sense, after_agent, post_step, finish, plan,
     before its steps, its next observation and end flags out after them."""
     for e in range(e_lo, e_hi):
         was = env_step_in(LP, LS, ext, io, e)
-        run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, plan, act,
-                    grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, e,
+        run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, report, plan,
+                    act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, e,
                     k_stop)
         env_step_out(LP, LS, res, C.O, io, e, was)
 
@@ -746,6 +777,12 @@ def noop_after_agent(grid, P, W, state, e, k, i, code):
 @hot_kernel(inline="always")
 def noop_sense(grid, P, W, X, state, O, e, k):
     """A ``sense`` hook that does nothing (a task without observation fields of its own)."""
+    return
+
+
+@hot_kernel(inline="always")
+def noop_report(C, e, k):
+    """A report hook that does nothing (a task that judges no report)."""
     return
 
 

@@ -151,6 +151,8 @@ PLUME_SCALE_M = 5.0
 DETECT_GATE_M = 50.0
 #: Rows of the report: room for the team's claims per episode (:data:`REPORT_DOC`).
 MAX_CLAIMS = 32
+#: Rows of the payload's event log (its team observation).
+MAX_EVENTS = 32
 #: Seafloor clearance of the feasibility check, m; near-collision distance, m.
 CLEARANCE_M = 1.0
 R_COLL_M = 2.0
@@ -888,6 +890,15 @@ class PIWork(NamedTuple):
         The cue: the carrot at the inspection altitude, world m.
     done : (E, N) int64
         1: the agent's section is finished (past its route's last waypoint).
+    ev : (E, N, 4) float64
+        The payload's event detector per agent: 1 while a run of readings at or above the
+        threshold is open, its peak reading (kg m-3) and where the agent knew it was then
+        [x, z] (m).
+    evlog : (E, MAX_EVENTS, 3) float64
+        The payload's event log (the team observation): every closed event [x, z, peak];
+        NaN rows: none yet.
+    nev : (E,) int64
+        Events logged.
     claims : (E, MAX_CLAIMS, 3) float64
         The report: the method's leak claims [x, z (m), strength]; NaN rows: none.
     """
@@ -912,6 +923,10 @@ class PIWork(NamedTuple):
     ridx: np.ndarray        # (E, N) int64 the route waypoint the agent is heading for
     tgt: np.ndarray         # (E, N, 3) the cue: the carrot at the inspection altitude, m
     done: np.ndarray        # (E, N) int64 1: the agent's section is finished
+    # ---- the payload's event log (the team observation)
+    ev: np.ndarray          # (E, N, 4) per agent: open, peak reading, its [x, z] (known), m
+    evlog: np.ndarray       # (E, MAX_EVENTS, 3) closed events [x, z, peak]; NaN: none
+    nev: np.ndarray         # (E,) int64 events logged
     # ---- method -> env: the report (scored by finish)
     claims: np.ndarray      # (E, MAX_CLAIMS, 3) the leak claims [x, z, strength]; NaN: none
 
@@ -1018,7 +1033,8 @@ def make(grid, tier: dict, init: dict):
                np.zeros((n_ep, nz * (nx + 1) + (nz + 1) * nx, 8)),
                np.zeros((n_ep, n_ag)), route, route_n, np.zeros((n_ep, n_ag), dtype=np.int64),
                np.zeros((n_ep, n_ag, 3)), np.zeros((n_ep, n_ag), dtype=np.int64),
-               np.full((n_ep, MAX_CLAIMS, 3), np.nan))
+               np.zeros((n_ep, n_ag, 4)), np.full((n_ep, MAX_EVENTS, 3), np.nan),
+               np.zeros(n_ep, dtype=np.int64), np.full((n_ep, MAX_CLAIMS, 3), np.nan))
     return P, W
 
 
@@ -1102,6 +1118,44 @@ def report(W: PIWork) -> np.ndarray:
     return W.claims
 
 
+class PITeamObs(NamedTuple):
+    """PI's team observation (:data:`TEAM_FIELDS`): the payload's event log, views of ``W``."""
+    events: np.ndarray
+    n_events: np.ndarray
+
+
+#: The team observation's fields: name -> (shape, unit, meaning).
+TEAM_FIELDS = {
+    "events": ("(E, MAX_EVENTS, 3)", "m, m, kg m-3", "the inspection payload's event log: "
+               "every run of an agent's readings at or above the threshold, once it ends, as "
+               "[x, z] where the agent knew it was at the run's peak and the peak reading; "
+               "NaN rows: none yet"),
+    "n_events": ("(E,)", "", "events logged"),
+}
+
+
+def team_obs(W: PIWork) -> PITeamObs:
+    """The team observation: the payload's event log (views of ``W``).
+
+    Returns
+    -------
+    PITeamObs
+    """
+    return PITeamObs(W.evlog, W.nev)
+
+
+@hot_kernel(inline="always")
+def reference_report(C, e, k):
+    """The task's reference report, a rule any method may use (behaviour cloning does): claim
+    every logged event at its peak (``C.T.events`` into the report ``C.R``, strength the
+    peak reading). Report hook (:mod:`oneocean.tasks.loop`)."""
+    T = C.T
+    R = C.R[e]
+    for j in range(min(T.n_events[e], R.shape[0])):
+        for c in range(3):
+            R[j, c] = T.events[e, j, c]
+
+
 @hot_kernel(inline="always")
 def begin(grid, P, W, state, e):
     """Spin up the plumes and take every agent's first reading, at its start position; the
@@ -1152,6 +1206,12 @@ def begin(grid, P, W, state, e):
     for j in range(W.claims.shape[1]):
         for c in range(W.claims.shape[2]):
             W.claims[e, j, c] = math.nan
+    for j in range(W.evlog.shape[1]):
+        for c in range(3):
+            W.evlog[e, j, c] = math.nan
+    for i in range(state.shape[1]):
+        W.ev[e, i, 0] = 0.0
+    W.nev[e] = 0
     return False
 
 
@@ -1204,7 +1264,8 @@ def sense(grid, P, W, X, state, O, e, k):
     """The mission computer: every agent's pointer along its survey route advanced on the
     state the method knows (its navigation estimate; the truth for the oracle), the cue's
     carrot (``W.tgt``) and whether its section is finished (``W.done``, the observation's
-    ``section_done``).
+    ``section_done``); the payload's event log (the team observation: every run of readings
+    at or above the threshold, its peak logged where the agent knew it was).
 
     Env hook (:mod:`oneocean.tasks.loop`), at the start of every step before the cues (module
     docstring: Mission computer).
@@ -1241,6 +1302,24 @@ def sense(grid, P, W, X, state, O, e, k):
         W.tgt[e, i, 1] = gy
         W.tgt[e, i, 2] = gz
         O[e, i, OBS_DIM] = float(W.done[e, i])
+        # the payload's event detector on the latest reading, placed where the agent knows
+        # it is: a run at or above the threshold is an event; its peak is logged at its end
+        r = W.sense[e, i]
+        ev = W.ev[e, i]
+        if r >= P.thr:
+            if ev[0] == 0.0 or r > ev[1]:
+                ev[1] = r
+                ev[2] = px
+                ev[3] = pz
+            ev[0] = 1.0
+        elif ev[0] != 0.0:
+            ev[0] = 0.0
+            n = W.nev[e]
+            if n < W.evlog.shape[1]:
+                W.evlog[e, n, 0] = ev[2]
+                W.evlog[e, n, 1] = ev[3]
+                W.evlog[e, n, 2] = ev[1]
+                W.nev[e] = n + 1
 
 
 @hot_kernel(inline="always")

@@ -60,7 +60,7 @@ def check_seeds(seeds, evaluation_seed: int) -> list[int]:
 
 
 def teacher_rows(cell, seed: int, episodes: int, dynamics: str, stride: int,
-                 max_rows: int, info: str | None = None) -> pd.DataFrame:
+                 max_rows: int, info: str | None = None, noise: float = 0.0) -> pd.DataFrame:
     """The teacher's rows of one cell and seed: what the heuristic saw through its sensors.
 
     Runs the heuristic on the cell's ``episodes`` episodes of ``seed`` with the observations
@@ -85,6 +85,10 @@ def teacher_rows(cell, seed: int, episodes: int, dynamics: str, stride: int,
     info : str, optional
         Another information level than the heuristic's sensors (for tests;
         :class:`~oneocean.tasks.episodes.Episodes`).
+    noise : float, optional
+        The teacher's execution noise in units of ``v_max`` (DART: the executed action is
+        disturbed, the recorded one is the teacher's; the demonstrations then show how it
+        recovers from the errors a clone makes; default 0: none).
 
     Returns
     -------
@@ -100,7 +104,7 @@ def teacher_rows(cell, seed: int, episodes: int, dynamics: str, stride: int,
         If the region cannot host the cell (:meth:`oneocean.tasks.Cell.reset`).
     """
     _, obs, act = cell.run("heuristic", int(episodes), int(seed), dynamics, observations=True,
-                           info=info)
+                           info=info, noise=float(noise))
     n_ep, n_steps, n_ag, _ = obs.shape
     e, k, i = np.meshgrid(np.arange(n_ep), np.arange(n_steps), np.arange(n_ag), indexing="ij")
     keep = (k % int(stride) == 0) & np.isfinite(act).all(axis=-1)
@@ -125,7 +129,8 @@ def teacher_rows(cell, seed: int, episodes: int, dynamics: str, stride: int,
 
 
 def build_dataset(grid, tasks, tiers, seeds, *, episodes: int, dynamics: str, stride: int,
-                  max_rows: int, evaluation_seed: int) -> tuple[pd.DataFrame, list[str]]:
+                  max_rows: int, evaluation_seed: int,
+                  noise: float = 0.0) -> tuple[pd.DataFrame, list[str]]:
     """Every (task, tier, seed)'s :func:`teacher_rows`, concatenated in that order.
 
     Parameters
@@ -148,6 +153,8 @@ def build_dataset(grid, tasks, tiers, seeds, *, episodes: int, dynamics: str, st
         Most rows per cell and seed.
     evaluation_seed : int
         The evaluation seed, which ``seeds`` must not hold.
+    noise : float, optional
+        The teacher's execution noise (:func:`teacher_rows`; default 0: none).
 
     Returns
     -------
@@ -174,7 +181,7 @@ def build_dataset(grid, tasks, tiers, seeds, *, episodes: int, dynamics: str, st
             for seed in seeds:
                 try:
                     parts.append(teacher_rows(cell, seed, episodes, dynamics, stride,
-                                              max_rows))
+                                              max_rows, noise=noise))
                 except NotApplicable as exc:
                     skipped.append(f"seed {seed}: {exc}")
     if not parts:
@@ -184,7 +191,8 @@ def build_dataset(grid, tasks, tiers, seeds, *, episodes: int, dynamics: str, st
 
 
 def dataset_to_file(grid_path, out_path, tasks, tiers, seeds, *, episodes: int, dynamics: str,
-                    stride: int, max_rows: int, evaluation_seed: int, threads: int = 1) -> dict:
+                    stride: int, max_rows: int, evaluation_seed: int, noise: float = 0.0,
+                    threads: int = 1) -> dict:
     """:func:`build_dataset` on a grid export file, written atomically as Parquet with its record.
 
     The record holds the tasks, tiers, seeds, episodes, stride, row cap, dynamics, teacher,
@@ -198,7 +206,7 @@ def dataset_to_file(grid_path, out_path, tasks, tiers, seeds, *, episodes: int, 
         The Parquet file to write.
     tasks, tiers, seeds : iterable
         As :func:`build_dataset`.
-    episodes, dynamics, stride, max_rows, evaluation_seed
+    episodes, dynamics, stride, max_rows, evaluation_seed, noise
         As :func:`build_dataset`.
     threads : int, optional
         Numba threads (default 1; at most numba's thread count).
@@ -215,9 +223,10 @@ def dataset_to_file(grid_path, out_path, tasks, tiers, seeds, *, episodes: int, 
     numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
     df, skipped = build_dataset(grid_path, tasks, tiers, seeds, episodes=episodes,
                                 dynamics=dynamics, stride=stride, max_rows=max_rows,
-                                evaluation_seed=evaluation_seed)
+                                evaluation_seed=evaluation_seed, noise=noise)
     meta = {"stage": "bc_dataset", "tasks": list(tasks), "tiers": [int(t) for t in tiers],
             "seeds": [int(s) for s in seeds], "episodes": int(episodes), "stride": int(stride),
             "max_rows": int(max_rows), "dynamics": dynamics, "teacher": "heuristic",
+            "noise": float(noise),
             "skipped": skipped, "n_rows": int(len(df))}
     return write_metrics(df, out_path, meta=meta)
