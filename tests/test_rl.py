@@ -400,9 +400,9 @@ def test_readme_train_and_score_example_runs():
     shown = re.search(r"```python\n(.*?)```",
                       readme[readme.index("## Train and score an RL policy"):], re.S).group(1)
     assert shown == block                # the README shows the same example
-    assert "learn(200_000)" in block and "evaluate(PPOPolicy(" in block
+    assert "learn(300_000)" in block and "evaluate(PPOPolicy(" in block
     assert "episodes=50" in block and block.rstrip().splitlines()[-1].startswith("print(")
-    code = block.replace("learn(200_000)", "learn(512)").replace("episodes=50", "episodes=4")
+    code = block.replace("learn(300_000)", "learn(512)").replace("episodes=50", "episodes=4")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          cwd=REPO, timeout=900)
     assert out.returncode == 0, out.stderr[-2000:]
