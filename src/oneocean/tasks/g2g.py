@@ -496,7 +496,7 @@ BRIEF_FIELDS = {
               "knows it"),
     "goal": ("(E, 3)", "m", "the goal (world x east, y depth, z north)"),
     "radius": ("", "m", "success radius around the goal"),
-    **{k: v for k, v in routing.FIELD_DOCS.items()},
+    **routing.FIELD_DOCS,
 }
 
 

@@ -378,7 +378,7 @@ BRIEF_FIELDS = {
               "vertex 0 where the vehicle starts, then the waypoints in order"),
     "radius": ("", "m", "waypoint radius (3-D)"),
     "xte_max": ("", "m", "success: mean cross-track error at most this"),
-    **{k: v for k, v in routing.FIELD_DOCS.items()},
+    **routing.FIELD_DOCS,
 }
 
 

@@ -95,6 +95,24 @@ class PowerModel(NamedTuple):
         return (self.hotel_w / (2.0 * self.k)) ** (1.0 / 3.0)
 
 
+def briefing_power(hotel_w: float, pk: float) -> PowerModel | None:
+    """The power model a briefing gives (``hotel_w``, ``pk``; no battery: energy per metre
+    only), or None when it gives none (both 0).
+
+    Parameters
+    ----------
+    hotel_w : float
+        Hotel load, W.
+    pk : float
+        Propulsion coefficient, W s3 m-3.
+
+    Returns
+    -------
+    PowerModel or None
+    """
+    return None if hotel_w <= 0.0 and pk <= 0.0 else PowerModel(1.0, hotel_w, pk)
+
+
 def power_model(vehicle: str, path: str | Path | None = None) -> PowerModel:
     """The :class:`PowerModel` of a vehicle.
 

@@ -95,9 +95,8 @@ def params(method: str, B) -> RFPolicy:
                     float(B.hotel_w), float(B.pk))
 
 
-def _power(M: RFPolicy):
-    return None if M.hotel_w <= 0.0 and M.pk <= 0.0 else routing.PowerModel(1.0, M.hotel_w,
-                                                                            M.pk)
+def _power(M):
+    return routing.briefing_power(M.hotel_w, M.pk)
 
 
 class RFMemory(NamedTuple):
