@@ -30,7 +30,7 @@ EXPORTS = ROOT / "results" / "exports" / "synthetic_coast" / "scene"
 
 def main(argv=None) -> None:
     from oneocean.backends.mujoco.scenes import build_scene
-    from oneocean.io import read_npz
+    from oneocean.product.zarrio import read_npz
     from oneocean.tasks import Cell
     from oneocean.tasks.common import scene_tasks
 

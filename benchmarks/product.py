@@ -104,7 +104,7 @@ write_synthetic(cfg, sys.argv[2], sys.argv[3], zlib=False)
 
 MERGE = """
 import json, sys
-from oneocean.product import build_product
+from oneocean.product.build import build_product
 cfg = json.load(open(sys.argv[1]))
 build_product(sys.argv[2], sys.argv[3], cfg, "public", sys.argv[4], sys.argv[5])
 """
@@ -155,7 +155,7 @@ import json, os, resource, sys, threading, time
 cfg_path, cur, bat, out, meta, workers, limit_mb, res, timeout = sys.argv[1:10]
 cfg = json.load(open(cfg_path))
 from distributed import LocalCluster, Client
-from oneocean.product import build_product
+from oneocean.product.build import build_product
 
 def peak_rss():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024

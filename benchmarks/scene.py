@@ -37,7 +37,7 @@ def _scene(name: str | None):
     import yaml
 
     from oneocean.backends.mujoco.scenes import build_scene
-    from oneocean.io import read_npz
+    from oneocean.product.zarrio import read_npz
 
     cfg = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["scenes"]["list"]
     spec = next(s for s in cfg if (s["name"] == name if name else s["kind"] == "open_water"))

@@ -22,7 +22,7 @@ sub-envs; ``--envs``), in one run:
 
 One numba thread (``NUMBA_NUM_THREADS=1`` is set here unless given); the first call of each
 kind is a warm-up (compilation), not timed. The grid is the default region's (built and
-cached on first use: :func:`oneocean.defaults.default_grid_path`) unless ``--grid``.
+cached on first use: :func:`oneocean.product.defaults.default_grid_path`) unless ``--grid``.
 
 Usage::
 
@@ -48,7 +48,7 @@ def _grid(path):
 
     if path:
         return load_grid(path)
-    from oneocean.defaults import resolve_grid
+    from oneocean.product.defaults import resolve_grid
 
     return resolve_grid(None)
 

@@ -445,7 +445,7 @@ def main(argv=None) -> int:
     if args.grid is None:
         args.grid = DEFAULT_GRID
         if not args.grid.exists():
-            from oneocean.defaults import default_grid_path
+            from oneocean.product.defaults import default_grid_path
 
             args.grid = default_grid_path("scene")
     args.grid = args.grid.resolve()

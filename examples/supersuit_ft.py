@@ -82,7 +82,7 @@ def main(argv=None) -> dict:
     import torch
     from stable_baselines3 import PPO
 
-    from oneocean.defaults import resolve_grid
+    from oneocean.product.defaults import resolve_grid
     from oneocean.envs import normalize
     from oneocean.methods.ppo.train import quiet_logger
     from oneocean.vocab import EVALUATION_SEED

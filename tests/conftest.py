@@ -46,6 +46,17 @@ def _forget_registered_methods():
 def default_grid():
     """The embedded default region's grid export (what ``run_cell(None, ...)``, the step API
     and ``evaluate`` use without a grid)."""
-    from oneocean.defaults import resolve_grid
+    from oneocean.product.defaults import resolve_grid
 
     return resolve_grid(None)
+
+
+@pytest.fixture(scope="session")
+def coast():
+    """The analytic coast most engine and task tests run on (:func:`oneocean.testing.make_test_grid`:
+    5 hourly time steps, 3 depth levels, 30 x 40 cells; land along the west edge, a seafloor
+    sloping down to the east, currents and tides), loaded once per test process."""
+    from oneocean.engine import load_grid
+    from oneocean.testing import make_test_grid
+
+    return load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))

@@ -6,7 +6,8 @@ class whose name does not start with ``_`` (``__init__`` included: its parameter
 the class). Each must have a docstring that numpydoc parses, with a one-line summary; every
 parameter named in its signature (but ``self``/``cls`` and ``*args``/``**kwargs``-style
 catch-alls, the parameters of a task's or a policy's hook, documented once in
-:mod:`oneocean.tasks.loop` and :mod:`oneocean.tasks.public`: :data:`CONTRACTS`, and the names
+:mod:`oneocean.tasks.loop` and :mod:`oneocean.tasks.public`, and of a task's ``reset`` and
+``make``, documented once in :mod:`oneocean.tasks`: :data:`CONTRACTS`, and the names
 of a module's ``VOCABULARY`` dict, which documents them once for all its functions) described
 under ``Parameters`` (the class docstring may describe ``__init__``'s
 parameters, and a dataclass/NamedTuple's fields under ``Attributes`` or ``Parameters``); no
@@ -17,7 +18,7 @@ reStructuredText (no docutils warning: the docs site builds with ``-W``). Read f
 
 Run on files to see what is missing::
 
-    python tests/docstring_check.py src/oneocean/tables.py
+    python tests/docstring_check.py src/oneocean/reporting/tables.py
 """
 from __future__ import annotations
 
@@ -63,7 +64,8 @@ def _returns_value(fn: ast.AST) -> bool:
 #: Signatures whose parameters are documented once, in the contract of the episode loop
 #: (``oneocean.tasks.loop``: the env hooks and the policy hooks on their context) and of the
 #: public view (``oneocean.tasks.public``: a task's ``brief``, ``team_obs`` and ``report``; a
-#: policy's ``params``, ``memory`` and ``prepare``): a hook's docstring says what it does, not
+#: policy's ``params``, ``memory`` and ``prepare``) and of a task's scenario (``oneocean.tasks``:
+#: ``reset`` and ``make``): a hook's docstring says what it does, not
 #: its arguments again.
 CONTRACTS = {
     ("C", "e", "k"), ("C", "e", "k", "i"),
@@ -73,6 +75,7 @@ CONTRACTS = {
     ("grid", "P", "W", "state", "prev", "e", "k", "t"),
     ("grid", "P", "W", "state", "e", "k", "row"),
     ("P", "W", "init", "m"), ("W",), ("method", "B"), ("B", "M"), ("B", "M", "H"),
+    ("grid", "tier", "n_agents", "n_episodes", "seed"), ("grid", "tier", "init"),
 }
 
 

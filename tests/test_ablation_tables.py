@@ -1,4 +1,4 @@
-"""What drives a ladder cell (oneocean.ablations): the information-ablation table and the
+"""What drives a ladder cell (oneocean.reporting.ablations): the information-ablation table and the
 stressor table against the cell files they come from, the share of the T1 -> T3 drop and its
 3/4 flag, the tier-override mechanism of a cell, and ablation cells kept apart from the
 ladder's normal cells."""
@@ -12,13 +12,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from oneocean import ablations as A
+from oneocean.reporting import ablations as A
 from oneocean import registry
-from oneocean import tables as T
+from oneocean.reporting import tables as T
 from oneocean.config import load_config
 from oneocean.engine.recording import read_metrics_meta, write_metrics
 from oneocean.errors import ConfigError
-from oneocean.ladder import ladder_frame, load_cells, read_cell, wilson
+from oneocean.reporting.ladder import ladder_frame, load_cells, read_cell, wilson
 from oneocean.tasks.common import load_task_table
 from workflow_helpers import REPO
 

@@ -38,6 +38,8 @@ import pytest
 from oneocean.methods.bc.dataset import EXTRA_FIELDS
 from oneocean.tasks.common import ACT_FIELDS, OBS_FIELDS
 
+pytestmark = pytest.mark.slow
+
 LD_SO = "/lib64/ld-linux-x86-64.so.2"
 
 #: OpenBLAS cores to emulate and the CPU flags (/proc/cpuinfo) each one's kernels need.

@@ -3,7 +3,7 @@
 from pathlib import Path
 
 import oneocean
-from oneocean.codeversion import files_hash, task_code, task_files, tasks_code
+from oneocean.pipeline.codeversion import files_hash, task_code, task_files, tasks_code
 
 PKG = Path(oneocean.__file__).resolve().parent
 
@@ -19,7 +19,7 @@ def test_a_task_depends_on_its_own_files_and_the_shared_engine_only():
             "data/vehicles.yaml"} <= g2g
     assert not {"tasks/sk.py", "methods/heuristic/sk.py", "data/tasks/SK.yaml",
                 "kernels/sk.py", "methods/llm/plan.py", "methods/bc/train.py",
-                "tables.py"} & g2g
+                "reporting/tables.py"} & g2g
     assert "tasks/sk.py" in _names("SK")
     # the ten tasks share everything but their own four files
     shared = set.intersection(*(_names(t) for t in ("G2G", "SK", "SPC")))

@@ -10,11 +10,13 @@ import pytest
 
 from oneocean.errors import ConfigError
 from oneocean.io import sha256_file
-from oneocean.product import build_product, compute_scheduler
+from oneocean.product.build import build_product, compute_scheduler
 from oneocean.sources import fetch_bathymetry, fetch_currents
-from oneocean.zarrio import open_product, store_sha256
+from oneocean.product.zarrio import open_product, store_sha256
 
 from test_zarr_product import small_config
+
+pytestmark = pytest.mark.slow
 
 distributed = pytest.importorskip("distributed")
 

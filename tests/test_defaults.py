@@ -1,5 +1,5 @@
 """A working env in a fresh install, without the workflow: the default grid built into the
-cache (oneocean.defaults), resolve_grid's inputs and errors, the Gymnasium and PettingZoo ids
+cache (oneocean.product.defaults), resolve_grid's inputs and errors, the Gymnasium and PettingZoo ids
 (oneocean.registration) and the CLI's one-line errors."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import pytest
 import yaml
 
 import oneocean
-from oneocean import defaults
+from oneocean.product import defaults
 from oneocean.errors import ConfigError, DataError
 from oneocean.io import sha256_file
 
@@ -110,7 +110,7 @@ def test_the_embedded_region_is_the_workflows_default():
     """config/config.yaml (the workflow's default) and the packaged region config give the
     same product configuration, and the default region's override file maps onto it."""
     from oneocean.config import DATA_SECTIONS, validate_config, validate_data_config
-    from oneocean.product import product_config
+    from oneocean.product.build import product_config
 
     workflow = validate_config(yaml.safe_load((REPO / "config" / "config.yaml").read_text()))
     embedded = defaults.region_config()
@@ -128,7 +128,7 @@ def concurrent_tiny(tmp_path_factory):
     root = tmp_path_factory.mktemp("concurrent_cache")
     env = {**os.environ, defaults.CACHE_ENV: str(root)}
     code = ("import logging, sys; logging.basicConfig(level=logging.INFO, stream=sys.stderr);"
-            " from oneocean.defaults import default_grid_path;"
+            " from oneocean.product.defaults import default_grid_path;"
             " print(default_grid_path('tiny'))")
     procs = [subprocess.Popen([sys.executable, "-c", code], env=env, text=True,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -160,8 +160,8 @@ def test_the_cached_grid_is_the_workflows_grid(concurrent_tiny, tmp_path, monkey
     on config/config.yaml, in the workflow's folder layout) give the cached file byte for
     byte."""
     from oneocean.config import validate_config
-    from oneocean.exports import export_grid
-    from oneocean.product import build_product
+    from oneocean.product.exports import export_grid
+    from oneocean.product.build import build_product
     from oneocean.sources import fetch_bathymetry, fetch_currents
 
     root, outs = concurrent_tiny
@@ -213,8 +213,8 @@ def test_resolve_grid_inputs(cache, tmp_path):
     m = make_test_grid(nt=2, nz=2, ny=5, nx=6)
     assert defaults.resolve_grid(m).nx == load_grid(m).nx == 6
     # a grid export stored as zarr (exports.format: zarr) gives the same grid
-    from oneocean.io import read_npz
-    from oneocean.zarrio import write_arrays_zarr
+    from oneocean.product.zarrio import read_npz
+    from oneocean.product.zarrio import write_arrays_zarr
 
     store = tmp_path / "grid.zarr"
     write_arrays_zarr(store, read_npz(cache["path"], "grid export"))

@@ -45,8 +45,8 @@ import xarray as xr
 from oneocean.config import load_config
 from oneocean.engine import grid as G
 from oneocean.errors import DataError
-from oneocean.exports import export_grid, export_temporal
-from oneocean.product import build_product
+from oneocean.product.exports import export_grid, export_temporal
+from oneocean.product.build import build_product
 from oneocean.sources import fetch_bathymetry, fetch_currents, open_bathymetry, open_currents
 from test_exports import check_engine_matches_temporal
 from workflow_helpers import REPO

@@ -10,7 +10,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from oneocean import engine as E
 from oneocean.errors import ConfigError
 from oneocean.evaluate import evaluate, load_policy
 from oneocean.tasks import run_cell
@@ -18,11 +17,6 @@ from oneocean.tasks.common import OBS_DIM, OBS_FIELDS
 from oneocean.testing import make_test_grid
 
 METRIC_COLS = ["success", "T_s", "E", "coll_ratio", "violations", "current_speed_ms", "primary"]
-
-
-@pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 class Replay:
@@ -175,7 +169,7 @@ def test_cli_evaluate_writes_the_cell_table(tmp_path, coast):
                          capture_output=True, text=True)
     assert bad.returncode == 2 and not (tmp_path / "x.parquet").exists()
     # the user's file joins Table V beside a workflow cell, with no registration first
-    from oneocean.tables import task_success_table
+    from oneocean.reporting.tables import task_success_table
     from oneocean.tasks import rollout_to_file
     from oneocean.vocab import EVALUATION_SEED
 
@@ -328,7 +322,7 @@ def test_dense_reward_sums_stay_within_their_weights_and_success_pays_most(coast
 
 def test_rgb_render_shows_land_water_and_agents(coast):
     from oneocean.envs import OceanEnv
-    from oneocean.render import AGENT_RGB, LAND_RGB
+    from oneocean.reporting.render import AGENT_RGB, LAND_RGB
 
     env = OceanEnv("G2G", 1, coast, render_mode="rgb_array")
     env.reset(seed=0)
@@ -360,7 +354,7 @@ ALL_TASKS = ("G2G", "SK", "RF", "DPT", "AS", "PI", "FT", "SPC", "UPL", "FH")
 @pytest.fixture(scope="module")
 def default_grid():
     """The default region's grid (what an env without a grid uses)."""
-    from oneocean.defaults import resolve_grid
+    from oneocean.product.defaults import resolve_grid
 
     return resolve_grid(None)
 

@@ -12,10 +12,10 @@ import yaml
 
 from oneocean.engine import grid as G
 from oneocean.errors import DataError
-from oneocean.exports import (default_point, export_grid, export_temporal, metres_per_degree,
+from oneocean.product.exports import (default_point, export_grid, export_temporal, metres_per_degree,
                               point_weights)
 from oneocean.io import sha256_file
-from oneocean.product import build_product
+from oneocean.product.build import build_product
 from oneocean.sources import fetch_bathymetry, fetch_currents
 
 CONFIG = Path(__file__).parents[1] / "config" / "config.yaml"

@@ -11,7 +11,7 @@ import pytest
 from numba import njit
 from numba.core.typing.typeof import Purpose, typeof
 
-from oneocean.tasks.episodes import _FAST, _Unkeyed, _type_key, fast_entry
+from oneocean.engine.dispatch import _FAST, _Unkeyed, _type_key, fast_entry
 
 Pair = namedtuple("Pair", "a b")
 Other = namedtuple("Other", "a b")

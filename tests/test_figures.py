@@ -1,4 +1,4 @@
-"""The paper's result figures (``oneocean.figures``): Fig. 3, 4, 6 and 7.
+"""The paper's result figures (``oneocean.reporting.figures``): Fig. 3, 4, 6 and 7.
 
 Every figure is written as PNG + PDF, byte-stable (rendered twice: same bytes), readable at
 the expected size, and returns the numbers it plotted; those are checked against the inputs.
@@ -15,10 +15,10 @@ import xarray as xr
 
 from oneocean.engine import write_metrics
 from oneocean.errors import DataError
-from oneocean.figures import (DPI, ladder_numbers, plot_current_field, plot_ladder,
+from oneocean.reporting.figures import (DPI, ladder_numbers, plot_current_field, plot_ladder,
                               plot_pollution_species, plot_rl_curves, plot_team_sweep,
                               rl_curve_numbers, team_sweep_numbers)
-from oneocean.ladder import wilson
+from oneocean.reporting.ladder import wilson
 
 
 def _read_png(path):
@@ -321,7 +321,7 @@ def test_team_sweep_in_a_region_that_cannot_host_it_is_a_note_not_a_crash(tmp_pa
     import pandas as pd
 
     from oneocean.engine.recording import write_metrics
-    from oneocean.figures import plot_team_sweep
+    from oneocean.reporting.figures import plot_team_sweep
 
     f = tmp_path / "na.parquet"
     write_metrics(pd.DataFrame({"success": pd.Series([], dtype=bool)}), f,
@@ -400,7 +400,7 @@ def test_saved_figures_have_a_frozen_rounded_layout(tmp_path):
     figure and switches the engine off: the solver's last-bit noise (it depends on what the
     process allocated before) cannot reach the PDF's coordinates. Two figures built with
     allocations in between give identical bytes."""
-    from oneocean.figures import new_figure, paper_style, save_figure
+    from oneocean.reporting.figures import new_figure, paper_style, save_figure
 
     def build(path, junk):
         keep = [np.empty(3 * k + 1) for k in range(junk)]      # shifts later allocations

@@ -6,9 +6,10 @@ missing TeX is a failure."""
 import pandas as pd
 import pytest
 
-from oneocean import latex
+from oneocean.reporting import latex
 from oneocean.errors import ConfigError
-from oneocean.tables import _latex, fit_width, to_booktabs
+from oneocean.reporting.latex import booktabs as _latex, fit_width
+from oneocean.reporting.tables import to_booktabs
 from workflow_helpers import need_tex as _need_tex
 
 

@@ -50,11 +50,6 @@ def closed_port() -> int:
 
 
 @pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
-
-
-@pytest.fixture(scope="module")
 def heuristic(coast):
     """The fused heuristic's cell table of each task (computed once per task)."""
     tables = {}

@@ -9,17 +9,10 @@ import textwrap
 import numpy as np
 import pytest
 
-from oneocean import engine as E
 from oneocean.errors import ConfigError
 from oneocean.tasks import Cell
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.tasks.loop import FINISHED
-from oneocean.testing import make_test_grid
-
-
-@pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 def _episodes(cell, method, n=4, seed=1, record=False):

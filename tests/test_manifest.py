@@ -7,7 +7,7 @@ import xarray as xr
 
 from oneocean.cli import main
 from oneocean.io import write_npz_atomic
-from oneocean.manifest import collect_manifest, verify, write_job_provenance
+from oneocean.pipeline.manifest import collect_manifest, verify, write_job_provenance
 
 
 def _make_job(tmp_path):

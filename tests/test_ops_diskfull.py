@@ -16,7 +16,7 @@ from oneocean import io as oio
 from oneocean.engine.recording import write_metrics
 from oneocean.errors import DiskFullError, OneOceanError
 from oneocean.io import atomic_path, write_json_atomic, write_npz_atomic
-from oneocean.ncio import netcdf_encoding, write_netcdf_atomic
+from oneocean.product.ncio import netcdf_encoding, write_netcdf_atomic
 
 _Usage = namedtuple("_Usage", "total used free")
 

@@ -14,8 +14,8 @@ from oneocean.cli import main
 from oneocean.engine.recording import write_metrics
 from oneocean.errors import DataError
 from oneocean.io import write_json_atomic
-from oneocean.manifest import collect_manifest, verify, write_job_provenance
-from oneocean.ncio import netcdf_encoding, write_netcdf_atomic
+from oneocean.pipeline.manifest import collect_manifest, verify, write_job_provenance
+from oneocean.product.ncio import netcdf_encoding, write_netcdf_atomic
 
 NC = "results/product/ci/tiny/product.nc"
 PARQUET = "results/rollouts/ci/cell.parquet"

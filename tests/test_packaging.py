@@ -11,7 +11,11 @@ import textwrap
 import zipfile
 from pathlib import Path
 
+import pytest
+
 from workflow_helpers import REPO
+
+pytestmark = pytest.mark.slow
 
 SCRIPT = textwrap.dedent("""\
     import sys

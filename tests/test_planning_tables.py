@@ -7,8 +7,8 @@ import pandas as pd
 import pytest
 
 from oneocean.engine.recording import write_metrics
-from oneocean.ladder import wilson
-from oneocean.planning import (cost_frame, load_suite, mean_ci, omitted_note,
+from oneocean.reporting.ladder import wilson
+from oneocean.reporting.planning import (cost_frame, load_suite, mean_ci, omitted_note,
                                performance_frame, planning_tables)
 
 METRIC = {"SPC": "cleanup_rate", "AS": "coverage_fraction", "PI": "inspection_score"}

@@ -13,9 +13,9 @@ import yaml
 
 from oneocean import __version__
 from oneocean.errors import DataError
-from oneocean.figures import plot_current_field
+from oneocean.reporting.figures import plot_current_field
 from oneocean.io import config_hash, dataset_content_hash, sha256_file
-from oneocean.product import (bilinear_plan, build_product, netcdf_encoding, product_config,
+from oneocean.product.build import (bilinear_plan, build_product, netcdf_encoding, product_config,
                               regrid_bilinear, summarise_product, write_netcdf_atomic)
 from oneocean.sources import fetch_bathymetry, fetch_currents
 from oneocean.sources.synthetic import make_bathymetry, make_currents

@@ -13,7 +13,7 @@ from oneocean.config import validate_config
 from oneocean.engine import load_grid
 from oneocean.engine.recording import read_metrics_meta
 from oneocean.errors import ConfigError, NotApplicable
-from oneocean.ladder import (Check, ladder_markdown, load_cells, macro_rate, run_checks,
+from oneocean.reporting.ladder import (Check, ladder_markdown, load_cells, macro_rate, run_checks,
                              wilson)
 from oneocean.registry import task_ids
 from oneocean.tasks import Cell, rollout_to_file, run_cell
@@ -216,7 +216,7 @@ def test_readme_ladder_blocks_are_the_workflows_output(tmp_path):
     per task and every check."""
     from pathlib import Path
 
-    from oneocean.ladder import readme_markers, splice_readme
+    from oneocean.reporting.ladder import readme_markers, splice_readme
     from oneocean.vocab import EVALUATION_SEED
 
     root = Path(__file__).resolve().parents[1]

@@ -275,7 +275,7 @@ def _cells(tmp_path, tasks):
 
 
 def test_success_table_follows_the_registry(clean_registry, tmp_path):
-    from oneocean.tables import task_success_frame
+    from oneocean.reporting.tables import task_success_frame
 
     cells = _cells(tmp_path, [("FH", 8, [True, False]), ("TOY", 2, [True, True]),
                               ("G2G", 1, [False, False]), ("SPC", 10, [True, False])])

@@ -32,14 +32,14 @@ ADVISORIES = ("unconventional shape", "action space has dtype float64")
 
 @pytest.fixture(scope="module")
 def grid():
-    from oneocean.defaults import resolve_grid
+    from oneocean.product.defaults import resolve_grid
 
     return resolve_grid(None)
 
 
 @pytest.fixture(scope="module")
 def grid_path():
-    from oneocean.defaults import default_grid_path
+    from oneocean.product.defaults import default_grid_path
 
     return default_grid_path()
 
@@ -200,11 +200,11 @@ def test_policy_constants_match_the_env(grid):
 
 
 def test_train_save_load_evaluate_round_trip(grid_path, tmp_path, monkeypatch):
-    from oneocean.ladder import read_cell
+    from oneocean.reporting.ladder import read_cell
     from oneocean.methods.ppo.policy import METHOD, evaluate_to_file, load
     from oneocean.methods.ppo.train import read_report, train_to_files
     from oneocean.registry import METHOD_KINDS, method_spec
-    from oneocean.tables import task_success_ci_frame, task_success_table
+    from oneocean.reporting.tables import task_success_ci_frame, task_success_table
     from oneocean.tasks import rollout_to_file
 
     assert method_spec("ppo") is METHOD and METHOD.kind == "callable" in METHOD_KINDS
@@ -305,7 +305,7 @@ def test_training_gives_the_same_bytes_on_another_cpu(grid_path, tmp_path):
 def test_no_macro_for_a_method_run_on_some_tasks(grid_path, tmp_path):
     """A PPO cell of one task beside the heuristic's of two: PPO has its per-task row and no
     macro (never a mean over other tasks than the rest of the row's)."""
-    from oneocean.tables import task_success_frame, task_success_table
+    from oneocean.reporting.tables import task_success_frame, task_success_table
     from oneocean.tasks import rollout_to_file
 
     files = []

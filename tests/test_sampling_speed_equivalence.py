@@ -24,11 +24,6 @@ RF_TIER = {"time_limit_s": 3600.0, "n_waypoints": 3, "leg_m": 500.0, "wp_radius_
            "xte_max_m": 30.0, "energy_reserve": 0.1, "dt_s": 1.0}
 
 
-@pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
-
-
 def test_g2g_reference_energies_equal_one_plan_per_episode(coast):
     init = g2g.reset(coast, G2G_TIER, 1, 5, seed=2)
     start, goal = init["pos0"][:, 0], init["goal"]

@@ -1,4 +1,4 @@
-"""Fig. 5 (``oneocean.snapshots``): one-episode snapshots of SPC, UPL, AS and FH.
+"""Fig. 5 (``oneocean.reporting.snapshots``): one-episode snapshots of SPC, UPL, AS and FH.
 
 The frames are the episode of ``Cell.reset`` (start = its start positions, the rollout cell's
 row), the run in segments ends exactly where an uninterrupted run ends, what is read from the
@@ -18,9 +18,9 @@ import pytest
 
 from oneocean import engine as E
 from oneocean.errors import ConfigError, NotApplicable
-from oneocean.figures import DPI, PAGE_IN
+from oneocean.reporting.figures import DPI, PAGE_IN
 from oneocean.io import write_npz_atomic
-from oneocean.snapshots import (FIG5_TASKS, TRAIL_EVERY, area_of_interest, episode_frames,
+from oneocean.reporting.snapshots import (FIG5_TASKS, TRAIL_EVERY, area_of_interest, episode_frames,
                                 plot_snapshots)
 from oneocean.tasks import Cell, spc
 from oneocean.tasks.episodes import Episodes

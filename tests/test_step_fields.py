@@ -15,7 +15,7 @@ from numba import njit
 
 from oneocean.engine._jit import hot_kernel
 from oneocean.envs import OceanVectorEnv
-from oneocean.tasks.episodes import fast_entry
+from oneocean.engine.dispatch import fast_entry
 from oneocean.tasks.loop import BORROWED_FIELDS, STEP_FIELDS, StepArgs, step_fields
 
 Inner = namedtuple("Inner", "u n")

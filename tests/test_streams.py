@@ -20,11 +20,6 @@ from oneocean.testing import make_test_grid
 SEEDS = (0, 1, 5, 2**31 - 1, 2**32, 2**32 + 7, 123456789012345, 2**63 - 1, 2**64 - 1)
 
 
-@pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
-
-
 def _numpy(seed, e, purpose):
     return np.random.default_rng(np.random.SeedSequence([seed, int(e), purpose]))
 

@@ -11,7 +11,7 @@ import pytest
 import yaml
 from scipy import ndimage
 
-from oneocean.exports import metres_per_degree
+from oneocean.product.exports import metres_per_degree
 from oneocean.sources.synthetic import (make_bathymetry, make_currents, scene_summary,
                                         synthetic_axes)
 

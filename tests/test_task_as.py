@@ -21,7 +21,7 @@ from oneocean.tasks.common import (O_CE, O_CN, O_GX, O_GY, O_GZ, O_X, O_Z, STAND
                                    load_task_table, seek_max)
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.tasks.public import COMMON
-from oneocean.testing import make_test_grid, uniform_grid
+from oneocean.testing import uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"current_band": [0.0, 1.0], "time_limit_s": 900.0, "region_long_m": 160.0, "region_short_m": 80.0, "coverage_threshold": 0.95,
@@ -40,11 +40,6 @@ def _sloped(ce=0.0, cn=0.0, nx=21, ny=21, dx=100.0):
 @pytest.fixture(scope="module")
 def calm():
     return _sloped()
-
-
-@pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 def _still(veh=None):

@@ -16,7 +16,7 @@ from oneocean.methods.heuristic import dpt as pol_dpt
 from oneocean.tasks import dpt, run_cell
 from oneocean.tasks.common import load_task_table, path_clear
 from oneocean.tasks.episodes import Episodes, rollout
-from oneocean.testing import make_test_grid, uniform_grid
+from oneocean.testing import uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"time_limit_s": 900.0, "n_waypoints": 3,
@@ -26,11 +26,6 @@ TIER = {"time_limit_s": 900.0, "n_waypoints": 3,
 
 def _grid(ce=0.0, cn=0.0, depth=80.0, n=31):
     return E.load_grid(uniform_grid(ce, cn, depth_m=depth, nx=n, ny=n, dx_m=100.0))
-
-
-@pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 #: The task's vehicle (its tier table): the REMUS 100, 2.5 m/s, dives by pitching.

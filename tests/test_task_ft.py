@@ -15,7 +15,7 @@ from oneocean.methods.heuristic import ft as FT_POLICY
 from oneocean.tasks import ft, run_cell
 from oneocean.tasks.common import load_task_table, path_clear
 from oneocean.tasks.episodes import Episodes, rollout
-from oneocean.testing import make_test_grid, uniform_grid
+from oneocean.testing import uniform_grid
 from task_helpers import assert_tier_table_monotone, external_episodes, on_one_thread
 
 TIER = {"time_limit_s": 700.0, "route_m": 400.0,
@@ -24,11 +24,6 @@ TIER = {"time_limit_s": 700.0, "route_m": 400.0,
 
 def _grid(ce=0.0, cn=0.0, depth=60.0, n=31):
     return E.load_grid(uniform_grid(ce, cn, depth_m=depth, nx=n, ny=n, dx_m=100.0))
-
-
-@pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 def _run(grid, tier, method, n_agents=4, dyn="kinematic", n=3, seed=0, init=None):

@@ -20,7 +20,7 @@ from oneocean.methods.heuristic import g2g as POLICY
 from oneocean.tasks import g2g, run_cell
 from oneocean.tasks.common import STANDARD, load_task_table, path_clear, site_speed
 from oneocean.tasks.episodes import Episodes, rollout
-from oneocean.testing import make_test_grid, uniform_grid
+from oneocean.testing import uniform_grid
 from oneocean.vocab import EVALUATION_SEED
 from task_helpers import assert_tier_table_monotone
 
@@ -31,11 +31,6 @@ TIER = {"time_limit_s": 600.0,
 @pytest.fixture(scope="module")
 def calm():
     return E.load_grid(uniform_grid(0.0, 0.0, depth_m=60.0, nx=21, ny=21, dx_m=100.0))
-
-
-@pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 def _run(grid, tier, method, dyn="kinematic", n=6, seed=0, vehicle=None, info=None):

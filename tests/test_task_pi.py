@@ -46,11 +46,6 @@ def calm():
     return _sloped()
 
 
-@pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
-
-
 def _still():
     veh = E.load_vehicle()
     p = veh.params.copy()

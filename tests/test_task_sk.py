@@ -21,7 +21,7 @@ from oneocean.tasks.common import episode_generators, load_task_table, start_tim
 from oneocean.evaluate import Observation
 from oneocean.methods.heuristic import FusedPolicy
 from oneocean.tasks.episodes import Episodes, rollout
-from oneocean.testing import make_test_grid, uniform_grid
+from oneocean.testing import uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
 TIER = {"time_limit_s": 400.0, "hold_time_s": 200.0, "hold_radius_m": 2.0, "dt_s": 1.0}
@@ -29,11 +29,6 @@ TIER = {"time_limit_s": 400.0, "hold_time_s": 200.0, "hold_radius_m": 2.0, "dt_s
 
 def _grid(ce=0.0, cn=0.0, depth=60.0):
     return E.load_grid(uniform_grid(ce, cn, depth_m=depth, nx=21, ny=21, dx_m=100.0))
-
-
-@pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 def _run(grid, tier, method, dyn="kinematic", n=4, seed=0, vehicle=None, init=None,

@@ -37,11 +37,6 @@ def calm():
     return _grid()
 
 
-@pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
-
-
 #: The task's vehicle (its tier table): the BlueROV2 Heavy, 0.85 m/s.
 VEHICLE = E.load_vehicle(load_task_table("SPC")["vehicle"])
 

@@ -18,12 +18,6 @@ from oneocean.tasks import sk
 from oneocean.tasks.common import (STANDARD, path_clear, sample_route,
                                    seek_max, start_times, steer,
                                    episode_generators, waypoint_carrot)
-from oneocean.testing import make_test_grid
-
-
-@pytest.fixture(scope="module")
-def coast():
-    return E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))
 
 
 # ----------------------------------------------------------------------------- steering

@@ -6,7 +6,7 @@ import shutil
 import pandas as pd
 import pytest
 
-from oneocean.ablations import stressor_keys
+from oneocean.reporting.ablations import stressor_keys
 from oneocean.cli import main as cli
 from oneocean.engine.recording import read_metrics_meta
 from oneocean.tasks.common import load_task_table
@@ -278,7 +278,7 @@ def test_every_generated_table_compiles_standalone(two_runs, tmp_path):
     """Each table of the paper, as the workflow wrote it, compiles on its own with pdflatex
     and fits the line width (no overfull box)."""
     need_tex("pdflatex")
-    from oneocean import latex
+    from oneocean.reporting import latex
 
     a, _ = two_runs
     tables = sorted((a / f"results/tables/{REGION}").glob("*.tex"))

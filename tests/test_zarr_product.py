@@ -14,12 +14,13 @@ import yaml
 
 from oneocean.config import load_config
 from oneocean.errors import ConfigError
-from oneocean.exports import export_grid, export_temporal
-from oneocean.io import read_npz, sha256_file
-from oneocean.manifest import collect_manifest, file_record, verify, write_job_provenance
-from oneocean.product import build_product, summarise_product
+from oneocean.product.exports import export_grid, export_temporal
+from oneocean.io import sha256_file
+from oneocean.product.zarrio import read_npz
+from oneocean.pipeline.manifest import collect_manifest, file_record, verify, write_job_provenance
+from oneocean.product.build import build_product, summarise_product
 from oneocean.sources import fetch_bathymetry, fetch_currents
-from oneocean.zarrio import (atomic_dir, is_zarr, open_product, product_filename,
+from oneocean.product.zarrio import (atomic_dir, is_zarr, open_product, product_filename,
                              store_sha256)
 
 CONFIG = Path(__file__).parents[1] / "config" / "config.yaml"
@@ -196,7 +197,7 @@ def test_product_format_config(tmp_path):
 @pytest.mark.parametrize("product", ["product.nc", "product.zarr"])
 def test_zarr_exports_equal_npz_and_load_identically(built, tmp_path, product):
     from oneocean.engine import load_grid
-    from oneocean.zarrio import read_arrays_zarr
+    from oneocean.product.zarrio import read_arrays_zarr
 
     for kind in ("grid", "temporal"):
         paths = {fmt: tmp_path / f"{kind}.{fmt}" for fmt in ("npz", "zarr")}
@@ -246,7 +247,7 @@ def test_zarr_export_missing_or_bad_is_one_line(tmp_path):
 
 
 def test_export_format_config():
-    from oneocean.zarrio import export_filename
+    from oneocean.product.zarrio import export_filename
 
     cfg = load_config(CONFIG)
     assert cfg["exports"] == {"format": "npz"}

@@ -18,7 +18,7 @@ def _verify(args) -> int:
     import json
 
     from .errors import DataError
-    from .manifest import verify
+    from .pipeline.manifest import verify
 
     target = Path(args.results)
     if target.is_file():
@@ -118,7 +118,7 @@ def _evaluate(args) -> int:
 
 def _ladder_readme(args) -> int:
     from .errors import ConfigError
-    from .ladder import splice_readme
+    from .reporting.ladder import splice_readme
 
     try:
         for region in args.regions:

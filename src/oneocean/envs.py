@@ -283,7 +283,7 @@ class _Cell(Cell):
                  current_gain: float = 1.0, tide=None, backend: str = "core", scene=None,
                  info: str | None = None):
         if scene is None:
-            from .defaults import resolve_grid
+            from .product.defaults import resolve_grid
 
             grid = resolve_grid(grid)      # None: the default region's grid
         super().__init__(grid, task, tier, n_agents=n_agents, currents=currents,
@@ -369,7 +369,7 @@ class OceanVectorEnv(VectorEnv):
         Tier of the task's table.
     grid : Grid, mapping, path-like or None
         A :class:`~oneocean.engine.grid.Grid`, a grid export path, a region config, or None:
-        the default region's grid (:func:`oneocean.defaults.resolve_grid`; ignored with
+        the default region's grid (:func:`oneocean.product.defaults.resolve_grid`; ignored with
         ``scene``).
     num_envs : int
         Sub-envs (at least 1).
@@ -930,12 +930,12 @@ class OceanVectorEnv(VectorEnv):
         Returns
         -------
         (H, W, 3) uint8 or None
-            The image (:func:`oneocean.render.topdown_rgb`, north up); None unless
+            The image (:func:`oneocean.reporting.render.topdown_rgb`, north up); None unless
             ``render_mode="rgb_array"`` and the env was reset.
         """
         if self.render_mode != "rgb_array" or not self._pools:
             return None
-        from .render import topdown_rgb
+        from .reporting.render import topdown_rgb
 
         b = self._owner[0].batch
         e = int(self._ep[0])

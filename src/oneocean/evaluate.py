@@ -24,7 +24,7 @@ and/or ``action_mode = "normalized"`` attributes (or :func:`evaluate`'s argument
 gets the env's normalised observations and returns actions in units of ``v_max``, exactly as
 in training.
 
-The grid is anything :func:`oneocean.defaults.resolve_grid` takes; None (the default) is the
+The grid is anything :func:`oneocean.product.defaults.resolve_grid` takes; None (the default) is the
 default region's grid, built into the cache on first use.
 
 Python::
@@ -126,7 +126,7 @@ def evaluate(policy, task: str, tier: int, grid=None, *, episodes: int = 50,
     tier : int
         1, 2 or 3.
     grid : Grid, path-like or mapping, optional
-        What :func:`oneocean.defaults.resolve_grid` takes (None: the default region's grid;
+        What :func:`oneocean.product.defaults.resolve_grid` takes (None: the default region's grid;
         ignored with ``scene``).
     episodes : int, default 50
         Number of episodes E, all run at once.
@@ -181,7 +181,7 @@ def evaluate(policy, task: str, tier: int, grid=None, *, episodes: int = 50,
     from .tasks import cell_frame
 
     if scene is None:
-        from .defaults import resolve_grid
+        from .product.defaults import resolve_grid
 
         grid = resolve_grid(grid)
     obs_mode = obs_mode or getattr(policy, "obs_mode", "raw")

@@ -280,42 +280,6 @@ def config_hash(obj) -> str:
 _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 
 
-def read_npz(path: str | os.PathLike, what: str) -> dict:
-    """Every array of an ``.npz`` file (no pickles) or an arrays zarr store, read into memory.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        An ``.npz`` file, or a store written by :func:`oneocean.zarrio.write_arrays_zarr` (a
-        path ending in ``.zarr``).
-    what : str
-        What the file is, for the error message.
-
-    Returns
-    -------
-    dict of str to numpy.ndarray
-        The arrays by name.
-
-    Raises
-    ------
-    DataError
-        The file is missing or unreadable (one line, naming it as ``what``).
-    """
-    from .errors import DataError
-    from .zarrio import is_zarr, read_arrays_zarr
-
-    if is_zarr(path):
-        return read_arrays_zarr(path, what)
-    path = Path(os.fspath(path))
-    if not path.is_file():
-        raise DataError(f"{path}: {what} not found")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            return {k: z[k] for k in z.files}
-    except (OSError, ValueError) as exc:  # zip errors are ValueError subclasses / OSError
-        raise DataError(f"{path}: not a readable .npz {what} ({exc})") from exc
-
-
 def write_npz_atomic(path: str | os.PathLike, arrays: Mapping[str, np.ndarray]) -> None:
     """Write an ``.npz`` readable by :func:`numpy.load` whose bytes depend only on the arrays.
 

@@ -12,7 +12,7 @@
 
 Each id's kwargs are ``{"task": ..., "tier": ...}``; everything else (``grid``, ``obs_mode``,
 ...) is a keyword of :func:`gymnasium.make`. ``grid`` defaults to the default region's grid
-(:func:`oneocean.defaults.resolve_grid`). No ``TimeLimit`` wrapper: an episode ends by the
+(:func:`oneocean.product.defaults.resolve_grid`). No ``TimeLimit`` wrapper: an episode ends by the
 task's own time limit (``truncated``).
 
 Registering is cheap: the entry points are strings, so neither the env module nor numba nor
@@ -128,7 +128,7 @@ def make_parallel(env_id: str, grid=None, **kw):
     env_id : str
         ``OneOcean/<TASK>-T<tier>-parallel-v0`` (:func:`parallel_ids`).
     grid : Grid, path-like or mapping, optional
-        As :func:`oneocean.defaults.resolve_grid`; None is the default region's grid.
+        As :func:`oneocean.product.defaults.resolve_grid`; None is the default region's grid.
     **kw
         Keywords of :class:`oneocean.envs.OceanVectorEnv` (modes, backend, ...).
 

@@ -5,13 +5,13 @@ import re
 import sys
 from pathlib import Path
 
-from oneocean.ablations import HIGH_TIER, LOW_TIER, stressor_cells
-from oneocean.codeversion import task_code, tasks_code
+from oneocean.reporting.ablations import HIGH_TIER, LOW_TIER, stressor_cells
+from oneocean.pipeline.codeversion import task_code, tasks_code
 from oneocean.config import llm_method, validate_config
 from oneocean.errors import ConfigError
 from oneocean.registry import method_names, task_ids
 from oneocean.vocab import TIERS, VARIANTS
-from oneocean.zarrio import export_filename, is_zarr, product_filename
+from oneocean.product.zarrio import export_filename, is_zarr, product_filename
 
 try:
     # imports config["plugins"] first (they may register tasks and methods), then validates
@@ -233,7 +233,7 @@ def provenance_targets():
 
 
 # ---- input functions and params of rules/rollouts.smk
-# the code a cell of one task depends on (oneocean.codeversion): editing one task's module,
+# the code a cell of one task depends on (oneocean.pipeline.codeversion): editing one task's module,
 # heuristic or tier table reruns only its cells; hashed once per task and parse
 def rollout_code(wc):
     return task_code(wc.task)
@@ -317,7 +317,7 @@ def _cell_params(cells):
     return fn
 
 
-#: The ablations' method (oneocean.ablations: the heuristic).
+#: The ablations' method (oneocean.reporting.ablations: the heuristic).
 ABLATION_METHOD = "heuristic"
 
 
@@ -339,7 +339,7 @@ def stressor_episodes():
 def ablation_cells(task):
     """The ablation cells one job runs for ``task`` (its rollout_ablation_<task> rule), the
     information levels at ablations.info.tier (if it is in rollouts.tiers), then the stressor
-    cells (oneocean.ablations.stressor_cells: per tier key, Tier 1 with the key at its Tier-3
+    cells (oneocean.reporting.ablations.stressor_cells: per tier key, Tier 1 with the key at its Tier-3
     value and Tier 3 with it at its Tier-1 value; if both tiers are in rollouts.tiers)."""
     r, a = config["rollouts"], config["ablations"]
     m = ABLATION_METHOD

@@ -25,7 +25,7 @@ rule export_grid:
     benchmark:
         "results/benchmarks/exports/{region}/{variant}/grid.tsv"
     params:
-        code=code_version("oneocean.exports", "oneocean.zarrio"),
+        code=code_version("oneocean.product.exports", "oneocean.product.zarrio"),
     threads: 1
     # measured <= 13 s, 380 MB (group: see merge_variant)
     resources:
@@ -52,7 +52,7 @@ rule export_temporal:
         "results/benchmarks/exports/{region}/{variant}/temporal.tsv"
     params:
         point=lambda wc: config["temporal_export"],
-        code=code_version("oneocean.exports", "oneocean.zarrio"),
+        code=code_version("oneocean.product.exports", "oneocean.product.zarrio"),
     threads: 1
     # measured <= 13 s, 315 MB (group: see merge_variant)
     resources:

@@ -2,7 +2,7 @@
 # variant; Fig. 4 the pollution model's species; Fig. 6 the heuristic's difficulty ladder;
 # Fig. 5 one-episode snapshots; Fig. 7 the SPC team-size sweep.
 
-FIGURES_CODE = code_version("oneocean.figures", "oneocean.ladder")
+FIGURES_CODE = code_version("oneocean.reporting.figures", "oneocean.reporting.ladder")
 
 
 # Figures drawn from finished cells: on the submit host, not submitted.
@@ -95,7 +95,7 @@ rule figure_snapshots:
         seed=lambda wc: config["rollouts"]["seed"],
         episodes=lambda wc: config["rollouts"]["episodes"],
         dynamics=lambda wc: config["rollouts"]["dynamics"],
-        code=FIGURES_CODE + code_version("oneocean.snapshots") + tasks_code(config["snapshots"]["tasks"]),
+        code=FIGURES_CODE + code_version("oneocean.reporting.snapshots") + tasks_code(config["snapshots"]["tasks"]),
     threads: 1
     # no benchmark recorded: sized conservatively (one episode per task, cached kernels)
     resources:

@@ -1,6 +1,6 @@
 # The paper PDF (optional: needs TeX; not part of the default target): paper/main.tex with
 # every generated table and figure of this region, compiled by latexmk
-# (`snakemake --cores 2 paper`). Byte-reproducible (fixed date and id, oneocean.latex).
+# (`snakemake --cores 2 paper`). Byte-reproducible (fixed date and id, oneocean.reporting.latex).
 
 PAPER_TEX = str(Path(workflow.current_basedir).parents[1] / "paper" / "main.tex")
 

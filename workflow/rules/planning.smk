@@ -92,7 +92,8 @@ rule table_planning:
     params:
         planning=lambda wc: config["planning"],
         llms=planning_llm_methods(),
-        code=code_version("oneocean.planning", "oneocean.ladder"),
+        code=code_version("oneocean.reporting.planning", "oneocean.reporting.ladder",
+                          "oneocean.reporting.latex"),
     threads: 1
     script:
         "../scripts/table_planning.py"

@@ -27,8 +27,8 @@ rule merge_variant:
             "region", "sources", "synthetic", "cmems", "gebco", "etopo", "files", "variants",
             "product",
         ),
-        code=code_version("oneocean.product", "oneocean.sources", "oneocean.io", "oneocean.ncio",
-                          "oneocean.zarrio"),
+        code=code_version("oneocean.product.build", "oneocean.sources", "oneocean.io",
+                          "oneocean.product.ncio", "oneocean.product.zarrio"),
     threads: 1
     # measured <= 25 s, 280 MB; group "variant": a variant's merge, exports and Fig. 3 in
     # one cluster job

@@ -240,7 +240,7 @@ if _BC_CELLS:
             "../scripts/rollout_cells.py"
 
 
-# What drives a ladder cell (oneocean.ablations): every ablation cell of one task in one job,
+# What drives a ladder cell (oneocean.reporting.ablations): every ablation cell of one task in one job,
 # the heuristic given the true current or its true position (ablations.info) and the stressor
 # cells (Tier 1 with one tier key at its Tier-3 value, Tier 3 with it at its Tier-1 value).
 # One rule per task, rollout_ablation_<task>, because each task's tier keys are its own.
@@ -320,7 +320,7 @@ rule table_ladder:
         "logs/tables/{region}/ladder.log",
     params:
         seed=lambda wc: config["rollouts"]["seed"],
-        code=code_version("oneocean.ladder", "oneocean.registry"),
+        code=code_version("oneocean.reporting.ladder", "oneocean.registry"),
     threads: 1
     script:
         "../scripts/table_ladder.py"

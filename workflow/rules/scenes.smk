@@ -230,7 +230,7 @@ rule table_scenes:
         "logs/tables/{region}/scene_backend.log",
     params:
         compare=SCENE_CFG["compare"],
-        code=code_version("oneocean.scene_tables"),
+        code=code_version("oneocean.reporting.scene_tables", "oneocean.reporting.latex"),
     threads: 1
     script:
         "../scripts/table_scenes.py"

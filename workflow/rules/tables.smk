@@ -30,14 +30,15 @@ rule table_dataset_variants:
         "logs/tables/{region}/dataset_variants.log",
     params:
         region=REGION,
-        code=code_version("oneocean.tables"),
+        code=code_version("oneocean.reporting.tables"),
     threads: 1
     script:
         "../scripts/table_dataset_variants.py"
 
 
-TABLES_CODE = code_version("oneocean.tables", "oneocean.ladder", "oneocean.planning",
-                           "oneocean.registry", "oneocean.data", "oneocean.ablations")
+TABLES_CODE = code_version("oneocean.reporting.tables", "oneocean.reporting.ladder",
+                           "oneocean.reporting.latex", "oneocean.reporting.planning",
+                           "oneocean.registry", "oneocean.data", "oneocean.reporting.ablations")
 
 # Table II: the task ladder (registry and tier tables).
 rule table_task_ladder:

@@ -1,4 +1,4 @@
-from oneocean import smk
+from oneocean.pipeline import smk
 from oneocean.methods.bc.dataset import dataset_to_file
 
 smk.run(

@@ -1,4 +1,4 @@
-from oneocean import smk
+from oneocean.pipeline import smk
 from oneocean.methods.bc.train import train_to_files
 
 smk.run(

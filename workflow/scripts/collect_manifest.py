@@ -1,3 +1,3 @@
-from oneocean.manifest import collect_manifest
+from oneocean.pipeline.manifest import collect_manifest
 
 collect_manifest(list(snakemake.input), snakemake.output[0])

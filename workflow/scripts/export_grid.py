@@ -1,5 +1,5 @@
-from oneocean import smk
-from oneocean.exports import export_grid
+from oneocean.pipeline import smk
+from oneocean.product.exports import export_grid
 
 smk.run(
     snakemake,

@@ -1,5 +1,5 @@
-from oneocean import smk
-from oneocean.figures import plot_current_field
+from oneocean.pipeline import smk
+from oneocean.reporting.figures import plot_current_field
 
 smk.run(
     snakemake,

@@ -1,5 +1,5 @@
-from oneocean import smk
-from oneocean import figures
+from oneocean.pipeline import smk
+from oneocean.reporting import figures
 
 
 def make(s):

@@ -1,5 +1,5 @@
-from oneocean import smk
-from oneocean.snapshots import plot_snapshots
+from oneocean.pipeline import smk
+from oneocean.reporting.snapshots import plot_snapshots
 
 
 def make(s):

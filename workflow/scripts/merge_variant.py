@@ -1,5 +1,5 @@
-from oneocean import smk
-from oneocean.product import build_product
+from oneocean.pipeline import smk
+from oneocean.product.build import build_product
 
 smk.run(
     snakemake,

@@ -1,7 +1,7 @@
 import sys
 
 from oneocean.errors import OneOceanError
-from oneocean.latex import build_paper
+from oneocean.reporting.latex import build_paper
 
 try:
     build_paper(snakemake.input.tex, snakemake.output.pdf, snakemake.params.region,

@@ -1,4 +1,4 @@
-from oneocean import smk
+from oneocean.pipeline import smk
 from oneocean.methods.llm.rollout import planner_cell_to_file
 
 smk.run(

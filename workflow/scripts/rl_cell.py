@@ -1,4 +1,4 @@
-from oneocean import smk
+from oneocean.pipeline import smk
 from oneocean.methods.ppo.policy import evaluate_to_file
 
 

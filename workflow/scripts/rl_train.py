@@ -1,6 +1,6 @@
 import logging
 
-from oneocean import smk
+from oneocean.pipeline import smk
 from oneocean.methods.ppo.train import train_to_files
 
 

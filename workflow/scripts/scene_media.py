@@ -1,4 +1,4 @@
-from oneocean import smk
+from oneocean.pipeline import smk
 from oneocean.backends.mujoco.store import load_scene, scene_media
 
 smk.run(snakemake, lambda s: scene_media(

@@ -1,4 +1,4 @@
-from oneocean import smk
-from oneocean.tables import dataset_variants_table
+from oneocean.pipeline import smk
+from oneocean.reporting.tables import dataset_variants_table
 
 smk.run(snakemake, lambda s: dataset_variants_table(list(s.input.metadata), s.output.tex))

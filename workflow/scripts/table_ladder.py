@@ -1,5 +1,5 @@
-from oneocean import smk
-from oneocean.ladder import write_ladder
+from oneocean.pipeline import smk
+from oneocean.reporting.ladder import write_ladder
 
 smk.run(snakemake, lambda s: write_ladder(s.input.cells, s.output.md, s.wildcards.region,
                                           s.params.seed, replicate=s.input.replicate))

@@ -1,5 +1,6 @@
-from oneocean import ablations, smk
-from oneocean import tables
+from oneocean.reporting import ablations
+from oneocean.pipeline import smk
+from oneocean.reporting import tables
 
 
 def make(s):

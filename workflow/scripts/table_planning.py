@@ -1,5 +1,5 @@
-from oneocean import smk
-from oneocean.planning import planning_tables
+from oneocean.pipeline import smk
+from oneocean.reporting.planning import planning_tables
 
 smk.run(
     snakemake,

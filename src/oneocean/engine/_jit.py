@@ -14,10 +14,25 @@
 
 No ``fastmath``: NaN tests must stay honest.
 
-Small kernels that take the :class:`~oneocean.engine.grid.Grid` (15 arrays + 20 scalars,
-~1 KB when flattened) or many arrays are declared ``inline="always"``: numba passes such
-structs by value, and an out-of-line call copies them on every call (measured ~70 ns per
-``sample_current`` call when not inlined).
+What is inlined (``inline="always"``, numba's IR inliner) and what is compiled on its own is
+a trade between run time and compile time. numba passes a struct (the
+:class:`~oneocean.engine.grid.Grid`: 15 arrays + 20 scalars, ~1 KB when flattened; a task's
+params and work arrays) by value, so an out-of-line call copies it on every call (measured
+~70 ns per ``sample_current`` call when not inlined); an inlined function is typed and lowered
+again at every call site, so inlining a large function into many places multiplies the
+compile. The rule:
+
+* inlined: the engine's, the sensors' and the field models' small kernels
+  (:mod:`oneocean.engine`, :mod:`oneocean.sensing`, :mod:`oneocean.models`), the loop's
+  phases (:mod:`oneocean.tasks.loop`), the shared steering and observation helpers
+  (:mod:`oneocean.tasks.common`) and the learned policy's forward pass: called per agent-step
+  in the innermost loops;
+* compiled once each, out of line: a task's hooks and helpers (``tasks/<task>.py``), its
+  policy's (``methods/heuristic/<task>.py``) and the route planner (:mod:`oneocean.tasks.routing`),
+  except where the measured throughput asked otherwise (UPL's ``cue``, ``after_agent`` and
+  its heuristic's ``act``, whose out-of-line calls cost 15 % of UPL's agent-steps).
+
+Measured with ``benchmarks/compile.py`` and ``benchmarks/tasks_speed.py`` (``docs/benchmarks.md``).
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ the gain ``g`` scaling the data currents only; the product's real tide layers ar
 only when the export has them (``has_tide``) and the synthetic tide term (amplitude ``A``,
 angular frequency ``w``, phase ``phi``) only when asked for (robustness ablations).
 
-Boundaries (the same rule as the temporal export, :func:`oneocean.exports.point_weights`):
+Boundaries (the same rule as the temporal export, :func:`oneocean.product.exports.point_weights`):
 
 * a node's column with currents at one level or more (``current_mask == 1``) holds its deepest
   valid value below it (down to the seafloor and beyond; a level above the shallowest valid
@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import ConfigError, DataError
-from ..io import read_npz
+from ..product.zarrio import read_npz
 from ._jit import hot_kernel
 
 #: Keys of the grid export, contracts §3 (order = documentation order).

@@ -960,7 +960,7 @@ def write_canonical(ds: xr.Dataset, out_path: str | os.PathLike, kind: str) -> N
     validate(ds, str(out_path), kind)
     ds = ds.copy()
     ds.attrs = {"Conventions": "CF-1.11", "oneocean_version": __version__, **ds.attrs}
-    from ..ncio import netcdf_encoding, write_netcdf_atomic
+    from ..product.ncio import netcdf_encoding, write_netcdf_atomic
 
     try:
         # Streamed one time block at a time in a fixed order: the file's bytes do not depend

@@ -32,7 +32,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import ConfigError
-from ..exports import metres_per_degree
+from ..product.exports import metres_per_degree
 from ..io import canonical_json, config_hash
 from ..vocab import CF
 from ..engine import libm
@@ -489,7 +489,7 @@ def write_synthetic(cfg: dict, currents_path, bathymetry_path, *, zlib: bool = F
     time_chunk : int, default 4
         Time steps computed and written at a time.
     """
-    from ..product import netcdf_encoding, write_netcdf_atomic
+    from ..product.build import netcdf_encoding, write_netcdf_atomic
 
     cur = make_currents(cfg, chunks={"time": int(time_chunk)})
     write_netcdf_atomic(cur, currents_path, netcdf_encoding(cur, zlib=zlib))

@@ -6,6 +6,18 @@ template): ``TASK_ID``, ``METRICS`` (``METRICS[0]`` is the primary metric), ``re
 registry spec, is data in ``oneocean/data/tasks/<ID>.yaml``; its heuristic and oracle are in
 :mod:`oneocean.methods.heuristic`. :func:`run_cell` runs one (task, tier, method) cell of
 episodes on a grid export and returns one row per episode.
+
+A task module's two scenario functions take the same arguments in every task (documented here
+once; a task's docstring says what it samples and builds)::
+
+    reset(grid, tier, n_agents, n_episodes, seed) -> init   the episodes' scenario (dict)
+    make(grid, tier, init) -> (P, W)                         the params and work arrays
+
+``grid``: the grid export (:class:`oneocean.engine.grid.Grid`; the ablations' forcing
+included); ``tier``: the tier's parameters (its row of ``data/tasks/<ID>.yaml``) plus ``dt_s``;
+``n_agents``: agents per episode N (single-agent tasks require 1); ``n_episodes``: episodes E;
+``seed``: the run seed (each episode draws from its own reset stream); ``init``: the dict
+``reset`` returned.
 """
 
 from __future__ import annotations

@@ -219,7 +219,7 @@ _SPAWN_BATCH = 64
 _FOUND, _NO_REGION, _NO_SPAWN, _PYTHON = 0, 1, 2, 3
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _arange_at(start, step, i):
     """Entry ``i`` of ``np.arange(start, stop, step)`` (float64): ``start``, ``start + step``,
     then ``start + i * delta`` with ``delta`` the difference of those two (NumPy's fill)."""
@@ -231,7 +231,7 @@ def _arange_at(start, step, i):
     return start + i * (second - start)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _region_ok_c(grid, x_lo, z_lo, x_hi, z_hi, smin, smax, relief):
     """:func:`_region_ok`, compiled: 1 (valid), 0 (not), -1 (no check point inside the
     region, which NumPy's ``ptp`` rejects: left to Python)."""
@@ -337,19 +337,6 @@ def _episode_python(grid, rng, tier, n_agents: int, e: int):
 
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the scan region, start positions and start time of every episode.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        Tier parameters (``data/tasks/AS.yaml``) plus ``dt_s``.
-    n_agents : int
-        Team size N, 1..10.
-    n_episodes : int
-        Number of episodes E.
-    seed : int
-        Run seed (each episode draws from its own reset stream).
 
     Returns
     -------
@@ -713,15 +700,6 @@ class ASWork(NamedTuple):
 def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
 
-    Parameters
-    ----------
-    grid : Grid
-        The rollout's grid export (the ablations' forcing included).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        The reset's dict (:func:`reset`).
-
     Returns
     -------
     P : ASParams
@@ -802,15 +780,6 @@ def brief(P: ASParams, W: ASWork, init: dict, m) -> ASBriefing:
     region's centre (:func:`centre_forecast` at the survey altitude; the truth for a method
     given the true current) and the task's survey plan.
 
-    Parameters
-    ----------
-    P, W
-        The task's params and work arrays (:func:`make`).
-    init : dict
-        The reset's dict.
-    m : Mission
-        The batch's mission (:class:`oneocean.tasks.public.Mission`).
-
     Returns
     -------
     ASBriefing
@@ -833,7 +802,7 @@ def brief(P: ASParams, W: ASWork, init: dict, m) -> ASBriefing:
                       line_count=W.lcount.copy())
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _mark(cov, e, x, z, r, x_lo, z_lo, cell, ncx, ncz):
     """Mark cells of episode ``e`` whose centre is within ``r`` of (x, z); returns new count."""
     new = 0
@@ -862,24 +831,11 @@ def _mark(cov, e, x, z, r, x_lo, z_lo, cell, ncx, ncz):
     return new
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def begin(grid, P, W, state, e):
     """Clear the coverage map and the counters; every agent at the start of its lines.
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : ASParams
-        The task's params (:func:`make`).
-    W : ASWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
 
     Returns
     -------
@@ -896,7 +852,7 @@ def begin(grid, P, W, state, e):
     return False
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def cue(grid, P, W, X, e, k, i):
     """The mission computer: the point of agent ``i``'s lines to make for.
 
@@ -907,24 +863,6 @@ def cue(grid, P, W, X, e, k, i):
     run-in during the transit, then the point ``CUE_LOOK_M`` ahead on the current leg, then
     the last point, at the survey altitude ``P.alt`` above the seafloor there (at least
     ``MIN_DEPTH_M`` deep).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : ASParams
-        The task's params (:func:`make`).
-    W : ASWork
-        The task's per-episode work arrays (:func:`make`); advances ``lidx``.
-    X : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (its navigation estimate; the truth for
-        the oracle); layout: :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
 
     Returns
     -------
@@ -941,32 +879,13 @@ def cue(grid, P, W, X, e, k, i):
     return gx, gy, gz, math.nan
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def after_agent(grid, P, W, state, e, k, i, code):
     """Image the seafloor under agent ``i``'s new position.
 
     Env hook (:mod:`oneocean.tasks.loop`), right after the agent moved: its altitude is summed;
     below ``alt_max`` the cells within the footprint radius ``alt tan_h`` are marked covered;
     above it the agent-step counts as footprint loss.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : ASParams
-        The task's params (:func:`make`).
-    W : ASWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-    code : int
-        Status of the agent's move (:mod:`oneocean.engine.status`).
     """
     # the sensor images the seafloor under the agent's new position
     s = state[e, i]
@@ -980,30 +899,11 @@ def after_agent(grid, P, W, state, e, k, i, code):
         W.cnt[e, 1] += 1
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def post_step(grid, P, W, state, prev, e, k, t):
     """The success check after the step.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : ASParams
-        The task's params (:func:`make`).
-    W : ASWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    prev : (E, N, 3) float64
-        Positions before the step, world m.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
 
     Returns
     -------
@@ -1013,28 +913,11 @@ def post_step(grid, P, W, state, prev, e, k, t):
     return W.cnt[e, 0] >= P.thr * (W.ncell[e, 0] * W.ncell[e, 1])
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def finish(grid, P, W, state, e, k, row):
     """Write the AS metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : ASParams
-        The task's params (:func:`make`).
-    W : ASWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Steps the episode ran.
-    row : (C,) float64
-        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
 
     Returns
     -------

@@ -937,7 +937,7 @@ _MAX_ENTRIES = 16
 
 def _call(kernel, grid, *args):
     """``kernel(grid, *args)`` through its compiled entry point for these argument types
-    (:func:`oneocean.tasks.episodes.fast_entry`: no numba dispatch, which costs several us
+    (:func:`oneocean.engine.dispatch.fast_entry`: no numba dispatch, which costs several us
     with the Grid's many arrays); the entry is kept per kernel and grid (the Grid itself
     is kept with it, so its id is not reused; at most ``_MAX_ENTRIES``, then the cache
     starts over, so few grids are held)."""
@@ -945,7 +945,7 @@ def _call(kernel, grid, *args):
     hit = _ENTRIES.get(key)
     if hit is not None and hit[0] is grid:
         return hit[1](grid, *args)
-    from .episodes import fast_entry
+    from ..engine.dispatch import fast_entry
 
     out = kernel(grid, *args)          # compiles (or loads) the version for these types
     if len(_ENTRIES) >= _MAX_ENTRIES:

@@ -79,19 +79,6 @@ _C_DERR, _C_WP, _C_DMAX, _C_XTE = (len(STANDARD) + i for i in range(len(METRICS)
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the route with its depth profile and the start time of every episode.
 
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        Tier parameters (``data/tasks/DPT.yaml``) plus ``dt_s``.
-    n_agents : int
-        Must be 1 (single-agent task).
-    n_episodes : int
-        Number of episodes E.
-    seed : int
-        Run seed (each episode draws from its own reset stream).
-
     Returns
     -------
     dict
@@ -171,15 +158,6 @@ class DPTWork(NamedTuple):
 def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
 
-    Parameters
-    ----------
-    grid : Grid
-        The rollout's grid export (the ablations' forcing included).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        The reset's dict (:func:`reset`).
-
     Returns
     -------
     P : DPTParams
@@ -225,15 +203,6 @@ def brief(P: DPTParams, W: DPTWork, init: dict, m) -> DPTBriefing:
     """The briefing of every episode of a batch (:class:`oneocean.tasks.public.Mission`
     ``m``): the route and its depth profile, the waypoint radius, the depth tolerance.
 
-    Parameters
-    ----------
-    P, W
-        The task's params and work arrays (:func:`make`).
-    init : dict
-        The reset's dict.
-    m : Mission
-        The batch's mission (:class:`oneocean.tasks.public.Mission`).
-
     Returns
     -------
     DPTBriefing
@@ -242,24 +211,11 @@ def brief(P: DPTParams, W: DPTWork, init: dict, m) -> DPTBriefing:
                        depth_tol=P.depth_tol)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def begin(grid, P, W, state, e):
     """Reset the waypoint pointers and accumulators.
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : DPTParams
-        The task's params (:func:`make`).
-    W : DPTWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
 
     Returns
     -------
@@ -274,7 +230,7 @@ def begin(grid, P, W, state, e):
     return W.wp[e] > W.route.shape[1] - 1
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def cue(grid, P, W, X, e, k, i):
     """The route point ``P.look`` m ahead of the agent's known horizontal projection on the
     active leg, at the target depth (the profile at the projection).
@@ -284,24 +240,6 @@ def cue(grid, P, W, X, e, k, i):
     The leg is the mission computer's: its pointer ``W.nwp`` is advanced here, on the
     known horizontal position (:func:`~oneocean.tasks.common.nav_waypoint`); the point is
     clamped to the waypoint, and once the route is done the cue is the last waypoint.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : DPTParams
-        The task's params (:func:`make`).
-    W : DPTWork
-        The task's per-episode work arrays (:func:`make`).
-    X : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (its navigation estimate; the truth for
-        the oracle); layout: :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
 
     Returns
     -------
@@ -323,30 +261,11 @@ def cue(grid, P, W, X, e, k, i):
     return a0[0] + sl * tx, ytgt, a0[2] + sl * tz, math.nan
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def post_step(grid, P, W, state, prev, e, k, t):
     """Depth and cross-track error and the judge's waypoint after the step.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : DPTParams
-        The task's params (:func:`make`).
-    W : DPTWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    prev : (E, N, 3) float64
-        Positions before the step, world m.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
 
     Returns
     -------
@@ -370,28 +289,11 @@ def post_step(grid, P, W, state, prev, e, k, t):
     return wp > W.route.shape[1] - 1
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def finish(grid, P, W, state, e, k, row):
     """Write the DPT metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : DPTParams
-        The task's params (:func:`make`).
-    W : DPTWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Steps the episode ran.
-    row : (C,) float64
-        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
 
     Returns
     -------

@@ -314,19 +314,6 @@ def _episodes(grid, stv, n_fish: int, distance: float, radius: float, fish0, zon
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the school, the safe zone, the agents' starts and the start time per episode.
 
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        Tier parameters (see ``data/tasks/FH.yaml``) plus ``dt_s``.
-    n_agents : int
-        Must be ``N_AGENTS`` (8).
-    n_episodes : int
-        Number of episodes E.
-    seed : int
-        Run seed (each episode draws from its own reset stream).
-
     Returns
     -------
     dict
@@ -543,15 +530,6 @@ def school_sensor(path=None) -> tuple[float, float, float, float, float]:
 def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
 
-    Parameters
-    ----------
-    grid : Grid
-        The rollout's grid export (the ablations' forcing included).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        The reset's dict (:func:`reset`).
-
     Returns
     -------
     P : FHParams
@@ -634,11 +612,6 @@ class FHTeamObs(NamedTuple):
 def team_obs(W: FHWork) -> FHTeamObs:
     """The team observation of every episode: views of ``W.fix``, ``W.vel``, ``W.cur``.
 
-    Parameters
-    ----------
-    W : FHWork
-        The task's per-episode work arrays (:func:`make`).
-
     Returns
     -------
     FHTeamObs
@@ -677,16 +650,6 @@ def brief(P: FHParams, W: FHWork, init: dict, m) -> FHBriefing:
     current at the school), the fish-jitter keys and the sonar's episodes (``W.fseed``,
     ``W.skey``: the cell's episode ``m.e0 + e`` of row ``e``) and the episodes' forecast
     errors in ``W.fce`` (the forecast at the school).
-
-    Parameters
-    ----------
-    P, W
-        The task's params and work arrays (:func:`make`); ``W.sinfo``, ``W.fseed``,
-        ``W.skey`` and ``W.fce`` written.
-    init : dict
-        The reset's dict.
-    m : Mission
-        The batch's mission (:class:`oneocean.tasks.public.Mission`).
 
     Returns
     -------
@@ -733,7 +696,7 @@ def _fish_step(grid, fx, fz, fvx, fvz, ax, az, cx, cz, fp, fseed, k, t, dt, land
 
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def sonar(P, W, state, e, ping):
     """Every agent's sonar reading of the school (``sensors.yaml`` ``perception.fh_school``)
     into ``W.sfix[e]``, from the true agents and fish (the current buffer of ``W.fish``).
@@ -815,25 +778,12 @@ def sonar(P, W, state, e, ping):
         W.sfix[e, i, 3] = math.sqrt(v) if v > 0.0 else 0.0
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def begin(grid, P, W, state, e):
     """Start the school's truth (centroid, no velocity, no time inside) and the task's view
     of it: the last team fix is the reported start, the stations' direction unset.
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FHParams
-        The task's params (:func:`make`).
-    W : FHWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
 
     Returns
     -------
@@ -856,29 +806,12 @@ def begin(grid, P, W, state, e):
     return False
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def pre_step(grid, P, W, state, e, k, t):
     """The fish step: the school reacts to the vehicles' positions at time ``t`` (into the
     other buffer of ``W.fish``).
 
     Env hook (:mod:`oneocean.tasks.loop`), before the agents act.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FHParams
-        The task's params (:func:`make`).
-    W : FHWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
     """
     S = state[e]
     AX = W.apos[e, 0]
@@ -893,23 +826,10 @@ def pre_step(grid, P, W, state, e, k, t):
                k, t, P.dt, P.land_thr, G[0], G[1], G[2], G[3], W.fscr[e])
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def cue(grid, P, W, X, e, k, i):
     """Agent ``i``'s cue: its herding station (:func:`stations`, computed by :func:`sense`
     this step) at the school's depth. Env hook (:mod:`oneocean.tasks.loop`).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FHParams
-        The task's params (:func:`make`).
-    W : FHWork
-        The task's per-episode work arrays (:func:`make`).
-    X : (E, N, STATE_DIM) float64
-        The states the method knows (its navigation estimate; the truth for the oracle).
-    e, k, i : int
-        Episode, step and agent.
 
     Returns
     -------
@@ -921,7 +841,7 @@ def cue(grid, P, W, X, e, k, i):
     return W.cue[e, i, 0], P.depth, W.cue[e, i, 1], math.nan
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def stations(P, W, X, e):
     """Every agent's herding station ``W.cue[e]`` around the school's last team fix
     ``W.sch[e]`` (the task's cue, module docstring).
@@ -981,7 +901,7 @@ def stations(P, W, X, e):
         W.cue[e, i, 1] = cz + r * math.cos(a)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def sense(grid, P, W, X, state, O, e, k):
     """The task's observation fields (:data:`OBS_EXTRA`), its team observation
     (:data:`TEAM_FIELDS`) and the stations of the cue, before step ``k``.
@@ -992,26 +912,6 @@ def sense(grid, P, W, X, state, O, e, k):
     ``W.sch``; the school's velocity (given the target); the current at the last fix at the
     step's time (the truth given the true current, else the forecast there); then
     :func:`stations`. Env hook (:mod:`oneocean.tasks.loop`).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FHParams
-        The task's params (:func:`make`).
-    W : FHWork
-        The task's per-episode work arrays: ``sfix``, ``fix``, ``vel``, ``cur``, ``sch`` and
-        the stations' written.
-    X : (E, N, STATE_DIM) float64
-        The states the method knows (its navigation estimate; the truth for the oracle).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (the sonar's positions).
-    O : (E, N, D) float64
-        The observations; the columns of :data:`OBS_EXTRA` of episode ``e`` written.
-    e : int
-        Episode index.
-    k : int
-        Step index (the sonar's ping; the time ``t0[e] + k dt`` of the current).
     """
     n = X.shape[1]
     fx = W.fix[e]
@@ -1075,32 +975,13 @@ def sense(grid, P, W, X, state, O, e, k):
     stations(P, W, X, e)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def post_step(grid, P, W, state, prev, e, k, t):
     """Swap the fish buffers, update the school's truth and time the hold inside the zone.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``: the
     time inside the zone grows by ``dt`` while the centroid is within ``P.zone_r`` of the
     zone centre and restarts from 0 when it leaves.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FHParams
-        The task's params (:func:`make`).
-    W : FHWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    prev : (E, N, 3) float64
-        Positions before the step, world m.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
 
     Returns
     -------
@@ -1131,28 +1012,11 @@ def post_step(grid, P, W, state, prev, e, k, t):
     return False
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def finish(grid, P, W, state, e, k, row):
     """Write the FH metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FHParams
-        The task's params (:func:`make`).
-    W : FHWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Steps the episode ran.
-    row : (C,) float64
-        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
 
     Returns
     -------

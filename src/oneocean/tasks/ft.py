@@ -131,20 +131,6 @@ def wedge_offsets(n: int, spacing: float = SPACING_M,
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the route (start centroid, goal), the formation frame and start times.
 
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        Tier parameters (``data/tasks/FT.yaml``) plus ``dt_s``.
-    n_agents : int
-        Team size N, >= 2 (:class:`~oneocean.tasks.Cell` checks it against the tier
-        table's range, 2..10).
-    n_episodes : int
-        Number of episodes E.
-    seed : int
-        Run seed (each episode draws from its own reset stream).
-
     Returns
     -------
     dict
@@ -264,15 +250,6 @@ class FTWork(NamedTuple):
 def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
 
-    Parameters
-    ----------
-    grid : Grid
-        The rollout's grid export (the ablations' forcing included).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        The reset's dict (:func:`reset`).
-
     Returns
     -------
     P : FTParams
@@ -345,24 +322,11 @@ def brief(P: FTParams, W: FTWork, init: dict, m) -> FTBriefing:
                       e_bound=P.e_bound, settle_s=SETTLE_S)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def begin(grid, P, W, state, e):
     """Reset the centroid and the accumulators.
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FTParams
-        The task's params (:func:`make`).
-    W : FTWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
 
     Returns
     -------
@@ -377,7 +341,7 @@ def begin(grid, P, W, state, e):
     return False
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def cue(grid, P, W, X, e, k, i):
     """Agent ``i``'s cue: its slot around the team's navigated centroid, led ``P.lead`` m
     toward the goal (at most the centroid's distance to it): the task's formation reference.
@@ -410,30 +374,11 @@ def cue(grid, P, W, X, e, k, i):
             cz + W.offsets[e, i, 2] + f * dz, math.nan)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def post_step(grid, P, W, state, prev, e, k, t):
     """Shape error around the centroid, the error bound, arrival.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FTParams
-        The task's params (:func:`make`).
-    W : FTWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    prev : (E, N, 3) float64
-        Positions before the step, world m.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
 
     Returns
     -------
@@ -483,28 +428,11 @@ def post_step(grid, P, W, state, prev, e, k, t):
     return False
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def finish(grid, P, W, state, e, k, row):
     """Write the FT metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : FTParams
-        The task's params (:func:`make`).
-    W : FTWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Steps the episode ran.
-    row : (C,) float64
-        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
 
     Returns
     -------

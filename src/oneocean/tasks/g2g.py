@@ -233,19 +233,6 @@ def _batch_size(need: int, kept: int, drawn: int) -> int:
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample start, goal and start time of every episode.
 
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        Tier parameters (``data/tasks/G2G.yaml``) plus ``dt_s``.
-    n_agents : int
-        Must be 1 (single-agent task).
-    n_episodes : int
-        Number of episodes E.
-    seed : int
-        Run seed (each episode draws from its own reset stream).
-
     Returns
     -------
     dict
@@ -441,15 +428,6 @@ def make(grid, tier: dict, init: dict):
     With an ``energy_reserve`` the allocation of every episode (:func:`reference_energies`
     on the rollout's ``grid``).
 
-    Parameters
-    ----------
-    grid : Grid
-        The rollout's grid export (the ablations' forcing included).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        The reset's dict (:func:`reset`).
-
     Returns
     -------
     P : G2GParams
@@ -510,15 +488,6 @@ def brief(P: G2GParams, W: G2GWork, init: dict, m) -> G2GBriefing:
     from the launch fix to the goal (:func:`oneocean.tasks.routing.mission_field`), where
     both lie on the grid.
 
-    Parameters
-    ----------
-    P, W
-        The task's params and work arrays (:func:`make`).
-    init : dict
-        The reset's dict.
-    m : Mission
-        The batch's mission (:class:`oneocean.tasks.public.Mission`).
-
     Returns
     -------
     G2GBriefing
@@ -535,29 +504,16 @@ def brief(P: G2GParams, W: G2GWork, init: dict, m) -> G2GBriefing:
                        radius=P.radius, **routing.pack_fields(fields))
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _dist(s, g):
     return math.sqrt((s[0] - g[0]) ** 2 + (s[1] - g[1]) ** 2 + (s[2] - g[2]) ** 2)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def begin(grid, P, W, state, e):
     """Reset the episode's accumulators.
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : G2GParams
-        The task's params (:func:`make`).
-    W : G2GWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
 
     Returns
     -------
@@ -572,7 +528,7 @@ def begin(grid, P, W, state, e):
     return d <= P.radius
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def cue(grid, P, W, state, e, k, i):
     """The goal cue: the goal itself.
 
@@ -606,7 +562,7 @@ def cue(grid, P, W, state, e, k, i):
     return W.goal[e, 0], W.goal[e, 1], W.goal[e, 2], math.nan
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def sense(grid, P, W, X, state, O, e, k):
     """The task's observation fields (:data:`OBS_EXTRA`): the energy used and its fraction
     of the allocation. Env hook (:mod:`oneocean.tasks.loop`)."""
@@ -616,7 +572,7 @@ def sense(grid, P, W, X, state, O, e, k):
     o[OBS_DIM + 1] = used / W.budget[e] if W.budget[e] < math.inf else 0.0
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def step_energy(grid, P, s, p, t):
     """Energy of the step that took the vehicle from ``p`` to ``s``.
 
@@ -649,30 +605,11 @@ def step_energy(grid, P, s, p, t):
     return (P.hotel_w + P.pk * ur * ur * ur) * P.dt
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def post_step(grid, P, W, state, prev, e, k, t):
     """Path length, energy, distance to the goal and closest approach after the step.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : G2GParams
-        The task's params (:func:`make`).
-    W : G2GWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    prev : (E, N, 3) float64
-        Positions before the step, world m.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
 
     Returns
     -------
@@ -691,28 +628,11 @@ def post_step(grid, P, W, state, prev, e, k, t):
     return d <= P.radius
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def finish(grid, P, W, state, e, k, row):
     """Write the G2G metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : G2GParams
-        The task's params (:func:`make`).
-    W : G2GWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Steps the episode ran.
-    row : (C,) float64
-        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
 
     Returns
     -------

@@ -82,11 +82,12 @@ observation, the method's params and memory, the report it files)::
                                                    (world m s-1) and heading (rad, NaN: free)
 
 Hooks are plain ``@hot_kernel`` functions of the task module (the env) and of its policy
-module; neither imports the other. A task's kernel module (:mod:`oneocean.kernels`) passes
+module; neither imports the other. Each is compiled once, on its own (what is inlined and
+why: :mod:`oneocean.engine._jit`). A task's kernel module (:mod:`oneocean.kernels`) passes
 them to :func:`run_episode` (``inline="always"``) in its ``_kernel``, the one compiled loop
 over a block of episodes that serves the fused cells, the step API (one step and the next
 observation per call, :class:`EnvIO`) and the scene backend's phases;
-:func:`oneocean.tasks.episodes.over_episodes` runs the blocks on numba's thread count (no
+:func:`oneocean.engine.dispatch.over_range` runs the blocks on numba's thread count (no
 ``prange``: the parfor pass more than doubles every task kernel's compile time). Functions
 must reach the loop as module globals of the caller and the loop must be inlined there: a
 kernel that receives functions as run-time arguments cannot be cached.

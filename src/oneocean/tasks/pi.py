@@ -449,7 +449,7 @@ _SPAWN_MAX = 200_000
 _SPAWN_BATCH = 64
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _arc_c(poly, arc):
     """:func:`_arc` into ``arc`` (V,): 0, then the cumulative ``hypot`` of the legs."""
     arc[0] = 0.0
@@ -459,7 +459,7 @@ def _arc_c(poly, arc):
         arc[k] = acc
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _point_at_c(poly, arc, s):
     """:func:`point_at` with the arc lengths at hand: ``(x, z)``."""
     v = poly.shape[0]
@@ -472,7 +472,7 @@ def _point_at_c(poly, arc, s):
             poly[k, 1] + w * (poly[k + 1, 1] - poly[k, 1]))
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _corridor_ok_c(grid, poly, pts, smin, smax):
     """:func:`_corridor_ok`, compiled (``pts`` a work array for the densified line): 1
     (valid), 0 (not), -1 (``pts`` too small: left to Python)."""
@@ -644,19 +644,6 @@ def _episode_python(grid, rng, tier, n_agents: int, e: int) -> tuple:
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the pipeline, leaks, start positions and start time of every episode.
 
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        Tier parameters (``data/tasks/PI.yaml``).
-    n_agents : int
-        Team size N, 1..10.
-    n_episodes : int
-        Number of episodes E.
-    seed : int
-        Run seed (each episode draws from its own reset stream).
-
     Returns
     -------
     dict
@@ -710,14 +697,14 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
 # ------------------------------------------------------------------------------ kernels
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _to_local(x, z, ox, oz, ca, sa):
     dx = x - ox
     dz = z - oz
     return dx * ca + dz * sa, -dx * sa + dz * ca
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _face_parts(grid, frame, e, s, n, ti0, ti1, out):
     """The current parts over ``(ti0, ti1)`` (:func:`oneocean.engine.grid.
     sample_current_parts`) at the field point of local ``(s, n)``, ``NEAR_BOTTOM_M`` above
@@ -966,15 +953,6 @@ def make(grid, tier: dict, init: dict):
     from :func:`cell_constants`, else the batch's largest), with the episode's extent
     centred in it.
 
-    Parameters
-    ----------
-    grid : Grid
-        The rollout's grid export (the ablations' forcing included).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        The reset's dict (:func:`reset`; ``field_shape`` optional).
-
     Returns
     -------
     P : PIParams
@@ -1144,7 +1122,7 @@ def team_obs(W: PIWork) -> PITeamObs:
     return PITeamObs(W.evlog, W.nev)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def reference_report(C, e, k):
     """The task's reference report, a rule any method may use (behaviour cloning does): claim
     every logged event at its peak (``C.T.events`` into the report ``C.R``, strength the
@@ -1156,26 +1134,13 @@ def reference_report(C, e, k):
             R[j, c] = T.events[e, j, c]
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def begin(grid, P, W, state, e):
     """Spin up the plumes and take every agent's first reading, at its start position; the
     mission computer at the routes' starts, the report empty.
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0: the field is cleared, then the
     leaks emit for ``P.n_spin`` field steps ending at ``t0``.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : PIParams
-        The task's params (:func:`make`).
-    W : PIWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
 
     Returns
     -------
@@ -1215,29 +1180,12 @@ def begin(grid, P, W, state, e):
     return False
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def pre_step(grid, P, W, state, e, k, t):
     """Advance the plume field: emit and transport every ``FIELD_EVERY`` steps (face
     currents refreshed every ``P.refresh`` field steps).
 
     Env hook (:mod:`oneocean.tasks.loop`), before the agents act.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : PIParams
-        The task's params (:func:`make`).
-    W : PIWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
     """
     if k % FIELD_EVERY == 0:
         C = W.C
@@ -1250,7 +1198,7 @@ def pre_step(grid, P, W, state, e, k, t):
                     h, W.frame[e, 4], W.frame[e, 5], FIELD_EVERY * P.dt, P.kappa)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _reading(grid, P, W, e, x, z, alt):
     """The sensor's concentration (kg m-3) at ``(x, z)``, ``alt`` m above the seafloor."""
     inv_scale = 1.0 / PLUME_SCALE_M
@@ -1259,7 +1207,7 @@ def _reading(grid, P, W, e, x, z, alt):
             * math.exp(-alt * inv_scale) * inv_scale)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def sense(grid, P, W, X, state, O, e, k):
     """The mission computer: every agent's pointer along its survey route advanced on the
     state the method knows (its navigation estimate; the truth for the oracle), the cue's
@@ -1269,25 +1217,6 @@ def sense(grid, P, W, X, state, O, e, k):
 
     Env hook (:mod:`oneocean.tasks.loop`), at the start of every step before the cues (module
     docstring: Mission computer).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : PIParams
-        The task's params (:func:`make`).
-    W : PIWork
-        The task's per-episode work arrays (:func:`make`).
-    X : (E, N, STATE_DIM) float64
-        The vehicle states the method knows; layout: :mod:`oneocean.engine.dynamics`.
-    state : (E, N, STATE_DIM) float64
-        True vehicle states.
-    O : (E, N, D) float64
-        The observations; the task's field ``O[e, i, OBS_DIM]`` written.
-    e : int
-        Episode index.
-    k : int
-        Step index.
     """
     for i in range(X.shape[1]):
         px = X[e, i, 0]
@@ -1322,7 +1251,7 @@ def sense(grid, P, W, X, state, O, e, k):
                 W.nev[e] = n + 1
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def cue(grid, P, W, X, e, k, i):
     """The cue: the mission computer's carrot along agent ``i``'s survey route at the
     inspection altitude (``W.tgt``, from :func:`sense`); the probe: the agent's latest
@@ -1331,23 +1260,6 @@ def cue(grid, P, W, X, e, k, i):
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe. The reading
     was taken by the sensor at the vehicle's true position (after its last move, or at the
     start), at its altitude above the seafloor (at least 0).
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : PIParams
-        The task's params (:func:`make`).
-    W : PIWork
-        The task's per-episode work arrays (:func:`make`).
-    X : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (unused: :func:`sense` advanced the pointer).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
 
     Returns
     -------
@@ -1359,7 +1271,7 @@ def cue(grid, P, W, X, e, k, i):
     return W.tgt[e, i, 0], W.tgt[e, i, 1], W.tgt[e, i, 2], W.sense[e, i]
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _take_reading(grid, P, W, state, e, i):
     """The sensor: agent ``i``'s reading at its position, handed to the method (``sense``)."""
     s = state[e, i]
@@ -1369,60 +1281,22 @@ def _take_reading(grid, P, W, state, e, i):
     W.sense[e, i] = _reading(grid, P, W, e, s[0], s[2], alt)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def after_agent(grid, P, W, state, e, k, i, code):
     """Take agent ``i``'s reading after its move into ``W.sense`` (the probe of its next
     observation).
 
     Env hook (:mod:`oneocean.tasks.loop`), right after the agent moved.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : PIParams
-        The task's params (:func:`make`).
-    W : PIWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-    code : int
-        Status of the agent's move (:mod:`oneocean.engine.status`).
     """
     _take_reading(grid, P, W, state, e, i)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def post_step(grid, P, W, state, prev, e, k, t):
     """The report is final once every agent's section is finished (``W.done``, the mission
     computer's).
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : PIParams
-        The task's params (:func:`make`).
-    W : PIWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    prev : (E, N, 3) float64
-        Positions before the step, world m.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
 
     Returns
     -------
@@ -1550,29 +1424,12 @@ def score_claims(claims, leaks, tol: float, gate: float = DETECT_GATE_M) -> dict
             "success": bool(n_loc == n_leak and n_false == 0)}
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def finish(grid, P, W, state, e, k, row):
     """Score the report (``W.claims``: every row, non-finite ones no claim) against the true
     leaks (:func:`match_claims`) and write the PI metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : PIParams
-        The task's params (:func:`make`).
-    W : PIWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Steps the episode ran.
-    row : (C,) float64
-        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
 
     Returns
     -------

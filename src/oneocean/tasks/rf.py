@@ -85,19 +85,6 @@ _C_XTE, _C_WP, _C_XMAX, _C_EWH, _C_ERAT = (len(STANDARD) + i for i in range(len(
 def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     """Sample the route and start time of every episode.
 
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        Tier parameters (``data/tasks/RF.yaml``) plus ``dt_s``.
-    n_agents : int
-        Must be 1 (single-agent task).
-    n_episodes : int
-        Number of episodes E.
-    seed : int
-        Run seed (each episode draws from its own reset stream).
-
     Returns
     -------
     dict
@@ -153,7 +140,7 @@ def regime_points(route):
     return np.concatenate([r, 0.5 * (r[1:] + r[:-1])])
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def leg_geometry(ax_, ay_, az_, bx, by, bz, px, py, pz):
     """Projection of a point on a 3-D segment.
 
@@ -317,15 +304,6 @@ def make(grid, tier: dict, init: dict):
     With an ``energy_reserve`` the allocation of every episode (:func:`reference_energies`
     on the rollout's ``grid``).
 
-    Parameters
-    ----------
-    grid : Grid
-        The rollout's grid export (the ablations' forcing included).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        The reset's dict (:func:`reset`).
-
     Returns
     -------
     P : RFParams
@@ -392,15 +370,6 @@ def brief(P: RFParams, W: RFWork, init: dict, m) -> RFBriefing:
     lattice around its vertices (:func:`oneocean.tasks.routing.mission_field` with
     ``fixed``), where the route lies on the grid.
 
-    Parameters
-    ----------
-    P, W
-        The task's params and work arrays (:func:`make`).
-    init : dict
-        The reset's dict.
-    m : Mission
-        The batch's mission (:class:`oneocean.tasks.public.Mission`).
-
     Returns
     -------
     RFBriefing
@@ -416,24 +385,11 @@ def brief(P: RFParams, W: RFWork, init: dict, m) -> RFBriefing:
                       xte_max=P.xte_max, **routing.pack_fields(fields))
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def begin(grid, P, W, state, e):
     """Reset the waypoint pointers and accumulators.
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : RFParams
-        The task's params (:func:`make`).
-    W : RFWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
 
     Returns
     -------
@@ -448,7 +404,7 @@ def begin(grid, P, W, state, e):
     return W.wp[e] > W.route.shape[1] - 1
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def cue(grid, P, W, X, e, k, i):
     """The route point ``P.look`` m ahead of the agent's known projection on the active leg.
 
@@ -457,24 +413,6 @@ def cue(grid, P, W, X, e, k, i):
     The leg is the mission computer's: its pointer ``W.nwp`` is advanced here, on the
     known position (:func:`~oneocean.tasks.common.nav_waypoint`); the point is clamped to the
     waypoint, and once the route is done the cue is the last waypoint.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : RFParams
-        The task's params (:func:`make`).
-    W : RFWork
-        The task's per-episode work arrays (:func:`make`).
-    X : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (its navigation estimate; the truth for
-        the oracle); layout: :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
 
     Returns
     -------
@@ -496,29 +434,10 @@ def cue(grid, P, W, X, e, k, i):
     return a0[0] + sl * tx, a0[1] + sl * ty, a0[2] + sl * tz, math.nan
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def sense(grid, P, W, X, state, O, e, k):
     """The task's observation fields (:data:`OBS_EXTRA`): the energy used and its fraction
     of the allocation. Env hook (:mod:`oneocean.tasks.loop`), before the step's cues.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : RFParams
-        The task's params (:func:`make`).
-    W : RFWork
-        The task's per-episode work arrays (:func:`make`).
-    X : (E, N, STATE_DIM) float64
-        The vehicle states the method knows.
-    state : (E, N, STATE_DIM) float64
-        True vehicle states.
-    O : (E, N, D) float64
-        The observations; ``O[e, 0, OBS_DIM:]`` written.
-    e : int
-        Episode index.
-    k : int
-        Step index.
     """
     used = W.acc[e, 2]
     o = O[e, 0]
@@ -526,30 +445,11 @@ def sense(grid, P, W, X, state, O, e, k):
     o[OBS_DIM + 1] = used / W.budget[e] if W.budget[e] < math.inf else 0.0
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def post_step(grid, P, W, state, prev, e, k, t):
     """Cross-track error, energy and the judge's waypoint after the step.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : RFParams
-        The task's params (:func:`make`).
-    W : RFWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    prev : (E, N, 3) float64
-        Positions before the step, world m.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
 
     Returns
     -------
@@ -579,28 +479,11 @@ def post_step(grid, P, W, state, prev, e, k, t):
     return wp > W.route.shape[1] - 1
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def finish(grid, P, W, state, e, k, row):
     """Write the RF metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : RFParams
-        The task's params (:func:`make`).
-    W : RFWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Steps the episode ran.
-    row : (C,) float64
-        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
 
     Returns
     -------

@@ -1483,7 +1483,7 @@ def mission_costs(grid, routes, depths, t0s, duration: float, v_max: float,
 
     ``plan_mission(grid, routes[e], depths[e], t0s[e], duration, v_max, power,
     fixed=fixed).cost`` of every episode ``e``, the same bits, with the episodes on
-    :func:`oneocean.tasks.episodes.over_range`'s threads instead of one plan each.
+    :func:`oneocean.engine.dispatch.over_range`'s threads instead of one plan each.
 
     Parameters
     ----------
@@ -1515,7 +1515,7 @@ def mission_costs(grid, routes, depths, t0s, duration: float, v_max: float,
         Costs, J (s without a power model); inf where a route has a point off the grid
         (:func:`within_grid`) or no passable route exists.
     """
-    from .episodes import over_range
+    from ..engine.dispatch import over_range
 
     routes = [np.asarray(r, dtype=np.float64).reshape(-1, 2) for r in routes]
     n_ep = len(routes)
@@ -1571,7 +1571,7 @@ def within_grid(grid, points) -> bool:
 
 # ------------------------------------------------------------------------------ following
 
-@hot_kernel(inline="always")
+@hot_kernel
 def follow_path(wps, wspd, wcount, widx, e, px, pz, look, capture, commit):
     """Line-of-sight following of episode ``e``'s planned polyline.
 
@@ -1665,7 +1665,7 @@ def follow_path(wps, wspd, wcount, widx, e, px, pz, look, capture, commit):
     return cx, cz, wspd[e, w]
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def hold_speed(u, dx, dz, ce, cn, v_max):
     """The through-water speed to fly toward a direction in a current.
 

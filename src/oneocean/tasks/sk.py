@@ -117,19 +117,6 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
 
     See the module docstring; ``start_offset_m`` defaults to 0 (released on the station).
 
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        Tier parameters (``data/tasks/SK.yaml``) plus ``dt_s``.
-    n_agents : int
-        Must be 1 (single-agent task).
-    n_episodes : int
-        Number of episodes E.
-    seed : int
-        Run seed (each episode draws from its own reset stream).
-
     Returns
     -------
     dict
@@ -253,15 +240,6 @@ class SKWork(NamedTuple):
 def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
 
-    Parameters
-    ----------
-    grid : Grid
-        The rollout's grid export (the ablations' forcing included).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        The reset's dict (:func:`reset`).
-
     Returns
     -------
     P : SKParams
@@ -312,15 +290,6 @@ def brief(P: SKParams, W: SKWork, init: dict, m) -> SKBriefing:
     """The briefing of every episode of a batch (:class:`oneocean.tasks.public.Mission`
     ``m``): the station, its heading, the hold radius and time, the settling allowance.
 
-    Parameters
-    ----------
-    P, W
-        The task's params and work arrays (:func:`make`).
-    init : dict
-        The reset's dict.
-    m : Mission
-        The batch's mission (:class:`oneocean.tasks.public.Mission`).
-
     Returns
     -------
     SKBriefing
@@ -330,24 +299,11 @@ def brief(P: SKParams, W: SKWork, init: dict, m) -> SKBriefing:
                       settle_s=SETTLE_S)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def begin(grid, P, W, state, e):
     """Reset the accumulators and counters.
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : SKParams
-        The task's params (:func:`make`).
-    W : SKWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
 
     Returns
     -------
@@ -362,29 +318,11 @@ def begin(grid, P, W, state, e):
     return False
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def cue(grid, P, W, X, e, k, i):
     """The goal cue: the station.
 
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : SKParams
-        The task's params (:func:`make`).
-    W : SKWork
-        The task's per-episode work arrays (:func:`make`).
-    X : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (its navigation estimate; the truth for
-        the oracle); layout: :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
 
     Returns
     -------
@@ -396,7 +334,7 @@ def cue(grid, P, W, X, e, k, i):
     return W.station[e, 0], W.station[e, 1], W.station[e, 2], math.nan
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def post_step(grid, P, W, state, prev, e, k, t):
     """Distance and heading error after step ``k``, and the hold check.
 
@@ -405,25 +343,6 @@ def post_step(grid, P, W, state, prev, e, k, t):
     Updates the station-keeping window's sums (from step ``settle_steps`` on), the in-radius
     run and its sums (frozen as the hold window when the first hold completes) and the ring
     of the last H steps' squared distances.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : SKParams
-        The task's params (:func:`make`).
-    W : SKWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    prev : (E, N, 3) float64
-        Positions before the step, world m.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
 
     Returns
     -------
@@ -459,7 +378,7 @@ def post_step(grid, P, W, state, prev, e, k, t):
     return REACHED if c[2] != 0 else GO
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def finish(grid, P, W, state, e, k, row):
     """Write the SK metrics.
 
@@ -468,23 +387,6 @@ def finish(grid, P, W, state, e, k, row):
     The station-keeping RMS over steps ``settle_steps .. k - 1`` (every episode; NaN when the
     episode ended before the window); the hold window's RMS distance and heading error (NaN if
     no hold was completed); the RMS over the last H steps.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : SKParams
-        The task's params (:func:`make`).
-    W : SKWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Steps the episode ran.
-    row : (C,) float64
-        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
 
     Returns
     -------

@@ -205,19 +205,6 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     The same as :func:`reset_build` of :func:`reset_candidates` (the split ``Cell.reset``
     uses to build only the candidates it keeps).
 
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        Tier parameters (``data/tasks/SPC.yaml``) plus ``dt_s``.
-    n_agents : int
-        Team size, 2..10.
-    n_episodes : int
-        Number of episodes E.
-    seed : int
-        Run seed (each episode draws from its own reset stream).
-
     Returns
     -------
     dict
@@ -425,19 +412,6 @@ def reset_candidates(grid, tier: dict, n_agents: int, n_episodes: int, seed: int
     spill (its mass lies within ``2 spill_radius_m`` of the site, so only the land cells of
     that box are checked: the field is bit for bit the one of the full land mask) and its
     centroid.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        Tier parameters (``data/tasks/SPC.yaml``) plus ``dt_s``.
-    n_agents : int
-        Team size, 2..10.
-    n_episodes : int
-        Number of candidates E (candidates ``0 .. E - 1``).
-    seed : int
-        Run seed (each episode draws from its own reset stream).
 
     Returns
     -------
@@ -762,15 +736,6 @@ def make(grid, tier: dict, init: dict):
     ``aerial_period_s`` from one period on (:func:`brief` makes it every step for a method
     given the true target).
 
-    Parameters
-    ----------
-    grid : Grid
-        The rollout's grid export (the ablations' forcing included).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        The reset's dict (:func:`reset`).
-
     Returns
     -------
     P : SPCParams
@@ -907,25 +872,12 @@ CUE_DOC = ("the surface point of the oil the task's dispatcher gives the agent: 
            "agent's current estimate")
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def begin(grid, P, W, state, e):
     """Record the initial mass and reset the accumulators, the map (none yet) and the cue
     (the ring around the spill report, at the start).
 
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : SPCParams
-        The task's params (:func:`make`).
-    W : SPCWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
 
     Returns
     -------
@@ -957,28 +909,11 @@ def begin(grid, P, W, state, e):
     return False
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def pre_step(grid, P, W, state, e, k, t):
     """Re-sample the face velocities every ``P.refresh`` steps.
 
     Env hook (:mod:`oneocean.tasks.loop`), before the agents act in step ``k``.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : SPCParams
-        The task's params (:func:`make`).
-    W : SPCWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
     """
     if k % P.refresh == 0:
         _refresh_faces(grid, W.uf[e], W.vf[e], W.origin[e, 0], W.origin[e, 1], P.h, P.y,
@@ -1070,7 +1005,7 @@ def _cue_assign(X, bm, bx, bz, thr, used, given, cue_xz):
         cue_xz[ia, 1] = bz[best]
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def sense(grid, P, W, X, state, O, e, k):
     """The aerial survey (the team observation) at its steps, and the cue's reference.
 
@@ -1114,31 +1049,13 @@ def sense(grid, P, W, X, state, O, e, k):
                 W.cue_xz[e])
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def cue(grid, P, W, X, e, k, i):
     """The task's oil reference at the operating depth, and the pollution probe.
 
     Env hook (:mod:`oneocean.tasks.loop`): agent ``i``'s cue point (its place on the ring
     around the spill report, then its block of the last aerial map: :func:`sense`) drifted
     since the cue's time with the agent's current estimate of its last observation.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : SPCParams
-        The task's params (:func:`make`).
-    W : SPCWork
-        The task's per-episode work arrays (:func:`make`).
-    X : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (its navigation estimate; the truth for
-        the oracle); layout: :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
 
     Returns
     -------
@@ -1154,30 +1071,11 @@ def cue(grid, P, W, X, e, k, i):
             pol.probe(W.C[e], 0, s[0], s[2], W.origin[e, 0], W.origin[e, 1], P.h))
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def post_step(grid, P, W, state, prev, e, k, t):
     """Removal by every agent in agent order, then the field step; the success check.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : SPCParams
-        The task's params (:func:`make`).
-    W : SPCWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    prev : (E, N, 3) float64
-        Positions before the step, world m.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
 
     Returns
     -------
@@ -1203,28 +1101,11 @@ def post_step(grid, P, W, state, prev, e, k, t):
     return GO
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def finish(grid, P, W, state, e, k, row):
     """Write the fractions at the metric horizon (the end of the episode).
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : SPCParams
-        The task's params (:func:`make`).
-    W : SPCWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Steps the episode ran.
-    row : (C,) float64
-        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
 
     Returns
     -------

@@ -359,19 +359,6 @@ def reset(grid, tier: dict, n_agents: int, n_episodes: int, seed: int) -> dict:
     The same as :func:`reset_build` of :func:`reset_candidates` (the split ``Cell.reset``
     uses to finish only the candidates the tier's current band keeps).
 
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        Tier parameters (see ``data/tasks/UPL.yaml``) plus ``dt_s``.
-    n_agents : int
-        Must be ``N_SLOTS`` (5).
-    n_episodes : int
-        Number of episodes E.
-    seed : int
-        Run seed (each episode draws from its own reset stream).
-
     Returns
     -------
     dict
@@ -398,19 +385,6 @@ def reset_candidates(grid, tier: dict, n_agents: int, n_episodes: int, seed: int
 
     Per candidate (its own stream): the start time, then, in one compiled call over the
     candidates (:func:`_sites_kernel`), the site, the slots' phase and the starts.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    tier : dict
-        Tier parameters (see ``data/tasks/UPL.yaml``) plus ``dt_s``.
-    n_agents : int
-        Must be ``N_SLOTS`` (5).
-    n_episodes : int
-        Number of candidates.
-    seed : int
-        Run seed.
 
     Returns
     -------
@@ -685,15 +659,6 @@ class UPLWork(NamedTuple):
 def make(grid, tier: dict, init: dict):
     """The task's params and per-episode work arrays (:mod:`oneocean.tasks.loop`).
 
-    Parameters
-    ----------
-    grid : Grid
-        The rollout's grid export (the ablations' forcing included).
-    tier : dict
-        Tier parameters plus ``dt_s``.
-    init : dict
-        The reset's dict (:func:`reset`; without ``chart`` the site is the chart).
-
     Returns
     -------
     P : UPLParams
@@ -813,15 +778,6 @@ def brief(P: UPLParams, W: UPLWork, init: dict, m) -> UPLBriefing:
     true target, ``m.sens.true_target``: the oracle and the ``true_target`` ablation); such a
     method's chart is the object's true centre.
 
-    Parameters
-    ----------
-    P, W
-        The task's params and work arrays (:func:`make`); ``W.pcfg`` written.
-    init : dict
-        The reset's dict (unused: ``W`` holds it).
-    m : Mission
-        The batch's mission (:class:`oneocean.tasks.public.Mission`).
-
     Returns
     -------
     UPLBriefing
@@ -856,11 +812,6 @@ TEAM_FIELDS = {
 def team_obs(W: UPLWork) -> UPLTeamObs:
     """The team observation: views of ``W.oest`` and ``W.odet`` (:func:`sense` updates them).
 
-    Parameters
-    ----------
-    W : UPLWork
-        The task's per-episode work arrays (:func:`make`).
-
     Returns
     -------
     UPLTeamObs
@@ -868,7 +819,7 @@ def team_obs(W: UPLWork) -> UPLTeamObs:
     return UPLTeamObs(W.oest, W.odet)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def begin(grid, P, W, state, e):
     """Put the object at its site, at rest on the floor, clear the attachments, and start
     the team's object estimate from the chart.
@@ -876,19 +827,6 @@ def begin(grid, P, W, state, e):
     Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start. The
     estimate's prior: the charted centre at rest, with the survey's stated error
     horizontally and ``SITE_PRIOR_STD_Y_M`` vertically.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : UPLParams
-        The task's params (:func:`make`).
-    W : UPLWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
 
     Returns
     -------
@@ -921,29 +859,12 @@ def begin(grid, P, W, state, e):
     return False
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def pre_step(grid, P, W, state, e, k, t):
     """Record the agents' positions, the time and the attached count at the step's start,
     and take this step's sonar fixes of the object (``W.fix``, ``W.fixk``).
 
     Env hook (:mod:`oneocean.tasks.loop`), before the agents act.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : UPLParams
-        The task's params (:func:`make`).
-    W : UPLWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
     """
     n = state.shape[1]
     S = state[e]
@@ -961,7 +882,7 @@ def pre_step(grid, P, W, state, e, k, t):
     W.fixk[e] = k
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _sonar_fixes(P, W, state, e, k):
     """This step's sonar fix of the object by every agent (``W.fix``): the offset of the
     object's centre from the agent, exact for a method that perceives the target exactly
@@ -1014,7 +935,7 @@ QA_REST = 0.02
 QA_LIFT = 0.2
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _filter(P, W, state, e):
     """Predict the object's estimate over the step, then update it with every valid sonar
     fix (sequential scalar Kalman updates per axis)."""
@@ -1056,7 +977,7 @@ def _filter(P, W, state, e):
             C[c, 2] = d - kv_ * b
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def perceive(P, W, X, e):
     """Fuse the latest sonar fixes into the team's object estimate, once per set of fixes
     (``W.fixk`` / ``W.kf``).
@@ -1100,24 +1021,6 @@ def cue(grid, P, W, X, e, k, i):
     the surface (the object's centre ``SLOT_RISE_M`` deep, above the success depth): the
     vertical goal of the lift. No probe (NaN).
 
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : UPLParams
-        The task's params (:func:`make`).
-    W : UPLWork
-        The task's per-episode work arrays (:func:`make`).
-    X : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (its navigation estimate; the truth for the
-        oracle); layout: :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-
     Returns
     -------
     gx, gy, gz : float
@@ -1152,28 +1055,11 @@ def cue(grid, P, W, X, e, k, i):
     return ox + off[j, 0], oy + off[j, 1], oz + off[j, 2], math.nan
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def sense(grid, P, W, X, state, O, e, k):
     """The team's object estimate (:func:`perceive`, on this step's sonar fixes) and the
     task's observation fields (:data:`OBS_EXTRA`) of every agent. Env hook
     (:mod:`oneocean.tasks.loop`), before the cue.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (unused).
-    P, W
-        The task's params and work arrays (:func:`make`).
-    X : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (the truth for the oracle).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (unused).
-    O : (E, N, D) float64
-        The observation; the columns from ``OBS_DIM`` of episode ``e`` written.
-    e : int
-        Episode index.
-    k : int
-        Step index.
     """
     perceive(P, W, X, e)
     est = W.oest[e]
@@ -1198,25 +1084,6 @@ def after_agent(grid, P, W, state, e, k, i, code):
     Env hook (:mod:`oneocean.tasks.loop`), right after agent ``i`` moved; nothing for the
     other agents. With the quorum attached the assembly moves (module docstring, Lift);
     without it a suspended object sinks at ``P.sink`` and drifts with the current.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : UPLParams
-        The task's params (:func:`make`).
-    W : UPLWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
-    code : int
-        Status of the agent's move (:mod:`oneocean.engine.status`).
     """
     n = state.shape[1]
     if i != n - 1:
@@ -1277,30 +1144,11 @@ def after_agent(grid, P, W, state, e, k, i, code):
     W.vobj[e, 2] = (oz - poz) / dt
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def post_step(grid, P, W, state, prev, e, k, t):
     """Attach / detach, the quorum's first time, success.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : UPLParams
-        The task's params (:func:`make`).
-    W : UPLWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    prev : (E, N, 3) float64
-        Positions before the step, world m.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    t : float
-        Time at the start of the step, s since the grid's ``time0`` (``t0[e] + k dt``).
 
     Returns
     -------
@@ -1362,34 +1210,17 @@ def post_step(grid, P, W, state, prev, e, k, t):
     return _success(P, W, e)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _success(P, W, e):
     drift = math.sqrt((W.obj[e, 0] - W.site[e, 0]) ** 2 + (W.obj[e, 2] - W.site[e, 2]) ** 2)
     return W.obj[e, 1] <= P.succ_d and drift <= P.hold_r
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def finish(grid, P, W, state, e, k, row):
     """Write the UPL metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : UPLParams
-        The task's params (:func:`make`).
-    W : UPLWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        True vehicle states (layout: :mod:`oneocean.engine.dynamics`).
-    e : int
-        Episode index.
-    k : int
-        Steps the episode ran.
-    row : (C,) float64
-        Episode ``e``'s result row (``COLUMNS``); the hook writes the task's metric columns.
 
     Returns
     -------

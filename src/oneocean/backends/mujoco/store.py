@@ -10,7 +10,7 @@ from typing import Mapping
 import numpy as np
 
 from ...errors import ConfigError, DataError
-from ...io import read_npz
+from ...product.zarrio import read_npz
 
 
 def build_scene_files(spec: Mapping, grid_path, temporal_path, meta_out) -> dict:

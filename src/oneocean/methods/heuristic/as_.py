@@ -53,10 +53,10 @@ import numpy as np
 
 from ...engine._jit import hot_kernel
 from ...engine.grid import sample_elevation
-from ...tasks.as_ import n_strips, plan_lawnmower, with_runin  # noqa: F401  (re-exported)
+from ...tasks.as_ import n_strips, plan_lawnmower, with_runin  # noqa: F401  (re-exported
 from ...tasks.common import (ARRIVE_M, O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max,
                              waypoint_carrot)
-from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python)
+from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python
 from . import SENSING  # noqa: F401
 
 #: Commanded altitude as a fraction of the sensor's maximum altitude (every method).
@@ -161,14 +161,6 @@ def params(method: str, B) -> ASPolicy:
     They differ in what they know only (the briefing, read by :func:`prepare`, and the
     observation).
 
-    Parameters
-    ----------
-    method : str
-        The fused method, ``"heuristic"`` or ``"oracle"``
-        (:data:`oneocean.methods.heuristic.SENSING`).
-    B : ASBriefing
-        The briefing (the vehicle's speed limit, the sensor).
-
     Returns
     -------
     ASPolicy
@@ -200,13 +192,6 @@ class ASMemory(NamedTuple):
 def memory(B, M: ASPolicy) -> ASMemory:
     """A fresh memory: room for any plan of the batch (:func:`max_waypoints`), no waypoints
     yet (:func:`prepare` plans).
-
-    Parameters
-    ----------
-    B : ASBriefing
-        The briefing (regions, start fixes, sensor models, time limit).
-    M : ASPolicy
-        This policy's params (:func:`params`).
 
     Returns
     -------
@@ -405,13 +390,13 @@ def max_waypoints(region, n_agents: int, spacing: float, SP, t_lim: float) -> in
     return 2 * (-(-n // int(n_agents))) + 1
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _pymax(a, b):
     """Python's ``max(a, b)``: ``b`` only if it is larger (``a`` on a tie or a NaN)."""
     return b if b > a else a
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _along_speed(ce, cn, ux, uz, v):
     """Largest ground speed along unit (ux, uz) with ``|a| <= v`` through current (ce, cn)."""
     c_par = ce * ux + cn * uz
@@ -604,15 +589,6 @@ def prepare(B, M: ASPolicy, H: ASMemory) -> None:
     time limit, the start fixes and the sensor models (the margins; none given the true
     position). Run once, before the first step.
 
-    Parameters
-    ----------
-    B : ASBriefing
-        The briefing.
-    M : ASPolicy
-        This policy's params (:func:`params`).
-    H : ASMemory
-        The method's memory (:func:`memory`); the plans are written in place.
-
     Raises
     ------
     RuntimeError
@@ -634,7 +610,7 @@ def prepare(B, M: ASPolicy, H: ASMemory) -> None:
 
 # ------------------------------------------------------------------------------ acting
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _repulsion(O, i, n_ag):
     """Horizontal velocity (m s-1) pushing agent ``i`` away from teammates closer than
     ``SEP_M`` (their observed navigation positions, ``O`` one episode's observation rows):
@@ -656,7 +632,7 @@ def _repulsion(O, i, n_ag):
     return rx, rz
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def act(C, e, k, i):
     """Agent ``i``'s action: line-of-sight strip tracking, terrain following, teammate repulsion.
 
@@ -665,18 +641,6 @@ def act(C, e, k, i):
     above the chart's seafloor (never shallower than ``MIN_DEPTH_M``), sought with
     :func:`~oneocean.tasks.common.seek_max` against the observed current; teammates closer
     than ``SEP_M`` add a horizontal repulsion. Policy hook (:mod:`oneocean.tasks.loop`).
-
-    Parameters
-    ----------
-    C : Ctx
-        The policy's context (:class:`oneocean.tasks.loop.Ctx`): the briefing, this step's
-        observation, the params and the memory (``widx`` advanced in place).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
 
     Returns
     -------

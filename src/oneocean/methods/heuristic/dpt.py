@@ -27,7 +27,7 @@ import numpy as np
 from ...engine._jit import hot_kernel
 from ...tasks.common import (O_CE, O_CN, O_DEPTH, O_VX, O_VZ, O_X, O_Z, nav_waypoint,
                              profile_at, seek_max)
-from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision)
+from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision
 from . import SENSING  # noqa: F401
 
 #: Horizontal line-of-sight lookahead, m.
@@ -72,14 +72,6 @@ class DPTMemory(NamedTuple):
 def params(method: str, B) -> DPTPolicy:
     """The policy's params: the same for every method (they differ in information only).
 
-    Parameters
-    ----------
-    method : str
-        The fused method, ``"heuristic"`` or ``"oracle"``
-        (:data:`oneocean.methods.heuristic.SENSING`).
-    B : DPTBriefing
-        The briefing (its vehicle's speed limit, the waypoint radius).
-
     Returns
     -------
     DPTPolicy
@@ -92,13 +84,6 @@ def params(method: str, B) -> DPTPolicy:
 def memory(B, M: DPTPolicy) -> DPTMemory:
     """A fresh memory: the first waypoint active.
 
-    Parameters
-    ----------
-    B : DPTBriefing
-        The briefing.
-    M : DPTPolicy
-        The policy's params (:func:`params`).
-
     Returns
     -------
     DPTMemory
@@ -106,21 +91,10 @@ def memory(B, M: DPTPolicy) -> DPTMemory:
     return DPTMemory(np.ones(B.t0.shape[0], np.int64))
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def act(C, e, k, i):
     """Agent ``i``'s action: the depth loop, then line-of-sight guidance along the active leg.
     Policy hook (:mod:`oneocean.tasks.loop`); advances the memory's waypoint pointer.
-
-    Parameters
-    ----------
-    C : Ctx
-        The policy's context (:class:`oneocean.tasks.loop.Ctx`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
 
     Returns
     -------

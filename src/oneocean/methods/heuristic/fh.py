@@ -189,15 +189,6 @@ def tracker_gains(acc_std: float, fix_std: float, dt: float) -> tuple[float, flo
 def params(method: str, B) -> FHPolicy:
     """The policy's params: the same for every method (they differ in information only).
 
-    Parameters
-    ----------
-    method : str
-        The fused method, ``"heuristic"`` or ``"oracle"``
-        (:data:`oneocean.methods.heuristic.SENSING`).
-    B : FHBriefing
-        The briefing (the vehicle's speed limit; the step, for the tracker's gains,
-        :func:`tracker_gains`).
-
     Returns
     -------
     FHPolicy
@@ -226,13 +217,6 @@ class FHMemory(NamedTuple):
 def memory(B, M: FHPolicy) -> FHMemory:
     """A fresh memory: no school estimate yet, no current estimates (zeros).
 
-    Parameters
-    ----------
-    B : FHBriefing
-        The briefing (episodes, team size).
-    M : FHPolicy
-        The policy's params.
-
     Returns
     -------
     FHMemory
@@ -244,12 +228,12 @@ def memory(B, M: FHPolicy) -> FHMemory:
                     np.zeros((n_ep, n, 2)))
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _wrap(a):
     return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def plan(C, e, k):
     """The team's herding plan for episode ``e``: school estimate, arc and slot waypoints.
 
@@ -258,14 +242,6 @@ def plan(C, e, k):
     arc slots (``H.order``, ``H.keys``, ``H.rank``); every agent's waypoint ``H.tgt[e]``
     (module doc). Before the first sonar reading every agent's waypoint is its own position.
     Policy hook (:mod:`oneocean.tasks.loop`).
-
-    Parameters
-    ----------
-    C : Ctx
-        The policy's context (:class:`oneocean.tasks.loop.Ctx`): briefing, observation, team
-        observation, params, memory (written).
-    e, k : int
-        Episode and step.
     """
     B = C.B
     M = C.M
@@ -438,7 +414,7 @@ def plan(C, e, k):
         TG[i, 1] = czs + r_slot * math.cos(a)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def act(C, e, k, i):
     """Seek the agent's waypoint with feed-forward of the school's velocity and the current.
 
@@ -447,13 +423,6 @@ def act(C, e, k, i):
     :func:`~oneocean.tasks.common.seek_max` toward ``H.tgt[e, i]`` at the school's depth
     ``B.depth``, the school's estimated velocity fed forward with the current. Policy hook
     (:mod:`oneocean.tasks.loop`).
-
-    Parameters
-    ----------
-    C : Ctx
-        The policy's context (:class:`oneocean.tasks.loop.Ctx`).
-    e, k, i : int
-        Episode, step and agent.
 
     Returns
     -------

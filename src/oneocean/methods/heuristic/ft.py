@@ -84,14 +84,6 @@ class FTPolicy(NamedTuple):
 def params(method: str, B) -> FTPolicy:
     """The policy's params: the same for every method (they differ in information only).
 
-    Parameters
-    ----------
-    method : str
-        The fused method, ``"heuristic"`` or ``"oracle"``
-        (:data:`oneocean.methods.heuristic.SENSING`).
-    B : FTBriefing
-        The briefing (the vehicle's speed limit and guidance, the step).
-
     Returns
     -------
     FTPolicy
@@ -120,7 +112,7 @@ def memory(B, M: FTPolicy) -> FTMemory:
     return FTMemory(np.zeros(n_ep), B.start.copy(), np.zeros((n_ep, 3)))
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def plan(C, e, k):
     """Pace the virtual centre by the worst slot lag around it; advance it over the step.
 
@@ -167,7 +159,7 @@ def plan(C, e, k):
     H.vff[e, 2] = step / dt * tz
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def act(C, e, k, i):
     """Track slot ``i`` around the virtual centre: feed-forward plus capped P-control.
 

@@ -36,7 +36,7 @@ import numpy as np
 
 from ...engine._jit import hot_kernel
 from ...tasks.common import ARRIVE_M, O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
-from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python)
+from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python
 from ...tasks import routing
 from ...tasks.routing import follow_path, hold_speed
 from . import SENSING  # noqa: F401
@@ -79,14 +79,6 @@ class G2GPolicy(NamedTuple):
 
 def params(method: str, B) -> G2GPolicy:
     """The policy's params: the same for every method (they differ in information only).
-
-    Parameters
-    ----------
-    method : str
-        The fused method, ``"heuristic"`` or ``"oracle"``
-        (:data:`oneocean.methods.heuristic.SENSING`).
-    B : G2GBriefing
-        The briefing (its vehicle's speed limit and power model).
 
     Returns
     -------
@@ -187,7 +179,7 @@ def prepare(B, M: G2GPolicy, H: G2GMemory) -> None:
         routing.write_plan(plan_episode(B, M, e), H.wps, H.wspd, H.wcount, H.widx, e)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def act(C, e, k, i):
     """The vehicle's action: line-of-sight following of the planned route at its programmed
     speed.

@@ -145,14 +145,6 @@ class PIPolicy(NamedTuple):
 def params(method: str, B) -> PIPolicy:
     """The policy's params: the same for every method (they differ in information only).
 
-    Parameters
-    ----------
-    method : str
-        The fused method, ``"heuristic"`` or ``"oracle"``
-        (:data:`oneocean.methods.heuristic.SENSING`).
-    B : PIBriefing
-        The briefing (the vehicle's speed limit, the sensor's detection threshold).
-
     Returns
     -------
     PIPolicy
@@ -249,14 +241,14 @@ def memory(B, M: PIPolicy) -> PIMemory:
                     np.full((n_ep, n_ag), -1, dtype=np.int64))
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def plan(C, e, k):
     """No team-level decision: every agent acts on its own readings (a no-op). Policy hook
     (:mod:`oneocean.tasks.loop`)."""
     return
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def act(C, e, k, i):
     """Agent ``i``'s action: detect plume events and follow its section low over the seabed.
 
@@ -307,7 +299,7 @@ def act(C, e, k, i):
     return ax, ay, az, math.nan
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def detect(H, R, e, i, x, z, r, fe, fn, thr, estimator):
     """Agent ``i``'s event detector: one reading ``r`` at ``(x, z)`` (module doc).
 
@@ -380,7 +372,7 @@ def detect(H, R, e, i, x, z, r, fe, fn, thr, estimator):
         lvl[0] = r
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def file_claim(H, R, e, i, x, z, strength):
     """File (or update) the claim of agent ``i``'s open event in the team's report.
 
@@ -417,7 +409,7 @@ def file_claim(H, R, e, i, x, z, strength):
         claims[j, 2] = strength
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def close_event(H, R, e, i, px, pz, at_end):
     """Close agent ``i``'s open event and settle its claim; the report is kept compact.
 
@@ -476,7 +468,7 @@ def close_event(H, R, e, i, px, pz, at_end):
     drop_claim(H, R, e, j)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def drop_claim(H, R, e, j):
     """Remove claim ``j`` from the report: the last claim moves into its slot.
 
@@ -509,7 +501,7 @@ def drop_claim(H, R, e, j):
     H.nclaim[e] = last
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def peak_estimate(buf, n):
     """Where the largest of an event's readings was taken (the first of equal ones).
 
@@ -532,7 +524,7 @@ def peak_estimate(buf, n):
     return buf[m_best, 0], buf[m_best, 1]
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def onset_estimate(buf, n, b, peak):
     """A source's position from its plume event's readings: the plume's upstream edge.
 

@@ -35,7 +35,7 @@ import numpy as np
 
 from ...engine._jit import hot_kernel
 from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
-from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python)
+from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python
 from ...tasks import routing
 from ...tasks.routing import follow_path, hold_speed
 from . import SENSING  # noqa: F401
@@ -79,14 +79,6 @@ class RFPolicy(NamedTuple):
 def params(method: str, B) -> RFPolicy:
     """The policy's params: the same for every method (they differ in information only).
 
-    Parameters
-    ----------
-    method : str
-        The fused method, ``"heuristic"`` or ``"oracle"``
-        (:data:`oneocean.methods.heuristic.SENSING`).
-    B : RFBriefing
-        The briefing (its vehicle's speed limit and power model, the waypoint radius).
-
     Returns
     -------
     RFPolicy
@@ -110,13 +102,6 @@ class RFMemory(NamedTuple):
 def memory(B, M: RFPolicy) -> RFMemory:
     """A fresh memory: the route's legs at the cruise speed (the plan until :func:`prepare`
     makes one).
-
-    Parameters
-    ----------
-    B : RFBriefing
-        The briefing.
-    M : RFPolicy
-        The policy's params (:func:`params`).
 
     Returns
     -------
@@ -191,21 +176,12 @@ def prepare(B, M: RFPolicy, H: RFMemory) -> None:
     """The Python planner: the speed schedule of every episode (:func:`plan_episode`) into
     the memory ``H`` (:func:`oneocean.tasks.routing.write_plan`). Run once, before the first
     step.
-
-    Parameters
-    ----------
-    B : RFBriefing
-        The briefing.
-    M : RFPolicy
-        The policy's params (:func:`params`).
-    H : RFMemory
-        The method's memory, written in place.
     """
     for e in range(B.route.shape[0]):
         routing.write_plan(plan_episode(B, M, e), H.wps, H.wspd, H.wcount, H.widx, e)
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def act(C, e, k, i):
     """The vehicle's action: line-of-sight route following at the stretch's programmed speed.
 
@@ -214,17 +190,6 @@ def act(C, e, k, i):
     depth, sought with :func:`~oneocean.tasks.common.seek_max` at the programmed speed raised
     where the observed current needs it (:func:`~oneocean.tasks.routing.hold_speed`).
     Policy hook (:mod:`oneocean.tasks.loop`).
-
-    Parameters
-    ----------
-    C : Ctx
-        The policy's context (:class:`oneocean.tasks.loop.Ctx`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
 
     Returns
     -------

@@ -20,7 +20,7 @@ import numpy as np
 
 from ...engine._jit import hot_kernel
 from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
-from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision)
+from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision
 from . import SENSING  # noqa: F401
 
 #: Proportional position gain, s-1 (ground-speed request = KP * error, plus feed-forward).
@@ -49,14 +49,6 @@ class SKMemory(NamedTuple):
 def params(method: str, B) -> SKPolicy:
     """The policy's params: the same for every method (they differ in information only).
 
-    Parameters
-    ----------
-    method : str
-        The fused method, ``"heuristic"`` or ``"oracle"``
-        (:data:`oneocean.methods.heuristic.SENSING`).
-    B : SKBriefing
-        The briefing (its vehicle's speed limit).
-
     Returns
     -------
     SKPolicy
@@ -68,13 +60,6 @@ def params(method: str, B) -> SKPolicy:
 def memory(B, M: SKPolicy) -> SKMemory:
     """A fresh memory (nothing to remember).
 
-    Parameters
-    ----------
-    B : SKBriefing
-        The briefing.
-    M : SKPolicy
-        The policy's params (:func:`params`).
-
     Returns
     -------
     SKMemory
@@ -82,21 +67,10 @@ def memory(B, M: SKPolicy) -> SKMemory:
     return SKMemory(np.zeros(B.t0.shape[0]))
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def act(C, e, k, i):
     """Agent ``i``'s action: P-control to the station plus current feed-forward, station
     heading. Policy hook (:mod:`oneocean.tasks.loop`).
-
-    Parameters
-    ----------
-    C : Ctx
-        The policy's context (:class:`oneocean.tasks.loop.Ctx`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
 
     Returns
     -------

@@ -79,14 +79,6 @@ def params(method: str, B) -> SPCPolicy:
     """The policy's params: the same for every method (they differ in information only; the
     oracle's map is the task's, every step).
 
-    Parameters
-    ----------
-    method : str
-        The fused method, ``"heuristic"`` or ``"oracle"``
-        (:data:`oneocean.methods.heuristic.SENSING`).
-    B : SPCBriefing
-        The briefing (the vehicle's speed limit, the spill's radius, the operating depth).
-
     Returns
     -------
     SPCPolicy
@@ -154,7 +146,7 @@ def _assign(O, bm, bx, bz, cnt, tgt, done, tot):
         tgt[ia, 1] = bz[best]
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def plan(C, e, k):
     """Ring targets around the spill report at step 0; the greedy assignment at every new
     aerial map (the team observation's ``t_map`` changed).
@@ -184,7 +176,7 @@ def plan(C, e, k):
         H.seen[e] = tm
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def act(C, e, k, i):
     """Agent ``i``'s action: seek its target drifted with the estimated current, apart from
     teammates.

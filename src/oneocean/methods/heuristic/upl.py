@@ -99,14 +99,6 @@ class UPLPolicy(NamedTuple):
 def params(method: str, B) -> UPLPolicy:
     """The policy's params (the same for heuristic and oracle).
 
-    Parameters
-    ----------
-    method : str
-        The fused method, ``"heuristic"`` or ``"oracle"``
-        (:data:`oneocean.methods.heuristic.SENSING`).
-    B : UPLBriefing
-        The briefing (the vehicle's speed limit, the step, the quorum, the sonar's range).
-
     Returns
     -------
     UPLPolicy
@@ -140,13 +132,6 @@ class UPLMemory(NamedTuple):
 def memory(B, M: UPLPolicy) -> UPLMemory:
     """A fresh memory: no slot assigned, no search, no lift.
 
-    Parameters
-    ----------
-    B : UPLBriefing
-        The briefing.
-    M : UPLPolicy
-        The policy's params (unused).
-
     Returns
     -------
     UPLMemory
@@ -156,13 +141,13 @@ def memory(B, M: UPLPolicy) -> UPLMemory:
                      np.zeros((n_ep, 3)), np.zeros((n_ep, 2)))
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _spiral_radius(M, phi):
     """Distance of the search point from the chart after a turn of ``phi`` rad, m."""
     return M.p_range * (1.0 + SEARCH_PITCH * phi * N_SPOKES / (2.0 * math.pi))
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def _n_attached(O):
     """Attached agents of the team (its observation rows ``O`` (N, D): slot >= 0)."""
     n_att = 0
@@ -172,7 +157,7 @@ def _n_attached(O):
     return n_att
 
 
-@hot_kernel(inline="always")
+@hot_kernel
 def plan(C, e, k):
     """The team's step: assign slots, search, hold the lift (module docstring).
 
@@ -181,15 +166,6 @@ def plan(C, e, k):
     ``H.srch[e]``; the site estimate ``H.hsite[e]`` when the quorum first holds; and the
     step's hold velocity ``H.hold[e]`` toward it (gain ``M.kp_hold``, capped at
     ``M.hold_v``). Policy hook (:mod:`oneocean.tasks.loop`).
-
-    Parameters
-    ----------
-    C : Ctx
-        The policy's context (:class:`oneocean.tasks.loop.Ctx`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
     """
     M = C.M
     H = C.H
@@ -265,17 +241,6 @@ def act(C, e, k, i):
     velocity ``H.hold[e]`` and lifts at full speed (the horizontal part has priority);
     otherwise :func:`~oneocean.tasks.common.seek_max` toward the slot with the object's
     estimated velocity fed forward. Policy hook (:mod:`oneocean.tasks.loop`).
-
-    Parameters
-    ----------
-    C : Ctx
-        The policy's context (:class:`oneocean.tasks.loop.Ctx`).
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
 
     Returns
     -------

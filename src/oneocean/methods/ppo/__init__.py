@@ -25,4 +25,4 @@ Needs the ``rl`` extra (``pip install "oneocean[rl]"``: PyTorch, stable-baseline
 SuperSuit); importing this package does not import them.
 """
 
-from .policy import METHOD  # noqa: F401  (registers the method ``ppo``)
+from .policy import METHOD  # noqa: F401  (registers the method ``ppo``

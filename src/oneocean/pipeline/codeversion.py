@@ -15,7 +15,7 @@ import hashlib
 import importlib.util
 from pathlib import Path
 
-_PKG = Path(__file__).resolve().parent
+_PKG = Path(__file__).resolve().parents[1]
 
 #: Files and folders every rollout cell depends on (relative to the package).
 ROLLOUT_SHARED = ("engine", "models", "methods/heuristic/__init__.py", "kernels/__init__.py",
@@ -77,7 +77,7 @@ def task_files(task: str) -> list[Path]:
     list of pathlib.Path
         The resolved files, sorted, without duplicates.
     """
-    from .registry import task_spec
+    from ..registry import task_spec
 
     spec = task_spec(task)
     mod = module_file(spec.module)

@@ -55,6 +55,31 @@ def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
     return (max(0.0, mid - half), min(1.0, mid + half))
 
 
+def mean_ci(x, seed: int = BOOT_SEED) -> tuple[float, float, float]:
+    """Mean and seeded percentile-bootstrap 95 % interval of the finite values of ``x``.
+
+    Parameters
+    ----------
+    x : array_like
+        Values; NaN and infinite ones are dropped.
+    seed : int, default ``BOOT_SEED``
+        Bootstrap seed (:data:`oneocean.reporting.ladder.N_BOOT` replicates).
+
+    Returns
+    -------
+    tuple of float
+        ``(mean, lo, hi)``; NaNs when no finite value is left.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return (math.nan, math.nan, math.nan)
+    rng = np.random.default_rng(seed)
+    boots = x[rng.integers(0, x.size, size=(N_BOOT, x.size))].mean(axis=1)
+    lo, hi = np.quantile(boots, [0.025, 0.975])
+    return (float(x.mean()), float(lo), float(hi))
+
+
 def read_cell(path) -> tuple[pd.DataFrame, dict]:
     """A cell file's per-episode table and its identity.
 
@@ -82,7 +107,7 @@ def read_cell(path) -> tuple[pd.DataFrame, dict]:
         ``ablation`` (either of the two: such a cell is never one of the ladder's normal
         cells); and ``meta``, the file's whole record.
     """
-    from .engine.recording import read_metrics_meta
+    from ..engine.recording import read_metrics_meta
 
     df = pd.read_parquet(path)
     meta = read_metrics_meta(path)
@@ -126,7 +151,7 @@ def own_info(method) -> str:
         One of :data:`oneocean.sensing.INFO_LEVELS`: ``truth`` for the oracle, ``sensors``
         for every other method.
     """
-    from .methods.heuristic import SENSING
+    from ..methods.heuristic import SENSING
 
     return SENSING.get(str(method), "sensors")
 
@@ -422,7 +447,7 @@ def _fmt_cell(r) -> str:
 
 def _ladder_table(cells: pd.DataFrame) -> tuple[list[str], list[str]]:
     """The ladder's Markdown table rows and its n/a notes."""
-    from . import registry
+    from .. import registry
 
     lad = ladder_frame(cells)
     methods = [m for m in registry.method_names() if m in set(lad["method"])]
@@ -476,8 +501,8 @@ def current_markdown(cells: pd.DataFrame, method: str = "heuristic") -> list[str
     list of str
         The table's lines; empty without such cells.
     """
-    from . import registry
-    from .engine.dynamics import load_vehicle
+    from .. import registry
+    from ..engine.dynamics import load_vehicle
 
     sel = _data_and_off(cells)
     sel = sel[(sel["method"] == method) & sel["currents"] & sel["applicable"]]
@@ -594,7 +619,7 @@ def write_ladder(cell_files, out_md, region: str, seed: int | None = None,
     replicate : sequence of path-like, default ()
         The replicate seeds' cell files.
     """
-    from .io import write_text_atomic
+    from ..io import write_text_atomic
 
     rep = load_cells(list(replicate)) if len(replicate) else None
     write_text_atomic(out_md, ladder_markdown(load_cells(list(cell_files)), region, seed,
@@ -641,8 +666,8 @@ def splice_readme(readme, ladder_md, region: str) -> bool:
     ConfigError
         If the README has no block for ``region`` or ``ladder_md`` does not exist.
     """
-    from .errors import ConfigError
-    from .io import write_text_atomic
+    from ..errors import ConfigError
+    from ..io import write_text_atomic
     from pathlib import Path
 
     readme, ladder_md = Path(readme), Path(ladder_md)

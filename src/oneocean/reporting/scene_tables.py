@@ -24,15 +24,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .io import write_text_atomic
-from .tables import _ci, _escape, _latex, _num, rate_ci
+from ..io import write_text_atomic
+from .latex import booktabs
+from .tables import _ci, _escape, _num, rate_ci
 
 #: The scene table's task (the paper's Table VII: route following).
 TABLE7_TASK = "RF"
 
 
 def load_scene_cells(cell_files) -> pd.DataFrame:
-    """Read scene cell files into one row per file (:func:`oneocean.ladder.read_cell`).
+    """Read scene cell files into one row per file (:func:`oneocean.reporting.ladder.read_cell`).
 
     Parameters
     ----------
@@ -175,7 +176,7 @@ def table7_latex(df: pd.DataFrame, region: str, method: str, episodes: str,
     str
         The ``table*`` (label ``tab:scene_backend:<region>``).
     """
-    from .registry import task_spec
+    from ..registry import task_spec
 
     tiers = sorted(df["tier"].unique())
     prim = "CTE (m)" if task == TABLE7_TASK else _escape(str(task_spec(task).metrics[0]))
@@ -209,7 +210,7 @@ def table7_latex(df: pd.DataFrame, region: str, method: str, episodes: str,
                f"allocation), with its Wilson 95\\% interval; WP: waypoints reached (\\% of the "
                f"route); all WP: episodes reaching every waypoint (the paper's scene-table "
                f"rule); CTE: mean cross-track error. The mean weights every scene equally.")
-    return _latex(header, rows, caption, f"tab:scene_backend:{region}", wide=True)
+    return booktabs(header, rows, caption, f"tab:scene_backend:{region}", wide=True)
 
 
 def compare_frame(cells: pd.DataFrame, scene: str) -> pd.DataFrame:
@@ -270,7 +271,7 @@ def compare_latex(df: pd.DataFrame, region: str, scene: str, label: str, episode
     str
         The ``table*`` (label ``tab:scene_vs_core:<region>``).
     """
-    from .registry import task_spec
+    from ..registry import task_spec
 
     header = ["Task (primary metric)", "Tier", "Method", "Core SR (\\%)", "Scene SR (\\%)", "Core primary",
               "Scene primary", "Core contacts / rejections", "Scene contacts"]
@@ -300,7 +301,7 @@ def compare_latex(df: pd.DataFrame, region: str, scene: str, label: str, episode
                f"its feasibility check vs MuJoCo rigid bodies with fluid forces and physical "
                f"contacts). Primary: the task's primary metric, mean over episodes; contacts "
                f"and rejections: mean per episode.")
-    return _latex(header, rows, caption, f"tab:scene_vs_core:{region}", wide=True)
+    return booktabs(header, rows, caption, f"tab:scene_vs_core:{region}", wide=True)
 
 
 def _episodes_text(cells: pd.DataFrame) -> str:

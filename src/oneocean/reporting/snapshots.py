@@ -5,8 +5,8 @@ fractions of its length: the agents (positions, depth, trails so far) and what t
 holds at that step (SPC the oil field, UPL the object and its slots, AS the coverage map, FH the
 school). :func:`plot_snapshots` draws one row per task and one column per snapshot time over
 the bathymetry of the episode's area of interest, in the paper's style
-(:func:`oneocean.figures.paper_style`; PNG + PDF byte-stable through
-:func:`oneocean.figures.save_figure`).
+(:func:`oneocean.reporting.figures.paper_style`; PNG + PDF byte-stable through
+:func:`oneocean.reporting.figures.save_figure`).
 
 Which episode. Row ``episode`` of ``Cell(grid, task, tier).reset(episodes, seed)``: the episode
 the rollout cell of that seed runs as its episode ``episode`` when ``episodes`` is that cell's
@@ -39,7 +39,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from .errors import ConfigError, NotApplicable
+from ..errors import ConfigError, NotApplicable
 from .figures import LAND_RGBA, PAGE_IN, new_figure, palette, paper_style, save_figure
 
 __all__ = ["Frame", "EpisodeFrames", "TaskView", "VIEWS", "FIG5_TASKS", "episode_frames",
@@ -185,7 +185,7 @@ class TaskView(NamedTuple):
 def _cut(init: dict, n_keep: int, n_all: int) -> dict:
     """The first ``n_keep`` episodes of a reset dict (arrays with a leading episode axis are
     cut; everything is copied, so runs never share arrays)."""
-    from .tasks.common import episode_rows
+    from ..tasks.common import episode_rows
 
     return {key: (v.copy() if isinstance(v, np.ndarray) else v)
             for key, v in episode_rows(init, slice(0, n_keep), n_all).items()}
@@ -238,7 +238,7 @@ def episode_frames(grid, task: str, tier: int = 2, method: str = "heuristic",
     ConfigError
         Bad ``times``, ``episode`` or ``trail_every``.
     """
-    from .tasks import Cell
+    from ..tasks import Cell
 
     fr = [float(f) for f in times]
     if not fr or any(not 0.0 <= f <= 1.0 for f in fr):
@@ -611,8 +611,8 @@ def _bilinear_nodes(a: np.ndarray, grid, x: np.ndarray, z: np.ndarray) -> np.nda
 
 def _bathymetry(grid, cx: float, cz: float, half: float, n: int = BATHY_PX):
     """Seafloor depth (n, n) m (NaN on land) and the land mask at the crop's pixel centres."""
-    from .engine.constraints import DEFAULT_LAND_THRESHOLD
-    from .engine.grid import sample_elevation_points
+    from ..engine.constraints import DEFAULT_LAND_THRESHOLD
+    from ..engine.grid import sample_elevation_points
 
     px = (np.arange(n) + 0.5) / n * 2.0 * half - half
     X, Z = np.meshgrid(cx + px, cz + px)
@@ -691,7 +691,7 @@ def _label_corner(pts, c, half: float):
 
 
 def _outcome(ef: EpisodeFrames) -> str:
-    from .registry import task_spec
+    from ..registry import task_spec
 
     prim = task_spec(ef.task).metrics[0]
     T = ef.metrics.get("T_s", math.nan)
@@ -749,7 +749,7 @@ def plot_snapshots(grid_path, out_png, tasks=FIG5_TASKS, tier: int = 2, seed: in
     grid_path : path-like
         The grid export (``.npz``).
     out_png : path-like
-        The PNG (the PDF goes beside it: :func:`oneocean.figures.save_figure`).
+        The PNG (the PDF goes beside it: :func:`oneocean.reporting.figures.save_figure`).
     tasks : sequence of str, default ``FIG5_TASKS``
         The rows, in order.
     tier : int, default 2
@@ -785,7 +785,7 @@ def plot_snapshots(grid_path, out_png, tasks=FIG5_TASKS, tier: int = 2, seed: in
     from matplotlib.colors import Normalize, PowerNorm
     from matplotlib.ticker import MaxNLocator
 
-    from .engine import load_grid
+    from ..engine import load_grid
 
     grid = load_grid(grid_path)
     tasks = [str(t) for t in tasks]

@@ -1,7 +1,7 @@
 """What drives a cell of the task ladder: the information ablation and the stressor table.
 
-Both are pure functions of rollout cell files (:func:`oneocean.tables.load_cell_frames`), like
-every paper table (:mod:`oneocean.tables`): a ``*_frame`` function returns the numbers, a
+Both are pure functions of rollout cell files (:func:`oneocean.reporting.tables.load_cell_frames`), like
+every paper table (:mod:`oneocean.reporting.tables`): a ``*_frame`` function returns the numbers, a
 ``*_table`` function writes the LaTeX and the same numbers as Parquet beside it.
 
 * :func:`information_table`: per task, one method (the heuristic) at one tier with its own
@@ -17,7 +17,7 @@ every paper table (:mod:`oneocean.tables`): a ``*_frame`` function returns the n
 
 The workflow plans its cells from the same functions (:func:`stressor_cells`), so the table
 and the rollouts agree on the keys. Intervals are the project's own (Wilson:
-:func:`oneocean.tables.rate_ci`; means: :func:`oneocean.tables.mean_ci`), so a number here is
+:func:`oneocean.reporting.tables.rate_ci`; means: :func:`oneocean.reporting.ladder.mean_ci`), so a number here is
 the number the other tables give for the same cell. A cell the region cannot host
 (``applicable: false``) is shown as n/a with its reason; a cell that was not run as "--".
 """
@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from . import tables as T
+from .latex import booktabs
 
 #: The stressor table's tiers: the easy tier whose keys are tightened one at a time, and the
 #: hard tier whose keys are relaxed one at a time.
@@ -66,7 +67,7 @@ def stressor_keys(task: str, low: int = LOW_TIER, high: int = HIGH_TIER) -> list
     list of str
         Keys of the table's ``harder`` block, in its order; empty if the task lacks a tier.
     """
-    from .tasks.common import load_task_table
+    from ..tasks.common import load_task_table
 
     tiers = load_task_table(task)["tiers"]
     a, b = tiers.get(int(low)), tiers.get(int(high))
@@ -96,7 +97,7 @@ def stressor_cells(task: str, low: int = LOW_TIER, high: int = HIGH_TIER) -> lis
         ``{tier, key, from_tier, overrides}`` per cell (``overrides`` is the
         ``tier_overrides`` argument of :func:`oneocean.tasks.run_cell`).
     """
-    from .tasks.common import load_task_table
+    from ..tasks.common import load_task_table
 
     tiers = load_task_table(task)["tiers"]
     out = []
@@ -164,7 +165,7 @@ def _info_conditions(cells: pd.DataFrame, method: str, tier: int) -> list[tuple]
     """The information table's columns: ``(id, label, method, condition)``: the method's own
     sensors, every information level with cells (in :data:`oneocean.sensing.INFO_LEVELS`
     order), currents off, the oracle."""
-    from .sensing import INFO_LEVELS
+    from ..sensing import INFO_LEVELS
 
     present = set(cells.loc[(cells["method"] == method) & (cells["tier"] == int(tier)),
                             "info"])
@@ -192,7 +193,7 @@ def information_frame(cell_files, tier: int = HIGH_TIER,
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`oneocean.tables.load_cell_frames`' rows.
+        Rollout cell files, or :func:`oneocean.reporting.tables.load_cell_frames`' rows.
     tier : int, default ``HIGH_TIER``
         The tier.
     method : str, default "heuristic"
@@ -203,7 +204,7 @@ def information_frame(cell_files, tier: int = HIGH_TIER,
     pandas.DataFrame
         The columns above.
     """
-    from . import registry
+    from .. import registry
 
     cells = T.load_cell_frames(cell_files)
     cells = cells[cells["tier"] == int(tier)]
@@ -250,7 +251,7 @@ def information_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: 
     df : pandas.DataFrame
         :func:`information_frame`'s rows.
     cells : pandas.DataFrame
-        :func:`oneocean.tables.load_cell_frames`' rows, for the caption.
+        :func:`oneocean.reporting.tables.load_cell_frames`' rows, for the caption.
     tier : int
         The tier.
     method : str
@@ -263,7 +264,7 @@ def information_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: 
     str
         The ``table*`` (label ``tab:information_<method>_t<tier>[:<region>]``).
     """
-    from . import registry
+    from .. import registry
 
     conds = [c for c in dict.fromkeys(col[:-len("_state")] for col in df.columns
                                       if col.endswith("_state"))]
@@ -321,7 +322,7 @@ def information_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: 
         "episodes where it is defined (SK's station RMS: those that held station). The gap "
         "from Sensors to True current is what the current estimate costs, to True position "
         "what the navigation costs." + replay + " --: not run." + _reasons(sel))
-    return T._latex(header, rows, caption,
+    return booktabs(header, rows, caption,
                     T._label(f"tab:information_{method}_t{int(tier)}", region),
                     align="ll" + "r" * len(conds), wide=True)
 
@@ -333,7 +334,7 @@ def information_table(cell_files, out_tex, tier: int = HIGH_TIER, method: str = 
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`oneocean.tables.load_cell_frames`' rows.
+        Rollout cell files, or :func:`oneocean.reporting.tables.load_cell_frames`' rows.
     out_tex : path-like
         The ``.tex`` file.
     tier : int, default ``HIGH_TIER``
@@ -422,7 +423,7 @@ def stressor_frame(cell_files, method: str = "heuristic", low: int = LOW_TIER,
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`oneocean.tables.load_cell_frames`' rows.
+        Rollout cell files, or :func:`oneocean.reporting.tables.load_cell_frames`' rows.
     method : str, default "heuristic"
         The method.
     low : int, default ``LOW_TIER``
@@ -435,8 +436,8 @@ def stressor_frame(cell_files, method: str = "heuristic", low: int = LOW_TIER,
     pandas.DataFrame
         The columns above; ``attrs`` holds ``low`` and ``high``.
     """
-    from . import registry
-    from .tasks.common import load_task_table
+    from .. import registry
+    from ..tasks.common import load_task_table
 
     cells = T.load_cell_frames(cell_files)
     cells = cells[cells["method"] == method]
@@ -496,7 +497,7 @@ def stressor_frame(cell_files, method: str = "heuristic", low: int = LOW_TIER,
 def _conflict(c) -> bool:
     """Whether a cell records that the task cannot build its tier with its override
     (``tier_conflict`` in its record: :func:`oneocean.tasks.rollout_to_file`)."""
-    from .engine.recording import read_metrics_meta
+    from ..engine.recording import read_metrics_meta
 
     if c is None or c["applicable"] or not c["file"]:
         return False
@@ -579,7 +580,7 @@ def stressor_latex(df: pd.DataFrame, cells: pd.DataFrame, method: str,
     df : pandas.DataFrame
         :func:`stressor_frame`'s rows (its ``attrs`` give the tiers).
     cells : pandas.DataFrame
-        :func:`oneocean.tables.load_cell_frames`' rows, for the caption.
+        :func:`oneocean.reporting.tables.load_cell_frames`' rows, for the caption.
     method : str
         The method (its label is named in the caption).
     region : str, optional
@@ -590,7 +591,7 @@ def stressor_latex(df: pd.DataFrame, cells: pd.DataFrame, method: str,
     str
         The ``table*`` (label ``tab:stressors_<method>[:<region>]``).
     """
-    from . import registry
+    from .. import registry
 
     low, high = df.attrs.get("low", LOW_TIER), df.attrs.get("high", HIGH_TIER)
     lo_p, hi_p, plus, minus = (f"T{low}", f"T{high}", f"T{low}_plus_key",
@@ -648,7 +649,7 @@ def stressor_latex(df: pd.DataFrame, cells: pd.DataFrame, method: str,
            "with it and the tier's other keys; reason below)."
            if (df["share_state"] == "conflict").any() else "")
         + " Check per task: " + "; ".join(verdicts) + "." + " --: not run." + _reasons(sel))
-    return T._latex(header, rows, caption, T._label(f"tab:stressors_{method}", region),
+    return booktabs(header, rows, caption, T._label(f"tab:stressors_{method}", region),
                     align="ll" + "l" + "r" * 5, wide=True)
 
 
@@ -659,7 +660,7 @@ def stressor_table(cell_files, out_tex, method: str = "heuristic", low: int = LO
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`oneocean.tables.load_cell_frames`' rows.
+        Rollout cell files, or :func:`oneocean.reporting.tables.load_cell_frames`' rows.
     out_tex : path-like
         The ``.tex`` file.
     method : str, default "heuristic"

@@ -12,7 +12,7 @@ import dask
 import numpy as np
 import xarray as xr
 
-from .io import atomic_path
+from ..io import atomic_path
 
 _TIME_UNITS = "seconds since 1970-01-01 00:00:00"
 _MAX_CHUNK_ELEMENTS = 4 * 1024 * 1024      # ~16 MB float32 per HDF5 chunk

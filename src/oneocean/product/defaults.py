@@ -4,7 +4,7 @@
 default region, the synthetic coast (``oneocean/data/regions/synthetic_coast.yaml``; offline,
 no credentials). The first call builds it with the workflow's own library functions --
 :func:`oneocean.sources.fetch_currents`, :func:`~oneocean.sources.fetch_bathymetry`,
-:func:`oneocean.product.build_product`, :func:`oneocean.exports.export_grid` -- on the same
+:func:`oneocean.product.build.build_product`, :func:`oneocean.product.exports.export_grid` -- on the same
 configuration sections, so the file is the workflow's
 ``results/exports/synthetic_coast/<variant>/grid.npz`` byte for byte; later calls return the
 cached file.
@@ -43,8 +43,8 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
-from . import __version__
-from .errors import ConfigError, DataError
+from .. import __version__
+from ..errors import ConfigError, DataError
 
 __all__ = ["default_grid_path", "region_grid_path", "resolve_grid", "region_config",
            "cache_dir", "grid_key", "DEFAULT_CONFIG", "DEFAULT_VARIANT", "CACHE_ENV"]
@@ -65,13 +65,12 @@ _SECTIONS = ("region", "sources", "synthetic", "cmems", "gebco", "etopo", "files
 _FETCH_CURRENTS = ("region", "sources", "synthetic", "cmems", "files")
 _FETCH_BATHYMETRY = ("region", "sources", "synthetic", "gebco", "etopo", "files")
 #: The code that builds a grid (package-relative files and folders), hashed into the key.
-_CODE = ("sources", "product.py", "exports.py", "io.py", "ncio.py", "vocab.py",
-         "engine/grid.py", "defaults.py")
+_CODE = ("sources", "product", "io.py", "vocab.py", "engine/grid.py")
 _STEPS = ("oneocean.sources.fetch_currents", "oneocean.sources.fetch_bathymetry",
-          "oneocean.product.build_product", "oneocean.exports.export_grid")
+          "oneocean.product.build.build_product", "oneocean.product.exports.export_grid")
 _FORMAT = "oneocean.grid-cache/1"
 _NAME = re.compile(r"^[A-Za-z0-9_-]+$")
-_PKG = Path(__file__).resolve().parent
+_PKG = Path(__file__).resolve().parents[1]
 
 
 # ------------------------------------------------------------------------------ configuration
@@ -175,7 +174,7 @@ def region_config(path: str | os.PathLike | None = None) -> dict:
 
 
 def _snapshot(cfg: dict, variant: str) -> dict:
-    """What the product of ``variant`` depends on (:func:`oneocean.product.product_config`)."""
+    """What the product of ``variant`` depends on (:func:`oneocean.product.build.product_config`)."""
     snap = {k: cfg[k] for k in _SECTIONS[:-1] if k in cfg}
     snap["variant"] = {"name": variant, **cfg["variants"][variant]}
     return snap
@@ -228,7 +227,7 @@ def _offline(cfg: dict, where: str) -> None:
 
 
 def _code_hash() -> str:
-    from .codeversion import files_hash
+    from ..pipeline.codeversion import files_hash
 
     files = []
     for entry in _CODE:
@@ -329,7 +328,7 @@ def region_grid_path(config: str | os.PathLike | None = None,
     where = "the default region" if config is None else str(config)
     cfg = region_config(config)
     if config is not None:                    # a user's file: checked before anything else
-        from .config import validate_data_config
+        from ..config import validate_data_config
 
         validate_data_config(copy.deepcopy(cfg), where)
     name = str(cfg.get("region", {}).get("name", ""))
@@ -419,11 +418,11 @@ def _build(cfg: dict, variant: str, key: str, inputs: list[dict], entry: Path, l
            source: str, where: str) -> None:
     """Build the grid into a temporary folder beside ``entry`` and rename it into place
     (called under the entry's lock when ``locked``)."""
-    from .config import validate_data_config
+    from ..config import validate_data_config
     from .exports import export_grid
-    from .io import sha256_file, write_json_atomic
-    from .product import build_product
-    from .sources import fetch_bathymetry, fetch_currents
+    from ..io import sha256_file, write_json_atomic
+    from .build import build_product
+    from ..sources import fetch_bathymetry, fetch_currents
 
     checked = validate_data_config(copy.deepcopy(cfg), where)
     if checked != cfg:                        # pragma: no cover - a schema-filling mismatch
@@ -560,7 +559,7 @@ def resolve_grid(grid=None, *, variant: str = DEFAULT_VARIANT):
     """
     from collections.abc import Mapping
 
-    from .engine.grid import Grid, load_grid
+    from ..engine.grid import Grid, load_grid
 
     if grid is None:
         return load_grid(default_grid_path(variant))

@@ -14,14 +14,14 @@ the table's protocol), and returns the frame.
 * :func:`difficulty_table`: one method's SR per tier and the drops between tiers.
 * :func:`ablation_table`: one method's SR under each forcing condition at one tier.
 
-Intervals (95 %): a rate has its Wilson score interval (:func:`oneocean.ladder.wilson`); a
+Intervals (95 %): a rate has its Wilson score interval (:func:`oneocean.reporting.ladder.wilson`); a
 macro (unweighted mean over tasks of their SR) the stratified bootstrap of
-:func:`oneocean.ladder.macro_rate` (episodes resampled within each task, tasks in one
+:func:`oneocean.reporting.ladder.macro_rate` (episodes resampled within each task, tasks in one
 canonical order: the same numbers as the ladder table); a mean its seeded percentile
-bootstrap (:func:`oneocean.planning.mean_ci`); a mean pooled over the episodes of several
+bootstrap (:func:`oneocean.reporting.ladder.mean_ci`); a mean pooled over the episodes of several
 tasks a stratified bootstrap (:func:`pooled_mean_ci`); a difference of two rates the
 bootstrap of the difference, both cells resampled independently (:func:`diff_ci`). Every
-bootstrap is seeded (:data:`oneocean.ladder.BOOT_SEED`), so the table bytes are
+bootstrap is seeded (:data:`oneocean.reporting.ladder.BOOT_SEED`), so the table bytes are
 reproducible. Rows follow :func:`oneocean.registry.task_ids`, methods
 :func:`oneocean.registry.method_names`.
 
@@ -44,7 +44,9 @@ from typing import Literal, Mapping
 import numpy as np
 import pandas as pd
 
-from .io import write_text_atomic
+from ..io import write_text_atomic
+from .ladder import mean_ci
+from .latex import booktabs, fit_width
 
 Best = Literal["max", "min"]
 
@@ -64,31 +66,6 @@ HEADLINE_METRICS = (
     ("PI_score", "PI", "inspection_score", "PI score", "{:.2f}"),
     ("SPC_cleanup", "SPC", "cleanup_rate", "SPC cleanup", "{:.2f}"),
 )
-
-
-#: LaTeX packages every generated table needs (``\\usepackage{...}`` in the document).
-LATEX_PACKAGES = ("booktabs", "graphicx", "amssymb")
-
-
-def fit_width(tex: str) -> str:
-    """Shrink the tabular of a table to the line width when (and only when) it is wider.
-
-    The tabular is set in a box, measured, and scaled with graphicx's ``\\resizebox`` if it
-    does not fit (plain LaTeX, no extra package); a narrow table is left at its size.
-
-    Parameters
-    ----------
-    tex : str
-        LaTeX with one ``tabular`` environment (only the first is wrapped).
-
-    Returns
-    -------
-    str
-        The same LaTeX with the tabular wrapped in the measuring box.
-    """
-    return (tex.replace("\\begin{tabular}", "\\begingroup\\setbox0=\\hbox{\\begin{tabular}", 1)
-            .replace("\\end{tabular}", "\\end{tabular}}%\n\\ifdim\\wd0>\\linewidth"
-                     "\\resizebox{\\linewidth}{!}{\\box0}\\else\\mbox{\\box0}\\fi\\endgroup", 1))
 
 
 def to_booktabs(df: pd.DataFrame, caption: str, label: str,
@@ -249,8 +226,8 @@ def _user_method(method: str, policies: list) -> None:
     written by ``oneocean evaluate`` (its record names the scored ``policy``), is registered
     as a user's method (kind ``callable``, labelled by its name) so the tables take its
     cells; anything else unregistered is the registry's one-line ConfigError."""
-    from . import registry
-    from .errors import ConfigError
+    from .. import registry
+    from ..errors import ConfigError
 
     try:
         registry.method_spec(method)        # built in, packaged or registered
@@ -285,10 +262,10 @@ def load_cell_frames(cell_files) -> pd.DataFrame:
         ``condition, condition_label, condition_key`` (the forcing condition's id, table
         label and sort key: ``data-grounded``, ``currents-off``, ``gain-<g>``,
         ``tide-...``); ``info`` and ``tier_overrides`` (canonical JSON, ``""`` for none) and
-        ``ablation`` of an ablation cell (:func:`oneocean.ladder.read_cell`), whose
+        ``ablation`` of an ablation cell (:func:`oneocean.reporting.ladder.read_cell`), whose
         condition gets ``info-<level>`` / ``set-<key>`` and is never ``data-grounded``;
         ``applicable, reason, vehicle, n_agents, seed``; ``n`` episodes, ``k`` successes,
-        ``success`` (bool array; the columns of :func:`oneocean.ladder.load_cells`, so its
+        ``success`` (bool array; the columns of :func:`oneocean.reporting.ladder.load_cells`, so its
         macros apply), ``episodes`` (the cell's per-episode DataFrame) and ``file``.
 
     Raises
@@ -297,8 +274,8 @@ def load_cell_frames(cell_files) -> pd.DataFrame:
         An unregistered task or method, or two files for the same cell (never silently
         dropped or pooled).
     """
-    from . import registry
-    from .errors import ConfigError
+    from .. import registry
+    from ..errors import ConfigError
     from .ladder import read_cell
 
     if isinstance(cell_files, pd.DataFrame):
@@ -363,7 +340,7 @@ def _tasks(cells: pd.DataFrame) -> list[str]:
 
 
 def _methods(cells: pd.DataFrame) -> list[str]:
-    from . import registry
+    from .. import registry
 
     present = set(cells["method"])
     return [m for m in registry.method_names() if m in present]
@@ -399,27 +376,6 @@ def rate_ci(success) -> tuple[float, float, float]:
     return (100.0 * float(s.mean()), 100.0 * lo, 100.0 * hi)
 
 
-def mean_ci(x, seed: int | None = None) -> tuple[float, float, float]:
-    """Mean and seeded percentile-bootstrap 95 % interval of the finite values of ``x``.
-
-    Parameters
-    ----------
-    x : array_like
-        Values; non-finite ones are dropped.
-    seed : int, optional
-        Bootstrap seed (default :data:`oneocean.ladder.BOOT_SEED`).
-
-    Returns
-    -------
-    tuple of float
-        ``(mean, lo, hi)`` (:func:`oneocean.planning.mean_ci`); NaNs when no finite value.
-    """
-    from .ladder import BOOT_SEED
-    from .planning import mean_ci as _mean_ci
-
-    return _mean_ci(x, BOOT_SEED if seed is None else seed)
-
-
 def pooled_mean_ci(groups, seed: int | None = None) -> tuple[float, float, float]:
     """Mean of the finite values of several groups (tasks) pooled, with a bootstrap interval.
 
@@ -431,7 +387,7 @@ def pooled_mean_ci(groups, seed: int | None = None) -> tuple[float, float, float
     groups : iterable of array_like
         Each group's values; non-finite ones are dropped.
     seed : int, optional
-        Bootstrap seed (default :data:`oneocean.ladder.BOOT_SEED`).
+        Bootstrap seed (default :data:`oneocean.reporting.ladder.BOOT_SEED`).
 
     Returns
     -------
@@ -466,7 +422,7 @@ def diff_ci(pairs, seed: int | None = None) -> tuple[float, float, float]:
     pairs : iterable of (array_like, array_like)
         ``(success_a, success_b)`` per task; pairs with an empty side are skipped.
     seed : int, optional
-        Bootstrap seed (default :data:`oneocean.ladder.BOOT_SEED`).
+        Bootstrap seed (default :data:`oneocean.reporting.ladder.BOOT_SEED`).
 
     Returns
     -------
@@ -492,7 +448,7 @@ def diff_ci(pairs, seed: int | None = None) -> tuple[float, float, float]:
 
 
 def _macro(cells: pd.DataFrame, method: str, tier: int, currents: bool = True) -> dict:
-    """:func:`oneocean.ladder.macro_rate` of ``cells`` (already one condition)."""
+    """:func:`oneocean.reporting.ladder.macro_rate` of ``cells`` (already one condition)."""
     from .ladder import macro_rate
 
     return macro_rate(cells, method, tier, currents)
@@ -540,28 +496,6 @@ def _bold_best(values, texts, higher: bool, fmt: str, eligible=None) -> list[str
     best = max(finite) if higher else min(finite)
     return [f"\\textbf{{{t}}}" if s is not None and s == best else t
             for s, t in zip(shown, texts)]
-
-
-def _latex(header: list[str], rows: list, caption: str, label: str, *, align: str = "",
-           wide: bool = False) -> str:
-    """A booktabs table; ``rows`` are lists of cell texts, ``("group", text)`` a family
-    heading spanning the table, ``("rule",)`` a midrule."""
-    env = "table*" if wide else "table"
-    lines = [f"\\begin{{{env}}}[t]", "\\centering", "\\scriptsize" if wide else "\\small"]
-    if wide:
-        lines.append("\\setlength{\\tabcolsep}{3pt}")
-    lines += [f"\\caption{{{caption}}}", f"\\label{{{label}}}",
-              "\\begin{tabular}{" + (align or "l" + "r" * (len(header) - 1)) + "}",
-              "\\toprule", " & ".join(header) + " \\\\", "\\midrule"]
-    for r in rows:
-        if isinstance(r, tuple) and r[0] == "group":
-            lines.append(f"\\multicolumn{{{len(header)}}}{{l}}{{\\emph{{{r[1]}}}}} \\\\")
-        elif isinstance(r, tuple) and r[0] == "rule":
-            lines.append("\\midrule")
-        else:
-            lines.append(" & ".join(r) + " \\\\")
-    lines += ["\\bottomrule", "\\end{tabular}", f"\\end{{{env}}}", ""]
-    return fit_width("\n".join(lines))
 
 
 def _seeds_episodes(cells: pd.DataFrame) -> str:
@@ -614,7 +548,7 @@ def _hosted(macro: pd.DataFrame, total: int) -> str:
 
 
 def _write(frame: pd.DataFrame, tex: str, out_tex, meta: dict) -> None:
-    from .engine.recording import write_metrics
+    from ..engine.recording import write_metrics
 
     write_text_atomic(out_tex, tex)
     write_metrics(frame, Path(out_tex).with_suffix(".parquet"), meta={"stage": "paper_table",
@@ -627,7 +561,7 @@ def _label(base: str, region: str | None) -> str:
 
 def _family_rows(tasks: list[str], body: dict[str, list[str]]) -> list:
     """Rows grouped under family headings (tasks in the given order)."""
-    from . import registry
+    from .. import registry
 
     rows, last = [], None
     for t in tasks:
@@ -660,8 +594,8 @@ def ladder_spec_frame(tasks=None) -> pd.DataFrame:
         ``current_ms``, where a task's table has one instead) and ``T<k>_params`` (every
         tier parameter, canonical JSON; ``""`` for a tier the task lacks).
     """
-    from . import registry
-    from .tasks.common import load_task_table
+    from .. import registry
+    from ..tasks.common import load_task_table
 
     tasks = list(registry.task_ids() if tasks is None else tasks)
     tables = {t: load_task_table(t) for t in tasks}
@@ -737,7 +671,7 @@ def ladder_spec_latex(df: pd.DataFrame) -> str:
                + (f" Calibrated on seeds {', '.join(map(str, seeds))} only; the evaluation seed "
                   "is held out." if seeds else ""))
     align = "lllll" + "l" * len(tiers)
-    return _latex(header, _family_rows(list(df["task"]), body), caption, "tab:task_ladder",
+    return booktabs(header, _family_rows(list(df["task"]), body), caption, "tab:task_ladder",
                   align=align, wide=True)
 
 
@@ -785,7 +719,7 @@ def task_success_ci_frame(cell_files) -> pd.DataFrame:
         over the tasks the region hosts with its stratified-bootstrap interval, ``tasks`` =
         how many it averages.
     """
-    from . import registry
+    from .. import registry
 
     cells = _data_grounded(load_cell_frames(cell_files))
     rows = []
@@ -840,7 +774,7 @@ def task_success_frame(cell_files) -> pd.DataFrame:
     ConfigError
         A task or method that is not registered.
     """
-    from . import registry
+    from .. import registry
 
     long = task_success_ci_frame(cell_files)
     per = long[long["task"] != "Macro"]
@@ -882,7 +816,7 @@ def task_success_latex(long: pd.DataFrame, cells: pd.DataFrame, region: str | No
     str
         The ``table*`` (label ``tab:task_success[:<region>]``).
     """
-    from . import registry
+    from .. import registry
 
     per = long[long["task"] != "Macro"]
     tasks = list(dict.fromkeys(per["task"]))
@@ -932,7 +866,7 @@ def task_success_latex(long: pd.DataFrame, cells: pd.DataFrame, region: str | No
                "stratified-bootstrap 95\\% interval (episodes resampled within each task, "
                "seeded). Best non-oracle method per task and tier in bold (the oracle is a "
                "privileged solvability check, not a baseline)." + no_macro + _na_note(cells))
-    return _latex(header, rows, caption, _label("tab:task_success", region),
+    return booktabs(header, rows, caption, _label("tab:task_success", region),
                   align="lr" + "r" * len(cols), wide=True)
 
 
@@ -1009,7 +943,7 @@ def headline_frame(cell_files, tiers=(2, 3), metric_tier: int = 3,
         One row per method: ``method, label`` and the columns above. E is the team energy
         proxy, m2 s-1; Coll is in %.
     """
-    from . import registry
+    from .. import registry
 
     cells = _data_grounded(load_cell_frames(cell_files))
     rows = []
@@ -1077,7 +1011,7 @@ def headline_latex(df: pd.DataFrame, cells: pd.DataFrame, tiers=(2, 3), metric_t
     str
         The ``table*`` (label ``tab:headline[:<region>]``).
     """
-    from . import registry
+    from .. import registry
 
     header = ["Method"]
     cols = [[_escape(v) for v in df["label"]]]
@@ -1121,7 +1055,7 @@ def headline_latex(df: pd.DataFrame, cells: pd.DataFrame, tiers=(2, 3), metric_t
         "scan coverage, PI inspection score and SPC cleanup rate: means with seeded-bootstrap "
         "95\\% intervals. Best non-oracle value per column in bold (oracle: privileged, not a "
         "baseline); currents-off and other forcing ablations excluded." + _na_note(cells))
-    return _latex(header, rows, caption, _label("tab:headline", region), wide=True)
+    return booktabs(header, rows, caption, _label("tab:headline", region), wide=True)
 
 
 def headline_table(cell_files, out_tex, tiers=(2, 3), metric_tier: int = 3,
@@ -1180,7 +1114,7 @@ def difficulty_frame(cell_files, method: str = "heuristic") -> pd.DataFrame:
     pandas.DataFrame
         ``family, task`` and the columns above (rates and drops in %, points).
     """
-    from . import registry
+    from .. import registry
 
     cells = _data_grounded(load_cell_frames(cell_files))
     cells = cells[cells["method"] == method]
@@ -1250,7 +1184,7 @@ def difficulty_latex(df: pd.DataFrame, cells: pd.DataFrame, method: str,
     str
         The ``table*`` (label ``tab:difficulty_<method>[:<region>]``).
     """
-    from . import registry
+    from .. import registry
 
     tiers = sorted(int(c[1:].split("_")[0]) for c in df.columns
                    if c.startswith("T") and c.endswith("_state"))
@@ -1281,7 +1215,7 @@ def difficulty_latex(df: pd.DataFrame, cells: pd.DataFrame, method: str,
         "resampled independently). Macro: unweighted means over the tasks the region hosts "
         "(a macro drop over the tasks hosted at both tiers), stratified-bootstrap 95\\% "
         "intervals." + _na_note(cells[cells["method"] == method]))
-    return _latex(header, rows, caption, _label(f"tab:difficulty_{method}", region),
+    return booktabs(header, rows, caption, _label(f"tab:difficulty_{method}", region),
                   wide=True)
 
 
@@ -1356,7 +1290,7 @@ def ablation_frame(cell_files, tier: int = 3, method: str = "heuristic") -> pd.D
     pandas.DataFrame
         The columns above; ``sr, lo, hi`` in %.
     """
-    from . import registry
+    from .. import registry
 
     cells = _forcing_only(load_cell_frames(cell_files))
     cells = cells[(cells["method"] == method) & (cells["tier"] == tier)]
@@ -1420,7 +1354,7 @@ def ablation_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: str
     str
         The ``table`` (label ``tab:ablation_<method>_t<tier>[:<region>]``).
     """
-    from . import registry
+    from .. import registry
 
     conds = list(dict.fromkeys(df.loc[df["task"] == "Macro", "condition"]))
     labels = dict(zip(df["condition"], df["condition_label"]))
@@ -1467,7 +1401,7 @@ def ablation_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: str
         "interval; Macro: the unweighted mean over the tasks the region hosts, "
         "stratified-bootstrap 95\\% interval." + replay
         + _na_note(cells[(cells["method"] == method) & (cells["tier"] == tier)]))
-    return _latex(header, rows, caption, _label(f"tab:ablation_{method}_t{tier}", region))
+    return booktabs(header, rows, caption, _label(f"tab:ablation_{method}_t{tier}", region))
 
 
 def ablation_table(cell_files, out_tex, tier: int = 3, method: str = "heuristic",

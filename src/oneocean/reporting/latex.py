@@ -19,8 +19,8 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from .errors import ConfigError
-from .io import write_bytes_atomic
+from ..errors import ConfigError
+from ..io import write_bytes_atomic
 
 #: Debian packages that provide what the generated LaTeX needs.
 DEBIAN_TEX = ("latexmk", "texlive-latex-base", "texlive-latex-recommended",
@@ -109,9 +109,8 @@ def standalone_table(table_tex) -> str:
     -------
     str
         LaTeX source of an ``article`` loading the packages the tables need
-        (:data:`oneocean.tables.LATEX_PACKAGES`).
+        (:data:`LATEX_PACKAGES`).
     """
-    from .tables import LATEX_PACKAGES
 
     path = Path(table_tex).resolve()
     return ("\\documentclass{article}\n\\usepackage[margin=2cm]{geometry}\n"
@@ -148,3 +147,69 @@ def build_paper(tex_path, out_pdf, region: str, results_dir, log_path=None) -> P
     results = Path(results_dir).resolve().as_posix()
     return compile_pdf(tex_path, out_pdf, log_path=log_path,
                        pretex=f"\\def\\region{{{region}}}\\def\\resultsdir{{{results}}}")
+
+
+#: LaTeX packages every generated table needs (``\\usepackage{...}`` in the document).
+LATEX_PACKAGES = ("booktabs", "graphicx", "amssymb")
+
+
+def fit_width(tex: str) -> str:
+    """Shrink the tabular of a table to the line width when (and only when) it is wider.
+
+    The tabular is set in a box, measured, and scaled with graphicx's ``\\resizebox`` if it
+    does not fit (plain LaTeX, no extra package); a narrow table is left at its size.
+
+    Parameters
+    ----------
+    tex : str
+        LaTeX with one ``tabular`` environment (only the first is wrapped).
+
+    Returns
+    -------
+    str
+        The same LaTeX with the tabular wrapped in the measuring box.
+    """
+    return (tex.replace("\\begin{tabular}", "\\begingroup\\setbox0=\\hbox{\\begin{tabular}", 1)
+            .replace("\\end{tabular}", "\\end{tabular}}%\n\\ifdim\\wd0>\\linewidth"
+                     "\\resizebox{\\linewidth}{!}{\\box0}\\else\\mbox{\\box0}\\fi\\endgroup", 1))
+
+
+def booktabs(header: list[str], rows: list, caption: str, label: str, *, align: str = "",
+           wide: bool = False) -> str:
+    """A booktabs table, shrunk to the line width when wider (:func:`fit_width`).
+
+    Parameters
+    ----------
+    header : list of str
+        Column headings (LaTeX).
+    rows : list
+        Rows: a list of cell texts, ``("group", text)`` a family heading spanning the table,
+        ``("rule",)`` a midrule.
+    caption, label : str
+        The table's caption and ``\\label``.
+    align : str, optional
+        The tabular's column spec (default ``l`` then ``r`` per further column).
+    wide : bool, default False
+        A ``table*`` in ``\\scriptsize`` with narrow column gaps (spans both columns).
+
+    Returns
+    -------
+    str
+        The table's LaTeX.
+    """
+    env = "table*" if wide else "table"
+    lines = [f"\\begin{{{env}}}[t]", "\\centering", "\\scriptsize" if wide else "\\small"]
+    if wide:
+        lines.append("\\setlength{\\tabcolsep}{3pt}")
+    lines += [f"\\caption{{{caption}}}", f"\\label{{{label}}}",
+              "\\begin{tabular}{" + (align or "l" + "r" * (len(header) - 1)) + "}",
+              "\\toprule", " & ".join(header) + " \\\\", "\\midrule"]
+    for r in rows:
+        if isinstance(r, tuple) and r[0] == "group":
+            lines.append(f"\\multicolumn{{{len(header)}}}{{l}}{{\\emph{{{r[1]}}}}} \\\\")
+        elif isinstance(r, tuple) and r[0] == "rule":
+            lines.append("\\midrule")
+        else:
+            lines.append(" & ".join(r) + " \\\\")
+    lines += ["\\bottomrule", "\\end{tabular}", f"\\end{{{env}}}", ""]
+    return fit_width("\n".join(lines))

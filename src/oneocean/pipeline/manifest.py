@@ -15,8 +15,8 @@ import subprocess
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
-from .io import canonical_json, config_hash, write_json_atomic
-from .zarrio import is_zarr, path_bytes, sha256_path
+from ..io import canonical_json, config_hash, write_json_atomic
+from ..product.zarrio import is_zarr, path_bytes, sha256_path
 
 
 def _is_store(path) -> bool:
@@ -29,7 +29,7 @@ TRACKED_PACKAGES = ("oneocean", "numpy", "xarray", "netCDF4", "dask", "numba", "
 
 #: File suffixes whose container format may embed write-time metadata: for these the manifest
 #: also stores a hash of the decoded content, which ``verify`` accepts when bytes differ.
-#: A zarr store (a ``.zarr`` directory) is hashed over its files (:func:`oneocean.zarrio.
+#: A zarr store (a ``.zarr`` directory) is hashed over its files (:func:`oneocean.product.zarrio.
 #: store_sha256`) and gets a content hash too.
 CONTENT_HASHED = (".nc", ".nc4", ".zarr")
 
@@ -92,8 +92,8 @@ def content_hash(path: str | os.PathLike) -> str | None:
     """
     if not str(path).rstrip("/").endswith(CONTENT_HASHED):
         return None
-    from .io import dataset_content_hash
-    from .zarrio import arrays_content_hash, is_arrays_store, open_product
+    from ..io import dataset_content_hash
+    from ..product.zarrio import arrays_content_hash, is_arrays_store, open_product
 
     if is_arrays_store(path):                 # a zarr export: named arrays, no dimensions
         return arrays_content_hash(path)
@@ -270,7 +270,7 @@ def verify(manifest_path: str | os.PathLike,
     DataError
         The manifest itself cannot be read or is not a manifest (one line naming it).
     """
-    from .errors import DataError
+    from ..errors import DataError
 
     root = Path(root)
     try:

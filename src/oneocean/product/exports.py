@@ -2,8 +2,8 @@
 
 Both are ``.npz`` files written with :func:`oneocean.io.write_npz_atomic` (byte-deterministic),
 or, when the output path ends in ``.zarr`` (config ``exports.format: zarr``), zarr stores of the
-same arrays (:func:`oneocean.zarrio.write_arrays_zarr`: consolidated, atomic, deterministic);
-:func:`oneocean.io.read_npz`, hence the engine's ``load_grid`` and the scene backend, read
+same arrays (:func:`oneocean.product.zarrio.write_arrays_zarr`: consolidated, atomic, deterministic);
+:func:`oneocean.product.zarrio.read_npz`, hence the engine's ``load_grid`` and the scene backend, read
 either. They record the product's path, sha256 and the indices used for the extraction.
 
 Metres mapping: an equirectangular local tangent plane at the centre of the product grid,
@@ -29,10 +29,10 @@ import json
 import numpy as np
 import xarray as xr
 
-from .errors import DataError
-from .io import write_npz_atomic
+from ..errors import DataError
+from ..io import write_npz_atomic
 from .zarrio import is_zarr, open_product, sha256_path, write_arrays_zarr
-from .engine import libm
+from ..engine import libm
 
 __all__ = ["export_grid", "export_temporal", "metres_per_degree", "default_point",
            "point_weights", "EARTH_RADIUS_M"]
@@ -88,7 +88,7 @@ def _write_export(out_path, arrays: dict) -> None:
 def _open(product_path) -> xr.Dataset:
     """Open a product (NetCDF file or zarr store, by suffix) lazily, with a small HDF5 chunk
     cache for NetCDF (it is read once, step by step)."""
-    from .product import netcdf_chunk_cache
+    from .build import netcdf_chunk_cache
 
     try:
         with netcdf_chunk_cache():
@@ -124,7 +124,7 @@ def export_grid(product_path, out_path, meta: dict | None = None) -> None:
     DataError
         The product cannot be opened.
     """
-    from .engine.grid import fill_columns
+    from ..engine.grid import fill_columns
 
     with _open(product_path) as ds:
         lat = ds["latitude"].values.astype(np.float64)
@@ -329,7 +329,7 @@ def hold_column(valid_column: np.ndarray) -> np.ndarray:
     (nz,) int64
         The level each level reads (a column without a valid level reads level 0).
     """
-    from .engine.grid import hold_levels
+    from ..engine.grid import hold_levels
 
     return hold_levels(np.asarray(valid_column).reshape(-1, 1, 1))[:, 0, 0]
 

@@ -16,12 +16,15 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Iterator
+from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
-import xarray as xr
 
-from .io import _free_bytes, _UMASK, disk_full_reason, sha256_file
+from ..errors import DataError
+from ..io import _free_bytes, _UMASK, disk_full_reason, sha256_file
+
+if TYPE_CHECKING:  # xarray is imported where a product is opened, not by the engine
+    import xarray as xr
 
 __all__ = ["ZARR_SUFFIX", "PRODUCT_FORMATS", "EXPORT_FORMATS", "is_zarr", "product_filename",
            "export_filename", "zarr_encoding", "write_zarr", "write_zarr_atomic", "atomic_dir",
@@ -75,7 +78,7 @@ def product_filename(fmt: str = "netcdf") -> str:
     ConfigError
         ``fmt`` is not a product format.
     """
-    from .errors import ConfigError
+    from ..errors import ConfigError
 
     if fmt not in PRODUCT_FORMATS:
         raise ConfigError(f"product.format: Invalid value {fmt!r}. Valid options are "
@@ -103,7 +106,7 @@ def export_filename(kind: str, fmt: str = "npz") -> str:
     ConfigError
         ``fmt`` is not an export format.
     """
-    from .errors import ConfigError
+    from ..errors import ConfigError
 
     if fmt not in EXPORT_FORMATS:
         raise ConfigError(f"exports.format: Invalid value {fmt!r}. Valid options are "
@@ -119,7 +122,7 @@ def zarr_encoding(ds: xr.Dataset, netcdf_enc: dict) -> dict:
     ds : xr.Dataset
         The product to write.
     netcdf_enc : dict
-        :func:`oneocean.ncio.netcdf_encoding` of ``ds`` (its ``chunksizes`` and ``dtype``).
+        :func:`oneocean.product.ncio.netcdf_encoding` of ``ds`` (its ``chunksizes`` and ``dtype``).
 
     Returns
     -------
@@ -176,7 +179,7 @@ def atomic_dir(path, suffix: str = ".tmp") -> Iterator[Path]:
     DiskFullError
         The disk (or quota) is full (see :func:`~oneocean.io.disk_full_reason`); names ``path``.
     """
-    from .errors import DiskFullError
+    from ..errors import DiskFullError
 
     path = Path(os.fspath(path).rstrip("/\\"))
     try:
@@ -336,7 +339,7 @@ def arrays_content_hash(path) -> str:
     DataError
         The store is missing or unreadable.
     """
-    from .io import array_digest
+    from ..io import array_digest
 
     h = hashlib.sha256()
     for name, arr in read_arrays_zarr(path).items():
@@ -366,7 +369,6 @@ def read_arrays_zarr(path, what: str = "export") -> dict:
     """
     import zarr
 
-    from .errors import DataError
 
     root = Path(os.fspath(path).rstrip("/\\"))
     if not root.is_dir():
@@ -396,6 +398,8 @@ def open_product(path, **kwargs) -> xr.Dataset:
     xr.Dataset
         The lazily opened product.
     """
+    import xarray as xr
+
     if is_zarr(path):
         kwargs.pop("cache", None)
         return xr.open_dataset(path, engine="zarr", consolidated=True, **kwargs)
@@ -477,3 +481,36 @@ def path_bytes(path) -> int:
     if p.is_dir():
         return int(sum(full.stat().st_size for _, full in _store_files(p)))
     return int(p.stat().st_size)
+
+
+def read_npz(path: str | os.PathLike, what: str) -> dict:
+    """Every array of an ``.npz`` file (no pickles) or an arrays zarr store, read into memory.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An ``.npz`` file, or a store written by :func:`write_arrays_zarr` (a
+        path ending in ``.zarr``).
+    what : str
+        What the file is, for the error message.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        The arrays by name.
+
+    Raises
+    ------
+    DataError
+        The file is missing or unreadable (one line, naming it as ``what``).
+    """
+    if is_zarr(path):
+        return read_arrays_zarr(path, what)
+    path = Path(os.fspath(path))
+    if not path.is_file():
+        raise DataError(f"{path}: {what} not found")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except (OSError, ValueError) as exc:  # zip errors are ValueError subclasses / OSError
+        raise DataError(f"{path}: not a readable .npz {what} ({exc})") from exc

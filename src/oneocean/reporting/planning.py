@@ -22,8 +22,9 @@ import math
 import numpy as np
 import pandas as pd
 
-from .io import write_text_atomic
-from .ladder import BOOT_SEED, N_BOOT, stratified_macro, wilson
+from ..io import write_text_atomic
+from .ladder import mean_ci, stratified_macro, wilson
+from .latex import booktabs
 
 #: Each suite task's key metric (column, table label) and short label.
 SUITE_TASKS = {"SPC": ("cleanup_rate", "Cleanup"), "AS": ("coverage_fraction", "Scan"),
@@ -52,8 +53,8 @@ def load_suite(files) -> pd.DataFrame:
         method has none); an empty frame with columns ``task, method, label, episode,
         success`` when no cell has episodes.
     """
-    from . import registry
-    from .engine.recording import read_metrics_meta
+    from .. import registry
+    from ..engine.recording import read_metrics_meta
 
     parts = []
     for f in files:
@@ -89,7 +90,7 @@ def not_applicable(files) -> list[str]:
     list of str
         ``"<task> (<method>)"`` of every cell file recorded as not applicable.
     """
-    from .engine.recording import read_metrics_meta
+    from ..engine.recording import read_metrics_meta
 
     out = []
     for f in files:
@@ -99,33 +100,8 @@ def not_applicable(files) -> list[str]:
     return out
 
 
-def mean_ci(x, seed: int = BOOT_SEED) -> tuple[float, float, float]:
-    """Mean and seeded percentile-bootstrap 95 % interval of the finite values of ``x``.
-
-    Parameters
-    ----------
-    x : array_like
-        Values; NaN and infinite ones are dropped.
-    seed : int, default ``BOOT_SEED``
-        Bootstrap seed (:data:`oneocean.ladder.N_BOOT` replicates).
-
-    Returns
-    -------
-    tuple of float
-        ``(mean, lo, hi)``; NaNs when no finite value is left.
-    """
-    x = np.asarray(x, dtype=np.float64)
-    x = x[np.isfinite(x)]
-    if x.size == 0:
-        return (math.nan, math.nan, math.nan)
-    rng = np.random.default_rng(seed)
-    boots = x[rng.integers(0, x.size, size=(N_BOOT, x.size))].mean(axis=1)
-    lo, hi = np.quantile(boots, [0.025, 0.975])
-    return (float(x.mean()), float(lo), float(hi))
-
-
 def _methods(df: pd.DataFrame) -> list[str]:
-    from . import registry
+    from .. import registry
 
     order = {m: i for i, m in enumerate(registry.method_names())}
     return sorted(df["method"].unique(), key=lambda m: (order.get(m, len(order)), m))
@@ -235,7 +211,6 @@ def _bold_best(values: list[float], texts: list[str], higher: bool) -> list[str]
 
 def _latex(header: list[str], cols: list[list[str]], caption: str, label: str) -> str:
     """The planning tables, column by column, through the tables' one booktabs writer."""
-    from .tables import _latex as booktabs
 
     return booktabs(header, [list(row) for row in zip(*cols)], caption, label)
 
@@ -380,7 +355,7 @@ def planning_tables(cell_files, perf_tex, cost_tex, *, tier: int, gain: float, e
     cost : pandas.DataFrame
         :func:`cost_frame`'s rows.
     """
-    from .engine.recording import write_metrics
+    from ..engine.recording import write_metrics
     from pathlib import Path
 
     df = load_suite(cell_files)

@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .errors import DataError
-from .io import atomic_path
-from .engine import libm
+from ..errors import DataError
+from ..io import atomic_path
+from ..engine import libm
 
 __all__ = ["paper_style", "style_rc", "new_figure", "save_figure", "palette",
            "plot_current_field", "plot_pollution_species", "plot_ladder", "ladder_numbers",
@@ -608,7 +608,7 @@ def plot_pollution_species(out_png, seed: int = 0, *, times_s=(300.0, 1200.0, 27
     """
     from matplotlib.colors import ListedColormap, PowerNorm
 
-    from .models import pollution as pol
+    from ..models import pollution as pol
 
     times = np.asarray(sorted(float(t) for t in times_s), dtype=float)
     if times.size == 0 or times[0] < 0 or not dt_s > 0:
@@ -713,14 +713,14 @@ def plot_pollution_species(out_png, seed: int = 0, *, times_s=(300.0, 1200.0, 27
 def _task_order(present, tasks=None) -> list[str]:
     if tasks is not None:
         return [str(t) for t in tasks]
-    from . import registry
+    from .. import registry
 
     known = [t for t in registry.task_ids() if t in present]
     return known + sorted(set(present) - set(known))
 
 
 def ladder_numbers(cell_files, tasks=None, method: str = "heuristic"):
-    """The numbers Fig. 6 plots, from cell files (:func:`oneocean.ladder.load_cells`).
+    """The numbers Fig. 6 plots, from cell files (:func:`oneocean.reporting.ladder.load_cells`).
 
     Only ``method``'s cells with currents on; not-applicable cells are left out.
 
@@ -788,7 +788,7 @@ def plot_ladder(cell_files, out_png, tasks=None, method: str = "heuristic") -> d
     Left, the success rate (%) per task at every tier (grouped bars) with Wilson 95 % error
     bars; right, the drops between consecutive tiers (T1->T2, T2->T3; percentage points, a
     positive drop = harder tier, lower SR). From the cell files
-    (:func:`oneocean.ladder.load_cells`), only ``method``'s cells with currents on;
+    (:func:`oneocean.reporting.ladder.load_cells`), only ``method``'s cells with currents on;
     not-applicable (or missing) cells are marked n/a. ``tasks`` selects and orders the tasks
     (default: every task present, in registry order).
 

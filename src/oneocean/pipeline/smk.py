@@ -59,11 +59,11 @@ def _logger(snakemake) -> logging.Logger:
 
 
 def _guarded(snakemake, log, func) -> None:
-    from .errors import OneOceanError
+    from ..errors import OneOceanError
 
     try:
-        from .config import register_llm_methods
-        from .registry import load_plugins
+        from ..config import register_llm_methods
+        from ..registry import load_plugins
 
         # the workflow's plugins (tasks/methods they register) and its LLM planners exist in
         # every job's process too

@@ -1,7 +1,7 @@
 """Merge canonical currents, tides and bathymetry onto one regular grid per dataset variant.
 
 The product (contracts §2) is a CF-1.11 NetCDF file (or, with ``product.format: zarr``, a zarr
-store with the same variables and attributes; :mod:`oneocean.zarrio`) with ``u, v`` (time,
+store with the same variables and attributes; :mod:`oneocean.product.zarrio`) with ``u, v`` (time,
 depth, latitude, longitude), optional ``u_tide, v_tide`` (time, latitude, longitude),
 ``elevation``, ``land_mask``, ``current_mask`` and ``valid_mask``, written atomically, chunk by
 chunk (one time step at a time), with no write-time attributes so two runs give byte-identical
@@ -41,16 +41,16 @@ import dask.array as da
 import numpy as np
 import xarray as xr
 
-from . import __version__
-from .errors import ConfigError, DataError
-from .io import atomic_path, canonical_json, config_hash, dataset_content_hash
-from .io import write_json_atomic
+from .. import __version__
+from ..errors import ConfigError, DataError
+from ..io import atomic_path, canonical_json, config_hash, dataset_content_hash
+from ..io import write_json_atomic
 from .ncio import netcdf_chunk_cache, netcdf_encoding, write_netcdf_atomic
 from .zarrio import ZARR_SUFFIX, atomic_dir, is_zarr, open_product, sha256_path, write_zarr
 from .zarrio import zarr_encoding
-from .sources import open_bathymetry, open_currents
-from .sources.base import validate
-from .vocab import CF
+from ..sources import open_bathymetry, open_currents
+from ..sources.base import validate
+from ..vocab import CF
 
 __all__ = ["build_product", "summarise_product", "variant_grid", "bilinear_plan",
            "regrid_bilinear", "bilinear_weight", "netcdf_encoding", "write_netcdf_atomic",
@@ -249,7 +249,7 @@ def product_config(cfg: dict, variant: str) -> dict:
     Parameters
     ----------
     cfg : dict
-        The config (or a region's configuration, :func:`oneocean.defaults.region_config`).
+        The config (or a region's configuration, :func:`oneocean.product.defaults.region_config`).
     variant : str
         A key of ``cfg["variants"]``.
 
@@ -302,7 +302,7 @@ def compute_scheduler(address: str | None = None):
     The client is closed on exit; the cluster is left running. Its workers must see the
     product's input and output paths (a zarr product's chunks are written by the workers).
     While the client is connected, the workers open NetCDF files with the small HDF5 chunk
-    cache of :func:`~oneocean.ncio.netcdf_chunk_cache` (a worker plugin, removed on exit), so a
+    cache of :func:`~oneocean.product.ncio.netcdf_chunk_cache` (a worker plugin, removed on exit), so a
     worker's memory does not grow with the time steps it reads.
 
     Parameters

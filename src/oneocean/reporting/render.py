@@ -39,7 +39,7 @@ def topdown_rgb(grid, positions, goal_offsets, t: float, size: int = 256) -> np.
     numpy.ndarray
         (H, W, 3) uint8 image, north up.
     """
-    from .engine.grid import sample_currents
+    from ..engine.grid import sample_currents
 
     nx, ny = int(grid.nx), int(grid.ny)
     xs = grid.x0 + grid.dx * np.arange(nx)
