@@ -1,10 +1,50 @@
-"""Shared pytest fixtures."""
+"""Shared pytest fixtures, and the session's one compile of every task's loop."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
+
+_WARM = """
+import sys, tempfile
+from oneocean.product.defaults import default_grid_path
+from oneocean.tasks import compile_kernel
+with tempfile.TemporaryDirectory() as d:
+    compile_kernel(default_grid_path(), d + "/k.json", sys.argv[1], [1, 2, 3], "6dof")
+"""
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_sessionstart(session):
+    """Compile every registered task's episode loop into numba's on-disk cache once, two
+    tasks at a time, before the tests start (and before pytest-xdist starts its workers),
+    so that no two test processes compile the same kernel: each test process loads it.
+
+    Only for a run of the whole suite (no file or test named on the command line), not in an
+    xdist worker (its controller did it) and not with ``ONEOCEAN_TEST_WARM=0``. A task whose
+    compile fails is left to its tests, which then fail with the error.
+    """
+    cfg = session.config
+    if hasattr(cfg, "workerinput") or os.environ.get("ONEOCEAN_TEST_WARM", "1") == "0":
+        return
+    if cfg.option.collectonly or any(a not in ("tests", "tests/") for a in cfg.args):
+        return
+    from oneocean.product.defaults import resolve_grid
+    from oneocean.registry import task_ids
+
+    resolve_grid(None)       # the default region's grid, built once, before the processes
+
+    def warm(task):
+        subprocess.run([sys.executable, "-c", _WARM, task], stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL, check=False)
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        list(pool.map(warm, task_ids()))
 
 
 @pytest.fixture(scope="session")

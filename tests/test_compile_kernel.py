@@ -8,10 +8,13 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 from oneocean.io import write_npz_atomic
 from oneocean.testing import make_test_grid
 
 
+@pytest.mark.slow
 def test_compile_kernel_covers_every_cell_of_the_task(tmp_path):
     grid = tmp_path / "grid.npz"
     write_npz_atomic(grid, make_test_grid(nt=5, nz=3, ny=30, nx=40, dt_s=3600.0))

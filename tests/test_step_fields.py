@@ -80,9 +80,9 @@ def _getattr_step(kern):
     inner = kern._kernel
 
     @njit(nogil=True)
-    def boxed(A, io, e_lo, e_hi):
+    def boxed(A, io, k_stop, e_lo, e_hi):
         inner(A.grid, A.vp, A.LP, A.P, A.W, A.C, A.LS, A.t0, A.state, A.cmd, A.ext, A.rec_o,
-              A.rec_a, A.res, io, -1, e_lo, e_hi)
+              A.rec_a, A.res, io, k_stop, e_lo, e_hi)
 
     return boxed
 
@@ -99,8 +99,8 @@ def test_steps_equal_numbas_own_field_reads_bit_for_bit(task):
     batch = envs[1]._pools[0].batch
     _, args = batch._entries["step"]
     boxed = _getattr_step(batch.kern)
-    boxed(*args, batch._no_io, 0, 0)        # compile on these types
-    batch._entries["step"] = (fast_entry(boxed, args + (batch._no_io, 0, 1)), args)
+    boxed(*args, batch._no_io, -1, 0, 0)    # compile on these types
+    batch._entries["step"] = (fast_entry(boxed, args + (batch._no_io, -1, 0, 1)), args)
     rng = np.random.default_rng(5)
     for _ in range(150):
         a = rng.uniform(-1.0, 1.0, a0.shape) * envs[0].v_max

@@ -24,19 +24,19 @@ def _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, i
 
 
 @step_kernel
-def _step_fields(A, io, e_lo, e_hi):
+def _step_fields(A, io, k_stop, e_lo, e_hi):
     """One step of ``_kernel`` on the fields of ``A``, borrowed
     (:func:`~oneocean.tasks.loop.step_fields`)."""
     grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res = step_fields(A)
-    _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, -1, e_lo,
-            e_hi)
+    _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
+            e_lo, e_hi)
 
 
 @njit(cache=True, nogil=True)
-def _step_boxed(A, io, e_lo, e_hi):
+def _step_boxed(A, io, k_stop, e_lo, e_hi):
     """One step of ``_kernel`` with its arguments in one
     :class:`~oneocean.tasks.loop.StepArgs`."""
-    _step_fields(A, io, e_lo, e_hi)
+    _step_fields(A, io, k_stop, e_lo, e_hi)
 
 
 @hot_kernel(nogil=True)

@@ -371,15 +371,18 @@ class Episodes:
             if kern is None:   # a plugin's kernel module without it: the plain kernel
                 over_range(self.kern._kernel, lo, hi, *self._args(), io, -1)
                 return True
+            # k_stop -1 (one step) from Python, an int64 like the fused cells' k_stop: the
+            # same compiled _kernel serves both (a -1 literal inside the kernel module would
+            # type as Literal[int](-1) and compile the whole loop a second time)
             args = (step_args(*self._args()),)
-            over_range(kern, lo, hi, *args, io)        # compiles (or loads) on first use
-            self._entries["step"] = (fast_entry(kern, args + (io, 0, 1)), args)
+            over_range(kern, lo, hi, *args, io, -1)    # compiles (or loads) on first use
+            self._entries["step"] = (fast_entry(kern, args + (io, -1, 0, 1)), args)
             return True
         fn, args = call
         if hi - lo == 1:
-            fn(*args, io, lo, hi)
+            fn(*args, io, -1, lo, hi)
         else:
-            over_range(fn, lo, hi, *args, io)
+            over_range(fn, lo, hi, *args, io, -1)
         return True
 
     def results(self) -> dict:
