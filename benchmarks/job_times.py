@@ -65,8 +65,9 @@ def main(argv=None) -> int:
     sums["rest"] = 0.0
     counts = dict.fromkeys(sums, 0)
     for s, rel in jobs:
-        sums[part_of(rel)] += s
-        counts[part_of(rel)] += 1
+        part = part_of(rel)
+        sums[part] += s
+        counts[part] += 1
     total = sum(sums.values())
     print(f"{'part':10s} {'jobs':>5s} {'job time s':>11s} {'share':>6s}")
     for name, s in sums.items():

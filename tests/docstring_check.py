@@ -65,8 +65,7 @@ def _returns_value(fn: ast.AST) -> bool:
 #: (``oneocean.tasks.loop``: the env hooks and the policy hooks on their context) and of the
 #: public view (``oneocean.tasks.public``: a task's ``brief``, ``team_obs`` and ``report``; a
 #: policy's ``params``, ``memory`` and ``prepare``) and of a task's scenario (``oneocean.tasks``:
-#: ``reset`` and ``make``): a hook's docstring says what it does, not
-#: its arguments again.
+#: ``reset`` and ``make``): a hook's docstring says what it does, not its arguments again.
 CONTRACTS = {
     ("C", "e", "k"), ("C", "e", "k", "i"),
     ("grid", "P", "W", "state", "e"), ("grid", "P", "W", "state", "e", "k", "t"),
