@@ -68,11 +68,7 @@ def _returns_value(fn: ast.AST) -> bool:
 #: ``reset`` and ``make``): a hook's docstring says what it does, not its arguments again.
 CONTRACTS = {
     ("C", "e", "k"), ("C", "e", "k", "i"),
-    ("grid", "P", "W", "state", "e"), ("grid", "P", "W", "state", "e", "k", "t"),
-    ("grid", "P", "W", "X", "e", "k", "i"), ("grid", "P", "W", "X", "state", "O", "e", "k"),
-    ("grid", "P", "W", "state", "e", "k", "i", "code"),
-    ("grid", "P", "W", "state", "prev", "e", "k", "t"),
-    ("grid", "P", "W", "state", "e", "k", "row"),
+    ("ctx", "e"), ("ctx", "e", "k"), ("ctx", "e", "k", "i"),
     ("P", "W", "init", "m"), ("W",), ("method", "B"), ("B", "M"), ("B", "M", "H"),
     ("grid", "tier", "n_agents", "n_episodes", "seed"), ("grid", "tier", "init"),
 }

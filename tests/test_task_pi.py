@@ -24,7 +24,7 @@ from oneocean.tasks import public
 from oneocean.tasks.common import (OBS_DIM, O_CE, O_CN, O_DEPTH, O_GX, O_GY, O_GZ, O_PROBE,
                                    O_X, O_Z, STANDARD, load_task_table)
 from oneocean.tasks.episodes import Episodes, rollout
-from oneocean.tasks.loop import Ctx
+from oneocean.tasks.loop import Ctx, EnvCtx
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
 
@@ -287,7 +287,9 @@ def test_readings_are_placed_where_the_method_believes_it_is(calm):
     for x in (-118.0, 300.0):
         s = np.zeros((1, 1, E.STATE_DIM))
         s[0, 0, 0] = x
-        assert pi.cue(calm, P, W, s, 0, 5, 0)[3] == 10.0 * P.thr
+        ctx = EnvCtx(calm, P, W, s, s, np.zeros((1, 1, OBS_DIM)), s[..., :3].copy(),
+                     np.zeros((1, 1), np.int64), np.zeros((1, 1)), np.zeros(1), 1.0)
+        assert pi.cue(ctx, 0, 5, 0)[3] == 10.0 * P.thr
 
 
 def test_briefing_is_the_mission_and_the_plan_is_the_methods(calm):

@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from oneocean import registry
 from oneocean.engine._jit import hot_kernel
@@ -110,26 +109,27 @@ def brief(P, W, init, m):
 
 
 @hot_kernel(inline="always")
-def begin(grid, P, W, state, e):
-    W.err[e] = abs(state[e, 0, 1] - P.target)
+def begin(ctx, e):
+    ctx.W.err[e] = abs(ctx.state[e, 0, 1] - ctx.P.target)
     return False
 
 
 @hot_kernel(inline="always")
-def cue(grid, P, W, state, e, k, i):
-    return state[e, i, 0], P.target, state[e, i, 2], math.nan
+def cue(ctx, e, k, i):
+    X = ctx.X                            # the agents' states as the method knows them
+    return X[e, i, 0], ctx.P.target, X[e, i, 2], math.nan
 
 
 @hot_kernel(inline="always")
-def post_step(grid, P, W, state, prev, e, k, t):
-    W.err[e] = abs(state[e, 0, 1] - P.target)
-    return W.err[e] <= P.tol
+def post_step(ctx, e, k):
+    ctx.W.err[e] = abs(ctx.state[e, 0, 1] - ctx.P.target)
+    return ctx.W.err[e] <= ctx.P.tol
 
 
 @hot_kernel(inline="always")
-def finish(grid, P, W, state, e, k, row):
-    row[N_STANDARD] = W.err[e]           # the first task metric, after the standard columns
-    return W.err[e] <= P.tol
+def finish(ctx, e, k):
+    ctx.res[e, N_STANDARD] = ctx.W.err[e]   # the first task metric, after the standard columns
+    return ctx.W.err[e] <= ctx.P.tol
 
 
 @hot_kernel(nogil=True)

@@ -832,16 +832,17 @@ def _mark(cov, e, x, z, r, x_lo, z_lo, cell, ncx, ncz):
 
 
 @hot_kernel
-def begin(grid, P, W, state, e):
+def begin(ctx, e):
     """Clear the coverage map and the counters; every agent at the start of its lines.
 
-    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``ctx.state`` holds the start.
 
     Returns
     -------
     bool
         False: the episode starts.
     """
+    W = ctx.W
     for c in range(W.ncell[e, 0] * W.ncell[e, 1]):
         W.cov[e, c] = 0
     W.cnt[e, 0] = 0
@@ -853,7 +854,7 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel
-def cue(grid, P, W, X, e, k, i):
+def cue(ctx, e, k, i):
     """The mission computer: the point of agent ``i``'s lines to make for.
 
     Env hook (:mod:`oneocean.tasks.loop`): the observation's cue. On the agent's navigation
@@ -871,6 +872,10 @@ def cue(grid, P, W, X, e, k, i):
     probe : float
         NaN (the task has no field).
     """
+    grid = ctx.grid
+    P = ctx.P
+    W = ctx.W
+    X = ctx.X
     gx, gz, w = waypoint_carrot(W.lines, W.lidx, W.lcount, e, i, X[e, i, 0], X[e, i, 2],
                                 CUE_LOOK_M, CUE_TOL_M, ARRIVE_M)
     gy = -sample_elevation(grid, gx, gz) - P.alt
@@ -880,13 +885,17 @@ def cue(grid, P, W, X, e, k, i):
 
 
 @hot_kernel
-def after_agent(grid, P, W, state, e, k, i, code):
+def after_agent(ctx, e, k, i):
     """Image the seafloor under agent ``i``'s new position.
 
     Env hook (:mod:`oneocean.tasks.loop`), right after the agent moved: its altitude is summed;
     below ``alt_max`` the cells within the footprint radius ``alt tan_h`` are marked covered;
     above it the agent-step counts as footprint loss.
     """
+    grid = ctx.grid
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
     # the sensor images the seafloor under the agent's new position
     s = state[e, i]
     alt = -sample_elevation(grid, s[0], s[2]) - s[1]
@@ -900,7 +909,7 @@ def after_agent(grid, P, W, state, e, k, i, code):
 
 
 @hot_kernel
-def post_step(grid, P, W, state, prev, e, k, t):
+def post_step(ctx, e, k):
     """The success check after the step.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
@@ -910,11 +919,13 @@ def post_step(grid, P, W, state, prev, e, k, t):
     bool
         True (STOP) once the covered fraction reaches ``P.thr``.
     """
+    P = ctx.P
+    W = ctx.W
     return W.cnt[e, 0] >= P.thr * (W.ncell[e, 0] * W.ncell[e, 1])
 
 
 @hot_kernel
-def finish(grid, P, W, state, e, k, row):
+def finish(ctx, e, k):
     """Write the AS metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
@@ -924,6 +935,10 @@ def finish(grid, P, W, state, e, k, row):
     bool
         Success: the covered fraction reached ``P.thr``.
     """
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
+    row = ctx.res[e]
     n_ag = state.shape[1]
     n_cells = W.ncell[e, 0] * W.ncell[e, 1]
     covered = W.cnt[e, 0]

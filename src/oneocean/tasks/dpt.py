@@ -212,16 +212,17 @@ def brief(P: DPTParams, W: DPTWork, init: dict, m) -> DPTBriefing:
 
 
 @hot_kernel
-def begin(grid, P, W, state, e):
+def begin(ctx, e):
     """Reset the waypoint pointers and accumulators.
 
-    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``ctx.state`` holds the start.
 
     Returns
     -------
     bool
         True (the episode ends) for a route without waypoints.
     """
+    W = ctx.W
     W.wp[e] = 1
     W.nwp[e] = 1
     W.acc[e, 0] = 0.0
@@ -231,7 +232,7 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel
-def cue(grid, P, W, X, e, k, i):
+def cue(ctx, e, k, i):
     """The route point ``P.look`` m ahead of the agent's known horizontal projection on the
     active leg, at the target depth (the profile at the projection).
 
@@ -248,6 +249,9 @@ def cue(grid, P, W, X, e, k, i):
     probe : float
         NaN (the task has no field).
     """
+    P = ctx.P
+    W = ctx.W
+    X = ctx.X
     s = X[e, i]
     wp = nav_waypoint(W.route, W.nwp, e, s[0], s[1], s[2], P.radius, 1)
     if wp > W.route.shape[1] - 1:   # route done as far as the vehicle knows: the last waypoint
@@ -262,7 +266,7 @@ def cue(grid, P, W, X, e, k, i):
 
 
 @hot_kernel
-def post_step(grid, P, W, state, prev, e, k, t):
+def post_step(ctx, e, k):
     """Depth and cross-track error and the judge's waypoint after the step.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
@@ -272,6 +276,9 @@ def post_step(grid, P, W, state, prev, e, k, t):
     bool
         True (STOP) once the last waypoint is reached (horizontally, on the true position).
     """
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
     s = state[e, 0]
     wp = W.wp[e]
     a0 = W.route[e, wp - 1]
@@ -290,7 +297,7 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 
 @hot_kernel
-def finish(grid, P, W, state, e, k, row):
+def finish(ctx, e, k):
     """Write the DPT metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
@@ -300,6 +307,9 @@ def finish(grid, P, W, state, e, k, row):
     bool
         Success: every waypoint reached and the RMS depth error at most ``P.depth_tol``.
     """
+    P = ctx.P
+    W = ctx.W
+    row = ctx.res[e]
     a = W.acc[e]
     wp = W.wp[e]
     kk = k if k > 0 else 1

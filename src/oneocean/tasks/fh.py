@@ -779,17 +779,18 @@ def sonar(P, W, state, e, ping):
 
 
 @hot_kernel
-def begin(grid, P, W, state, e):
+def begin(ctx, e):
     """Start the school's truth (centroid, no velocity, no time inside) and the task's view
     of it: the last team fix is the reported start, the stations' direction unset.
 
-    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``ctx.state`` holds the start.
 
     Returns
     -------
     bool
         False: the episode starts.
     """
+    W = ctx.W
     F = W.fish[e, 0]
     cx, cz = school_centroid(F[0], F[1])
     W.fcur[e] = 0
@@ -807,12 +808,17 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel
-def pre_step(grid, P, W, state, e, k, t):
+def pre_step(ctx, e, k):
     """The fish step: the school reacts to the vehicles' positions at time ``t`` (into the
     other buffer of ``W.fish``).
 
     Env hook (:mod:`oneocean.tasks.loop`), before the agents act.
     """
+    grid = ctx.grid
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
+    t = ctx.t0[e] + k * ctx.dt
     S = state[e]
     AX = W.apos[e, 0]
     AZ = W.apos[e, 1]
@@ -827,7 +833,7 @@ def pre_step(grid, P, W, state, e, k, t):
 
 
 @hot_kernel
-def cue(grid, P, W, X, e, k, i):
+def cue(ctx, e, k, i):
     """Agent ``i``'s cue: its herding station (:func:`stations`, computed by :func:`sense`
     this step) at the school's depth. Env hook (:mod:`oneocean.tasks.loop`).
 
@@ -838,6 +844,8 @@ def cue(grid, P, W, X, e, k, i):
     probe : float
         NaN (the task has no field).
     """
+    P = ctx.P
+    W = ctx.W
     return W.cue[e, i, 0], P.depth, W.cue[e, i, 1], math.nan
 
 
@@ -902,7 +910,7 @@ def stations(P, W, X, e):
 
 
 @hot_kernel
-def sense(grid, P, W, X, state, O, e, k):
+def sense(ctx, e, k):
     """The task's observation fields (:data:`OBS_EXTRA`), its team observation
     (:data:`TEAM_FIELDS`) and the stations of the cue, before step ``k``.
 
@@ -913,6 +921,12 @@ def sense(grid, P, W, X, state, O, e, k):
     step's time (the truth given the true current, else the forecast there); then
     :func:`stations`. Env hook (:mod:`oneocean.tasks.loop`).
     """
+    grid = ctx.grid
+    P = ctx.P
+    W = ctx.W
+    X = ctx.X
+    state = ctx.state
+    O = ctx.O
     n = X.shape[1]
     fx = W.fix[e]
     if W.sinfo[e, 1] != 0:   # the school perceived exactly (oracle, true_target ablation)
@@ -976,7 +990,7 @@ def sense(grid, P, W, X, state, O, e, k):
 
 
 @hot_kernel
-def post_step(grid, P, W, state, prev, e, k, t):
+def post_step(ctx, e, k):
     """Swap the fish buffers, update the school's truth and time the hold inside the zone.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``: the
@@ -988,6 +1002,8 @@ def post_step(grid, P, W, state, prev, e, k, t):
     bool
         True (STOP) once the hold reaches ``P.hold``.
     """
+    P = ctx.P
+    W = ctx.W
     c = 1 - W.fcur[e]
     W.fcur[e] = c
     G = W.fish[e, c]
@@ -1013,7 +1029,7 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 
 @hot_kernel
-def finish(grid, P, W, state, e, k, row):
+def finish(ctx, e, k):
     """Write the FH metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
@@ -1023,6 +1039,9 @@ def finish(grid, P, W, state, e, k, row):
     bool
         Success: the hold was completed.
     """
+    P = ctx.P
+    W = ctx.W
+    row = ctx.res[e]
     F = W.fish[e, W.fcur[e]]
     zx = W.zone[e, 0]
     zz = W.zone[e, 1]

@@ -323,16 +323,17 @@ def brief(P: FTParams, W: FTWork, init: dict, m) -> FTBriefing:
 
 
 @hot_kernel
-def begin(grid, P, W, state, e):
+def begin(ctx, e):
     """Reset the centroid and the accumulators.
 
-    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``ctx.state`` holds the start.
 
     Returns
     -------
     bool
         False: the episode starts.
     """
+    W = ctx.W
     for j in range(3):
         W.cen[e, j] = W.start[e, j]
     W.acc[e, 0] = 0.0
@@ -342,7 +343,7 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel
-def cue(grid, P, W, X, e, k, i):
+def cue(ctx, e, k, i):
     """Agent ``i``'s cue: its slot around the team's navigated centroid, led ``P.lead`` m
     toward the goal (at most the centroid's distance to it): the task's formation reference.
     Env hook (:mod:`oneocean.tasks.loop`).
@@ -354,6 +355,9 @@ def cue(grid, P, W, X, e, k, i):
     probe : float
         NaN (no probe).
     """
+    P = ctx.P
+    W = ctx.W
+    X = ctx.X
     n = X.shape[1]
     cx = 0.0
     cy = 0.0
@@ -375,7 +379,7 @@ def cue(grid, P, W, X, e, k, i):
 
 
 @hot_kernel
-def post_step(grid, P, W, state, prev, e, k, t):
+def post_step(ctx, e, k):
     """Shape error around the centroid, the error bound, arrival.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
@@ -387,6 +391,9 @@ def post_step(grid, P, W, state, prev, e, k, t):
         or when every agent is within ``slot_tol`` of its slot and the centroid within
         ``radius`` of the goal (``W.won`` set).
     """
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
     st_e = state[e]
     n = st_e.shape[0]
     offsets = W.offsets
@@ -429,7 +436,7 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 
 @hot_kernel
-def finish(grid, P, W, state, e, k, row):
+def finish(ctx, e, k):
     """Write the FT metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
@@ -439,6 +446,8 @@ def finish(grid, P, W, state, e, k, row):
     bool
         Success: the team arrived in shape (``W.won``).
     """
+    W = ctx.W
+    row = ctx.res[e]
     kk = k if k > 0 else 1
     row[_C_FERR] = W.acc[e, 0] / kk
     row[_C_EMAX] = W.acc[e, 1]

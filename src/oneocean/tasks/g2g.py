@@ -510,16 +510,19 @@ def _dist(s, g):
 
 
 @hot_kernel
-def begin(grid, P, W, state, e):
+def begin(ctx, e):
     """Reset the episode's accumulators.
 
-    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``ctx.state`` holds the start.
 
     Returns
     -------
     bool
         True (the episode ends) if the start is within the goal radius.
     """
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
     d = _dist(state[e, 0], W.goal[e])
     W.acc[e, 0] = d
     W.acc[e, 1] = d
@@ -529,28 +532,10 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel
-def cue(grid, P, W, state, e, k, i):
+def cue(ctx, e, k, i):
     """The goal cue: the goal itself.
 
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
-
-    Parameters
-    ----------
-    grid : Grid
-        The grid export (:class:`oneocean.engine.grid.Grid`).
-    P : G2GParams
-        The task's params (:func:`make`).
-    W : G2GWork
-        The task's per-episode work arrays (:func:`make`).
-    state : (E, N, STATE_DIM) float64
-        The vehicle states the method knows (its navigation estimate; the truth for
-        the oracle); layout: :mod:`oneocean.engine.dynamics`.
-    e : int
-        Episode index.
-    k : int
-        Step index.
-    i : int
-        Agent index.
 
     Returns
     -------
@@ -559,13 +544,16 @@ def cue(grid, P, W, state, e, k, i):
     probe : float
         NaN (the task has no field).
     """
+    W = ctx.W
     return W.goal[e, 0], W.goal[e, 1], W.goal[e, 2], math.nan
 
 
 @hot_kernel
-def sense(grid, P, W, X, state, O, e, k):
+def sense(ctx, e, k):
     """The task's observation fields (:data:`OBS_EXTRA`): the energy used and its fraction
     of the allocation. Env hook (:mod:`oneocean.tasks.loop`)."""
+    W = ctx.W
+    O = ctx.O
     used = W.acc[e, 3]
     o = O[e, 0]
     o[OBS_DIM] = used
@@ -606,7 +594,7 @@ def step_energy(grid, P, s, p, t):
 
 
 @hot_kernel
-def post_step(grid, P, W, state, prev, e, k, t):
+def post_step(ctx, e, k):
     """Path length, energy, distance to the goal and closest approach after the step.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
@@ -616,6 +604,12 @@ def post_step(grid, P, W, state, prev, e, k, t):
     bool
         True (STOP) when the agent is within the goal radius.
     """
+    grid = ctx.grid
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
+    prev = ctx.prev
+    t = ctx.t0[e] + k * ctx.dt
     s = state[e, 0]
     p = prev[e, 0]
     a = W.acc[e]
@@ -629,7 +623,7 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 
 @hot_kernel
-def finish(grid, P, W, state, e, k, row):
+def finish(ctx, e, k):
     """Write the G2G metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
@@ -639,6 +633,9 @@ def finish(grid, P, W, state, e, k, row):
     bool
         Success: within the goal radius at the end, on at most the energy allocation.
     """
+    P = ctx.P
+    W = ctx.W
+    row = ctx.res[e]
     a = W.acc[e]
     row[_C_FINAL] = a[0]
     row[_C_MIN] = a[1]

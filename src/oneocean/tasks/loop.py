@@ -58,21 +58,28 @@ and ``E``, ``violations``, the near-collision ratio (``coll / k_succ``) and the 
 distance ``LoopState.dmin`` cover the steps up to success. Everything else runs to the
 horizon, and ``finish`` sees the final step.
 
-Env hooks (``P``: the task's params NamedTuple, ``W``: its per-episode work arrays; ``X`` the
-agents' states as the method knows them, the truth for the oracle)::
+Env hooks take one context, ``ctx`` (:class:`EnvCtx`: the grid, the task's params ``P`` and
+per-episode work arrays ``W``, the true states, the agents' states as the method knows them
+``X`` -- the truth for the oracle --, this step's observations, the positions before the step,
+each agent's move status, the result rows and the clock; documented once, there), then the
+episode ``e``, the step ``k`` and the agent ``i``::
 
-    begin(grid, P, W, state, e) -> stop            before step 0 (state holds the start)
-    pre_step(grid, P, W, state, e, k, t)           world physics before the agents act
-    cue(grid, P, W, X, e, k, i) -> (gx, gy, gz, probe)   the task's cue (world m) and probe
-    sense(grid, P, W, X, state, O, e, k)           the task's observation fields (O[e, :,
-                                                   D0:]) and team observation (in W)
-    after_agent(grid, P, W, state, e, k, i, code)  right after agent i moved
-    post_step(grid, P, W, state, prev, e, k, t) -> GO | STOP | REACHED  (prev: positions
-                                                   before the step; a bool is GO / STOP)
-    finish(grid, P, W, state, e, k, row) -> success        writes the task's metric columns
-    report(C, e, k)                                the task's reference report rule (PI:
-                                                   claim every logged event), which a
-                                                   learned policy files by
+    begin(ctx, e) -> stop                 before step 0 (ctx.state holds the start)
+    pre_step(ctx, e, k)                   world physics before the agents act
+    cue(ctx, e, k, i) -> (gx, gy, gz, probe)   the task's cue (world m, on ctx.X) and probe
+    sense(ctx, e, k)                      the task's observation fields (ctx.O[e, :, D0:])
+                                          and team observation (in W)
+    after_agent(ctx, e, k, i)             right after agent i moved (its status:
+                                          ctx.code[e, i])
+    post_step(ctx, e, k) -> GO | STOP | REACHED   after every agent moved (positions before
+                                          the step: ctx.prev; a bool is GO / STOP)
+    finish(ctx, e, k) -> success          writes the task's metric columns (ctx.res[e])
+    report(C, e, k)                       the task's reference report rule (PI: claim every
+                                          logged event), which a learned policy files by;
+                                          on the policy's context
+
+Step ``k`` of episode ``e`` starts at ``t = ctx.t0[e] + k * ctx.dt`` (s since the grid's
+time0).
 
 Policy hooks (``C``: the policy's context :class:`Ctx` -- briefing, observation, team
 observation, the method's params and memory, the report it files)::
@@ -118,6 +125,7 @@ from .common import OBS_DIM, OK, current_at, observe_common, record_step
 #: The loop's arguments, documented once for every function of this module (a function's
 #: docstring says what it does with them).
 VOCABULARY = {
+    "ctx": "EnvCtx: the env hooks' context (the grid, P, W, the states, ...)",
     "grid": "Grid: the grid export (oneocean.engine.grid.Grid), the truth",
     "vp": "(PARAM_DIM,) float64: vehicle parameters (oneocean.engine.dynamics)",
     "LP": "LoopParams: the loop's params",
@@ -236,6 +244,32 @@ class LoopState(NamedTuple):
     sensed: np.ndarray      # (E,) int64 the step whose observation O[e] holds (-1: none)
     eag: np.ndarray         # (E, N) float64 each agent's energy proxy so far, m2 s-1
     nfix: np.ndarray        # (E, N) int64 1: an absolute position fix at the last step
+
+
+class EnvCtx(NamedTuple):
+    """An env hook's context: the world as the task's hooks see it (one per call of the
+    loop; every field is shared, not copied).
+
+    ``grid`` the grid export (the truth); ``P`` / ``W`` the task's params and per-episode
+    work arrays (its ``make``); ``state`` (E, N, STATE_DIM) the true vehicle states; ``X`` the
+    agents' states as the method knows them (its navigation estimate; ``state`` itself for
+    the oracle), the frame of the task's cue; ``O`` (E, N, D) this step's observations (a
+    ``sense`` hook writes the task's fields ``O[e, :, D0:]``); ``prev`` (E, N, 3) the
+    positions before the current step; ``code`` (E, N) the status of each agent's last move
+    (:mod:`oneocean.engine.status`); ``res`` (E, C) the result rows (``finish`` writes
+    ``res[e]``); ``t0`` (E,) the start times (s since the grid's time0) and ``dt`` the step,
+    s: step ``k`` of episode ``e`` starts at ``t0[e] + k * dt``."""
+    grid: tuple
+    P: tuple
+    W: tuple
+    state: np.ndarray
+    X: np.ndarray
+    O: np.ndarray
+    prev: np.ndarray
+    code: np.ndarray
+    res: np.ndarray
+    t0: np.ndarray
+    dt: float
 
 
 class Ctx(NamedTuple):
@@ -476,38 +510,25 @@ def env_step_out(LP, LS, res, O, io, e, was):
 
 
 @hot_kernel(inline="always")
-def known_state(LP, LS, state, e):
-    """The agents' states as the method knows them: the truth for a method given the true
-    position (the oracle), else the navigation estimate ``LS.nav``, refreshed for episode
-    ``e`` (true state plus the horizontal position error: depth, attitude and velocity are
-    measured).
-
-    Returns
-    -------
-    (E, N, STATE_DIM) float64
-        ``state`` itself, or ``LS.nav``.
+def sense_step(cue, sense, ctx, LP, LS, e, k, final):
+    """The observation ``ctx.O[e]`` of every agent before step ``k`` (every policy, every
+    backend): the agents' known states ``ctx.X[e]`` refreshed (the navigation estimate: true
+    state plus the horizontal position error; depth, attitude and velocity are measured; the
+    truth for a method given the true position), then the task's own fields and team
+    observation (its ``sense``: perception, fixes, which its cue may use), then for each agent
+    the true current (``LS.cw``, the current its move will meet), the method's current
+    estimate (its filter updated with this step's in-situ sample) and the common head
+    (:func:`oneocean.tasks.common.observe_common` on the task's cue). ``final``: the
+    observation of an ended episode's final state (no filter update).
     """
-    if LP.sens.true_position != 0:
-        return state
-    for i in range(state.shape[1]):
-        nav_fill(state, LS.nerr, LS.nav, e, i)
-    return LS.nav
-
-
-@hot_kernel(inline="always")
-def sense_step(cue, sense, grid, P, W, LP, LS, state, O, t0, e, k, final):
-    """The observation ``O[e]`` of every agent before step ``k`` (every policy, every
-    backend): the task's own fields and team observation first (its ``sense``: perception,
-    fixes, which its cue may use), then for each agent the true current (``LS.cw``, the
-    current its move will meet), the method's current estimate (its filter updated with this
-    step's in-situ sample) and the common head (:func:`oneocean.tasks.common.observe_common`
-    on the task's cue). ``final``: the observation of an ended episode's final state (no
-    filter update).
-    """
+    grid = ctx.grid
+    state = ctx.state
     n_ag = state.shape[1]
-    t = t0[e] + k * LP.dt
-    X = known_state(LP, LS, state, e)
-    sense(grid, P, W, X, state, O, e, k)
+    t = ctx.t0[e] + k * LP.dt
+    if LP.sens.true_position == 0:
+        for i in range(n_ag):
+            nav_fill(state, LS.nerr, LS.nav, e, i)
+    sense(ctx, e, k)
     for i in range(n_ag):
         s = state[e, i]
         ce, cn = current_at(grid, s[0], s[1], s[2], t)
@@ -515,9 +536,9 @@ def sense_step(cue, sense, grid, P, W, LP, LS, state, O, t0, e, k, final):
         LS.cw[e, i, 1] = cn
         pe, pn = current_estimate(LP.sens, LP.seed, LS.cb, LS.fc, e, k, i, n_ag, ce, cn,
                                   1 - final, LP.e0)
-        gx, gy, gz, pr = cue(grid, P, W, X, e, k, i)
-        observe_common(O[e, i], grid, X, state, e, i, gx, gy, gz, pe, pn, pr, k * LP.dt,
-                       LS.eag[e, i], LS.nfix[e, i])
+        gx, gy, gz, pr = cue(ctx, e, k, i)
+        observe_common(ctx.O[e, i], grid, ctx.X, state, e, i, gx, gy, gz, pe, pn, pr,
+                       k * LP.dt, LS.eag[e, i], LS.nfix[e, i])
     LS.sensed[e] = k
 
 
@@ -570,11 +591,10 @@ def decide_step(plan, act, report, C, LP, ext, cmd, rec_o, rec_a, e, k):
 
 
 @hot_kernel(inline="always")
-def account_agent(after_agent, grid, P, W, LS, state, e, k, i, en, code, counting, energy,
-                  viol, cur):
+def account_agent(after_agent, ctx, LS, e, k, i, en, counting, energy, viol, cur):
     """The accounting of agent ``i``'s step after it moved (every backend): the energy proxy
-    ``en`` of its executed action and the move's status ``code`` (a rejected move or a contact)
-    counted up to success, the true current speed it met (the metric ``current_speed_ms``),
+    ``en`` of its executed action and the move's status ``ctx.code[e, i]`` (a rejected move or
+    a contact) counted up to success, the true current speed it met (the metric ``current_speed_ms``),
     its own energy so far (its observation), the task's ``after_agent``.
 
     Returns
@@ -585,17 +605,17 @@ def account_agent(after_agent, grid, P, W, LS, state, e, k, i, en, code, countin
     LS.eag[e, i] += en
     if counting:
         energy += en
-        if code != OK:
+        if ctx.code[e, i] != OK:
             viol += 1
         ce = LS.cw[e, i, 0]
         cn = LS.cw[e, i, 1]
         cur += math.sqrt(ce * ce + cn * cn)
-    after_agent(grid, P, W, state, e, k, i, code)
+    after_agent(ctx, e, k, i)
     return energy, viol, cur
 
 
 @hot_kernel(inline="always")
-def end_step(post_step, grid, P, W, LP, LS, state, e, k, t, counting, coll, dmin):
+def end_step(post_step, ctx, LP, LS, e, k, counting, coll, dmin):
     """The end of step ``k`` once every agent moved (every backend): near-collisions (eq. 4)
     and the closest pair (while counting), the task's ``post_step`` judge, dead reckoning over
     the step (and whether an absolute fix came, ``LS.nfix``), the ``REACHED`` latch
@@ -614,6 +634,7 @@ def end_step(post_step, grid, P, W, LP, LS, state, e, k, t, counting, coll, dmin
     dmin : float
         The updated smallest pair distance, m.
     """
+    state = ctx.state
     S = state[e]
     if S.shape[0] > 1 and counting:
         d = min_pairwise_distance(S)
@@ -621,7 +642,7 @@ def end_step(post_step, grid, P, W, LP, LS, state, e, k, t, counting, coll, dmin
             coll += 1
         if d < dmin:
             dmin = d
-    rc = int(post_step(grid, P, W, state, LS.prev, e, k, t))
+    rc = int(post_step(ctx, e, k))
     for i in range(S.shape[0]):   # dead reckoning over the step's ground displacement
         LS.nfix[e, i] = nav_update(LP.sens, LP.seed, LS.navc, LS.nerr, state, LS.prev, e, k,
                                    i, S.shape[0], LP.dt, LP.e0)
@@ -637,17 +658,17 @@ def end_step(post_step, grid, P, W, LP, LS, state, e, k, t, counting, coll, dmin
 
 
 @hot_kernel(inline="always")
-def finish_episode(finish, grid, P, W, LP, LS, state, res, e, k):
+def finish_episode(finish, ctx, LP, LS, e, k):
     """Close episode ``e`` after ``k`` steps (every backend): the task's ``finish`` judge
-    writes its metrics into ``res[e]``, the loop the standard columns over the steps up to
+    writes its metrics into ``ctx.res[e]``, the loop the standard columns over the steps up to
     success. ``T`` is the steps to success times ``dt`` on success, else the time limit; the
     near-collision ratio and the mean current speed are per step (and agent) up to success."""
     LS.status[e] = FINISHED
-    row = res[e]
-    success = finish(grid, P, W, state, e, k, row)
+    row = ctx.res[e]
+    success = finish(ctx, e, k)
     k_end = LS.k_succ[e] if LS.k_succ[e] >= 0 else k   # the steps the metrics cover
     dt = LP.dt
-    n_ag = state.shape[1]
+    n_ag = ctx.state.shape[1]
     row[C_SUCCESS] = 1.0 if success else 0.0
     row[C_T] = k_end * dt if success else LP.n_steps * dt
     row[C_E] = LS.energy[e]
@@ -658,16 +679,16 @@ def finish_episode(finish, grid, P, W, LP, LS, state, res, e, k):
 
 @hot_kernel(inline="always")
 def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, report, plan, act,
-                grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, e, k_stop):
+                ctx, vp, LP, C, LS, cmd, ext, rec_o, rec_a, e, k_stop):
     """Advance episode ``e`` up to step ``k_stop`` (or its end; a negative ``k_stop``
     advances it by ``-k_stop`` steps from where it is, so episodes at different steps move
     together); write ``res[e]`` when it ends. Serial; a task's ``_kernel`` runs it for every
     episode of its block. The arguments are the module docstring's: the task's hooks, the
-    policy's hooks, the grid export, the vehicle parameters ``vp``, :class:`LoopParams`, the
-    task's ``P`` / ``W``, the policy's context :class:`Ctx`, :class:`LoopState`, the start
-    times ``t0`` (E,), the true states (E, N, STATE_DIM), the command rows ``cmd``, the external
-    actions ``ext`` (E, N, ACT_DIM), the observation / action records ``rec_o`` (E, S, N, D) /
-    ``rec_a`` (E, S, N, 3) (S = 0: no record) and the result rows ``res`` (E, C).
+    policy's hooks, the env hooks' context :class:`EnvCtx` (the grid, the task's ``P`` /
+    ``W``, the true states, the result rows, ...), the vehicle parameters ``vp``,
+    :class:`LoopParams`, the policy's context :class:`Ctx`, :class:`LoopState`, the command
+    rows ``cmd``, the external actions ``ext`` (E, N, ACT_DIM) and the observation / action
+    records ``rec_o`` (E, S, N, D) / ``rec_a`` (E, S, N, 3) (S = 0: no record).
 
     A call with ``k_stop = 0`` starts a new episode and takes its first observation.
     ``LP.phase`` says which part of a step this call runs: ``FULL`` (the core backend: whole
@@ -679,14 +700,15 @@ def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, rep
     """
     if LS.status[e] == FINISHED:
         return
+    grid = ctx.grid
+    state = ctx.state
     n_ag = state.shape[1]
     n_steps = LP.n_steps
     dt = LP.dt
-    O = C.O
     stop = False
     if LS.status[e] == NEW:
         LS.status[e] = RUNNING
-        stop = begin(grid, P, W, state, e)
+        stop = begin(ctx, e)
     k = LS.k[e]
     k_lim = k_stop if k_stop >= 0 else k - k_stop
     energy = LS.energy[e]
@@ -697,11 +719,10 @@ def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, rep
     counting = LS.k_succ[e] < 0   # standard metrics accumulate up to success (REACHED)
     judge = LP.phase == JUDGE
     while not stop and k < n_steps:
-        t = t0[e] + k * dt
         if not judge:
             if LS.sensed[e] != k:
-                pre_step(grid, P, W, state, e, k, t)
-                sense_step(cue, sense, grid, P, W, LP, LS, state, O, t0, e, k, 0)
+                pre_step(ctx, e, k)
+                sense_step(cue, sense, ctx, LP, LS, e, k, 0)
             if k >= k_lim:
                 break
             decide_step(plan, act, report, C, LP, ext, cmd, rec_o, rec_a, e, k)
@@ -723,19 +744,19 @@ def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, rep
                 en, code = advance_agent(grid, LP.model, vp, state[e, i], cmd[e, i],
                                          LS.cw[e, i, 0], LS.cw[e, i, 1], LP.v_max, dt,
                                          LP.land_thr, LP.clearance)
-                energy, viol, cur = account_agent(after_agent, grid, P, W, LS, state, e, k, i,
-                                                  en, code, counting, energy, viol, cur)
+                LS.code[e, i] = code
+                energy, viol, cur = account_agent(after_agent, ctx, LS, e, k, i, en, counting,
+                                                  energy, viol, cur)
         else:   # JUDGE: the backend moved every agent of step k
             if k >= k_lim:
                 break
             for i in range(n_ag):
-                energy, viol, cur = account_agent(after_agent, grid, P, W, LS, state, e, k, i,
-                                                  LS.en[e, i], LS.code[e, i], counting,
-                                                  energy, viol, cur)
+                energy, viol, cur = account_agent(after_agent, ctx, LS, e, k, i, LS.en[e, i],
+                                                  counting, energy, viol, cur)
             judge = False
             k_lim = k + 1   # then the next step's observation, and no further
-        k, stop, counting, coll, dmin = end_step(post_step, grid, P, W, LP, LS, state, e, k,
-                                                 t, counting, coll, dmin)
+        k, stop, counting, coll, dmin = end_step(post_step, ctx, LP, LS, e, k, counting, coll,
+                                                 dmin)
     LS.k[e] = k
     LS.energy[e] = energy
     LS.viol[e] = viol
@@ -743,9 +764,9 @@ def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, rep
     LS.dmin[e] = dmin
     LS.cur[e] = cur
     if stop or (k >= n_steps and LP.phase != DECIDE):
-        finish_episode(finish, grid, P, W, LP, LS, state, res, e, k)
+        finish_episode(finish, ctx, LP, LS, e, k)
         # the observation of the final state (the step API's last observation)
-        sense_step(cue, sense, grid, P, W, LP, LS, state, O, t0, e, k, 1)
+        sense_step(cue, sense, ctx, LP, LS, e, k, 1)
 
 
 @hot_kernel(inline="always")
@@ -754,29 +775,31 @@ def run_block(begin, pre_step, cue, sense, after_agent, post_step, finish, repor
               e_lo, e_hi):
     """:func:`run_episode` for the episodes ``[e_lo, e_hi)``, with the step API's side
     ``io`` (:class:`EnvIO`; no rows: nothing in or out): each episode's sub-env action in
-    before its steps, its next observation and end flags out after them."""
+    before its steps, its next observation and end flags out after them. The env hooks'
+    context :class:`EnvCtx` is built here, once per call."""
+    X = state if LP.sens.true_position != 0 else LS.nav
+    ctx = EnvCtx(grid, P, W, state, X, C.O, LS.prev, LS.code, res, t0, LP.dt)
     for e in range(e_lo, e_hi):
         was = env_step_in(LP, LS, ext, io, e)
         run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, report, plan,
-                    act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, e,
-                    k_stop)
+                    act, ctx, vp, LP, C, LS, cmd, ext, rec_o, rec_a, e, k_stop)
         env_step_out(LP, LS, res, C.O, io, e, was)
 
 
 @hot_kernel(inline="always")
-def noop_pre_step(grid, P, W, state, e, k, t):
+def noop_pre_step(ctx, e, k):
     """A ``pre_step`` hook that does nothing (a task without physics before the moves)."""
     return
 
 
 @hot_kernel(inline="always")
-def noop_after_agent(grid, P, W, state, e, k, i, code):
+def noop_after_agent(ctx, e, k, i):
     """An ``after_agent`` hook that does nothing."""
     return
 
 
 @hot_kernel(inline="always")
-def noop_sense(grid, P, W, X, state, O, e, k):
+def noop_sense(ctx, e, k):
     """A ``sense`` hook that does nothing (a task without observation fields of its own)."""
     return
 

@@ -1135,7 +1135,7 @@ def reference_report(C, e, k):
 
 
 @hot_kernel
-def begin(grid, P, W, state, e):
+def begin(ctx, e):
     """Spin up the plumes and take every agent's first reading, at its start position; the
     mission computer at the routes' starts, the report empty.
 
@@ -1147,6 +1147,10 @@ def begin(grid, P, W, state, e):
     bool
         False: the episode starts.
     """
+    grid = ctx.grid
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
     C = W.C
     nz = C.shape[2]
     nx = C.shape[3]
@@ -1181,12 +1185,16 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel
-def pre_step(grid, P, W, state, e, k, t):
+def pre_step(ctx, e, k):
     """Advance the plume field: emit and transport every ``FIELD_EVERY`` steps (face
     currents refreshed every ``P.refresh`` field steps).
 
     Env hook (:mod:`oneocean.tasks.loop`), before the agents act.
     """
+    grid = ctx.grid
+    P = ctx.P
+    W = ctx.W
+    t = ctx.t0[e] + k * ctx.dt
     if k % FIELD_EVERY == 0:
         C = W.C
         nz = C.shape[2]
@@ -1208,7 +1216,7 @@ def _reading(grid, P, W, e, x, z, alt):
 
 
 @hot_kernel
-def sense(grid, P, W, X, state, O, e, k):
+def sense(ctx, e, k):
     """The mission computer: every agent's pointer along its survey route advanced on the
     state the method knows (its navigation estimate; the truth for the oracle), the cue's
     carrot (``W.tgt``) and whether its section is finished (``W.done``, the observation's
@@ -1218,6 +1226,11 @@ def sense(grid, P, W, X, state, O, e, k):
     Env hook (:mod:`oneocean.tasks.loop`), at the start of every step before the cues (module
     docstring: Mission computer).
     """
+    grid = ctx.grid
+    P = ctx.P
+    W = ctx.W
+    X = ctx.X
+    O = ctx.O
     for i in range(X.shape[1]):
         px = X[e, i, 0]
         pz = X[e, i, 2]
@@ -1252,7 +1265,7 @@ def sense(grid, P, W, X, state, O, e, k):
 
 
 @hot_kernel
-def cue(grid, P, W, X, e, k, i):
+def cue(ctx, e, k, i):
     """The cue: the mission computer's carrot along agent ``i``'s survey route at the
     inspection altitude (``W.tgt``, from :func:`sense`); the probe: the agent's latest
     reading (``W.sense``, kg m-3).
@@ -1268,6 +1281,7 @@ def cue(grid, P, W, X, e, k, i):
     probe : float
         The sensor's concentration, kg m-3.
     """
+    W = ctx.W
     return W.tgt[e, i, 0], W.tgt[e, i, 1], W.tgt[e, i, 2], W.sense[e, i]
 
 
@@ -1282,17 +1296,21 @@ def _take_reading(grid, P, W, state, e, i):
 
 
 @hot_kernel
-def after_agent(grid, P, W, state, e, k, i, code):
+def after_agent(ctx, e, k, i):
     """Take agent ``i``'s reading after its move into ``W.sense`` (the probe of its next
     observation).
 
     Env hook (:mod:`oneocean.tasks.loop`), right after the agent moved.
     """
+    grid = ctx.grid
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
     _take_reading(grid, P, W, state, e, i)
 
 
 @hot_kernel
-def post_step(grid, P, W, state, prev, e, k, t):
+def post_step(ctx, e, k):
     """The report is final once every agent's section is finished (``W.done``, the mission
     computer's).
 
@@ -1303,6 +1321,8 @@ def post_step(grid, P, W, state, prev, e, k, t):
     bool
         True (STOP) once every agent is done; :func:`finish` then scores the report.
     """
+    W = ctx.W
+    state = ctx.state
     for i in range(state.shape[1]):
         if W.done[e, i] == 0:
             return False
@@ -1425,7 +1445,7 @@ def score_claims(claims, leaks, tol: float, gate: float = DETECT_GATE_M) -> dict
 
 
 @hot_kernel
-def finish(grid, P, W, state, e, k, row):
+def finish(ctx, e, k):
     """Score the report (``W.claims``: every row, non-finite ones no claim) against the true
     leaks (:func:`match_claims`) and write the PI metrics.
 
@@ -1436,6 +1456,9 @@ def finish(grid, P, W, state, e, k, row):
     bool
         Success: every leak localised and no false claim.
     """
+    P = ctx.P
+    W = ctx.W
+    row = ctx.res[e]
     n_leak = P.n_leak
     n_det, n_loc, n_false, err = match_claims(W.claims[e], W.claims.shape[1], W.leaks[e],
                                               n_leak, P.gate, P.tol)

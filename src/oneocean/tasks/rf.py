@@ -386,16 +386,17 @@ def brief(P: RFParams, W: RFWork, init: dict, m) -> RFBriefing:
 
 
 @hot_kernel
-def begin(grid, P, W, state, e):
+def begin(ctx, e):
     """Reset the waypoint pointers and accumulators.
 
-    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``ctx.state`` holds the start.
 
     Returns
     -------
     bool
         True (the episode ends) for a route without waypoints.
     """
+    W = ctx.W
     W.wp[e] = 1
     W.nwp[e] = 1
     W.acc[e, 0] = 0.0
@@ -405,7 +406,7 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel
-def cue(grid, P, W, X, e, k, i):
+def cue(ctx, e, k, i):
     """The route point ``P.look`` m ahead of the agent's known projection on the active leg.
 
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
@@ -421,6 +422,9 @@ def cue(grid, P, W, X, e, k, i):
     probe : float
         NaN (the task has no field).
     """
+    P = ctx.P
+    W = ctx.W
+    X = ctx.X
     s = X[e, i]
     wp = nav_waypoint(W.route, W.nwp, e, s[0], s[1], s[2], P.radius, 0)
     if wp > W.route.shape[1] - 1:   # route done as far as the vehicle knows: the last waypoint
@@ -435,10 +439,12 @@ def cue(grid, P, W, X, e, k, i):
 
 
 @hot_kernel
-def sense(grid, P, W, X, state, O, e, k):
+def sense(ctx, e, k):
     """The task's observation fields (:data:`OBS_EXTRA`): the energy used and its fraction
     of the allocation. Env hook (:mod:`oneocean.tasks.loop`), before the step's cues.
     """
+    W = ctx.W
+    O = ctx.O
     used = W.acc[e, 2]
     o = O[e, 0]
     o[OBS_DIM] = used
@@ -446,7 +452,7 @@ def sense(grid, P, W, X, state, O, e, k):
 
 
 @hot_kernel
-def post_step(grid, P, W, state, prev, e, k, t):
+def post_step(ctx, e, k):
     """Cross-track error, energy and the judge's waypoint after the step.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
@@ -456,6 +462,12 @@ def post_step(grid, P, W, state, prev, e, k, t):
     bool
         True (STOP) once the last waypoint is reached (on the true position).
     """
+    grid = ctx.grid
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
+    prev = ctx.prev
+    t = ctx.t0[e] + k * ctx.dt
     s = state[e, 0]
     wp = W.wp[e]
     a0 = W.route[e, wp - 1]
@@ -480,7 +492,7 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 
 @hot_kernel
-def finish(grid, P, W, state, e, k, row):
+def finish(ctx, e, k):
     """Write the RF metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
@@ -491,6 +503,9 @@ def finish(grid, P, W, state, e, k, row):
         Success: every waypoint reached, mean cross-track error at most ``xte_max_m`` and
         energy within the allocation.
     """
+    P = ctx.P
+    W = ctx.W
+    row = ctx.res[e]
     a = W.acc[e]
     wp = W.wp[e]
     xte = a[0] / k if k > 0 else 0.0

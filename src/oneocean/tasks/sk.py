@@ -300,16 +300,17 @@ def brief(P: SKParams, W: SKWork, init: dict, m) -> SKBriefing:
 
 
 @hot_kernel
-def begin(grid, P, W, state, e):
+def begin(ctx, e):
     """Reset the accumulators and counters.
 
-    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``ctx.state`` holds the start.
 
     Returns
     -------
     bool
         False: the episode starts.
     """
+    W = ctx.W
     for j in range(W.acc.shape[1]):
         W.acc[e, j] = 0.0
     W.cnt[e, 0] = 0
@@ -319,7 +320,7 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel
-def cue(grid, P, W, X, e, k, i):
+def cue(ctx, e, k, i):
     """The goal cue: the station.
 
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
@@ -331,11 +332,12 @@ def cue(grid, P, W, X, e, k, i):
     probe : float
         NaN (the task has no field).
     """
+    W = ctx.W
     return W.station[e, 0], W.station[e, 1], W.station[e, 2], math.nan
 
 
 @hot_kernel
-def post_step(grid, P, W, state, prev, e, k, t):
+def post_step(ctx, e, k):
     """Distance and heading error after step ``k``, and the hold check.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
@@ -350,6 +352,9 @@ def post_step(grid, P, W, state, prev, e, k, t):
         ``REACHED`` once the first hold window is complete (the episode runs on to its time
         limit), else ``GO``.
     """
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
     s = state[e, 0]
     g = W.station[e]
     a = W.acc[e]
@@ -379,7 +384,7 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 
 @hot_kernel
-def finish(grid, P, W, state, e, k, row):
+def finish(ctx, e, k):
     """Write the SK metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
@@ -393,6 +398,9 @@ def finish(grid, P, W, state, e, k, row):
     bool
         Success: a hold window was completed.
     """
+    P = ctx.P
+    W = ctx.W
+    row = ctx.res[e]
     a = W.acc[e]
     held = W.cnt[e, 2] != 0
     n_win = k - P.settle_steps

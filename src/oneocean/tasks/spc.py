@@ -873,17 +873,19 @@ CUE_DOC = ("the surface point of the oil the task's dispatcher gives the agent: 
 
 
 @hot_kernel
-def begin(grid, P, W, state, e):
+def begin(ctx, e):
     """Record the initial mass and reset the accumulators, the map (none yet) and the cue
     (the ring around the spill report, at the start).
 
-    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start.
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``ctx.state`` holds the start.
 
     Returns
     -------
     bool
         True (success at step 0, the episode ends) when there is nothing to remove.
     """
+    P = ctx.P
+    W = ctx.W
     m0 = pol.total_mass(W.C[e], P.h)
     W.acc[e, 0] = m0
     W.acc[e, 1] = 0.0
@@ -910,11 +912,15 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel
-def pre_step(grid, P, W, state, e, k, t):
+def pre_step(ctx, e, k):
     """Re-sample the face velocities every ``P.refresh`` steps.
 
     Env hook (:mod:`oneocean.tasks.loop`), before the agents act in step ``k``.
     """
+    grid = ctx.grid
+    P = ctx.P
+    W = ctx.W
+    t = ctx.t0[e] + k * ctx.dt
     if k % P.refresh == 0:
         _refresh_faces(grid, W.uf[e], W.vf[e], W.origin[e, 0], W.origin[e, 1], P.h, P.y,
                        W.fkey[e], W.fpart[e], t)
@@ -1006,7 +1012,7 @@ def _cue_assign(X, bm, bx, bz, thr, used, given, cue_xz):
 
 
 @hot_kernel
-def sense(grid, P, W, X, state, O, e, k):
+def sense(ctx, e, k):
     """The aerial survey (the team observation) at its steps, and the cue's reference.
 
     Each agent's current estimate of its last observation (``O[e, i]`` still holds step
@@ -1017,6 +1023,10 @@ def sense(grid, P, W, X, state, O, e, k):
     the known positions ``X``; unchanged when the map holds no oil). Env hook
     (:mod:`oneocean.tasks.loop`).
     """
+    P = ctx.P
+    W = ctx.W
+    X = ctx.X
+    O = ctx.O
     n_ag = X.shape[1]
     for i in range(n_ag):
         ce = 0.0
@@ -1050,7 +1060,7 @@ def sense(grid, P, W, X, state, O, e, k):
 
 
 @hot_kernel
-def cue(grid, P, W, X, e, k, i):
+def cue(ctx, e, k, i):
     """The task's oil reference at the operating depth, and the pollution probe.
 
     Env hook (:mod:`oneocean.tasks.loop`): agent ``i``'s cue point (its place on the ring
@@ -1064,6 +1074,9 @@ def cue(grid, P, W, X, e, k, i):
     probe : float
         Surface concentration under the vehicle (its known position), kg m-2.
     """
+    P = ctx.P
+    W = ctx.W
+    X = ctx.X
     s = X[e, i]
     age = W.t0[e] + k * P.dt - W.cue_t[e]
     return (W.cue_xz[e, i, 0] + W.cest[e, i, 0] * age, P.y,
@@ -1072,7 +1085,7 @@ def cue(grid, P, W, X, e, k, i):
 
 
 @hot_kernel
-def post_step(grid, P, W, state, prev, e, k, t):
+def post_step(ctx, e, k):
     """Removal by every agent in agent order, then the field step; the success check.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
@@ -1083,6 +1096,9 @@ def post_step(grid, P, W, state, prev, e, k, t):
         ``REACHED`` once the removed mass reaches the target fraction (the episode runs on to
         the metric horizon), else ``GO``.
     """
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
     S = state[e]
     Ce = W.C[e]
     x0 = W.origin[e, 0]
@@ -1102,7 +1118,7 @@ def post_step(grid, P, W, state, prev, e, k, t):
 
 
 @hot_kernel
-def finish(grid, P, W, state, e, k, row):
+def finish(ctx, e, k):
     """Write the fractions at the metric horizon (the end of the episode).
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
@@ -1113,6 +1129,9 @@ def finish(grid, P, W, state, e, k, row):
         Success: the target was reached at some step (``W.k_hit``; removal only grows, so it
         still holds here).
     """
+    P = ctx.P
+    W = ctx.W
+    row = ctx.res[e]
     a = W.acc[e]
     m0 = a[0]
     success = W.k_hit[e] >= 0

@@ -820,11 +820,11 @@ def team_obs(W: UPLWork) -> UPLTeamObs:
 
 
 @hot_kernel
-def begin(grid, P, W, state, e):
+def begin(ctx, e):
     """Put the object at its site, at rest on the floor, clear the attachments, and start
     the team's object estimate from the chart.
 
-    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``state`` holds the start. The
+    Env hook (:mod:`oneocean.tasks.loop`), before step 0; ``ctx.state`` holds the start. The
     estimate's prior: the charted centre at rest, with the survey's stated error
     horizontally and ``SITE_PRIOR_STD_Y_M`` vertically.
 
@@ -833,6 +833,9 @@ def begin(grid, P, W, state, e):
     bool
         False: the episode starts.
     """
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
     n = state.shape[1]
     for c in range(3):
         W.obj[e, c] = W.site[e, c]
@@ -860,12 +863,16 @@ def begin(grid, P, W, state, e):
 
 
 @hot_kernel
-def pre_step(grid, P, W, state, e, k, t):
+def pre_step(ctx, e, k):
     """Record the agents' positions, the time and the attached count at the step's start,
     and take this step's sonar fixes of the object (``W.fix``, ``W.fixk``).
 
     Env hook (:mod:`oneocean.tasks.loop`), before the agents act.
     """
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
+    t = ctx.t0[e] + k * ctx.dt
     n = state.shape[1]
     S = state[e]
     for i in range(n):
@@ -1012,7 +1019,7 @@ def perceive(P, W, X, e):
 
 
 @hot_kernel(inline="always")
-def cue(grid, P, W, X, e, k, i):
+def cue(ctx, e, k, i):
     """Agent ``i``'s cue: its slot on the team's object estimate (the task's own guidance).
 
     Env hook (:mod:`oneocean.tasks.loop`), after :func:`sense` updated the estimate. The
@@ -1028,6 +1035,9 @@ def cue(grid, P, W, X, e, k, i):
     probe : float
         NaN (the task has no field).
     """
+    P = ctx.P
+    W = ctx.W
+    X = ctx.X
     off = W.slot_off[e]
     ox = W.oest[e, 0]
     oy = W.oest[e, 1]
@@ -1056,11 +1066,15 @@ def cue(grid, P, W, X, e, k, i):
 
 
 @hot_kernel
-def sense(grid, P, W, X, state, O, e, k):
+def sense(ctx, e, k):
     """The team's object estimate (:func:`perceive`, on this step's sonar fixes) and the
     task's observation fields (:data:`OBS_EXTRA`) of every agent. Env hook
     (:mod:`oneocean.tasks.loop`), before the cue.
     """
+    P = ctx.P
+    W = ctx.W
+    X = ctx.X
+    O = ctx.O
     perceive(P, W, X, e)
     est = W.oest[e]
     det = float(W.odet[e])
@@ -1077,7 +1091,7 @@ def sense(grid, P, W, X, state, O, e, k):
 
 
 @hot_kernel(inline="always")
-def after_agent(grid, P, W, state, e, k, i, code):
+def after_agent(ctx, e, k, i):
     """After the last agent's own step: the object (and the assembly) moves, before the
     near-collision count.
 
@@ -1085,6 +1099,10 @@ def after_agent(grid, P, W, state, e, k, i, code):
     other agents. With the quorum attached the assembly moves (module docstring, Lift);
     without it a suspended object sinks at ``P.sink`` and drifts with the current.
     """
+    grid = ctx.grid
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
     n = state.shape[1]
     if i != n - 1:
         return
@@ -1145,7 +1163,7 @@ def after_agent(grid, P, W, state, e, k, i, code):
 
 
 @hot_kernel
-def post_step(grid, P, W, state, prev, e, k, t):
+def post_step(ctx, e, k):
     """Attach / detach, the quorum's first time, success.
 
     Env hook (:mod:`oneocean.tasks.loop`), after every agent moved in step ``k``.
@@ -1156,6 +1174,9 @@ def post_step(grid, P, W, state, prev, e, k, t):
         True (STOP) once the object's centre is at most ``P.succ_d`` deep within
         ``P.hold_r`` (horizontally) of the site.
     """
+    P = ctx.P
+    W = ctx.W
+    state = ctx.state
     n = state.shape[1]
     dt = P.dt
     S = state[e]
@@ -1217,7 +1238,7 @@ def _success(P, W, e):
 
 
 @hot_kernel
-def finish(grid, P, W, state, e, k, row):
+def finish(ctx, e, k):
     """Write the UPL metrics.
 
     Env hook (:mod:`oneocean.tasks.loop`), once at the end of the episode.
@@ -1228,6 +1249,9 @@ def finish(grid, P, W, state, e, k, row):
         Success: the object's centre at most ``P.succ_d`` deep within ``P.hold_r`` of the
         site.
     """
+    P = ctx.P
+    W = ctx.W
+    row = ctx.res[e]
     success = _success(P, W, e)
     row[_C_LIFT] = 1.0 if success else 0.0
     row[_C_DEPTH] = W.obj[e, 1]
