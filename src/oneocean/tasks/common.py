@@ -132,24 +132,6 @@ def current_at(grid, x, y, z, t):
 
 
 @hot_kernel(inline="always")
-def set_velocity_cmd(cmd, ax, ay, az):
-    """Fill a command row with a world-frame velocity request, heading free, thrust on.
-
-    Parameters
-    ----------
-    cmd : (CMD_DIM,) float64
-        The command row (layout: :mod:`oneocean.engine.dynamics`), written in place.
-    ax, ay, az : float
-        Desired velocity relative to the water, world frame (east, down, north), m s-1.
-    """
-    cmd[0] = ax
-    cmd[1] = ay
-    cmd[2] = az
-    cmd[3] = math.nan
-    cmd[4] = 1.0
-
-
-@hot_kernel(inline="always")
 def seek(px, py, pz, gx, gy, gz, speed, kp, ce, cn):
     """Velocity request (relative to water) toward a goal, with current feed-forward.
 
