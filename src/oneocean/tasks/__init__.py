@@ -29,7 +29,8 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError, NotApplicable
-from .common import ACT_FIELDS, OBS_FIELDS, STANDARD, load_task_table, tier_params  # noqa: F401
+from .common import ACT_FIELDS, OBS_FIELDS, STANDARD  # noqa: F401
+from .tiers import load_task_table, tier_params  # noqa: F401
 
 
 def task_module(task_id: str):
@@ -229,7 +230,7 @@ class Cell:
             raise NotApplicable(f"{self.task} tier {self.tier}: {exc}") from None
 
     def _reset(self, episodes: int, seed: int, rows: slice = slice(None)) -> dict:
-        from .common import episode_rows
+        from .spawn import episode_rows
 
         init, keep, n_cand, regime = self._check(episodes, seed)
         self.regime = regime
@@ -256,7 +257,7 @@ class Cell:
         indices, the number of candidates drawn and the tier's regime (None without a
         ``current_band``)."""
         from ..engine.grid import current_coverage
-        from .common import site_speeds
+        from .regime import site_speeds
 
         band = self.params.get("current_band")
         duration = float(self.params["time_limit_s"])
@@ -294,7 +295,7 @@ class Cell:
         """:func:`~.common.current_regime` of this cell's tier at ``depth_m`` on
         ``grid_reset``, computed once per (band, depth) and cell (the cell's
         :class:`~.common.RegimeSampler` keeps the grid levels' currents between depths)."""
-        from .common import RegimeSampler, current_regime
+        from .regime import RegimeSampler, current_regime
 
         key = (repr(self.params.get("current_band")), float(depth_m))
         hit = self._regimes.get(key)

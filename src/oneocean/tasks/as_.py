@@ -81,8 +81,10 @@ from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, spawn_positions
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError, NotApplicable
-from .common import (ARRIVE_M, PURPOSE_RESET, STANDARD, _call, fresh_cache, need_tier,
-                     _spawn_altitude, start_times, waypoint_carrot)
+from .common import PURPOSE_RESET, STANDARD, fresh_cache
+from .spawn import _call, _spawn_altitude, start_times
+from .tiers import need_tier
+from .waypoints import ARRIVE_M, waypoint_carrot
 from .public import briefing_class, common_brief
 
 TASK_ID = "AS"

@@ -55,8 +55,10 @@ import numpy as np
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
-from .common import (MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, nav_waypoint, need_tier,
-                     profile_at, sample_routes, start_times)
+from .common import MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD
+from .spawn import sample_routes, start_times
+from .tiers import need_tier
+from .waypoints import nav_waypoint, profile_at
 from .public import briefing_class, common_brief
 from ..engine import streams
 from ..engine import libm

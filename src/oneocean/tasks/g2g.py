@@ -63,8 +63,10 @@ from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..errors import ConfigError, NotApplicable
 from . import routing
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, OBS_DIM, PURPOSE_RESET, STANDARD,
-                     current_at, need_tier, sample_routes, site_speeds, start_times)
+from .common import DEPTH_RANGE_M, MIN_ALTITUDE_M, OBS_DIM, PURPOSE_RESET, STANDARD, current_at
+from .regime import site_speeds
+from .spawn import sample_routes, start_times
+from .tiers import need_tier
 from .public import briefing_class, common_brief
 from ..engine import libm, streams
 
@@ -97,7 +99,7 @@ def task_power(tier: dict | None = None, task_id: str = TASK_ID):
         Speed limit, m s-1.
     """
     from ..engine import load_vehicle
-    from .common import shared_task_table
+    from .tiers import shared_task_table
 
     name = shared_task_table(task_id)["vehicle"]
     v_max = (tier or {}).get("v_max")

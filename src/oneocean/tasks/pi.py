@@ -108,8 +108,10 @@ from ..engine.grid import (current_from_parts, locate_time, sample_current_parts
                            sample_elevation, sample_elevation_points, synthetic_tide)
 from ..errors import ConfigError, NotApplicable
 from ..models import pollution as pol
-from .common import (ARRIVE_M, OBS_DIM, PURPOSE_RESET, STANDARD, _call, fresh_cache,
-                     need_tier, _spawn_altitude, start_times, waypoint_carrot)
+from .common import OBS_DIM, PURPOSE_RESET, STANDARD, fresh_cache
+from .spawn import _call, _spawn_altitude, start_times
+from .tiers import need_tier
+from .waypoints import ARRIVE_M, waypoint_carrot
 from .public import briefing_class, common_brief
 
 TASK_ID = "PI"

@@ -61,8 +61,10 @@ from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from . import routing
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, OBS_DIM, STANDARD, nav_waypoint,
-                     need_tier, sample_routes, start_times)
+from .common import DEPTH_RANGE_M, MIN_ALTITUDE_M, OBS_DIM, STANDARD
+from .spawn import sample_routes, start_times
+from .tiers import need_tier
+from .waypoints import nav_waypoint
 from .public import briefing_class, common_brief
 from .g2g import draw_in_band, energy_budgets, step_energy, task_power
 from .routing import MAX_VERTICES

@@ -111,11 +111,10 @@ from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError, NotApplicable
 from ..sensing import perception, perception_values
 from ..sensing.kernels import PURPOSE_PERCEPTION, draw, polar_fix
-from .common import feasible_codes
 from .public import briefing_class, common_brief
-from .common import (OBS_DIM, OK, PURPOSE_RESET, STANDARD, _call, _segment_clear,
-                     current_at, episode_steps, fresh_cache, need_tier, path_clear,
-                     start_times)
+from .common import OBS_DIM, OK, PURPOSE_RESET, STANDARD, current_at, fresh_cache
+from .spawn import _call, _segment_clear, feasible_codes, path_clear, start_times
+from .tiers import episode_steps, need_tier
 from ..engine import libm
 from ..engine import streams
 

@@ -54,9 +54,10 @@ import numpy as np
 from ...engine._jit import hot_kernel
 from ...engine.grid import sample_elevation
 from ...tasks.as_ import n_strips, plan_lawnmower, with_runin  # noqa: F401  (re-exported
-from ...tasks.common import (ARRIVE_M, O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max,
-                             waypoint_carrot)
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z
+from ...tasks.waypoints import ARRIVE_M, waypoint_carrot
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Commanded altitude as a fraction of the sensor's maximum altitude (every method).

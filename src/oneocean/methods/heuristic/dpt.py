@@ -25,9 +25,10 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import (O_CE, O_CN, O_DEPTH, O_VX, O_VZ, O_X, O_Z, nav_waypoint,
-                             profile_at, seek_max)
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_VX, O_VZ, O_X, O_Z
+from ...tasks.waypoints import nav_waypoint, profile_at
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Horizontal line-of-sight lookahead, m.

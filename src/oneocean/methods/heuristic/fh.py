@@ -60,8 +60,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z
 from ...tasks.fh import O_SDX, O_SDZ, O_SEEN, O_SSPREAD
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Slot-tracking proportional gain, s-1.

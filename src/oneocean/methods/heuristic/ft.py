@@ -28,8 +28,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, steer
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z
 from ...tasks.ft import CUE_LEAD_S
+from ..steering import steer
 from . import SENSING  # noqa: F401
 
 #: Virtual-centre nominal speed as a fraction of the method's speed budget.

@@ -70,8 +70,9 @@ import numpy as np
 
 from ...engine._jit import hot_kernel
 from ...engine.grid import sample_elevation
-from ...tasks.common import (ARRIVE_M, O_CE, O_CN, O_DEPTH, O_PROBE, O_X, O_Z, seek_max,
-                             waypoint_carrot)
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_PROBE, O_X, O_Z
+from ...tasks.waypoints import ARRIVE_M, waypoint_carrot
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Commanded altitude above the seafloor, m: the lowest a survey AUV flies terrain-following

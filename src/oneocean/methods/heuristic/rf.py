@@ -34,10 +34,11 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python
 from ...tasks import routing
 from ...tasks.routing import follow_path, hold_speed
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Line-of-sight lookahead along the route, m.

@@ -19,8 +19,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Proportional position gain, s-1 (ground-speed request = KP * error, plus feed-forward).

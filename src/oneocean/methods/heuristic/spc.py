@@ -33,7 +33,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import O_CE, O_CN, O_DEPTH, O_T, O_X, O_Z, steer
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_T, O_X, O_Z
+from ..steering import steer
 from . import SENSING  # noqa: F401
 
 #: Target-approach gain, s-1; depth-hold gain, s-1.

@@ -41,7 +41,8 @@ import numpy as np
 from ...engine._jit import hot_kernel
 from ...engine.dynamics import sincos
 from ...engine.grid import sample_elevation
-from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, OBS_DIM, seek_max
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, OBS_DIM
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Slot-tracking proportional gain, s-1.
