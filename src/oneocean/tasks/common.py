@@ -133,9 +133,10 @@ def fresh_cache(kernel, module_file: str, *deps) -> bool:
 
     numba keys a cache entry on the kernel's own file only; a task kernel also inlines (or
     links) the engine, this module, the episode loop (``loop.py``), the sensor models
-    (``sensing/kernels.py``) and the learned controller it calls (``learned.py``), and
-    ``deps``, so the fingerprint covers exactly those: editing one task recompiles that task
-    alone.
+    (``sensing/kernels.py``), the learned controller it calls (``learned.py``), the resets'
+    samplers (``spawn.py``), the waypoint geometry (``waypoints.py``), the methods' steering
+    laws (``methods/steering.py``) and ``deps``, so the fingerprint covers exactly those:
+    editing one task recompiles that task alone.
 
     Parameters
     ----------
@@ -157,9 +158,11 @@ def fresh_cache(kernel, module_file: str, *deps) -> bool:
     mine = Path(__file__).resolve()
     learned = mine.with_name("learned.py")
     sensing = mine.parents[1] / "sensing" / "kernels.py"
+    steering = mine.parents[1] / "methods" / "steering.py"
     return ensure_fresh_cache(kernel, (here.stem + ".",), here, mine,
                               mine.with_name("loop.py"), learned, sensing,
-                              *(Path(d).resolve() for d in deps))
+                              mine.with_name("spawn.py"), mine.with_name("waypoints.py"),
+                              steering, *(Path(d).resolve() for d in deps))
 
 
 def rollout_results(res: np.ndarray, columns, obs, act, record: bool) -> dict:
