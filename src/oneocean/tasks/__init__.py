@@ -184,9 +184,9 @@ class Cell:
 
         Without a ``current_band`` in the tier these are the task's candidates
         ``0 .. episodes-1``. With one, candidates are drawn in order and the first
-        ``episodes`` whose episode current (:func:`~.common.site_speeds` at the candidate's
+        ``episodes`` whose episode current (:func:`~.regime.site_speeds` at the candidate's
         ``regime_points``, else its start positions, over ``[t0, t0 + time_limit_s]``) lies in
-        the tier's :class:`~.common.Regime` are kept; ``init["candidate"]`` records which.
+        the tier's :class:`~.regime.Regime` are kept; ``init["candidate"]`` records which.
         Either way a candidate is kept only where the product defines currents at those
         points. Candidate ``c`` is drawn from its own stream (``SeedSequence([seed, c,
         purpose])``), so it does not depend on how many are drawn.
@@ -292,9 +292,9 @@ class Cell:
         return init, keep, n_cand, regime
 
     def _regime(self, depth_m: float):
-        """:func:`~.common.current_regime` of this cell's tier at ``depth_m`` on
+        """:func:`~.regime.current_regime` of this cell's tier at ``depth_m`` on
         ``grid_reset``, computed once per (band, depth) and cell (the cell's
-        :class:`~.common.RegimeSampler` keeps the grid levels' currents between depths)."""
+        :class:`~.regime.RegimeSampler` keeps the grid levels' currents between depths)."""
         from .regime import RegimeSampler, current_regime
 
         key = (repr(self.params.get("current_band")), float(depth_m))
@@ -490,7 +490,7 @@ def checked_tier_overrides(task: str, table: dict, overrides) -> dict:
     task : str
         Task id (for the message).
     table : dict
-        The task's tier table (:func:`~oneocean.tasks.common.load_task_table`).
+        The task's tier table (:func:`~oneocean.tasks.tiers.load_task_table`).
     overrides : dict or None
         ``{key: value}`` tier parameters to replace.
 

@@ -860,7 +860,7 @@ def cue(grid, P, W, X, e, k, i):
 
     Env hook (:mod:`oneocean.tasks.loop`): the observation's cue. On the agent's navigation
     estimate ``X[e, i]``, agent ``i``'s place on its lines of the task's survey plan
-    (``W.lidx``) advances (:func:`~oneocean.tasks.common.waypoint_carrot`: the transit to the
+    (``W.lidx``) advances (:func:`~oneocean.tasks.waypoints.waypoint_carrot`: the transit to the
     run-in ends within ``ARRIVE_M``, a leg ``CUE_TOL_M`` before its end); the cue is the
     run-in during the transit, then the point ``CUE_LOOK_M`` ahead on the current leg, then
     the last point, at the survey altitude ``P.alt`` above the seafloor there (at least

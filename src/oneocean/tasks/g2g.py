@@ -41,7 +41,7 @@ Methods
 
 Module layout (the template of every task module; the contract: :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset`` (Python: geometry and start times per episode from
-    its own stream, :func:`~oneocean.tasks.common.episode_generators` or their compiled
+    its own stream, :func:`~oneocean.tasks.spawn.episode_generators` or their compiled
     twins, :mod:`oneocean.engine.streams`); ``Params`` / ``Work`` and ``make``
     (the env's typed scalars and per-episode arrays); the public view: the briefing
     (``<ID>Briefing``, ``BRIEF_FIELDS`` and ``brief``) and the observation's own fields
@@ -167,7 +167,7 @@ def draw_in_band(grid, tier: dict, n_episodes: int, seed: int, draw, points, len
         ``draw(rngs, cands) -> (t0, geometry, failed)``: the candidates ``cands`` from their
         streams ``rngs`` (:func:`oneocean.engine.streams.episode_states`): start times
         ``(k,)``, geometries (indexable by row) and ``{row: NotApplicable}`` for those that
-        cannot be drawn (:func:`~oneocean.tasks.common.sample_routes`).
+        cannot be drawn (:func:`~oneocean.tasks.spawn.sample_routes`).
     points : callable
         ``points(geometry) -> (n, 3)`` world m: where the candidate's current is judged.
     length : float

@@ -33,7 +33,7 @@ Mission computer (the cue; the same for every method)
     pipeline polyline, from ``ROUTE_OVERLAP_M`` before the section's start (the first agent:
     from the start itself) to the section's end, so that the sections' coverage overlaps at
     the boundaries. The task's pointer along it advances on the agent's navigation estimate
-    at every step (:func:`~oneocean.tasks.common.waypoint_carrot`: the transit to the route's
+    at every step (:func:`~oneocean.tasks.waypoints.waypoint_carrot`: the transit to the route's
     start ends within ``ARRIVE_M``, each leg ends within ``CUE_WP_TOL_M`` of its end, the
     carrot lies ``CUE_LOOKAHEAD_M`` ahead on the leg); the cue is that carrot at
     ``CUE_ALT_M`` above the charted seafloor (never shallower than ``CUE_MIN_DEPTH_M``), and

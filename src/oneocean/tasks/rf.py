@@ -33,7 +33,7 @@ Observation
     The cue is the route point ``CUE_LOOKAHEAD_M`` ahead of the agent's known projection on
     the active leg (clamped to the waypoint), the leg as the vehicle's mission computer knows
     it: the task's pointer ``W.nwp`` advances in the cue on the known position
-    (:func:`~oneocean.tasks.common.nav_waypoint`), the judge's ``W.wp`` on the truth; once the
+    (:func:`~oneocean.tasks.waypoints.nav_waypoint`), the judge's ``W.wp`` on the truth; once the
     route is done as far as the vehicle knows, the last waypoint. The task's own fields
     (:data:`OBS_EXTRA`) are the electrical energy used so far (J) and its fraction of the
     allocation (0 without one).
@@ -221,7 +221,7 @@ class RFWork(NamedTuple):
     wp : (E,) int64
         The judge's active waypoint (true position; 1..W; W + 1 when the route is done).
     nwp : (E,) int64
-        The mission computer's (known position; :func:`~oneocean.tasks.common.nav_waypoint`):
+        The mission computer's (known position; :func:`~oneocean.tasks.waypoints.nav_waypoint`):
         the observation's route cue.
     acc : (E, 3) float64
         Sum and max of the cross-track error (m), energy used (J).
@@ -413,7 +413,7 @@ def cue(grid, P, W, X, e, k, i):
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
 
     The leg is the mission computer's: its pointer ``W.nwp`` is advanced here, on the
-    known position (:func:`~oneocean.tasks.common.nav_waypoint`); the point is clamped to the
+    known position (:func:`~oneocean.tasks.waypoints.nav_waypoint`); the point is clamped to the
     waypoint, and once the route is done the cue is the last waypoint.
 
     Returns

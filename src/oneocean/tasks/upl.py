@@ -266,7 +266,7 @@ def _sites_kernel(grid, stv, lo, hi, start_distance, n, cur, starts, obj0, phase
                   found):
     """:func:`_site_candidates` and :func:`_try_site` for each episode's stream ``stv[e]``,
     compiled: the same draws in the same order and the same checks (``check_move`` for the
-    candidates, slots and starts, :func:`~.common._segment_clear` for the descents).
+    candidates, slots and starts, :func:`~.spawn._segment_clear` for the descents).
     ``found[e]`` is 1 where a site was found (its centre, slot phase and starts written),
     else 0.
 

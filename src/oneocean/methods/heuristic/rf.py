@@ -18,7 +18,7 @@ Act
     ``act``, every step. Line-of-sight following of the route
     (:func:`~oneocean.tasks.routing.follow_path`: a carrot ``LOOKAHEAD_M`` ahead along the
     legs from the observed position), crabbing with the observed current estimate
-    (:func:`~oneocean.tasks.common.seek_max`) at the stretch's programmed speed, raised when
+    (:func:`~oneocean.methods.steering.seek_max`) at the stretch's programmed speed, raised when
     the current needs it (:func:`~oneocean.tasks.routing.hold_speed`).
 
 Heuristic and oracle differ in information only: the same planner, steering and gains.
@@ -188,7 +188,7 @@ def act(C, e, k, i):
 
     A carrot ``M.look`` ahead along the planned legs
     (:func:`~oneocean.tasks.routing.follow_path`) from the observed position, at the route's
-    depth, sought with :func:`~oneocean.tasks.common.seek_max` at the programmed speed raised
+    depth, sought with :func:`~oneocean.methods.steering.seek_max` at the programmed speed raised
     where the observed current needs it (:func:`~oneocean.tasks.routing.hold_speed`).
     Policy hook (:mod:`oneocean.tasks.loop`).
 
