@@ -88,7 +88,7 @@ def calibration_seeds(task_ids, seeds=None) -> list[int]:
     """The seeds to calibrate on (``seeds``, else the union of the tables' calibration
     seeds), refusing the workflow's evaluation seed: calibration never reads it."""
     from oneocean.config import load_config
-    from oneocean.tasks.common import load_task_table
+    from oneocean.tasks.tiers import load_task_table
 
     if seeds is None:
         seeds = sorted({int(x) for t in task_ids

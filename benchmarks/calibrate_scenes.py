@@ -32,7 +32,7 @@ def main(argv=None) -> None:
     from oneocean.backends.mujoco.scenes import build_scene
     from oneocean.product.zarrio import read_npz
     from oneocean.tasks import Cell
-    from oneocean.tasks.common import scene_tasks
+    from oneocean.tasks.tiers import scene_tasks
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tasks", nargs="+", default=list(scene_tasks()))

@@ -8,7 +8,7 @@ import numpy as np
 
 from oneocean.engine import load_vehicle, sample_current
 from oneocean.tasks import ft, g2g
-from oneocean.tasks.common import tier_params
+from oneocean.tasks.tiers import tier_params
 from oneocean.tasks.episodes import Episodes
 
 

@@ -19,7 +19,7 @@ from oneocean.config import load_config
 from oneocean.engine.recording import read_metrics_meta, write_metrics
 from oneocean.errors import ConfigError
 from oneocean.reporting.ladder import ladder_frame, load_cells, read_cell, wilson
-from oneocean.tasks.common import load_task_table
+from oneocean.tasks.tiers import load_task_table
 from workflow_helpers import REPO
 
 N = 20
@@ -193,12 +193,12 @@ def test_stressor_keys_are_the_tier_keys_that_differ():
 
 
 def test_stressor_keys_leave_out_equal_and_missing_values(monkeypatch):
-    import oneocean.tasks.common as common
+    import oneocean.tasks.tiers as tiers
 
     fake = {"harder": {"a": "up", "same": "up", "only_t1": "down", "b": "down"},
             "tiers": {1: {"a": 1, "same": 5, "only_t1": 2, "b": [0.0, 0.5]},
                       3: {"a": 3, "same": 5.0, "b": [0.5, 1.0]}}}
-    monkeypatch.setattr(common, "load_task_table", lambda task: fake)
+    monkeypatch.setattr(tiers, "load_task_table", lambda task: fake)
     assert A.stressor_keys("X") == ["a", "b"]
     assert A.stressor_cells("X") == [
         {"tier": 1, "key": "a", "from_tier": 3, "overrides": {"a": 3}},

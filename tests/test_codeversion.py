@@ -27,6 +27,9 @@ def test_a_task_depends_on_its_own_files_and_the_shared_engine_only():
                                       "kernels/g2g.py", "data/tasks/G2G.yaml"}
     # the sensor models and the route planner are shared; RF also imports G2G's task code
     assert {"sensing/kernels.py", "data/sensors.yaml", "tasks/routing.py"} <= shared
+    # so are the task layer's shared modules and the methods' steering laws
+    assert {"tasks/common.py", "tasks/tiers.py", "tasks/regime.py", "tasks/spawn.py",
+            "tasks/waypoints.py", "methods/steering.py"} <= shared
     assert {"tasks/g2g.py", "methods/heuristic/g2g.py"} <= _names("RF")
 
 

@@ -17,7 +17,8 @@ from oneocean.reporting.ladder import (Check, ladder_markdown, load_cells, macro
                              wilson)
 from oneocean.registry import task_ids
 from oneocean.tasks import Cell, rollout_to_file, run_cell
-from oneocean.tasks.common import current_regime, load_task_table, site_speed
+from oneocean.tasks.regime import current_regime, site_speed
+from oneocean.tasks.tiers import load_task_table
 from oneocean.testing import make_test_grid, uniform_grid
 
 

@@ -70,7 +70,7 @@ def test_regime_samples_and_quantiles_on_the_real_region_equal_the_grid_sampler(
     ``sample_speeds_times`` gives at each depth, bit for bit, and its quantiles those of
     ``np.quantile``."""
     from oneocean.engine.grid import sample_speeds_times
-    from oneocean.tasks.common import RegimeSampler
+    from oneocean.tasks.regime import RegimeSampler
 
     g = load_grid(north_sea_grid)
     sampler = RegimeSampler(g)

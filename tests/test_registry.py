@@ -166,7 +166,7 @@ def test_registered_toy_task_is_everywhere(clean_registry, tmp_path):
     # the default task list stays the paper's ladder
     assert validate_config({})["rollouts"]["tasks"] == list(PAPER)
     # its tier table is read from where its YAML lives
-    from oneocean.tasks.common import load_task_table, tier_params
+    from oneocean.tasks.tiers import load_task_table, tier_params
 
     assert load_task_table("TOY")["agents"] == {"default": 2, "range": [1, 3]}
     assert tier_params("TOY", 2) == {"current_gain": 0.7}

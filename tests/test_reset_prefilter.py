@@ -14,7 +14,7 @@ from oneocean import engine as E
 from oneocean.engine.grid import current_coverage
 from oneocean.models import pollution as pol
 from oneocean.tasks import Cell, sk, spc
-from oneocean.tasks.common import current_regime, site_speeds
+from oneocean.tasks.regime import current_regime, site_speeds
 from oneocean.testing import make_test_grid
 
 

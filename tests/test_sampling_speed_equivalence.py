@@ -15,7 +15,7 @@ from oneocean.engine import status as st
 from oneocean.engine.constraints import spawn_positions
 from oneocean.engine.grid import sample_currents, sample_elevation_points, sample_speeds_times
 from oneocean.tasks import g2g, rf, routing
-from oneocean.tasks.common import _spawn_one, path_clear
+from oneocean.tasks.spawn import _spawn_one, path_clear
 from oneocean.testing import make_test_grid
 
 G2G_TIER = {"time_limit_s": 3600.0, "goal_distance_m": 1200.0, "goal_radius_m": 10.0,
@@ -176,13 +176,13 @@ def test_regime_sampler_equals_sampling_the_grid_at_each_depth(has_tide, monkeyp
     equal ``np.quantile`` of them, and so do ``current_regime``'s and the path without kept
     levels."""
     from oneocean.engine.grid import order_stats_from_levels, with_forcing
-    from oneocean.tasks import common
+    from oneocean.tasks import regime
 
     g = with_forcing(E.load_grid(make_test_grid(nt=7, nz=4, ny=30, nx=40, dt_s=1800.0,
                                                 has_tide=has_tide)),
                      current_gain=1.3, tide=(0.25, 1.4e-4, 0.4))
     assert g.tide_layers == (1 if has_tide else 0)
-    sampler = common.RegimeSampler(g)
+    sampler = regime.RegimeSampler(g)
     depths = [float(g.depth[1]), 0.1, 3.3, 3.3, 11.7, float(g.depth[-1]), 500.0, 0.5 * (
         float(g.depth[1]) + float(g.depth[2]))]
     tier = {"current_band": [0.33, 0.83]}
@@ -203,11 +203,11 @@ def test_regime_sampler_equals_sampling_the_grid_at_each_depth(has_tide, monkeyp
         vals = np.empty(3)
         assert order_stats_from_levels(g, c0, c1, ct, wk, ranks, np.empty(want.size), vals)
         np.testing.assert_array_equal(vals, np.sort(want)[ranks])
-        assert len(sampler._levels) <= common.REGIME_LEVELS_KEPT
-        assert (common.current_regime(g, tier, d, sampler)
-                == common.current_regime(g, tier, d))
-    monkeypatch.setattr(common, "REGIME_LEVEL_BYTES", 0)      # nothing kept: the grid's path
-    fresh = common.RegimeSampler(g)
+        assert len(sampler._levels) <= regime.REGIME_LEVELS_KEPT
+        assert (regime.current_regime(g, tier, d, sampler)
+                == regime.current_regime(g, tier, d))
+    monkeypatch.setattr(regime, "REGIME_LEVEL_BYTES", 0)      # nothing kept: the grid's path
+    fresh = regime.RegimeSampler(g)
     for d, want in zip(depths[:3], wants):
         assert np.array_equal(fresh.speeds(d).view(np.int64), want.view(np.int64))
     assert not fresh._levels
@@ -219,10 +219,10 @@ def test_order_stats_with_ties_and_many_ranks_are_the_sorted_speeds(step):
     the sorted speeds, also where currents quantised to ``step`` m/s make many samples tie
     (full bins, ranks sharing a bin, samples counted below a rank from the histogram)."""
     from oneocean.engine.grid import order_stats_from_levels, speeds_from_levels
-    from oneocean.tasks import common
+    from oneocean.tasks import regime
 
     g = E.load_grid(make_test_grid(nt=6, nz=3, ny=30, nx=40, dt_s=3600.0))
-    _, c0, c1, ct, wk = common.RegimeSampler(g)._parts(2.7)
+    _, c0, c1, ct, wk = regime.RegimeSampler(g)._parts(2.7)
     if step is not None:
         c0, c1 = np.round(c0 / step) * step, np.round(c1 / step) * step
     want = np.sort(speeds_from_levels(g, c0, c1, ct, wk, np.empty(c0.shape[0] * c0.shape[1])))
@@ -237,7 +237,7 @@ def test_regime_quantiles_of_a_calm_grid_fall_back_to_sorting_the_speeds():
     """Where every sample has the same squared speed (no current, no tide) the order
     statistics cannot be binned: the quantiles are ``np.quantile`` of the speeds, 0."""
     from oneocean.engine.grid import with_forcing
-    from oneocean.tasks.common import RegimeSampler, current_regime
+    from oneocean.tasks.regime import RegimeSampler, current_regime
 
     g = with_forcing(E.load_grid(make_test_grid(nt=3, nz=3, ny=20, nx=30, has_tide=False)),
                      current_gain=0.0)

@@ -218,7 +218,7 @@ def test_scene_tiers_are_monotone_and_multiply_the_current(task):
     from task_helpers import assert_tier_table_monotone
 
     from oneocean.registry import scene_tasks
-    from oneocean.tasks.common import load_task_table, tier_params
+    from oneocean.tasks.tiers import load_task_table, tier_params
 
     assert task in scene_tasks()
     table = load_task_table(task)

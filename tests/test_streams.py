@@ -14,7 +14,8 @@ from oneocean import engine as E
 from oneocean.engine import streams
 from oneocean.errors import ConfigError, NotApplicable
 from oneocean.tasks import Cell
-from oneocean.tasks.common import PURPOSE_RESET, sample_route, sample_routes
+from oneocean.tasks.common import PURPOSE_RESET
+from oneocean.tasks.spawn import sample_route, sample_routes
 from oneocean.testing import make_test_grid
 
 SEEDS = (0, 1, 5, 2**31 - 1, 2**32, 2**32 + 7, 123456789012345, 2**63 - 1, 2**64 - 1)
@@ -157,7 +158,7 @@ def test_resets_draw_the_numpy_generator_episodes(coast, task, tier, seed, want)
 def _fh_reset_numpy(grid, tier, n, seed):
     """FH's reset as NumPy generators and ``_try_episode`` draw it, one episode at a time."""
     from oneocean.tasks import fh
-    from oneocean.tasks.common import episode_generators, start_times
+    from oneocean.tasks.spawn import episode_generators, start_times
 
     rngs = episode_generators(seed, n)
     t0 = start_times(grid, rngs, float(tier["time_limit_s"]))
@@ -208,7 +209,7 @@ def test_upl_reset_draws_what_the_python_sampler_draws(coast, tier, seed):
     ``_site_candidates`` and ``_try_site`` draw from the same streams (then the chart's
     normal draws), and fails where they find no site."""
     from oneocean.tasks import upl
-    from oneocean.tasks.common import episode_generators, start_times
+    from oneocean.tasks.spawn import episode_generators, start_times
 
     params = dict(Cell(coast, "UPL", tier).params)
     d = upl.reset(coast, params, 5, 10, seed)
@@ -273,7 +274,7 @@ def test_as_reset_draws_what_the_python_samplers_draw(coast, tier, seed):
     ``spawn_positions``' starts from the same streams (bounded integers included), and
     fails with their errors."""
     from oneocean.tasks import as_
-    from oneocean.tasks.common import episode_generators, start_times
+    from oneocean.tasks.spawn import episode_generators, start_times
 
     params = dict(Cell(coast, "AS", tier).params)
     d = as_.reset(coast, params, 4, 10, seed)
@@ -304,7 +305,7 @@ def test_pi_reset_draws_what_the_python_samplers_draw(coast, tier, seed):
     ``sample_leaks``' leaks, ``spawn_positions``' starts and the leak rates from the same
     streams, and fails with their errors."""
     from oneocean.tasks import pi
-    from oneocean.tasks.common import episode_generators, start_times
+    from oneocean.tasks.spawn import episode_generators, start_times
 
     params = dict(Cell(coast, "PI", tier).params)
     d = pi.reset(coast, params, 3, 8, seed)
@@ -327,7 +328,7 @@ def test_spc_reset_draws_what_the_python_sampler_draws(coast, tier, seed):
     spill box, origin and centroid from the same streams (slack water included: its own
     bearing draw), and fails with its errors in the episodes' order."""
     from oneocean.tasks import spc
-    from oneocean.tasks.common import episode_generators, start_times
+    from oneocean.tasks.spawn import episode_generators, start_times
 
     params = dict(Cell(coast, "SPC", tier).params)
     calm = E.load_grid(make_test_grid(nt=5, nz=3, ny=30, nx=40, speed_ms=0.0, tide_ms=0.0,

@@ -393,7 +393,7 @@ def test_ablation_with_only_data_and_off_cells(region, tmp_path):
 
 def test_ladder_spec_table(tmp_path):
     from oneocean import registry
-    from oneocean.tasks.common import load_task_table
+    from oneocean.tasks.tiers import load_task_table
 
     df = T.ladder_spec_table(tmp_path / "ladder.tex")
     assert list(df["task"]) == list(registry.task_ids())

@@ -17,8 +17,9 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.methods.heuristic import as_ as pol
 from oneocean.tasks import as_, run_cell
-from oneocean.tasks.common import (O_CE, O_CN, O_GX, O_GY, O_GZ, O_X, O_Z, STANDARD,
-                                   load_task_table, seek_max)
+from oneocean.methods.steering import seek_max
+from oneocean.tasks.common import O_CE, O_CN, O_GX, O_GY, O_GZ, O_X, O_Z, STANDARD
+from oneocean.tasks.tiers import load_task_table
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.tasks.public import COMMON
 from oneocean.testing import uniform_grid

@@ -17,7 +17,9 @@ from oneocean.errors import ConfigError
 from oneocean.models.fish import fish_params, init_school, school_spread, step_school
 from oneocean.tasks import fh, run_cell
 from oneocean.tasks.episodes import Episodes, rollout
-from oneocean.tasks.common import STANDARD, load_task_table, path_clear, tier_params
+from oneocean.tasks.common import STANDARD
+from oneocean.tasks.spawn import path_clear
+from oneocean.tasks.tiers import load_task_table, tier_params
 from oneocean.tasks.public import COMMON
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread

@@ -13,7 +13,8 @@ from oneocean import engine as E
 from oneocean.errors import ConfigError
 from oneocean.methods.heuristic import ft as FT_POLICY
 from oneocean.tasks import ft, run_cell
-from oneocean.tasks.common import load_task_table, path_clear
+from oneocean.tasks.spawn import path_clear
+from oneocean.tasks.tiers import load_task_table
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import uniform_grid
 from task_helpers import assert_tier_table_monotone, external_episodes, on_one_thread

@@ -18,7 +18,10 @@ from oneocean.errors import ConfigError, NotApplicable
 from oneocean.tasks.routing import power_model
 from oneocean.methods.heuristic import g2g as POLICY
 from oneocean.tasks import g2g, run_cell
-from oneocean.tasks.common import STANDARD, load_task_table, path_clear, site_speed
+from oneocean.tasks.common import STANDARD
+from oneocean.tasks.regime import site_speed
+from oneocean.tasks.spawn import path_clear
+from oneocean.tasks.tiers import load_task_table
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import uniform_grid
 from oneocean.vocab import EVALUATION_SEED

@@ -21,8 +21,9 @@ from oneocean.methods.heuristic import pi as pi_policy
 from oneocean.models import pollution as pol
 from oneocean.tasks import pi, run_cell
 from oneocean.tasks import public
-from oneocean.tasks.common import (OBS_DIM, O_CE, O_CN, O_DEPTH, O_GX, O_GY, O_GZ, O_PROBE,
-                                   O_X, O_Z, STANDARD, load_task_table)
+from oneocean.tasks.common import (OBS_DIM, O_CE, O_CN, O_DEPTH, O_GX, O_GY, O_GZ, O_PROBE, O_X,
+                                   O_Z, STANDARD)
+from oneocean.tasks.tiers import load_task_table
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.tasks.loop import Ctx, EnvCtx
 from oneocean.testing import make_test_grid, uniform_grid

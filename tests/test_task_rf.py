@@ -18,7 +18,9 @@ from oneocean.errors import ConfigError
 from oneocean.methods.heuristic import rf as POLICY
 from oneocean.tasks import rf, run_cell
 from oneocean.tasks import routing
-from oneocean.tasks.common import OBS_DIM, load_task_table, path_clear
+from oneocean.tasks.common import OBS_DIM
+from oneocean.tasks.spawn import path_clear
+from oneocean.tasks.tiers import load_task_table
 from oneocean.tasks.routing import power_model
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import uniform_grid

@@ -17,7 +17,8 @@ from oneocean.engine import status as st
 from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.tasks import cell_frame, run_cell, sk
-from oneocean.tasks.common import episode_generators, load_task_table, start_times
+from oneocean.tasks.spawn import episode_generators, start_times
+from oneocean.tasks.tiers import load_task_table
 from oneocean.evaluate import Observation
 from oneocean.methods.heuristic import FusedPolicy
 from oneocean.tasks.episodes import Episodes, rollout

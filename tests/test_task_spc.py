@@ -17,8 +17,8 @@ from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError
 from oneocean.models import pollution as pol
 from oneocean.tasks import run_cell, spc
-from oneocean.tasks.common import (O_CE, O_CN, O_DEPTH, O_GX, O_GY, O_GZ, O_X, O_Z, STANDARD,
-                                   load_task_table)
+from oneocean.tasks.common import O_CE, O_CN, O_DEPTH, O_GX, O_GY, O_GZ, O_X, O_Z, STANDARD
+from oneocean.tasks.tiers import load_task_table
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread
@@ -97,7 +97,7 @@ def test_tier3_spills_lie_in_the_tiers_current_band(coast):
     as not applicable with a named reason."""
     from oneocean.errors import NotApplicable
     from oneocean.tasks import Cell
-    from oneocean.tasks.common import current_regime, site_speed
+    from oneocean.tasks.regime import current_regime, site_speed
 
     cell = Cell(coast, "SPC", 3, n_agents=3)
     band = cell.params["current_band"]

@@ -16,8 +16,9 @@ from oneocean.engine import status as st
 from oneocean.engine.dynamics import P_VMAX
 from oneocean.errors import ConfigError, NotApplicable
 from oneocean.tasks import run_cell, upl
-from oneocean.tasks.common import (OBS_DIM, STANDARD, load_task_table, path_clear,
-                                   tier_params)
+from oneocean.tasks.common import OBS_DIM, STANDARD
+from oneocean.tasks.spawn import path_clear
+from oneocean.tasks.tiers import load_task_table, tier_params
 from oneocean.tasks.episodes import Episodes, rollout
 from oneocean.testing import make_test_grid, uniform_grid
 from task_helpers import assert_tier_table_monotone, on_one_thread

@@ -15,9 +15,10 @@ from oneocean.engine import status as st
 from oneocean.errors import ConfigError
 from oneocean.tasks import g2g, run_cell
 from oneocean.tasks import sk
-from oneocean.tasks.common import (STANDARD, path_clear, sample_route,
-                                   seek_max, start_times, steer,
-                                   episode_generators, waypoint_carrot)
+from oneocean.methods.steering import seek_max, steer
+from oneocean.tasks.common import STANDARD
+from oneocean.tasks.spawn import path_clear, sample_route, start_times, episode_generators
+from oneocean.tasks.waypoints import waypoint_carrot
 
 
 # ----------------------------------------------------------------------------- steering
@@ -138,7 +139,7 @@ def test_run_cell_columns_and_dtypes(coast):
     np.testing.assert_array_equal(df["seed"], 2)
     np.testing.assert_array_equal(df["primary"], df["final_error_m"])
     assert df.attrs["primary"] == "final_error_m"
-    from oneocean.tasks.common import tier_params
+    from oneocean.tasks.tiers import tier_params
 
     lim = float(tier_params("G2G", 1)["time_limit_s"])
     assert np.all(df.loc[~df["success"], "T_s"] == lim)

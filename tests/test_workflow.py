@@ -9,7 +9,7 @@ import pytest
 from oneocean.reporting.ablations import stressor_keys
 from oneocean.cli import main as cli
 from oneocean.engine.recording import read_metrics_meta
-from oneocean.tasks.common import load_task_table
+from oneocean.tasks.tiers import load_task_table
 from oneocean.vocab import VARIANTS
 from workflow_helpers import SMALL_CONFIG, need_tex, run_workflow
 

@@ -440,7 +440,7 @@ def register_llm_methods(cfg: dict) -> list[str]:
 
 def _check_held_out(rollouts: dict) -> None:
     """The evaluation seed must not be a calibration seed of any task it evaluates."""
-    from .tasks.common import load_task_table
+    from .tasks.tiers import load_task_table
 
     seed = int(rollouts["seed"])
     rep = rollouts.get("replicate") or {}

@@ -85,8 +85,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 
 from .errors import ConfigError, NotApplicable
 from .tasks import Cell
-from .tasks.common import (ACT_FIELDS, O_T, O_VX, O_VZ, OBS_DIM, OBS_FIELDS, N_MATES,
-                           episode_rows)
+from .tasks.common import ACT_FIELDS, O_T, O_VX, O_VZ, OBS_DIM, OBS_FIELDS, N_MATES
+from .tasks.spawn import episode_rows
 from .tasks.public import briefing_rows
 from .tasks.loop import ENV_ENDED, ENV_SUCCESS, ENV_TRUNCATED, FINISHED, NEW, EnvIO
 from .backends.protocol import Rollout

@@ -247,7 +247,7 @@ def evaluate_to_file(policy_spec: str, out_path, task: str, tier: int, grid_path
         The manifest entry (:func:`oneocean.engine.write_metrics`).
     """
     from .engine import write_metrics
-    from .tasks.common import tier_params
+    from .tasks.tiers import tier_params
 
     policy = load_policy(policy_spec)
     name = name or policy_spec.split(":", 1)[1]

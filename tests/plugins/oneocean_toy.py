@@ -19,8 +19,8 @@ import numpy as np
 from oneocean import registry
 from oneocean.engine._jit import hot_kernel
 from oneocean.engine.constraints import spawn_positions
-from oneocean.tasks.common import (O_CE, O_CN, O_DEPTH, episode_generators, fresh_cache,
-                                   start_times)
+from oneocean.tasks.common import O_CE, O_CN, O_DEPTH, fresh_cache
+from oneocean.tasks.spawn import episode_generators, start_times
 from oneocean.tasks.loop import (N_STANDARD, noop_after_agent, noop_plan, noop_pre_step,
                                  noop_report, noop_sense, policy_block, run_block)
 from oneocean.tasks.public import common_brief

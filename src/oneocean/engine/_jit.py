@@ -24,9 +24,11 @@ compile. The rule:
 
 * inlined: the engine's, the sensors' and the field models' small kernels
   (:mod:`oneocean.engine`, :mod:`oneocean.sensing`, :mod:`oneocean.models`), the loop's
-  phases (:mod:`oneocean.tasks.loop`), the shared steering and observation helpers
-  (:mod:`oneocean.tasks.common`) and the learned policy's forward pass: called per agent-step
-  in the innermost loops;
+  phases (:mod:`oneocean.tasks.loop`), the shared observation helpers
+  (:mod:`oneocean.tasks.common`), waypoint geometry (:mod:`oneocean.tasks.waypoints`) and
+  steering laws (:mod:`oneocean.methods.steering`), the resets' samplers
+  (:mod:`oneocean.tasks.spawn`) and the learned policy's forward pass: called per agent-step
+  (or per draw) in the innermost loops;
 * compiled once each, out of line: a task's hooks and helpers (``tasks/<task>.py``), its
   policy's (``methods/heuristic/<task>.py``) and the route planner (:mod:`oneocean.tasks.routing`),
   except where the measured throughput asked otherwise (UPL's ``cue``, ``after_agent`` and

@@ -2,7 +2,9 @@
 param: editing one of them reruns the job, editing anything else does not).
 
 A rollout cell of task ``T`` depends on the engine, the physical models, the sensor models and
-their table, the one episode loop and its driver, the learned controller the loop links
+their table, the one episode loop and its driver, the task layer's shared modules
+(``tasks/common.py``, ``tiers.py``, ``regime.py``, ``spawn.py``, ``waypoints.py``), the
+methods' steering laws (``methods/steering.py``), the learned controller the loop links
 (``tasks/learned.py``), the route planner (``tasks/routing.py``), ``T``'s own task module,
 heuristic and kernel module, ``T``'s tier table and the vehicle table -- not on the other
 tasks' modules or tables, so editing one task reruns only its cells.
@@ -18,9 +20,10 @@ from pathlib import Path
 _PKG = Path(__file__).resolve().parents[1]
 
 #: Files and folders every rollout cell depends on (relative to the package).
-ROLLOUT_SHARED = ("engine", "models", "methods/heuristic/__init__.py", "kernels/__init__.py",
-                  "sensing", "tasks/__init__.py", "tasks/common.py", "tasks/loop.py",
-                  "tasks/episodes.py", "tasks/learned.py", "tasks/routing.py",
+ROLLOUT_SHARED = ("engine", "models", "methods/heuristic/__init__.py", "methods/steering.py",
+                  "kernels/__init__.py", "sensing", "tasks/__init__.py", "tasks/common.py",
+                  "tasks/tiers.py", "tasks/regime.py", "tasks/spawn.py", "tasks/waypoints.py",
+                  "tasks/loop.py", "tasks/episodes.py", "tasks/learned.py", "tasks/routing.py",
                   "data/vehicles.yaml", "data/sensors.yaml", "errors.py")
 
 

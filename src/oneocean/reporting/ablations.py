@@ -67,7 +67,7 @@ def stressor_keys(task: str, low: int = LOW_TIER, high: int = HIGH_TIER) -> list
     list of str
         Keys of the table's ``harder`` block, in its order; empty if the task lacks a tier.
     """
-    from ..tasks.common import load_task_table
+    from ..tasks.tiers import load_task_table
 
     tiers = load_task_table(task)["tiers"]
     a, b = tiers.get(int(low)), tiers.get(int(high))
@@ -97,7 +97,7 @@ def stressor_cells(task: str, low: int = LOW_TIER, high: int = HIGH_TIER) -> lis
         ``{tier, key, from_tier, overrides}`` per cell (``overrides`` is the
         ``tier_overrides`` argument of :func:`oneocean.tasks.run_cell`).
     """
-    from ..tasks.common import load_task_table
+    from ..tasks.tiers import load_task_table
 
     tiers = load_task_table(task)["tiers"]
     out = []
@@ -437,7 +437,7 @@ def stressor_frame(cell_files, method: str = "heuristic", low: int = LOW_TIER,
         The columns above; ``attrs`` holds ``low`` and ``high``.
     """
     from .. import registry
-    from ..tasks.common import load_task_table
+    from ..tasks.tiers import load_task_table
 
     cells = T.load_cell_frames(cell_files)
     cells = cells[cells["method"] == method]

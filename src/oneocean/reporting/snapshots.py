@@ -185,7 +185,7 @@ class TaskView(NamedTuple):
 def _cut(init: dict, n_keep: int, n_all: int) -> dict:
     """The first ``n_keep`` episodes of a reset dict (arrays with a leading episode axis are
     cut; everything is copied, so runs never share arrays)."""
-    from ..tasks.common import episode_rows
+    from ..tasks.spawn import episode_rows
 
     return {key: (v.copy() if isinstance(v, np.ndarray) else v)
             for key, v in episode_rows(init, slice(0, n_keep), n_all).items()}

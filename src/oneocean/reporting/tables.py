@@ -595,7 +595,7 @@ def ladder_spec_frame(tasks=None) -> pd.DataFrame:
         tier parameter, canonical JSON; ``""`` for a tier the task lacks).
     """
     from .. import registry
-    from ..tasks.common import load_task_table
+    from ..tasks.tiers import load_task_table
 
     tasks = list(registry.task_ids() if tasks is None else tasks)
     tables = {t: load_task_table(t) for t in tasks}

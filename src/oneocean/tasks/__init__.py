@@ -29,7 +29,8 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError, NotApplicable
-from .common import ACT_FIELDS, OBS_FIELDS, STANDARD, load_task_table, tier_params  # noqa: F401
+from .common import ACT_FIELDS, OBS_FIELDS, STANDARD  # noqa: F401
+from .tiers import load_task_table, tier_params  # noqa: F401
 
 
 def task_module(task_id: str):
@@ -183,9 +184,9 @@ class Cell:
 
         Without a ``current_band`` in the tier these are the task's candidates
         ``0 .. episodes-1``. With one, candidates are drawn in order and the first
-        ``episodes`` whose episode current (:func:`~.common.site_speeds` at the candidate's
+        ``episodes`` whose episode current (:func:`~.regime.site_speeds` at the candidate's
         ``regime_points``, else its start positions, over ``[t0, t0 + time_limit_s]``) lies in
-        the tier's :class:`~.common.Regime` are kept; ``init["candidate"]`` records which.
+        the tier's :class:`~.regime.Regime` are kept; ``init["candidate"]`` records which.
         Either way a candidate is kept only where the product defines currents at those
         points. Candidate ``c`` is drawn from its own stream (``SeedSequence([seed, c,
         purpose])``), so it does not depend on how many are drawn.
@@ -229,7 +230,7 @@ class Cell:
             raise NotApplicable(f"{self.task} tier {self.tier}: {exc}") from None
 
     def _reset(self, episodes: int, seed: int, rows: slice = slice(None)) -> dict:
-        from .common import episode_rows
+        from .spawn import episode_rows
 
         init, keep, n_cand, regime = self._check(episodes, seed)
         self.regime = regime
@@ -256,7 +257,7 @@ class Cell:
         indices, the number of candidates drawn and the tier's regime (None without a
         ``current_band``)."""
         from ..engine.grid import current_coverage
-        from .common import site_speeds
+        from .regime import site_speeds
 
         band = self.params.get("current_band")
         duration = float(self.params["time_limit_s"])
@@ -291,10 +292,10 @@ class Cell:
         return init, keep, n_cand, regime
 
     def _regime(self, depth_m: float):
-        """:func:`~.common.current_regime` of this cell's tier at ``depth_m`` on
+        """:func:`~.regime.current_regime` of this cell's tier at ``depth_m`` on
         ``grid_reset``, computed once per (band, depth) and cell (the cell's
-        :class:`~.common.RegimeSampler` keeps the grid levels' currents between depths)."""
-        from .common import RegimeSampler, current_regime
+        :class:`~.regime.RegimeSampler` keeps the grid levels' currents between depths)."""
+        from .regime import RegimeSampler, current_regime
 
         key = (repr(self.params.get("current_band")), float(depth_m))
         hit = self._regimes.get(key)
@@ -489,7 +490,7 @@ def checked_tier_overrides(task: str, table: dict, overrides) -> dict:
     task : str
         Task id (for the message).
     table : dict
-        The task's tier table (:func:`~oneocean.tasks.common.load_task_table`).
+        The task's tier table (:func:`~oneocean.tasks.tiers.load_task_table`).
     overrides : dict or None
         ``{key: value}`` tier parameters to replace.
 

@@ -81,8 +81,10 @@ from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, spawn_positions
 from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError, NotApplicable
-from .common import (ARRIVE_M, PURPOSE_RESET, STANDARD, _call, fresh_cache, need_tier,
-                     _spawn_altitude, start_times, waypoint_carrot)
+from .common import PURPOSE_RESET, STANDARD, fresh_cache
+from .spawn import _call, _spawn_altitude, start_times
+from .tiers import need_tier
+from .waypoints import ARRIVE_M, waypoint_carrot
 from .public import briefing_class, common_brief
 
 TASK_ID = "AS"
@@ -859,7 +861,7 @@ def cue(ctx, e, k, i):
 
     Env hook (:mod:`oneocean.tasks.loop`): the observation's cue. On the agent's navigation
     estimate ``X[e, i]``, agent ``i``'s place on its lines of the task's survey plan
-    (``W.lidx``) advances (:func:`~oneocean.tasks.common.waypoint_carrot`: the transit to the
+    (``W.lidx``) advances (:func:`~oneocean.tasks.waypoints.waypoint_carrot`: the transit to the
     run-in ends within ``ARRIVE_M``, a leg ``CUE_TOL_M`` before its end); the cue is the
     run-in during the transit, then the point ``CUE_LOOK_M`` ahead on the current leg, then
     the last point, at the survey altitude ``P.alt`` above the seafloor there (at least

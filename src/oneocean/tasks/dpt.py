@@ -21,7 +21,7 @@ Metrics
 Active leg
     The judge's active waypoint ``W.wp`` advances on the true position; the vehicle's
     mission computer keeps its own, ``W.nwp``, advanced on the position it knows
-    (:func:`~oneocean.tasks.common.nav_waypoint`): a vehicle whose navigation has drifted
+    (:func:`~oneocean.tasks.waypoints.nav_waypoint`): a vehicle whose navigation has drifted
     turns for the next leg where it believes the waypoint is, and a waypoint it missed does
     not count.
 Briefing (:class:`DPTBriefing`, after the common fields of :mod:`oneocean.tasks.public`)
@@ -55,8 +55,10 @@ import numpy as np
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
-from .common import (MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, nav_waypoint, need_tier,
-                     profile_at, sample_routes, start_times)
+from .common import MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD
+from .spawn import sample_routes, start_times
+from .tiers import need_tier
+from .waypoints import nav_waypoint, profile_at
 from .public import briefing_class, common_brief
 from ..engine import streams
 from ..engine import libm
@@ -144,7 +146,7 @@ class DPTWork(NamedTuple):
         The judge's active waypoint (true position; 1..W; W + 1 when the route is done).
     nwp : (E,) int64
         The mission computer's (known position;
-        :func:`~oneocean.tasks.common.nav_waypoint`).
+        :func:`~oneocean.tasks.waypoints.nav_waypoint`).
     acc : (E, 3) float64
         Sum of squared depth errors (m2), max depth error (m), sum of cross-track errors (m).
     """
@@ -239,7 +241,7 @@ def cue(ctx, e, k, i):
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
 
     The leg is the mission computer's: its pointer ``W.nwp`` is advanced here, on the
-    known horizontal position (:func:`~oneocean.tasks.common.nav_waypoint`); the point is
+    known horizontal position (:func:`~oneocean.tasks.waypoints.nav_waypoint`); the point is
     clamped to the waypoint, and once the route is done the cue is the last waypoint.
 
     Returns

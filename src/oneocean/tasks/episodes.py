@@ -17,8 +17,8 @@ from ..engine.constraints import DEFAULT_LAND_THRESHOLD, DEFAULT_R_COLL_M
 from ..engine.dynamics import CMD_DIM, model_id, new_state
 from ..engine.dispatch import fast_entry, over_range
 from ..errors import ConfigError
-from .common import (ACT_FIELDS, CLEARANCE_M, OBS_DIM, STANDARD, episode_steps, need_tier,
-                     rollout_results)
+from .common import ACT_FIELDS, CLEARANCE_M, OBS_DIM, STANDARD, rollout_results
+from .tiers import episode_steps, need_tier
 from .loop import (ACT_DIM, EXTERNAL, FUSED, FINISHED, LEARNED, Ctx, LoopParams, env_io,
                    new_loop_state, step_args)
 
@@ -115,7 +115,7 @@ class Episodes:
         from .learned import make_net, no_net
         from .public import Mission
         from ..sensing import nav_aid, sensing_params
-        from .common import shared_task_table
+        from .tiers import shared_task_table
         from ..sensing.kernels import init_sensing
 
         need_tier(mod.TASK_ID, tier, "time_limit_s", "dt_s")

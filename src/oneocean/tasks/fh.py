@@ -99,11 +99,11 @@ from ..models.fish import (FISH_PARAM_NAMES, fish_params, fraction_inside_circle
                            school_centroid, school_spread, step_school_into)
 from ..sensing import perception, perception_values
 from ..sensing.kernels import forecast, polar_fix
-from .common import feasible_codes
 from .public import briefing_class, common_brief
-from .common import (_SPAWN_BATCH, OBS_DIM, PURPOSE_RESET, PURPOSE_TASK_NOISE, STANDARD, _call,
-                     _route_row, _segment_clear, current_at, fresh_cache, need_tier,
-                     path_clear, sample_route, start_times)
+from .common import OBS_DIM, PURPOSE_RESET, PURPOSE_TASK_NOISE, STANDARD, current_at, fresh_cache
+from .spawn import (_SPAWN_BATCH, _call, _route_row, _segment_clear, feasible_codes, path_clear,
+                    sample_route, start_times)
+from .tiers import need_tier
 from ..engine import libm
 from ..engine import streams
 

@@ -63,8 +63,9 @@ import numpy as np
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD, DEFAULT_R_COLL_M
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError, NotApplicable
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, need_tier,
-                     paths_clear, sample_routes, start_times)
+from .common import DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD
+from .spawn import paths_clear, sample_routes, start_times
+from .tiers import need_tier
 from .public import briefing_class, common_brief
 from ..engine import libm, streams
 
@@ -280,7 +281,7 @@ def _v_max(tier: dict) -> float:
     if tier.get("v_max") is not None:
         return float(tier["v_max"])
     from ..engine import load_vehicle
-    from .common import shared_task_table
+    from .tiers import shared_task_table
 
     return float(load_vehicle(shared_task_table(TASK_ID)["vehicle"]).v_max)
 

@@ -41,7 +41,7 @@ Methods
 
 Module layout (the template of every task module; the contract: :mod:`oneocean.tasks.loop`)
     ``TASK_ID``, ``METRICS``; ``reset`` (Python: geometry and start times per episode from
-    its own stream, :func:`~oneocean.tasks.common.episode_generators` or their compiled
+    its own stream, :func:`~oneocean.tasks.spawn.episode_generators` or their compiled
     twins, :mod:`oneocean.engine.streams`); ``Params`` / ``Work`` and ``make``
     (the env's typed scalars and per-episode arrays); the public view: the briefing
     (``<ID>Briefing``, ``BRIEF_FIELDS`` and ``brief``) and the observation's own fields
@@ -63,8 +63,10 @@ from ..engine._jit import hot_kernel
 from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..errors import ConfigError, NotApplicable
 from . import routing
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, OBS_DIM, PURPOSE_RESET, STANDARD,
-                     current_at, need_tier, sample_routes, site_speeds, start_times)
+from .common import DEPTH_RANGE_M, MIN_ALTITUDE_M, OBS_DIM, PURPOSE_RESET, STANDARD, current_at
+from .regime import site_speeds
+from .spawn import sample_routes, start_times
+from .tiers import need_tier
 from .public import briefing_class, common_brief
 from ..engine import libm, streams
 
@@ -97,7 +99,7 @@ def task_power(tier: dict | None = None, task_id: str = TASK_ID):
         Speed limit, m s-1.
     """
     from ..engine import load_vehicle
-    from .common import shared_task_table
+    from .tiers import shared_task_table
 
     name = shared_task_table(task_id)["vehicle"]
     v_max = (tier or {}).get("v_max")
@@ -165,7 +167,7 @@ def draw_in_band(grid, tier: dict, n_episodes: int, seed: int, draw, points, len
         ``draw(rngs, cands) -> (t0, geometry, failed)``: the candidates ``cands`` from their
         streams ``rngs`` (:func:`oneocean.engine.streams.episode_states`): start times
         ``(k,)``, geometries (indexable by row) and ``{row: NotApplicable}`` for those that
-        cannot be drawn (:func:`~oneocean.tasks.common.sample_routes`).
+        cannot be drawn (:func:`~oneocean.tasks.spawn.sample_routes`).
     points : callable
         ``points(geometry) -> (n, 3)`` world m: where the candidate's current is judged.
     length : float

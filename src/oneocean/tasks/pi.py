@@ -33,7 +33,7 @@ Mission computer (the cue; the same for every method)
     pipeline polyline, from ``ROUTE_OVERLAP_M`` before the section's start (the first agent:
     from the start itself) to the section's end, so that the sections' coverage overlaps at
     the boundaries. The task's pointer along it advances on the agent's navigation estimate
-    at every step (:func:`~oneocean.tasks.common.waypoint_carrot`: the transit to the route's
+    at every step (:func:`~oneocean.tasks.waypoints.waypoint_carrot`: the transit to the route's
     start ends within ``ARRIVE_M``, each leg ends within ``CUE_WP_TOL_M`` of its end, the
     carrot lies ``CUE_LOOKAHEAD_M`` ahead on the leg); the cue is that carrot at
     ``CUE_ALT_M`` above the charted seafloor (never shallower than ``CUE_MIN_DEPTH_M``), and
@@ -108,8 +108,10 @@ from ..engine.grid import (current_from_parts, locate_time, sample_current_parts
                            sample_elevation, sample_elevation_points, synthetic_tide)
 from ..errors import ConfigError, NotApplicable
 from ..models import pollution as pol
-from .common import (ARRIVE_M, OBS_DIM, PURPOSE_RESET, STANDARD, _call, fresh_cache,
-                     need_tier, _spawn_altitude, start_times, waypoint_carrot)
+from .common import OBS_DIM, PURPOSE_RESET, STANDARD, fresh_cache
+from .spawn import _call, _spawn_altitude, start_times
+from .tiers import need_tier
+from .waypoints import ARRIVE_M, waypoint_carrot
 from .public import briefing_class, common_brief
 
 TASK_ID = "PI"

@@ -33,7 +33,7 @@ Observation
     The cue is the route point ``CUE_LOOKAHEAD_M`` ahead of the agent's known projection on
     the active leg (clamped to the waypoint), the leg as the vehicle's mission computer knows
     it: the task's pointer ``W.nwp`` advances in the cue on the known position
-    (:func:`~oneocean.tasks.common.nav_waypoint`), the judge's ``W.wp`` on the truth; once the
+    (:func:`~oneocean.tasks.waypoints.nav_waypoint`), the judge's ``W.wp`` on the truth; once the
     route is done as far as the vehicle knows, the last waypoint. The task's own fields
     (:data:`OBS_EXTRA`) are the electrical energy used so far (J) and its fraction of the
     allocation (0 without one).
@@ -61,8 +61,10 @@ from ..engine.constraints import DEFAULT_LAND_THRESHOLD
 from ..engine._jit import hot_kernel
 from ..errors import ConfigError
 from . import routing
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, OBS_DIM, STANDARD, nav_waypoint,
-                     need_tier, sample_routes, start_times)
+from .common import DEPTH_RANGE_M, MIN_ALTITUDE_M, OBS_DIM, STANDARD
+from .spawn import sample_routes, start_times
+from .tiers import need_tier
+from .waypoints import nav_waypoint
 from .public import briefing_class, common_brief
 from .g2g import draw_in_band, energy_budgets, step_energy, task_power
 from .routing import MAX_VERTICES
@@ -219,7 +221,7 @@ class RFWork(NamedTuple):
     wp : (E,) int64
         The judge's active waypoint (true position; 1..W; W + 1 when the route is done).
     nwp : (E,) int64
-        The mission computer's (known position; :func:`~oneocean.tasks.common.nav_waypoint`):
+        The mission computer's (known position; :func:`~oneocean.tasks.waypoints.nav_waypoint`):
         the observation's route cue.
     acc : (E, 3) float64
         Sum and max of the cross-track error (m), energy used (J).
@@ -412,7 +414,7 @@ def cue(ctx, e, k, i):
     Env hook (:mod:`oneocean.tasks.loop`): the observation's goal cue and probe.
 
     The leg is the mission computer's: its pointer ``W.nwp`` is advanced here, on the
-    known position (:func:`~oneocean.tasks.common.nav_waypoint`); the point is clamped to the
+    known position (:func:`~oneocean.tasks.waypoints.nav_waypoint`); the point is clamped to the
     waypoint, and once the route is done the cue is the last waypoint.
 
     Returns

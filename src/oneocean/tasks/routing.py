@@ -2,7 +2,7 @@
 
 Zermelo's navigation problem on a grid graph: a vehicle moving at speed ``u`` through the
 water, steering by crabbing (it cancels the cross-track current and spends the rest of ``u``
-along its track, the steering of :func:`oneocean.tasks.common.seek_max`), has the ground speed
+along its track, the steering of :func:`oneocean.methods.steering.seek_max`), has the ground speed
 ``g = c_par + sqrt(u^2 - c_perp^2)`` along a unit direction in a current ``c`` (``c_par``,
 ``c_perp``: along- and cross-track parts); it cannot hold a track whose cross current reaches
 ``u`` (less a headroom ``hold``) or whose ground speed is below ``G_MIN``.

@@ -76,8 +76,9 @@ from ..engine.grid import sample_currents
 from ..engine import status as st
 from ..engine import streams
 from ..errors import ConfigError, NotApplicable
-from .common import (DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD, feasible_codes,
-                     need_tier, sample_routes, start_times)
+from .common import DEPTH_RANGE_M, MIN_ALTITUDE_M, PURPOSE_RESET, STANDARD
+from .spawn import feasible_codes, sample_routes, start_times
+from .tiers import need_tier
 from .public import briefing_class, common_brief
 from .loop import GO, REACHED
 from ..engine import libm

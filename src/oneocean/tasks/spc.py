@@ -99,9 +99,9 @@ from ..engine._jit import hot_kernel
 from ..errors import ConfigError, NotApplicable
 from ..models import pollution as pol
 from ..models.pollution import spill_box
-from .common import (O_CE, O_CN, PURPOSE_RESET, STANDARD, _SPAWN_BATCH, _call,
-                     _segment_clear, _spawn_one_c, episode_steps, fresh_cache, need_tier,
-                     path_clear, start_times)
+from .common import O_CE, O_CN, PURPOSE_RESET, STANDARD, fresh_cache
+from .spawn import _SPAWN_BATCH, _call, _segment_clear, _spawn_one_c, path_clear, start_times
+from .tiers import episode_steps, need_tier
 from .public import briefing_class, common_brief
 from .loop import GO, REACHED
 from ..engine import libm
@@ -261,7 +261,7 @@ def _no_site(e: int, R: float, dist: float) -> str:
 def _candidate_python(grid, raw, rng, tier: dict, n_agents: int, t0: float, e: int):
     """One candidate by the Python samplers (what :func:`_candidates_kernel` draws):
     ``(starts, spill box, origin, report)``; raises their errors."""
-    from .common import _spawn_one
+    from .spawn import _spawn_one
 
     R = float(tier["spill_radius_m"])
     dist = float(tier["staging_distance_m"])

@@ -111,11 +111,10 @@ from ..engine.grid import sample_elevation, sample_elevation_points
 from ..errors import ConfigError, NotApplicable
 from ..sensing import perception, perception_values
 from ..sensing.kernels import PURPOSE_PERCEPTION, draw, polar_fix
-from .common import feasible_codes
 from .public import briefing_class, common_brief
-from .common import (OBS_DIM, OK, PURPOSE_RESET, STANDARD, _call, _segment_clear,
-                     current_at, episode_steps, fresh_cache, need_tier, path_clear,
-                     start_times)
+from .common import OBS_DIM, OK, PURPOSE_RESET, STANDARD, current_at, fresh_cache
+from .spawn import _call, _segment_clear, feasible_codes, path_clear, start_times
+from .tiers import episode_steps, need_tier
 from ..engine import libm
 from ..engine import streams
 
@@ -267,7 +266,7 @@ def _sites_kernel(grid, stv, lo, hi, start_distance, n, cur, starts, obj0, phase
                   found):
     """:func:`_site_candidates` and :func:`_try_site` for each episode's stream ``stv[e]``,
     compiled: the same draws in the same order and the same checks (``check_move`` for the
-    candidates, slots and starts, :func:`~.common._segment_clear` for the descents).
+    candidates, slots and starts, :func:`~.spawn._segment_clear` for the descents).
     ``found[e]`` is 1 where a site was found (its centre, slot phase and starts written),
     else 0.
 

@@ -28,9 +28,9 @@ Act
     ends within ``ARRIVE_M`` (wider than the vehicle's turning diameter: an underactuated
     torpedo cannot close on a point inside its turning circles and would orbit it). Strips
     are tracked with line-of-sight guidance (a carrot ``LOOKAHEAD_M`` ahead of the projection
-    on the strip, :func:`~oneocean.tasks.common.waypoint_carrot`), terrain-following in depth
+    on the strip, :func:`~oneocean.tasks.waypoints.waypoint_carrot`), terrain-following in depth
     (the carrot's depth is the chart's seafloor depth there minus ``a_c``), crabbing against
-    the observed current (:func:`~oneocean.tasks.common.seek_max`: the cross-track current is
+    the observed current (:func:`~oneocean.methods.steering.seek_max`: the cross-track current is
     cancelled first); teammates closer than ``SEP_M`` (their observed navigation positions at
     the step's start) repel each other. The observation's cue (the task's own survey plan)
     is not used.
@@ -54,9 +54,10 @@ import numpy as np
 from ...engine._jit import hot_kernel
 from ...engine.grid import sample_elevation
 from ...tasks.as_ import n_strips, plan_lawnmower, with_runin  # noqa: F401  (re-exported
-from ...tasks.common import (ARRIVE_M, O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max,
-                             waypoint_carrot)
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z
+from ...tasks.waypoints import ARRIVE_M, waypoint_carrot
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Commanded altitude as a fraction of the sensor's maximum altitude (every method).
@@ -69,7 +70,7 @@ LOOKAHEAD_M = 12.0
 KP = 0.5
 #: A strip waypoint counts as reached this far (m) before its along-track end.
 WP_TOL_M = 1.0
-# The transit to the plan's first waypoint ends within tasks.common.ARRIVE_M: a torpedo AUV
+# The transit to the plan's first waypoint ends within tasks.waypoints.ARRIVE_M: a torpedo AUV
 # (remus100: turns no tighter than a 5 m radius) cannot close on a point inside its turning
 # circle; with a 2 m arrival it orbited the waypoint at ~5 m for ever.
 #: Run-in: the plan's first waypoint lies this far (m) before the first strip's start, on the
@@ -173,7 +174,8 @@ def params(method: str, B) -> ASPolicy:
 
 
 class ASMemory(NamedTuple):
-    """The method's memory ``H``: its lawnmower (:func:`~oneocean.tasks.common.waypoint_carrot`).
+    """The method's memory ``H``: its lawnmower
+    (:func:`~oneocean.tasks.waypoints.waypoint_carrot`).
 
     Attributes
     ----------
@@ -637,9 +639,9 @@ def act(C, e, k, i):
     """Agent ``i``'s action: line-of-sight strip tracking, terrain following, teammate repulsion.
 
     The carrot of its waypoint list in the memory
-    (:func:`~oneocean.tasks.common.waypoint_carrot` from the observed position) at ``M.alt``
+    (:func:`~oneocean.tasks.waypoints.waypoint_carrot` from the observed position) at ``M.alt``
     above the chart's seafloor (never shallower than ``MIN_DEPTH_M``), sought with
-    :func:`~oneocean.tasks.common.seek_max` against the observed current; teammates closer
+    :func:`~oneocean.methods.steering.seek_max` against the observed current; teammates closer
     than ``SEP_M`` add a horizontal repulsion. Policy hook (:mod:`oneocean.tasks.loop`).
 
     Returns

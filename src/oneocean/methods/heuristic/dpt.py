@@ -6,11 +6,11 @@ observation (the navigation estimate, depth, velocity over ground, the current e
 
 The active leg is the method's own (its memory, :class:`DPTMemory`): a waypoint pointer
 advanced on the observed position as the task's mission computer advances its own
-(:func:`~oneocean.tasks.common.nav_waypoint`, within the briefing's waypoint radius,
+(:func:`~oneocean.tasks.waypoints.nav_waypoint`, within the briefing's waypoint radius,
 horizontally; the last leg once it believes the route done). A depth loop
 ``w = KZ (y* - y)`` goes first (at most half the budget), then horizontal line-of-sight
 guidance with the rest: aim at the point ``LOOKAHEAD_M`` ahead of the agent's horizontal
-projection on the active leg with :func:`~oneocean.tasks.common.seek_max` (cross-track current
+projection on the active leg with :func:`~oneocean.methods.steering.seek_max` (cross-track current
 fed forward first, P-control ``KP``), both with the full ``v_max``, and both feed the profile
 slope times the along-track ground speed forward (a preview of the depth profile the mission
 gives them). They differ in information only: the heuristic's current estimate and navigation
@@ -25,9 +25,10 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import (O_CE, O_CN, O_DEPTH, O_VX, O_VZ, O_X, O_Z, nav_waypoint,
-                             profile_at, seek_max)
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_VX, O_VZ, O_X, O_Z
+from ...tasks.waypoints import nav_waypoint, profile_at
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Horizontal line-of-sight lookahead, m.

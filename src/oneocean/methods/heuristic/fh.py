@@ -24,7 +24,7 @@ standoff (``STANDOFF_KS``, at least ``STANDOFF_MIN_M``): further back when the s
 ahead of the plan, closer when it lags. ``w = v - c``, where ``v`` is the fastest ground
 velocity toward the zone with ``|w| <= ORACLE_SWIM_MS`` (the school crabs across the current;
 same ramp); the arc turns at most ``SLEW_RAD_S``; full ``v_max``, crab steering of the
-vehicles (:func:`~oneocean.tasks.common.seek_max`).
+vehicles (:func:`~oneocean.methods.steering.seek_max`).
 
 What the school is (centroid, velocity, spread: the memory's ``sest``). Given the target
 (``B.sens.true_target``: the oracle, the ``true_target`` ablation) the team observation's
@@ -60,8 +60,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z
 from ...tasks.fh import O_SDX, O_SDZ, O_SEEN, O_SSPREAD
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Slot-tracking proportional gain, s-1.
@@ -420,7 +421,7 @@ def act(C, e, k, i):
 
     Records the agent's current estimate (its observation's) in ``H.cest[e, i]`` (the team's
     current at the school in the next :func:`plan`), then
-    :func:`~oneocean.tasks.common.seek_max` toward ``H.tgt[e, i]`` at the school's depth
+    :func:`~oneocean.methods.steering.seek_max` toward ``H.tgt[e, i]`` at the school's depth
     ``B.depth``, the school's estimated velocity fed forward with the current. Policy hook
     (:mod:`oneocean.tasks.loop`).
 

@@ -11,7 +11,7 @@ centroid to goal) at ``pace * V_NOM_FRAC * budget``, where
 of the step); for a vehicle that cannot hover (torpedo guidance) the pace never drops below
 ``PACE_MIN_TORPEDO``. Each agent tracks its slot (around the virtual centre at the start of
 the step) with feed-forward of the virtual centre's velocity over the step plus P-control
-``KP`` (capped at ``P_CAP_MS``) through :func:`~oneocean.tasks.common.steer`.
+``KP`` (capped at ``P_CAP_MS``) through :func:`~oneocean.methods.steering.steer`.
 
 Both: ``budget = v_max``, the same logic and gains; they differ in information only
 (:mod:`oneocean.sensing`): the heuristic's positions are its navigation estimates (USBL fixes
@@ -28,8 +28,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, steer
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z
 from ...tasks.ft import CUE_LEAD_S
+from ..steering import steer
 from . import SENSING  # noqa: F401
 
 #: Virtual-centre nominal speed as a fraction of the method's speed budget.
@@ -165,7 +166,7 @@ def act(C, e, k, i):
 
     The desired ground velocity ``H.vff[e] + kp (slot - position)`` (the P part capped at
     ``M.p_cap``) is realised against the observed current estimate by
-    :func:`~oneocean.tasks.common.steer` within ``M.budget``. Policy hook
+    :func:`~oneocean.methods.steering.steer` within ``M.budget``. Policy hook
     (:mod:`oneocean.tasks.loop`).
 
     Returns

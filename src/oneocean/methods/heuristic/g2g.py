@@ -16,7 +16,7 @@ Act
     ``act``, every step. Line-of-sight following of the planned polyline
     (:func:`~oneocean.tasks.routing.follow_path`: a carrot ``LOOKAHEAD_M`` ahead of the
     observed position), crabbing with the observed current estimate
-    (:func:`~oneocean.tasks.common.seek_max`: the cross-track current is cancelled first) at
+    (:func:`~oneocean.methods.steering.seek_max`: the cross-track current is cancelled first) at
     the stretch's programmed speed, raised when the current needs it
     (:func:`~oneocean.tasks.routing.hold_speed`: cross-current headroom and a minimum ground
     speed, up to ``v_max``).
@@ -35,10 +35,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import ARRIVE_M, O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z
+from ...tasks.waypoints import ARRIVE_M
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python
 from ...tasks import routing
 from ...tasks.routing import follow_path, hold_speed
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Proportional gain of the final approach (ground speed <= KP * distance to the carrot), s-1.
@@ -46,7 +48,7 @@ KP = 0.5
 #: Line-of-sight lookahead along the planned route, m.
 LOOKAHEAD_M = 30.0
 #: A corner of the planned route counts as passed within this distance (m): wider than the
-#: torpedo's turning diameter, so it never orbits a corner (tasks.common.ARRIVE_M).
+#: torpedo's turning diameter, so it never orbits a corner (tasks.waypoints.ARRIVE_M).
 WP_TOL_M = ARRIVE_M
 
 
@@ -186,7 +188,7 @@ def act(C, e, k, i):
 
     A carrot ``M.look`` ahead along the planned polyline
     (:func:`~oneocean.tasks.routing.follow_path`) from the observed position, at the goal's
-    depth, sought with :func:`~oneocean.tasks.common.seek_max` at the programmed speed raised
+    depth, sought with :func:`~oneocean.methods.steering.seek_max` at the programmed speed raised
     where the observed current needs it (:func:`~oneocean.tasks.routing.hold_speed`).
     Policy hook (:mod:`oneocean.tasks.loop`).
 

@@ -10,9 +10,9 @@ task's :data:`~oneocean.tasks.pi.REPORT_DOC`). Its survey plan and event memory 
 
 Survey plan (:func:`survey`, the waypoints; ``act``): agent ``i`` follows the pipeline polyline
 of its section (the i-th of N equal arc-length sections) with line-of-sight guidance (carrot
-``LOOKAHEAD_M`` ahead, :func:`~oneocean.tasks.common.waypoint_carrot`), terrain-following at a
+``LOOKAHEAD_M`` ahead, :func:`~oneocean.tasks.waypoints.waypoint_carrot`), terrain-following at a
 low commanded altitude over the chart's seafloor (never shallower than ``MIN_DEPTH_M``),
-crabbing against the sensed current (:func:`~oneocean.tasks.common.seek_max`, approach gain
+crabbing against the sensed current (:func:`~oneocean.methods.steering.seek_max`, approach gain
 ``KP``) with the vehicle's full speed budget ``v_max``. The transit to the section start ends
 within ``ARRIVE_M`` (beyond a torpedo's turning circle: closer arrival radii make it orbit the
 start for ever). Past its last waypoint the agent holds there and its section is finished.
@@ -70,8 +70,9 @@ import numpy as np
 
 from ...engine._jit import hot_kernel
 from ...engine.grid import sample_elevation
-from ...tasks.common import (ARRIVE_M, O_CE, O_CN, O_DEPTH, O_PROBE, O_X, O_Z, seek_max,
-                             waypoint_carrot)
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_PROBE, O_X, O_Z
+from ...tasks.waypoints import ARRIVE_M, waypoint_carrot
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Commanded altitude above the seafloor, m: the lowest a survey AUV flies terrain-following
@@ -85,7 +86,7 @@ LOOKAHEAD_M = 12.0
 KP = 0.5
 WP_TOL_M = 1.0
 MIN_DEPTH_M = 1.0
-# The transit to the section's first waypoint ends within tasks.common.ARRIVE_M: a torpedo AUV
+# The transit to the section's first waypoint ends within tasks.waypoints.ARRIVE_M: a torpedo AUV
 # (remus100: turns no tighter than a 5 m radius) cannot close on a point inside its turning
 # circle; with a ``2 WP_TOL_M`` arrival it orbited the section start at ~6 m for ever and never
 # surveyed (leaks lie >= ``LEAK_ARC_FRAC`` of the length, >= 64 m, from the pipeline's ends,
@@ -255,9 +256,9 @@ def act(C, e, k, i):
     While surveying at the survey altitude (within ``ALT_BAND_M`` of it, over the chart's
     seafloor at its navigation estimate) the agent's reading (the observation's probe) goes
     through :func:`detect`; the carrot of its waypoint list
-    (:func:`~oneocean.tasks.common.waypoint_carrot`) at ``M.alt`` above the charted seafloor
+    (:func:`~oneocean.tasks.waypoints.waypoint_carrot`) at ``M.alt`` above the charted seafloor
     (never shallower than ``MIN_DEPTH_M``) is kept in ``H.tgt[e, i]`` and sought with
-    :func:`~oneocean.tasks.common.seek_max` against the observed current estimate. Past its
+    :func:`~oneocean.methods.steering.seek_max` against the observed current estimate. Past its
     last waypoint the section is finished (``H.done``) and an open event is closed
     (:func:`close_event` with ``at_end``). Policy hook (:mod:`oneocean.tasks.loop`).
 

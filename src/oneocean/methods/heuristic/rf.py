@@ -18,7 +18,7 @@ Act
     ``act``, every step. Line-of-sight following of the route
     (:func:`~oneocean.tasks.routing.follow_path`: a carrot ``LOOKAHEAD_M`` ahead along the
     legs from the observed position), crabbing with the observed current estimate
-    (:func:`~oneocean.tasks.common.seek_max`) at the stretch's programmed speed, raised when
+    (:func:`~oneocean.methods.steering.seek_max`) at the stretch's programmed speed, raised when
     the current needs it (:func:`~oneocean.tasks.routing.hold_speed`).
 
 Heuristic and oracle differ in information only: the same planner, steering and gains.
@@ -34,10 +34,11 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (the plan is made in Python
 from ...tasks import routing
 from ...tasks.routing import follow_path, hold_speed
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Line-of-sight lookahead along the route, m.
@@ -187,7 +188,7 @@ def act(C, e, k, i):
 
     A carrot ``M.look`` ahead along the planned legs
     (:func:`~oneocean.tasks.routing.follow_path`) from the observed position, at the route's
-    depth, sought with :func:`~oneocean.tasks.common.seek_max` at the programmed speed raised
+    depth, sought with :func:`~oneocean.methods.steering.seek_max` at the programmed speed raised
     where the observed current needs it (:func:`~oneocean.tasks.routing.hold_speed`).
     Policy hook (:mod:`oneocean.tasks.loop`).
 

@@ -5,7 +5,7 @@ A policy of the public view only (:class:`oneocean.tasks.loop.Ctx`): the briefin
 observation (the navigation estimate, depth, the current estimate).
 
 Both: P-control (``KP``) to the station plus feed-forward of the observed current within the
-vehicle's full speed budget ``|a| <= v_max`` (:func:`~oneocean.tasks.common.seek_max`),
+vehicle's full speed budget ``|a| <= v_max`` (:func:`~oneocean.methods.steering.seek_max`),
 heading commanded to the briefing's station heading. They differ in information only:
 ``heuristic`` feeds forward its current estimate and steers by its navigation estimate
 (:mod:`oneocean.sensing`); ``oracle`` the true current and position. Neither can hold against
@@ -19,8 +19,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, seek_max
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z
 from ...tasks.loop import noop_plan as plan  # noqa: F401  (no team-level decision
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Proportional position gain, s-1 (ground-speed request = KP * error, plus feed-forward).
@@ -76,7 +77,7 @@ def act(C, e, k, i):
     -------
     ax, ay, az : float
         Desired velocity relative to the water, world frame (x east, y down, z north), m s-1
-        (:func:`~oneocean.tasks.common.seek_max`, ``|a| <= M.budget``).
+        (:func:`~oneocean.methods.steering.seek_max`, ``|a| <= M.budget``).
     psi : float
         Commanded heading, rad: the briefing's station heading.
     """

@@ -15,7 +15,7 @@ Between maps each agent moves its target with the current it estimates (the spil
 the water). Steering: through-water velocity ``KP * (target - position)`` capped at the speed
 budget, plus a teammate repulsion inside ``SEP_M`` (keeps >= 3 m apart; teammates' navigation
 estimates at the step start), realised against the current estimate by
-:func:`~oneocean.tasks.common.steer`; depth held at the briefing's operating depth (gain
+:func:`~oneocean.methods.steering.steer`; depth held at the briefing's operating depth (gain
 ``KP_DEPTH``).
 
 Both spend the vehicle's full speed budget ``v_max`` with the same logic: they differ in
@@ -33,7 +33,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ...engine._jit import hot_kernel
-from ...tasks.common import O_CE, O_CN, O_DEPTH, O_T, O_X, O_Z, steer
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_T, O_X, O_Z
+from ..steering import steer
 from . import SENSING  # noqa: F401
 
 #: Target-approach gain, s-1; depth-hold gain, s-1.
@@ -184,7 +185,7 @@ def act(C, e, k, i):
     The target ``H.tgt[e, i]`` drifted with the current estimate since its time; the
     through-water velocity ``M.kp (target - position)`` (capped at ``M.budget``) plus a
     teammate repulsion inside ``M.sep`` is realised against the current by
-    :func:`~oneocean.tasks.common.steer`, with a depth hold toward ``M.depth`` (gain
+    :func:`~oneocean.methods.steering.steer`, with a depth hold toward ``M.depth`` (gain
     ``M.kp_depth``). Policy hook (:mod:`oneocean.tasks.loop`).
 
     Returns

@@ -15,7 +15,7 @@ searches: every agent flies a point of a five-armed spiral about the chart (arms
 slots' bearings, from the sonar's detection range outward by ``SEARCH_PITCH`` ranges per
 fifth of a turn, the point moving at ``SEARCH_SPEED_MS``), at the slot depth kept
 ``SEARCH_ALTITUDE_M`` above the charted seafloor, until the first fix. Unattached agents seek
-their slot with crab steering (:func:`~oneocean.tasks.common.seek_max`, P-gain ``KP``, capped
+their slot with crab steering (:func:`~oneocean.methods.steering.seek_max`, P-gain ``KP``, capped
 at the speed budget) and feed-forward of the current estimate and the object's estimated
 velocity. Attached agents hold their slot until the quorum is attached, then lift: desired
 ground velocity = slot tracking + hold (P toward the team's site estimate -- the object's
@@ -41,7 +41,8 @@ import numpy as np
 from ...engine._jit import hot_kernel
 from ...engine.dynamics import sincos
 from ...engine.grid import sample_elevation
-from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, OBS_DIM, seek_max
+from ...tasks.common import O_CE, O_CN, O_DEPTH, O_X, O_Z, OBS_DIM
+from ..steering import seek_max
 from . import SENSING  # noqa: F401
 
 #: Slot-tracking proportional gain, s-1.
@@ -239,7 +240,7 @@ def act(C, e, k, i):
     depth but at least ``SEARCH_ALTITUDE_M`` above the charted seafloor there (and at least
     1 m deep). An attached agent, once the quorum is attached, tracks its slot plus the hold
     velocity ``H.hold[e]`` and lifts at full speed (the horizontal part has priority);
-    otherwise :func:`~oneocean.tasks.common.seek_max` toward the slot with the object's
+    otherwise :func:`~oneocean.methods.steering.seek_max` toward the slot with the object's
     estimated velocity fed forward. Policy hook (:mod:`oneocean.tasks.loop`).
 
     Returns

@@ -51,7 +51,7 @@ def episode_constants(task: str, tier: int) -> dict:
         ``t_lim`` (s) and ``n_steps`` (the episode length, steps).
     """
     from ...engine import load_vehicle
-    from ...tasks.common import episode_steps, load_task_table, tier_params
+    from ...tasks.tiers import episode_steps, load_task_table, tier_params
 
     table = load_task_table(task)
     params = tier_params(task, int(tier))
@@ -237,7 +237,7 @@ def evaluate_to_file(policy_path, grid_path, out_path, task: str, tier: int, *,
     from ...evaluate import evaluate
     from ...io import sha256_file
     from ...tasks import n_agents_for, na_frame, task_module
-    from ...tasks.common import load_task_table, tier_params
+    from ...tasks.tiers import load_task_table, tier_params
 
     if backend != "core":
         raise ConfigError(f"ppo cell {task} tier {tier}: the policy is scored on the core "
