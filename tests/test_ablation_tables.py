@@ -18,7 +18,8 @@ from oneocean.reporting import tables as T
 from oneocean.config import load_config
 from oneocean.engine.recording import read_metrics_meta, write_metrics
 from oneocean.errors import ConfigError
-from oneocean.reporting.ladder import ladder_frame, load_cells, read_cell, wilson
+from oneocean.reporting.ladder import ladder_frame, load_cells, read_cell
+from oneocean.reporting.stats import wilson
 from oneocean.tasks.common import load_task_table
 from workflow_helpers import REPO
 

@@ -37,8 +37,9 @@ rule table_dataset_variants:
 
 
 TABLES_CODE = code_version("oneocean.reporting.tables", "oneocean.reporting.ladder",
-                           "oneocean.reporting.latex", "oneocean.reporting.planning",
-                           "oneocean.registry", "oneocean.data", "oneocean.reporting.ablations")
+                           "oneocean.reporting.stats", "oneocean.reporting.latex",
+                           "oneocean.reporting.planning", "oneocean.registry", "oneocean.data",
+                           "oneocean.reporting.ablations")
 
 # Table II: the task ladder (registry and tier tables).
 rule table_task_ladder:

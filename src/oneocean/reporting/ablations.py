@@ -17,9 +17,9 @@ every paper table (:mod:`oneocean.reporting.tables`): a ``*_frame`` function ret
 
 The workflow plans its cells from the same functions (:func:`stressor_cells`), so the table
 and the rollouts agree on the keys. Intervals are the project's own (Wilson:
-:func:`oneocean.reporting.tables.rate_ci`; means: :func:`oneocean.reporting.ladder.mean_ci`), so a number here is
-the number the other tables give for the same cell. A cell the region cannot host
-(``applicable: false``) is shown as n/a with its reason; a cell that was not run as "--".
+:func:`oneocean.reporting.stats.rate_ci`; means: :func:`oneocean.reporting.stats.mean_ci`), so
+a number here is the number the other tables give for the same cell. A cell the region cannot
+host (``applicable: false``) is shown as n/a with its reason; a cell that was not run as "--".
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ import pandas as pd
 
 from . import tables as T
 from .latex import booktabs
+from .stats import mean_ci, rate_ci
 
 #: The stressor table's tiers: the easy tier whose keys are tightened one at a time, and the
 #: hard tier whose keys are relaxed one at a time.
@@ -127,7 +128,7 @@ def _one(cells: pd.DataFrame, task: str, method: str, tier: int, condition: str)
 
 def _rate_cols(prefix: str, c) -> dict:
     """``<prefix>_sr, _lo, _hi`` (percent, Wilson 95 %), ``_k``, ``_n``, ``_state``."""
-    sr, lo, hi = T.rate_ci(c["success"]) if _usable(c) else (math.nan,) * 3
+    sr, lo, hi = rate_ci(c["success"]) if _usable(c) else (math.nan,) * 3
     return {f"{prefix}_sr": sr, f"{prefix}_lo": lo, f"{prefix}_hi": hi,
             f"{prefix}_k": int(c["k"]) if _usable(c) else 0,
             f"{prefix}_n": 0 if c is None else int(c["n"]), f"{prefix}_state": _state(c)}
@@ -220,7 +221,7 @@ def information_frame(cell_files, tier: int = HIGH_TIER,
         for cid, _, m, cond in conds:
             c = _one(cells, task, m, tier, cond)
             row.update(_rate_cols(cid, c))
-            mean = (T.mean_ci(c["episodes"][spec.primary].to_numpy(dtype=np.float64))
+            mean = (mean_ci(c["episodes"][spec.primary].to_numpy(dtype=np.float64))
                     if _usable(c) and spec.primary in c["episodes"] else (math.nan,) * 3)
             row[f"{cid}_metric"], row[f"{cid}_metric_lo"], row[f"{cid}_metric_hi"] = mean
             if c is not None and not c["applicable"] and c["reason"]:

@@ -748,7 +748,8 @@ def ladder_numbers(cell_files, tasks=None, method: str = "heuristic"):
     DataError
         No cell files, or more than one cell of ``method`` per (task, tier).
     """
-    from .ladder import load_cells, wilson
+    from .ladder import load_cells
+    from .stats import wilson
 
     cells = load_cells(list(cell_files))
     if cells.empty:
@@ -911,8 +912,8 @@ def team_sweep_numbers(cell_files) -> pd.DataFrame:
         No applicable cell with currents on, cells of more than one (task, tier, method),
         or more than one cell per team size.
     """
-    from .ladder import BOOT_SEED, read_cell, wilson
-    from .planning import mean_ci
+    from .ladder import read_cell
+    from .stats import BOOT_SEED, mean_ci, wilson
 
     rows = []
     ident = set()
@@ -1095,7 +1096,7 @@ def rl_curve_numbers(report_files) -> pd.DataFrame:
     """
     import json
 
-    from .ladder import wilson
+    from .stats import wilson
 
     rows, seen = [], set()
     for f in report_files:

@@ -22,63 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-#: Two-sided 95 % normal quantile.
-Z95 = 1.959963984540054
-#: Bootstrap replicates and seed of the macro intervals.
-N_BOOT = 2000
-BOOT_SEED = 20250101
-
-
-def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
-    """Wilson score interval of ``k`` successes in ``n`` trials.
-
-    Parameters
-    ----------
-    k : int
-        Successes.
-    n : int
-        Trials.
-    z : float, default ``Z95``
-        Normal quantile of the two-sided level (95 %).
-
-    Returns
-    -------
-    tuple of float
-        ``(lo, hi)`` as fractions in [0, 1]; NaNs for ``n <= 0``.
-    """
-    if n <= 0:
-        return (math.nan, math.nan)
-    p = k / n
-    den = 1.0 + z * z / n
-    mid = (p + z * z / (2 * n)) / den
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return (max(0.0, mid - half), min(1.0, mid + half))
-
-
-def mean_ci(x, seed: int = BOOT_SEED) -> tuple[float, float, float]:
-    """Mean and seeded percentile-bootstrap 95 % interval of the finite values of ``x``.
-
-    Parameters
-    ----------
-    x : array_like
-        Values; NaN and infinite ones are dropped.
-    seed : int, default ``BOOT_SEED``
-        Bootstrap seed (:data:`oneocean.reporting.ladder.N_BOOT` replicates).
-
-    Returns
-    -------
-    tuple of float
-        ``(mean, lo, hi)``; NaNs when no finite value is left.
-    """
-    x = np.asarray(x, dtype=np.float64)
-    x = x[np.isfinite(x)]
-    if x.size == 0:
-        return (math.nan, math.nan, math.nan)
-    rng = np.random.default_rng(seed)
-    boots = x[rng.integers(0, x.size, size=(N_BOOT, x.size))].mean(axis=1)
-    lo, hi = np.quantile(boots, [0.025, 0.975])
-    return (float(x.mean()), float(lo), float(hi))
-
+from .stats import Rate, cell_rate, stratified_macro
 
 def read_cell(path) -> tuple[pd.DataFrame, dict]:
     """A cell file's per-episode table and its identity.
@@ -189,45 +133,6 @@ def load_cells(files) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-@dataclass(frozen=True)
-class Rate:
-    """A success rate in percent with its 95 % interval (NaN when not applicable).
-
-    Attributes
-    ----------
-    sr : float
-        Success rate, %.
-    lo, hi : float
-        Bounds of the 95 % interval, %.
-    n : int
-        Episodes.
-    """
-
-    sr: float
-    lo: float
-    hi: float
-    n: int
-
-
-def cell_rate(k: int, n: int) -> Rate:
-    """A cell's success rate with its Wilson 95 % interval.
-
-    Parameters
-    ----------
-    k : int
-        Successes.
-    n : int
-        Episodes.
-
-    Returns
-    -------
-    Rate
-        Rate and bounds in %; the rate is NaN for ``n = 0``.
-    """
-    lo, hi = wilson(k, n)
-    return Rate(100.0 * k / n if n else math.nan, 100.0 * lo, 100.0 * hi, n)
-
-
 def _data_and_off(cells: pd.DataFrame) -> pd.DataFrame:
     """The data-grounded and currents-off cells (all of them for a frame without
     ``forcing``), never an ablation cell (information level or tier override)."""
@@ -300,36 +205,6 @@ def macro_rate(cells: pd.DataFrame, method: str, tier: int, currents: bool = Tru
     point, lo, hi = stratified_macro(list(app["success"]))
     return {"sr": point, "lo": lo, "hi": hi, "tasks": int(len(app)),
             "na": int(len(sel) - len(app))}
-
-
-def stratified_macro(groups, seed: int = BOOT_SEED) -> tuple[float, float, float]:
-    """Unweighted mean over groups (tasks) of their success rates, with a bootstrap interval.
-
-    The 95 % interval comes from a seeded stratified bootstrap (:data:`N_BOOT` replicates,
-    episodes resampled within each group, in the given order). Empty groups are skipped.
-
-    Parameters
-    ----------
-    groups : iterable of array_like
-        Each group's per-episode success (bool or 0/1).
-    seed : int, default ``BOOT_SEED``
-        Bootstrap seed.
-
-    Returns
-    -------
-    tuple of float
-        ``(mean, lo, hi)`` in %; NaNs when no group has episodes.
-    """
-    succ = [np.asarray(g, dtype=np.float64) for g in groups if len(g)]
-    if not succ:
-        return (math.nan, math.nan, math.nan)
-    rng = np.random.default_rng(seed)
-    boots = np.zeros(N_BOOT)
-    for s in succ:
-        boots += s[rng.integers(0, s.size, size=(N_BOOT, s.size))].mean(axis=1)
-    boots *= 100.0 / len(succ)
-    lo, hi = np.quantile(boots, [0.025, 0.975])
-    return (100.0 * float(np.mean([s.mean() for s in succ])), float(lo), float(hi))
 
 
 @dataclass(frozen=True)

@@ -14,14 +14,15 @@ the table's protocol), and returns the frame.
 * :func:`difficulty_table`: one method's SR per tier and the drops between tiers.
 * :func:`ablation_table`: one method's SR under each forcing condition at one tier.
 
-Intervals (95 %): a rate has its Wilson score interval (:func:`oneocean.reporting.ladder.wilson`); a
-macro (unweighted mean over tasks of their SR) the stratified bootstrap of
-:func:`oneocean.reporting.ladder.macro_rate` (episodes resampled within each task, tasks in one
-canonical order: the same numbers as the ladder table); a mean its seeded percentile
-bootstrap (:func:`oneocean.reporting.ladder.mean_ci`); a mean pooled over the episodes of several
-tasks a stratified bootstrap (:func:`pooled_mean_ci`); a difference of two rates the
-bootstrap of the difference, both cells resampled independently (:func:`diff_ci`). Every
-bootstrap is seeded (:data:`oneocean.reporting.ladder.BOOT_SEED`), so the table bytes are
+Intervals (95 %, :mod:`oneocean.reporting.stats`): a rate has its Wilson score interval
+(:func:`~oneocean.reporting.stats.rate_ci`); a macro (unweighted mean over tasks of their SR)
+the stratified bootstrap of :func:`oneocean.reporting.ladder.macro_rate` (episodes resampled
+within each task, tasks in one canonical order: the same numbers as the ladder table); a mean
+its seeded percentile bootstrap (:func:`~oneocean.reporting.stats.mean_ci`); a mean pooled over
+the episodes of several tasks a stratified bootstrap
+(:func:`~oneocean.reporting.stats.pooled_mean_ci`); a difference of two rates the bootstrap of
+the difference, both cells resampled independently (:func:`~oneocean.reporting.stats.diff_ci`).
+Every bootstrap is seeded (:data:`oneocean.reporting.stats.BOOT_SEED`), so the table bytes are
 reproducible. Rows follow :func:`oneocean.registry.task_ids`, methods
 :func:`oneocean.registry.method_names`.
 
@@ -45,8 +46,8 @@ import numpy as np
 import pandas as pd
 
 from ..io import write_text_atomic
-from .ladder import mean_ci
 from .latex import booktabs, fit_width
+from .stats import diff_ci, mean_ci, pooled_mean_ci, rate_ci
 
 Best = Literal["max", "min"]
 
@@ -353,99 +354,6 @@ def _cell(cells: pd.DataFrame, task: str, method: str, tier: int):
 
 
 # ------------------------------------------------------------------------------ intervals
-
-def rate_ci(success) -> tuple[float, float, float]:
-    """Success rate of a success vector with its Wilson 95 % interval.
-
-    Parameters
-    ----------
-    success : array_like
-        Per-episode success (bool).
-
-    Returns
-    -------
-    tuple of float
-        ``(sr, lo, hi)`` in %; NaNs if empty.
-    """
-    from .ladder import wilson
-
-    s = np.asarray(success, dtype=bool)
-    if s.size == 0:
-        return (math.nan, math.nan, math.nan)
-    lo, hi = wilson(int(s.sum()), int(s.size))
-    return (100.0 * float(s.mean()), 100.0 * lo, 100.0 * hi)
-
-
-def pooled_mean_ci(groups, seed: int | None = None) -> tuple[float, float, float]:
-    """Mean of the finite values of several groups (tasks) pooled, with a bootstrap interval.
-
-    The 95 % interval is a seeded stratified percentile bootstrap (values resampled within
-    each group, groups in the given order).
-
-    Parameters
-    ----------
-    groups : iterable of array_like
-        Each group's values; non-finite ones are dropped.
-    seed : int, optional
-        Bootstrap seed (default :data:`oneocean.reporting.ladder.BOOT_SEED`).
-
-    Returns
-    -------
-    tuple of float
-        ``(mean, lo, hi)``; NaNs when no finite value.
-    """
-    from .ladder import BOOT_SEED, N_BOOT
-
-    xs = [np.asarray(g, dtype=np.float64) for g in groups]
-    xs = [x[np.isfinite(x)] for x in xs]
-    xs = [x for x in xs if x.size]
-    if not xs:
-        return (math.nan, math.nan, math.nan)
-    rng = np.random.default_rng(BOOT_SEED if seed is None else seed)
-    total = np.zeros(N_BOOT)
-    for x in xs:
-        total += x[rng.integers(0, x.size, size=(N_BOOT, x.size))].sum(axis=1)
-    n = sum(x.size for x in xs)
-    lo, hi = np.quantile(total / n, [0.025, 0.975])
-    return (float(np.concatenate(xs).mean()), float(lo), float(hi))
-
-
-def diff_ci(pairs, seed: int | None = None) -> tuple[float, float, float]:
-    """Difference of success rates in points, ``mean over pairs of (SR(a) - SR(b))``.
-
-    One pair gives one task's drop; several a macro drop over the tasks. The 95 % interval
-    is a seeded percentile bootstrap (every success vector resampled independently, pairs
-    in the given order).
-
-    Parameters
-    ----------
-    pairs : iterable of (array_like, array_like)
-        ``(success_a, success_b)`` per task; pairs with an empty side are skipped.
-    seed : int, optional
-        Bootstrap seed (default :data:`oneocean.reporting.ladder.BOOT_SEED`).
-
-    Returns
-    -------
-    tuple of float
-        ``(diff, lo, hi)`` in percentage points; NaNs when no pair is left.
-    """
-    from .ladder import BOOT_SEED, N_BOOT
-
-    pairs = [(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
-             for a, b in pairs]
-    pairs = [(a, b) for a, b in pairs if a.size and b.size]
-    if not pairs:
-        return (math.nan, math.nan, math.nan)
-    rng = np.random.default_rng(BOOT_SEED if seed is None else seed)
-    boots = np.zeros(N_BOOT)
-    for a, b in pairs:
-        boots += a[rng.integers(0, a.size, size=(N_BOOT, a.size))].mean(axis=1)
-        boots -= b[rng.integers(0, b.size, size=(N_BOOT, b.size))].mean(axis=1)
-    boots *= 100.0 / len(pairs)
-    lo, hi = np.quantile(boots, [0.025, 0.975])
-    point = 100.0 * float(np.mean([a.mean() - b.mean() for a, b in pairs]))
-    return (point, float(lo), float(hi))
-
 
 def _macro(cells: pd.DataFrame, method: str, tier: int, currents: bool = True) -> dict:
     """:func:`oneocean.reporting.ladder.macro_rate` of ``cells`` (already one condition)."""
