@@ -13,11 +13,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from oneocean.reporting import cells as C
 from oneocean.reporting import stats as S
 from oneocean.reporting import tables as T
 from oneocean.engine.recording import read_metrics_meta, write_metrics
 from oneocean.errors import ConfigError
-from oneocean.reporting.ladder import load_cells, macro_rate
+from oneocean.reporting.cells import load_cells, macro_rate
 from oneocean.reporting.stats import stratified_macro, wilson
 
 #: Each synthetic task's metric column and team size.
@@ -106,7 +107,7 @@ def _pct_wilson(s):
 
 def test_cells_identity_conditions_and_order(region, tmp_path):
     files, _ = region
-    cells = T.load_cell_frames(files)
+    cells = C.load_cell_frames(files)
     assert len(cells) == len(files)
     got = cells.groupby("condition").size().to_dict()
     tide_id = "tide-0.5ms-44712s"
@@ -117,17 +118,17 @@ def test_cells_identity_conditions_and_order(region, tmp_path):
     assert list(zip(sk3["method"], sk3["condition"])) == [
         ("heuristic", "data-grounded"), ("heuristic", "gain-2"),
         ("heuristic", "currents-off"), ("oracle", "data-grounded"), ("bc", "data-grounded")]
-    shuffled = T.load_cell_frames(list(reversed(files)))
+    shuffled = C.load_cell_frames(list(reversed(files)))
     assert list(shuffled["file"]) == list(cells["file"])
-    # the same columns as ladder.load_cells for the same files
+    # the same columns as cells.load_cells for the same files
     lc = load_cells(files[:3])
-    lf = T.load_cell_frames(files[:3])
+    lf = C.load_cell_frames(files[:3])
     for col in ("task", "tier", "method", "currents", "applicable", "n", "k"):
         assert list(lc[col]) == list(lf[col]), col
     # a tier's own current gain is divided out: the run's g
     f = write_cell(tmp_path / "g.parquet", "G2G", 2, "heuristic", [1, 0], gain=1.0,
                    tier_gain=1.5)
-    c = T.load_cell_frames([tmp_path / "g.parquet"]).iloc[0]
+    c = C.load_cell_frames([tmp_path / "g.parquet"]).iloc[0]
     assert c["current_gain"] == 1.0 and c["condition"] == "data-grounded"
     assert len(f) == 2
 
@@ -137,7 +138,7 @@ def test_cells_refuse_duplicates_and_unknown_tasks(region, tmp_path):
     dup = tmp_path / "dup.parquet"
     write_cell(dup, "G2G", 1, "heuristic", [True] * 3)
     with pytest.raises(ConfigError, match="two cell files for the same cell"):
-        T.load_cell_frames(files + [dup])
+        C.load_cell_frames(files + [dup])
     bad = tmp_path / "bad.parquet"
     pd.DataFrame({"task": ["NOPE"], "tier": [1], "method": ["heuristic"], "n_agents": [1],
                   "success": [True]}).to_parquet(bad)
@@ -429,7 +430,7 @@ def test_tables_on_the_real_cells(tmp_path):
     # team-size sweep, whose cells differ only in N)
     files = sorted(f for f in glob.glob(str(REAL / "*/tier*/*.parquet"))
                    if "_n" not in Path(f).name and "_seed" not in Path(f).name)
-    cells = T.load_cell_frames(files)
+    cells = C.load_cell_frames(files)
 
     def cell(task, tier, method, off=False):
         return pd.read_parquet(REAL / task / f"tier{tier}" /

@@ -231,7 +231,7 @@ rule table_scenes:
     params:
         compare=SCENE_CFG["compare"],
         code=code_version("oneocean.reporting.scene_tables", "oneocean.reporting.stats",
-                          "oneocean.reporting.ladder", "oneocean.reporting.tables",
+                          "oneocean.reporting.cells", "oneocean.reporting.tables",
                           "oneocean.reporting.latex"),
     threads: 1
     script:

@@ -36,7 +36,7 @@ rule table_dataset_variants:
         "../scripts/table_dataset_variants.py"
 
 
-TABLES_CODE = code_version("oneocean.reporting.tables", "oneocean.reporting.ladder",
+TABLES_CODE = code_version("oneocean.reporting.tables", "oneocean.reporting.cells",
                            "oneocean.reporting.stats", "oneocean.reporting.latex",
                            "oneocean.reporting.planning", "oneocean.registry", "oneocean.data",
                            "oneocean.reporting.ablations")

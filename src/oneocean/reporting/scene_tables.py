@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from ..io import write_text_atomic
+from .cells import read_cell
 from .latex import booktabs
 from .stats import finite_mean, rate_ci
 from .tables import _ci, _escape, _num
@@ -34,7 +35,7 @@ TABLE7_TASK = "RF"
 
 
 def load_scene_cells(cell_files) -> pd.DataFrame:
-    """Read scene cell files into one row per file (:func:`oneocean.reporting.ladder.read_cell`).
+    """Read scene cell files into one row per file (:func:`oneocean.reporting.cells.read_cell`).
 
     Parameters
     ----------
@@ -49,8 +50,6 @@ def load_scene_cells(cell_files) -> pd.DataFrame:
         ``n`` (episodes), ``success`` (bool array), ``episodes`` (the per-episode
         DataFrame), ``n_waypoints`` (the tier's, None if it has none) and ``file``.
     """
-    from .ladder import read_cell
-
     rows = []
     for f in cell_files:
         df, c = read_cell(f)
