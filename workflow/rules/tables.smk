@@ -30,7 +30,7 @@ rule table_dataset_variants:
         "logs/tables/{region}/dataset_variants.log",
     params:
         region=REGION,
-        code=code_version("oneocean.reporting.tables"),
+        code=code_version("oneocean.reporting.tables", "oneocean.reporting.latex"),
     threads: 1
     script:
         "../scripts/table_dataset_variants.py"
