@@ -39,7 +39,7 @@ def time_rollouts() -> None:
     _snakemake("exports")
     _snakemake("rollouts")  # warm numba's cache (compiles only if the code changed)
     wall = _snakemake("rollouts", "--forcerun", "rollout_task", "rollout_task_bc", "rollout_team")
-    from oneocean.reporting.ladder import read_cell
+    from oneocean.reporting.cells import read_cell
 
     # the cells the forced rules rewrote (not the ablation cells of rollout_ablation_<task>)
     files = sorted(f for f in (REPO / "results" / "rollouts" / cfg["region"]["name"]

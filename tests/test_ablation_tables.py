@@ -13,12 +13,14 @@ import pandas as pd
 import pytest
 
 from oneocean.reporting import ablations as A
+from oneocean.reporting import cells as C
 from oneocean import registry
 from oneocean.reporting import tables as T
 from oneocean.config import load_config
 from oneocean.engine.recording import read_metrics_meta, write_metrics
 from oneocean.errors import ConfigError
-from oneocean.reporting.ladder import ladder_frame, load_cells, read_cell, wilson
+from oneocean.reporting.cells import ladder_frame, load_cells, read_cell
+from oneocean.reporting.stats import wilson
 from oneocean.tasks.tiers import load_task_table
 from workflow_helpers import REPO
 
@@ -154,7 +156,7 @@ def test_ablation_cells_never_pool_with_the_ladders(info_cells):
     lad = ladder_frame(load_cells(files))
     g = lad[(lad["task"] == "G2G") & (lad["method"] == "heuristic") & lad["currents"]]
     assert len(g) == 1 and g["sr"].iloc[0] == 100.0 * frames[("G2G", "own")]["success"].mean()
-    cells = T.load_cell_frames(files)
+    cells = C.load_cell_frames(files)
     g2g = cells[(cells["task"] == "G2G") & (cells["method"] == "heuristic")]
     assert sorted(g2g["condition"]) == ["currents-off", "data-grounded", "info-true_current",
                                         "info-true_position"]
@@ -365,7 +367,7 @@ def test_tier_override_changes_exactly_one_key(grid_file, tmp_path):
     # read back as an ablation cell of its own, never the ladder's Tier-1 cell
     _, c = read_cell(out)
     assert c["ablation"] and c["tier_overrides"] == meta["tier_overrides"]
-    assert T.load_cell_frames([out])["condition"].iloc[0] == f"set-{key}"
+    assert C.load_cell_frames([out])["condition"].iloc[0] == f"set-{key}"
     # the same on the Cell itself; the tier table is left as it was
     cell = Cell(str(grid_file), "G2G", 3, tier_overrides={other: table[1][other]})
     assert cell.tier_params == {**table[3], other: table[1][other]}
@@ -375,7 +377,7 @@ def test_tier_override_changes_exactly_one_key(grid_file, tmp_path):
     info = tmp_path / "g2g_t1_info.parquet"
     rollout_to_file(grid_file, info, "G2G", 1, "heuristic", 3, 7, "6dof", info="true_current")
     assert read_metrics_meta(info)["info"] == "true_current"
-    assert T.load_cell_frames([info])["condition"].iloc[0] == "info-true_current"
+    assert C.load_cell_frames([info])["condition"].iloc[0] == "info-true_current"
 
 
 def test_an_override_the_task_cannot_build_is_an_na_cell(grid_file, tmp_path):

@@ -18,7 +18,7 @@ from oneocean.errors import DataError
 from oneocean.reporting.figures import (DPI, ladder_numbers, plot_current_field, plot_ladder,
                               plot_pollution_species, plot_rl_curves, plot_team_sweep,
                               rl_curve_numbers, team_sweep_numbers)
-from oneocean.reporting.ladder import wilson
+from oneocean.reporting.stats import wilson
 
 
 def _read_png(path):

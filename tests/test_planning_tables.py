@@ -7,9 +7,9 @@ import pandas as pd
 import pytest
 
 from oneocean.engine.recording import write_metrics
-from oneocean.reporting.ladder import wilson
-from oneocean.reporting.planning import (cost_frame, load_suite, mean_ci, omitted_note,
-                               performance_frame, planning_tables)
+from oneocean.reporting.planning import (cost_frame, load_suite, omitted_note, performance_frame,
+                                         planning_tables)
+from oneocean.reporting.stats import mean_ci, wilson
 
 METRIC = {"SPC": "cleanup_rate", "AS": "coverage_fraction", "PI": "inspection_score"}
 

@@ -13,8 +13,9 @@ from oneocean.config import validate_config
 from oneocean.engine import load_grid
 from oneocean.engine.recording import read_metrics_meta
 from oneocean.errors import ConfigError, NotApplicable
-from oneocean.reporting.ladder import (Check, ladder_markdown, load_cells, macro_rate, run_checks,
-                             wilson)
+from oneocean.reporting.cells import load_cells, macro_rate
+from oneocean.reporting.ladder import Check, ladder_markdown, run_checks
+from oneocean.reporting.stats import wilson
 from oneocean.registry import task_ids
 from oneocean.tasks import Cell, rollout_to_file, run_cell
 from oneocean.tasks.regime import current_regime, site_speed

@@ -11,7 +11,8 @@ import pytest
 
 from oneocean.engine import load_grid, read_metrics_meta
 from oneocean.product.exports import export_grid
-from oneocean.reporting.ladder import ladder_markdown, load_cells
+from oneocean.reporting.cells import load_cells
+from oneocean.reporting.ladder import ladder_markdown
 from oneocean.registry import builtin_task_ids
 from oneocean.tasks import Cell, rollout_to_file
 from oneocean.testing import make_test_grid

@@ -200,7 +200,7 @@ def test_policy_constants_match_the_env(grid):
 
 
 def test_train_save_load_evaluate_round_trip(grid_path, tmp_path, monkeypatch):
-    from oneocean.reporting.ladder import read_cell
+    from oneocean.reporting.cells import read_cell
     from oneocean.methods.ppo.policy import METHOD, evaluate_to_file, load
     from oneocean.methods.ppo.train import read_report, train_to_files
     from oneocean.registry import METHOD_KINDS, method_spec

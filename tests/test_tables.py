@@ -13,10 +13,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from oneocean.reporting import cells as C
+from oneocean.reporting import stats as S
 from oneocean.reporting import tables as T
 from oneocean.engine.recording import read_metrics_meta, write_metrics
 from oneocean.errors import ConfigError
-from oneocean.reporting.ladder import load_cells, macro_rate, stratified_macro, wilson
+from oneocean.reporting.cells import load_cells, macro_rate
+from oneocean.reporting.stats import stratified_macro, wilson
 
 #: Each synthetic task's metric column and team size.
 METRIC = {"G2G": "final_error_m", "SK": "rms_error_m", "RF": "cross_track_error_m",
@@ -104,7 +107,7 @@ def _pct_wilson(s):
 
 def test_cells_identity_conditions_and_order(region, tmp_path):
     files, _ = region
-    cells = T.load_cell_frames(files)
+    cells = C.load_cell_frames(files)
     assert len(cells) == len(files)
     got = cells.groupby("condition").size().to_dict()
     tide_id = "tide-0.5ms-44712s"
@@ -115,17 +118,17 @@ def test_cells_identity_conditions_and_order(region, tmp_path):
     assert list(zip(sk3["method"], sk3["condition"])) == [
         ("heuristic", "data-grounded"), ("heuristic", "gain-2"),
         ("heuristic", "currents-off"), ("oracle", "data-grounded"), ("bc", "data-grounded")]
-    shuffled = T.load_cell_frames(list(reversed(files)))
+    shuffled = C.load_cell_frames(list(reversed(files)))
     assert list(shuffled["file"]) == list(cells["file"])
-    # the same columns as ladder.load_cells for the same files
+    # the same columns as cells.load_cells for the same files
     lc = load_cells(files[:3])
-    lf = T.load_cell_frames(files[:3])
+    lf = C.load_cell_frames(files[:3])
     for col in ("task", "tier", "method", "currents", "applicable", "n", "k"):
         assert list(lc[col]) == list(lf[col]), col
     # a tier's own current gain is divided out: the run's g
     f = write_cell(tmp_path / "g.parquet", "G2G", 2, "heuristic", [1, 0], gain=1.0,
                    tier_gain=1.5)
-    c = T.load_cell_frames([tmp_path / "g.parquet"]).iloc[0]
+    c = C.load_cell_frames([tmp_path / "g.parquet"]).iloc[0]
     assert c["current_gain"] == 1.0 and c["condition"] == "data-grounded"
     assert len(f) == 2
 
@@ -135,7 +138,7 @@ def test_cells_refuse_duplicates_and_unknown_tasks(region, tmp_path):
     dup = tmp_path / "dup.parquet"
     write_cell(dup, "G2G", 1, "heuristic", [True] * 3)
     with pytest.raises(ConfigError, match="two cell files for the same cell"):
-        T.load_cell_frames(files + [dup])
+        C.load_cell_frames(files + [dup])
     bad = tmp_path / "bad.parquet"
     pd.DataFrame({"task": ["NOPE"], "tier": [1], "method": ["heuristic"], "n_agents": [1],
                   "success": [True]}).to_parquet(bad)
@@ -148,25 +151,25 @@ def test_cells_refuse_duplicates_and_unknown_tasks(region, tmp_path):
 def test_bootstraps_are_seeded_and_bracket_the_estimate():
     rng = np.random.default_rng(3)
     x = rng.normal(5.0, 2.0, 40)
-    assert T.mean_ci(x) == T.mean_ci(x) != T.mean_ci(x, seed=1)   # seeded: its own seed
-    m, lo, hi = T.mean_ci(np.r_[x, np.nan])          # NaN skipped
+    assert S.mean_ci(x) == S.mean_ci(x) != S.mean_ci(x, seed=1)   # seeded: its own seed
+    m, lo, hi = S.mean_ci(np.r_[x, np.nan])          # NaN skipped
     assert m == pytest.approx(x.mean()) and lo < m < hi
-    assert all(math.isnan(v) for v in T.mean_ci([np.nan]))
+    assert all(math.isnan(v) for v in S.mean_ci([np.nan]))
     groups = [x[:10], x[10:], np.array([np.nan, 1.0])]
-    pm, plo, phi = T.pooled_mean_ci(groups)
+    pm, plo, phi = S.pooled_mean_ci(groups)
     assert pm == pytest.approx(np.r_[x, 1.0].mean()) and plo < pm < phi
-    assert T.pooled_mean_ci(groups) == (pm, plo, phi)
-    assert T.pooled_mean_ci(groups, seed=1) != (pm, plo, phi)
-    assert all(math.isnan(v) for v in T.pooled_mean_ci([[], [np.nan]]))
+    assert S.pooled_mean_ci(groups) == (pm, plo, phi)
+    assert S.pooled_mean_ci(groups, seed=1) != (pm, plo, phi)
+    assert all(math.isnan(v) for v in S.pooled_mean_ci([[], [np.nan]]))
     a, b = rng.random(30) < 0.8, rng.random(30) < 0.4
-    d, dlo, dhi = T.diff_ci([(a, b)])
+    d, dlo, dhi = S.diff_ci([(a, b)])
     assert d == pytest.approx(100 * (a.mean() - b.mean())) and dlo < d < dhi
-    assert T.diff_ci([(a, b)]) == (d, dlo, dhi)
-    assert T.diff_ci([(np.ones(5, bool), np.ones(7, bool))]) == (0.0, 0.0, 0.0)
+    assert S.diff_ci([(a, b)]) == (d, dlo, dhi)
+    assert S.diff_ci([(np.ones(5, bool), np.ones(7, bool))]) == (0.0, 0.0, 0.0)
     # a macro drop: the mean of the tasks' drops; empty pairs skipped
-    d2 = T.diff_ci([(a, b), (b, a), (a, np.zeros(0, bool))])
+    d2 = S.diff_ci([(a, b), (b, a), (a, np.zeros(0, bool))])
     assert d2[0] == pytest.approx(0.0) and d2[1] < 0 < d2[2]
-    assert T.rate_ci([True, False, True, True]) == pytest.approx(_pct_wilson([1, 0, 1, 1]))
+    assert S.rate_ci([True, False, True, True]) == pytest.approx(_pct_wilson([1, 0, 1, 1]))
 
 
 # ------------------------------------------------------------------------------ Table V
@@ -275,7 +278,7 @@ def test_headline_numbers(region, tmp_path):
         _pct_wilson(f3["G2G"]["success"]))
     sk = f3["SK"]["rms_error_m"]
     assert sk.isna().any() and h["SK_rms"] == pytest.approx(sk.mean())   # NaN skipped
-    assert (h["SK_rms"], h["SK_rms_lo"], h["SK_rms_hi"]) == T.mean_ci(sk.to_numpy())
+    assert (h["SK_rms"], h["SK_rms_lo"], h["SK_rms_hi"]) == S.mean_ci(sk.to_numpy())
     assert h["SPC_cleanup"] == pytest.approx(f3["SPC"]["cleanup_rate"].mean())
     assert h["PI_score"] == pytest.approx(f3["PI"]["inspection_score"].mean())
     assert h["AS_coverage_state"] == "n/a" and math.isnan(h["AS_coverage"])
@@ -310,7 +313,7 @@ def test_difficulty_drops(region, tmp_path):
         pytest.approx(_pct_wilson(g[2]))
     d = r.loc["SK", "drop_T2_T3"]
     assert d == pytest.approx(100 * (g[2].mean() - g[3].mean()))
-    assert (d, r.loc["SK", "drop_T2_T3_lo"], r.loc["SK", "drop_T2_T3_hi"]) == T.diff_ci(
+    assert (d, r.loc["SK", "drop_T2_T3_lo"], r.loc["SK", "drop_T2_T3_hi"]) == S.diff_ci(
         [(g[2].to_numpy(), g[3].to_numpy())])
     assert r.loc["SK", "drop_T2_T3_lo"] <= d <= r.loc["SK", "drop_T2_T3_hi"]
     # AS: hosted at T1 only
@@ -427,7 +430,7 @@ def test_tables_on_the_real_cells(tmp_path):
     # team-size sweep, whose cells differ only in N)
     files = sorted(f for f in glob.glob(str(REAL / "*/tier*/*.parquet"))
                    if "_n" not in Path(f).name and "_seed" not in Path(f).name)
-    cells = T.load_cell_frames(files)
+    cells = C.load_cell_frames(files)
 
     def cell(task, tier, method, off=False):
         return pd.read_parquet(REAL / task / f"tier{tier}" /

@@ -2,7 +2,8 @@
 # variant; Fig. 4 the pollution model's species; Fig. 6 the heuristic's difficulty ladder;
 # Fig. 5 one-episode snapshots; Fig. 7 the SPC team-size sweep.
 
-FIGURES_CODE = code_version("oneocean.reporting.figures", "oneocean.reporting.ladder")
+FIGURES_CODE = code_version("oneocean.reporting.figures", "oneocean.reporting.cells",
+                            "oneocean.reporting.stats")
 
 
 # Figures drawn from finished cells: on the submit host, not submitted.

@@ -92,7 +92,7 @@ rule table_planning:
     params:
         planning=lambda wc: config["planning"],
         llms=planning_llm_methods(),
-        code=code_version("oneocean.reporting.planning", "oneocean.reporting.ladder",
+        code=code_version("oneocean.reporting.planning", "oneocean.reporting.stats",
                           "oneocean.reporting.latex"),
     threads: 1
     script:

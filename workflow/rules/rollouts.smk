@@ -320,7 +320,8 @@ rule table_ladder:
         "logs/tables/{region}/ladder.log",
     params:
         seed=lambda wc: config["rollouts"]["seed"],
-        code=code_version("oneocean.reporting.ladder", "oneocean.registry"),
+        code=code_version("oneocean.reporting.ladder", "oneocean.reporting.cells",
+                          "oneocean.reporting.stats", "oneocean.registry"),
     threads: 1
     script:
         "../scripts/table_ladder.py"

@@ -230,7 +230,9 @@ rule table_scenes:
         "logs/tables/{region}/scene_backend.log",
     params:
         compare=SCENE_CFG["compare"],
-        code=code_version("oneocean.reporting.scene_tables", "oneocean.reporting.latex"),
+        code=code_version("oneocean.reporting.scene_tables", "oneocean.reporting.stats",
+                          "oneocean.reporting.cells", "oneocean.reporting.tables",
+                          "oneocean.reporting.latex"),
     threads: 1
     script:
         "../scripts/table_scenes.py"

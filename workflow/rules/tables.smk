@@ -30,15 +30,16 @@ rule table_dataset_variants:
         "logs/tables/{region}/dataset_variants.log",
     params:
         region=REGION,
-        code=code_version("oneocean.reporting.tables"),
+        code=code_version("oneocean.reporting.tables", "oneocean.reporting.latex"),
     threads: 1
     script:
         "../scripts/table_dataset_variants.py"
 
 
-TABLES_CODE = code_version("oneocean.reporting.tables", "oneocean.reporting.ladder",
-                           "oneocean.reporting.latex", "oneocean.reporting.planning",
-                           "oneocean.registry", "oneocean.data", "oneocean.reporting.ablations")
+TABLES_CODE = code_version("oneocean.reporting.tables", "oneocean.reporting.cells",
+                           "oneocean.reporting.stats", "oneocean.reporting.latex",
+                           "oneocean.reporting.planning", "oneocean.registry", "oneocean.data",
+                           "oneocean.reporting.ablations")
 
 # Table II: the task ladder (registry and tier tables).
 rule table_task_ladder:

@@ -1,8 +1,8 @@
 """What drives a cell of the task ladder: the information ablation and the stressor table.
 
-Both are pure functions of rollout cell files (:func:`oneocean.reporting.tables.load_cell_frames`), like
-every paper table (:mod:`oneocean.reporting.tables`): a ``*_frame`` function returns the numbers, a
-``*_table`` function writes the LaTeX and the same numbers as Parquet beside it.
+Both are pure functions of rollout cell files (:func:`oneocean.reporting.cells.load_cell_frames`),
+like every paper table (:mod:`oneocean.reporting.tables`): a ``*_frame`` function returns the
+numbers, a ``*_table`` function writes the LaTeX and the same numbers as Parquet beside it.
 
 * :func:`information_table`: per task, one method (the heuristic) at one tier with its own
   sensors (the ladder's cell), given the true current, given its true position (cells run
@@ -17,9 +17,9 @@ every paper table (:mod:`oneocean.reporting.tables`): a ``*_frame`` function ret
 
 The workflow plans its cells from the same functions (:func:`stressor_cells`), so the table
 and the rollouts agree on the keys. Intervals are the project's own (Wilson:
-:func:`oneocean.reporting.tables.rate_ci`; means: :func:`oneocean.reporting.ladder.mean_ci`), so a number here is
-the number the other tables give for the same cell. A cell the region cannot host
-(``applicable: false``) is shown as n/a with its reason; a cell that was not run as "--".
+:func:`oneocean.reporting.stats.rate_ci`; means: :func:`oneocean.reporting.stats.mean_ci`), so
+a number here is the number the other tables give for the same cell. A cell the region cannot
+host (``applicable: false``) is shown as n/a with its reason; a cell that was not run as "--".
 """
 
 from __future__ import annotations
@@ -30,8 +30,10 @@ import math
 import numpy as np
 import pandas as pd
 
+from . import cells as C
 from . import tables as T
 from .latex import booktabs
+from .stats import mean_ci, rate_ci
 
 #: The stressor table's tiers: the easy tier whose keys are tightened one at a time, and the
 #: hard tier whose keys are relaxed one at a time.
@@ -127,7 +129,7 @@ def _one(cells: pd.DataFrame, task: str, method: str, tier: int, condition: str)
 
 def _rate_cols(prefix: str, c) -> dict:
     """``<prefix>_sr, _lo, _hi`` (percent, Wilson 95 %), ``_k``, ``_n``, ``_state``."""
-    sr, lo, hi = T.rate_ci(c["success"]) if _usable(c) else (math.nan,) * 3
+    sr, lo, hi = rate_ci(c["success"]) if _usable(c) else (math.nan,) * 3
     return {f"{prefix}_sr": sr, f"{prefix}_lo": lo, f"{prefix}_hi": hi,
             f"{prefix}_k": int(c["k"]) if _usable(c) else 0,
             f"{prefix}_n": 0 if c is None else int(c["n"]), f"{prefix}_state": _state(c)}
@@ -169,11 +171,11 @@ def _info_conditions(cells: pd.DataFrame, method: str, tier: int) -> list[tuple]
 
     present = set(cells.loc[(cells["method"] == method) & (cells["tier"] == int(tier)),
                             "info"])
-    cols = [(SENSORS, "Sensors", method, T.DATA_GROUNDED)]
-    cols += [(lvl, T.INFO_LABEL.get(lvl, lvl), method, f"info-{lvl}") for lvl in INFO_LEVELS
+    cols = [(SENSORS, "Sensors", method, C.DATA_GROUNDED)]
+    cols += [(lvl, C.INFO_LABEL.get(lvl, lvl), method, f"info-{lvl}") for lvl in INFO_LEVELS
              if lvl in present and lvl != SENSORS]
-    cols += [(CURRENTS_OFF, "Currents off", method, T.CURRENTS_OFF),
-             (ORACLE, "Oracle", ORACLE, T.DATA_GROUNDED)]
+    cols += [(CURRENTS_OFF, "Currents off", method, C.CURRENTS_OFF),
+             (ORACLE, "Oracle", ORACLE, C.DATA_GROUNDED)]
     return cols
 
 
@@ -193,7 +195,7 @@ def information_frame(cell_files, tier: int = HIGH_TIER,
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`oneocean.reporting.tables.load_cell_frames`' rows.
+        Rollout cell files, or :func:`oneocean.reporting.cells.load_cell_frames`' rows.
     tier : int, default ``HIGH_TIER``
         The tier.
     method : str, default "heuristic"
@@ -206,7 +208,7 @@ def information_frame(cell_files, tier: int = HIGH_TIER,
     """
     from .. import registry
 
-    cells = T.load_cell_frames(cell_files)
+    cells = C.load_cell_frames(cell_files)
     cells = cells[cells["tier"] == int(tier)]
     conds = _info_conditions(cells, method, tier)
     rows = []
@@ -215,12 +217,12 @@ def information_frame(cell_files, tier: int = HIGH_TIER,
         row = {"family": registry.family_label(spec.family), "task": task,
                "primary": spec.primary,
                "primary_higher": bool(spec.higher_is_better[spec.primary])}
-        base = _one(cells, task, method, tier, T.DATA_GROUNDED)
+        base = _one(cells, task, method, tier, C.DATA_GROUNDED)
         same, reasons = [], []
         for cid, _, m, cond in conds:
             c = _one(cells, task, m, tier, cond)
             row.update(_rate_cols(cid, c))
-            mean = (T.mean_ci(c["episodes"][spec.primary].to_numpy(dtype=np.float64))
+            mean = (mean_ci(c["episodes"][spec.primary].to_numpy(dtype=np.float64))
                     if _usable(c) and spec.primary in c["episodes"] else (math.nan,) * 3)
             row[f"{cid}_metric"], row[f"{cid}_metric_lo"], row[f"{cid}_metric_hi"] = mean
             if c is not None and not c["applicable"] and c["reason"]:
@@ -251,7 +253,7 @@ def information_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: 
     df : pandas.DataFrame
         :func:`information_frame`'s rows.
     cells : pandas.DataFrame
-        :func:`oneocean.reporting.tables.load_cell_frames`' rows, for the caption.
+        :func:`oneocean.reporting.cells.load_cell_frames`' rows, for the caption.
     tier : int
         The tier.
     method : str
@@ -269,7 +271,7 @@ def information_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: 
     conds = [c for c in dict.fromkeys(col[:-len("_state")] for col in df.columns
                                       if col.endswith("_state"))]
     labels = {SENSORS: "Sensors", CURRENTS_OFF: "Currents off", ORACLE: "Oracle",
-              **{k: v for k, v in T.INFO_LABEL.items() if k != SENSORS}}
+              **{k: v for k, v in C.INFO_LABEL.items() if k != SENSORS}}
     header = ["Task", ""] + [labels.get(c, _text(c)) for c in conds]
     rows, last = [], None
     for _, r in df.iterrows():
@@ -334,7 +336,7 @@ def information_table(cell_files, out_tex, tier: int = HIGH_TIER, method: str = 
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`oneocean.reporting.tables.load_cell_frames`' rows.
+        Rollout cell files, or :func:`oneocean.reporting.cells.load_cell_frames`' rows.
     out_tex : path-like
         The ``.tex`` file.
     tier : int, default ``HIGH_TIER``
@@ -349,7 +351,7 @@ def information_table(cell_files, out_tex, tier: int = HIGH_TIER, method: str = 
     pandas.DataFrame
         :func:`information_frame`'s rows.
     """
-    cells = T.load_cell_frames(cell_files)
+    cells = C.load_cell_frames(cell_files)
     df = information_frame(cells, tier, method)
     T._write(df, information_latex(df, cells, tier, method, region), out_tex,
              {"table": "information_ablation", "tier": int(tier), "method": method,
@@ -423,7 +425,7 @@ def stressor_frame(cell_files, method: str = "heuristic", low: int = LOW_TIER,
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`oneocean.reporting.tables.load_cell_frames`' rows.
+        Rollout cell files, or :func:`oneocean.reporting.cells.load_cell_frames`' rows.
     method : str, default "heuristic"
         The method.
     low : int, default ``LOW_TIER``
@@ -439,15 +441,15 @@ def stressor_frame(cell_files, method: str = "heuristic", low: int = LOW_TIER,
     from .. import registry
     from ..tasks.tiers import load_task_table
 
-    cells = T.load_cell_frames(cell_files)
+    cells = C.load_cell_frames(cell_files)
     cells = cells[cells["method"] == method]
     lo_p, hi_p, plus, minus = (f"T{low}", f"T{high}", f"T{low}_plus_key",
                                f"T{high}_minus_key")
     rows = []
     for task in T._tasks(cells):
         tiers = load_task_table(task)["tiers"]
-        c_lo = _one(cells, task, method, low, T.DATA_GROUNDED)
-        c_hi = _one(cells, task, method, high, T.DATA_GROUNDED)
+        c_lo = _one(cells, task, method, low, C.DATA_GROUNDED)
+        c_hi = _one(cells, task, method, high, C.DATA_GROUNDED)
         task_rows = []
         for key in stressor_keys(task, low, high):
             c_plus = _one(cells, task, method, low, f"set-{key}")
@@ -580,7 +582,7 @@ def stressor_latex(df: pd.DataFrame, cells: pd.DataFrame, method: str,
     df : pandas.DataFrame
         :func:`stressor_frame`'s rows (its ``attrs`` give the tiers).
     cells : pandas.DataFrame
-        :func:`oneocean.reporting.tables.load_cell_frames`' rows, for the caption.
+        :func:`oneocean.reporting.cells.load_cell_frames`' rows, for the caption.
     method : str
         The method (its label is named in the caption).
     region : str, optional
@@ -660,7 +662,7 @@ def stressor_table(cell_files, out_tex, method: str = "heuristic", low: int = LO
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`oneocean.reporting.tables.load_cell_frames`' rows.
+        Rollout cell files, or :func:`oneocean.reporting.cells.load_cell_frames`' rows.
     out_tex : path-like
         The ``.tex`` file.
     method : str, default "heuristic"
@@ -677,7 +679,7 @@ def stressor_table(cell_files, out_tex, method: str = "heuristic", low: int = LO
     pandas.DataFrame
         :func:`stressor_frame`'s rows.
     """
-    cells = T.load_cell_frames(cell_files)
+    cells = C.load_cell_frames(cell_files)
     df = stressor_frame(cells, method, low, high)
     T._write(df, stressor_latex(df, cells, method, region), out_tex,
              {"table": "tier_stressors", "method": method, "low": int(low),

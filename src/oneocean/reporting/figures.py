@@ -720,7 +720,7 @@ def _task_order(present, tasks=None) -> list[str]:
 
 
 def ladder_numbers(cell_files, tasks=None, method: str = "heuristic"):
-    """The numbers Fig. 6 plots, from cell files (:func:`oneocean.reporting.ladder.load_cells`).
+    """The numbers Fig. 6 plots, from cell files (:func:`oneocean.reporting.cells.load_cells`).
 
     Only ``method``'s cells with currents on; not-applicable cells are left out.
 
@@ -748,7 +748,8 @@ def ladder_numbers(cell_files, tasks=None, method: str = "heuristic"):
     DataError
         No cell files, or more than one cell of ``method`` per (task, tier).
     """
-    from .ladder import load_cells, wilson
+    from .cells import load_cells
+    from .stats import wilson
 
     cells = load_cells(list(cell_files))
     if cells.empty:
@@ -788,7 +789,7 @@ def plot_ladder(cell_files, out_png, tasks=None, method: str = "heuristic") -> d
     Left, the success rate (%) per task at every tier (grouped bars) with Wilson 95 % error
     bars; right, the drops between consecutive tiers (T1->T2, T2->T3; percentage points, a
     positive drop = harder tier, lower SR). From the cell files
-    (:func:`oneocean.reporting.ladder.load_cells`), only ``method``'s cells with currents on;
+    (:func:`oneocean.reporting.cells.load_cells`), only ``method``'s cells with currents on;
     not-applicable (or missing) cells are marked n/a. ``tasks`` selects and orders the tasks
     (default: every task present, in registry order).
 
@@ -911,8 +912,8 @@ def team_sweep_numbers(cell_files) -> pd.DataFrame:
         No applicable cell with currents on, cells of more than one (task, tier, method),
         or more than one cell per team size.
     """
-    from .ladder import BOOT_SEED, read_cell, wilson
-    from .planning import mean_ci
+    from .cells import read_cell
+    from .stats import BOOT_SEED, mean_ci, wilson
 
     rows = []
     ident = set()
@@ -1095,7 +1096,7 @@ def rl_curve_numbers(report_files) -> pd.DataFrame:
     """
     import json
 
-    from .ladder import wilson
+    from .stats import wilson
 
     rows, seen = [], set()
     for f in report_files:

@@ -1,17 +1,20 @@
-"""The difficulty ladder: success rates with 95 % intervals per (task, tier, method), the
-macro aggregates, and the protocol's checks, from per-episode cell tables.
+"""The difficulty ladder's report: the protocol's checks and the ladder as Markdown.
 
-Pure functions of the cell files the workflow writes (``results/rollouts/...parquet``, each
-with its own record, :func:`oneocean.engine.recording.read_metrics_meta`); the workflow's
-``table_ladder`` rule and ``benchmarks/ladder.py`` both go through :func:`ladder_frame`,
-:func:`macro_rate` and :func:`run_checks`, so the README's ladder table is the workflow's own
-output (``oneocean ladder-readme`` splices it in).
+:func:`run_checks` (the protocol's checks, :class:`Check`), :func:`ladder_markdown` and
+:func:`write_ladder` (the ladder table per (task, tier, method) with its macros, the current
+each tier met, the checks' verdicts, the replicate seeds) and :func:`splice_readme` (the
+README's ladder block). Pure functions of the cell files the workflow writes
+(``results/rollouts/...parquet``), read and turned into rates by :mod:`oneocean.reporting.cells`
+(:func:`~oneocean.reporting.cells.load_cells`, :func:`~oneocean.reporting.cells.ladder_frame`,
+:func:`~oneocean.reporting.cells.macro_rate`); the workflow's ``table_ladder`` rule writes the
+Markdown, so the README's ladder table is the workflow's own output (``oneocean
+ladder-readme`` splices it in).
 
 Intervals: Wilson score interval for a rate (per cell); for a macro (the unweighted mean of the
 tasks' success rates) a stratified bootstrap that resamples episodes within each task (seeded,
-so the table bytes are reproducible). A cell the region cannot host (``applicable: false``)
-has no rate: it is shown as n/a with its reason and left out of the macros, which then say how
-many tasks they average.
+so the table bytes are reproducible; :mod:`oneocean.reporting.stats`). A cell the region
+cannot host (``applicable: false``) has no rate: it is shown as n/a with its reason and left
+out of the macros, which then say how many tasks they average.
 """
 
 from __future__ import annotations
@@ -22,314 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-#: Two-sided 95 % normal quantile.
-Z95 = 1.959963984540054
-#: Bootstrap replicates and seed of the macro intervals.
-N_BOOT = 2000
-BOOT_SEED = 20250101
-
-
-def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
-    """Wilson score interval of ``k`` successes in ``n`` trials.
-
-    Parameters
-    ----------
-    k : int
-        Successes.
-    n : int
-        Trials.
-    z : float, default ``Z95``
-        Normal quantile of the two-sided level (95 %).
-
-    Returns
-    -------
-    tuple of float
-        ``(lo, hi)`` as fractions in [0, 1]; NaNs for ``n <= 0``.
-    """
-    if n <= 0:
-        return (math.nan, math.nan)
-    p = k / n
-    den = 1.0 + z * z / n
-    mid = (p + z * z / (2 * n)) / den
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return (max(0.0, mid - half), min(1.0, mid + half))
-
-
-def mean_ci(x, seed: int = BOOT_SEED) -> tuple[float, float, float]:
-    """Mean and seeded percentile-bootstrap 95 % interval of the finite values of ``x``.
-
-    Parameters
-    ----------
-    x : array_like
-        Values; NaN and infinite ones are dropped.
-    seed : int, default ``BOOT_SEED``
-        Bootstrap seed (:data:`oneocean.reporting.ladder.N_BOOT` replicates).
-
-    Returns
-    -------
-    tuple of float
-        ``(mean, lo, hi)``; NaNs when no finite value is left.
-    """
-    x = np.asarray(x, dtype=np.float64)
-    x = x[np.isfinite(x)]
-    if x.size == 0:
-        return (math.nan, math.nan, math.nan)
-    rng = np.random.default_rng(seed)
-    boots = x[rng.integers(0, x.size, size=(N_BOOT, x.size))].mean(axis=1)
-    lo, hi = np.quantile(boots, [0.025, 0.975])
-    return (float(x.mean()), float(lo), float(hi))
-
-
-def read_cell(path) -> tuple[pd.DataFrame, dict]:
-    """A cell file's per-episode table and its identity.
-
-    The one reader of cell files (tables, figures and the ladder use it). The identity comes
-    from the file's own record (a workflow cell), else from its first row's columns (e.g. a
-    user's ``oneocean evaluate`` file).
-
-    Parameters
-    ----------
-    path : path-like
-        A cell's Parquet file (``results/rollouts/...parquet``).
-
-    Returns
-    -------
-    df : pandas.DataFrame
-        One row per episode.
-    identity : dict
-        ``task, tier, method, currents``; ``run_gain`` (the run's gain g on the data
-        currents, a tier's own gain divided out); ``tide`` (the synthetic tide term or
-        None); ``forcing`` (``data``: the product's currents as they are, ``off``, ``gain``:
-        another gain, ``tide``: a synthetic tide added); ``applicable, reason, vehicle,
-        n_agents, seed``; what an ablation cell changed: ``info`` (the information level the
-        method was given instead of its own sensing, e.g. ``true_current``; ``""`` for its
-        own), ``tier_overrides`` (the tier parameters it replaced, ``{}`` for none) and
-        ``ablation`` (either of the two: such a cell is never one of the ladder's normal
-        cells); and ``meta``, the file's whole record.
-    """
-    from ..engine.recording import read_metrics_meta
-
-    df = pd.read_parquet(path)
-    meta = read_metrics_meta(path)
-    first = df.iloc[0] if len(df) else {}
-
-    def get(key, default=None):
-        return meta[key] if key in meta else first.get(key, default)
-
-    currents = bool(get("currents", True))
-    tier_gain = float((meta.get("tier_params") or {}).get("current_gain", 1.0))
-    run_gain = float(meta.get("current_gain", tier_gain)) / (tier_gain or 1.0)
-    tide = meta.get("tide")
-    forcing = ("off" if not currents else "tide" if tide is not None
-               else "gain" if abs(run_gain - 1.0) > 1e-12 else "data")
-    seed = get("seed")
-    method = get("method")
-    info = meta.get("info") or ""
-    if info == own_info(method):
-        info = ""
-    overrides = dict(meta.get("tier_overrides") or {})
-    return df, {"task": get("task"), "tier": int(get("tier", -1)), "method": method,
-                "currents": currents, "run_gain": run_gain, "tide": tide, "forcing": forcing,
-                "info": info, "tier_overrides": overrides, "ablation": bool(info or overrides),
-                "applicable": bool(meta.get("applicable", True)),
-                "reason": meta.get("reason", ""), "vehicle": meta.get("vehicle", ""),
-                "n_agents": int(get("n_agents", 0)),
-                "seed": None if seed is None else int(seed), "meta": meta}
-
-
-def own_info(method) -> str:
-    """The information level ``method`` senses with by default.
-
-    Parameters
-    ----------
-    method : str
-        A method name.
-
-    Returns
-    -------
-    str
-        One of :data:`oneocean.sensing.INFO_LEVELS`: ``truth`` for the oracle, ``sensors``
-        for every other method.
-    """
-    from ..methods.heuristic import SENSING
-
-    return SENSING.get(str(method), "sensors")
-
-
-def load_cells(files) -> pd.DataFrame:
-    """Read cell files into one row per file.
-
-    The ladder and its macros use the ``data`` and ``off`` cells only, never an ablation
-    cell (an information level or tier override).
-
-    Parameters
-    ----------
-    files : iterable of path-like
-        Cell files (:func:`read_cell`).
-
-    Returns
-    -------
-    pandas.DataFrame
-        ``task, tier, method, currents, forcing, info, ablation, applicable, reason,
-        vehicle, n_agents, seed`` (:func:`read_cell` says what each is), ``n`` episodes,
-        ``k`` successes, ``success`` (the episodes' success, a bool array) and ``current``
-        (the current speed each episode met, m s-1, a float64 array; empty for a file
-        without the column).
-    """
-    rows = []
-    for f in files:
-        df, c = read_cell(f)
-        rows.append({**{k: c[k] for k in ("task", "tier", "method", "currents", "forcing",
-                                          "info", "ablation", "applicable", "reason",
-                                          "vehicle", "n_agents", "seed")},
-                     "n": int(len(df)), "k": int(df["success"].sum()),
-                     "success": df["success"].to_numpy(dtype=bool),
-                     "current": (df["current_speed_ms"].to_numpy(dtype=np.float64)
-                                 if "current_speed_ms" in df else np.zeros(0))})
-    return pd.DataFrame(rows)
-
-
-@dataclass(frozen=True)
-class Rate:
-    """A success rate in percent with its 95 % interval (NaN when not applicable).
-
-    Attributes
-    ----------
-    sr : float
-        Success rate, %.
-    lo, hi : float
-        Bounds of the 95 % interval, %.
-    n : int
-        Episodes.
-    """
-
-    sr: float
-    lo: float
-    hi: float
-    n: int
-
-
-def cell_rate(k: int, n: int) -> Rate:
-    """A cell's success rate with its Wilson 95 % interval.
-
-    Parameters
-    ----------
-    k : int
-        Successes.
-    n : int
-        Episodes.
-
-    Returns
-    -------
-    Rate
-        Rate and bounds in %; the rate is NaN for ``n = 0``.
-    """
-    lo, hi = wilson(k, n)
-    return Rate(100.0 * k / n if n else math.nan, 100.0 * lo, 100.0 * hi, n)
-
-
-def _data_and_off(cells: pd.DataFrame) -> pd.DataFrame:
-    """The data-grounded and currents-off cells (all of them for a frame without
-    ``forcing``), never an ablation cell (information level or tier override)."""
-    if "forcing" in cells:
-        cells = cells[cells["forcing"].isin(("data", "off"))]
-    if "ablation" in cells:
-        cells = cells[~cells["ablation"].astype(bool)]
-    return cells
-
-
-def ladder_frame(cells: pd.DataFrame) -> pd.DataFrame:
-    """The ladder's rates: one row per data or currents-off cell.
-
-    Other forcings and ablation cells have their own tables.
-
-    Parameters
-    ----------
-    cells : pandas.DataFrame
-        :func:`load_cells`' rows.
-
-    Returns
-    -------
-    pandas.DataFrame
-        ``task, method, currents, tier, sr, lo, hi, n, applicable, reason, vehicle``: the
-        success rate and its Wilson 95 % bounds in % (NaN and ``n = 0`` for a cell that is
-        not applicable).
-    """
-    out = []
-    for _, c in _data_and_off(cells).iterrows():
-        r = cell_rate(c["k"], c["n"]) if c["applicable"] else Rate(math.nan, math.nan,
-                                                                   math.nan, 0)
-        out.append({"task": c["task"], "method": c["method"], "currents": c["currents"],
-                    "tier": c["tier"], "sr": r.sr, "lo": r.lo, "hi": r.hi, "n": r.n,
-                    "applicable": c["applicable"], "reason": c["reason"],
-                    "vehicle": c["vehicle"]})
-    return pd.DataFrame(out)
-
-
-def macro_rate(cells: pd.DataFrame, method: str, tier: int, currents: bool = True) -> dict:
-    """Macro success rate of one (method, tier, currents) over the applicable tasks.
-
-    The unweighted mean of the tasks' rates, with a stratified-bootstrap 95 % interval
-    (:func:`stratified_macro`, tasks in sorted order); data and currents-off cells only.
-
-    Parameters
-    ----------
-    cells : pandas.DataFrame
-        :func:`load_cells`' rows.
-    method : str
-        The method.
-    tier : int
-        The tier.
-    currents : bool, default True
-        False: the currents-off cells.
-
-    Returns
-    -------
-    dict
-        ``sr, lo, hi`` (%, NaN without applicable cells), ``tasks`` (applicable tasks with
-        episodes, averaged) and ``na`` (selected cells left out).
-    """
-    cells = _data_and_off(cells)
-    sel = cells[(cells["method"] == method) & (cells["tier"] == tier)
-                & (cells["currents"] == currents)]
-    # tasks in one canonical order, so the interval does not depend on the file order
-    app = sel[sel["applicable"] & (sel["n"] > 0)].sort_values("task", kind="stable")
-    if app.empty:
-        return {"sr": math.nan, "lo": math.nan, "hi": math.nan, "tasks": 0,
-                "na": int(len(sel))}
-    point, lo, hi = stratified_macro(list(app["success"]))
-    return {"sr": point, "lo": lo, "hi": hi, "tasks": int(len(app)),
-            "na": int(len(sel) - len(app))}
-
-
-def stratified_macro(groups, seed: int = BOOT_SEED) -> tuple[float, float, float]:
-    """Unweighted mean over groups (tasks) of their success rates, with a bootstrap interval.
-
-    The 95 % interval comes from a seeded stratified bootstrap (:data:`N_BOOT` replicates,
-    episodes resampled within each group, in the given order). Empty groups are skipped.
-
-    Parameters
-    ----------
-    groups : iterable of array_like
-        Each group's per-episode success (bool or 0/1).
-    seed : int, default ``BOOT_SEED``
-        Bootstrap seed.
-
-    Returns
-    -------
-    tuple of float
-        ``(mean, lo, hi)`` in %; NaNs when no group has episodes.
-    """
-    succ = [np.asarray(g, dtype=np.float64) for g in groups if len(g)]
-    if not succ:
-        return (math.nan, math.nan, math.nan)
-    rng = np.random.default_rng(seed)
-    boots = np.zeros(N_BOOT)
-    for s in succ:
-        boots += s[rng.integers(0, s.size, size=(N_BOOT, s.size))].mean(axis=1)
-    boots *= 100.0 / len(succ)
-    lo, hi = np.quantile(boots, [0.025, 0.975])
-    return (100.0 * float(np.mean([s.mean() for s in succ])), float(lo), float(hi))
+from .cells import _data_and_off, ladder_frame, load_cells, macro_rate
 
 
 @dataclass(frozen=True)
@@ -367,7 +63,7 @@ def run_checks(cells: pd.DataFrame) -> list[Check]:
     Parameters
     ----------
     cells : pandas.DataFrame
-        :func:`load_cells`' rows.
+        :func:`~oneocean.reporting.cells.load_cells`' rows.
 
     Returns
     -------
@@ -492,7 +188,8 @@ def current_markdown(cells: pd.DataFrame, method: str = "heuristic") -> list[str
     Parameters
     ----------
     cells : pandas.DataFrame
-        :func:`load_cells`' rows (data-current cells with a ``current`` array are used).
+        :func:`~oneocean.reporting.cells.load_cells`' rows (data-current cells with a ``current``
+        array are used).
     method : str, default "heuristic"
         The method whose episodes are summarised.
 
@@ -556,13 +253,13 @@ def ladder_markdown(cells: pd.DataFrame, region: str, seed: int | None = None,
     Parameters
     ----------
     cells : pandas.DataFrame
-        :func:`load_cells`' rows of the evaluation seed.
+        :func:`~oneocean.reporting.cells.load_cells`' rows of the evaluation seed.
     region : str
         The region's name, for the heading line.
     seed : int, optional
         The evaluation seed, for the text.
     replicate : pandas.DataFrame, optional
-        :func:`load_cells`' rows of the replicate seeds.
+        :func:`~oneocean.reporting.cells.load_cells`' rows of the replicate seeds.
 
     Returns
     -------

@@ -1,4 +1,8 @@
-"""Compile the generated LaTeX: the paper (``paper/main.tex``) and tables on their own.
+"""LaTeX: the booktabs writer of the generated tables, and compiling the paper and tables.
+
+:func:`booktabs` writes every generated table (shrunk to the line width when wider:
+:func:`fit_width`); :func:`build_paper`, :func:`standalone_table` and :func:`compile_pdf`
+compile the paper (``paper/main.tex``) and tables on their own.
 
 TeX is optional: nothing in the default workflow needs it. The ``paper`` target and the table
 tests call :func:`compile_pdf`, which names the missing program in a one-line error when

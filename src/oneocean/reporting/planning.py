@@ -23,8 +23,8 @@ import numpy as np
 import pandas as pd
 
 from ..io import write_text_atomic
-from .ladder import mean_ci, stratified_macro, wilson
 from .latex import booktabs
+from .stats import cell_rate, mean_ci, stratified_macro
 
 #: Each suite task's key metric (column, table label) and short label.
 SUITE_TASKS = {"SPC": ("cleanup_rate", "Cleanup"), "AS": ("coverage_fraction", "Scan"),
@@ -108,9 +108,8 @@ def _methods(df: pd.DataFrame) -> list[str]:
 
 
 def _rate(s) -> tuple[float, float, float]:
-    k, n = int(np.sum(s)), len(s)
-    lo, hi = wilson(k, n)
-    return (100.0 * k / n if n else math.nan, 100.0 * lo, 100.0 * hi)
+    r = cell_rate(int(np.sum(s)), len(s))
+    return (r.sr, r.lo, r.hi)
 
 
 def performance_frame(df: pd.DataFrame, tasks=tuple(SUITE_TASKS)) -> pd.DataFrame:

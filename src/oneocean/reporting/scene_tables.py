@@ -25,15 +25,17 @@ import numpy as np
 import pandas as pd
 
 from ..io import write_text_atomic
+from .cells import read_cell
 from .latex import booktabs
-from .tables import _ci, _escape, _num, rate_ci
+from .stats import finite_mean, rate_ci
+from .tables import _ci, _escape, _num
 
 #: The scene table's task (the paper's Table VII: route following).
 TABLE7_TASK = "RF"
 
 
 def load_scene_cells(cell_files) -> pd.DataFrame:
-    """Read scene cell files into one row per file (:func:`oneocean.reporting.ladder.read_cell`).
+    """Read scene cell files into one row per file (:func:`oneocean.reporting.cells.read_cell`).
 
     Parameters
     ----------
@@ -48,8 +50,6 @@ def load_scene_cells(cell_files) -> pd.DataFrame:
         ``n`` (episodes), ``success`` (bool array), ``episodes`` (the per-episode
         DataFrame), ``n_waypoints`` (the tier's, None if it has none) and ``file``.
     """
-    from .ladder import read_cell
-
     rows = []
     for f in cell_files:
         df, c = read_cell(f)
@@ -90,12 +90,6 @@ def short_label(scene_meta: dict, name: str) -> str:
     return base if name in ("", kind) else f"{base} ({name})"
 
 
-def _mean(x) -> float:
-    x = np.asarray(x, dtype=float)
-    x = x[np.isfinite(x)]
-    return float(x.mean()) if x.size else math.nan
-
-
 def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
                  task: str = TABLE7_TASK) -> pd.DataFrame:
     """Table VII as data: one row per scene and tier (MuJoCo backend), then the means.
@@ -134,12 +128,12 @@ def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
         if "waypoints_reached" in ep and c["n_waypoints"]:
             nwp = float(c["n_waypoints"])
             wp = ep["waypoints_reached"].to_numpy(dtype=float)
-            wp_pct, all_wp = 100.0 * _mean(wp / nwp), 100.0 * float(np.mean(wp >= nwp))
+            wp_pct, all_wp = 100.0 * finite_mean(wp / nwp), 100.0 * float(np.mean(wp >= nwp))
         else:
             wp_pct = all_wp = math.nan
         rows.append({"scene": scene, "label": c["label"], "tier": tier, "n": int(c["n"]),
                      "sr": sr, "sr_lo": lo, "sr_hi": hi, "wp_pct": wp_pct,
-                     "all_wp_pct": all_wp, "cte_m": _mean(ep["primary"]), "reason": ""})
+                     "all_wp_pct": all_wp, "cte_m": finite_mean(ep["primary"]), "reason": ""})
     out = pd.DataFrame(rows)
     if out.empty:
         return out
@@ -147,10 +141,10 @@ def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
     for tier, g in out.groupby("tier", sort=True):
         ok = g[g["n"] > 0]
         means.append({"scene": "mean", "label": "Mean over scenes", "tier": tier,
-                      "n": int(ok["n"].sum()), "sr": _mean(ok["sr"]), "sr_lo": math.nan,
-                      "sr_hi": math.nan, "wp_pct": _mean(ok["wp_pct"]),
-                      "all_wp_pct": _mean(ok["all_wp_pct"]), "cte_m": _mean(ok["cte_m"]),
-                      "reason": ""})
+                      "n": int(ok["n"].sum()), "sr": finite_mean(ok["sr"]), "sr_lo": math.nan,
+                      "sr_hi": math.nan, "wp_pct": finite_mean(ok["wp_pct"]),
+                      "all_wp_pct": finite_mean(ok["all_wp_pct"]),
+                      "cte_m": finite_mean(ok["cte_m"]), "reason": ""})
     return pd.concat([out, pd.DataFrame(means)], ignore_index=True)
 
 
@@ -245,8 +239,8 @@ def compare_frame(cells: pd.DataFrame, scene: str) -> pd.DataFrame:
         sr, lo, hi = rate_ci(c["success"])
         rows.append({"task": task, "tier": tier, "method": method, "backend": backend,
                      "n": int(c["n"]), "sr": sr, "sr_lo": lo, "sr_hi": hi,
-                     "primary": _mean(ep["primary"]), "T_s": _mean(ep["T_s"]),
-                     "E": _mean(ep["E"]), "violations": _mean(ep["violations"])})
+                     "primary": finite_mean(ep["primary"]), "T_s": finite_mean(ep["T_s"]),
+                     "E": finite_mean(ep["E"]), "violations": finite_mean(ep["violations"])})
     return pd.DataFrame(rows)
 
 

@@ -2,10 +2,11 @@
 Parquet.
 
 Every table of the results is a pure function of the rollout cell files (one Parquet row per
-episode, each file with its own record, :func:`oneocean.engine.recording.read_metrics_meta`):
-a ``*_frame`` function returns the numbers, a ``*_table`` function writes the LaTeX
-atomically and the same numbers as Parquet next to it (``<name>.parquet``, with a record of
-the table's protocol), and returns the frame.
+episode, each file with its own record, :func:`oneocean.engine.recording.read_metrics_meta`;
+read into one row per cell by :func:`oneocean.reporting.cells.load_cell_frames`): a
+``*_frame`` function returns the numbers, a ``*_table`` function writes the LaTeX atomically
+and the same numbers as Parquet next to it (``<name>.parquet``, with a record of the table's
+protocol), and returns the frame.
 
 * :func:`ladder_spec_table` (Table II): the task ladder from the registry and tier tables.
 * :func:`headline_table` (Table III): one row per method; Tier-2/3 macro SR, E, Coll and the
@@ -14,14 +15,15 @@ the table's protocol), and returns the frame.
 * :func:`difficulty_table`: one method's SR per tier and the drops between tiers.
 * :func:`ablation_table`: one method's SR under each forcing condition at one tier.
 
-Intervals (95 %): a rate has its Wilson score interval (:func:`oneocean.reporting.ladder.wilson`); a
-macro (unweighted mean over tasks of their SR) the stratified bootstrap of
-:func:`oneocean.reporting.ladder.macro_rate` (episodes resampled within each task, tasks in one
-canonical order: the same numbers as the ladder table); a mean its seeded percentile
-bootstrap (:func:`oneocean.reporting.ladder.mean_ci`); a mean pooled over the episodes of several
-tasks a stratified bootstrap (:func:`pooled_mean_ci`); a difference of two rates the
-bootstrap of the difference, both cells resampled independently (:func:`diff_ci`). Every
-bootstrap is seeded (:data:`oneocean.reporting.ladder.BOOT_SEED`), so the table bytes are
+Intervals (95 %, :mod:`oneocean.reporting.stats`): a rate has its Wilson score interval
+(:func:`~oneocean.reporting.stats.rate_ci`); a macro (unweighted mean over tasks of their SR)
+the stratified bootstrap of :func:`oneocean.reporting.cells.macro_rate` (episodes resampled
+within each task, tasks in one canonical order: the same numbers as the ladder table); a mean
+its seeded percentile bootstrap (:func:`~oneocean.reporting.stats.mean_ci`); a mean pooled over
+the episodes of several tasks a stratified bootstrap
+(:func:`~oneocean.reporting.stats.pooled_mean_ci`); a difference of two rates the bootstrap of
+the difference, both cells resampled independently (:func:`~oneocean.reporting.stats.diff_ci`).
+Every bootstrap is seeded (:data:`oneocean.reporting.stats.BOOT_SEED`), so the table bytes are
 reproducible. Rows follow :func:`oneocean.registry.task_ids`, methods
 :func:`oneocean.registry.method_names`.
 
@@ -45,8 +47,9 @@ import numpy as np
 import pandas as pd
 
 from ..io import write_text_atomic
-from .ladder import mean_ci
+from .cells import CURRENTS_OFF, DATA_GROUNDED, load_cell_frames, macro_rate
 from .latex import booktabs, fit_width
+from .stats import diff_ci, mean_ci, pooled_mean_ci, rate_ci
 
 Best = Literal["max", "min"]
 
@@ -173,158 +176,6 @@ def dataset_variants_table(metadata_files, out_tex) -> None:
 
 # ------------------------------------------------------------------------------ cells
 
-#: Condition ids of the main tables' cells and of the currents-off ablation.
-DATA_GROUNDED = "data-grounded"
-CURRENTS_OFF = "currents-off"
-
-
-def _condition(currents: bool, gain: float, tide: str | None) -> tuple[str, str, tuple]:
-    """``(id, label, sort key)`` of a cell's forcing condition (``tide``: canonical JSON)."""
-    if not currents:
-        return CURRENTS_OFF, "Currents off", (1, 0, 0.0, "")
-    parts, label = [], []
-    if gain != 1.0:
-        parts.append(f"gain-{gain:g}")
-        label.append(f"Currents $\\times${gain:g}")
-    if tide is not None:
-        t = json.loads(tide)
-        a, p = float(t.get("amplitude_ms", math.nan)), float(t.get("period_s", math.nan))
-        parts.append(f"tide-{a:g}ms-{p:g}s")
-        label.append(f"+ tide ({a:g} m/s, {p / 3600.0:.3g} h)")
-    if not parts:
-        return DATA_GROUNDED, "Data-grounded", (0, 0, 1.0, "")
-    return "+".join(parts), " ".join(label), (0, int(tide is not None), float(gain), tide or "")
-
-
-#: Labels of the information levels an ablation cell gives a method instead of its sensors.
-INFO_LABEL = {"sensors": "Sensors", "true_current": "True current",
-              "true_position": "True position", "true_target": "True target",
-              "truth": "Truth"}
-
-
-def _ablation_condition(cond: str, label: str, key: tuple, info: str,
-                        overrides: dict) -> tuple[str, str, tuple]:
-    """A cell's condition with its ablation (information level, tier overrides) appended:
-    ``info-<level>``, ``set-<key>[+<key>...]``; unchanged for a normal cell."""
-    parts, labels = [], []
-    if info:
-        parts.append(f"info-{info}")
-        labels.append(INFO_LABEL.get(info, info))
-    if overrides:
-        parts.append("set-" + "+".join(sorted(overrides)))
-        labels.append(", ".join(f"{k} = {json.dumps(overrides[k])}" for k in sorted(overrides)))
-    if not parts:
-        return cond, label, key
-    base = [] if cond == DATA_GROUNDED else [cond]
-    return ("+".join(base + parts), "; ".join(([] if cond == DATA_GROUNDED else [label])
-                                              + labels), (2, *key, "+".join(parts)))
-
-
-
-def _user_method(method: str, policies: list) -> None:
-    """Check that ``method`` is registered; a method that is not, whose every cell file was
-    written by ``oneocean evaluate`` (its record names the scored ``policy``), is registered
-    as a user's method (kind ``callable``, labelled by its name) so the tables take its
-    cells; anything else unregistered is the registry's one-line ConfigError."""
-    from .. import registry
-    from ..errors import ConfigError
-
-    try:
-        registry.method_spec(method)        # built in, packaged or registered
-        return
-    except ConfigError:
-        pass
-    if policies and all(isinstance(p, str) and p for p in policies):
-        registry.register_method(registry.MethodSpec(
-            method, method, "callable", "its own (step API observations)",
-            f"a user's policy scored with oneocean evaluate ({', '.join(sorted(set(policies)))})"))
-        return
-    registry.method_spec(method)
-
-def load_cell_frames(cell_files) -> pd.DataFrame:
-    """Read cell files into one row per cell, in canonical order.
-
-    The order is registry task order, registry method order, tier, condition. Identity
-    comes from the file's record, else from its columns (a user's ``oneocean evaluate``
-    file). A method that is not registered but whose every file was written by ``oneocean
-    evaluate`` is registered as a user's method (kind ``callable``) so the tables take it.
-
-    Parameters
-    ----------
-    cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files; a DataFrame (rows of this function) is returned as it is.
-
-    Returns
-    -------
-    pandas.DataFrame
-        ``task, tier, method, currents``; ``current_gain`` (the run's gain g, a tier's own
-        gain divided out); ``tide`` (the synthetic tide as canonical JSON, None: none);
-        ``condition, condition_label, condition_key`` (the forcing condition's id, table
-        label and sort key: ``data-grounded``, ``currents-off``, ``gain-<g>``,
-        ``tide-...``); ``info`` and ``tier_overrides`` (canonical JSON, ``""`` for none) and
-        ``ablation`` of an ablation cell (:func:`oneocean.reporting.ladder.read_cell`), whose
-        condition gets ``info-<level>`` / ``set-<key>`` and is never ``data-grounded``;
-        ``applicable, reason, vehicle, n_agents, seed``; ``n`` episodes, ``k`` successes,
-        ``success`` (bool array; the columns of :func:`oneocean.reporting.ladder.load_cells`, so its
-        macros apply), ``episodes`` (the cell's per-episode DataFrame) and ``file``.
-
-    Raises
-    ------
-    ConfigError
-        An unregistered task or method, or two files for the same cell (never silently
-        dropped or pooled).
-    """
-    from .. import registry
-    from ..errors import ConfigError
-    from .ladder import read_cell
-
-    if isinstance(cell_files, pd.DataFrame):
-        return cell_files
-    rows = []
-    for f in cell_files:
-        df, c = read_cell(f)
-        gain = float(c["meta"].get("current_gain", 1.0)) / (
-            float((c["meta"].get("tier_params") or {}).get("current_gain", 1.0)) or 1.0)
-        tide = None if c["tide"] is None else json.dumps(c["tide"], sort_keys=True)
-        cond, label, key = _ablation_condition(*_condition(c["currents"], gain, tide),
-                                               c["info"], c["tier_overrides"])
-        rows.append({**{k: c[k] for k in ("task", "tier", "method", "currents")},
-                     "current_gain": gain, "tide": tide, "condition": cond,
-                     "condition_label": label, "condition_key": key, "info": c["info"],
-                     "tier_overrides": (json.dumps(c["tier_overrides"], sort_keys=True)
-                                        if c["tier_overrides"] else ""),
-                     "ablation": c["ablation"],
-                     **{k: c[k] for k in ("applicable", "reason", "vehicle", "n_agents",
-                                          "seed")},
-                     "n": int(len(df)), "k": int(df["success"].sum()),
-                     "success": df["success"].to_numpy(dtype=bool), "episodes": df,
-                     "file": str(f), "policy": c["meta"].get("policy")})
-    cols = ["task", "tier", "method", "currents", "current_gain", "tide", "condition",
-            "condition_label", "condition_key", "info", "tier_overrides", "ablation",
-            "applicable", "reason", "vehicle", "n_agents", "seed", "n", "k", "success",
-            "episodes", "file", "policy"]
-    if not rows:
-        return pd.DataFrame(columns=cols[:-1])
-    cells = pd.DataFrame(rows, columns=cols)
-    for t in cells["task"].unique():
-        registry.task_spec(t)                     # an unregistered task: one-line error
-    for m in cells["method"].unique():
-        _user_method(m, list(cells.loc[cells["method"] == m, "policy"]))
-    cells = cells.drop(columns="policy")
-    t_order = {t: i for i, t in enumerate(registry.task_ids())}
-    m_order = {m: i for i, m in enumerate(registry.method_names())}
-    cells["_o"] = [(t_order[t], m_order[m], k, c) for t, m, k, c in
-                   zip(cells["task"], cells["method"], cells["tier"], cells["condition_key"])]
-    cells = cells.sort_values("_o", kind="stable").drop(columns="_o").reset_index(drop=True)
-    dup = cells.duplicated(["task", "tier", "method", "condition"], keep=False)
-    if dup.any():
-        d = cells[dup]
-        raise ConfigError(f"two cell files for the same cell ({d['task'].iloc[0]} tier "
-                          f"{d['tier'].iloc[0]} {d['method'].iloc[0]}, "
-                          f"{d['condition'].iloc[0]}): {', '.join(d['file'])}")
-    return cells
-
-
 def _data_grounded(cells: pd.DataFrame) -> pd.DataFrame:
     return cells[cells["condition"] == DATA_GROUNDED]
 
@@ -350,108 +201,6 @@ def _cell(cells: pd.DataFrame, task: str, method: str, tier: int):
     """The one cell row of (task, method, tier) in ``cells`` (None if absent)."""
     sel = cells[(cells["task"] == task) & (cells["method"] == method) & (cells["tier"] == tier)]
     return None if sel.empty else sel.iloc[0]
-
-
-# ------------------------------------------------------------------------------ intervals
-
-def rate_ci(success) -> tuple[float, float, float]:
-    """Success rate of a success vector with its Wilson 95 % interval.
-
-    Parameters
-    ----------
-    success : array_like
-        Per-episode success (bool).
-
-    Returns
-    -------
-    tuple of float
-        ``(sr, lo, hi)`` in %; NaNs if empty.
-    """
-    from .ladder import wilson
-
-    s = np.asarray(success, dtype=bool)
-    if s.size == 0:
-        return (math.nan, math.nan, math.nan)
-    lo, hi = wilson(int(s.sum()), int(s.size))
-    return (100.0 * float(s.mean()), 100.0 * lo, 100.0 * hi)
-
-
-def pooled_mean_ci(groups, seed: int | None = None) -> tuple[float, float, float]:
-    """Mean of the finite values of several groups (tasks) pooled, with a bootstrap interval.
-
-    The 95 % interval is a seeded stratified percentile bootstrap (values resampled within
-    each group, groups in the given order).
-
-    Parameters
-    ----------
-    groups : iterable of array_like
-        Each group's values; non-finite ones are dropped.
-    seed : int, optional
-        Bootstrap seed (default :data:`oneocean.reporting.ladder.BOOT_SEED`).
-
-    Returns
-    -------
-    tuple of float
-        ``(mean, lo, hi)``; NaNs when no finite value.
-    """
-    from .ladder import BOOT_SEED, N_BOOT
-
-    xs = [np.asarray(g, dtype=np.float64) for g in groups]
-    xs = [x[np.isfinite(x)] for x in xs]
-    xs = [x for x in xs if x.size]
-    if not xs:
-        return (math.nan, math.nan, math.nan)
-    rng = np.random.default_rng(BOOT_SEED if seed is None else seed)
-    total = np.zeros(N_BOOT)
-    for x in xs:
-        total += x[rng.integers(0, x.size, size=(N_BOOT, x.size))].sum(axis=1)
-    n = sum(x.size for x in xs)
-    lo, hi = np.quantile(total / n, [0.025, 0.975])
-    return (float(np.concatenate(xs).mean()), float(lo), float(hi))
-
-
-def diff_ci(pairs, seed: int | None = None) -> tuple[float, float, float]:
-    """Difference of success rates in points, ``mean over pairs of (SR(a) - SR(b))``.
-
-    One pair gives one task's drop; several a macro drop over the tasks. The 95 % interval
-    is a seeded percentile bootstrap (every success vector resampled independently, pairs
-    in the given order).
-
-    Parameters
-    ----------
-    pairs : iterable of (array_like, array_like)
-        ``(success_a, success_b)`` per task; pairs with an empty side are skipped.
-    seed : int, optional
-        Bootstrap seed (default :data:`oneocean.reporting.ladder.BOOT_SEED`).
-
-    Returns
-    -------
-    tuple of float
-        ``(diff, lo, hi)`` in percentage points; NaNs when no pair is left.
-    """
-    from .ladder import BOOT_SEED, N_BOOT
-
-    pairs = [(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
-             for a, b in pairs]
-    pairs = [(a, b) for a, b in pairs if a.size and b.size]
-    if not pairs:
-        return (math.nan, math.nan, math.nan)
-    rng = np.random.default_rng(BOOT_SEED if seed is None else seed)
-    boots = np.zeros(N_BOOT)
-    for a, b in pairs:
-        boots += a[rng.integers(0, a.size, size=(N_BOOT, a.size))].mean(axis=1)
-        boots -= b[rng.integers(0, b.size, size=(N_BOOT, b.size))].mean(axis=1)
-    boots *= 100.0 / len(pairs)
-    lo, hi = np.quantile(boots, [0.025, 0.975])
-    point = 100.0 * float(np.mean([a.mean() - b.mean() for a, b in pairs]))
-    return (point, float(lo), float(hi))
-
-
-def _macro(cells: pd.DataFrame, method: str, tier: int, currents: bool = True) -> dict:
-    """:func:`oneocean.reporting.ladder.macro_rate` of ``cells`` (already one condition)."""
-    from .ladder import macro_rate
-
-    return macro_rate(cells, method, tier, currents)
 
 
 # ------------------------------------------------------------------------------ LaTeX
@@ -707,8 +456,8 @@ def task_success_ci_frame(cell_files) -> pd.DataFrame:
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`load_cell_frames`' rows; only the data-grounded cells
-        are used.
+        Rollout cell files, or :func:`~oneocean.reporting.cells.load_cell_frames`' rows; only the
+        data-grounded cells are used.
 
     Returns
     -------
@@ -736,7 +485,7 @@ def task_success_ci_frame(cell_files) -> pd.DataFrame:
             sel = cells[(cells["method"] == m) & (cells["tier"] == k)]
             if set(sel["task"]) != set(cells.loc[cells["tier"] == k, "task"]):
                 continue
-            mac = _macro(cells, m, k)
+            mac = macro_rate(cells, m, k)
             rows.append({"family": "", "task": "Macro", "n_agents": pd.NA, "method": m,
                          "label": registry.method_spec(m).short, "tier": int(k),
                          "sr": mac["sr"], "lo": mac["lo"], "hi": mac["hi"],
@@ -762,7 +511,8 @@ def task_success_frame(cell_files) -> pd.DataFrame:
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+        Rollout cell files, or :func:`~oneocean.reporting.cells.load_cell_frames`' rows (used as
+        they are).
 
     Returns
     -------
@@ -804,8 +554,8 @@ def task_success_latex(long: pd.DataFrame, cells: pd.DataFrame, region: str | No
     long : pandas.DataFrame
         :func:`task_success_ci_frame`'s rows.
     cells : pandas.DataFrame
-        The data-grounded :func:`load_cell_frames` rows, for the caption (seeds, episodes,
-        n/a cells).
+        The data-grounded :func:`~oneocean.reporting.cells.load_cell_frames` rows, for the caption
+        (seeds, episodes, n/a cells).
     region : str, optional
         The region, named in the caption and the label.
     privileged : sequence of str, default ``PRIVILEGED``
@@ -878,7 +628,8 @@ def task_success_table(cell_files, out_tex, region: str | None = None) -> pd.Dat
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+        Rollout cell files, or :func:`~oneocean.reporting.cells.load_cell_frames`' rows (used as
+        they are).
     out_tex : path-like
         The ``.tex`` file.
     region : str, optional
@@ -928,8 +679,8 @@ def headline_frame(cell_files, tiers=(2, 3), metric_tier: int = 3,
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`load_cell_frames`' rows; only the data-grounded cells
-        are used.
+        Rollout cell files, or :func:`~oneocean.reporting.cells.load_cell_frames`' rows; only the
+        data-grounded cells are used.
     tiers : sequence of int, default (2, 3)
         The tiers with macro SR, E and Coll columns.
     metric_tier : int, default 3
@@ -959,7 +710,7 @@ def headline_frame(cell_files, tiers=(2, 3), metric_tier: int = 3,
                     row[f"T{k}_{key}"] = row[f"T{k}_{key}_lo"] = row[f"T{k}_{key}_hi"] = math.nan
                 row[f"T{k}_sr_tasks"] = row[f"T{k}_coll_tasks"] = 0
                 continue
-            mac = _macro(cells, m, k)
+            mac = macro_rate(cells, m, k)
             row[f"T{k}_sr"], row[f"T{k}_sr_lo"], row[f"T{k}_sr_hi"] = (
                 mac["sr"], mac["lo"], mac["hi"])
             row[f"T{k}_sr_tasks"] = int(mac["tasks"])
@@ -994,7 +745,7 @@ def headline_latex(df: pd.DataFrame, cells: pd.DataFrame, tiers=(2, 3), metric_t
     df : pandas.DataFrame
         :func:`headline_frame`'s rows.
     cells : pandas.DataFrame
-        The data-grounded :func:`load_cell_frames` rows, for the caption.
+        The data-grounded :func:`~oneocean.reporting.cells.load_cell_frames` rows, for the caption.
     tiers : sequence of int, default (2, 3)
         As :func:`headline_frame`.
     metric_tier : int, default 3
@@ -1065,7 +816,8 @@ def headline_table(cell_files, out_tex, tiers=(2, 3), metric_tier: int = 3,
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+        Rollout cell files, or :func:`~oneocean.reporting.cells.load_cell_frames`' rows (used as
+        they are).
     out_tex : path-like
         The ``.tex`` file; the numbers go beside it as ``.parquet``.
     tiers : sequence of int, default (2, 3)
@@ -1105,7 +857,8 @@ def difficulty_frame(cell_files, method: str = "heuristic") -> pd.DataFrame:
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+        Rollout cell files, or :func:`~oneocean.reporting.cells.load_cell_frames`' rows (used as
+        they are).
     method : str, default "heuristic"
         The method.
 
@@ -1146,7 +899,7 @@ def difficulty_frame(cell_files, method: str = "heuristic") -> pd.DataFrame:
     if tasks:
         row = {"family": "", "task": "Macro"}
         for k in tiers:
-            mac = _macro(cells, method, k)
+            mac = macro_rate(cells, method, k)
             row[f"T{k}_sr"], row[f"T{k}_lo"], row[f"T{k}_hi"] = mac["sr"], mac["lo"], mac["hi"]
             row[f"T{k}_n"] = int(cells.loc[cells["tier"] == k, "n"].sum())
             row[f"T{k}_tasks"] = int(mac["tasks"])
@@ -1173,7 +926,7 @@ def difficulty_latex(df: pd.DataFrame, cells: pd.DataFrame, method: str,
     df : pandas.DataFrame
         :func:`difficulty_frame`'s rows.
     cells : pandas.DataFrame
-        The data-grounded :func:`load_cell_frames` rows, for the caption.
+        The data-grounded :func:`~oneocean.reporting.cells.load_cell_frames` rows, for the caption.
     method : str
         The method (its label is named in the caption).
     region : str, optional
@@ -1226,7 +979,8 @@ def difficulty_table(cell_files, out_tex, method: str = "heuristic",
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+        Rollout cell files, or :func:`~oneocean.reporting.cells.load_cell_frames`' rows (used as
+        they are).
     out_tex : path-like
         The ``.tex`` file; the numbers go beside it as ``.parquet``.
     method : str, default "heuristic"
@@ -1267,19 +1021,20 @@ def _condition_note(cond: str, label: str, tide: str | None, gain: float) -> str
 def ablation_frame(cell_files, tier: int = 3, method: str = "heuristic") -> pd.DataFrame:
     """The forcing ablation of ``method`` at ``tier`` as data, long.
 
-    One row per (task, condition) with a cell, then per condition a ``Macro`` row.
-    Information and tier-override ablation cells are left out. Conditions come from each
-    cell's record (:func:`load_cell_frames`: ``currents`` False = currents off; the run's
-    ``current_gain`` g; ``tide``), ordered data-grounded, other gains (ascending), with tide,
-    currents off. Columns: ``family, task, condition, condition_label, current_gain, tide,
-    sr, lo, hi`` (Wilson; macro: stratified bootstrap over the hosted tasks), ``n``,
-    ``applicable``, ``tasks``, ``same_episodes`` (the cell replays the data-grounded cell's
-    episodes: equal ``candidate`` draws; None without a data-grounded cell to compare).
+    One row per (task, condition) with a cell, then per condition a ``Macro`` row. Information and
+    tier-override ablation cells are left out. Conditions come from each cell's record
+    (:func:`~oneocean.reporting.cells.load_cell_frames`: ``currents`` False = currents off; the
+    run's ``current_gain`` g; ``tide``), ordered data-grounded, other gains (ascending), with tide,
+    currents off. Columns: ``family, task, condition, condition_label, current_gain, tide, sr, lo,
+    hi`` (Wilson; macro: stratified bootstrap over the hosted tasks), ``n``, ``applicable``,
+    ``tasks``, ``same_episodes`` (the cell replays the data-grounded cell's episodes: equal
+    ``candidate`` draws; None without a data-grounded cell to compare).
 
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+        Rollout cell files, or :func:`~oneocean.reporting.cells.load_cell_frames`' rows (used as
+        they are).
     tier : int, default 3
         The tier.
     method : str, default "heuristic"
@@ -1317,7 +1072,7 @@ def ablation_frame(cell_files, tier: int = 3, method: str = "heuristic") -> pd.D
                      "same_episodes": same})
     for _, cd in conds.iterrows():
         sub = cells[cells["condition"] == cd["condition"]]
-        mac = _macro(sub, method, tier, bool(cd["currents"]))
+        mac = macro_rate(sub, method, tier, bool(cd["currents"]))
         rows.append({"family": "", "task": "Macro", "condition": cd["condition"],
                      "condition_label": cd["condition_label"],
                      "current_gain": float(cd["current_gain"]), "tide": cd["tide"],
@@ -1341,7 +1096,8 @@ def ablation_latex(df: pd.DataFrame, cells: pd.DataFrame, tier: int, method: str
     df : pandas.DataFrame
         :func:`ablation_frame`'s rows.
     cells : pandas.DataFrame
-        :func:`load_cell_frames` rows (forcing conditions only), for the caption.
+        :func:`~oneocean.reporting.cells.load_cell_frames` rows (forcing conditions only), for the
+        caption.
     tier : int
         The tier.
     method : str
@@ -1413,7 +1169,8 @@ def ablation_table(cell_files, out_tex, tier: int = 3, method: str = "heuristic"
     Parameters
     ----------
     cell_files : iterable of path-like or pandas.DataFrame
-        Rollout cell files, or :func:`load_cell_frames`' rows (used as they are).
+        Rollout cell files, or :func:`~oneocean.reporting.cells.load_cell_frames`' rows (used as
+        they are).
     out_tex : path-like
         The ``.tex`` file; the numbers go beside it as ``.parquet``.
     tier : int, default 3
