@@ -79,7 +79,7 @@ _WORKER = """
 import json, sys, time
 import oneocean, oneocean.tasks as T
 from oneocean.engine import load_grid
-from oneocean.tasks.common import load_task_table
+from oneocean.tasks.tiers import load_task_table
 grid_path, task, tier, episodes = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
 grid = load_grid(grid_path)
 dt = float(load_task_table(task)["dt_s"])

@@ -25,7 +25,7 @@ SCRIPT = textwrap.dedent("""\
     from oneocean import registry
     from oneocean.config import SCHEMA_PATH, load_config, validate_config
     from oneocean.engine import load_vehicle
-    from oneocean.tasks.common import load_task_table
+    from oneocean.tasks.tiers import load_task_table
 
     prefix = Path(sys.prefix).resolve()
     assert Path(oneocean.__file__).resolve().is_relative_to(prefix), oneocean.__file__

@@ -1,6 +1,6 @@
 """Steering laws: how a method turns a target point or a desired ground velocity into a
-velocity request through the water under the current it knows (:func:`seek`,
-:func:`seek_max`, :func:`steer`). Inlined into the fused policies; imports nothing from
+velocity request through the water under the current it knows (:func:`seek_max`,
+:func:`steer`). Inlined into the fused policies; imports nothing from
 :mod:`oneocean.tasks`.
 """
 
@@ -9,45 +9,6 @@ from __future__ import annotations
 import math
 
 from ..engine._jit import hot_kernel
-
-
-@hot_kernel(inline="always")
-def seek(px, py, pz, gx, gy, gz, speed, kp, ce, cn):
-    """Velocity request (relative to water) toward a goal, with current feed-forward.
-
-    P-control of the ground velocity, ``min(kp d, speed)`` along the goal direction (``d`` the
-    distance to the goal), plus feed-forward cancelling the (probed) current ``(ce, 0, cn)``.
-
-    Parameters
-    ----------
-    px, py, pz : float
-        Vehicle position, world m.
-    gx, gy, gz : float
-        Goal position, world m.
-    speed : float
-        Cap of the ground speed toward the goal, m s-1.
-    kp : float
-        Proportional gain, s-1.
-    ce, cn : float
-        Current (east, north) to cancel, m s-1.
-
-    Returns
-    -------
-    ax, ay, az : float
-        Velocity request relative to the water, world frame, m s-1 (not clipped; the engine
-        clips it to ``v_max``).
-    """
-    dx = gx - px
-    dy = gy - py
-    dz = gz - pz
-    d = math.sqrt(dx * dx + dy * dy + dz * dz)
-    v = kp * d
-    if v > speed:
-        v = speed
-    if d > 1e-9:
-        f = v / d
-        return dx * f - ce, dy * f, dz * f - cn
-    return -ce, 0.0, -cn
 
 
 @hot_kernel(inline="always")
