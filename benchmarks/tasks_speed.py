@@ -79,10 +79,9 @@ _WORKER = """
 import json, sys, time
 import oneocean, oneocean.tasks as T
 from oneocean.engine import load_grid
-from oneocean.tasks.tiers import load_task_table
 grid_path, task, tier, episodes = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
 grid = load_grid(grid_path)
-dt = float(load_task_table(task)["dt_s"])
+dt = float(T.load_task_table(task)["dt_s"])
 call = lambda: T.run_cell(grid, task, tier, "heuristic", episodes, 0, "6dof")
 t0 = time.perf_counter(); call(); warm = time.perf_counter() - t0
 print("@@" + json.dumps({"file": oneocean.__file__, "warmup_s": warm}), flush=True)

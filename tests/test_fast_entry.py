@@ -93,7 +93,7 @@ def test_a_cells_batches_run_numbas_own_entries(task):
     for seed in (0, 1):
         env.reset(seed=seed)
         b = env._pools[-1].batch
-        args = b._args() + (b._no_io, 0, 0, 1)
+        args = (b._args(), b._no_io, 0, 0, 1)
         sig = tuple(b.kern._kernel.typeof_pyval(a) for a in args)
         assert b._entries["run"] is b.kern._kernel.overloads[sig].entry_point
     env.close()

@@ -16,7 +16,7 @@ from numba import njit
 from oneocean.engine._jit import hot_kernel
 from oneocean.envs import OceanVectorEnv
 from oneocean.engine.dispatch import fast_entry
-from oneocean.tasks.loop import BORROWED_FIELDS, STEP_FIELDS, StepArgs, step_fields
+from oneocean.tasks.loop import BORROWED_FIELDS, STEP_FIELDS, Batch, StepArgs, step_fields
 
 Inner = namedtuple("Inner", "u n")
 
@@ -81,8 +81,8 @@ def _getattr_step(kern):
 
     @njit(nogil=True)
     def boxed(A, io, k_stop, e_lo, e_hi):
-        inner(A.grid, A.vp, A.LP, A.P, A.W, A.C, A.LS, A.t0, A.state, A.cmd, A.ext, A.rec_o,
-              A.rec_a, A.res, io, k_stop, e_lo, e_hi)
+        inner(Batch(A.grid, A.vp, A.LP, A.P, A.W, A.C, A.LS, A.t0, A.state, A.cmd, A.ext,
+                    A.rec_o, A.rec_a, A.res), io, k_stop, e_lo, e_hi)
 
     return boxed
 

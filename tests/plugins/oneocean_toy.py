@@ -133,11 +133,9 @@ def finish(ctx, e, k):
 
 
 @hot_kernel(nogil=True)
-def _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
-            e_lo, e_hi):
+def _kernel(K, io, k_stop, e_lo, e_hi):
     run_block(begin, noop_pre_step, cue, noop_sense, noop_after_agent, post_step, finish,
-              noop_report, noop_plan, _act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext,
-              rec_o, rec_a, res, io, k_stop, e_lo, e_hi)
+              noop_report, noop_plan, _act, K, io, k_stop, e_lo, e_hi)
 
 
 @hot_kernel(nogil=True)

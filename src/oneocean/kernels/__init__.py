@@ -7,10 +7,12 @@ module ``kernels/<task>.py`` binds the two: it passes the task's hooks and the p
 ``plan`` / ``act`` to the one loop (:func:`oneocean.tasks.loop.run_block`) and exposes
 
 * ``TASK`` and ``POLICY``: the two modules it binds;
-* ``_kernel``: the loop over a block of episodes ``[e_lo, e_hi)`` (``hot_kernel(nogil=True)``),
-  the one compiled copy of the loop, which serves the fused cells (``k_stop``: up to a step),
-  the step API (one step and the next observation, with its side ``io``,
-  :class:`~oneocean.tasks.loop.EnvIO`) and the scene backend's decide and judge phases;
+* ``_kernel(K, io, k_stop, e_lo, e_hi)``: the loop over a block of episodes ``[e_lo, e_hi)``
+  (``hot_kernel(nogil=True)``) on a batch's arguments ``K``
+  (:class:`~oneocean.tasks.loop.Batch`), the one compiled copy of the loop, which serves the
+  fused cells (``k_stop``: up to a step), the step API (one step and the next observation,
+  with its side ``io``, :class:`~oneocean.tasks.loop.EnvIO`) and the scene backend's decide
+  and judge phases;
 * ``_step_boxed``: one step of ``_kernel`` with its arguments in one
   :class:`~oneocean.tasks.loop.StepArgs` (one object to unbox per call of the step API, not
   every array), through ``_step_fields``, which reads them without counting a reference to

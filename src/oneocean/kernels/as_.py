@@ -15,20 +15,16 @@ from ..tasks.as_ import after_agent, begin, cue, finish, post_step
 
 
 @hot_kernel(nogil=True)
-def _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
-            e_lo, e_hi):
-    run_block(begin, noop_pre_step, cue, noop_sense, after_agent, post_step, finish, noop_report,
-              POLICY.plan, POLICY.act, grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o,
-              rec_a, res, io, k_stop, e_lo, e_hi)
+def _kernel(K, io, k_stop, e_lo, e_hi):
+    run_block(begin, noop_pre_step, cue, noop_sense, after_agent, post_step, finish,
+              noop_report, POLICY.plan, POLICY.act, K, io, k_stop, e_lo, e_hi)
 
 
 @step_kernel
 def _step_fields(A, io, k_stop, e_lo, e_hi):
     """One step of ``_kernel`` on the fields of ``A``, borrowed
     (:func:`~oneocean.tasks.loop.step_fields`)."""
-    grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res = step_fields(A)
-    _kernel(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
-            e_lo, e_hi)
+    _kernel(step_fields(A), io, k_stop, e_lo, e_hi)
 
 
 @njit(cache=True, nogil=True)

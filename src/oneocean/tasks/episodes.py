@@ -19,7 +19,7 @@ from ..engine.dispatch import fast_entry, over_range
 from ..errors import ConfigError
 from .common import ACT_FIELDS, CLEARANCE_M, OBS_DIM, STANDARD, rollout_results
 from .tiers import episode_steps, need_tier
-from .loop import (ACT_DIM, EXTERNAL, FUSED, FINISHED, LEARNED, Ctx, LoopParams, env_io,
+from .loop import (ACT_DIM, EXTERNAL, FUSED, FINISHED, LEARNED, Batch, Ctx, LoopParams, env_io,
                    new_loop_state, step_args)
 
 
@@ -229,12 +229,12 @@ class Episodes:
         """(E,) bool: the episode has ended (success, termination or time limit)."""
         return self.LS.status == FINISHED
 
-    def _args(self):
-        return (self.grid, self.vehicle.params, self.LP, self.P, self.W, self.C, self.LS,
-                self.t0, self.state, self.cmd, self.ext, self.obs, self.act, self.res)
+    def _args(self) -> Batch:
+        return Batch(self.grid, self.vehicle.params, self.LP, self.P, self.W, self.C, self.LS,
+                     self.t0, self.state, self.cmd, self.ext, self.obs, self.act, self.res)
 
     def _call(self, k_stop: int, lo: int, hi: int) -> None:
-        args = self._args() + (self._no_io, int(k_stop))
+        args = (self._args(), self._no_io, int(k_stop))
         fn = self._entries.get("run")
         over_range(fn or self.kern._kernel, lo, hi, *args)
         if fn is None:     # compiled (or loaded) now: later calls skip numba's dispatch
@@ -369,12 +369,12 @@ class Episodes:
         if call is None:
             kern = getattr(self.kern, "_step_boxed", None)
             if kern is None:   # a plugin's kernel module without it: the plain kernel
-                over_range(self.kern._kernel, lo, hi, *self._args(), io, -1)
+                over_range(self.kern._kernel, lo, hi, self._args(), io, -1)
                 return True
             # k_stop -1 (one step) from Python, an int64 like the fused cells' k_stop: the
             # same compiled _kernel serves both (a -1 literal inside the kernel module would
             # type as Literal[int](-1) and compile the whole loop a second time)
-            args = (step_args(*self._args()),)
+            args = (step_args(self._args()),)
             over_range(kern, lo, hi, *args, io, -1)    # compiles (or loads) on first use
             self._entries["step"] = (fast_entry(kern, args + (io, -1, 0, 1)), args)
             return True

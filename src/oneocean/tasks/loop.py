@@ -126,6 +126,7 @@ from .common import OBS_DIM, OK, current_at, observe_common, record_step
 #: docstring says what it does with them).
 VOCABULARY = {
     "ctx": "EnvCtx: the env hooks' context (the grid, P, W, the states, ...)",
+    "K": "Batch: a batch's kernel arguments (the grid, vp, LP, P, W, C, LS, t0, state, ...)",
     "grid": "Grid: the grid export (oneocean.engine.grid.Grid), the truth",
     "vp": "(PARAM_DIM,) float64: vehicle parameters (oneocean.engine.dynamics)",
     "LP": "LoopParams: the loop's params",
@@ -349,9 +350,32 @@ def env_io(n: int, n_agents: int, obs_dim: int) -> EnvIO:
                  np.zeros(n, np.int64), np.zeros(0, np.int64), 0, 0)
 
 
-#: A kernel module's ``_kernel`` arguments before ``io`` (:class:`StepArgs`).
-STEP_FIELDS = ("grid", "vp", "LP", "P", "W", "C", "LS", "t0", "state", "cmd", "ext", "rec_o",
-               "rec_a", "res")
+class Batch(NamedTuple):
+    """A batch's arguments of a kernel module's ``_kernel``, before the step API's side
+    ``io``: the grid export (the truth), the vehicle parameters ``vp``, :class:`LoopParams`,
+    the task's params ``P`` and work arrays ``W``, the policy's context :class:`Ctx`,
+    :class:`LoopState`, the start times ``t0`` (E,), the true states ``state`` (E, N,
+    STATE_DIM), the command rows ``cmd``, the external actions ``ext`` (E, N, ACT_DIM), the
+    observation / action records ``rec_o`` (E, S, N, D) / ``rec_a`` (E, S, N, 3) (S = 0: no
+    record) and the result rows ``res`` (E, C). Every array is shared, not copied."""
+    grid: tuple
+    vp: np.ndarray
+    LP: LoopParams
+    P: tuple
+    W: tuple
+    C: Ctx
+    LS: LoopState
+    t0: np.ndarray
+    state: np.ndarray
+    cmd: np.ndarray
+    ext: np.ndarray
+    rec_o: np.ndarray
+    rec_a: np.ndarray
+    res: np.ndarray
+
+
+#: The fields of :class:`Batch` (and of :class:`StepArgs`).
+STEP_FIELDS = Batch._fields
 
 
 @structref.register
@@ -384,15 +408,16 @@ structref.define_proxy(StepArgs, StepArgsType, STEP_FIELDS)
 
 
 @njit(cache=True)
-def step_args(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res):
-    """The :class:`StepArgs` of a batch's kernel arguments (compiled per argument types,
-    cached); the arrays are shared, not copied (:data:`STEP_FIELDS`).
+def step_args(K):
+    """The :class:`StepArgs` of a batch's kernel arguments ``K`` (:class:`Batch`; compiled
+    per argument types, cached); the arrays are shared, not copied.
 
     Returns
     -------
     StepArgs
     """
-    return StepArgs(grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res)
+    return StepArgs(K.grid, K.vp, K.LP, K.P, K.W, K.C, K.LS, K.t0, K.state, K.cmd, K.ext,
+                    K.rec_o, K.rec_a, K.res)
 
 
 # A StepArgs' fields, read the way numba reads a struct's field (``A.grid``) but without
@@ -420,11 +445,11 @@ if BORROWED_FIELDS:
 
     @_intrinsic
     def step_fields(typingctx, A):
-        """The :data:`STEP_FIELDS` of the :class:`StepArgs` ``A``, in that order, borrowed
-        (no reference counted): only in a kernel compiled without reference counting
+        """The fields of the :class:`StepArgs` ``A`` as a :class:`Batch`, borrowed (no
+        reference counted): only in a kernel compiled without reference counting
         (:data:`step_kernel`) and called from jit code that holds ``A``."""
         tys = [A.field_dict[f] for f in STEP_FIELDS]
-        tup = types.Tuple(tys)
+        tup = types.NamedTuple(tys, Batch)
 
         def codegen(context, builder, sig, args):
             ref = _cgutils.create_struct_proxy(sig.args[0])(context, builder, value=args[0])
@@ -443,9 +468,9 @@ if BORROWED_FIELDS:
 else:  # pragma: no cover - another numba's internals
     @njit(cache=True)
     def step_fields(A):
-        """The :data:`STEP_FIELDS` of the :class:`StepArgs` ``A``, in that order."""
-        return (A.grid, A.vp, A.LP, A.P, A.W, A.C, A.LS, A.t0, A.state, A.cmd, A.ext, A.rec_o,
-                A.rec_a, A.res)
+        """The fields of the :class:`StepArgs` ``A`` as a :class:`Batch`."""
+        return Batch(A.grid, A.vp, A.LP, A.P, A.W, A.C, A.LS, A.t0, A.state, A.cmd, A.ext,
+                     A.rec_o, A.rec_a, A.res)
 
     step_kernel = njit(cache=True, nogil=True)
 
@@ -594,8 +619,9 @@ def decide_step(plan, act, report, C, LP, ext, cmd, rec_o, rec_a, e, k):
 def account_agent(after_agent, ctx, LS, e, k, i, en, counting, energy, viol, cur):
     """The accounting of agent ``i``'s step after it moved (every backend): the energy proxy
     ``en`` of its executed action and the move's status ``ctx.code[e, i]`` (a rejected move or
-    a contact) counted up to success, the true current speed it met (the metric ``current_speed_ms``),
-    its own energy so far (its observation), the task's ``after_agent``.
+    a contact) counted up to success, the true current speed it met (the metric
+    ``current_speed_ms``), its own energy so far (its observation), the task's
+    ``after_agent``.
 
     Returns
     -------
@@ -679,16 +705,13 @@ def finish_episode(finish, ctx, LP, LS, e, k):
 
 @hot_kernel(inline="always")
 def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, report, plan, act,
-                ctx, vp, LP, C, LS, cmd, ext, rec_o, rec_a, e, k_stop):
+                ctx, K, e, k_stop):
     """Advance episode ``e`` up to step ``k_stop`` (or its end; a negative ``k_stop``
     advances it by ``-k_stop`` steps from where it is, so episodes at different steps move
     together); write ``res[e]`` when it ends. Serial; a task's ``_kernel`` runs it for every
     episode of its block. The arguments are the module docstring's: the task's hooks, the
-    policy's hooks, the env hooks' context :class:`EnvCtx` (the grid, the task's ``P`` /
-    ``W``, the true states, the result rows, ...), the vehicle parameters ``vp``,
-    :class:`LoopParams`, the policy's context :class:`Ctx`, :class:`LoopState`, the command
-    rows ``cmd``, the external actions ``ext`` (E, N, ACT_DIM) and the observation / action
-    records ``rec_o`` (E, S, N, D) / ``rec_a`` (E, S, N, 3) (S = 0: no record).
+    policy's hooks, the env hooks' context :class:`EnvCtx` and the batch's arguments
+    :class:`Batch`.
 
     A call with ``k_stop = 0`` starts a new episode and takes its first observation.
     ``LP.phase`` says which part of a step this call runs: ``FULL`` (the core backend: whole
@@ -698,6 +721,7 @@ def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, rep
     move's status into ``LS.code``: the accounting and the judge of the step, then the next
     observation).
     """
+    vp, LP, C, LS, cmd, ext, rec_o, rec_a = K.vp, K.LP, K.C, K.LS, K.cmd, K.ext, K.rec_o, K.rec_a
     if LS.status[e] == FINISHED:
         return
     grid = ctx.grid
@@ -771,19 +795,19 @@ def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, rep
 
 @hot_kernel(inline="always")
 def run_block(begin, pre_step, cue, sense, after_agent, post_step, finish, report, plan, act,
-              grid, vp, LP, P, W, C, LS, t0, state, cmd, ext, rec_o, rec_a, res, io, k_stop,
-              e_lo, e_hi):
+              K, io, k_stop, e_lo, e_hi):
     """:func:`run_episode` for the episodes ``[e_lo, e_hi)``, with the step API's side
     ``io`` (:class:`EnvIO`; no rows: nothing in or out): each episode's sub-env action in
     before its steps, its next observation and end flags out after them. The env hooks'
     context :class:`EnvCtx` is built here, once per call."""
+    LP, LS, state = K.LP, K.LS, K.state
     X = state if LP.sens.true_position != 0 else LS.nav
-    ctx = EnvCtx(grid, P, W, state, X, C.O, LS.prev, LS.code, res, t0, LP.dt)
+    ctx = EnvCtx(K.grid, K.P, K.W, state, X, K.C.O, LS.prev, LS.code, K.res, K.t0, LP.dt)
     for e in range(e_lo, e_hi):
-        was = env_step_in(LP, LS, ext, io, e)
+        was = env_step_in(LP, LS, K.ext, io, e)
         run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, report, plan,
-                    act, ctx, vp, LP, C, LS, cmd, ext, rec_o, rec_a, e, k_stop)
-        env_step_out(LP, LS, res, C.O, io, e, was)
+                    act, ctx, K, e, k_stop)
+        env_step_out(LP, LS, K.res, K.C.O, io, e, was)
 
 
 @hot_kernel(inline="always")

@@ -86,8 +86,7 @@ class SteppedEpisodes(Episodes):
         return self.C.O
 
     def _phase(self, LP, k_stop: int) -> None:
-        args = self._args()
-        self.kern._kernel(*args[:2], LP, *args[3:], self._no_io, int(k_stop), 0,
+        self.kern._kernel(self._args()._replace(LP=LP), self._no_io, int(k_stop), 0,
                           self.n_episodes)
 
     def run(self, k_stop: int | None = None) -> "SteppedEpisodes":
