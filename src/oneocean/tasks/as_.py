@@ -874,10 +874,7 @@ def cue(ctx, e, k, i):
     probe : float
         NaN (the task has no field).
     """
-    grid = ctx.grid
-    P = ctx.P
-    W = ctx.W
-    X = ctx.X
+    grid, P, W, X = ctx.grid, ctx.P, ctx.W, ctx.X
     gx, gz, w = waypoint_carrot(W.lines, W.lidx, W.lcount, e, i, X[e, i, 0], X[e, i, 2],
                                 CUE_LOOK_M, CUE_TOL_M, ARRIVE_M)
     gy = -sample_elevation(grid, gx, gz) - P.alt
@@ -894,10 +891,7 @@ def after_agent(ctx, e, k, i):
     below ``alt_max`` the cells within the footprint radius ``alt tan_h`` are marked covered;
     above it the agent-step counts as footprint loss.
     """
-    grid = ctx.grid
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    grid, P, W, state = ctx.grid, ctx.P, ctx.W, ctx.state
     # the sensor images the seafloor under the agent's new position
     s = state[e, i]
     alt = -sample_elevation(grid, s[0], s[2]) - s[1]
@@ -921,8 +915,7 @@ def post_step(ctx, e, k):
     bool
         True (STOP) once the covered fraction reaches ``P.thr``.
     """
-    P = ctx.P
-    W = ctx.W
+    P, W = ctx.P, ctx.W
     return W.cnt[e, 0] >= P.thr * (W.ncell[e, 0] * W.ncell[e, 1])
 
 
@@ -937,9 +930,7 @@ def finish(ctx, e, k):
     bool
         Success: the covered fraction reached ``P.thr``.
     """
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    P, W, state = ctx.P, ctx.W, ctx.state
     row = ctx.res[e]
     n_ag = state.shape[1]
     n_cells = W.ncell[e, 0] * W.ncell[e, 1]

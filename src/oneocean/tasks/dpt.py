@@ -251,9 +251,7 @@ def cue(ctx, e, k, i):
     probe : float
         NaN (the task has no field).
     """
-    P = ctx.P
-    W = ctx.W
-    X = ctx.X
+    P, W, X = ctx.P, ctx.W, ctx.X
     s = X[e, i]
     wp = nav_waypoint(W.route, W.nwp, e, s[0], s[1], s[2], P.radius, 1)
     if wp > W.route.shape[1] - 1:   # route done as far as the vehicle knows: the last waypoint
@@ -278,9 +276,7 @@ def post_step(ctx, e, k):
     bool
         True (STOP) once the last waypoint is reached (horizontally, on the true position).
     """
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    P, W, state = ctx.P, ctx.W, ctx.state
     s = state[e, 0]
     wp = W.wp[e]
     a0 = W.route[e, wp - 1]
@@ -309,8 +305,7 @@ def finish(ctx, e, k):
     bool
         Success: every waypoint reached and the RMS depth error at most ``P.depth_tol``.
     """
-    P = ctx.P
-    W = ctx.W
+    P, W = ctx.P, ctx.W
     row = ctx.res[e]
     a = W.acc[e]
     wp = W.wp[e]

@@ -814,10 +814,7 @@ def pre_step(ctx, e, k):
 
     Env hook (:mod:`oneocean.tasks.loop`), before the agents act.
     """
-    grid = ctx.grid
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    grid, P, W, state = ctx.grid, ctx.P, ctx.W, ctx.state
     t = ctx.t0[e] + k * ctx.dt
     S = state[e]
     AX = W.apos[e, 0]
@@ -844,8 +841,7 @@ def cue(ctx, e, k, i):
     probe : float
         NaN (the task has no field).
     """
-    P = ctx.P
-    W = ctx.W
+    P, W = ctx.P, ctx.W
     return W.cue[e, i, 0], P.depth, W.cue[e, i, 1], math.nan
 
 
@@ -921,12 +917,7 @@ def sense(ctx, e, k):
     step's time (the truth given the true current, else the forecast there); then
     :func:`stations`. Env hook (:mod:`oneocean.tasks.loop`).
     """
-    grid = ctx.grid
-    P = ctx.P
-    W = ctx.W
-    X = ctx.X
-    state = ctx.state
-    O = ctx.O
+    grid, P, W, X, state, O = ctx.grid, ctx.P, ctx.W, ctx.X, ctx.state, ctx.O
     n = X.shape[1]
     fx = W.fix[e]
     if W.sinfo[e, 1] != 0:   # the school perceived exactly (oracle, true_target ablation)
@@ -1002,8 +993,7 @@ def post_step(ctx, e, k):
     bool
         True (STOP) once the hold reaches ``P.hold``.
     """
-    P = ctx.P
-    W = ctx.W
+    P, W = ctx.P, ctx.W
     c = 1 - W.fcur[e]
     W.fcur[e] = c
     G = W.fish[e, c]
@@ -1039,8 +1029,7 @@ def finish(ctx, e, k):
     bool
         Success: the hold was completed.
     """
-    P = ctx.P
-    W = ctx.W
+    P, W = ctx.P, ctx.W
     row = ctx.res[e]
     F = W.fish[e, W.fcur[e]]
     zx = W.zone[e, 0]

@@ -356,9 +356,7 @@ def cue(ctx, e, k, i):
     probe : float
         NaN (no probe).
     """
-    P = ctx.P
-    W = ctx.W
-    X = ctx.X
+    P, W, X = ctx.P, ctx.W, ctx.X
     n = X.shape[1]
     cx = 0.0
     cy = 0.0
@@ -392,9 +390,7 @@ def post_step(ctx, e, k):
         or when every agent is within ``slot_tol`` of its slot and the centroid within
         ``radius`` of the goal (``W.won`` set).
     """
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    P, W, state = ctx.P, ctx.W, ctx.state
     st_e = state[e]
     n = st_e.shape[0]
     offsets = W.offsets

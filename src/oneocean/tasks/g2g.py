@@ -522,9 +522,7 @@ def begin(ctx, e):
     bool
         True (the episode ends) if the start is within the goal radius.
     """
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    P, W, state = ctx.P, ctx.W, ctx.state
     d = _dist(state[e, 0], W.goal[e])
     W.acc[e, 0] = d
     W.acc[e, 1] = d
@@ -554,8 +552,7 @@ def cue(ctx, e, k, i):
 def sense(ctx, e, k):
     """The task's observation fields (:data:`OBS_EXTRA`): the energy used and its fraction
     of the allocation. Env hook (:mod:`oneocean.tasks.loop`)."""
-    W = ctx.W
-    O = ctx.O
+    W, O = ctx.W, ctx.O
     used = W.acc[e, 3]
     o = O[e, 0]
     o[OBS_DIM] = used
@@ -606,11 +603,7 @@ def post_step(ctx, e, k):
     bool
         True (STOP) when the agent is within the goal radius.
     """
-    grid = ctx.grid
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
-    prev = ctx.prev
+    grid, P, W, state, prev = ctx.grid, ctx.P, ctx.W, ctx.state, ctx.prev
     t = ctx.t0[e] + k * ctx.dt
     s = state[e, 0]
     p = prev[e, 0]
@@ -635,8 +628,7 @@ def finish(ctx, e, k):
     bool
         Success: within the goal radius at the end, on at most the energy allocation.
     """
-    P = ctx.P
-    W = ctx.W
+    P, W = ctx.P, ctx.W
     row = ctx.res[e]
     a = W.acc[e]
     row[_C_FINAL] = a[0]

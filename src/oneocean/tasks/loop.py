@@ -546,8 +546,7 @@ def sense_step(cue, sense, ctx, LP, LS, e, k, final):
     (:func:`oneocean.tasks.common.observe_common` on the task's cue). ``final``: the
     observation of an ended episode's final state (no filter update).
     """
-    grid = ctx.grid
-    state = ctx.state
+    grid, state = ctx.grid, ctx.state
     n_ag = state.shape[1]
     t = ctx.t0[e] + k * LP.dt
     if LP.sens.true_position == 0:
@@ -724,8 +723,7 @@ def run_episode(begin, pre_step, cue, sense, after_agent, post_step, finish, rep
     vp, LP, C, LS, cmd, ext, rec_o, rec_a = K.vp, K.LP, K.C, K.LS, K.cmd, K.ext, K.rec_o, K.rec_a
     if LS.status[e] == FINISHED:
         return
-    grid = ctx.grid
-    state = ctx.state
+    grid, state = ctx.grid, ctx.state
     n_ag = state.shape[1]
     n_steps = LP.n_steps
     dt = LP.dt

@@ -1149,10 +1149,7 @@ def begin(ctx, e):
     bool
         False: the episode starts.
     """
-    grid = ctx.grid
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    grid, P, W, state = ctx.grid, ctx.P, ctx.W, ctx.state
     C = W.C
     nz = C.shape[2]
     nx = C.shape[3]
@@ -1193,9 +1190,7 @@ def pre_step(ctx, e, k):
 
     Env hook (:mod:`oneocean.tasks.loop`), before the agents act.
     """
-    grid = ctx.grid
-    P = ctx.P
-    W = ctx.W
+    grid, P, W = ctx.grid, ctx.P, ctx.W
     t = ctx.t0[e] + k * ctx.dt
     if k % FIELD_EVERY == 0:
         C = W.C
@@ -1228,11 +1223,7 @@ def sense(ctx, e, k):
     Env hook (:mod:`oneocean.tasks.loop`), at the start of every step before the cues (module
     docstring: Mission computer).
     """
-    grid = ctx.grid
-    P = ctx.P
-    W = ctx.W
-    X = ctx.X
-    O = ctx.O
+    grid, P, W, X, O = ctx.grid, ctx.P, ctx.W, ctx.X, ctx.O
     for i in range(X.shape[1]):
         px = X[e, i, 0]
         pz = X[e, i, 2]
@@ -1304,10 +1295,7 @@ def after_agent(ctx, e, k, i):
 
     Env hook (:mod:`oneocean.tasks.loop`), right after the agent moved.
     """
-    grid = ctx.grid
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    grid, P, W, state = ctx.grid, ctx.P, ctx.W, ctx.state
     _take_reading(grid, P, W, state, e, i)
 
 
@@ -1323,8 +1311,7 @@ def post_step(ctx, e, k):
     bool
         True (STOP) once every agent is done; :func:`finish` then scores the report.
     """
-    W = ctx.W
-    state = ctx.state
+    W, state = ctx.W, ctx.state
     for i in range(state.shape[1]):
         if W.done[e, i] == 0:
             return False
@@ -1458,8 +1445,7 @@ def finish(ctx, e, k):
     bool
         Success: every leak localised and no false claim.
     """
-    P = ctx.P
-    W = ctx.W
+    P, W = ctx.P, ctx.W
     row = ctx.res[e]
     n_leak = P.n_leak
     n_det, n_loc, n_false, err = match_claims(W.claims[e], W.claims.shape[1], W.leaks[e],

@@ -424,9 +424,7 @@ def cue(ctx, e, k, i):
     probe : float
         NaN (the task has no field).
     """
-    P = ctx.P
-    W = ctx.W
-    X = ctx.X
+    P, W, X = ctx.P, ctx.W, ctx.X
     s = X[e, i]
     wp = nav_waypoint(W.route, W.nwp, e, s[0], s[1], s[2], P.radius, 0)
     if wp > W.route.shape[1] - 1:   # route done as far as the vehicle knows: the last waypoint
@@ -445,8 +443,7 @@ def sense(ctx, e, k):
     """The task's observation fields (:data:`OBS_EXTRA`): the energy used and its fraction
     of the allocation. Env hook (:mod:`oneocean.tasks.loop`), before the step's cues.
     """
-    W = ctx.W
-    O = ctx.O
+    W, O = ctx.W, ctx.O
     used = W.acc[e, 2]
     o = O[e, 0]
     o[OBS_DIM] = used
@@ -464,11 +461,7 @@ def post_step(ctx, e, k):
     bool
         True (STOP) once the last waypoint is reached (on the true position).
     """
-    grid = ctx.grid
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
-    prev = ctx.prev
+    grid, P, W, state, prev = ctx.grid, ctx.P, ctx.W, ctx.state, ctx.prev
     t = ctx.t0[e] + k * ctx.dt
     s = state[e, 0]
     wp = W.wp[e]
@@ -505,8 +498,7 @@ def finish(ctx, e, k):
         Success: every waypoint reached, mean cross-track error at most ``xte_max_m`` and
         energy within the allocation.
     """
-    P = ctx.P
-    W = ctx.W
+    P, W = ctx.P, ctx.W
     row = ctx.res[e]
     a = W.acc[e]
     wp = W.wp[e]

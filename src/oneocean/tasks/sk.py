@@ -353,9 +353,7 @@ def post_step(ctx, e, k):
         ``REACHED`` once the first hold window is complete (the episode runs on to its time
         limit), else ``GO``.
     """
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    P, W, state = ctx.P, ctx.W, ctx.state
     s = state[e, 0]
     g = W.station[e]
     a = W.acc[e]
@@ -399,8 +397,7 @@ def finish(ctx, e, k):
     bool
         Success: a hold window was completed.
     """
-    P = ctx.P
-    W = ctx.W
+    P, W = ctx.P, ctx.W
     row = ctx.res[e]
     a = W.acc[e]
     held = W.cnt[e, 2] != 0

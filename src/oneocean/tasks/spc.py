@@ -884,8 +884,7 @@ def begin(ctx, e):
     bool
         True (success at step 0, the episode ends) when there is nothing to remove.
     """
-    P = ctx.P
-    W = ctx.W
+    P, W = ctx.P, ctx.W
     m0 = pol.total_mass(W.C[e], P.h)
     W.acc[e, 0] = m0
     W.acc[e, 1] = 0.0
@@ -917,9 +916,7 @@ def pre_step(ctx, e, k):
 
     Env hook (:mod:`oneocean.tasks.loop`), before the agents act in step ``k``.
     """
-    grid = ctx.grid
-    P = ctx.P
-    W = ctx.W
+    grid, P, W = ctx.grid, ctx.P, ctx.W
     t = ctx.t0[e] + k * ctx.dt
     if k % P.refresh == 0:
         _refresh_faces(grid, W.uf[e], W.vf[e], W.origin[e, 0], W.origin[e, 1], P.h, P.y,
@@ -1023,10 +1020,7 @@ def sense(ctx, e, k):
     the known positions ``X``; unchanged when the map holds no oil). Env hook
     (:mod:`oneocean.tasks.loop`).
     """
-    P = ctx.P
-    W = ctx.W
-    X = ctx.X
-    O = ctx.O
+    P, W, X, O = ctx.P, ctx.W, ctx.X, ctx.O
     n_ag = X.shape[1]
     for i in range(n_ag):
         ce = 0.0
@@ -1074,9 +1068,7 @@ def cue(ctx, e, k, i):
     probe : float
         Surface concentration under the vehicle (its known position), kg m-2.
     """
-    P = ctx.P
-    W = ctx.W
-    X = ctx.X
+    P, W, X = ctx.P, ctx.W, ctx.X
     s = X[e, i]
     age = W.t0[e] + k * P.dt - W.cue_t[e]
     return (W.cue_xz[e, i, 0] + W.cest[e, i, 0] * age, P.y,
@@ -1096,9 +1088,7 @@ def post_step(ctx, e, k):
         ``REACHED`` once the removed mass reaches the target fraction (the episode runs on to
         the metric horizon), else ``GO``.
     """
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    P, W, state = ctx.P, ctx.W, ctx.state
     S = state[e]
     Ce = W.C[e]
     x0 = W.origin[e, 0]
@@ -1129,8 +1119,7 @@ def finish(ctx, e, k):
         Success: the target was reached at some step (``W.k_hit``; removal only grows, so it
         still holds here).
     """
-    P = ctx.P
-    W = ctx.W
+    P, W = ctx.P, ctx.W
     row = ctx.res[e]
     a = W.acc[e]
     m0 = a[0]

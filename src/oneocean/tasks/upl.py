@@ -832,9 +832,7 @@ def begin(ctx, e):
     bool
         False: the episode starts.
     """
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    P, W, state = ctx.P, ctx.W, ctx.state
     n = state.shape[1]
     for c in range(3):
         W.obj[e, c] = W.site[e, c]
@@ -868,9 +866,7 @@ def pre_step(ctx, e, k):
 
     Env hook (:mod:`oneocean.tasks.loop`), before the agents act.
     """
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    P, W, state = ctx.P, ctx.W, ctx.state
     t = ctx.t0[e] + k * ctx.dt
     n = state.shape[1]
     S = state[e]
@@ -1034,9 +1030,7 @@ def cue(ctx, e, k, i):
     probe : float
         NaN (the task has no field).
     """
-    P = ctx.P
-    W = ctx.W
-    X = ctx.X
+    P, W, X = ctx.P, ctx.W, ctx.X
     off = W.slot_off[e]
     ox = W.oest[e, 0]
     oy = W.oest[e, 1]
@@ -1070,10 +1064,7 @@ def sense(ctx, e, k):
     task's observation fields (:data:`OBS_EXTRA`) of every agent. Env hook
     (:mod:`oneocean.tasks.loop`), before the cue.
     """
-    P = ctx.P
-    W = ctx.W
-    X = ctx.X
-    O = ctx.O
+    P, W, X, O = ctx.P, ctx.W, ctx.X, ctx.O
     perceive(P, W, X, e)
     est = W.oest[e]
     det = float(W.odet[e])
@@ -1098,10 +1089,7 @@ def after_agent(ctx, e, k, i):
     other agents. With the quorum attached the assembly moves (module docstring, Lift);
     without it a suspended object sinks at ``P.sink`` and drifts with the current.
     """
-    grid = ctx.grid
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    grid, P, W, state = ctx.grid, ctx.P, ctx.W, ctx.state
     n = state.shape[1]
     if i != n - 1:
         return
@@ -1173,9 +1161,7 @@ def post_step(ctx, e, k):
         True (STOP) once the object's centre is at most ``P.succ_d`` deep within
         ``P.hold_r`` (horizontally) of the site.
     """
-    P = ctx.P
-    W = ctx.W
-    state = ctx.state
+    P, W, state = ctx.P, ctx.W, ctx.state
     n = state.shape[1]
     dt = P.dt
     S = state[e]
@@ -1248,8 +1234,7 @@ def finish(ctx, e, k):
         Success: the object's centre at most ``P.succ_d`` deep within ``P.hold_r`` of the
         site.
     """
-    P = ctx.P
-    W = ctx.W
+    P, W = ctx.P, ctx.W
     row = ctx.res[e]
     success = _success(P, W, e)
     row[_C_LIFT] = 1.0 if success else 0.0
