@@ -18,6 +18,7 @@ from ..engine import streams
 from ..engine.constraints import check_move
 from ..engine._jit import hot_kernel
 from ..engine.grid import Grid, sample_elevation
+from ..engine.rng import episode_rng
 from ..errors import ConfigError, NotApplicable
 from .common import OK, PURPOSE_RESET
 
@@ -44,26 +45,6 @@ def episode_rows(init: dict, index, n_all: int) -> dict:
                 else v) for k, v in init.items()}
 
 
-def episode_seed_sequence(seed: int, episode: int, purpose: int) -> np.random.SeedSequence:
-    """The ``SeedSequence`` of one episode's random stream.
-
-    Parameters
-    ----------
-    seed : int
-        Run seed.
-    episode : int
-        Episode index.
-    purpose : int
-        Stream purpose (``PURPOSE_*``).
-
-    Returns
-    -------
-    numpy.random.SeedSequence
-        ``SeedSequence([seed, episode, purpose])``.
-    """
-    return np.random.SeedSequence([int(seed), int(episode), int(purpose)])
-
-
 def episode_generators(seed: int, n_episodes: int, purpose: int = PURPOSE_RESET):
     """One independent random generator per episode.
 
@@ -79,10 +60,9 @@ def episode_generators(seed: int, n_episodes: int, purpose: int = PURPOSE_RESET)
     Returns
     -------
     list of numpy.random.Generator
-        Generator ``e`` seeded with :func:`episode_seed_sequence` ``(seed, e, purpose)``.
+        Generator ``e``: :func:`oneocean.engine.rng.episode_rng` ``(seed, e, purpose)``.
     """
-    return [np.random.default_rng(episode_seed_sequence(seed, e, purpose))
-            for e in range(n_episodes)]
+    return [episode_rng(seed, e, purpose) for e in range(n_episodes)]
 
 
 def start_times(grid: Grid, rngs, duration_s: float) -> np.ndarray:
