@@ -174,13 +174,14 @@ def ablation_targets():
 #: The paper's tables and figures of this region (beside the ladder and planning tables).
 PAPER_TABLES = [
     f"results/tables/{REGION}/{name}.tex"
-    for name in ("dataset_variants", "task_ladder", "headline", "task_success_by_tier",
+    for name in ("systems", "dataset_variants", "task_ladder", "headline", "task_success_by_tier",
                  "difficulty_heuristic", "currents_ablation", "information_ablation",
                  "tier_stressors")
 ]
 PAPER_FIGURES = [
     f"results/figures/{REGION}/{name}.png"
-    for name in ("pollution_species", "snapshots", "ladder", "team_sweep")
+    for name in ("overview_registry", "overview_workflow", "pollution_species", "snapshots",
+                 "ladder", "team_sweep")
 ]
 
 

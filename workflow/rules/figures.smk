@@ -10,6 +10,19 @@ FIGURES_CODE = code_version("oneocean.reporting.figures", "oneocean.reporting.ce
 localrules:
     figure_ladder,
     figure_team_sweep,
+    figure_overview_registry,
+    figure_overview_workflow,
+
+
+def workflow_source_version():
+    """sha256 of the workflow's Snakefiles and rule files (Fig. 2 is their rule graph)."""
+    h = hashlib.sha256()
+    root = Path(workflow.main_snakefile).resolve().parent
+    for f in sorted([Path(workflow.main_snakefile).resolve(), *Path(workflow.current_basedir)
+                     .parent.glob("Snakefile"), *Path(workflow.current_basedir).glob("*.smk")]):
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
 
 
 rule figure_current_field:
@@ -118,6 +131,41 @@ rule figure_team_sweep:
         "logs/figures/{region}/team_sweep.log",
     params:
         code=FIGURES_CODE,
+    threads: 1
+    script:
+        "../scripts/figure_paper.py"
+
+
+# Fig. 1: what is implemented, from the registry (tasks x backends/tiers, sources, methods).
+rule figure_overview_registry:
+    conda:
+        PY_ENV
+    output:
+        **_figure_io("overview_registry", "fig1_overview_registry"),
+    log:
+        "logs/figures/{region}/overview_registry.log",
+    params:
+        code=FIGURES_CODE + code_version("oneocean.reporting.overview", "oneocean.registry",
+                                         "oneocean.data", "oneocean.sources",
+                                         "oneocean.backends.protocol", "oneocean.vocab"),
+    threads: 1
+    script:
+        "../scripts/figure_paper.py"
+
+
+# Fig. 2: the workflow's rule graph (snakemake --rulegraph of paper_tables, this run's config).
+rule figure_overview_workflow:
+    conda:
+        PY_ENV
+    output:
+        **_figure_io("overview_workflow", "fig2_overview_workflow"),
+    log:
+        "logs/figures/{region}/overview_workflow.log",
+    params:
+        snakefile=workflow.main_snakefile,
+        target="paper_tables",
+        workflow=workflow_source_version(),
+        code=FIGURES_CODE + code_version("oneocean.reporting.overview"),
     threads: 1
     script:
         "../scripts/figure_paper.py"

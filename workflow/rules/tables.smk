@@ -4,6 +4,7 @@
 # Tables read finished cells and write a few kB: run on the submit host, not submitted.
 localrules:
     table_dataset_variants,
+    table_systems,
     table_task_ladder,
     table_headline,
     table_task_success,
@@ -40,6 +41,22 @@ TABLES_CODE = code_version("oneocean.reporting.tables", "oneocean.reporting.cell
                            "oneocean.reporting.stats", "oneocean.reporting.latex",
                            "oneocean.reporting.planning", "oneocean.registry", "oneocean.data",
                            "oneocean.reporting.ablations")
+
+# Table I: the systems compared (oneocean/data/systems.yaml; no cells needed).
+rule table_systems:
+    conda:
+        PY_ENV
+    output:
+        **_table_rule_io("systems"),
+    log:
+        "logs/tables/{region}/systems.log",
+    params:
+        code=code_version("oneocean.reporting.overview", "oneocean.reporting.latex",
+                          "oneocean.data"),
+    threads: 1
+    script:
+        "../scripts/table_paper.py"
+
 
 # Table II: the task ladder (registry and tier tables).
 rule table_task_ladder:

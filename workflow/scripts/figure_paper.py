@@ -1,5 +1,5 @@
 from oneocean.pipeline import smk
-from oneocean.reporting import figures
+from oneocean.reporting import figures, overview
 
 
 def make(s):
@@ -9,6 +9,12 @@ def make(s):
         figures.plot_ladder(list(s.input.cells), s.output.png, method="heuristic")
     elif s.rule == "figure_team_sweep":
         figures.plot_team_sweep(list(s.input.cells), s.output.png)
+    elif s.rule == "figure_overview_registry":
+        overview.plot_registry_overview(s.output.png)
+    elif s.rule == "figure_overview_workflow":
+        dot = overview.rule_graph(s.params.target, snakefile=s.params.snakefile,
+                                  config=dict(s.config))
+        overview.plot_workflow(dot, s.output.png)
     elif s.rule == "figure_rl_curves":
         figures.plot_rl_curves(list(s.input.reports), s.output.png)
     else:

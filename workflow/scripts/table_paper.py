@@ -1,12 +1,14 @@
 from oneocean.reporting import ablations
 from oneocean.pipeline import smk
-from oneocean.reporting import tables
+from oneocean.reporting import overview, tables
 
 
 def make(s):
     out, region = s.output.tex, s.wildcards.region
     cells = list(s.input.cells) if hasattr(s.input, "cells") else []
-    if s.rule == "table_task_ladder":
+    if s.rule == "table_systems":
+        overview.systems_table(out)
+    elif s.rule == "table_task_ladder":
         tables.ladder_spec_table(out)
     elif s.rule == "table_headline":
         tables.headline_table(cells, out, region=region)
