@@ -142,3 +142,19 @@ def test_fig2_layout_is_deterministic():
     assert overview.parse_rulegraph('digraph {\n\t0[label = "x", color = "1"];\n'
                                     '\t1[label = "y"];\n\t0 -> 1\n}') == (["x", "y"],
                                                                           [("x", "y")])
+
+
+def test_table_i_compiles_standalone_and_fits(tmp_path):
+    import shutil
+
+    from oneocean.reporting import latex
+
+    if shutil.which("pdflatex") is None:
+        pytest.skip("pdflatex not installed")
+    overview.systems_table(tmp_path / "systems.tex")
+    doc = tmp_path / "doc.tex"
+    doc.write_text(latex.standalone_table(tmp_path / "systems.tex"))
+    pdf = latex.compile_pdf(doc, tmp_path / "systems.pdf", engine="pdflatex",
+                            log_path=tmp_path / "systems.log")
+    assert pdf.read_bytes().startswith(b"%PDF")
+    assert "Overfull \\hbox" not in (tmp_path / "systems.log").read_text()
