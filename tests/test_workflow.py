@@ -39,13 +39,13 @@ def test_paper_tables_produces_every_artifact(two_runs):
     for v in VARIANTS:
         assert v in tex
     # every paper table (LaTeX + its numbers) and figure (PNG + PDF) of the region
-    for name in ("task_ladder", "headline", "task_success_by_tier", "difficulty_heuristic",
-                 "currents_ablation", "information_ablation", "tier_stressors",
-                 "planning_performance", "planning_cost"):
+    for name in ("systems", "task_ladder", "headline", "task_success_by_tier",
+                 "difficulty_heuristic", "currents_ablation", "information_ablation",
+                 "tier_stressors", "planning_performance", "planning_cost"):
         assert "\\toprule" in (a / f"results/tables/{REGION}/{name}.tex").read_text(), name
         assert len(pd.read_parquet(a / f"results/tables/{REGION}/{name}.parquet")), name
-    for name in ("pollution_species", "snapshots", "ladder", "team_sweep",
-                 "scene/current_field"):
+    for name in ("overview_registry", "overview_workflow", "pollution_species", "snapshots",
+                 "ladder", "team_sweep", "scene/current_field"):
         for ext in ("png", "pdf"):
             assert (a / f"results/figures/{REGION}/{name}.{ext}").stat().st_size > 1000
 
@@ -282,7 +282,7 @@ def test_every_generated_table_compiles_standalone(two_runs, tmp_path):
 
     a, _ = two_runs
     tables = sorted((a / f"results/tables/{REGION}").glob("*.tex"))
-    assert len(tables) == 12   # the paper's ten and the scene backend's two
+    assert len(tables) == 13   # the paper's eleven (Table I included) and the scene backend's two
     for table in tables:
         doc = tmp_path / f"{table.stem}_doc.tex"
         doc.write_text(latex.standalone_table(table))
