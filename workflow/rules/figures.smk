@@ -162,7 +162,6 @@ rule figure_overview_workflow:
     log:
         "logs/figures/{region}/overview_workflow.log",
     params:
-        snakefile=workflow.main_snakefile,
         target="paper_tables",
         workflow=workflow_source_version(),
         code=FIGURES_CODE + code_version("oneocean.reporting.overview"),

@@ -1,3 +1,5 @@
+from pathlib import Path
+
 from oneocean.pipeline import smk
 from oneocean.reporting import figures, overview
 
@@ -12,8 +14,9 @@ def make(s):
     elif s.rule == "figure_overview_registry":
         overview.plot_registry_overview(s.output.png)
     elif s.rule == "figure_overview_workflow":
-        dot = overview.rule_graph(s.params.target, snakefile=s.params.snakefile,
-                                  config=dict(s.config))
+        # the top-level Snakefile of this workflow (scriptdir: workflow/scripts)
+        dot = overview.rule_graph(s.params.target, config=dict(s.config),
+                                  snakefile=Path(s.scriptdir).resolve().parents[1] / "Snakefile")
         overview.plot_workflow(dot, s.output.png)
     elif s.rule == "figure_rl_curves":
         figures.plot_rl_curves(list(s.input.reports), s.output.png)

@@ -331,6 +331,21 @@ def parse_rulegraph(dot: str) -> tuple[list[str], list[tuple[str, str]]]:
     return sorted(names.values()), sorted((names[a], names[b]) for a, b in edges)
 
 
+def _snakemake_command() -> list[str]:
+    """This interpreter's Snakemake, else the ``snakemake`` on ``PATH`` (a rule's conda
+    environment, ``--sdm conda``, has the package's runtime only; the workflow's own
+    Snakemake stays on ``PATH`` behind it)."""
+    import importlib.util
+    import shutil
+
+    if importlib.util.find_spec("snakemake") is not None:
+        return [sys.executable, "-m", "snakemake"]
+    exe = shutil.which("snakemake")
+    if exe is None:
+        raise RuntimeError("rule_graph: snakemake is neither importable nor on PATH")
+    return [exe]
+
+
 def rule_graph(target: str = "paper_tables", *, snakefile=None, workdir=".",
                config: dict | None = None) -> str:
     """``snakemake --rulegraph dot <target>`` of the workflow (its text).
@@ -359,8 +374,8 @@ def rule_graph(target: str = "paper_tables", *, snakefile=None, workdir=".",
     """
     if snakefile is None:
         snakefile = Path(__file__).resolve().parents[3] / "Snakefile"
-    cmd = [sys.executable, "-m", "snakemake", "--snakefile", str(snakefile), "--directory",
-           str(workdir), "--nolock", "--rulegraph", "dot"]
+    cmd = [*_snakemake_command(), "--snakefile", str(snakefile), "--directory", str(workdir),
+           "--nolock", "--rulegraph", "dot"]
     with tempfile.TemporaryDirectory(prefix="oneocean-rulegraph-") as tmp:
         if config is not None:
             import yaml
