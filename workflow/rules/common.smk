@@ -56,6 +56,16 @@ def code_version(*modules):
     return h.hexdigest()
 
 
+def workflow_source_version():
+    """sha256 of the workflow's Snakefiles and rule files (Fig. 2 is their rule graph)."""
+    h = hashlib.sha256()
+    for f in sorted([Path(workflow.main_snakefile).resolve(), *Path(workflow.current_basedir)
+                     .parent.glob("Snakefile"), *Path(workflow.current_basedir).glob("*.smk")]):
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
 def config_section(*keys):
     return {k: config[k] for k in keys}
 

@@ -14,17 +14,6 @@ localrules:
     figure_overview_workflow,
 
 
-def workflow_source_version():
-    """sha256 of the workflow's Snakefiles and rule files (Fig. 2 is their rule graph)."""
-    h = hashlib.sha256()
-    root = Path(workflow.main_snakefile).resolve().parent
-    for f in sorted([Path(workflow.main_snakefile).resolve(), *Path(workflow.current_basedir)
-                     .parent.glob("Snakefile"), *Path(workflow.current_basedir).glob("*.smk")]):
-        h.update(f.name.encode())
-        h.update(f.read_bytes())
-    return h.hexdigest()
-
-
 rule figure_current_field:
     conda:
         PY_ENV
