@@ -60,7 +60,7 @@ rule planning_llm_cell:
     wildcard_constraints:
         method="llm_[A-Za-z0-9_]+",
     params:
-        run=_planning_run,
+        run=_planning_llm_run,
         model=lambda wc: next(m for m in config["llm"]["models"] if llm_method(m) == wc.method),
         every=lambda wc: config["llm"]["every_steps"][wc.task],
         cache_dir=config["llm"]["cache_dir"],

@@ -398,8 +398,10 @@ def planning_tables(cell_files, perf_tex, cost_tex, *, tier: int, gain: float, e
     write_text_atomic(perf_tex, performance_latex(perf, tier=tier, gain=gain,
                                                   episodes=episodes,
                                                   note=" ".join(filter(None, (played, note)))))
+    counted = " ".join(f"{_esc(r.label)} counts {r.episodes} episodes over the tasks."
+                       for r in cost.itertuples() if r.episodes != cost["episodes"].max())
     write_text_atomic(cost_tex, cost_latex(cost, tier=tier, gain=gain, episodes=cost_episodes,
-                                           note=note))
+                                           note=" ".join(filter(None, (counted, note)))))
     meta = {"stage": "planning_table", "tier": int(tier), "current_gain": float(gain),
             "configured_llms": list(configured_llms)}
     write_metrics(perf, Path(perf_tex).with_suffix(".parquet"), meta={**meta,
