@@ -66,9 +66,11 @@ rule planning_llm_cell:
         cache_dir=config["llm"]["cache_dir"],
         code=lambda wc: task_code(wc.task) + LLM_CODE,
     threads: lambda wc: config["rollouts"]["threads"]
-    # no benchmark recorded: sized conservatively (waits on the LLM endpoint)
+    # sized conservatively (waits on the LLM endpoint); config/llm/smollm2.yaml (3 episodes,
+    # in-process model) measured 36-200 CPU-s, 5-14 min wall on a loaded 2-core machine,
+    # up to 970 MB RSS (SPC)
     resources:
-        mem_mb=1000,
+        mem_mb=1500,
         runtime=120,
     script:
         "../scripts/planning_llm_cell.py"
