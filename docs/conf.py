@@ -83,7 +83,6 @@ nb_kernel_rgx_aliases = {".*": "python3"}
 autodoc_default_options = {"members": True, "show-inheritance": True}
 autodoc_member_order = "bysource"
 autodoc_typehints = "none"          # the numpydoc sections carry types and units
-autodoc_mock_imports = ["llama_cpp"]
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False

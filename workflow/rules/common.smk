@@ -483,6 +483,12 @@ def _planning_run(wc):
             "dynamics": r["dynamics"], "current_gain": p["current_gain"] * r["current_gain"]}
 
 
+def _planning_llm_run(wc):
+    """An LLM cell's run: the suite's, but for llm.episodes (null: the suite's episodes)."""
+    run, n = _planning_run(wc), config["llm"].get("episodes")
+    return run if n is None else {**run, "episodes": n}
+
+
 # ---- input functions and params of rules/figures.smk
 def _figure_io(name, caption):
     """A paper figure's outputs; the PNG goes into `snakemake --report` with ``caption``

@@ -60,15 +60,17 @@ rule planning_llm_cell:
     wildcard_constraints:
         method="llm_[A-Za-z0-9_]+",
     params:
-        run=_planning_run,
+        run=_planning_llm_run,
         model=lambda wc: next(m for m in config["llm"]["models"] if llm_method(m) == wc.method),
         every=lambda wc: config["llm"]["every_steps"][wc.task],
         cache_dir=config["llm"]["cache_dir"],
         code=lambda wc: task_code(wc.task) + LLM_CODE,
     threads: lambda wc: config["rollouts"]["threads"]
-    # no benchmark recorded: sized conservatively (waits on the LLM endpoint)
+    # sized conservatively (waits on the LLM endpoint); config/llm/smollm2.yaml (3 episodes,
+    # in-process model) measured 36-200 CPU-s, 5-14 min wall on a loaded 2-core machine,
+    # up to 970 MB RSS (SPC)
     resources:
-        mem_mb=1000,
+        mem_mb=1500,
         runtime=120,
     script:
         "../scripts/planning_llm_cell.py"

@@ -169,9 +169,9 @@ def cost_frame(df: pd.DataFrame, cost_episodes: int, tasks=tuple(SUITE_TASKS)) -
         One row per method: ``method, label, episodes``; ``sr_avg, sr_avg_lo, sr_avg_hi``
         (macro SR, %, stratified-bootstrap 95 % interval); per-episode means ``calls``,
         ``latency_s`` (s), ``prompt_tokens``, ``output_tokens``, ``total_tokens``;
-        ``ms_per_call`` (total latency / total calls, ms; 0 without calls) and
-        ``fallback_pct`` (% of calls that fell back to the heuristic's plan; NaN without
-        calls).
+        ``ms_per_call`` (total latency / total calls, ms; 0 without calls), ``fallbacks``
+        (calls that fell back to the heuristic's plan, over the counted episodes) and
+        ``fallback_pct`` (their % of the calls; NaN without calls).
     """
     d0 = df[df["episode"] < int(cost_episodes)]
     rows = []
@@ -187,7 +187,8 @@ def cost_frame(df: pd.DataFrame, cost_episodes: int, tasks=tuple(SUITE_TASKS)) -
         row["prompt_tokens"] = float(d["llm_prompt_tokens"].mean())
         row["output_tokens"] = float(d["llm_output_tokens"].mean())
         row["total_tokens"] = float(d["llm_total_tokens"].mean())
-        row["fallback_pct"] = (100.0 * float(d["llm_fallbacks"].sum()) / calls if calls
+        row["fallbacks"] = int(d["llm_fallbacks"].sum())
+        row["fallback_pct"] = (100.0 * row["fallbacks"] / calls if calls
                                else math.nan)   # no calls: nothing to fall back from
         rows.append(row)
     return pd.DataFrame(rows)
@@ -288,21 +289,48 @@ def cost_latex(cost: pd.DataFrame, *, tier: int, gain: float, episodes: int,
         The LaTeX table (label ``tab:planning_cost``).
     """
     header = ["Method", "Avg SR (\\%)", "Calls", "Lat. (s)", "ms/call", "Prompt tok.",
-              "Output tok.", "Total tok.", "Fallback (\\%)"]
+              "Output tok.", "Total tok.", "Fallbacks", "Fallback (\\%)"]
     cols = [[_esc(v) for v in cost["label"]],
             _bold_best(cost["sr_avg"].tolist(),
                        [_ci(v, lo, hi) for v, lo, hi in
                         zip(cost["sr_avg"], cost["sr_avg_lo"], cost["sr_avg_hi"])], True)]
     for key, fmt in (("calls", "{:.2f}"), ("latency_s", "{:.2f}"), ("ms_per_call", "{:.1f}"),
                      ("prompt_tokens", "{:.0f}"), ("output_tokens", "{:.0f}"),
-                     ("total_tokens", "{:.0f}"), ("fallback_pct", "{:.1f}")):
+                     ("total_tokens", "{:.0f}"), ("fallbacks", "{:.0f}"),
+                     ("fallback_pct", "{:.1f}")):
         cols.append([fmt.format(v) if np.isfinite(v) else "--" for v in cost[key]])
     caption = (f"Planning-suite cost (Tier {tier}, currents $\\times${gain:g}; the first "
                f"{episodes} episodes of every task): planner calls, latency and tokens per "
                "episode (latency measured when each reply was fetched; cached reruns report "
-               "the same), and the share of calls that fell back to the heuristic's plan. "
+               "the same), and the calls (count over the episodes, share) that fell back to "
+               "the heuristic's plan. "
                "Avg SR with a stratified-bootstrap 95\\% interval." + (f" {note}" if note else ""))
     return _latex(header, cols, caption, "tab:planning_cost")
+
+
+def episodes_note(perf: pd.DataFrame, episodes: int) -> str:
+    """The caption's sentence on methods that played another number of episodes.
+
+    Parameters
+    ----------
+    perf : pandas.DataFrame
+        :func:`performance_frame`'s rows.
+    episodes : int
+        The configured episodes per task and method.
+
+    Returns
+    -------
+    str
+        ``"<label> played <n> episodes per task."`` for each such method, else ``""``.
+    """
+    out = []
+    for _, row in perf.iterrows():
+        ns = sorted({int(row[f"{t}_n"]) for t in SUITE_TASKS if f"{t}_n" in row
+                     and row[f"{t}_n"] > 0})
+        if ns and ns != [int(episodes)]:
+            out.append(f"{_esc(row['label'])} played {'/'.join(map(str, ns))} episodes per "
+                       "task.")
+    return " ".join(out)
 
 
 def omitted_note(configured_llms) -> str:
@@ -321,7 +349,7 @@ def omitted_note(configured_llms) -> str:
     if configured_llms:
         return ""
     return ("No LLM endpoint is configured (config llm.models is empty), so no LLM rows: "
-            "none are invented.")
+            "none are invented (a local model's row: config/llm/smollm2.yaml).")
 
 
 def planning_tables(cell_files, perf_tex, cost_tex, *, tier: int, gain: float, episodes: int,
@@ -366,10 +394,14 @@ def planning_tables(cell_files, perf_tex, cost_tex, *, tier: int, gain: float, e
         note = (note + " " if note else "") + (
             "Not applicable in this region (no episodes; the cell files record why): "
             + ", ".join(_esc(c) for c in na) + "; SR avg is over the tasks it hosts.")
+    played = episodes_note(perf, episodes)
     write_text_atomic(perf_tex, performance_latex(perf, tier=tier, gain=gain,
-                                                  episodes=episodes, note=note))
+                                                  episodes=episodes,
+                                                  note=" ".join(filter(None, (played, note)))))
+    counted = " ".join(f"{_esc(r.label)} counts {r.episodes} episodes over the tasks."
+                       for r in cost.itertuples() if r.episodes != cost["episodes"].max())
     write_text_atomic(cost_tex, cost_latex(cost, tier=tier, gain=gain, episodes=cost_episodes,
-                                           note=note))
+                                           note=" ".join(filter(None, (counted, note)))))
     meta = {"stage": "planning_table", "tier": int(tier), "current_gain": float(gain),
             "configured_llms": list(configured_llms)}
     write_metrics(perf, Path(perf_tex).with_suffix(".parquet"), meta={**meta,

@@ -10,7 +10,7 @@ counted; a model that always fails reproduces the heuristic's cell table.
   completions, standard library only), :class:`CachedClient`, :class:`Reply`,
   :class:`LLMError`.
 * :mod:`.local` -- :class:`~.local.LocalClient`: a local GGUF model through
-  ``llama-cpp-python`` (optional, imported only when configured).
+  ``xllamacpp`` in-process, JSON-schema-constrained (optional, imported only when configured).
 * :mod:`.cache` -- :class:`ResponseCache`, :func:`cache_key` (replies with the usage and
   latency measured when fetched: reruns are free and report the same accounting).
 * :mod:`.plan` -- :func:`assignment_schema`, :func:`validate_plan`, :class:`Planner`,

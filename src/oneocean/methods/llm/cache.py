@@ -2,7 +2,8 @@
 
 The key is the sha256 of a canonical JSON of what determines the answer -- the model id (not
 the base URL: the same model behind another server gives the same cached answer), the
-messages, the temperature, the output-token limit and :data:`CACHE_SCHEMA` -- so a rerun of
+messages, the temperature, the output-token limit, the JSON schema the reply was decoded under
+(local models only) and :data:`CACHE_SCHEMA` -- so a rerun of
 the same prompts makes no HTTP call and reproduces the same plans, and any change of prompt or
 setting misses. A record keeps the reply's text, its token usage and the latency measured
 when it was fetched, so a rerun from the cache reports the same accounting. Files are written
@@ -46,11 +47,12 @@ def canonical_json(obj) -> str:
                       allow_nan=False)
 
 
-def cache_key(model: str, messages: Sequence[dict], temperature: float, max_tokens: int) -> str:
+def cache_key(model: str, messages: Sequence[dict], temperature: float, max_tokens: int,
+              response_schema: dict | None = None) -> str:
     """The hex sha256 naming the reply to ``messages`` under these settings.
 
     The hash of the canonical JSON (:func:`canonical_json`) of the settings, the messages and
-    :data:`CACHE_SCHEMA`.
+    :data:`CACHE_SCHEMA` (and the decoding schema, if any: without one the key is unchanged).
 
     Parameters
     ----------
@@ -62,6 +64,8 @@ def cache_key(model: str, messages: Sequence[dict], temperature: float, max_toke
         Sampling temperature.
     max_tokens : int
         Output-token limit.
+    response_schema : dict, optional
+        JSON Schema the reply is decoded under (None: unconstrained).
 
     Returns
     -------
@@ -75,6 +79,8 @@ def cache_key(model: str, messages: Sequence[dict], temperature: float, max_toke
         "temperature": float(temperature),
         "max_tokens": int(max_tokens),
     }
+    if response_schema is not None:
+        payload["response_schema"] = response_schema
     return hashlib.sha256(canonical_json(payload).encode("utf-8")).hexdigest()
 
 

