@@ -1,0 +1,115 @@
+"""Scene routes: every structured scene draws its tasks' routes on its structures (the scene's
+part of the scenario, :class:`oneocean.backends.mujoco.scenes.SceneRoutes`), deterministically
+from the seed; the judge and the accounting stay the tasks' own."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from oneocean.backends.mujoco.scenes import (LANE_OFFSET_M, ROUTE_CLEAR_M, Structure,
+                                             build_scene, route_guide)
+from oneocean.tasks import Cell
+from oneocean.testing import uniform_grid
+
+CURRENT = (0.25, 0.1)
+
+
+def _temporal(grid, ce, cn):
+    t = np.asarray(grid["time_s"], dtype=np.float64)
+    return {"time_s": t, "u": np.full_like(t, ce), "v": np.full_like(t, cn),
+            "u_tide": np.zeros_like(t), "v_tide": np.zeros_like(t),
+            "lat": np.array(float(grid["origin_lat"])),
+            "lon": np.array(float(grid["origin_lon"]))}
+
+
+@pytest.fixture(scope="module")
+def scenes():
+    g = uniform_grid(*CURRENT, depth_m=40.0, nx=31, ny=31, dx_m=100.0)
+    tmp = _temporal(g, *CURRENT)
+    return {kind: build_scene({"name": kind, "kind": kind, "size_m": 600.0,
+                               "depth_m": 30.0 if kind != "open_water" else None}, g, tmp)
+            for kind in ("open_water", "dam", "pier_harbor", "simple_underwater")}
+
+
+def _dense(route, step=0.5):
+    t = np.linspace(0.0, 1.0, int(100 / step))
+    a, b = route[:-1], route[1:]
+    return (a[:, None] + t[None, :, None] * (b - a)[:, None]).reshape(-1, 3)
+
+
+def _near(s: Structure, pts, d):
+    big = Structure(s.name, s.centre, (s.half[0] + d, s.half[1], s.half[2] + d), s.yaw_rad,
+                    s.kind)
+    return big.contains(pts[:, 0], pts[:, 2])
+
+
+def test_open_water_has_no_guide_and_structured_scenes_have_one(scenes):
+    assert route_guide(scenes["open_water"]) is None
+    for kind in ("dam", "pier_harbor", "simple_underwater"):
+        assert route_guide(scenes[kind]) is not None
+
+
+def test_dam_routes_cross_the_spillway_crest_above_it(scenes):
+    """Every RF route crosses the dam's footprint, over its submerged spillway crest, at a
+    depth at least ROUTE_CLEAR_M above the crest, and never over the surfacing wall."""
+    sc = scenes["dam"]
+    crest = next(s for s in sc.structures if s.kind == "crest")
+    walls = [s for s in sc.structures if s.kind == "wall"]
+    init = Cell(None, "RF", 2, backend="mujoco", scene=sc).reset(12, 3)
+    for r in init["route"]:
+        pts = _dense(r)
+        assert crest.contains(pts[:, 0], pts[:, 2]).any()        # over the crest
+        assert not any(w.contains(pts[:, 0], pts[:, 2]).any() for w in walls)
+        assert r[0, 1] <= crest.centre[1] - crest.half[1] - ROUTE_CLEAR_M + 1e-9
+        assert np.ptp(r[:, 1]) == 0.0                            # RF: one depth
+
+
+def test_pier_and_basin_routes_run_beside_their_structures(scenes):
+    """Every route passes within LANE_OFFSET_M (+ margin) of a pier or a basin wall, and
+    keeps ROUTE_CLEAR_M off every surfacing structure."""
+    for kind, k in (("pier_harbor", "pier"), ("simple_underwater", "basin")):
+        sc = scenes[kind]
+        for task in ("RF", "G2G"):
+            init = Cell(None, task, 2, backend="mujoco", scene=sc).reset(10, 5)
+            routes = init["route"] if "route" in init else np.stack(
+                [init["pos0"][:, 0], init["goal"][:, 0] if init["goal"].ndim == 3
+                 else init["goal"]], axis=1)
+            for r in routes:
+                pts = _dense(r)
+                near = [_near(s, pts, LANE_OFFSET_M[1] + 1.0).any()
+                        for s in sc.structures if s.kind == k]
+                assert any(near), (kind, task)
+                for s in sc.structures:
+                    assert not _near(s, pts, ROUTE_CLEAR_M - 0.05).any(), (kind, s.name)
+
+
+def test_scene_routes_are_deterministic_and_differ_from_obstacle_free_ones(scenes):
+    sc = scenes["pier_harbor"]
+    a = Cell(None, "RF", 2, backend="mujoco", scene=sc).reset(8, 11)
+    b = Cell(None, "RF", 2, backend="mujoco", scene=sc).reset(8, 11)
+    for k in a:
+        assert np.array_equal(a[k], b[k]), k
+    free = Cell(None, "RF", 2, backend="mujoco",
+                scene=dataclasses.replace(sc, kind="open_water")).reset(8, 11)
+    assert not np.array_equal(a["route"], free["route"])
+
+
+def test_success_differs_between_scene_routes_and_obstacle_free_routes():
+    """RF tier 2, heuristic, one seed, a 0.5 m/s current: the dam scene's routes (over the
+    spillway crest, between the wall pieces) and the obstacle-free routes the task draws
+    itself in the same scene give different per-episode success (the judge is the task's)."""
+    cur = (0.5, 0.2)
+    g = uniform_grid(*cur, depth_m=40.0, nx=31, ny=31, dx_m=100.0)
+    sc = build_scene({"name": "dam", "kind": "dam", "size_m": 600.0, "depth_m": 30.0}, g,
+                     _temporal(g, *cur))
+    out = {}
+    for label, s in (("scene", sc), ("free", dataclasses.replace(sc, kind="open_water"))):
+        out[label] = Cell(None, "RF", 2, backend="mujoco", scene=s).run(
+            "heuristic", 8, 7, "6dof")
+    a = out["scene"]["success"].to_numpy()
+    b = out["free"]["success"].to_numpy()
+    assert a.sum() == 8 and b.sum() == 6      # measured: the same on every run (seeded)
+    assert not np.array_equal(a, b)
