@@ -113,3 +113,42 @@ def test_success_differs_between_scene_routes_and_obstacle_free_routes():
     b = out["free"]["success"].to_numpy()
     assert a.sum() == 8 and b.sum() == 6      # measured: the same on every run (seeded)
     assert not np.array_equal(a, b)
+
+
+def test_scene_mjcf_has_water_fog_and_a_textured_seafloor(scenes):
+    from oneocean.backends.mujoco.mjcf import FOG_END_M, FOG_START_M, import_mujoco, scene_xml
+
+    xml = scene_xml(scenes["pier_harbor"])
+    assert "checker" not in xml and 'mark="random"' in xml and 'material="sand"' in xml
+    assert "fogstart=" in xml and "<rgba fog=" in xml
+    model = import_mujoco().MjModel.from_xml_string(xml)
+    assert model.vis.map.fogstart == pytest.approx(FOG_START_M)
+    assert model.vis.map.fogend == pytest.approx(FOG_END_M)
+    fog = np.asarray(model.vis.rgba.fog)
+    assert fog[2] > fog[0] and fog[1] > fog[0]           # blue-green
+    assert model.nhfield == 1 and model.ntex >= 2
+
+
+def test_table7_spread_row_names_the_highest_and_lowest_scene():
+    import pandas as pd
+
+    from oneocean.reporting.scene_tables import table7_frame, table7_latex
+
+    rows = []
+    for scene, label, succ, viol in (("a", "Dam*", [1, 1, 0, 0], [0, 3, 0, 0]),
+                                     ("b", "OpenWater*", [1, 1, 1, 1], [0, 0, 0, 0]),
+                                     ("c", "PierHarbor*", [1, 0, 0, 0], [5, 5, 0, 1])):
+        ep = pd.DataFrame({"success": np.array(succ, bool), "violations": np.array(viol),
+                           "waypoints_reached": np.array([4, 4, 3, 2]),
+                           "primary": np.array([1.0, 2.0, 3.0, 4.0])})
+        rows.append({"scene": scene, "label": label, "backend": "mujoco", "task": "RF",
+                     "tier": 2, "method": "heuristic", "applicable": True, "reason": "",
+                     "n": 4, "success": ep["success"].to_numpy(), "episodes": ep,
+                     "n_waypoints": 4, "file": ""})
+    t7 = table7_frame(pd.DataFrame(rows))
+    spread = t7[t7["scene"] == "spread"].iloc[0]
+    assert spread["sr"] == pytest.approx(75.0)
+    assert spread["reason"] == "OpenWater* - PierHarbor*"
+    assert t7.loc[t7["scene"] == "c", "contact_pct"].iloc[0] == pytest.approx(75.0)
+    tex = table7_latex(t7, "r", "heuristic", "4 episodes per cell")
+    assert "Spread" in tex and "OpenWater* - PierHarbor*" in tex
