@@ -62,9 +62,9 @@ def scene_media_files(scene):
 
 def scene_panel_files():
     """Fig. 8's team and cleanup panels (the config's scenes.media.panels_scene; none when it
-    is null or the media are off)."""
+    is null, not a configured scene, or the media are off)."""
     m = SCENE_CFG["media"]
-    if not SCENE_CFG["enabled"] or not m["enabled"] or not m.get("panels_scene"):
+    if not SCENE_CFG["enabled"] or not m["enabled"] or m.get("panels_scene") not in SCENE_NAMES:
         return []
     v = SCENE_CFG["variant"]
     return [f"results/figures/{REGION}/scenes/{v}/panels/{p}.png" for p in ("team", "cleanup")]
