@@ -122,8 +122,8 @@ def test_step_api_and_cell_file_on_the_scene_backend(scenes, tmp_path):
     assert meta["scene_meta"]["clock"]["rate"] == 1.0
     assert "MuJoCo: x east, y north, z up" in meta["scene_meta"]["frames"]
     assert meta["tier_params"]["current_gain"] == 1.5 and len(read_metrics(out)) == 2
-    na = tmp_path / "spc.parquet"   # a task without scene tiers: a not-applicable cell
-    rollout_to_file(None, na, "SPC", 2, "heuristic", 2, 0, "6dof", backend="mujoco",
+    na = tmp_path / "dpt.parquet"   # a task without scene tiers: a not-applicable cell
+    rollout_to_file(None, na, "DPT", 2, "heuristic", 2, 0, "6dof", backend="mujoco",
                     scene=scene)
     assert read_metrics_meta(na)["applicable"] is False and len(read_metrics(na)) == 0
 
