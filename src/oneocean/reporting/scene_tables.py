@@ -114,7 +114,7 @@ def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
         episode), ``reason``; then per tier one ``scene = "mean"`` row (each hosted scene
         weighted equally, no interval) and, with two or more scenes, one ``scene = "spread"``
         row: ``sr`` = the highest scene's success minus the lowest's (points), ``reason`` =
-        ``"<highest> - <lowest>"``. Empty without such cells.
+        ``"<highest> - <lowest>"`` (tied scenes joined with ``/``). Empty without such cells.
     """
     sel = cells[(cells["backend"] == "mujoco") & (cells["task"] == task)
                 & (cells["method"] == method)]
@@ -154,13 +154,15 @@ def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
                       "contact_pct": finite_mean(ok["contact_pct"]),
                       "viol": finite_mean(ok["viol"]), "reason": ""})
         if len(ok) >= 2:      # the spread between scenes: max - min success, scenes named
-            hi_r, lo_r = ok.loc[ok["sr"].idxmax()], ok.loc[ok["sr"].idxmin()]
+            hi_v, lo_v = float(ok["sr"].max()), float(ok["sr"].min())
+            hi_n = "/".join(ok.loc[ok["sr"] == hi_v, "label"])   # ties: every scene named
+            lo_n = "/".join(ok.loc[ok["sr"] == lo_v, "label"])
             means.append({"scene": "spread", "label": "Spread (max - min)", "tier": tier,
-                          "n": int(ok["n"].sum()), "sr": float(hi_r["sr"] - lo_r["sr"]),
+                          "n": int(ok["n"].sum()), "sr": hi_v - lo_v,
                           "sr_lo": math.nan, "sr_hi": math.nan, "wp_pct": math.nan,
                           "all_wp_pct": math.nan, "cte_m": math.nan, "contact_pct": math.nan,
                           "viol": math.nan,
-                          "reason": f"{hi_r['label']} - {lo_r['label']}"})
+                          "reason": f"{hi_n} - {lo_n}"})
     return pd.concat([out, pd.DataFrame(means)], ignore_index=True)
 
 
