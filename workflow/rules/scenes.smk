@@ -228,7 +228,7 @@ rule scene_media:
 
 
 # Fig. 8's panels in the scenes.media.panels_scene scene: the team (FT, Tier 2, ten vehicles,
-# its last step) and the cleanup (SPC, Tier 1, at step 60, its slick on the task's field of
+# its last step) and the cleanup (SPC, Tier 1, at step 90, its slick on the task's field of
 # the scene's grid), episode 0 of the heuristic, with the water's fog and the current's arrow.
 rule scene_panel:
     conda:

@@ -121,6 +121,15 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
     else:
         lo = hi = np.array([0.5 * (scene.extent[0] + scene.extent[1]),
                             0.5 * (scene.extent[2] + scene.extent[3]), -5.0])
+    if field is not None:   # frame the slick too: its cells above 2 % of the maximum
+        C = np.asarray(field["C"], dtype=np.float64)
+        if C.size and float(np.nanmax(C)) > 0:
+            jj, ii = np.nonzero(C > 0.02 * float(np.nanmax(C)))
+            h = float(field["h"])
+            fx = float(field["origin"][0]) + h * ii
+            fz = float(field["origin"][1]) + h * jj
+            lo = np.minimum(lo, [fx.min(), fz.min(), lo[2]])
+            hi = np.maximum(hi, [fx.max(), fz.max(), hi[2]])
     span = float(np.max(hi - lo))
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE

@@ -184,8 +184,8 @@ def scene_current(scene, t: float, gain: float = 1.0) -> tuple[float, float]:
 
 
 #: Fig. 8's panels: (task, tier, step) -- the team panel (formation transit, its episode's last
-#: step) and the cleanup panel (surface pollution cleanup with its slick, at step 60).
-PANELS = {"team": ("FT", 2, None), "cleanup": ("SPC", 1, 60)}
+#: step) and the cleanup panel (surface pollution cleanup with its slick, at step 90).
+PANELS = {"team": ("FT", 2, None), "cleanup": ("SPC", 1, 90)}
 
 
 def scene_panel(scene, panel: str, seed: int, dynamics: str, png, media: Mapping,
@@ -193,7 +193,7 @@ def scene_panel(scene, panel: str, seed: int, dynamics: str, png, media: Mapping
     """One of Fig. 8's panels: episode 0 of ``seed`` of the heuristic in ``scene``, rendered.
 
     ``team``: formation transit (FT, Tier 2, the whole team) at its last step; ``cleanup``:
-    surface pollution cleanup (SPC, Tier 1) at step 60 with its slick, the task's own
+    surface pollution cleanup (SPC, Tier 1) at step 90 with its slick, the task's own
     scene-local field (the scene's grid, its structures land cells of the field), drawn at
     the surface. Both with the fog, the textured seafloor and the current's arrow.
 
