@@ -152,3 +152,30 @@ def test_table7_spread_row_names_the_highest_and_lowest_scene():
     assert t7.loc[t7["scene"] == "c", "contact_pct"].iloc[0] == pytest.approx(75.0)
     tex = table7_latex(t7, "r", "heuristic", "4 episodes per cell")
     assert "Spread" in tex and "OpenWater* - PierHarbor*" in tex
+
+
+def test_panel_render_draws_the_slick_and_the_current(scenes, tmp_path):
+    """render_media without a GIF (Fig. 8's panels): the slick cells and the current's arrow
+    change the picture; the same call gives the same bytes."""
+    from oneocean.backends.mujoco.media import render_media
+    from oneocean.engine.dynamics import STATE_DIM
+
+    sc = scenes["pier_harbor"]
+    traj = np.zeros((3, 2, STATE_DIM))
+    traj[:, 0, :3] = [[0.0, 3.0, -100.0 + 5 * k] for k in range(3)]
+    traj[:, 1, :3] = [[10.0, 3.0, -100.0 + 5 * k] for k in range(3)]
+    C = np.zeros((8, 8))
+    C[2:6, 2:6] = 1.0
+    field = {"C": C, "origin": (-20.0, -80.0), "h": 10.0}
+    size = (96, 72)
+
+    def png(name, **kw):
+        out = render_media(sc, "bluerov2_heavy", traj, tmp_path / name, None, keyframes=1,
+                           size=size, **kw)
+        assert out["gif"] is None and out["frames"] == 0
+        return out["png"][0].read_bytes()
+
+    plain = png("a")
+    both = png("b", current=(0.4, 0.1), field=field)
+    again = png("c", current=(0.4, 0.1), field=field)
+    assert both != plain and both == again
