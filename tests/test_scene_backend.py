@@ -122,8 +122,8 @@ def test_step_api_and_cell_file_on_the_scene_backend(scenes, tmp_path):
     assert meta["scene_meta"]["clock"]["rate"] == 1.0
     assert "MuJoCo: x east, y north, z up" in meta["scene_meta"]["frames"]
     assert meta["tier_params"]["current_gain"] == 1.5 and len(read_metrics(out)) == 2
-    na = tmp_path / "spc.parquet"   # a task without scene tiers: a not-applicable cell
-    rollout_to_file(None, na, "SPC", 2, "heuristic", 2, 0, "6dof", backend="mujoco",
+    na = tmp_path / "dpt.parquet"   # a task without scene tiers: a not-applicable cell
+    rollout_to_file(None, na, "DPT", 2, "heuristic", 2, 0, "6dof", backend="mujoco",
                     scene=scene)
     assert read_metrics_meta(na)["applicable"] is False and len(read_metrics(na)) == 0
 
@@ -200,18 +200,18 @@ def test_ladder_cells_on_the_mujoco_backend_through_the_workflow(tmp_path):
 
     cfg = copy.deepcopy(SMALL_CONFIG)
     cfg["rollouts"].update(backend="mujoco", scene="open_water", methods=["heuristic"],
-                           tasks=["G2G", "SPC"], tiers=[1], episodes=2)
+                           tasks=["G2G", "DPT"], tiers=[1], episodes=2)
     region, v = cfg["region"]["name"], cfg["rollouts"]["variant"]
-    want = [f"results/rollouts/{region}/{v}/{t}/tier1/heuristic.parquet" for t in ("G2G", "SPC")]
+    want = [f"results/rollouts/{region}/{v}/{t}/tier1/heuristic.parquet" for t in ("G2G", "DPT")]
     run_workflow(tmp_path, targets=want, config=cfg)
-    g2g, spc = (read_metrics_meta(tmp_path / w) for w in want)
+    g2g, spc = (read_metrics_meta(tmp_path / w) for w in want)   # spc: DPT, no scene tiers
     assert g2g["backend"] == "mujoco" and g2g["scene"] == "open_water" and g2g["applicable"]
     assert len(read_metrics(tmp_path / want[0])) == 2
     assert g2g["tier_params"]["goal_distance_m"] == 150   # the scene tier
     assert spc["applicable"] is False and "scene_tiers" in spc["reason"]
 
 
-@pytest.mark.parametrize("task", ["RF", "G2G", "SK", "FT"])
+@pytest.mark.parametrize("task", ["RF", "G2G", "SK", "FT", "SPC"])
 def test_scene_tiers_are_monotone_and_multiply_the_current(task):
     """The scene tiers (each row over the core tier) are monotone T1 -> T3 in every tier key
     in its declared direction, and the current multiplier grows: 1, 1.5, 2."""

@@ -37,7 +37,7 @@ def test_every_kind_builds_and_rebuilds_byte_identically(kind, coast, tmp_path):
     assert grid.nx == grid.ny == 51 and grid.dx == 6.0
     x0, x1, z0, z1 = scene.extent
     assert x1 - x0 == pytest.approx(300.0) and 0.5 * (x0 + x1) == pytest.approx(0.0, abs=1e-6)
-    assert len(scene.structures) == {"dam": 1, "open_water": 0, "pier_harbor": 4,
+    assert len(scene.structures) == {"dam": 3, "open_water": 0, "pier_harbor": 4,
                                      "simple_underwater": 4}[kind]
     a = scene_files(scene, tmp_path / "a")
     b = scene_files(build_scene(spec, g, tmp), tmp_path / "b")
@@ -124,6 +124,11 @@ def test_surfacing_structures_are_land_and_terrain_is_kept(tmp_path):
         X, Z = np.meshgrid(xs, zs)
         inside = np.zeros_like(land, dtype=bool)
         for s in sc.structures:
+            if s.kind == "crest":      # the dam's spillway: submerged, water to the scenario
+                assert not s.surfacing and s.centre[1] - s.half[1] == pytest.approx(9.0)
+                j, i = int(np.argmin(np.abs(zs - s.centre[2]))), int(np.argmin(np.abs(xs - s.centre[0])))
+                assert land[j, i] == 0.0
+                continue
             assert s.surfacing
             inside |= s.contains(X, Z)
             cx, _, cz = s.centre

@@ -60,6 +60,16 @@ def scene_media_files(scene):
             + [f"{base}/episode.gif"])
 
 
+def scene_panel_files():
+    """Fig. 8's team and cleanup panels (the config's scenes.media.panels_scene; none when it
+    is null, not a configured scene, or the media are off)."""
+    m = SCENE_CFG["media"]
+    if not SCENE_CFG["enabled"] or not m["enabled"] or m.get("panels_scene") not in SCENE_NAMES:
+        return []
+    v = SCENE_CFG["variant"]
+    return [f"results/figures/{REGION}/scenes/{v}/panels/{p}.png" for p in ("team", "cleanup")]
+
+
 def scene_targets():
     """Everything paper_tables needs from the scene backend (nothing when disabled)."""
     if not SCENE_CFG["enabled"]:
@@ -71,6 +81,7 @@ def scene_targets():
     if SCENE_CFG["media"]["enabled"]:
         out += [p.format(region=REGION, variant=v) for s in SCENE_NAMES
                 for p in scene_media_files(s)]
+    out += scene_panel_files()
     return out
 
 
@@ -83,6 +94,8 @@ def scene_provenance():
     out.append(f"results/provenance/tables/{REGION}/scene_backend.json")
     if SCENE_CFG["media"]["enabled"]:
         out += [f"results/provenance/figures/{REGION}/scenes/{v}/{s}.json" for s in SCENE_NAMES]
+    out += [f.replace("results/figures/", "results/provenance/figures/").replace(".png", ".json")
+            for f in scene_panel_files()]
     return out
 
 
@@ -212,6 +225,39 @@ rule scene_media:
         "scenes"
     script:
         "../scripts/scene_media.py"
+
+
+# Fig. 8's panels in the scenes.media.panels_scene scene: the team (FT, Tier 2, ten vehicles,
+# its last step) and the cleanup (SPC, Tier 1, at step 90, its slick on the task's field of
+# the scene's grid), episode 0 of the heuristic, with the water's fog and the current's arrow.
+rule scene_panel:
+    conda:
+        PY_ENV
+    input:
+        scene=lambda wc: f"results/scenes/{wc.region}/{wc.variant}/"
+                         f"{SCENE_CFG['media']['panels_scene']}/scene.json",
+        scene_grid=lambda wc: f"results/scenes/{wc.region}/{wc.variant}/"
+                              f"{SCENE_CFG['media']['panels_scene']}/grid.npz",
+    output:
+        png="results/figures/{region}/scenes/{variant}/panels/{panel}.png",
+        prov="results/provenance/figures/{region}/scenes/{variant}/panels/{panel}.json",
+    log:
+        "logs/figures/{region}/scenes/{variant}/panels/{panel}.log",
+    params:
+        seed=config["rollouts"]["seed"],
+        dynamics=config["rollouts"]["dynamics"],
+        media=SCENE_CFG["media"],
+        physics_step_s=SCENE_CFG["physics_step_s"],
+        code=SCENE_CODE,
+    wildcard_constraints:
+        panel="team|cleanup",
+    threads: 1
+    # no benchmark recorded: the FT panel took 527 s on shared cores with its kernel compiled
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    script:
+        "../scripts/scene_panel.py"
 
 
 rule table_scenes:

@@ -109,8 +109,12 @@ def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
         ``scene, label, tier, n, sr, sr_lo, sr_hi`` (%, Wilson 95 %), ``wp_pct`` (waypoints
         reached, % of the route, mean over episodes), ``all_wp_pct`` (% of episodes reaching
         every waypoint), ``cte_m`` (mean of the primary metric: for RF the mean cross-track
-        error, m), ``reason``; then one ``scene = "mean"`` row per tier (each hosted scene
-        weighted equally, no interval). Empty without such cells.
+        error, m), ``contact_pct`` (% of episodes with a violation: a MuJoCo contact with a
+        structure or the seafloor, or the boundary band), ``viol`` (violation steps per
+        episode), ``reason``; then per tier one ``scene = "mean"`` row (each hosted scene
+        weighted equally, no interval) and, with two or more scenes, one ``scene = "spread"``
+        row: ``sr`` = the highest scene's success minus the lowest's (points), ``reason`` =
+        ``"<highest> - <lowest>"`` (tied scenes joined with ``/``). Empty without such cells.
     """
     sel = cells[(cells["backend"] == "mujoco") & (cells["task"] == task)
                 & (cells["method"] == method)]
@@ -122,7 +126,7 @@ def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
             rows.append({"scene": scene, "label": c["label"], "tier": tier, "n": 0,
                          "sr": math.nan, "sr_lo": math.nan, "sr_hi": math.nan,
                          "wp_pct": math.nan, "all_wp_pct": math.nan, "cte_m": math.nan,
-                         "reason": c["reason"]})
+                         "contact_pct": math.nan, "viol": math.nan, "reason": c["reason"]})
             continue
         sr, lo, hi = rate_ci(c["success"])
         if "waypoints_reached" in ep and c["n_waypoints"]:
@@ -133,7 +137,9 @@ def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
             wp_pct = all_wp = math.nan
         rows.append({"scene": scene, "label": c["label"], "tier": tier, "n": int(c["n"]),
                      "sr": sr, "sr_lo": lo, "sr_hi": hi, "wp_pct": wp_pct,
-                     "all_wp_pct": all_wp, "cte_m": finite_mean(ep["primary"]), "reason": ""})
+                     "all_wp_pct": all_wp, "cte_m": finite_mean(ep["primary"]),
+                     "contact_pct": 100.0 * float(np.mean(ep["violations"].to_numpy() > 0)),
+                     "viol": finite_mean(ep["violations"]), "reason": ""})
     out = pd.DataFrame(rows)
     if out.empty:
         return out
@@ -144,7 +150,19 @@ def table7_frame(cells: pd.DataFrame, method: str = "heuristic",
                       "n": int(ok["n"].sum()), "sr": finite_mean(ok["sr"]), "sr_lo": math.nan,
                       "sr_hi": math.nan, "wp_pct": finite_mean(ok["wp_pct"]),
                       "all_wp_pct": finite_mean(ok["all_wp_pct"]),
-                      "cte_m": finite_mean(ok["cte_m"]), "reason": ""})
+                      "cte_m": finite_mean(ok["cte_m"]),
+                      "contact_pct": finite_mean(ok["contact_pct"]),
+                      "viol": finite_mean(ok["viol"]), "reason": ""})
+        if len(ok) >= 2:      # the spread between scenes: max - min success, scenes named
+            hi_v, lo_v = float(ok["sr"].max()), float(ok["sr"].min())
+            hi_n = "/".join(ok.loc[ok["sr"] == hi_v, "label"])   # ties: every scene named
+            lo_n = "/".join(ok.loc[ok["sr"] == lo_v, "label"])
+            means.append({"scene": "spread", "label": "Spread (max - min)", "tier": tier,
+                          "n": int(ok["n"].sum()), "sr": hi_v - lo_v,
+                          "sr_lo": math.nan, "sr_hi": math.nan, "wp_pct": math.nan,
+                          "all_wp_pct": math.nan, "cte_m": math.nan, "contact_pct": math.nan,
+                          "viol": math.nan,
+                          "reason": f"{hi_n} - {lo_n}"})
     return pd.concat([out, pd.DataFrame(means)], ignore_index=True)
 
 
@@ -175,7 +193,8 @@ def table7_latex(df: pd.DataFrame, region: str, method: str, episodes: str,
     tiers = sorted(df["tier"].unique())
     prim = "CTE (m)" if task == TABLE7_TASK else _escape(str(task_spec(task).metrics[0]))
     header = ["Scene"] + [f"T{k} {h}" for k in tiers for h in ("SR (\\%)", "WP (\\%)",
-                                                              "all WP (\\%)", prim)]
+                                                              "all WP (\\%)", prim,
+                                                              "contact (\\%)")]
     rows = []
     for scene in dict.fromkeys(df["scene"]):
         g = df[df["scene"] == scene]
@@ -183,14 +202,17 @@ def table7_latex(df: pd.DataFrame, region: str, method: str, episodes: str,
         r = [_escape(label)]
         for k in tiers:
             c = g[g["tier"] == k]
-            if c.empty or (c["n"].iloc[0] == 0 and scene != "mean"):
-                r += ["n/a"] * 4
+            if c.empty or (c["n"].iloc[0] == 0 and scene not in ("mean", "spread")):
+                r += ["n/a"] * 5
                 continue
             c = c.iloc[0]
+            if scene == "spread":
+                r += [_num(c["sr"], "{:.1f}"), _escape(c["reason"]), "", "", ""]
+                continue
             sr = (_num(c["sr"], "{:.1f}") if scene == "mean"
                   else _ci(c["sr"], c["sr_lo"], c["sr_hi"]))
             r += [sr, _num(c["wp_pct"], "{:.1f}"), _num(c["all_wp_pct"], "{:.1f}"),
-                  _num(c["cte_m"], "{:.2f}")]
+                  _num(c["cte_m"], "{:.2f}"), _num(c["contact_pct"], "{:.1f}")]
         if scene == "mean":
             rows.append(("rule",))
         rows.append(r)
@@ -203,7 +225,12 @@ def table7_latex(df: pd.DataFrame, region: str, method: str, episodes: str,
                f"in order, mean cross-track error within its bound, within the energy "
                f"allocation), with its Wilson 95\\% interval; WP: waypoints reached (\\% of the "
                f"route); all WP: episodes reaching every waypoint (the paper's scene-table "
-               f"rule); CTE: mean cross-track error. The mean weights every scene equally.")
+               f"rule); CTE: mean cross-track error; contact: episodes with a violation (a "
+               f"MuJoCo contact with a structure or the seafloor, or the boundary band). The "
+               f"routes are drawn on each scene's structures (over the dam's spillway crest, "
+               f"beside the piers, along the basin walls; open water: anywhere). The mean "
+               f"weights every scene equally; the spread is the highest scene's SR minus the "
+               f"lowest's (points), the two scenes named.")
     return booktabs(header, rows, caption, f"tab:scene_backend:{region}", wide=True)
 
 
@@ -379,12 +406,18 @@ def scene_markdown(cells, t7, cmp_df, region, compare, method, eps,
              "rejected moves).", "",
              f"## {task} per scene ({method})", "",
              "| Scene | Tier | SR % [95 % CI] | WP % | all WP % | "
-             + ("CTE m" if task == TABLE7_TASK else "primary") + " |", "|---|---|---|---|---|---|"]
+             + ("CTE m" if task == TABLE7_TASK else "primary")
+             + " | contact % | violations / ep |", "|---|---|---|---|---|---|---|---|"]
     for _, r in t7.iterrows():
+        if r["scene"] == "spread":
+            lines.append(f"| {r['label']} | {r['tier']} | {_num(r['sr'], '{:.1f}')} "
+                         f"({r['reason']}) | | | | | |")
+            continue
         sr = (_num(r["sr"], "{:.1f}") if r["scene"] == "mean"
               else _ci(r["sr"], r["sr_lo"], r["sr_hi"]))
         lines.append(f"| {r['label']} | {r['tier']} | {sr} | {_num(r['wp_pct'], '{:.1f}')} | "
-                     f"{_num(r['all_wp_pct'], '{:.1f}')} | {_num(r['cte_m'], '{:.2f}')} |")
+                     f"{_num(r['all_wp_pct'], '{:.1f}')} | {_num(r['cte_m'], '{:.2f}')} | "
+                     f"{_num(r['contact_pct'], '{:.1f}')} | {_num(r['viol'], '{:.1f}')} |")
     lines += ["", "## Success rate per scene, task, tier and method (MuJoCo)", "",
               "| Scene | Task | Tier | Method | SR % [95 % CI] | n |", "|---|---|---|---|---|---|"]
     mj = cells[cells["backend"] == "mujoco"]

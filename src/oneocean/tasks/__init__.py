@@ -263,11 +263,19 @@ class Cell:
         duration = float(self.params["time_limit_s"])
         n_cand = (episodes if band is None else
                   int(np.ceil(2.0 * episodes / max(float(band[1]) - float(band[0]), 0.05))))
+        from .spawn import route_guide
+
+        # a scene with structures draws the routes on them (the scene's part of the scenario)
+        guide = None
+        if self.scene is not None:
+            from ..backends.mujoco.scenes import route_guide as scene_guide
+            guide = scene_guide(self.scene)
         split = hasattr(self.mod, "reset_candidates") and hasattr(self.mod, "reset_build")
         draw = self.mod.reset_candidates if split else self.mod.reset
         regime = None
         for _ in range(REGIME_DRAWS):
-            init = draw(self.grid_reset, self.params, self.n_agents, n_cand, seed)
+            with route_guide(guide):
+                init = draw(self.grid_reset, self.params, self.n_agents, n_cand, seed)
             pts = np.asarray(init["regime_points"] if "regime_points" in init else
                              init["pos0"], dtype=np.float64)
             # episodes only where the product defines currents (never in water it does not

@@ -9,6 +9,7 @@ points and random routes (:func:`sample_route`, and compiled over many streams
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -488,6 +489,32 @@ def _routes_kernel(grid, stv, rows, n_legs, leg_m, lo, hi, clearance, max_turn, 
     return status
 
 
+#: The route guide in force (:func:`route_guide`); None: the tasks' own sampler.
+_GUIDE = [None]
+
+
+@contextmanager
+def route_guide(guide):
+    """Draw :func:`sample_routes` from ``guide`` inside the block (None: the usual sampler).
+
+    A scene with structures supplies one (:func:`oneocean.backends.mujoco.scenes.route_guide`):
+    the scene-specific part of a scene cell's scenario, so every task that draws its routes,
+    stations or start points here draws them on the scene's structures, from the same streams.
+
+    Parameters
+    ----------
+    guide : callable or None
+        ``guide(grid, stv, rows, n_legs, leg_m, depth_m, clearance, max_turn_rad,
+        land_threshold, tries, what) -> (routes, failed)``, :func:`sample_routes`' contract.
+    """
+    prev = _GUIDE[0]
+    _GUIDE[0] = guide
+    try:
+        yield
+    finally:
+        _GUIDE[0] = prev
+
+
 def sample_routes(grid: Grid, stv: np.ndarray, n_legs: int, leg_m: float,
                   depth_m: tuple[float, float], clearance: float, *, rows=None,
                   max_turn_rad: float = math.pi, land_threshold: float = 0.5,
@@ -520,6 +547,9 @@ def sample_routes(grid: Grid, stv: np.ndarray, n_legs: int, leg_m: float,
     rows = (np.arange(stv.shape[0]) if rows is None
             else np.asarray(rows, dtype=np.int64).reshape(-1))
     n_legs = int(n_legs)
+    if _GUIDE[0] is not None:      # a scene's structures (route_guide)
+        return _GUIDE[0](grid, stv, rows, n_legs, float(leg_m), depth_m, float(clearance),
+                         float(max_turn_rad), float(land_threshold), int(tries), what)
     lo, hi = float(depth_m[0]), float(depth_m[1])
     spacing = min(20.0, 0.5 * min(float(grid.dx), float(grid.dz)))    # path_clear's
     start = stv[rows].copy()

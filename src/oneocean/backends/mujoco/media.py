@@ -7,7 +7,9 @@ first imported, so every module of this package imports MuJoCo lazily through
 :func:`.mjcf.import_mujoco`, which sets ``MUJOCO_GL=egl`` unless already set. A free camera looks
 at the agents' bounding box over the heightfield from a fixed azimuth and elevation; each
 vehicle gets a translucent marker sphere (visible at scene scale) and the track it has
-travelled so far. Images are written with Pillow (PNG, GIF), atomically.
+travelled so far. The water is drawn as MuJoCo fog fading with range (blue-green, set in the
+MJCF, switched on here), an arrow at the surface shows the current's direction, and a surface
+field (a slick) can be overlaid as translucent cells. Images are written with Pillow (PNG, GIF), atomically.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ MAX_GIF_FRAMES = 150
 
 def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframes: int = 3,
                  size: tuple = (480, 360), fps: int = 10, azimuth_deg: float = 135.0,
-                 elevation_deg: float = -35.0) -> dict:
+                 elevation_deg: float = -35.0, current=None, field=None) -> dict:
     """Render keyframe PNGs and an animated GIF of agents moving through a scene.
 
     Parameters
@@ -45,8 +47,9 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
     out_png_stem : path-like
         Keyframes are written to ``<stem>_<k>.png``, k = 0..keyframes-1 (evenly spaced over T,
         first and last included).
-    gif_path : path-like
-        Animated GIF of the whole trajectory (at most :data:`MAX_GIF_FRAMES` frames).
+    gif_path : path-like or None
+        Animated GIF of the whole trajectory (at most :data:`MAX_GIF_FRAMES` frames); None:
+        no GIF.
     keyframes : int, default 3
         Number of keyframe PNGs (>= 1; fewer when T is shorter).
     size : (width, height), default (480, 360)
@@ -56,6 +59,13 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
     azimuth_deg, elevation_deg : float
         Camera azimuth and elevation (MuJoCo's free-camera convention, degrees; defaults 135
         and -35).
+    current : (float, float), optional
+        The current (east, north), m s-1, drawn as an arrow at the surface above the view's
+        centre (length 0.2 of the camera distance per m s-1, at least 0.3 m s-1 of it).
+    field : dict, optional
+        A surface field drawn as translucent dark cells at the surface: ``C`` (nz, nx) values
+        (kg m-2), ``origin`` (x, z) of cell (0, 0)'s centre (world m), ``h`` the cell size (m);
+        cells above 2 % of the maximum are drawn, opacity growing with the value.
 
     Returns
     -------
@@ -86,6 +96,8 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
     if keyframes < 1 or fps < 1:
         raise ConfigError("render_media: keyframes and fps must be >= 1")
     T, N = traj.shape[:2]
+    if current is not None:
+        current = np.asarray(current, dtype=np.float64).reshape(2)
     mujoco = mjcf.import_mujoco()
     model = mujoco.MjModel.from_xml_string(mjcf.scene_xml(scene, vehicle, n_vehicles=N,
                                                           physics=False))
@@ -98,6 +110,7 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
                         f"{os.environ.get('MUJOCO_GL')} ({msg}); MUJOCO_GL must be set (egl) "
                         "before MuJoCo is first imported in the process; or switch the media "
                         "off: config scenes.media.enabled: false") from None
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_FOG] = 1    # the water's fog (scene_xml)
     adr = [int(model.jnt_qposadr[model.joint(f"vehicle{k}_joint").id]) for k in range(N)]
     ok = np.all(np.isfinite(traj[..., :6]), axis=2)  # (T, N)
     pos = mjcf.core_to_mj(np.where(ok[..., None], traj[..., :3], 0.0))
@@ -108,6 +121,15 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
     else:
         lo = hi = np.array([0.5 * (scene.extent[0] + scene.extent[1]),
                             0.5 * (scene.extent[2] + scene.extent[3]), -5.0])
+    if field is not None:   # frame the slick too: its cells above 2 % of the maximum
+        C = np.asarray(field["C"], dtype=np.float64)
+        if C.size and float(np.nanmax(C)) > 0:
+            jj, ii = np.nonzero(C > 0.02 * float(np.nanmax(C)))
+            h = float(field["h"])
+            fx = float(field["origin"][0]) + h * ii
+            fz = float(field["origin"][1]) + h * jj
+            lo = np.minimum(lo, [fx.min(), fz.min(), lo[2]])
+            hi = np.maximum(hi, [fx.max(), fz.max(), hi[2]])
     span = float(np.max(hi - lo))
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
@@ -150,6 +172,36 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
                                     pos[t, k], np.eye(3).ravel(),
                                     np.array([*rgb, 0.35], dtype=np.float32))
                 scn.ngeom += 1
+        if current is not None and scn.ngeom < scn.maxgeom:
+            speed = float(np.hypot(*current))
+            if speed > 1e-9:
+                length = 0.2 * cam.distance * max(speed, 0.3)
+                d = np.array([current[0], current[1], 0.0]) / speed
+                p0 = np.array([cam.lookat[0], cam.lookat[1], 0.5]) - 0.5 * length * d
+                g = scn.geoms[scn.ngeom]
+                mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_ARROW, np.zeros(3), np.zeros(3),
+                                    np.eye(3).ravel(),
+                                    np.array([0.95, 0.95, 1.0, 0.95], dtype=np.float32))
+                mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_ARROW, 0.01 * cam.distance,
+                                     p0, p0 + length * d)
+                scn.ngeom += 1
+        if field is not None:
+            C = np.asarray(field["C"], dtype=np.float64)
+            cmax = float(np.nanmax(C)) if C.size else 0.0
+            h = float(field["h"])
+            ox, oz = (float(v) for v in field["origin"])
+            if cmax > 0:
+                for j, i in zip(*np.nonzero(C > 0.02 * cmax)):
+                    if scn.ngeom >= scn.maxgeom:
+                        break
+                    a = 0.25 + 0.65 * min(C[j, i] / cmax, 1.0)
+                    g = scn.geoms[scn.ngeom]
+                    mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_BOX,
+                                        np.array([0.5 * h, 0.5 * h, 0.05]),
+                                        np.array([ox + i * h, oz + j * h, 0.05]),
+                                        np.eye(3).ravel(),
+                                        np.array([0.12, 0.08, 0.04, a], dtype=np.float32))
+                    scn.ngeom += 1
         return renderer.render().copy()
 
     stem = Path(out_png_stem)
@@ -161,6 +213,9 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
         path = stem.parent / f"{stem.name}_{k}.png"
         write_bytes_atomic(path, buf.getvalue())
         pngs.append(path)
+    if gif_path is None:
+        renderer.close()
+        return {"png": pngs, "gif": None, "frames": 0}
     idx = np.unique(np.linspace(0, T - 1, min(T, MAX_GIF_FRAMES)).round().astype(int))
     images = [Image.fromarray(frame(int(t))).convert("P", palette=Image.Palette.ADAPTIVE)
               for t in idx]

@@ -537,6 +537,13 @@ def _actuators(vm: VehicleModel) -> str:
     return "\n".join(out)
 
 
+#: Water seen from the camera: MuJoCo's linear fog from ``FOG_START_M`` to ``FOG_END_M`` of
+#: range (visual only: no effect on the physics), in the water's blue-green.
+FOG_START_M = 60.0
+FOG_END_M = 600.0
+FOG_RGBA = "0.05 0.28 0.32 1"
+
+
 def _scene_static(scene) -> list[str]:
     """World-body XML lines of a scene: light, heightfield, surface, structures."""
     g = scene.grid_data
@@ -544,8 +551,9 @@ def _scene_static(scene) -> list[str]:
     cx, cy = 0.5 * (x0 + x1), 0.5 * (z0 + z1)
     elev = np.asarray(g["elevation"], dtype=np.float64)
     lo = float(elev.min())
+    # blue-green light filtered by the water column (the fog in <visual> fades with range)
     lines = [f'<light name="sun" pos="{_v(cx, cy, 200)}" dir="0 0 -1" directional="true" '
-             'diffuse="0.8 0.8 0.8" ambient="0.3 0.3 0.35"/>',
+             'diffuse="0.7 0.92 0.9" ambient="0.25 0.4 0.42" specular="0.1 0.15 0.15"/>',
              f'<geom name="seafloor" type="hfield" hfield="terrain" pos="{_v(cx, cy, lo)}" '
              'contype="1" conaffinity="2" material="sand" condim="3"/>',
              f'<geom name="surface" type="box" pos="{_v(cx, cy, 0)}" '
@@ -572,11 +580,15 @@ def _assets(scene) -> str:
     data = "\n".join(" ".join(_f(v) for v in row) for row in rows)
     base = 1.0
     return "\n".join([
-        '<texture name="sky" type="skybox" builtin="gradient" rgb1="0.15 0.35 0.55" '
-        'rgb2="0.02 0.08 0.16" width="256" height="256"/>',
-        '<texture name="sandtex" type="2d" builtin="checker" rgb1="0.62 0.56 0.42" '
-        'rgb2="0.55 0.5 0.38" width="256" height="256"/>',
-        '<material name="sand" texture="sandtex" texrepeat="40 40" specular="0.1"/>',
+        '<texture name="sky" type="skybox" builtin="gradient" rgb1="0.12 0.42 0.45" '
+        'rgb2="0.01 0.09 0.12" width="256" height="256"/>',
+        # sand: a speckled texture (MuJoCo's fixed-seed random marks: the same pixels on
+        # every build), not a checkerboard
+        '<texture name="sandtex" type="2d" builtin="flat" rgb1="0.58 0.55 0.42" '
+        'rgb2="0.58 0.55 0.42" mark="random" random="0.3" markrgb="0.3 0.3 0.22" '
+        'width="64" height="64"/>',
+        '<material name="sand" texture="sandtex" texrepeat="16 16" specular="0.05" '
+        'shininess="0.1"/>',
         '<material name="concrete" rgba="0.6 0.6 0.58 1" specular="0.2"/>',
         f'<hfield name="terrain" nrow="{ny}" ncol="{nx}" '
         f'size="{_v(0.5 * (x1 - x0), 0.5 * (z1 - z0), span, base)}" elevation="\n{data}"/>',
@@ -623,7 +635,9 @@ def scene_xml(scene, vehicle=None, *, timestep: float = 0.02, n_vehicles: int | 
             f'<option timestep="{_f(timestep)}" density="0" viscosity="0" '
             f'integrator="implicitfast" gravity="{_v(0, 0, -grav)}"/>',
             '<visual><global offwidth="1280" offheight="960"/>'
-            '<quality shadowsize="2048"/><map znear="0.01" zfar="5000"/></visual>',
+            f'<quality shadowsize="2048"/><map znear="0.01" zfar="5000" '
+            f'fogstart="{_f(FOG_START_M)}" fogend="{_f(FOG_END_M)}" haze="0.6"/>'
+            f'<rgba fog="{FOG_RGBA}" haze="{FOG_RGBA}"/></visual>',
             "<asset>", _assets(scene), "</asset>", "<worldbody>"]
     body = _scene_static(scene)
     tail = ["</worldbody>"]

@@ -70,7 +70,7 @@ import numpy as np
 from ...errors import ConfigError, DataError
 
 __all__ = ["SCENE_KINDS", "SCENE_LABELS", "Structure", "Scene", "build_scene", "scene_files",
-           "SCENE_FORMAT"]
+           "SCENE_FORMAT", "SceneRoutes", "route_guide"]
 
 #: Scene kinds (stand-ins for the paper's packaged scenes).
 SCENE_KINDS = ("dam", "open_water", "pier_harbor", "simple_underwater")
@@ -99,7 +99,8 @@ MARGIN_M = 40.0
 #: Kind-specific structure parameters and their defaults (lengths in m; ``None`` = derived
 #: from the scene size, see :func:`_structures`).
 STRUCTURE_DEFAULTS = {
-    "dam": {"offset_m": None, "thickness_m": 12.0, "crest_m": 3.0, "yaw_deg": 0.0},
+    "dam": {"offset_m": None, "thickness_m": 12.0, "crest_m": 3.0, "yaw_deg": 0.0,
+            "spillway_m": 30.0, "spill_depth_m": 9.0},
     "open_water": {},
     "pier_harbor": {"n_piers": 3, "pier_length_m": None, "pier_width_m": 8.0,
                     "quay_width_m": 20.0, "deck_m": 2.0},
@@ -334,7 +335,7 @@ def normalise_spec(spec: Mapping) -> dict:
                 raise ConfigError(f"scene.structures.n_piers: must be in 1..6, got {v}")
         elif k == "yaw_deg":
             v = _num(st, k, default, where="scene.structures")
-        elif k in ("crest_m", "deck_m"):
+        elif k in ("crest_m", "deck_m", "spill_depth_m"):
             v = _num(st, k, default, minimum=0.0, where="scene.structures")
         else:
             v = _num(st, k, default, positive=True, where="scene.structures")
@@ -370,8 +371,19 @@ def _structures(kind: str, sp: dict, cx: float, cz: float, size: float,
         wx, wz = cx + off * s, cz + off * c
         axis_aligned = abs(math.sin(2.0 * yaw)) < 1e-12
         length = half if axis_aligned else half * math.sqrt(2.0)
-        return (_column_box("dam_wall", "wall", wx, wz, length,
-                            0.5 * sp["thickness_m"], yaw, -sp["crest_m"], max_depth),)
+        # a spillway of width ``spillway_m`` at the scene's centre line: its crest is
+        # ``spill_depth_m`` below the surface, the rest of the wall reaches above it
+        sw = min(0.5 * sp["spillway_m"], 0.5 * length)
+        piece = 0.5 * (length - sw)
+        t2 = 0.5 * sp["thickness_m"]
+        out = []
+        for name, sgn in (("dam_wall_w", -1.0), ("dam_wall_e", 1.0)):
+            a = sgn * (sw + piece)   # along east' from the wall's centre
+            out.append(_column_box(name, "wall", wx + a * c, wz - a * s, piece, t2, yaw,
+                                   -sp["crest_m"], max_depth))
+        out.append(_column_box("dam_spillway", "crest", wx, wz, sw, t2, yaw,
+                               min(sp["spill_depth_m"], max_depth), max_depth))
+        return tuple(out)
     if kind == "pier_harbor":
         qw = sp["quay_width_m"]
         n = sp["n_piers"]
@@ -644,3 +656,225 @@ def scene_files(scene: Scene, out_dir, vehicle=None) -> dict:
     write_npz_atomic(paths["grid"], scene.grid_data)
     write_json_atomic(paths["meta"], scene.meta)
     return paths
+
+
+# ----------------------------------------------------------------------------- routes
+
+#: Standoff of a scene route from a structure's footprint, and least water over a submerged
+#: structure's top, m (:class:`SceneRoutes`).
+ROUTE_CLEAR_M = 2.0
+#: Distance band between a scene route's pivot and the structure it follows, m: the inner face
+#: of a basin wall or the side of a pier (:class:`SceneRoutes`).
+LANE_OFFSET_M = (6.0, 14.0)
+#: Largest heading change between the legs a scene route adds around its pivot leg, rad
+#: (the task's own ``max_turn_rad`` when smaller).
+LANE_TURN_RAD = math.radians(20.0)
+#: Spread of a pivot leg's heading about the structure's axis, rad.
+PIVOT_SPREAD_RAD = math.radians(15.0)
+
+
+class SceneRoutes:
+    """The scene-specific part of a scene cell's scenario: routes drawn on the structures.
+
+    A task draws its routes, stations and start points with
+    :func:`oneocean.tasks.spawn.sample_routes` (same arguments on every backend). In a scene
+    with structures :class:`oneocean.tasks.Cell` installs this guide
+    (:func:`oneocean.tasks.spawn.route_guide`), and ``sample_routes`` draws from it instead, from
+    the same per-episode streams (deterministic in the seed). Each try draws a **pivot** from
+    the scene's geometry, then builds the route around it:
+
+    * ``dam``: a point on the spillway's crest line, at least 6 m inside its ends, the pivot
+      leg crossing the wall
+      (its normal +- 15 deg, either way); the route's depth at least :data:`ROUTE_CLEAR_M`
+      above the crest: the route flies over the crest, between the surfacing wall pieces;
+    * ``pier_harbor``: a point beside a pier (one of its two sides, :data:`LANE_OFFSET_M` from
+      its face, between its tip and 30 m short of the quay), the pivot leg along the pier
+      (+- 15 deg, either way): the route runs between the piers;
+    * ``simple_underwater``: a point inside the basin :data:`LANE_OFFSET_M` from one wall's
+      inner face, at least 40 m from the corners, the pivot leg along the wall (+- 15 deg):
+      the route runs along the basin's walls.
+
+    With ``n_legs = 0`` (a station, a start point) the route is the pivot (at the dam: the
+    pivot moved 10-60 m back along its heading, before the spillway). Otherwise a random
+    leg of the route passes through the pivot (at 20-80 % of its length) and the others
+    follow from it, each turning by at most :data:`LANE_TURN_RAD` (and the task's
+    ``max_turn_rad``). A try is kept when every vertex and every point of every leg (every
+    1 m) lies in the scene's water (not land, not the boundary band), with the task's
+    ``clearance`` over the seafloor, at least :data:`ROUTE_CLEAR_M` from every structure's
+    footprint unless the structure's top is that far below the route's depth; else the
+    next try, up to ``tries``.
+
+    Parameters
+    ----------
+    scene : Scene
+        A scene with structures (:func:`route_guide`).
+    """
+
+    def __init__(self, scene):
+        g = scene.grid_data
+        self.scene = scene
+        self.land = np.asarray(g["land_mask"], dtype=np.float64)
+        self.elev = np.asarray(g["elevation"], dtype=np.float64)
+        self.x0, self.z0 = float(g["x0_m"]), float(g["z0_m"])
+        self.res = float(g["dx_m"])
+        self.structures = scene.structures
+        self.depth_cap = math.inf
+        for s in scene.structures:   # a route passes over a submerged crest
+            if s.kind == "crest":
+                self.depth_cap = min(self.depth_cap,
+                                     s.centre[1] - s.half[1] - ROUTE_CLEAR_M)
+
+    # -- the pivot of a try
+    def pivot(self, u: np.ndarray) -> tuple[float, float, float]:
+        """The pivot ``(x, z, heading)`` of one try from uniforms ``u`` (>= 5 values in [0, 1)):
+        world m and compass radians."""
+        kind = self.scene.kind
+        st = self.structures
+        flip = math.pi if u[4] < 0.5 else 0.0
+        spread = (2.0 * u[3] - 1.0) * PIVOT_SPREAD_RAD
+        if kind == "dam":
+            c = next(s for s in st if s.kind == "crest")
+            s_, c_ = math.sin(c.yaw_rad), math.cos(c.yaw_rad)
+            a = (2.0 * u[0] - 1.0) * max(c.half[0] - 6.0, 0.0)
+            return (c.centre[0] + a * c_, c.centre[2] - a * s_, c.yaw_rad + spread + flip)
+        lo, hi = LANE_OFFSET_M
+        off = lo + (hi - lo) * u[0]
+        if kind == "pier_harbor":
+            piers = [s for s in st if s.kind == "pier"]
+            p = piers[min(int(u[2] * len(piers)), len(piers) - 1)]
+            side = 1.0 if (u[2] * len(piers)) % 1.0 < 0.5 else -1.0
+            x = p.centre[0] + side * (p.half[0] + off)
+            z_tip = p.centre[2] - p.half[2]
+            z = z_tip + u[1] * max(2.0 * p.half[2] - 30.0, 0.0)
+            return (x, z, spread + flip)
+        walls = [s for s in st if s.kind == "basin"]
+        w = walls[min(int(u[2] * len(walls)), len(walls) - 1)]
+        cx = float(np.mean([s.centre[0] for s in walls]))
+        cz = float(np.mean([s.centre[2] for s in walls]))
+        if w.half[0] > w.half[2]:      # a north or south wall: along east
+            inner = -1.0 if w.centre[2] > cz else 1.0
+            z = w.centre[2] + inner * (w.half[2] + off)
+            x = cx + (2.0 * u[1] - 1.0) * max(w.half[0] - 40.0, 0.0)
+            return (x, z, 0.5 * math.pi + spread + flip)
+        inner = -1.0 if w.centre[0] > cx else 1.0
+        x = w.centre[0] + inner * (w.half[0] + off)
+        z = cz + (2.0 * u[1] - 1.0) * max(w.half[2] - 40.0, 0.0)
+        return (x, z, spread + flip)
+
+    # -- validity
+    def _node(self, arr, x, z):
+        """The largest of ``arr``'s four nodes around each point (conservative), or +inf
+        off the grid."""
+        fi = (np.asarray(x) - self.x0) / self.res
+        fj = (np.asarray(z) - self.z0) / self.res
+        ny, nx = arr.shape
+        i0, j0 = np.floor(fi).astype(np.int64), np.floor(fj).astype(np.int64)
+        off = (i0 < 0) | (j0 < 0) | (i0 + 1 > nx - 1) | (j0 + 1 > ny - 1)
+        i0, j0 = np.clip(i0, 0, nx - 2), np.clip(j0, 0, ny - 2)
+        m = np.maximum(np.maximum(arr[j0, i0], arr[j0, i0 + 1]),
+                       np.maximum(arr[j0 + 1, i0], arr[j0 + 1, i0 + 1]))
+        return np.where(off, np.inf, m)
+
+    def clear(self, x: np.ndarray, z: np.ndarray, depth: float, clearance: float,
+              land_threshold: float) -> bool:
+        """Whether every point ``(x, z)`` at ``depth`` (m) is in the scene's water, with
+        ``clearance`` (m) over the seafloor and the standoff from every structure."""
+        if np.any(self._node(self.land, x, z) >= land_threshold):
+            return False
+        if np.any(-self._node(self.elev, x, z) - depth < clearance):
+            return False
+        for s in self.structures:
+            if s.centre[1] - s.half[1] >= depth + ROUTE_CLEAR_M:
+                continue   # far enough below the route
+            big = Structure(s.name, s.centre, (s.half[0] + ROUTE_CLEAR_M, s.half[1],
+                                               s.half[2] + ROUTE_CLEAR_M), s.yaw_rad, s.kind)
+            if np.any(big.contains(x, z)):
+                return False
+        return True
+
+    def route(self, u: np.ndarray, n_legs: int, leg_m: float, depth_m, clearance: float,
+              max_turn_rad: float, land_threshold: float):
+        """One try: ``(n_legs + 1, 3)`` vertices (world m), or None when it is not clear."""
+        lo, hi = float(depth_m[0]), min(float(depth_m[1]), self.depth_cap)
+        if hi < lo:
+            return None
+        y = lo + (hi - lo) * u[5]
+        px, pz, h = self.pivot(u)
+        if n_legs == 0:
+            if self.scene.kind == "dam":   # a point before the spillway, not on its crest
+                d = 10.0 + 50.0 * u[7]
+                px, pz = px - d * math.sin(h), pz - d * math.cos(h)
+            pts = np.array([[px, y, pz]])
+            return pts if self.clear(pts[:, 0], pts[:, 2], y, clearance, land_threshold) \
+                else None
+        k = min(int(u[6] * n_legs), n_legs - 1)      # the pivot leg
+        f = 0.2 + 0.6 * u[7]
+        turn = min(LANE_TURN_RAD, float(max_turn_rad))
+        heads = np.empty(n_legs)
+        heads[k] = h
+        for j in range(k + 1, n_legs):
+            heads[j] = heads[j - 1] + (2.0 * u[8 + j] - 1.0) * turn
+        for j in range(k - 1, -1, -1):
+            heads[j] = heads[j + 1] + (2.0 * u[8 + j] - 1.0) * turn
+        v = np.empty((n_legs + 1, 2))
+        v[k] = (px - f * leg_m * math.sin(h), pz - f * leg_m * math.cos(h))
+        for j in range(k, n_legs):
+            v[j + 1] = v[j] + leg_m * np.array([math.sin(heads[j]), math.cos(heads[j])])
+        for j in range(k - 1, -1, -1):
+            v[j] = v[j + 1] - leg_m * np.array([math.sin(heads[j]), math.cos(heads[j])])
+        n = max(int(math.ceil(leg_m)), 1) + 1
+        t = np.linspace(0.0, 1.0, n)
+        xs = (v[:-1, None, 0] + t * (v[1:, None, 0] - v[:-1, None, 0])).ravel()
+        zs = (v[:-1, None, 1] + t * (v[1:, None, 1] - v[:-1, None, 1])).ravel()
+        if not self.clear(xs, zs, y, clearance, land_threshold):
+            return None
+        return np.stack([v[:, 0], np.full(n_legs + 1, y), v[:, 1]], axis=1)
+
+    def __call__(self, grid, stv, rows, n_legs, leg_m, depth_m, clearance, max_turn_rad,
+                 land_threshold, tries, what):
+        """:func:`oneocean.tasks.spawn.sample_routes`' contract: ``(routes, failed)``."""
+        from ...engine import streams
+        from ...errors import NotApplicable
+
+        rows = np.asarray(rows, dtype=np.int64).reshape(-1)
+        n_legs = int(n_legs)
+        out = np.zeros((rows.size, n_legs + 1, 3))
+        todo = np.arange(rows.size)
+        for _ in range(int(tries)):
+            if not todo.size:
+                break
+            u = streams.uniform_rows(stv, 0.0, 1.0, 8 + n_legs, rows[todo])
+            done = np.zeros(todo.size, dtype=bool)
+            for i, j in enumerate(todo):
+                r = self.route(u[i], n_legs, float(leg_m), depth_m, float(clearance),
+                               float(max_turn_rad), float(land_threshold))
+                if r is not None:
+                    out[j] = r
+                    done[i] = True
+            todo = todo[~done]
+        failed = {}
+        for j in todo:
+            label = "route" if what is None else what(int(j))
+            failed[int(j)] = NotApplicable(
+                f"{label}: no {n_legs}-leg route of {float(leg_m):g} m legs on the "
+                f"{self.scene.kind} scene's structures found in {int(tries)} tries")
+        return out, failed
+
+
+def route_guide(scene):
+    """The scene's route guide (:class:`SceneRoutes`), or None for a scene without
+    structures (``open_water``: the tasks' own sampler).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+
+    Returns
+    -------
+    SceneRoutes or None
+    """
+    if scene is None or scene.kind not in ("dam", "pier_harbor", "simple_underwater") \
+            or not scene.structures:
+        return None
+    return SceneRoutes(scene)

@@ -146,7 +146,7 @@ def scene_media(scene, tasks, tiers, seed: int, dynamics: str, frames, media: Ma
     if [p.name for p in pngs] != [f"keyframe_{k}.png" for k in range(len(pngs))]:
         raise ConfigError(f"scene_media: keyframe paths must be {stem}_<k>.png, got "
                           f"{', '.join(map(str, pngs))}")
-    traj, vehicle, which = None, "remus100", (None, None)
+    traj, vehicle, which, current = None, "remus100", (None, None), None
     for task in tasks:
         for tier in sorted((int(k) for k in tiers), reverse=True):
             try:
@@ -157,11 +157,94 @@ def scene_media(scene, tasks, tiers, seed: int, dynamics: str, frames, media: Ma
                 continue
             ep = cell.episodes(init, "heuristic", dynamics, int(seed), trace=True).run()
             traj, vehicle, which = ep.traced()[: int(ep.k[0]) + 1, 0], cell.vehicle, (task, tier)
+            current = scene_current(scene, float(init["t0"][0]), cell.current_gain)
             break
         if traj is not None:
             break
     if traj is None:   # the scene alone: no vehicle shown (non-finite rows hide it)
         traj = np.full((2, 1, STATE_DIM), np.nan)
     out = render_media(scene, vehicle, traj, stem, gif, keyframes=len(pngs),
-                       size=(int(media["width"]), int(media["height"])), fps=int(media["fps"]))
+                       size=(int(media["width"]), int(media["height"])), fps=int(media["fps"]),
+                       current=current)
     return {**out, "task": which[0], "tier": which[1]}
+
+
+def scene_current(scene, t: float, gain: float = 1.0) -> tuple[float, float]:
+    """The scene's mean surface current at scene time ``t`` (the nearest earlier node of its
+    time axis), over its water nodes, times ``gain``: (east, north), m s-1 (Fig. 8's arrow)."""
+    g = scene.grid_data
+    ts = np.asarray(g["time_s"], dtype=np.float64)
+    k = int(np.clip(np.searchsorted(ts, t, side="right") - 1, 0, ts.size - 1))
+    water = np.asarray(g["valid_mask"])[0] == 1
+    if not water.any():
+        return (0.0, 0.0)
+    u = float(np.mean(np.asarray(g["u"])[k, 0][water], dtype=np.float64))
+    v = float(np.mean(np.asarray(g["v"])[k, 0][water], dtype=np.float64))
+    return (gain * u, gain * v)
+
+
+#: Fig. 8's panels: (task, tier, step) -- the team panel (formation transit, its episode's last
+#: step) and the cleanup panel (surface pollution cleanup with its slick, at step 90).
+PANELS = {"team": ("FT", 2, None), "cleanup": ("SPC", 1, 90)}
+
+
+def scene_panel(scene, panel: str, seed: int, dynamics: str, png, media: Mapping,
+                physics_step_s: float | None = None) -> dict:
+    """One of Fig. 8's panels: episode 0 of ``seed`` of the heuristic in ``scene``, rendered.
+
+    ``team``: formation transit (FT, Tier 2, the whole team) at its last step; ``cleanup``:
+    surface pollution cleanup (SPC, Tier 1) at step 90 with its slick, the task's own
+    scene-local field (the scene's grid, its structures land cells of the field), drawn at
+    the surface. Both with the fog, the textured seafloor and the current's arrow.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene (:func:`load_scene`).
+    panel : str
+        ``"team"`` or ``"cleanup"`` (:data:`PANELS`).
+    seed : int
+        Run seed.
+    dynamics : str
+        Dynamics model name.
+    png : path-like
+        The PNG written.
+    media : mapping
+        The config's ``scenes.media`` (``width``, ``height``).
+    physics_step_s : float, optional
+        MuJoCo's step, s.
+
+    Returns
+    -------
+    dict
+        ``{"png", "task", "tier", "step", "agents"}``.
+    """
+    from ...tasks import Cell
+    from .media import render_media
+
+    if panel not in PANELS:
+        raise ConfigError(f"scene_panel: panel must be one of {', '.join(PANELS)}, got "
+                          f"{panel!r}")
+    task, tier, step = PANELS[panel]
+    png = Path(png)
+    cell = Cell(None, task, tier, backend="mujoco", scene=scene, physics_step_s=physics_step_s)
+    init = cell.reset(1, int(seed))
+    ep = cell.episodes(init, "heuristic", dynamics, int(seed), trace=True)
+    ep.run(step)
+    k = int(ep.k[0])
+    traj = ep.traced()[: k + 1, 0]
+    field = None
+    if task == "SPC":
+        from ...tasks.spc import FIELD_H_M
+
+        field = {"C": np.asarray(ep.W.C[0, 0]), "origin": np.asarray(ep.W.origin[0]),
+                 "h": FIELD_H_M}
+    stem = png.with_name(png.stem)
+    out = render_media(scene, cell.vehicle, traj, stem, None, keyframes=1,
+                       size=(int(media["width"]), int(media["height"])),
+                       current=scene_current(scene, float(init["t0"][0]) + k * float(
+                           cell.params["dt_s"]), cell.current_gain),
+                       field=field, elevation_deg=-50.0)
+    written = out["png"][0]
+    written.replace(png)
+    return {"png": png, "task": task, "tier": tier, "step": k, "agents": int(traj.shape[1])}
