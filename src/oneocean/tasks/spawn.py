@@ -506,6 +506,11 @@ def route_guide(guide):
     guide : callable or None
         ``guide(grid, stv, rows, n_legs, leg_m, depth_m, clearance, max_turn_rad,
         land_threshold, tries, what) -> (routes, failed)``, :func:`sample_routes`' contract.
+
+    Yields
+    ------
+    None
+        Inside the block, :func:`sample_routes` draws from ``guide``.
     """
     prev = _GUIDE[0]
     _GUIDE[0] = guide

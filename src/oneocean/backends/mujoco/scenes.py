@@ -726,8 +726,18 @@ class SceneRoutes:
 
     # -- the pivot of a try
     def pivot(self, u: np.ndarray) -> tuple[float, float, float]:
-        """The pivot ``(x, z, heading)`` of one try from uniforms ``u`` (>= 5 values in [0, 1)):
-        world m and compass radians."""
+        """The pivot of one try, drawn on the scene's structures.
+
+        Parameters
+        ----------
+        u : numpy.ndarray
+            At least 5 uniforms in [0, 1) (one try's row of the episode's stream).
+
+        Returns
+        -------
+        tuple of float
+            ``(x, z, heading)``: world m and compass radians.
+        """
         kind = self.scene.kind
         st = self.structures
         flip = math.pi if u[4] < 0.5 else 0.0
@@ -777,8 +787,25 @@ class SceneRoutes:
 
     def clear(self, x: np.ndarray, z: np.ndarray, depth: float, clearance: float,
               land_threshold: float) -> bool:
-        """Whether every point ``(x, z)`` at ``depth`` (m) is in the scene's water, with
-        ``clearance`` (m) over the seafloor and the standoff from every structure."""
+        """Whether every point is in the scene's water, clear of seafloor and structures.
+
+        Parameters
+        ----------
+        x, z : numpy.ndarray
+            The points, world m.
+        depth : float
+            Their depth, m.
+        clearance : float
+            Least water under them, m.
+        land_threshold : float
+            Land-mask value from which a node is land.
+
+        Returns
+        -------
+        bool
+            True when every point is in water, ``clearance`` over the seafloor and at least
+            :data:`ROUTE_CLEAR_M` from every structure not that far below ``depth``.
+        """
         if np.any(self._node(self.land, x, z) >= land_threshold):
             return False
         if np.any(-self._node(self.elev, x, z) - depth < clearance):
@@ -794,7 +821,26 @@ class SceneRoutes:
 
     def route(self, u: np.ndarray, n_legs: int, leg_m: float, depth_m, clearance: float,
               max_turn_rad: float, land_threshold: float):
-        """One try: ``(n_legs + 1, 3)`` vertices (world m), or None when it is not clear."""
+        """One try of a route around a pivot on the structures (class doc).
+
+        Parameters
+        ----------
+        u : numpy.ndarray
+            ``8 + n_legs`` uniforms in [0, 1).
+        n_legs : int
+            Legs of the route (0: a single point).
+        leg_m : float
+            Leg length, m.
+        depth_m : sequence of float
+            The task's depth range ``(lo, hi)``, m (capped above a submerged crest).
+        clearance, max_turn_rad, land_threshold : float
+            As in :meth:`clear`; the task's largest heading change between legs, rad.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            ``(n_legs + 1, 3)`` vertices (world m), or None when the try is not clear.
+        """
         lo, hi = float(depth_m[0]), min(float(depth_m[1]), self.depth_cap)
         if hi < lo:
             return None

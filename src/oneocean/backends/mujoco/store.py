@@ -170,8 +170,22 @@ def scene_media(scene, tasks, tiers, seed: int, dynamics: str, frames, media: Ma
 
 
 def scene_current(scene, t: float, gain: float = 1.0) -> tuple[float, float]:
-    """The scene's mean surface current at scene time ``t`` (the nearest earlier node of its
-    time axis), over its water nodes, times ``gain``: (east, north), m s-1 (Fig. 8's arrow)."""
+    """The scene's mean surface current at a scene time (Fig. 8's arrow).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene (its ``grid_data``).
+    t : float
+        Scene time, s: the nearest earlier node of the scene's time axis is used.
+    gain : float, optional
+        Factor on the current (default 1).
+
+    Returns
+    -------
+    tuple of float
+        ``(east, north)``, m s-1: the mean over the scene's water nodes (0, 0 without water).
+    """
     g = scene.grid_data
     ts = np.asarray(g["time_s"], dtype=np.float64)
     k = int(np.clip(np.searchsorted(ts, t, side="right") - 1, 0, ts.size - 1))
