@@ -258,3 +258,33 @@ def test_tides_true_rejected_for_model_output(shared_data):
     with pytest.raises(ConfigError) as err:
         fetch_currents(cfg, "/nonexistent/never.nc", "/tmp")
     _one_line(err, "sources.tides")
+
+
+def test_ugrid_mesh_node_currents(tmp_path):
+    """A UGRID file (SCHISM-like: 2-D, u/v and depth on the nodes) through the mesh path."""
+    import xugrid as xu
+
+    from oneocean.sources.model import _quad_mesh
+
+    lon, lat = np.meshgrid(np.linspace(5.0, 5.1, 25), np.linspace(53.0, 53.08, 20))
+    g = _quad_mesh(lon, lat)
+    times = np.array(["2024-01-01T00", "2024-01-01T01"], "datetime64[ns]")
+    uds = xu.UgridDataset(grids=[g])
+    for name, val in (("u", 0.1 + 2.0 * (g.node_x - 5.0)), ("v", -0.1 + 3.0 * (g.node_y - 53.0))):
+        uds[name] = xr.DataArray(np.repeat(val[None], 2, 0), dims=("time", g.node_dimension),
+                                 attrs={"units": "m s-1"})
+    uds["depth"] = xr.DataArray(np.full(g.n_node, 12.0), dims=(g.node_dimension,),
+                                attrs={"units": "m", "positive": "down"})
+    path = tmp_path / "ugrid.nc"
+    uds.ugrid.to_dataset().assign_coords(time=times).to_netcdf(path)
+    assert detect(path) == "unstructured"
+    cur, bat = read_model(path, {"bbox": {"west": 5.02, "east": 5.08, "south": 53.02,
+                                          "north": 53.06},
+                                 "time": {"start": "2024-01-01T00:00:00",
+                                          "end": "2024-01-01T01:00:00"}, "max_depth_m": 5.0})
+    lon_t, _ = np.meshgrid(cur["longitude"].values, cur["latitude"].values)
+    u = cur["u"].isel(time=0, depth=0).values
+    assert np.isfinite(u).all()
+    np.testing.assert_allclose(u, 0.1 + 2.0 * (lon_t - 5.0), atol=1e-5)
+    assert np.all(bat["elevation"].values == -12.0)
+    assert "depth-averaged" in cur.attrs["model_notes"]
