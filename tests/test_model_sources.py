@@ -288,3 +288,19 @@ def test_ugrid_mesh_node_currents(tmp_path):
     np.testing.assert_allclose(u, 0.1 + 2.0 * (lon_t - 5.0), atol=1e-5)
     assert np.all(bat["elevation"].values == -12.0)
     assert "depth-averaged" in cur.attrs["model_notes"]
+
+
+def test_default_point_keeps_off_the_edge_of_a_small_domain():
+    """The scene anchor on a few-km domain: the deepest water at the edge does not win."""
+    from oneocean.product.exports import EDGE_MARGIN_M, default_point
+
+    lat = np.linspace(37.85, 37.90, 51)                   # ~5.5 km
+    lon = np.linspace(-122.52, -122.46, 61)               # ~5.3 km
+    valid = np.zeros((3, lat.size, lon.size), np.int8)
+    valid[:2, 5:45, 5:55] = 1                            # 2 levels over most of the domain
+    valid[2, :3, :] = 1                                  # a deeper strip along the south edge
+    ds = xr.Dataset({"valid_mask": (("depth", "latitude", "longitude"), valid)},
+                    coords={"latitude": lat, "longitude": lon})
+    p_lat, p_lon = default_point(ds)
+    assert (p_lat - lat[0]) * 111e3 >= EDGE_MARGIN_M
+    assert valid[:, lat == p_lat][:, 0, lon == p_lon].sum() == 2
