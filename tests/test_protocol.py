@@ -226,7 +226,8 @@ def test_readme_ladder_blocks_are_the_workflows_output(tmp_path):
     names = [c.name for c in run_checks(_cells({("G2G", "heuristic", 2): 30}))]
     for name, region in (("README.md", "synthetic_coast"),
                          ("docs/results.md", "synthetic_coast"),
-                         ("docs/results.md", "southern_north_sea_files")):
+                         ("docs/results.md", "southern_north_sea_files"),
+                         ("docs/results.md", "ria_de_arousa_files")):
         begin, end = readme_markers(region)
         assert docs[name].count(begin) == 1 and docs[name].count(end) == 1, (name, region)
         block = docs[name].split(begin)[1].split(end)[0].strip()

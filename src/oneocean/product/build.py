@@ -511,6 +511,9 @@ def _provenance(cfg: dict, variant: str, cur: xr.Dataset, bat: xr.Dataset, paths
                       "masked on land and below the seafloor; land_mask from the bathymetry "
                       "only, current_mask = any(valid_mask)",
     }
+    for key in ("model_layout", "model_notes", "tide_in_currents"):
+        if key in cur.attrs:  # coastal model output (sources.model): its checked assumptions
+            attrs[key] = str(cur.attrs[key])
     for key, ds in (("currents", cur), ("bathymetry", bat)):
         if "request" in ds.attrs:
             attrs[f"request_{key}"] = str(ds.attrs["request"])

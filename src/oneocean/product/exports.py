@@ -177,11 +177,18 @@ def export_grid(product_path, out_path, meta: dict | None = None) -> None:
     _write_export(out_path, arrays)
 
 
+#: The default point keeps this far from the grid's edges when it can (m): a scene's square
+#: (``scenes.list[].size_m``, 600 m by default) around it must fit inside the grid, which on
+#: a few-km coastal domain the wettest column nearest the centre may not allow.
+EDGE_MARGIN_M = 500.0
+
+
 def default_point(ds: xr.Dataset) -> tuple[float, float]:
     """A default point in water: the node of a wettest column closest to the domain centre.
 
     A wettest column has the most valid depth levels; the distance is measured in metres, ties
-    go to the lowest flat index.
+    go to the lowest flat index. Only columns at least :data:`EDGE_MARGIN_M` from every edge of
+    the grid compete (all columns if none of those is wet).
 
     Parameters
     ----------
@@ -205,7 +212,14 @@ def default_point(ds: xr.Dataset) -> tuple[float, float]:
     lat0, lon0 = 0.5 * (lat[0] + lat[-1]), 0.5 * (lon[0] + lon[-1])
     m_lat, m_lon = metres_per_degree(lat0)
     d2 = ((lat[:, None] - lat0) * m_lat) ** 2 + ((lon[None, :] - lon0) * m_lon) ** 2
-    d2 = np.where(count == count.max(), d2, np.inf)
+    y_m = (lat - lat[0]) * m_lat
+    x_m = (lon - lon[0]) * m_lon
+    inner = ((np.minimum(y_m, y_m[-1] - y_m)[:, None] >= EDGE_MARGIN_M)
+             & (np.minimum(x_m, x_m[-1] - x_m)[None, :] >= EDGE_MARGIN_M))
+    if not (inner & (count > 0)).any():
+        inner = np.ones_like(inner)
+    wettest = inner & (count == count[inner].max())
+    d2 = np.where(wettest, d2, np.inf)
     j, i = np.unravel_index(int(np.argmin(d2)), d2.shape)
     return float(lat[j]), float(lon[i])
 

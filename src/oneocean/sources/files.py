@@ -14,6 +14,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import ConfigError, DataError
+from . import model
 from .base import CURRENT_VARS, TIDE_VARS, VAR_ATTRS, file_records, open_raw, read, to_json
 
 
@@ -129,6 +130,12 @@ def currents(cfg: Mapping, cache_dir: str | os.PathLike | None = None) -> xr.Dat
     """
     region = cfg["region"]
     path = _required(cfg, "currents")
+    if model.detect(path) is not None:
+        if cfg["sources"]["tides"]:
+            raise ConfigError(f"sources.tides: must be false for model output ({path}): its "
+                              "u, v already carry the model's own tide")
+        ds, _ = model.read_model(path, region)
+        return ds
     ds = read(path, "currents", CURRENT_VARS, bbox=region["bbox"], time=region["time"],
               max_depth=region["max_depth_m"])
     records = file_records([path])
@@ -172,6 +179,9 @@ def bathymetry(cfg: Mapping, cache_dir: str | os.PathLike | None = None) -> xr.D
         The file is missing, unreadable or does not cover the bbox.
     """
     path = _required(cfg, "bathymetry")
+    if model.detect(path) is not None:
+        _, ds = model.read_model(path, cfg["region"])
+        return ds
     ds = read(path, "bathymetry", bbox=cfg["region"]["bbox"])
     ds.attrs.update(source="files", source_files=to_json(file_records([path])))
     return ds

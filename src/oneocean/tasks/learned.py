@@ -167,15 +167,18 @@ def make_net(weights: dict, task: str, n_episodes: int, n_agents: int) -> Learne
 
     Raises
     ------
-    ConfigError
-        One line when the network was not trained on ``task``.
+    NotApplicable
+        One line when the network was not trained on ``task`` (a ConfigError subclass: the
+        cell is written not applicable with this reason).
     """
-    from ..errors import ConfigError
+    from ..errors import NotApplicable
 
     tasks = [str(t) for t in weights["tasks"]]
     if task not in tasks:
-        raise ConfigError(f"learned controller: the network was trained on tasks {tasks}, "
-                          f"not on {task!r}")
+        # a cell, not a crash: on a small region the teacher had no episodes of this task
+        # (e.g. a scene cell of G2G when the region hosts no G2G training episodes)
+        raise NotApplicable(f"learned controller: the network was trained on tasks {tasks}, "
+                            f"not on {task!r}")
     width = int(weights["w"].shape[1])
     return LearnedNet(np.ascontiguousarray(weights["mu"], dtype=np.float64),
                  np.ascontiguousarray(weights["sd"], dtype=np.float64),
