@@ -14,23 +14,15 @@ from pandas import read_parquet as read_metrics
 
 from oneocean.engine.recording import read_metrics_meta
 from oneocean.tasks import Cell, rollout_to_file
-from oneocean.testing import uniform_grid
+from oneocean.testing import uniform_grid, uniform_temporal
 
 CURRENT = (0.25, 0.1)   # east, north, m/s: the temporal export's current (steady)
-
-
-def _temporal(grid, ce, cn):
-    t = np.asarray(grid["time_s"], dtype=np.float64)
-    return {"time_s": t, "u": np.full_like(t, ce), "v": np.full_like(t, cn),
-            "u_tide": np.zeros_like(t), "v_tide": np.zeros_like(t),
-            "lat": np.array(float(grid["origin_lat"])),
-            "lon": np.array(float(grid["origin_lon"]))}
 
 
 @pytest.fixture(scope="module")
 def scenes():
     g = uniform_grid(*CURRENT, depth_m=40.0, nx=31, ny=31, dx_m=100.0)
-    tmp = _temporal(g, *CURRENT)
+    tmp = uniform_temporal(g, *CURRENT)
     return {kind: build_scene({"name": kind, "kind": kind, "size_m": 600.0,
                                "depth_m": 30.0 if kind != "open_water" else None}, g, tmp)
             for kind in ("open_water", "pier_harbor", "simple_underwater")}
@@ -174,7 +166,7 @@ def test_scene_media_falls_back_to_what_the_scene_hosts(scenes, tmp_path):
     frames[0].parent.mkdir()
     g = uniform_grid(*CURRENT, depth_m=40.0, nx=31, ny=31, dx_m=100.0)
     small = build_scene({"name": "small", "kind": "open_water", "size_m": 160.0}, g,
-                        _temporal(g, *CURRENT))
+                        uniform_temporal(g, *CURRENT))
     try:
         out = scene_media(small, ["G2G", "RF", "SK"], [2, 3], 0, "6dof", frames, media)
     except DataError as exc:   # no EGL on this machine
@@ -185,7 +177,7 @@ def test_scene_media_falls_back_to_what_the_scene_hosts(scenes, tmp_path):
     frames2 = [tmp_path / "b" / f"keyframe_{k}.png" for k in range(2)] + [tmp_path / "b" / "e.gif"]
     frames2[0].parent.mkdir()
     tiny = build_scene({"name": "tiny", "kind": "open_water", "size_m": 100.0, "margin_m": 45},
-                       g, _temporal(g, *CURRENT))
+                       g, uniform_temporal(g, *CURRENT))
     out = scene_media(tiny, ["RF"], [3], 0, "6dof", frames2, media)
     assert (out["task"], out["tier"]) == (None, None) and frames2[-1].stat().st_size > 500
 

@@ -12,23 +12,15 @@ import pytest
 from oneocean.backends.mujoco.scenes import (LANE_OFFSET_M, ROUTE_CLEAR_M, Structure,
                                              build_scene, route_guide)
 from oneocean.tasks import Cell
-from oneocean.testing import uniform_grid
+from oneocean.testing import uniform_grid, uniform_temporal
 
 CURRENT = (0.25, 0.1)
-
-
-def _temporal(grid, ce, cn):
-    t = np.asarray(grid["time_s"], dtype=np.float64)
-    return {"time_s": t, "u": np.full_like(t, ce), "v": np.full_like(t, cn),
-            "u_tide": np.zeros_like(t), "v_tide": np.zeros_like(t),
-            "lat": np.array(float(grid["origin_lat"])),
-            "lon": np.array(float(grid["origin_lon"]))}
 
 
 @pytest.fixture(scope="module")
 def scenes():
     g = uniform_grid(*CURRENT, depth_m=40.0, nx=31, ny=31, dx_m=100.0)
-    tmp = _temporal(g, *CURRENT)
+    tmp = uniform_temporal(g, *CURRENT)
     return {kind: build_scene({"name": kind, "kind": kind, "size_m": 600.0,
                                "depth_m": 30.0 if kind != "open_water" else None}, g, tmp)
             for kind in ("open_water", "dam", "pier_harbor", "simple_underwater")}
@@ -104,7 +96,7 @@ def test_success_differs_between_scene_routes_and_obstacle_free_routes():
     cur = (0.5, 0.2)
     g = uniform_grid(*cur, depth_m=40.0, nx=31, ny=31, dx_m=100.0)
     sc = build_scene({"name": "dam", "kind": "dam", "size_m": 600.0, "depth_m": 30.0}, g,
-                     _temporal(g, *cur))
+                     uniform_temporal(g, *cur))
     out = {}
     for label, s in (("scene", sc), ("free", dataclasses.replace(sc, kind="open_water"))):
         out[label] = Cell(None, "RF", 2, backend="mujoco", scene=s).run(

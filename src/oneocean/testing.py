@@ -179,3 +179,25 @@ def uniform_grid(ce: float = 0.0, cn: float = 0.0, *, depth_m: float = 100.0, nx
     g["u"] = np.full((nt, 2, ny, nx), ce, np.float32)
     g["v"] = np.full((nt, 2, ny, nx), cn, np.float32)
     return g
+
+
+def uniform_temporal(grid: dict, ce: float = 0.0, cn: float = 0.0) -> dict:
+    """The temporal export (scene backend) of a steady, uniform current on ``grid``'s clock.
+
+    Parameters
+    ----------
+    grid : dict
+        A grid export (e.g. :func:`uniform_grid`): its ``time_s`` and origin are used.
+    ce, cn : float, default 0.0
+        The current east / north, m s-1, at every time; no tide.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        ``time_s``, ``u``, ``v``, ``u_tide``, ``v_tide``, ``lat``, ``lon``.
+    """
+    t = np.asarray(grid["time_s"], dtype=np.float64)
+    return {"time_s": t, "u": np.full_like(t, ce), "v": np.full_like(t, cn),
+            "u_tide": np.zeros_like(t), "v_tide": np.zeros_like(t),
+            "lat": np.array(float(grid["origin_lat"])),
+            "lon": np.array(float(grid["origin_lon"]))}
