@@ -91,7 +91,7 @@ def test_fig1_matrix_is_the_registry(tmp_path):
             assert val[("tasks", t, f"core T{k}")] is (k in table["tiers"])
             assert val[("tasks", t, f"mujoco T{k}")] is (k in (table.get("scene_tiers") or {}))
         assert (val[("tasks", t, "mujoco T1")]) is (t in registry.scene_tasks())
-    assert val[("tasks", "G2G", "mujoco T2")] and not val[("tasks", "SPC", "mujoco T2")]
+    assert val[("tasks", "G2G", "mujoco T2")] and not val[("tasks", "DPT", "mujoco T2")]
     for s in vocab.SOURCE_KINDS:
         assert val[("sources", s, "currents")] is (s in CURRENT_SOURCES)
         assert val[("sources", s, "bathymetry")] is (s in BATHYMETRY_SOURCES)

@@ -37,6 +37,7 @@ from typing import Mapping
 import numpy as np
 import xarray as xr
 
+from ..engine import libm
 from ..errors import DataError
 from .base import VAR_ATTRS, _VELOCITY_UNITS, file_records, open_raw, read, to_json
 
@@ -463,7 +464,7 @@ def _curvilinear(raw: xr.Dataset, path: str, region: Mapping) -> tuple[dict, lis
     if u.ndim == 3:
         u, v = u[:, None], v[:, None]
     ur, vr = _rho_average(u, -1, nx), _rho_average(v, -2, ny)
-    ca, sa = np.cos(angle), np.sin(angle)
+    ca, sa = libm.cos(angle), libm.sin(angle)
     ue, vn = ur * ca - vr * sa, ur * sa + vr * ca
     land = mask == 0
     ue[..., land], vn[..., land] = np.nan, np.nan
