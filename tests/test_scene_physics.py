@@ -232,3 +232,19 @@ def test_media_keyframes_and_gif(scenes, tmp_path):
     assert np.abs(first - last).mean() > 0.05  # the agents moved
     gif = Image.open(out["gif"])
     assert gif.n_frames == 6 and out["frames"] == 6
+
+
+def test_media_short_trajectory_gives_every_keyframe(scenes, tmp_path):
+    """The scene alone (no task it can host: a 2-row, hidden trajectory) still writes the
+    configured number of keyframes, the workflow's declared outputs."""
+    from oneocean.backends.mujoco.media import render_media
+    from oneocean.errors import DataError
+
+    traj = np.full((2, 1, dyn.STATE_DIM), np.nan)
+    try:
+        out = render_media(scenes["open_water"], "remus100", traj, tmp_path / "key", None,
+                           keyframes=3, size=(64, 48), fps=5)
+    except DataError as exc:  # no EGL on this machine
+        pytest.skip(str(exc))
+    assert [p.name for p in out["png"]] == ["key_0.png", "key_1.png", "key_2.png"]
+    assert out["png"][1].read_bytes() == out["png"][2].read_bytes()   # the last row, repeated

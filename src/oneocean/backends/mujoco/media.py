@@ -51,7 +51,8 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
         Animated GIF of the whole trajectory (at most :data:`MAX_GIF_FRAMES` frames); None:
         no GIF.
     keyframes : int, default 3
-        Number of keyframe PNGs (>= 1; fewer when T is shorter).
+        Number of keyframe PNGs (>= 1; a trajectory shorter than that repeats frames, so
+        the scene alone, with no task to fly, still gives every keyframe).
     size : (width, height), default (480, 360)
         Image size, pixels (16..1280 x 16..960).
     fps : int, default 10
@@ -205,7 +206,7 @@ def render_media(scene, vehicle, trajectory, out_png_stem, gif_path, *, keyframe
         return renderer.render().copy()
 
     stem = Path(out_png_stem)
-    keys = sorted(set(np.linspace(0, T - 1, keyframes).round().astype(int).tolist()))
+    keys = np.linspace(0, T - 1, keyframes).round().astype(int).tolist()
     pngs = []
     for k, t in enumerate(keys):
         buf = io.BytesIO()
