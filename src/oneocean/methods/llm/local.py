@@ -144,6 +144,11 @@ class LocalClient(CachedClient):
         except ImportError:
             raise ConfigError("model_cfg.model_path is set but xllamacpp is not installed: "
                               f"{RUNTIME_INSTALL}") from None
+        except TypeError as err:   # Cython's shared types: xllamacpp's wheel vs cftime's
+            raise ConfigError(f"xllamacpp cannot load in this process ({err}): its wheel and "
+                              "cftime's (imported with netCDF4) clash; run the LLM cells in "
+                              "a process that has not imported netCDF4 or cftime, as the "
+                              "workflow's planning_llm_cell does") from None
         params = xl.CommonParams()
         params.model.path = str(path)
         params.n_ctx, params.n_parallel = int(config.n_ctx), 1
