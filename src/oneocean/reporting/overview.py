@@ -28,6 +28,7 @@ import pandas as pd
 
 from ..io import read_yaml_mapping
 from .latex import booktabs
+from .tables import _escape
 
 # ------------------------------------------------------------------------------ Table I
 
@@ -93,8 +94,7 @@ def systems_frame(path=None) -> pd.DataFrame:
 
 
 def _tex(text: str) -> str:
-    return (str(text).replace("\\", "\\textbackslash{}").replace("_", r"\_")
-            .replace("%", r"\%").replace("&", r"\&").replace("#", r"\#"))
+    return _escape(str(text).replace("\\", "\\textbackslash{}")).replace("#", r"\#")
 
 
 def systems_latex(df: pd.DataFrame, columns: dict) -> str:
